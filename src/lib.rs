@@ -1,0 +1,7 @@
+//! `frameless`: adaptive frameless rendering.
+//!
+//! A ray tracer for animated scenes whose image is never rendered as a frame. See
+//! `docs/ARCHITECTURE.md` for how data flows from a scene to the displayed image.
+#![deny(missing_docs)]
+
+pub mod scene;
