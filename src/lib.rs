@@ -5,3 +5,9 @@
 #![deny(missing_docs)]
 
 pub mod scene;
+pub mod trace;
+pub mod image;
+pub mod render;
+pub mod sampling;
+pub mod bench;
+pub mod cli;

@@ -1,3 +1,5 @@
-fn main() {
-    println!("Hello, world!");
+//! The `frameless` binary: a thin shell over the library's `cli` module.
+
+fn main() -> std::process::ExitCode {
+    frameless::cli::main()
 }

@@ -341,3 +341,26 @@ impl Scene {
         }
     }
 }
+
+/// Load a scene from a built-in name or a file path (`.aff`; glTF and OBJ to come).
+pub fn load(arg: &str) -> Result<Scene, SceneError> {
+    if let Some(s) = builtin::load(arg) {
+        return Ok(s);
+    }
+    let path = std::path::Path::new(arg);
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "aff" => aff::load(path),
+        "gltf" | "glb" | "obj" => Err(SceneError::Invalid {
+            name: arg.to_string(),
+            message: format!(".{ext} input is not supported yet (see issue: glTF and OBJ)"),
+        }),
+        _ => Err(SceneError::UnknownFormat {
+            path: path.to_path_buf(),
+            builtins: builtin::NAMES.join(", "),
+        }),
+    }
+}

@@ -1,0 +1,131 @@
+//! Command-line arguments (clap derive) and their validation.
+
+use std::{path::PathBuf, str::FromStr};
+
+use clap::{Args, Parser, Subcommand};
+
+/// Largest image side accepted.
+pub const MAX_SIDE: u32 = 16384;
+
+/// An image size `WxH`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size(pub u32, pub u32);
+
+impl FromStr for Size {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let (w, h) = s
+            .split_once(['x', 'X'])
+            .ok_or_else(|| format!("`{s}` is not a size: expected WxH, e.g. 256x256"))?;
+        let side = |v: &str| -> Result<u32, String> {
+            let n: u32 = v.trim().parse().map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
+            if n == 0 || n > MAX_SIDE {
+                return Err(format!("size side {n} out of range 1..={MAX_SIDE}"));
+            }
+            Ok(n)
+        };
+        Ok(Size(side(w)?, side(h)?))
+    }
+}
+
+/// `frameless`: adaptive frameless rendering.
+#[derive(Parser, Debug)]
+#[command(name = "frameless", version, about, long_about = None)]
+pub struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub threads: Option<u16>,
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// List the built-in scenes, one per line.
+    Scenes,
+    /// Render a still reference image by stratified supersampling.
+    Still(StillArgs),
+    /// Measure ray throughput; `--json` prints one JSON object.
+    Bench(BenchArgs),
+}
+
+fn finite_f64(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if !v.is_finite() {
+        return Err(format!("`{s}` is not finite"));
+    }
+    Ok(v)
+}
+
+/// Arguments of `frameless still`.
+#[derive(Args, Debug)]
+pub struct StillArgs {
+    /// Built-in scene name or scene file (.aff).
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Scene time in seconds.
+    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    pub time: f64,
+    /// Image size WxH.
+    #[arg(long, default_value = "512x384")]
+    pub size: Size,
+    /// Samples per pixel (stratified).
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub spp: u32,
+    /// Seed of the sample positions.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Reflection/refraction depth limit.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub max_depth: u32,
+    /// Output PNG file.
+    #[arg(long, default_value = "still.png")]
+    pub out: PathBuf,
+}
+
+/// Arguments of `frameless bench`.
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Built-in scene name or scene file.
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Scene time (default: the start of its animation).
+    #[arg(long, value_parser = finite_f64)]
+    pub time: Option<f64>,
+    /// View size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Rays per timed repetition.
+    #[arg(long, default_value_t = 1 << 19, value_parser = parse_rays)]
+    pub rays: usize,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_rays(s: &str) -> Result<usize, String> {
+    let n: usize = s.parse().map_err(|_| format!("`{s}` is not a whole number"))?;
+    if !(1024..=1 << 28).contains(&n) {
+        return Err(format!("rays {n} out of range 1024..=268435456"));
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes() {
+        assert_eq!("256x128".parse::<Size>().unwrap(), Size(256, 128));
+        assert!("0x10".parse::<Size>().is_err());
+        assert!("100000x10".parse::<Size>().is_err());
+        assert!("abc".parse::<Size>().is_err());
+        assert!("10xq".parse::<Size>().is_err());
+    }
+}

@@ -1,0 +1,130 @@
+//! The command line: raw arguments become validated settings, then built objects.
+
+mod args;
+
+use std::{
+    path::Path,
+    sync::Arc,
+    time::Instant,
+};
+
+use anyhow::{bail, Context, Result};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressStyle};
+
+pub use args::{Cli, Command, Size};
+
+use crate::{
+    bench,
+    render::still,
+    scene::{self, builtin, CameraPath, Scene},
+    trace::{TraceOptions, Tracer},
+};
+
+/// Entry point of the `frameless` binary; returns the process exit code.
+pub fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// Run one parsed command.
+pub fn run(cli: Cli) -> Result<()> {
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build_global()
+            .context("setting the thread count")?;
+    }
+    match cli.command {
+        Command::Scenes => {
+            for (name, desc) in builtin::NAMES.iter().zip(builtin::DESCRIPTIONS) {
+                println!("{name}\t{desc}");
+            }
+            Ok(())
+        }
+        Command::Still(a) => {
+            let scene = load_scene(&a.scene)?;
+            let path = load_camera_path(a.camera_path.as_deref())?;
+            let Size(w, h) = a.size;
+            let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions { max_depth: a.max_depth }).with_camera_path(path);
+            let bar = progress_bar(h as u64, "rendering");
+            let t0 = Instant::now();
+            let img = still::render(&tracer, a.time, a.spp, a.seed, &|rows| bar.set_position(rows as u64));
+            bar.finish_and_clear();
+            if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            }
+            img.save_png(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
+            eprintln!(
+                "wrote {} ({}x{}, {} spp, t = {} s) in {:.2} s",
+                a.out.display(),
+                w,
+                h,
+                a.spp,
+                a.time,
+                t0.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Command::Bench(a) => {
+            let t0 = Instant::now();
+            let scene = load_scene(&a.scene)?;
+            let load_s = t0.elapsed().as_secs_f64();
+            let time = a.time.unwrap_or(scene.time_range().0 as f64);
+            let Size(w, h) = a.size;
+            let t1 = Instant::now();
+            let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions::default());
+            let build_s = t1.elapsed().as_secs_f64();
+            let opts = bench::BenchOptions { rays: a.rays, ..Default::default() };
+            let report = bench::run(&tracer, time, opts, load_s, build_s);
+            if a.json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                println!("scene            {}", report.scene);
+                println!("primitives       {}", report.primitives);
+                println!("load / build     {:.2} s / {:.2} s", report.load_s, report.build_s);
+                println!("threads          {}", report.threads);
+                println!("primary 1 thread {:.2} M rays/s", report.primary_mrays_per_s_1t);
+                println!("primary all      {:.2} M rays/s", report.primary_mrays_per_s_all);
+                println!("shaded 1 thread  {:.0} samples/s", report.shaded_samples_per_s_1t);
+                println!("shaded all       {:.0} samples/s", report.shaded_samples_per_s_all);
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Load a scene from a built-in name or a path, with a helpful error.
+pub fn load_scene(arg: &str) -> Result<Scene> {
+    let looks_like_path = arg.contains('/') || arg.contains('.') || Path::new(arg).exists();
+    if !looks_like_path && builtin::load(arg).is_none() {
+        bail!("unknown scene `{arg}`: built-in scenes are {} (or give a .aff file path)", builtin::NAMES.join(", "));
+    }
+    let bar = ProgressBar::new_spinner().with_message(format!("loading {arg}"));
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    let s = scene::load(arg);
+    bar.finish_and_clear();
+    Ok(s?)
+}
+
+fn load_camera_path(p: Option<&Path>) -> Result<Option<CameraPath>> {
+    p.map(|p| CameraPath::load(p).map_err(anyhow::Error::from)).transpose()
+}
+
+fn progress_bar(len: u64, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len);
+    bar.set_style(
+        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+

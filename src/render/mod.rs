@@ -1,0 +1,3 @@
+//! Image renderers built on the tracer.
+
+pub mod still;

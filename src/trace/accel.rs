@@ -1,0 +1,262 @@
+//! Acceleration structures: one `obvhs` CwBvh per rigid group (the static world is one
+//! big group), a small top level over the animated instances, and a refit Bvh2 for
+//! animated triangles.
+
+use std::time::Duration;
+
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec3A};
+use obvhs::{
+    aabb::Aabb,
+    bvh2::{builder::build_bvh2, Bvh2},
+    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
+    ray::{Ray, RayHit},
+    rt_triangle::RtTriangle,
+    triangle::Triangle as ObTriangle,
+    Boundable, BvhBuildParams,
+};
+
+use super::intersect;
+use crate::scene::{Cone, MaterialId, Sphere, Triangle};
+
+/// Shading attributes of one triangle, in its group's space.
+#[derive(Clone, Copy, Debug)]
+pub struct TriAttr {
+    /// Per-vertex shading normals (the geometric normal when the scene gave none).
+    pub n: [Vec3; 3],
+    /// Per-vertex texture coordinates (zero when the scene gave none).
+    pub uv: [Vec2; 3],
+    /// Material.
+    pub material: MaterialId,
+}
+
+/// An analytic primitive, intersected by brute force (scenes have few of them).
+#[derive(Clone, Copy, Debug)]
+pub enum Analytic {
+    /// A sphere.
+    Sphere(Sphere),
+    /// A cone or cylinder side.
+    Cone(Cone),
+}
+
+impl Analytic {
+    fn intersect(&self, ray: &Ray) -> f32 {
+        match self {
+            Analytic::Sphere(s) => intersect::sphere(s, ray),
+            Analytic::Cone(c) => intersect::cone(c, ray),
+        }
+    }
+    fn aabb(&self) -> Aabb {
+        match self {
+            Analytic::Sphere(s) => intersect::sphere_aabb(s),
+            Analytic::Cone(c) => intersect::cone_aabb(c),
+        }
+    }
+    /// Material of the primitive.
+    pub fn material(&self) -> MaterialId {
+        match self {
+            Analytic::Sphere(s) => s.material,
+            Analytic::Cone(c) => c.material,
+        }
+    }
+    /// Outward normal at a point on the surface.
+    pub fn normal(&self, p: Vec3) -> Vec3 {
+        match self {
+            Analytic::Sphere(s) => intersect::sphere_normal(s, p),
+            Analytic::Cone(c) => intersect::cone_normal(c, p),
+        }
+    }
+}
+
+/// Which primitive of a group a ray hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrimRef {
+    /// Triangle index (in the group's BVH order).
+    Tri(u32),
+    /// Analytic primitive index.
+    Analytic(u32),
+}
+
+/// The build quality used for rigid groups: built once, traced millions of times.
+pub const GROUP_BUILD: BvhBuildParams = BvhBuildParams::medium_build();
+
+/// A rigid set of primitives with its own BVH, in its own space.
+pub struct GroupAccel {
+    bvh: Option<CwBvh>,
+    /// Triangles in BVH leaf order, ready for intersection.
+    pub tris: Vec<RtTriangle>,
+    /// Attributes aligned with `tris`.
+    pub attrs: Vec<TriAttr>,
+    /// Analytic primitives.
+    pub analytic: Vec<Analytic>,
+    /// Bounds of everything in the group.
+    pub aabb: Aabb,
+}
+
+impl GroupAccel {
+    /// Build from triangles (already in the group's space, optionally transformed by
+    /// `xform`) and analytic shapes.
+    pub fn build(triangles: &[Triangle], analytic: Vec<Analytic>) -> Self {
+        let obtris: Vec<ObTriangle> = triangles
+            .iter()
+            .map(|t| ObTriangle {
+                v0: t.p[0].into(),
+                v1: t.p[1].into(),
+                v2: t.p[2].into(),
+            })
+            .collect();
+        let mut aabb = Aabb::empty();
+        for t in &obtris {
+            aabb = aabb.union(&t.aabb());
+        }
+        for a in &analytic {
+            aabb = aabb.union(&a.aabb());
+        }
+        let (bvh, tris, attrs) = if obtris.is_empty() {
+            (None, Vec::new(), Vec::new())
+        } else {
+            let bvh = build_cwbvh_from_tris(&obtris, GROUP_BUILD, &mut Duration::ZERO.clone());
+            let mut tris = Vec::with_capacity(bvh.primitive_indices.len());
+            let mut attrs = Vec::with_capacity(bvh.primitive_indices.len());
+            for &i in &bvh.primitive_indices {
+                let t = &triangles[i as usize];
+                tris.push(RtTriangle::from(&obtris[i as usize]));
+                let ng = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).normalize_or(Vec3::Y);
+                attrs.push(TriAttr {
+                    n: t.n.unwrap_or([ng; 3]),
+                    uv: t.uv.unwrap_or([Vec2::ZERO; 3]),
+                    material: t.material,
+                });
+            }
+            (Some(bvh), tris, attrs)
+        };
+        Self {
+            bvh,
+            tris,
+            attrs,
+            analytic,
+            aabb,
+        }
+    }
+
+    /// Closest hit along `ray` (whose `tmax` bounds the search).
+    #[inline]
+    pub fn closest(&self, ray: &Ray) -> Option<(f32, PrimRef)> {
+        let mut best_t = ray.tmax;
+        let mut best = None;
+        if let Some(bvh) = &self.bvh {
+            let mut hit = RayHit::none();
+            if bvh.ray_traverse(*ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
+                best_t = hit.t;
+                best = Some((hit.t, PrimRef::Tri(hit.primitive_id)));
+            }
+        }
+        for (i, a) in self.analytic.iter().enumerate() {
+            let mut r = *ray;
+            r.tmax = best_t;
+            let t = a.intersect(&r);
+            if t < best_t {
+                best_t = t;
+                best = Some((t, PrimRef::Analytic(i as u32)));
+            }
+        }
+        best
+    }
+
+    /// Whether anything opaque blocks `ray`; transmissive hits multiply `transmission`
+    /// by their material's transmission (looked up through `transmission_of`).
+    #[inline]
+    pub fn occlusion(&self, ray: &Ray, transmission_of: &dyn Fn(MaterialId) -> f32, acc: &mut f32) -> bool {
+        if let Some(bvh) = &self.bvh {
+            let blocked = !bvh.ray_traverse_miss(*ray, |r, id| {
+                let t = self.tris[id].intersect(r);
+                if t.is_finite() {
+                    let tr = transmission_of(self.attrs[id].material);
+                    if tr > 0.0 {
+                        *acc *= tr;
+                        return f32::INFINITY;
+                    }
+                }
+                t
+            });
+            if blocked {
+                return true;
+            }
+        }
+        for a in &self.analytic {
+            if a.intersect(ray).is_finite() {
+                let tr = transmission_of(a.material());
+                if tr > 0.0 {
+                    *acc *= tr;
+                } else {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// Number of primitives.
+    pub fn len(&self) -> usize {
+        self.tris.len() + self.analytic.len()
+    }
+
+    /// Whether the group is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Transform a box by a matrix (bounds of the eight transformed corners).
+pub fn transform_aabb(m: &Mat4, b: &Aabb) -> Aabb {
+    let mut out = Aabb::empty();
+    for i in 0..8 {
+        let c = Vec3A::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        out.extend(m.transform_point3a(c));
+    }
+    out
+}
+
+/// A rigid instance placed in the world at one time.
+#[derive(Clone, Copy, Debug)]
+pub struct InstanceState {
+    /// Index into the tracer's instance groups.
+    pub group: u32,
+    /// Local-to-world matrix.
+    pub world: Mat4,
+    /// World-to-local matrix.
+    pub inv: Mat4,
+    /// Inverse-transpose of the world matrix's linear part, for normals.
+    pub normal: Mat3,
+    /// d(world)/dt, turning local points into world velocities.
+    pub velocity: Mat4,
+    /// World bounds at this time.
+    pub aabb: Aabb,
+}
+
+impl Boundable for InstanceState {
+    fn aabb(&self) -> Aabb {
+        self.aabb
+    }
+}
+
+/// A BVH over boxes, rebuilt per scene state (instances) — tiny, so build speed wins.
+pub fn build_top_level<T: Boundable>(items: &[T]) -> Option<Bvh2> {
+    if items.is_empty() {
+        return None;
+    }
+    Some(build_bvh2(items, BvhBuildParams::fastest_build(), &mut Duration::ZERO.clone()))
+}
+
+/// Boxes with an index, for building BVHs over arbitrary bounds.
+#[derive(Clone, Copy)]
+pub struct BoxPrim(pub Aabb);
+
+impl Boundable for BoxPrim {
+    fn aabb(&self) -> Aabb {
+        self.0
+    }
+}

@@ -1,0 +1,594 @@
+//! The ray tracer: scene state at a time, sample queries, Whitted shading.
+//!
+//! A [`Tracer`] is built once per scene and image size. Scene state (rigid instance
+//! transforms, animated triangle positions, lights, camera) is evaluated per
+//! [`SceneState`]; states are quantized to [`TIME_QUANTUM`] (1 ms) and cached, so a
+//! stream of samples at ever-increasing times rebuilds the small dynamic parts at most a
+//! thousand times per simulated second, never the static world.
+
+pub mod accel;
+pub mod intersect;
+mod shade;
+
+use std::sync::{Arc, Mutex};
+
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec3A};
+use obvhs::{
+    aabb::Aabb,
+    bvh2::Bvh2,
+    ray::{Ray, RayHit},
+    rt_triangle::RtTriangle,
+    triangle::Triangle as ObTriangle,
+    BvhBuildParams,
+};
+
+use crate::scene::{CameraFrame, CameraPath, MaterialId, Scene, Triangle};
+use accel::{build_top_level, transform_aabb, Analytic, BoxPrim, GroupAccel, InstanceState, PrimRef};
+
+/// Scene state is evaluated at multiples of this many seconds (1 ms).
+pub const TIME_QUANTUM: f64 = 1e-3;
+
+/// Rec. 709 luminance of a linear RGB color.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Everything a sample returns (SPEC §2).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Linear RGB radiance.
+    pub color: Vec3,
+    /// Luminance of `color`.
+    pub luminance: f32,
+    /// World-space hit point (the ray's far point when nothing was hit).
+    pub hit_point: Vec3,
+    /// Distance from the eye to the hit point along the ray (`INFINITY` on a miss).
+    pub depth: f32,
+    /// World-space velocity of the hit point at the sample's time (zero if static).
+    pub velocity: Vec3,
+    /// Whether the primary ray hit anything.
+    pub hit: bool,
+}
+
+/// Tracer settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TraceOptions {
+    /// Maximum number of reflection/refraction bounces after the primary hit.
+    pub max_depth: u32,
+}
+
+impl Default for TraceOptions {
+    fn default() -> Self {
+        Self { max_depth: 5 }
+    }
+}
+
+/// Animated triangles at one time: positions, normals and velocities in world space.
+struct AnimState {
+    bvh: Bvh2,
+    tris: Vec<RtTriangle>,
+    normals: Vec<[Vec3; 3]>,
+    velocities: Vec<[Vec3; 3]>,
+}
+
+/// The dynamic part of the scene at one (quantized) time.
+pub struct SceneState {
+    /// The time this state represents, seconds.
+    pub time: f64,
+    /// The camera fixed to the tracer's image size.
+    pub camera: CameraFrame,
+    /// Lights: `(position, color)`.
+    pub lights: Vec<(Vec3, Vec3)>,
+    instances: Vec<InstanceState>,
+    top: Option<Bvh2>,
+    anim: Option<AnimState>,
+}
+
+/// Where a ray hit.
+#[derive(Clone, Copy, Debug)]
+enum HitWhere {
+    Static(PrimRef),
+    Instance(u32, PrimRef),
+    Anim(u32),
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Hit {
+    t: f32,
+    at: HitWhere,
+}
+
+/// Local geometry at a hit, in world space.
+pub(crate) struct Surface {
+    pub p: Vec3,
+    pub ng: Vec3,
+    pub n: Vec3,
+    pub uv: Vec2,
+    pub material: MaterialId,
+    pub velocity: Vec3,
+}
+
+/// A ray tracer for one scene and one image size.
+pub struct Tracer {
+    scene: Arc<Scene>,
+    options: TraceOptions,
+    width: u32,
+    height: u32,
+    camera_path: Option<CameraPath>,
+    static_geo: GroupAccel,
+    instance_groups: Vec<(u32, GroupAccel)>,
+    anim_base: Option<Bvh2>,
+    scene_scale: f32,
+    cache: Mutex<Vec<(i64, Arc<SceneState>)>>,
+}
+
+const CACHE_STATES: usize = 8;
+
+impl Tracer {
+    /// Build acceleration structures for `scene`, rendering `width × height` images.
+    pub fn new(scene: Arc<Scene>, width: u32, height: u32, options: TraceOptions) -> Self {
+        // Groups under no animated node join the static world, baked to world space.
+        let mut static_tris: Vec<Triangle> = Vec::new();
+        let mut static_analytic: Vec<Analytic> = Vec::new();
+        let mut instance_groups = Vec::new();
+        for g in &scene.groups {
+            let analytic: Vec<Analytic> = g
+                .spheres
+                .iter()
+                .map(|s| Analytic::Sphere(*s))
+                .chain(g.cones.iter().map(|c| Analytic::Cone(*c)))
+                .collect();
+            match g.node {
+                Some(node) if scene.node_is_animated(node) => {
+                    instance_groups.push((node, GroupAccel::build(&g.triangles, analytic)));
+                }
+                node => {
+                    let m = node.map_or(Mat4::IDENTITY, |n| scene.node_world(n, 0.0));
+                    if m == Mat4::IDENTITY {
+                        static_tris.extend_from_slice(&g.triangles);
+                        static_analytic.extend(analytic);
+                    } else {
+                        let nm = Mat3::from_mat4(m).inverse().transpose();
+                        static_tris.extend(g.triangles.iter().map(|t| Triangle {
+                            p: t.p.map(|p| m.transform_point3(p)),
+                            n: t.n.map(|n| n.map(|v| (nm * v).normalize_or(Vec3::Y))),
+                            ..*t
+                        }));
+                        // Analytic shapes under a static node: bake what is exact for
+                        // similarity transforms.
+                        let s = Mat3::from_mat4(m).to_cols_array();
+                        let scale = Vec3::new(s[0], s[1], s[2]).length();
+                        static_analytic.extend(analytic.into_iter().map(|a| match a {
+                            Analytic::Sphere(mut sp) => {
+                                sp.center = m.transform_point3(sp.center);
+                                sp.radius *= scale;
+                                Analytic::Sphere(sp)
+                            }
+                            Analytic::Cone(mut c) => {
+                                c.base = m.transform_point3(c.base);
+                                c.apex = m.transform_point3(c.apex);
+                                c.base_radius *= scale;
+                                c.apex_radius *= scale;
+                                Analytic::Cone(c)
+                            }
+                        }));
+                    }
+                }
+            }
+        }
+        let static_geo = GroupAccel::build(&static_tris, static_analytic);
+        let anim_base = if scene.animated_triangles.is_empty() {
+            None
+        } else {
+            let tris = anim_positions(&scene, scene.time_range().0 as f64);
+            let boxes: Vec<BoxPrim> = tris.iter().map(|(t, _, _)| BoxPrim(t.aabb())).collect();
+            let mut params = BvhBuildParams::fast_build();
+            // One triangle per leaf keeps refitting a plain per-node update.
+            params.max_prims_per_leaf = 1;
+            Some(obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut Default::default()))
+        };
+        let mut bounds = static_geo.aabb;
+        for (_, g) in &instance_groups {
+            bounds = bounds.union(&g.aabb);
+        }
+        let d = bounds.diagonal();
+        let scene_scale = if d.is_finite() { d.max_element().max(1e-3) } else { 1.0 };
+        Self {
+            scene,
+            options,
+            width: width.max(1),
+            height: height.max(1),
+            camera_path: None,
+            static_geo,
+            instance_groups,
+            anim_base,
+            scene_scale,
+            cache: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// Replace the scene's camera with a camera path.
+    pub fn with_camera_path(mut self, path: Option<CameraPath>) -> Self {
+        self.camera_path = path;
+        self.cache.lock().unwrap_or_else(|e| e.into_inner()).clear();
+        self
+    }
+
+    /// The scene being traced.
+    pub fn scene(&self) -> &Arc<Scene> {
+        &self.scene
+    }
+
+    /// Image size `(width, height)`.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Tracer options.
+    pub fn options(&self) -> TraceOptions {
+        self.options
+    }
+
+    /// Number of primitives in the static world and in animated instances.
+    pub fn primitive_counts(&self) -> (usize, usize) {
+        (
+            self.static_geo.len(),
+            self.instance_groups.iter().map(|(_, g)| g.len()).sum::<usize>()
+                + self.scene.animated_triangles.len(),
+        )
+    }
+
+    /// Quantize a time to the state grid.
+    pub fn quantize(t: f64) -> i64 {
+        (t / TIME_QUANTUM).round() as i64
+    }
+
+    /// The scene state at time `t` (quantized to [`TIME_QUANTUM`]), cached.
+    pub fn state_at(&self, t: f64) -> Arc<SceneState> {
+        let key = Self::quantize(t);
+        {
+            let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((_, s)) = cache.iter().find(|(k, _)| *k == key) {
+                return s.clone();
+            }
+        }
+        let state = Arc::new(self.build_state(key as f64 * TIME_QUANTUM));
+        let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
+        if cache.len() >= CACHE_STATES {
+            cache.remove(0);
+        }
+        cache.push((key, state.clone()));
+        state
+    }
+
+    fn build_state(&self, time: f64) -> SceneState {
+        let scene = &self.scene;
+        let t = time as f32;
+        let cam = match &self.camera_path {
+            Some(p) => p.at(t),
+            None => scene.camera_at(t),
+        };
+        let camera = cam.frame(self.width, self.height);
+        let lights = scene.lights_at(t);
+        let mut instances = Vec::with_capacity(self.instance_groups.len());
+        for (i, (node, g)) in self.instance_groups.iter().enumerate() {
+            let ns = scene.node_state(*node, t);
+            if !ns.visible || g.is_empty() {
+                continue;
+            }
+            let det = ns.matrix.determinant();
+            if det.abs() < 1e-30 || !det.is_finite() {
+                continue; // squashed to nothing: invisible
+            }
+            instances.push(InstanceState {
+                group: i as u32,
+                world: ns.matrix,
+                inv: ns.matrix.inverse(),
+                normal: Mat3::from_mat4(ns.matrix).inverse().transpose(),
+                velocity: ns.velocity,
+                aabb: transform_aabb(&ns.matrix, &g.aabb),
+            });
+        }
+        let top = build_top_level(&instances);
+        let anim = self.anim_base.as_ref().map(|base| {
+            let data = anim_positions(scene, time);
+            let mut bvh = base.clone();
+            let tris: Vec<RtTriangle> = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| RtTriangle::from(&data[i as usize].0))
+                .collect();
+            let normals = bvh.primitive_indices.iter().map(|&i| data[i as usize].1).collect();
+            let velocities = bvh.primitive_indices.iter().map(|&i| data[i as usize].2).collect();
+            for ni in 0..bvh.nodes.len() {
+                let node = bvh.nodes[ni];
+                if node.is_leaf() {
+                    let mut b = Aabb::empty();
+                    for k in node.first_index..node.first_index + node.prim_count {
+                        b = b.union(&tris[k as usize].aabb());
+                    }
+                    bvh.nodes[ni].set_aabb(b);
+                }
+            }
+            bvh.refit_all();
+            AnimState {
+                bvh,
+                tris,
+                normals,
+                velocities,
+            }
+        });
+        SceneState {
+            time,
+            camera,
+            lights,
+            instances,
+            top,
+            anim,
+        }
+    }
+
+    fn closest(&self, state: &SceneState, ray: &Ray) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut r = *ray;
+        if let Some((t, p)) = self.static_geo.closest(&r) {
+            best = Some(Hit { t, at: HitWhere::Static(p) });
+            r.tmax = t;
+        }
+        if let Some(top) = &state.top {
+            let mut rh = RayHit::none();
+            top.ray_traverse(r, &mut rh, |wr, id| {
+                let inst = &state.instances[top.primitive_indices[id] as usize];
+                let local = Ray::new(
+                    inst.inv.transform_point3a(wr.origin),
+                    inst.inv.transform_vector3a(wr.direction),
+                    wr.tmin,
+                    wr.tmax,
+                );
+                match self.instance_groups[inst.group as usize].1.closest(&local) {
+                    Some((t, p)) => {
+                        best = Some(Hit {
+                            t,
+                            at: HitWhere::Instance(top.primitive_indices[id], p),
+                        });
+                        t
+                    }
+                    None => f32::INFINITY,
+                }
+            });
+            if let Some(h) = best {
+                r.tmax = h.t;
+            }
+        }
+        if let Some(anim) = &state.anim {
+            let mut rh = RayHit::none();
+            if anim.bvh.ray_traverse(r, &mut rh, |wr, id| anim.tris[id].intersect(wr)) {
+                best = Some(Hit { t: rh.t, at: HitWhere::Anim(rh.primitive_id) });
+            }
+        }
+        best
+    }
+
+    /// Transmission along a shadow ray: 0 when blocked by an opaque surface, the
+    /// product of transmissions of transmissive occluders otherwise.
+    fn shadow(&self, state: &SceneState, ray: &Ray) -> f32 {
+        let mats = &self.scene.materials;
+        let tr = |m: MaterialId| mats.get(m as usize).map_or(0.0, |m| m.transmission);
+        let mut acc = 1.0f32;
+        if self.static_geo.occlusion(ray, &tr, &mut acc) {
+            return 0.0;
+        }
+        if let Some(top) = &state.top {
+            let mut blocked = false;
+            top.ray_traverse_miss(*ray, |wr, id| {
+                let inst = &state.instances[top.primitive_indices[id] as usize];
+                let local = Ray::new(
+                    inst.inv.transform_point3a(wr.origin),
+                    inst.inv.transform_vector3a(wr.direction),
+                    wr.tmin,
+                    wr.tmax,
+                );
+                if self.instance_groups[inst.group as usize].1.occlusion(&local, &tr, &mut acc) {
+                    blocked = true;
+                    0.0
+                } else {
+                    f32::INFINITY
+                }
+            });
+            if blocked {
+                return 0.0;
+            }
+        }
+        if let Some(anim) = &state.anim {
+            let scene = &self.scene;
+            let blocked = !anim.bvh.ray_traverse_miss(*ray, |wr, id| {
+                let t = anim.tris[id].intersect(wr);
+                if t.is_finite() {
+                    let src = anim.bvh.primitive_indices[id] as usize;
+                    let m = tr(scene.animated_triangles[src].material);
+                    if m > 0.0 {
+                        acc *= m;
+                        return f32::INFINITY;
+                    }
+                }
+                t
+            });
+            if blocked {
+                return 0.0;
+            }
+        }
+        acc
+    }
+
+    fn surface(&self, state: &SceneState, ray: &Ray, hit: &Hit) -> Surface {
+        let p_world = Vec3::from(ray.origin + ray.direction * hit.t);
+        let group_surface = |g: &GroupAccel, pr: PrimRef, lray: &Ray| -> (Vec3, Vec3, Vec3, Vec2, MaterialId) {
+            let pl = Vec3::from(lray.origin + lray.direction * hit.t);
+            match pr {
+                PrimRef::Tri(i) => {
+                    let tri = &g.tris[i as usize];
+                    let a = &g.attrs[i as usize];
+                    let bc = tri.compute_barycentric(lray);
+                    let (u, v) = (bc.x, bc.y);
+                    let w = 1.0 - u - v;
+                    let ng = Vec3::from(tri.compute_normal());
+                    let n = (a.n[0] * w + a.n[1] * u + a.n[2] * v).normalize_or(ng);
+                    let uv = a.uv[0] * w + a.uv[1] * u + a.uv[2] * v;
+                    (pl, ng, n, uv, a.material)
+                }
+                PrimRef::Analytic(i) => {
+                    let an = &g.analytic[i as usize];
+                    let n = an.normal(pl);
+                    (pl, n, n, Vec2::ZERO, an.material())
+                }
+            }
+        };
+        match hit.at {
+            HitWhere::Static(pr) => {
+                let (_, ng, n, uv, material) = group_surface(&self.static_geo, pr, ray);
+                Surface { p: p_world, ng, n, uv, material, velocity: Vec3::ZERO }
+            }
+            HitWhere::Instance(ii, pr) => {
+                let inst = &state.instances[ii as usize];
+                let lray = Ray::new(
+                    inst.inv.transform_point3a(ray.origin),
+                    inst.inv.transform_vector3a(ray.direction),
+                    ray.tmin,
+                    ray.tmax,
+                );
+                let g = &self.instance_groups[inst.group as usize].1;
+                let (pl, ng, n, uv, material) = group_surface(g, pr, &lray);
+                Surface {
+                    p: p_world,
+                    ng: (inst.normal * ng).normalize_or(Vec3::Y),
+                    n: (inst.normal * n).normalize_or(Vec3::Y),
+                    uv,
+                    material,
+                    velocity: inst.velocity.transform_point3(pl),
+                }
+            }
+            HitWhere::Anim(i) => {
+                let anim = state.anim.as_ref().expect("anim hit implies anim state");
+                let tri = &anim.tris[i as usize];
+                let bc = tri.compute_barycentric(ray);
+                let (u, v) = (bc.x, bc.y);
+                let w = 1.0 - u - v;
+                let ng = Vec3::from(tri.compute_normal());
+                let nn = &anim.normals[i as usize];
+                let vv = &anim.velocities[i as usize];
+                let src = anim.bvh.primitive_indices[i as usize] as usize;
+                Surface {
+                    p: p_world,
+                    ng,
+                    n: (nn[0] * w + nn[1] * u + nn[2] * v).normalize_or(ng),
+                    uv: Vec2::ZERO,
+                    material: self.scene.animated_triangles[src].material,
+                    velocity: vv[0] * w + vv[1] * u + vv[2] * v,
+                }
+            }
+        }
+    }
+
+    /// Offset for secondary ray origins, relative to the scene's size.
+    fn epsilon(&self, p: Vec3) -> f32 {
+        1e-5 * self.scene_scale.max(p.abs().max_element())
+    }
+
+    /// Whether a primary ray through pixel coordinates `(x, y)` hits anything, and
+    /// where (distance). Primary visibility only: the cheapest query, used by benchmarks.
+    pub fn primary_hit(&self, state: &SceneState, x: f32, y: f32) -> Option<f32> {
+        let ray = self.primary_ray(state, x, y);
+        self.closest(state, &ray).map(|h| h.t)
+    }
+
+    fn primary_ray(&self, state: &SceneState, x: f32, y: f32) -> Ray {
+        let cam = &state.camera;
+        Ray::new(Vec3A::from(cam.eye), Vec3A::from(cam.direction(x, y)), cam.hither.max(0.0), f32::INFINITY)
+    }
+
+    /// Trace one fully shaded sample through continuous pixel coordinates `(x, y)` in
+    /// the given state.
+    pub fn sample(&self, state: &SceneState, x: f32, y: f32) -> Sample {
+        let ray = self.primary_ray(state, x, y);
+        match self.closest(state, &ray) {
+            None => {
+                let c = self.scene.background;
+                Sample {
+                    color: c,
+                    luminance: luminance(c),
+                    hit_point: Vec3::from(ray.origin + ray.direction * 1e6),
+                    depth: f32::INFINITY,
+                    velocity: Vec3::ZERO,
+                    hit: false,
+                }
+            }
+            Some(h) => {
+                let s = self.surface(state, &ray, &h);
+                let c = self.shade(state, &ray, &s, 0);
+                Sample {
+                    color: c,
+                    luminance: luminance(c),
+                    hit_point: s.p,
+                    depth: h.t,
+                    velocity: s.velocity,
+                    hit: true,
+                }
+            }
+        }
+    }
+
+    /// Trace one sample at pixel coordinates `(x, y)` and time `t` (SPEC §2's
+    /// `trace(x, y, t)`); the scene state comes from the cache.
+    pub fn trace(&self, x: f32, y: f32, t: f64) -> Sample {
+        let state = self.state_at(t);
+        self.sample(&state, x, y)
+    }
+
+    /// Whether the segment from `from` to `to` is blocked (the sampler's occlusion test).
+    pub fn occluded(&self, state: &SceneState, from: Vec3, to: Vec3) -> bool {
+        let d = to - from;
+        let len = d.length();
+        if len == 0.0 {
+            return false;
+        }
+        let eps = self.epsilon(from);
+        let ray = Ray::new(from.into(), (d / len).into(), eps, (len - eps).max(0.0));
+        self.closest(state, &ray).is_some()
+    }
+}
+
+/// World-space positions, normals and velocities of the animated triangles at `t`.
+fn anim_positions(scene: &Scene, t: f64) -> Vec<(ObTriangle, [Vec3; 3], [Vec3; 3])> {
+    let tf = t as f32;
+    scene
+        .animated_triangles
+        .iter()
+        .map(|at| {
+            let (p, n, v) = at.eval(tf);
+            let (p, n, v) = match at.node {
+                Some(node) => {
+                    let ns = scene.node_state(node, tf);
+                    let nm = Mat3::from_mat4(ns.matrix).inverse().transpose();
+                    (
+                        p.map(|x| ns.matrix.transform_point3(x)),
+                        n.map(|x| (nm * x).normalize_or(Vec3::Y)),
+                        std::array::from_fn(|i| {
+                            ns.matrix.transform_vector3(v[i]) + ns.velocity.transform_point3(p[i])
+                        }),
+                    )
+                }
+                None => (p, n, v),
+            };
+            (
+                ObTriangle {
+                    v0: p[0].into(),
+                    v1: p[1].into(),
+                    v2: p[2].into(),
+                },
+                n,
+                v,
+            )
+        })
+        .collect()
+}

@@ -1,0 +1,104 @@
+//! Whitted shading: ambient, hard shadows and Phong highlights from every point light,
+//! mirror reflection and refraction up to a depth limit.
+//!
+//! Surfaces are shaded two-sided: normals are flipped to face the incoming ray, because
+//! scene meshes do not reliably agree on winding. Transmissive surfaces refract with
+//! Snell's law (total internal reflection goes to the mirror term) and let a fraction
+//! `transmission` of light through in shadow tests.
+
+use glam::{Vec3, Vec3A};
+use obvhs::ray::Ray;
+
+use super::{SceneState, Surface, Tracer};
+
+fn reflect(d: Vec3, n: Vec3) -> Vec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+/// Refract unit `d` through unit `n` (facing against `d`) with ratio `eta = n1/n2`.
+fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let cos_i = -d.dot(n);
+    let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+    (k >= 0.0).then(|| (eta * d + (eta * cos_i - k.sqrt()) * n).normalize())
+}
+
+impl Tracer {
+    pub(crate) fn shade(&self, state: &SceneState, ray: &Ray, s: &Surface, depth: u32) -> Vec3 {
+        let scene = &self.scene;
+        let Some(m) = scene.materials.get(s.material as usize) else {
+            return Vec3::new(1.0, 0.0, 1.0); // unreachable for loaded scenes: loud magenta
+        };
+        let d = Vec3::from(ray.direction).normalize();
+        let entering = s.ng.dot(d) < 0.0;
+        let (ng, mut n) = if entering { (s.ng, s.n) } else { (-s.ng, -s.n) };
+        if n.dot(d) > 0.0 {
+            // Interpolated normal points away from the viewer: fall back to geometry.
+            n = ng;
+        }
+        let tex = m
+            .texture
+            .and_then(|t| scene.textures.get(t as usize))
+            .map_or(Vec3::ONE, |t| t.sample(s.uv));
+        let mut color = scene.ambient * m.ambient * tex;
+        let eps = self.epsilon(s.p);
+        let p_out = s.p + ng * eps;
+        let diffuse = m.diffuse * tex;
+        for &(lp, lc) in &state.lights {
+            let l = lp - p_out;
+            let dist = l.length();
+            if dist <= eps {
+                continue;
+            }
+            let l = l / dist;
+            let ndl = n.dot(l);
+            if ndl <= 0.0 || ng.dot(l) <= 0.0 {
+                continue;
+            }
+            let sray = Ray::new(Vec3A::from(p_out), Vec3A::from(l), 0.0, dist * (1.0 - 1e-5));
+            let vis = self.shadow(state, &sray);
+            if vis <= 0.0 {
+                continue;
+            }
+            let mut c = diffuse * ndl;
+            if m.specular.max_element() > 0.0 {
+                let rv = reflect(-l, n).dot(-d);
+                if rv > 0.0 {
+                    c += m.specular * rv.powf(m.shininess.max(0.0));
+                }
+            }
+            color += lc * vis * c;
+        }
+        if depth >= self.options.max_depth {
+            return color;
+        }
+        let refl_dir = reflect(d, n);
+        let mut mirror_weight = if m.is_reflective() { m.specular } else { Vec3::ZERO };
+        if m.transmission > 0.0 {
+            let ior = m.effective_ior();
+            let eta = if entering { 1.0 / ior } else { ior };
+            match refract(d, n, eta) {
+                Some(t_dir) => {
+                    let origin = s.p - ng * eps;
+                    color += m.transmission * self.radiance(state, origin, t_dir, depth + 1);
+                }
+                None => mirror_weight += Vec3::splat(m.transmission),
+            }
+        }
+        if mirror_weight.max_element() > 0.0 {
+            color += mirror_weight * self.radiance(state, p_out, refl_dir, depth + 1);
+        }
+        color
+    }
+
+    fn radiance(&self, state: &SceneState, origin: Vec3, dir: Vec3, depth: u32) -> Vec3 {
+        let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, f32::INFINITY);
+        match self.closest(state, &ray) {
+            None => self.scene.background,
+            Some(h) => {
+                let s = self.surface(state, &ray, &h);
+                self.shade(state, &ray, &s, depth)
+            }
+        }
+    }
+}
+
