@@ -24,7 +24,11 @@ pub struct BenchOptions {
 
 impl Default for BenchOptions {
     fn default() -> Self {
-        Self { rays: 1 << 19, repeats: 3, seed: 1 }
+        Self {
+            rays: 1 << 19,
+            repeats: 3,
+            seed: 1,
+        }
     }
 }
 
@@ -66,7 +70,10 @@ pub fn random_pixel_order(width: u32, height: u32, n: usize, seed: u64) -> Vec<(
     while out.len() < n {
         rng.shuffle(&mut pixels);
         for &p in pixels.iter().take(n - out.len()) {
-            out.push(((p % width) as f32 + rng.uniform(), (p / width) as f32 + rng.uniform()));
+            out.push((
+                (p % width) as f32 + rng.uniform(),
+                (p / width) as f32 + rng.uniform(),
+            ));
         }
     }
     out
@@ -83,27 +90,56 @@ fn best_rate(repeats: usize, n: usize, mut f: impl FnMut()) -> f64 {
 }
 
 /// Measure the tracer. `load_s` and `build_s` are passed through to the report.
-pub fn run(tracer: &Tracer, time: f64, opts: BenchOptions, load_s: f64, build_s: f64) -> BenchReport {
+pub fn run(
+    tracer: &Tracer,
+    time: f64,
+    opts: BenchOptions,
+    load_s: f64,
+    build_s: f64,
+) -> BenchReport {
     let (w, h) = tracer.size();
     let state = tracer.state_at(time);
     let pts = random_pixel_order(w, h, opts.rays, opts.seed);
     let shaded_pts = &pts[..pts.len() / 4];
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("one-thread pool");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("one-thread pool");
     let chunk = 4096;
     let primary = |pts: &[(f32, f32)]| {
         pts.par_chunks(chunk)
-            .map(|c| c.iter().filter(|(x, y)| tracer.primary_hit(&state, *x, *y).is_some()).count())
+            .map(|c| {
+                c.iter()
+                    .filter(|(x, y)| tracer.primary_hit(&state, *x, *y).is_some())
+                    .count()
+            })
             .sum::<usize>()
     };
     let shaded = |pts: &[(f32, f32)]| {
         pts.par_chunks(chunk / 4)
-            .map(|c| c.iter().map(|(x, y)| tracer.sample(&state, *x, *y).luminance).sum::<f32>())
+            .map(|c| {
+                c.iter()
+                    .map(|(x, y)| tracer.sample(&state, *x, *y).luminance)
+                    .sum::<f32>()
+            })
             .sum::<f32>()
     };
-    let p1 = one.install(|| best_rate(opts.repeats, pts.len(), || { std::hint::black_box(primary(&pts)); }));
-    let pa = best_rate(opts.repeats, pts.len(), || { std::hint::black_box(primary(&pts)); });
-    let s1 = one.install(|| best_rate(opts.repeats, shaded_pts.len(), || { std::hint::black_box(shaded(shaded_pts)); }));
-    let sa = best_rate(opts.repeats, shaded_pts.len(), || { std::hint::black_box(shaded(shaded_pts)); });
+    let p1 = one.install(|| {
+        best_rate(opts.repeats, pts.len(), || {
+            std::hint::black_box(primary(&pts));
+        })
+    });
+    let pa = best_rate(opts.repeats, pts.len(), || {
+        std::hint::black_box(primary(&pts));
+    });
+    let s1 = one.install(|| {
+        best_rate(opts.repeats, shaded_pts.len(), || {
+            std::hint::black_box(shaded(shaded_pts));
+        })
+    });
+    let sa = best_rate(opts.repeats, shaded_pts.len(), || {
+        std::hint::black_box(shaded(shaded_pts));
+    });
     BenchReport {
         scene: tracer.scene().name.clone(),
         width: w,

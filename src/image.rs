@@ -81,7 +81,9 @@ pub fn read_png_rgb8(path: &Path) -> std::io::Result<(u32, u32, Vec<u8>)> {
         png::ColorType::Rgb => data.to_vec(),
         png::ColorType::Rgba => data.chunks(4).flat_map(|c| [c[0], c[1], c[2]]).collect(),
         other => {
-            return Err(std::io::Error::other(format!("unsupported PNG color type {other:?}")));
+            return Err(std::io::Error::other(format!(
+                "unsupported PNG color type {other:?}"
+            )));
         }
     };
     Ok((w, h, rgb))

@@ -4,10 +4,12 @@
 //! `docs/ARCHITECTURE.md` for how data flows from a scene to the displayed image.
 #![deny(missing_docs)]
 
-pub mod scene;
-pub mod trace;
-pub mod image;
-pub mod render;
-pub mod sampling;
 pub mod bench;
 pub mod cli;
+pub mod evaluation;
+pub mod image;
+pub mod methods;
+pub mod render;
+pub mod sampling;
+pub mod scene;
+pub mod trace;

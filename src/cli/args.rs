@@ -18,7 +18,10 @@ impl FromStr for Size {
             .split_once(['x', 'X'])
             .ok_or_else(|| format!("`{s}` is not a size: expected WxH, e.g. 256x256"))?;
         let side = |v: &str| -> Result<u32, String> {
-            let n: u32 = v.trim().parse().map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
+            let n: u32 = v
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
             if n == 0 || n > MAX_SIDE {
                 return Err(format!("size side {n} out of range 1..={MAX_SIDE}"));
             }
@@ -49,6 +52,66 @@ pub enum Command {
     Still(StillArgs),
     /// Measure ray throughput; `--json` prints one JSON object.
     Bench(BenchArgs),
+    /// Gold-standard evaluation: methods vs. the ideal image at every refresh.
+    Eval(EvalArgs),
+}
+
+/// Help text of `--methods`, listing every method (a test keeps it complete).
+pub const METHODS_HELP: &str = "Comma-separated methods to evaluate:
+  ideal                  zero delay, stratified supersampling (the reference)
+  framed-60hz            double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled
+  framed-full            double-buffered, one sample per pixel, frame rate R/(W*H)
+  full-res-60hz          double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate
+  traditional-frameless  random pixel order, each sample at its own time, newest sample per pixel";
+
+/// Arguments of `frameless eval`.
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Built-in scene name or scene file.
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// First evaluated refresh, seconds of scene time.
+    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    pub start: f64,
+    /// Length of the evaluated window, seconds.
+    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    pub duration: f64,
+    /// Display size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Sample budgets, samples per second (e.g. 100k,400k,800k).
+    #[arg(long, default_value = "100k,400k,800k")]
+    pub rates: String,
+    #[arg(long, default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless", long_help = METHODS_HELP, help = "Comma-separated methods (see --help for the list)")]
+    #[allow(missing_docs)]
+    pub methods: String,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Samples per pixel of the ideal images.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub ideal_spp: u32,
+    /// Seconds every method runs before the first evaluated refresh.
+    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    pub warmup: f64,
+    /// Reflection/refraction depth limit.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub max_depth: u32,
+    /// Ideal-image cache directory [default: $FRAMELESS_CACHE or ~/.cache/frameless].
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Compute FLIP on every n-th frame only (RMS and PSNR are computed on every frame).
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..))]
+    pub flip_every: u32,
+    /// Do not read or write the ideal-image cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Output directory.
+    #[arg(long, default_value = "eval-out")]
+    pub out: PathBuf,
 }
 
 fn finite_f64(s: &str) -> Result<f64, String> {
@@ -109,7 +172,9 @@ pub struct BenchArgs {
 }
 
 fn parse_rays(s: &str) -> Result<usize, String> {
-    let n: usize = s.parse().map_err(|_| format!("`{s}` is not a whole number"))?;
+    let n: usize = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a whole number"))?;
     if !(1024..=1 << 28).contains(&n) {
         return Err(format!("rays {n} out of range 1024..=268435456"));
     }
@@ -119,6 +184,14 @@ fn parse_rays(s: &str) -> Result<usize, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn methods_help_lists_every_method() {
+        for m in crate::methods::MethodKind::ALL {
+            assert!(METHODS_HELP.contains(m.name()), "{}", m.name());
+            assert!(METHODS_HELP.contains(m.description()), "{}", m.name());
+        }
+    }
 
     #[test]
     fn sizes() {

@@ -2,11 +2,7 @@
 
 mod args;
 
-use std::{
-    path::Path,
-    sync::Arc,
-    time::Instant,
-};
+use std::{path::Path, sync::Arc, time::Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
@@ -16,6 +12,8 @@ pub use args::{Cli, Command, Size};
 
 use crate::{
     bench,
+    evaluation::{self, report, EvalConfig},
+    methods::MethodKind,
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
@@ -52,15 +50,27 @@ pub fn run(cli: Cli) -> Result<()> {
             let scene = load_scene(&a.scene)?;
             let path = load_camera_path(a.camera_path.as_deref())?;
             let Size(w, h) = a.size;
-            let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions { max_depth: a.max_depth }).with_camera_path(path);
+            let tracer = Tracer::new(
+                Arc::new(scene),
+                w,
+                h,
+                TraceOptions {
+                    max_depth: a.max_depth,
+                },
+            )
+            .with_camera_path(path);
             let bar = progress_bar(h as u64, "rendering");
             let t0 = Instant::now();
-            let img = still::render(&tracer, a.time, a.spp, a.seed, &|rows| bar.set_position(rows as u64));
+            let img = still::render(&tracer, a.time, a.spp, a.seed, &|rows| {
+                bar.set_position(rows as u64)
+            });
             bar.finish_and_clear();
             if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
             }
-            img.save_png(&a.out).with_context(|| format!("writing {}", a.out.display()))?;
+            img.save_png(&a.out)
+                .with_context(|| format!("writing {}", a.out.display()))?;
             eprintln!(
                 "wrote {} ({}x{}, {} spp, t = {} s) in {:.2} s",
                 a.out.display(),
@@ -72,6 +82,7 @@ pub fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
+        Command::Eval(a) => eval(a),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;
@@ -81,22 +92,125 @@ pub fn run(cli: Cli) -> Result<()> {
             let t1 = Instant::now();
             let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions::default());
             let build_s = t1.elapsed().as_secs_f64();
-            let opts = bench::BenchOptions { rays: a.rays, ..Default::default() };
+            let opts = bench::BenchOptions {
+                rays: a.rays,
+                ..Default::default()
+            };
             let report = bench::run(&tracer, time, opts, load_s, build_s);
             if a.json {
                 println!("{}", serde_json::to_string(&report)?);
             } else {
                 println!("scene            {}", report.scene);
                 println!("primitives       {}", report.primitives);
-                println!("load / build     {:.2} s / {:.2} s", report.load_s, report.build_s);
+                println!(
+                    "load / build     {:.2} s / {:.2} s",
+                    report.load_s, report.build_s
+                );
                 println!("threads          {}", report.threads);
-                println!("primary 1 thread {:.2} M rays/s", report.primary_mrays_per_s_1t);
-                println!("primary all      {:.2} M rays/s", report.primary_mrays_per_s_all);
-                println!("shaded 1 thread  {:.0} samples/s", report.shaded_samples_per_s_1t);
-                println!("shaded all       {:.0} samples/s", report.shaded_samples_per_s_all);
+                println!(
+                    "primary 1 thread {:.2} M rays/s",
+                    report.primary_mrays_per_s_1t
+                );
+                println!(
+                    "primary all      {:.2} M rays/s",
+                    report.primary_mrays_per_s_all
+                );
+                println!(
+                    "shaded 1 thread  {:.0} samples/s",
+                    report.shaded_samples_per_s_1t
+                );
+                println!(
+                    "shaded all       {:.0} samples/s",
+                    report.shaded_samples_per_s_all
+                );
             }
             Ok(())
         }
+    }
+}
+
+fn eval(a: args::EvalArgs) -> Result<()> {
+    let rates = a
+        .rates
+        .split(',')
+        .map(report::parse_rate)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(anyhow::Error::msg)
+        .context("--rates")?;
+    let methods = a
+        .methods
+        .split(',')
+        .map(|m| MethodKind::parse(m.trim()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(anyhow::Error::msg)
+        .context("--methods")?;
+    let Size(w, h) = a.size;
+    let cache_dir = if a.no_cache {
+        None
+    } else {
+        Some(a.cache_dir.clone().unwrap_or_else(default_cache_dir))
+    };
+    let mut cfg = EvalConfig {
+        scene_name: a.scene.clone(),
+        camera_path: load_camera_path(a.camera_path.as_deref())?,
+        start: a.start,
+        duration: a.duration,
+        width: w,
+        height: h,
+        rates,
+        methods,
+        seed: a.seed,
+        ideal_spp: a.ideal_spp,
+        warmup: a.warmup,
+        refresh_hz: 60.0,
+        max_depth: a.max_depth,
+        cache_dir,
+        strip_frames: Vec::new(),
+        flip_every: a.flip_every as usize,
+    };
+    let n = cfg.frames();
+    cfg.strip_frames = vec![n / 4, n / 2, (3 * n) / 4];
+    cfg.strip_frames.dedup();
+    cfg.validate().map_err(anyhow::Error::msg)?;
+    let scene = Arc::new(load_scene(&a.scene)?);
+    let bar = progress_bar(0, "evaluating");
+    struct Bar(ProgressBar);
+    impl evaluation::Progress for Bar {
+        fn total(&self, n: u64) {
+            self.0.set_length(n);
+        }
+        fn step(&self, msg: &str) {
+            self.0.set_message(msg.to_string());
+            self.0.inc(1);
+        }
+    }
+    let mut out = evaluation::run(scene, &cfg, &Bar(bar.clone())).map_err(anyhow::Error::msg)?;
+    bar.finish_and_clear();
+    let report = report::write_all(&mut out, &a.out).map_err(anyhow::Error::msg)?;
+    print!("{}", report::markdown(&out.summary));
+    let t = &out.summary.timing;
+    println!(
+        "cost: ideal {:.1} s ({} cached), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s; overhead {:.1}% of the methods' evaluation",
+        t.ideal_s,
+        t.ideal_cache_hits,
+        t.methods_s,
+        t.trace_s,
+        t.metrics_s,
+        t.output_s,
+        100.0 * evaluation::overhead_fraction(t)
+    );
+    println!("report: {}", report.display());
+    Ok(())
+}
+
+/// `$FRAMELESS_CACHE`, else `~/.cache/frameless`, else `.frameless-cache`.
+fn default_cache_dir() -> std::path::PathBuf {
+    if let Some(d) = std::env::var_os("FRAMELESS_CACHE") {
+        return d.into();
+    }
+    match std::env::var_os("HOME") {
+        Some(h) => std::path::PathBuf::from(h).join(".cache/frameless/ideal"),
+        None => ".frameless-cache/ideal".into(),
     }
 }
 
@@ -104,7 +218,10 @@ pub fn run(cli: Cli) -> Result<()> {
 pub fn load_scene(arg: &str) -> Result<Scene> {
     let looks_like_path = arg.contains('/') || arg.contains('.') || Path::new(arg).exists();
     if !looks_like_path && builtin::load(arg).is_none() {
-        bail!("unknown scene `{arg}`: built-in scenes are {} (or give a .aff file path)", builtin::NAMES.join(", "));
+        bail!(
+            "unknown scene `{arg}`: built-in scenes are {} (or give a .aff file path)",
+            builtin::NAMES.join(", ")
+        );
     }
     let bar = ProgressBar::new_spinner().with_message(format!("loading {arg}"));
     bar.enable_steady_tick(std::time::Duration::from_millis(120));
@@ -114,7 +231,8 @@ pub fn load_scene(arg: &str) -> Result<Scene> {
 }
 
 fn load_camera_path(p: Option<&Path>) -> Result<Option<CameraPath>> {
-    p.map(|p| CameraPath::load(p).map_err(anyhow::Error::from)).transpose()
+    p.map(|p| CameraPath::load(p).map_err(anyhow::Error::from))
+        .transpose()
 }
 
 fn progress_bar(len: u64, what: &str) -> ProgressBar {
@@ -127,4 +245,3 @@ fn progress_bar(len: u64, what: &str) -> ProgressBar {
     bar.set_message(what.to_string());
     bar
 }
-

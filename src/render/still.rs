@@ -14,7 +14,13 @@ use crate::{
 
 /// Render the image at time `t` with `spp` samples per pixel. `progress` is called with
 /// the number of rows finished so far (from any thread).
-pub fn render(tracer: &Tracer, t: f64, spp: u32, seed: u64, progress: &(dyn Fn(u32) + Sync)) -> Image {
+pub fn render(
+    tracer: &Tracer,
+    t: f64,
+    spp: u32,
+    seed: u64,
+    progress: &(dyn Fn(u32) + Sync),
+) -> Image {
     let (w, h) = tracer.size();
     let state = tracer.state_at(t);
     let done = std::sync::atomic::AtomicU32::new(0);

@@ -76,10 +76,16 @@ mod tests {
         let mut a = Rng::new(&[1, 2, 3]);
         let mut b = Rng::new(&[1, 2, 3]);
         let xs: Vec<f32> = (0..10000).map(|_| a.uniform()).collect();
-        assert!(xs.iter().zip((0..).map(|_| b.uniform())).all(|(x, y)| *x == y));
+        assert!(xs
+            .iter()
+            .zip((0..).map(|_| b.uniform()))
+            .all(|(x, y)| *x == y));
         assert!(xs.iter().all(|x| (0.0..1.0).contains(x)));
         let mean = xs.iter().sum::<f32>() / xs.len() as f32;
         assert!((mean - 0.5).abs() < 0.02, "{mean}");
-        assert_ne!(Rng::new(&[1, 2, 4]).uniform(), Rng::new(&[1, 2, 3]).uniform());
+        assert_ne!(
+            Rng::new(&[1, 2, 4]).uniform(),
+            Rng::new(&[1, 2, 3]).uniform()
+        );
     }
 }

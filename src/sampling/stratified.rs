@@ -13,7 +13,10 @@ pub fn unit_square(n: u32, rng: &mut Rng) -> Vec<(f32, f32)> {
         (0..n)
             .map(|i| {
                 let (ix, iy) = (i % m, i / m);
-                ((ix as f32 + rng.uniform()) * inv, (iy as f32 + rng.uniform()) * inv)
+                (
+                    (ix as f32 + rng.uniform()) * inv,
+                    (iy as f32 + rng.uniform()) * inv,
+                )
             })
             .collect()
     } else {
@@ -21,7 +24,12 @@ pub fn unit_square(n: u32, rng: &mut Rng) -> Vec<(f32, f32)> {
         let mut cols: Vec<u32> = (0..n).collect();
         rng.shuffle(&mut cols);
         (0..n)
-            .map(|i| ((cols[i as usize] as f32 + rng.uniform()) * inv, (i as f32 + rng.uniform()) * inv))
+            .map(|i| {
+                (
+                    (cols[i as usize] as f32 + rng.uniform()) * inv,
+                    (i as f32 + rng.uniform()) * inv,
+                )
+            })
             .collect()
     }
 }

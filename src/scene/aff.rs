@@ -355,7 +355,10 @@ impl<'a> Lexer<'a> {
             Some(v) => Ok((t, v)),
             None => Err(self.err(
                 t,
-                format!("expected {what} (an integer), found '{}'", show(self.text(t))),
+                format!(
+                    "expected {what} (an integer), found '{}'",
+                    show(self.text(t))
+                ),
             )),
         }
     }
@@ -377,10 +380,7 @@ impl<'a> Lexer<'a> {
         let (t, v) = self.int(what)?;
         match usize::try_from(v) {
             Ok(i) if i < len => Ok(i),
-            _ => Err(self.err(
-                t,
-                format!("{what} {v} out of range (the mesh has {len})"),
-            )),
+            _ => Err(self.err(t, format!("{what} {v} out of range (the mesh has {len})"))),
         }
     }
 
@@ -507,6 +507,7 @@ struct Parser {
     detail: i64,
     material: Material,
     material_ids: HashMap<MaterialKey, MaterialId>,
+    /// Loaded textures by joined path and by canonical path.
     texture_ids: HashMap<PathBuf, TextureId>,
     group_ids: HashMap<Option<NodeId>, usize>,
     frames: Vec<Frame>,
@@ -556,7 +557,7 @@ impl Parser {
 
     fn directive(&mut self, lx: &mut Lexer, t: Tok) -> Res<()> {
         match lx.text(t) {
-            b"v" => self.viewpoint(lx, t),
+            b"v" => self.viewpoint(lx),
             b"b" => {
                 self.scene.background = lx.vec3("a background color component")?;
                 Ok(())
@@ -565,8 +566,8 @@ impl Parser {
                 self.scene.ambient = lx.vec3("an ambient light component")?;
                 Ok(())
             }
-            b"l" => self.light(lx, false),
-            b"la" => self.light(lx, true),
+            b"l" => self.light(lx, t, false),
+            b"la" => self.light(lx, t, true),
             b"f" => self.nff_material(lx),
             b"fm" => self.extended_material(lx),
             b"c" => self.cone(lx, t),
@@ -654,8 +655,14 @@ impl Parser {
 
     fn texture_id(&mut self, lx: &Lexer, t: Tok, name: &str) -> Res<TextureId> {
         let path = lx.dir.join(name);
+        // Textured triangles name their texture one by one: skip the file system for
+        // names seen before, and canonicalise only new ones.
+        if let Some(&id) = self.texture_ids.get(&path) {
+            return Ok(id);
+        }
         let key = identity_of(&path);
         if let Some(&id) = self.texture_ids.get(&key) {
+            self.texture_ids.insert(path, id);
             return Ok(id);
         }
         let tex = Texture::load_ppm(&path)
@@ -663,6 +670,7 @@ impl Parser {
         let id = id32(self.scene.textures.len(), lx, t, "textures")?;
         self.scene.textures.push(tex);
         self.texture_ids.insert(key, id);
+        self.texture_ids.insert(path, id);
         Ok(id)
     }
 
@@ -698,7 +706,7 @@ impl Parser {
 
     // --- directives ----------------------------------------------------------------
 
-    fn viewpoint(&mut self, lx: &mut Lexer, _t: Tok) -> Res<()> {
+    fn viewpoint(&mut self, lx: &mut Lexer) -> Res<()> {
         const FIELDS: &str = "a viewpoint field (from, at, up, angle, hither or resolution)";
         let mut cam = Camera::default();
         let mut resolution = (0u32, 0u32);
@@ -718,10 +726,7 @@ impl Parser {
                 }
             };
             if std::mem::replace(&mut seen[slot], true) {
-                return Err(lx.err(
-                    t,
-                    format!("viewpoint field '{}' given twice", show(field)),
-                ));
+                return Err(lx.err(t, format!("viewpoint field '{}' given twice", show(field))));
             }
             match slot {
                 0 => cam.eye = lx.vec3("a 'from' coordinate")?,
@@ -737,10 +742,9 @@ impl Parser {
                         let (t, v) = lx.int(what)?;
                         match u32::try_from(v) {
                             Ok(s) if (1..=MAX_RESOLUTION).contains(&v) => Ok(s),
-                            _ => Err(lx.err(
-                                t,
-                                format!("{what} {v} out of range 1..={MAX_RESOLUTION}"),
-                            )),
+                            _ => Err(
+                                lx.err(t, format!("{what} {v} out of range 1..={MAX_RESOLUTION}"))
+                            ),
                         }
                     };
                     resolution = (side("the image width")?, side("the image height")?);
@@ -752,7 +756,7 @@ impl Parser {
         Ok(())
     }
 
-    fn light(&mut self, lx: &mut Lexer, animated: bool) -> Res<()> {
+    fn light(&mut self, lx: &mut Lexer, t: Tok, animated: bool) -> Res<()> {
         let name = if animated {
             Some(lx.word("a light name")?.1)
         } else {
@@ -767,6 +771,9 @@ impl Parser {
         if !animated {
             if let Some(f) = self.frames.last() {
                 position = f.statics.transform_point3(position);
+                if !position.is_finite() {
+                    return Err(lx.err(t, "light position overflows after transformation".into()));
+                }
             }
         }
         self.scene.lights.push(Light {
@@ -918,8 +925,11 @@ impl Parser {
             return Err(lx.err(kt, "an animated triangle needs at least one key".into()));
         }
         let cap = k.min(PREALLOC_CAP);
-        let (mut times, mut positions, mut normals) =
-            (Vec::with_capacity(cap), Vec::with_capacity(cap), Vec::with_capacity(cap));
+        let (mut times, mut positions, mut normals) = (
+            Vec::with_capacity(cap),
+            Vec::with_capacity(cap),
+            Vec::with_capacity(cap),
+        );
         for _ in 0..k {
             times.push(lx.number("a key time")?);
             let mut p = [Vec3::ZERO; 3];
@@ -988,10 +998,16 @@ impl Parser {
             next = lx.need("'triangles'")?;
         }
         if lx.text(next) != b"triangles" {
+            let expected = match (&normals, &texcoords) {
+                (_, Some(_)) => "'triangles'",
+                (Some(_), None) => "'texturecoords' or 'triangles'",
+                (None, None) => "'normals', 'texturecoords' or 'triangles'",
+            };
             return Err(lx.err(
                 next,
                 format!(
-                    "expected 'normals', 'texturecoords' or 'triangles' (in this order), found '{}'",
+                    "expected {expected} in mesh (sections come in the order vertices, normals, \
+                     texturecoords, triangles), found '{}'",
                     show(lx.text(next))
                 ),
             ));
@@ -1002,7 +1018,11 @@ impl Parser {
         let mut out = Vec::with_capacity(nf.min(PREALLOC_CAP));
         for _ in 0..nf {
             let mut tri_index = |what: &str, len: usize| -> Res<[usize; 3]> {
-                Ok([lx.index(what, len)?, lx.index(what, len)?, lx.index(what, len)?])
+                Ok([
+                    lx.index(what, len)?,
+                    lx.index(what, len)?,
+                    lx.index(what, len)?,
+                ])
             };
             let vi = tri_index("vertex index", verts.len())?;
             let ni = match &normals {
@@ -1047,7 +1067,10 @@ impl Parser {
         let identity = identity_of(&path);
         let display = path.display().to_string();
         if let Some(pos) = self.includes.iter().position(|(id, _)| *id == identity) {
-            let mut chain: Vec<&str> = self.includes[pos..].iter().map(|(_, d)| d.as_str()).collect();
+            let mut chain: Vec<&str> = self.includes[pos..]
+                .iter()
+                .map(|(_, d)| d.as_str())
+                .collect();
             chain.push(&display);
             return Err(lx.err(name_tok, format!("include cycle: {}", chain.join(" -> "))));
         }
@@ -1064,9 +1087,8 @@ impl Parser {
                 format!("more than {MAX_FILES} files included in one scene"),
             ));
         }
-        let bytes = std::fs::read(&path).map_err(|e| {
-            lx.err(t, format!("cannot read included file {display}: {e}"))
-        })?;
+        let bytes = std::fs::read(&path)
+            .map_err(|e| lx.err(t, format!("cannot read included file {display}: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         self.includes.push((identity, display.clone()));
         let mut inner = Lexer::new(&bytes, &display, dir);
@@ -1154,20 +1176,14 @@ impl Parser {
                 }
             };
             if std::mem::replace(&mut seen[slot], true) {
-                return Err(lx.err(
-                    t,
-                    format!("'{}' given twice in k {name}", show(kind)),
-                ));
+                return Err(lx.err(t, format!("'{}' given twice in k {name}", show(kind))));
             }
             let (ct, n) = lx.count("the key count")?;
             let min = if slot == 3 { 1 } else { MIN_SPLINE_KEYS };
             if n < min {
                 return Err(lx.err(
                     ct,
-                    format!(
-                        "'{}' needs at least {min} keys, found {n}",
-                        show(kind)
-                    ),
+                    format!("'{}' needs at least {min} keys, found {n}", show(kind)),
                 ));
             }
             let cap = n.min(PREALLOC_CAP);
@@ -1264,7 +1280,9 @@ mod tests {
         ] {
             assert_eq!(parse_f32(s.as_bytes()), Ok(v), "{s}");
         }
-        for s in ["", ".", "-", "e5", "1e", "1.2.3", "nan", "inf", "0x10", "1,5"] {
+        for s in [
+            "", ".", "-", "e5", "1e", "1.2.3", "nan", "inf", "0x10", "1,5",
+        ] {
             assert_eq!(parse_f32(s.as_bytes()), Err(NumErr::NotNumber), "{s}");
         }
         assert_eq!(parse_f32(b"1e39"), Err(NumErr::OutOfRange));
@@ -1278,10 +1296,24 @@ mod tests {
         let mut lx = Lexer::new(src, "t", Path::new("."));
         let mut toks = Vec::new();
         while let Some(t) = lx.next() {
-            toks.push((String::from_utf8_lossy(lx.text(t)).into_owned(), t.line, t.col));
+            toks.push((
+                String::from_utf8_lossy(lx.text(t)).into_owned(),
+                t.line,
+                t.col,
+            ));
         }
-        let want = [("x", 1, 1), ("a", 1, 3), ("{", 1, 4), ("1.0", 1, 6), ("}", 2, 1), ("y", 3, 3)];
-        let want: Vec<_> = want.iter().map(|(s, l, c)| (s.to_string(), *l, *c)).collect();
+        let want = [
+            ("x", 1, 1),
+            ("a", 1, 3),
+            ("{", 1, 4),
+            ("1.0", 1, 6),
+            ("}", 2, 1),
+            ("y", 3, 3),
+        ];
+        let want: Vec<_> = want
+            .iter()
+            .map(|(s, l, c)| (s.to_string(), *l, *c))
+            .collect();
         assert_eq!(toks, want);
     }
 

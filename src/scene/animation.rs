@@ -253,14 +253,24 @@ mod tests {
     use super::*;
 
     fn key(time: f32, v: Vec3) -> TcbKey<Vec3> {
-        TcbKey { time, value: v, tension: 0.0, continuity: 0.0, bias: 0.0 }
+        TcbKey {
+            time,
+            value: v,
+            tension: 0.0,
+            continuity: 0.0,
+            bias: 0.0,
+        }
     }
 
     #[test]
     fn linear_data_stays_linear() {
         // Evenly spaced collinear keys: Catmull–Rom reproduces the line exactly.
-        let s = VectorSpline::new((0..5).map(|i| key(i as f32, Vec3::splat(i as f32 * 2.0))).collect())
-            .unwrap();
+        let s = VectorSpline::new(
+            (0..5)
+                .map(|i| key(i as f32, Vec3::splat(i as f32 * 2.0)))
+                .collect(),
+        )
+        .unwrap();
         for t in [1.0, 1.25, 1.5, 2.0, 2.7, 3.0] {
             assert!((s.eval(t) - Vec3::splat(2.0 * t)).length() < 1e-5, "t={t}");
         }
@@ -333,24 +343,39 @@ mod tests {
     }
 
     fn rkey(time: f32, deg: f32) -> TcbKey<(Vec3, f32)> {
-        TcbKey { time, value: (Vec3::Y, deg), tension: 0.0, continuity: 0.0, bias: 0.0 }
+        TcbKey {
+            time,
+            value: (Vec3::Y, deg),
+            tension: 0.0,
+            continuity: 0.0,
+            bias: 0.0,
+        }
     }
 
     #[test]
     fn constant_rate_spin_is_uniform() {
         // Keys 0, 90, 180, 270, 360, 450 degrees about +Y, one per second: a steady spin.
-        let s = RotationSpline::new((0..6).map(|i| rkey(i as f32, 90.0 * i as f32)).collect()).unwrap();
+        let s =
+            RotationSpline::new((0..6).map(|i| rkey(i as f32, 90.0 * i as f32)).collect()).unwrap();
         for t in [1.0f32, 1.5, 2.0, 2.25, 3.9] {
             let q = s.eval(t);
             let expect = Quat::from_axis_angle(Vec3::Y, (90.0 * t).to_radians());
-            assert!(q.dot(expect).abs() > 1.0 - 1e-5, "t={t}: {q:?} vs {expect:?}");
+            assert!(
+                q.dot(expect).abs() > 1.0 - 1e-5,
+                "t={t}: {q:?} vs {expect:?}"
+            );
         }
     }
 
     #[test]
     fn rotation_hits_keys_and_clamps() {
-        let s = RotationSpline::new(vec![rkey(0.0, 0.0), rkey(1.0, 10.0), rkey(2.0, 50.0), rkey(3.0, 60.0)])
-            .unwrap();
+        let s = RotationSpline::new(vec![
+            rkey(0.0, 0.0),
+            rkey(1.0, 10.0),
+            rkey(2.0, 50.0),
+            rkey(3.0, 60.0),
+        ])
+        .unwrap();
         let at = |deg: f32| Quat::from_axis_angle(Vec3::Y, deg.to_radians());
         assert!(s.eval(1.0).dot(at(10.0)).abs() > 1.0 - 1e-6);
         assert!(s.eval(2.0).dot(at(50.0)).abs() > 1.0 - 1e-6);

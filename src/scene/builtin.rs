@@ -41,7 +41,13 @@ struct Builder {
 }
 
 fn key<T>(time: f32, value: T) -> TcbKey<T> {
-    TcbKey { time, value, tension: 0.0, continuity: 0.0, bias: 0.0 }
+    TcbKey {
+        time,
+        value,
+        tension: 0.0,
+        continuity: 0.0,
+        bias: 0.0,
+    }
 }
 
 impl Builder {
@@ -69,29 +75,64 @@ impl Builder {
         if let Some(i) = self.scene.groups.iter().position(|g| g.node == node) {
             return &mut self.scene.groups[i];
         }
-        self.scene.groups.push(Group { node, ..Default::default() });
+        self.scene.groups.push(Group {
+            node,
+            ..Default::default()
+        });
         self.scene.groups.last_mut().expect("just pushed")
     }
 
     fn animated_node(&mut self, name: &str, track: KeyframeTrack) -> NodeId {
-        self.scene.tracks.push(KeyframeTrack { name: name.to_string(), ..track });
+        self.scene.tracks.push(KeyframeTrack {
+            name: name.to_string(),
+            ..track
+        });
         let tid = (self.scene.tracks.len() - 1) as u32;
         self.scene.nodes.push(Node {
             parent: None,
-            kind: NodeKind::Animated { name: name.to_string(), track: Some(tid) },
+            kind: NodeKind::Animated {
+                name: name.to_string(),
+                track: Some(tid),
+            },
         });
         (self.scene.nodes.len() - 1) as NodeId
     }
 
-    fn tri(&mut self, node: Option<NodeId>, p: [Vec3; 3], uv: Option<[Vec2; 3]>, material: MaterialId) {
-        self.group(node).triangles.push(Triangle { p, n: None, uv, material });
+    fn tri(
+        &mut self,
+        node: Option<NodeId>,
+        p: [Vec3; 3],
+        uv: Option<[Vec2; 3]>,
+        material: MaterialId,
+    ) {
+        self.group(node).triangles.push(Triangle {
+            p,
+            n: None,
+            uv,
+            material,
+        });
     }
 
     /// A quad `a b c d` (counter-clockwise), with texture coordinates scaled by `uv_scale`.
     fn quad(&mut self, node: Option<NodeId>, q: [Vec3; 4], uv_scale: Vec2, material: MaterialId) {
-        let uv = [Vec2::ZERO, Vec2::new(uv_scale.x, 0.0), uv_scale, Vec2::new(0.0, uv_scale.y)];
-        self.tri(node, [q[0], q[1], q[2]], Some([uv[0], uv[1], uv[2]]), material);
-        self.tri(node, [q[0], q[2], q[3]], Some([uv[0], uv[2], uv[3]]), material);
+        let uv = [
+            Vec2::ZERO,
+            Vec2::new(uv_scale.x, 0.0),
+            uv_scale,
+            Vec2::new(0.0, uv_scale.y),
+        ];
+        self.tri(
+            node,
+            [q[0], q[1], q[2]],
+            Some([uv[0], uv[1], uv[2]]),
+            material,
+        );
+        self.tri(
+            node,
+            [q[0], q[2], q[3]],
+            Some([uv[0], uv[2], uv[3]]),
+            material,
+        );
     }
 
     /// An axis-aligned box transformed by `m`.
@@ -113,7 +154,13 @@ impl Builder {
 
     /// A capped cylinder from `a` to `b`.
     fn cylinder(&mut self, node: Option<NodeId>, a: Vec3, b: Vec3, r: f32, material: MaterialId) {
-        self.group(node).cones.push(Cone { base: a, base_radius: r, apex: b, apex_radius: r, material });
+        self.group(node).cones.push(Cone {
+            base: a,
+            base_radius: r,
+            apex: b,
+            apex_radius: r,
+            material,
+        });
         let w = (b - a).normalize();
         let u = w.any_orthonormal_vector();
         let v = w.cross(u);
@@ -124,37 +171,69 @@ impl Builder {
                 let t1 = (i + 1) as f32 / segs as f32 * std::f32::consts::TAU;
                 let p0 = center + r * (u * t0.cos() + v * t0.sin());
                 let p1 = center + r * (u * t1.cos() + v * t1.sin());
-                let p = if sign > 0.0 { [center, p0, p1] } else { [center, p1, p0] };
+                let p = if sign > 0.0 {
+                    [center, p0, p1]
+                } else {
+                    [center, p1, p0]
+                };
                 self.tri(node, p, None, material);
             }
         }
     }
 
     fn sphere(&mut self, node: Option<NodeId>, center: Vec3, radius: f32, material: MaterialId) {
-        self.group(node).spheres.push(Sphere { center, radius, material });
+        self.group(node).spheres.push(Sphere {
+            center,
+            radius,
+            material,
+        });
     }
 
     fn light(&mut self, position: Vec3, color: Vec3) {
-        self.scene.lights.push(Light { position, color, track: None, name: None });
+        self.scene.lights.push(Light {
+            position,
+            color,
+            track: None,
+            name: None,
+        });
     }
 
     fn camera(&mut self, base: Camera, track: Option<KeyframeTrack>) {
         let track = track.map(|t| {
-            self.scene.tracks.push(KeyframeTrack { name: "camera".into(), ..t });
+            self.scene.tracks.push(KeyframeTrack {
+                name: "camera".into(),
+                ..t
+            });
             (self.scene.tracks.len() - 1) as u32
         });
-        self.scene.camera = CameraTrack { base, track, resolution: None };
+        self.scene.camera = CameraTrack {
+            base,
+            track,
+            resolution: None,
+        };
     }
 }
 
 fn checker(name: &str, n: u32, a: Vec3, b: Vec3) -> Texture {
-    Texture::from_fn(name, 64, 64, |x, y| if ((x * n / 64) + (y * n / 64)) % 2 == 0 { a } else { b })
+    Texture::from_fn(name, 64, 64, |x, y| {
+        if ((x * n / 64) + (y * n / 64)) % 2 == 0 {
+            a
+        } else {
+            b
+        }
+    })
 }
 
 fn smooth_noise(x: f32, y: f32, seed: u64) -> f32 {
     let (xi, yi) = (x.floor(), y.floor());
     let (fx, fy) = (x - xi, y - yi);
-    let v = |dx: f32, dy: f32| to_unit_f32(hash(&[seed, (xi + dx) as i64 as u64, (yi + dy) as i64 as u64]));
+    let v = |dx: f32, dy: f32| {
+        to_unit_f32(hash(&[
+            seed,
+            (xi + dx) as i64 as u64,
+            (yi + dy) as i64 as u64,
+        ]))
+    };
     let s = |t: f32| t * t * (3.0 - 2.0 * t);
     let (sx, sy) = (s(fx), s(fy));
     let a = v(0.0, 0.0) + (v(1.0, 0.0) - v(0.0, 0.0)) * sx;
@@ -173,8 +252,13 @@ fn fbm(x: f32, y: f32, octaves: u32, seed: u64) -> f32 {
 }
 
 fn yaw_keys(times_yaws: &[(f32, f32)]) -> RotationSpline {
-    RotationSpline::new(times_yaws.iter().map(|&(t, yaw)| key(t, (Vec3::Y, yaw))).collect())
-        .expect("built-in tracks have enough keys")
+    RotationSpline::new(
+        times_yaws
+            .iter()
+            .map(|&(t, yaw)| key(t, (Vec3::Y, yaw)))
+            .collect(),
+    )
+    .expect("built-in tracks have enough keys")
 }
 
 fn positions(keys: &[(f32, Vec3)]) -> VectorSpline {
@@ -186,7 +270,12 @@ pub fn toycar() -> Scene {
     let mut b = Builder::new("toycar");
     b.scene.background = Vec3::new(0.55, 0.65, 0.85);
     b.scene.ambient = Vec3::splat(1.0);
-    let tex = b.texture(checker("checker", 8, Vec3::splat(0.9), Vec3::new(0.15, 0.2, 0.35)));
+    let tex = b.texture(checker(
+        "checker",
+        8,
+        Vec3::splat(0.9),
+        Vec3::new(0.15, 0.2, 0.35),
+    ));
     let floor = b.material(Material {
         ambient: Vec3::splat(0.08),
         diffuse: Vec3::splat(0.7),
@@ -198,7 +287,12 @@ pub fn toycar() -> Scene {
     let s = 6.0;
     b.quad(
         None,
-        [Vec3::new(-s, 0.0, s), Vec3::new(s, 0.0, s), Vec3::new(s, 0.0, -s), Vec3::new(-s, 0.0, -s)],
+        [
+            Vec3::new(-s, 0.0, s),
+            Vec3::new(s, 0.0, s),
+            Vec3::new(s, 0.0, -s),
+            Vec3::new(-s, 0.0, -s),
+        ],
         Vec2::splat(6.0),
         floor,
     );
@@ -221,7 +315,13 @@ pub fn toycar() -> Scene {
     b.sphere(None, Vec3::new(-1.6, 0.7, -1.8), 0.7, mirror);
     b.sphere(None, Vec3::new(1.7, 0.5, -1.2), 0.5, glass);
     let post = b.material(Material::matte(Vec3::new(0.8, 0.7, 0.3)));
-    b.cylinder(None, Vec3::new(0.3, 0.0, -2.6), Vec3::new(0.3, 1.2, -2.6), 0.15, post);
+    b.cylinder(
+        None,
+        Vec3::new(0.3, 0.0, -2.6),
+        Vec3::new(0.3, 1.2, -2.6),
+        0.15,
+        post,
+    );
 
     // The car drives a loop around the origin, facing its direction of travel.
     let n = 9;
@@ -268,19 +368,51 @@ pub fn toycar() -> Scene {
         shininess: 120.0,
         ..Material::default()
     });
-    b.cuboid(Some(car), Mat4::from_scale_rotation_translation(Vec3::new(0.9, 0.22, 0.45), Quat::IDENTITY, Vec3::new(0.0, 0.21, 0.0)), red);
-    b.cuboid(Some(car), Mat4::from_scale_rotation_translation(Vec3::new(0.45, 0.18, 0.4), Quat::IDENTITY, Vec3::new(-0.05, 0.41, 0.0)), win);
+    b.cuboid(
+        Some(car),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(0.9, 0.22, 0.45),
+            Quat::IDENTITY,
+            Vec3::new(0.0, 0.21, 0.0),
+        ),
+        red,
+    );
+    b.cuboid(
+        Some(car),
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(0.45, 0.18, 0.4),
+            Quat::IDENTITY,
+            Vec3::new(-0.05, 0.41, 0.0),
+        ),
+        win,
+    );
     for (x, z) in [(0.3, 0.24), (-0.3, 0.24), (0.3, -0.24), (-0.3, -0.24)] {
         let zs = if z > 0.0 { 0.04 } else { -0.04 };
-        b.cylinder(Some(car), Vec3::new(x, 0.1, z), Vec3::new(x, 0.1, z + zs), 0.1, dark);
+        b.cylinder(
+            Some(car),
+            Vec3::new(x, 0.1, z),
+            Vec3::new(x, 0.1, z + zs),
+            0.1,
+            dark,
+        );
     }
     b.light(Vec3::new(3.0, 5.0, 4.0), Vec3::splat(0.7));
     b.light(Vec3::new(-4.0, 4.0, -1.0), Vec3::splat(0.35));
     b.camera(
-        Camera { eye: Vec3::new(0.0, 2.2, 4.6), at: Vec3::new(0.0, 0.3, -0.4), up: Vec3::Y, fov_y_deg: 45.0, hither: 1e-3 },
+        Camera {
+            eye: Vec3::new(0.0, 2.2, 4.6),
+            at: Vec3::new(0.0, 0.3, -0.4),
+            up: Vec3::Y,
+            fov_y_deg: 45.0,
+            hither: 1e-3,
+        },
         None,
     );
-    b.scene.animation = Some(AnimationRange { start: 0.0, end: 10.0, frames: 601 });
+    b.scene.animation = Some(AnimationRange {
+        start: 0.0,
+        end: 10.0,
+        frames: 601,
+    });
     b.scene
 }
 
@@ -289,7 +421,12 @@ pub fn room() -> Scene {
     let mut b = Builder::new("room");
     b.scene.background = Vec3::ZERO;
     b.scene.ambient = Vec3::ONE;
-    let tiles = b.texture(checker("tiles", 16, Vec3::new(0.8, 0.75, 0.65), Vec3::new(0.45, 0.35, 0.3)));
+    let tiles = b.texture(checker(
+        "tiles",
+        16,
+        Vec3::new(0.8, 0.75, 0.65),
+        Vec3::new(0.45, 0.35, 0.3),
+    ));
     let floor = b.material(Material {
         ambient: Vec3::splat(0.1),
         diffuse: Vec3::splat(0.7),
@@ -298,17 +435,45 @@ pub fn room() -> Scene {
         texture: Some(tiles),
         ..Material::default()
     });
-    let wall = b.material(Material { ambient: Vec3::splat(0.12), ..Material::matte(Vec3::new(0.75, 0.78, 0.7)) });
+    let wall = b.material(Material {
+        ambient: Vec3::splat(0.12),
+        ..Material::matte(Vec3::new(0.75, 0.78, 0.7))
+    });
     let (w, h) = (5.0, 3.0);
-    b.quad(None, [Vec3::new(-w, 0.0, w), Vec3::new(w, 0.0, w), Vec3::new(w, 0.0, -w), Vec3::new(-w, 0.0, -w)], Vec2::splat(5.0), floor);
-    b.quad(None, [Vec3::new(-w, h, -w), Vec3::new(w, h, -w), Vec3::new(w, h, w), Vec3::new(-w, h, w)], Vec2::ONE, wall);
+    b.quad(
+        None,
+        [
+            Vec3::new(-w, 0.0, w),
+            Vec3::new(w, 0.0, w),
+            Vec3::new(w, 0.0, -w),
+            Vec3::new(-w, 0.0, -w),
+        ],
+        Vec2::splat(5.0),
+        floor,
+    );
+    b.quad(
+        None,
+        [
+            Vec3::new(-w, h, -w),
+            Vec3::new(w, h, -w),
+            Vec3::new(w, h, w),
+            Vec3::new(-w, h, w),
+        ],
+        Vec2::ONE,
+        wall,
+    );
     for (a, c) in [
         (Vec3::new(-w, 0.0, -w), Vec3::new(w, 0.0, -w)),
         (Vec3::new(w, 0.0, -w), Vec3::new(w, 0.0, w)),
         (Vec3::new(w, 0.0, w), Vec3::new(-w, 0.0, w)),
         (Vec3::new(-w, 0.0, w), Vec3::new(-w, 0.0, -w)),
     ] {
-        b.quad(None, [a, c, c + Vec3::Y * h, a + Vec3::Y * h], Vec2::ONE, wall);
+        b.quad(
+            None,
+            [a, c, c + Vec3::Y * h, a + Vec3::Y * h],
+            Vec2::ONE,
+            wall,
+        );
     }
     // Clutter: boxes, balls and posts at hashed positions, kept out of the camera's ring.
     let palette = [
@@ -320,15 +485,30 @@ pub fn room() -> Scene {
     ];
     let mats: Vec<MaterialId> = palette
         .iter()
-        .map(|&c| b.material(Material { specular: Vec3::splat(0.2), shininess: 50.0, ..Material::matte(c) }))
+        .map(|&c| {
+            b.material(Material {
+                specular: Vec3::splat(0.2),
+                shininess: 50.0,
+                ..Material::matte(c)
+            })
+        })
         .collect();
-    let shiny = b.material(Material { diffuse: Vec3::splat(0.1), specular: Vec3::splat(0.8), shininess: 200.0, ..Material::default() });
+    let shiny = b.material(Material {
+        diffuse: Vec3::splat(0.1),
+        specular: Vec3::splat(0.8),
+        shininess: 200.0,
+        ..Material::default()
+    });
     let mut placed = 0;
     let mut i = 0u64;
     while placed < 60 && i < 1000 {
         i += 1;
         let r = |k: u64| to_unit_f32(hash(&[77, i, k]));
-        let p = Vec3::new((r(0) - 0.5) * 2.0 * (w - 0.4), 0.0, (r(1) - 0.5) * 2.0 * (w - 0.4));
+        let p = Vec3::new(
+            (r(0) - 0.5) * 2.0 * (w - 0.4),
+            0.0,
+            (r(1) - 0.5) * 2.0 * (w - 0.4),
+        );
         let ring = Vec2::new(p.x, p.z).length();
         if (2.2..3.4).contains(&ring) {
             continue; // the camera's path
@@ -345,7 +525,12 @@ pub fn room() -> Scene {
                 ),
                 m,
             ),
-            1 => b.sphere(None, p + Vec3::Y * size * 0.5, size * 0.5, if r(7) < 0.3 { shiny } else { m }),
+            1 => b.sphere(
+                None,
+                p + Vec3::Y * size * 0.5,
+                size * 0.5,
+                if r(7) < 0.3 { shiny } else { m },
+            ),
             _ => b.cylinder(None, p, p + Vec3::Y * (0.5 + 2.0 * r(5)), size * 0.25, m),
         }
         placed += 1;
@@ -359,12 +544,32 @@ pub fn room() -> Scene {
     for i in -1..=21 {
         let t = i as f32 * 0.5;
         let a = t / 10.0 * std::f32::consts::TAU;
-        tk.push((t, Vec3::new(2.8 * a.sin(), 1.4 + 0.3 * (3.0 * a).sin(), 2.8 * a.cos())));
+        tk.push((
+            t,
+            Vec3::new(2.8 * a.sin(), 1.4 + 0.3 * (3.0 * a).sin(), 2.8 * a.cos()),
+        ));
         rk.push((t, a.to_degrees() + 25.0 * (2.0 * a).sin()));
     }
-    let track = KeyframeTrack { translation: Some(positions(&tk)), rotation: Some(yaw_keys(&rk)), ..Default::default() };
-    b.camera(Camera { eye: tk[1].1, at: Vec3::ZERO, up: Vec3::Y, fov_y_deg: 60.0, hither: 1e-3 }, Some(track));
-    b.scene.animation = Some(AnimationRange { start: 0.0, end: 10.0, frames: 601 });
+    let track = KeyframeTrack {
+        translation: Some(positions(&tk)),
+        rotation: Some(yaw_keys(&rk)),
+        ..Default::default()
+    };
+    b.camera(
+        Camera {
+            eye: tk[1].1,
+            at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+            hither: 1e-3,
+        },
+        Some(track),
+    );
+    b.scene.animation = Some(AnimationRange {
+        start: 0.0,
+        end: 10.0,
+        frames: 601,
+    });
     b.scene
 }
 
@@ -408,7 +613,12 @@ pub fn terrain() -> Scene {
     let g = b.group(None);
     for j in 0..n {
         for i in 0..n {
-            let (a, c, d, e) = (grid(i, j), grid(i + 1, j), grid(i + 1, j + 1), grid(i, j + 1));
+            let (a, c, d, e) = (
+                grid(i, j),
+                grid(i + 1, j),
+                grid(i + 1, j + 1),
+                grid(i, j + 1),
+            );
             for p in [[a, e, d], [a, d, c]] {
                 g.triangles.push(Triangle {
                     p,
@@ -419,12 +629,21 @@ pub fn terrain() -> Scene {
             }
         }
     }
-    let rock = b.material(Material { specular: Vec3::splat(0.1), shininess: 20.0, ..Material::matte(Vec3::new(0.5, 0.48, 0.45)) });
+    let rock = b.material(Material {
+        specular: Vec3::splat(0.1),
+        shininess: 20.0,
+        ..Material::matte(Vec3::new(0.5, 0.48, 0.45))
+    });
     for i in 0..40u64 {
         let r = |k: u64| to_unit_f32(hash(&[31, i, k]));
         let (x, z) = ((r(0) - 0.5) * size * 0.9, (r(1) - 0.5) * size * 0.9);
         let rad = 0.2 + 0.8 * r(2);
-        b.sphere(None, Vec3::new(x, terrain_height(x, z) + rad * 0.4, z), rad, rock);
+        b.sphere(
+            None,
+            Vec3::new(x, terrain_height(x, z) + rad * 0.4, z),
+            rad,
+            rock,
+        );
     }
     b.light(Vec3::new(40.0, 60.0, 30.0), Vec3::splat(0.9));
     // The walk: a gentle curve at walking pace, eye 1.7 above the ground.
@@ -437,9 +656,26 @@ pub fn terrain() -> Scene {
         tk.push((t, Vec3::new(x, terrain_height(x, z) + 1.7, z)));
         rk.push((t, -55.0 + 8.0 * (t * 0.5).sin()));
     }
-    let track = KeyframeTrack { translation: Some(positions(&tk)), rotation: Some(yaw_keys(&rk)), ..Default::default() };
-    b.camera(Camera { eye: tk[1].1, at: tk[2].1, up: Vec3::Y, fov_y_deg: 55.0, hither: 1e-3 }, Some(track));
-    b.scene.animation = Some(AnimationRange { start: 0.0, end: 10.0, frames: 601 });
+    let track = KeyframeTrack {
+        translation: Some(positions(&tk)),
+        rotation: Some(yaw_keys(&rk)),
+        ..Default::default()
+    };
+    b.camera(
+        Camera {
+            eye: tk[1].1,
+            at: tk[2].1,
+            up: Vec3::Y,
+            fov_y_deg: 55.0,
+            hither: 1e-3,
+        },
+        Some(track),
+    );
+    b.scene.animation = Some(AnimationRange {
+        start: 0.0,
+        end: 10.0,
+        frames: 601,
+    });
     b.scene
 }
 

@@ -41,7 +41,10 @@ impl CameraPath {
 
     /// Parse camera path text; `name` is used in error messages.
     pub fn parse(name: &str, text: &str) -> Result<Self, SceneError> {
-        let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty());
         let Some((hl, header)) = lines.next() else {
             return Err(err(name, 1, 1, "empty camera path (expected header line)"));
         };
@@ -63,9 +66,19 @@ impl CameraPath {
             }
             let mut col = 1;
             for (i, f) in fields.iter().enumerate() {
-                vals[i] = f.trim().parse::<f32>().ok().filter(|v| v.is_finite()).ok_or_else(|| {
-                    err(name, ln + 1, col, format!("`{}` is not a finite number", f.trim()))
-                })?;
+                vals[i] = f
+                    .trim()
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(|| {
+                        err(
+                            name,
+                            ln + 1,
+                            col,
+                            format!("`{}` is not a finite number", f.trim()),
+                        )
+                    })?;
                 col += f.len() + 1;
             }
             let v = |i: usize| Vec3::new(vals[i], vals[i + 1], vals[i + 2]);
@@ -77,14 +90,24 @@ impl CameraPath {
                 hither: 1e-3,
             };
             if !(vals[10] > 0.0 && vals[10] < 180.0) {
-                return Err(err(name, ln + 1, col - fields[10].len() - 1, "fov_y_deg must be in (0, 180)"));
+                return Err(err(
+                    name,
+                    ln + 1,
+                    col - fields[10].len() - 1,
+                    "fov_y_deg must be in (0, 180)",
+                ));
             }
             if (cam.at - cam.eye).length_squared() == 0.0 {
                 return Err(err(name, ln + 1, 1, "eye and at coincide"));
             }
             if let Some((pt, _)) = keys.last() {
                 if vals[0] <= *pt {
-                    return Err(err(name, ln + 1, 1, format!("time {} does not increase (previous {pt})", vals[0])));
+                    return Err(err(
+                        name,
+                        ln + 1,
+                        1,
+                        format!("time {} does not increase (previous {pt})", vals[0]),
+                    ));
                 }
             }
             keys.push((vals[0], cam));
@@ -118,7 +141,16 @@ impl CameraPath {
             let _ = writeln!(
                 s,
                 "{t},{},{},{},{},{},{},{},{},{},{}",
-                c.eye.x, c.eye.y, c.eye.z, c.at.x, c.at.y, c.at.z, c.up.x, c.up.y, c.up.z, c.fov_y_deg
+                c.eye.x,
+                c.eye.y,
+                c.eye.z,
+                c.at.x,
+                c.at.y,
+                c.at.z,
+                c.up.x,
+                c.up.y,
+                c.up.z,
+                c.fov_y_deg
             );
         }
         s
@@ -151,7 +183,10 @@ mod tests {
         let e = CameraPath::parse("p.csv", &bad).unwrap_err().to_string();
         assert!(e.contains("p.csv:3:5"), "{e}");
         let unsorted = GOOD.replace("\n2,", "\n0,");
-        assert!(CameraPath::parse("p.csv", &unsorted).unwrap_err().to_string().contains(":3:"));
+        assert!(CameraPath::parse("p.csv", &unsorted)
+            .unwrap_err()
+            .to_string()
+            .contains(":3:"));
         assert!(CameraPath::parse("p.csv", "t,x\n").is_err());
         assert!(CameraPath::parse("p.csv", "").is_err());
         assert!(CameraPath::parse("p.csv", &GOOD.replace(",40", ",40,1")).is_err());

@@ -120,17 +120,23 @@ impl AnimatedTriangle {
     pub fn eval(&self, t: f32) -> ([Vec3; 3], [Vec3; 3], [Vec3; 3]) {
         let n = self.times.len();
         let zero = [Vec3::ZERO; 3];
+        // Key normals in data need not be unit length (museum's are about 0.001).
+        let unit = |ns: [Vec3; 3]| ns.map(|v| v.normalize_or(Vec3::Y));
         if n == 1 || t <= self.times[0] {
-            return (self.positions[0], self.normals[0], zero);
+            return (self.positions[0], unit(self.normals[0]), zero);
         }
         if t >= self.times[n - 1] {
-            return (self.positions[n - 1], self.normals[n - 1], zero);
+            return (self.positions[n - 1], unit(self.normals[n - 1]), zero);
         }
         // First key strictly after t; n >= 2 and times[0] < t < times[n-1] here.
         let k = self.times.partition_point(|&k| k <= t).clamp(1, n - 1);
         let (t0, t1) = (self.times[k - 1], self.times[k]);
         let dt = t1 - t0;
-        let u = if dt > 0.0 { ((t - t0) / dt).clamp(0.0, 1.0) } else { 1.0 };
+        let u = if dt > 0.0 {
+            ((t - t0) / dt).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         let mut p = [Vec3::ZERO; 3];
         let mut nn = [Vec3::ZERO; 3];
         let mut v = [Vec3::ZERO; 3];
@@ -266,7 +272,10 @@ impl Scene {
     pub fn node_visible(&self, id: NodeId, t: f32) -> bool {
         let mut cur = Some(id);
         while let Some(n) = cur {
-            if let NodeKind::Animated { track: Some(tr), .. } = &self.nodes[n as usize].kind {
+            if let NodeKind::Animated {
+                track: Some(tr), ..
+            } = &self.nodes[n as usize].kind
+            {
                 if !self.tracks[*tr as usize].visible(t) {
                     return false;
                 }

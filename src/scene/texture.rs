@@ -1,7 +1,10 @@
 //! Image textures: binary PPM (P6) loading, bilinear lookup with repeat wrap.
 //!
-//! Orientation: row 0 of the file is `v = 0` (BART's OpenGL previewer uploaded rows as
-//! read). Values are used as stored, `byte / 255`, without a gamma curve, matching the
+//! Orientation: `v = 0` is the bottom row of the image and `v = 1` its top row (row 0
+//! of the file), the OpenGL convention for images stored top row first. Checked on the
+//! BART kitchen's license plate, which reads "JOCKE 1" upright only this way (with
+//! row 0 at `v = 0` it is upside down). Loaders of formats with the other convention
+//! (glTF: `v = 0` at the top) flip `v` when they load. Values are used as stored, `byte / 255`, without a gamma curve, matching the
 //! rest of the pipeline, which displays shading values directly.
 
 use std::path::Path;
@@ -147,7 +150,7 @@ impl Texture {
             return self.texels[0];
         }
         let x = uv.x.rem_euclid(1.0) * self.width as f32 - 0.5;
-        let y = uv.y.rem_euclid(1.0) * self.height as f32 - 0.5;
+        let y = (1.0 - uv.y.rem_euclid(1.0)) * self.height as f32 - 0.5;
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);

@@ -29,7 +29,7 @@ pub struct TriAttr {
     pub material: MaterialId,
 }
 
-/// An analytic primitive, intersected by brute force (scenes have few of them).
+/// An analytic primitive (sphere or cone side).
 #[derive(Clone, Copy, Debug)]
 pub enum Analytic {
     /// A sphere.
@@ -76,6 +76,9 @@ pub enum PrimRef {
     Analytic(u32),
 }
 
+/// Analytic sets up to this size are intersected one by one.
+const ANALYTIC_BRUTE_FORCE: usize = 4;
+
 /// The build quality used for rigid groups: built once, traced millions of times.
 pub const GROUP_BUILD: BvhBuildParams = BvhBuildParams::medium_build();
 
@@ -86,8 +89,10 @@ pub struct GroupAccel {
     pub tris: Vec<RtTriangle>,
     /// Attributes aligned with `tris`.
     pub attrs: Vec<TriAttr>,
-    /// Analytic primitives.
+    /// Analytic primitives, in `analytic_bvh` leaf order when there is one.
     pub analytic: Vec<Analytic>,
+    /// BVH over the analytic primitives; small sets are tested one by one.
+    analytic_bvh: Option<Bvh2>,
     /// Bounds of everything in the group.
     pub aabb: Aabb,
 }
@@ -120,7 +125,9 @@ impl GroupAccel {
             for &i in &bvh.primitive_indices {
                 let t = &triangles[i as usize];
                 tris.push(RtTriangle::from(&obtris[i as usize]));
-                let ng = (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]).normalize_or(Vec3::Y);
+                let ng = (t.p[1] - t.p[0])
+                    .cross(t.p[2] - t.p[0])
+                    .normalize_or(Vec3::Y);
                 attrs.push(TriAttr {
                     n: t.n.unwrap_or([ng; 3]),
                     uv: t.uv.unwrap_or([Vec2::ZERO; 3]),
@@ -129,11 +136,28 @@ impl GroupAccel {
             }
             (Some(bvh), tris, attrs)
         };
+        let (analytic, analytic_bvh) = if analytic.len() > ANALYTIC_BRUTE_FORCE {
+            let boxes: Vec<BoxPrim> = analytic.iter().map(|a| BoxPrim(a.aabb())).collect();
+            let bvh = build_bvh2(
+                &boxes,
+                BvhBuildParams::medium_build(),
+                &mut Duration::ZERO.clone(),
+            );
+            let ordered = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| analytic[i as usize])
+                .collect();
+            (ordered, Some(bvh))
+        } else {
+            (analytic, None)
+        };
         Self {
             bvh,
             tris,
             attrs,
             analytic,
+            analytic_bvh,
             aabb,
         }
     }
@@ -150,13 +174,20 @@ impl GroupAccel {
                 best = Some((hit.t, PrimRef::Tri(hit.primitive_id)));
             }
         }
-        for (i, a) in self.analytic.iter().enumerate() {
-            let mut r = *ray;
-            r.tmax = best_t;
-            let t = a.intersect(&r);
-            if t < best_t {
-                best_t = t;
-                best = Some((t, PrimRef::Analytic(i as u32)));
+        let mut r = *ray;
+        r.tmax = best_t;
+        if let Some(abvh) = &self.analytic_bvh {
+            let mut hit = RayHit::none();
+            if abvh.ray_traverse(r, &mut hit, |r, id| self.analytic[id].intersect(r)) {
+                best = Some((hit.t, PrimRef::Analytic(hit.primitive_id)));
+            }
+        } else {
+            for (i, a) in self.analytic.iter().enumerate() {
+                let t = a.intersect(&r);
+                if t < r.tmax {
+                    r.tmax = t;
+                    best = Some((t, PrimRef::Analytic(i as u32)));
+                }
             }
         }
         best
@@ -165,7 +196,12 @@ impl GroupAccel {
     /// Whether anything opaque blocks `ray`; transmissive hits multiply `transmission`
     /// by their material's transmission (looked up through `transmission_of`).
     #[inline]
-    pub fn occlusion(&self, ray: &Ray, transmission_of: &dyn Fn(MaterialId) -> f32, acc: &mut f32) -> bool {
+    pub fn occlusion(
+        &self,
+        ray: &Ray,
+        transmission_of: &dyn Fn(MaterialId) -> f32,
+        acc: &mut f32,
+    ) -> bool {
         if let Some(bvh) = &self.bvh {
             let blocked = !bvh.ray_traverse_miss(*ray, |r, id| {
                 let t = self.tris[id].intersect(r);
@@ -182,8 +218,8 @@ impl GroupAccel {
                 return true;
             }
         }
-        for a in &self.analytic {
-            if a.intersect(ray).is_finite() {
+        let mut test = |a: &Analytic, r: &Ray| -> bool {
+            if a.intersect(r).is_finite() {
                 let tr = transmission_of(a.material());
                 if tr > 0.0 {
                     *acc *= tr;
@@ -191,8 +227,18 @@ impl GroupAccel {
                     return true;
                 }
             }
+            false
+        };
+        match &self.analytic_bvh {
+            Some(abvh) => !abvh.ray_traverse_miss(*ray, |r, id| {
+                if test(&self.analytic[id], r) {
+                    0.0
+                } else {
+                    f32::INFINITY
+                }
+            }),
+            None => self.analytic.iter().any(|a| test(a, ray)),
         }
-        false
     }
 
     /// Number of primitives.
@@ -248,7 +294,11 @@ pub fn build_top_level<T: Boundable>(items: &[T]) -> Option<Bvh2> {
     if items.is_empty() {
         return None;
     }
-    Some(build_bvh2(items, BvhBuildParams::fastest_build(), &mut Duration::ZERO.clone()))
+    Some(build_bvh2(
+        items,
+        BvhBuildParams::fastest_build(),
+        &mut Duration::ZERO.clone(),
+    ))
 }
 
 /// Boxes with an index, for building BVHs over arbitrary bounds.

@@ -43,7 +43,7 @@ pub fn cone(c: &Cone, ray: &Ray) -> f32 {
     let w = axis_full / h;
     let (r0, r1) = (c.base_radius.abs(), c.apex_radius.abs());
     let k = (r1 - r0) / h; // radius slope along the axis
-    // Point p(t) = o + t d; s = (p − base)·w; radial² = |p − base|² − s²; want radial = r0 + k s.
+                           // Point p(t) = o + t d; s = (p − base)·w; radial² = |p − base|² − s²; want radial = r0 + k s.
     let o = ray.origin - base;
     let d = ray.direction;
     let (od, dd, ow, dw) = (o.dot(d), d.dot(d), o.dot(w), d.dot(w));
@@ -117,7 +117,11 @@ mod tests {
 
     #[test]
     fn sphere_hits_front_then_inside() {
-        let s = Sphere { center: Vec3::ZERO, radius: 1.0, material: 0 };
+        let s = Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            material: 0,
+        };
         assert!((sphere(&s, &ray(Vec3::new(0.0, 0.0, 5.0), Vec3::NEG_Z)) - 4.0).abs() < 1e-6);
         // From inside: the far wall.
         assert!((sphere(&s, &ray(Vec3::ZERO, Vec3::X)) - 1.0).abs() < 1e-6);
@@ -128,7 +132,13 @@ mod tests {
 
     #[test]
     fn cylinder_and_cone_sides() {
-        let cyl = Cone { base: Vec3::ZERO, base_radius: 1.0, apex: Vec3::Y * 2.0, apex_radius: 1.0, material: 0 };
+        let cyl = Cone {
+            base: Vec3::ZERO,
+            base_radius: 1.0,
+            apex: Vec3::Y * 2.0,
+            apex_radius: 1.0,
+            material: 0,
+        };
         let t = cone(&cyl, &ray(Vec3::new(5.0, 1.0, 0.0), Vec3::NEG_X));
         assert!((t - 4.0).abs() < 1e-5, "{t}");
         // Above the top: miss (no caps).
@@ -138,7 +148,13 @@ mod tests {
         let n = cone_normal(&cyl, Vec3::new(1.0, 1.0, 0.0));
         assert!((n - Vec3::X).length() < 1e-5);
         // Cone radius 1 at y=0 to 0 at y=1: at y=0.5 the radius is 0.5.
-        let cn = Cone { base: Vec3::ZERO, base_radius: 1.0, apex: Vec3::Y, apex_radius: 0.0, material: 0 };
+        let cn = Cone {
+            base: Vec3::ZERO,
+            base_radius: 1.0,
+            apex: Vec3::Y,
+            apex_radius: 0.0,
+            material: 0,
+        };
         let t = cone(&cn, &ray(Vec3::new(5.0, 0.5, 0.0), Vec3::NEG_X));
         assert!((t - 4.5).abs() < 1e-5, "{t}");
         let n = cone_normal(&cn, Vec3::new(0.5, 0.5, 0.0));

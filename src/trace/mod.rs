@@ -23,7 +23,9 @@ use obvhs::{
 };
 
 use crate::scene::{CameraFrame, CameraPath, MaterialId, Scene, Triangle};
-use accel::{build_top_level, transform_aabb, Analytic, BoxPrim, GroupAccel, InstanceState, PrimRef};
+use accel::{
+    build_top_level, transform_aabb, Analytic, BoxPrim, GroupAccel, InstanceState, PrimRef,
+};
 
 /// Scene state is evaluated at multiples of this many seconds (1 ms).
 pub const TIME_QUANTUM: f64 = 1e-3;
@@ -186,14 +188,22 @@ impl Tracer {
             let mut params = BvhBuildParams::fast_build();
             // One triangle per leaf keeps refitting a plain per-node update.
             params.max_prims_per_leaf = 1;
-            Some(obvhs::bvh2::builder::build_bvh2(&boxes, params, &mut Default::default()))
+            Some(obvhs::bvh2::builder::build_bvh2(
+                &boxes,
+                params,
+                &mut Default::default(),
+            ))
         };
         let mut bounds = static_geo.aabb;
         for (_, g) in &instance_groups {
             bounds = bounds.union(&g.aabb);
         }
         let d = bounds.diagonal();
-        let scene_scale = if d.is_finite() { d.max_element().max(1e-3) } else { 1.0 };
+        let scene_scale = if d.is_finite() {
+            d.max_element().max(1e-3)
+        } else {
+            1.0
+        };
         Self {
             scene,
             options,
@@ -234,7 +244,10 @@ impl Tracer {
     pub fn primitive_counts(&self) -> (usize, usize) {
         (
             self.static_geo.len(),
-            self.instance_groups.iter().map(|(_, g)| g.len()).sum::<usize>()
+            self.instance_groups
+                .iter()
+                .map(|(_, g)| g.len())
+                .sum::<usize>()
                 + self.scene.animated_triangles.len(),
         )
     }
@@ -299,8 +312,16 @@ impl Tracer {
                 .iter()
                 .map(|&i| RtTriangle::from(&data[i as usize].0))
                 .collect();
-            let normals = bvh.primitive_indices.iter().map(|&i| data[i as usize].1).collect();
-            let velocities = bvh.primitive_indices.iter().map(|&i| data[i as usize].2).collect();
+            let normals = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| data[i as usize].1)
+                .collect();
+            let velocities = bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| data[i as usize].2)
+                .collect();
             for ni in 0..bvh.nodes.len() {
                 let node = bvh.nodes[ni];
                 if node.is_leaf() {
@@ -333,7 +354,10 @@ impl Tracer {
         let mut best: Option<Hit> = None;
         let mut r = *ray;
         if let Some((t, p)) = self.static_geo.closest(&r) {
-            best = Some(Hit { t, at: HitWhere::Static(p) });
+            best = Some(Hit {
+                t,
+                at: HitWhere::Static(p),
+            });
             r.tmax = t;
         }
         if let Some(top) = &state.top {
@@ -363,8 +387,14 @@ impl Tracer {
         }
         if let Some(anim) = &state.anim {
             let mut rh = RayHit::none();
-            if anim.bvh.ray_traverse(r, &mut rh, |wr, id| anim.tris[id].intersect(wr)) {
-                best = Some(Hit { t: rh.t, at: HitWhere::Anim(rh.primitive_id) });
+            if anim
+                .bvh
+                .ray_traverse(r, &mut rh, |wr, id| anim.tris[id].intersect(wr))
+            {
+                best = Some(Hit {
+                    t: rh.t,
+                    at: HitWhere::Anim(rh.primitive_id),
+                });
             }
         }
         best
@@ -389,7 +419,10 @@ impl Tracer {
                     wr.tmin,
                     wr.tmax,
                 );
-                if self.instance_groups[inst.group as usize].1.occlusion(&local, &tr, &mut acc) {
+                if self.instance_groups[inst.group as usize]
+                    .1
+                    .occlusion(&local, &tr, &mut acc)
+                {
                     blocked = true;
                     0.0
                 } else {
@@ -423,31 +456,39 @@ impl Tracer {
 
     fn surface(&self, state: &SceneState, ray: &Ray, hit: &Hit) -> Surface {
         let p_world = Vec3::from(ray.origin + ray.direction * hit.t);
-        let group_surface = |g: &GroupAccel, pr: PrimRef, lray: &Ray| -> (Vec3, Vec3, Vec3, Vec2, MaterialId) {
-            let pl = Vec3::from(lray.origin + lray.direction * hit.t);
-            match pr {
-                PrimRef::Tri(i) => {
-                    let tri = &g.tris[i as usize];
-                    let a = &g.attrs[i as usize];
-                    let bc = tri.compute_barycentric(lray);
-                    let (u, v) = (bc.x, bc.y);
-                    let w = 1.0 - u - v;
-                    let ng = Vec3::from(tri.compute_normal());
-                    let n = (a.n[0] * w + a.n[1] * u + a.n[2] * v).normalize_or(ng);
-                    let uv = a.uv[0] * w + a.uv[1] * u + a.uv[2] * v;
-                    (pl, ng, n, uv, a.material)
+        let group_surface =
+            |g: &GroupAccel, pr: PrimRef, lray: &Ray| -> (Vec3, Vec3, Vec3, Vec2, MaterialId) {
+                let pl = Vec3::from(lray.origin + lray.direction * hit.t);
+                match pr {
+                    PrimRef::Tri(i) => {
+                        let tri = &g.tris[i as usize];
+                        let a = &g.attrs[i as usize];
+                        let bc = tri.compute_barycentric(lray);
+                        let (u, v) = (bc.x, bc.y);
+                        let w = 1.0 - u - v;
+                        let ng = Vec3::from(tri.compute_normal());
+                        let n = (a.n[0] * w + a.n[1] * u + a.n[2] * v).normalize_or(ng);
+                        let uv = a.uv[0] * w + a.uv[1] * u + a.uv[2] * v;
+                        (pl, ng, n, uv, a.material)
+                    }
+                    PrimRef::Analytic(i) => {
+                        let an = &g.analytic[i as usize];
+                        let n = an.normal(pl);
+                        (pl, n, n, Vec2::ZERO, an.material())
+                    }
                 }
-                PrimRef::Analytic(i) => {
-                    let an = &g.analytic[i as usize];
-                    let n = an.normal(pl);
-                    (pl, n, n, Vec2::ZERO, an.material())
-                }
-            }
-        };
+            };
         match hit.at {
             HitWhere::Static(pr) => {
                 let (_, ng, n, uv, material) = group_surface(&self.static_geo, pr, ray);
-                Surface { p: p_world, ng, n, uv, material, velocity: Vec3::ZERO }
+                Surface {
+                    p: p_world,
+                    ng,
+                    n,
+                    uv,
+                    material,
+                    velocity: Vec3::ZERO,
+                }
             }
             HitWhere::Instance(ii, pr) => {
                 let inst = &state.instances[ii as usize];
@@ -504,7 +545,12 @@ impl Tracer {
 
     fn primary_ray(&self, state: &SceneState, x: f32, y: f32) -> Ray {
         let cam = &state.camera;
-        Ray::new(Vec3A::from(cam.eye), Vec3A::from(cam.direction(x, y)), cam.hither.max(0.0), f32::INFINITY)
+        Ray::new(
+            Vec3A::from(cam.eye),
+            Vec3A::from(cam.direction(x, y)),
+            cam.hither.max(0.0),
+            f32::INFINITY,
+        )
     }
 
     /// Trace one fully shaded sample through continuous pixel coordinates `(x, y)` in

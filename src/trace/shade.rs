@@ -72,7 +72,11 @@ impl Tracer {
             return color;
         }
         let refl_dir = reflect(d, n);
-        let mut mirror_weight = if m.is_reflective() { m.specular } else { Vec3::ZERO };
+        let mut mirror_weight = if m.is_reflective() {
+            m.specular
+        } else {
+            Vec3::ZERO
+        };
         if m.transmission > 0.0 {
             let ior = m.effective_ior();
             let eta = if entering { 1.0 / ior } else { ior };
@@ -101,4 +105,3 @@ impl Tracer {
         }
     }
 }
-

@@ -1,0 +1,75 @@
+//! Image comparison metrics, on images as displayed (8-bit RGB).
+
+use flip_rs::{ldr_flip, RgbImage, DEFAULT_PPD};
+
+/// PSNR reported for identical images (instead of infinity, which JSON cannot hold).
+pub const PSNR_CAP_DB: f64 = 99.0;
+
+/// Root-mean-square error over all channels, in 0–255 units.
+pub fn rms(a: &[u8], b: &[u8]) -> f64 {
+    assert_eq!(a.len(), b.len(), "images must have the same size");
+    if a.is_empty() {
+        return 0.0;
+    }
+    let sum: u64 = a
+        .iter()
+        .zip(b)
+        .map(|(&x, &y)| {
+            let d = x as i64 - y as i64;
+            (d * d) as u64
+        })
+        .sum();
+    (sum as f64 / a.len() as f64).sqrt()
+}
+
+/// Peak signal-to-noise ratio in dB for a given RMS (peak 255), capped at
+/// [`PSNR_CAP_DB`].
+pub fn psnr(rms: f64) -> f64 {
+    if rms <= 0.0 {
+        return PSNR_CAP_DB;
+    }
+    (20.0 * (255.0 / rms).log10()).min(PSNR_CAP_DB)
+}
+
+/// Mean FLIP error (NVIDIA's LDR-FLIP, default viewing distance: 67 pixels per degree)
+/// between a reference and a test image of `w × h` 8-bit RGB pixels.
+pub fn flip_mean(reference: &[u8], test: &[u8], w: u32, h: u32) -> f64 {
+    let r = RgbImage::new(w as usize, h as usize, reference.to_vec());
+    let t = RgbImage::new(w as usize, h as usize, test.to_vec());
+    match (r, t) {
+        (Ok(r), Ok(t)) => {
+            ldr_flip(&r, &t, DEFAULT_PPD).map_or(f64::NAN, |m| m.statistics().mean as f64)
+        }
+        _ => f64::NAN,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rms_and_psnr_on_known_images() {
+        let a = vec![0u8; 12];
+        let mut b = vec![0u8; 12];
+        assert_eq!(rms(&a, &b), 0.0);
+        assert_eq!(psnr(0.0), PSNR_CAP_DB);
+        // One channel off by 12 among 12 values: RMS = sqrt(144/12) = sqrt(12).
+        b[5] = 12;
+        assert!((rms(&a, &b) - 12f64.sqrt()).abs() < 1e-12);
+        // All channels off by 255: RMS 255, PSNR 0 dB.
+        let c = vec![255u8; 12];
+        assert_eq!(rms(&a, &c), 255.0);
+        assert!(psnr(255.0).abs() < 1e-12);
+        // RMS 25.5 is 20 dB.
+        assert!((psnr(25.5) - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn flip_is_zero_for_identical_and_positive_otherwise() {
+        let a: Vec<u8> = (0..16 * 16 * 3).map(|i| (i * 7 % 256) as u8).collect();
+        assert_eq!(flip_mean(&a, &a, 16, 16), 0.0);
+        let b: Vec<u8> = a.iter().map(|v| v.wrapping_add(40)).collect();
+        assert!(flip_mean(&a, &b, 16, 16) > 0.01);
+    }
+}

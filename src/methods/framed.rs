@@ -1,0 +1,217 @@
+//! Framed, double-buffered rendering (SPEC §5).
+//!
+//! Frame `j` starts at `start + j·D`, sees the scene as it is at its start, completes at
+//! `start + (j+1)·D` and is shown from the first refresh at or after completion until
+//! the next frame is shown. Three variants:
+//! - `framed-60hz`: `D = 1/60 s`, at most `R/60` samples per frame at reduced resolution
+//!   (aspect kept), upscaled bilinearly;
+//! - `framed-full`: one sample per display pixel, `D = W·H/R`;
+//! - `full-res-60hz`: one sample per display pixel, `D = 1/60 s`, i.e. its own budget
+//!   `W·H·60` whatever rate was asked.
+//!
+//! Each frame samples pixel centers (of its own grid): no antialiasing, as in the paper.
+
+use rayon::prelude::*;
+
+use super::{Displayed, Method, MethodContext};
+use crate::{evaluation::clock::TIME_EPS, image::Image};
+
+/// A double-buffered framed renderer.
+pub struct Framed {
+    ctx: MethodContext,
+    grid: (u32, u32),
+    duration: f64,
+    next_frame: u64,
+    front: Image,
+    front_time: Option<f64>,
+    samples: u64,
+    trace_s: f64,
+}
+
+impl Framed {
+    fn new(ctx: &MethodContext, grid: (u32, u32), duration: f64) -> Result<Self, String> {
+        let (w, h) = ctx.tracer.size();
+        if !(duration.is_finite() && duration > 0.0) {
+            return Err("frame duration must be positive".into());
+        }
+        Ok(Self {
+            ctx: ctx.clone(),
+            grid,
+            duration,
+            next_frame: 0,
+            front: Image::new(w, h),
+            front_time: None,
+            samples: 0,
+            trace_s: 0.0,
+        })
+    }
+
+    /// `framed-60hz`: the largest grid of the display's aspect with at most R/60 samples.
+    pub fn sixty_hz(ctx: &MethodContext) -> Result<Self, String> {
+        let (w, h) = ctx.tracer.size();
+        let per_frame = (ctx.clock.rate / 60.0).floor();
+        if per_frame < 1.0 {
+            return Err(format!(
+                "rate {} samples/s is too low for framed-60hz: it needs at least 60 (one sample per frame)",
+                ctx.clock.rate
+            ));
+        }
+        Self::new(ctx, reduced_grid(w, h, per_frame as u64), 1.0 / 60.0)
+    }
+
+    /// `framed-full`: one sample per pixel, frame time W·H/R.
+    pub fn full_res(ctx: &MethodContext) -> Result<Self, String> {
+        let (w, h) = ctx.tracer.size();
+        Self::new(ctx, (w, h), (w as f64 * h as f64) / ctx.clock.rate)
+    }
+
+    /// `full-res-60hz`: one sample per pixel at 60 Hz (budget W·H·60).
+    pub fn full_res_60hz(ctx: &MethodContext) -> Result<Self, String> {
+        let (w, h) = ctx.tracer.size();
+        Self::new(ctx, (w, h), 1.0 / 60.0)
+    }
+
+    /// Samples in one frame.
+    pub fn samples_per_frame(&self) -> u64 {
+        self.grid.0 as u64 * self.grid.1 as u64
+    }
+
+    /// Frame resolution.
+    pub fn grid(&self) -> (u32, u32) {
+        self.grid
+    }
+
+    /// Seconds per frame.
+    pub fn frame_duration(&self) -> f64 {
+        self.duration
+    }
+
+    fn frame_start(&self, j: u64) -> f64 {
+        self.ctx.clock.start + j as f64 * self.duration
+    }
+
+    /// The refresh at which frame `j` is first shown.
+    pub fn shown_at(&self, j: u64) -> f64 {
+        self.ctx
+            .clock
+            .first_refresh_at_or_after(self.frame_start(j + 1))
+    }
+
+    fn render_frame(&mut self, t: f64) {
+        let t0 = std::time::Instant::now();
+        let tracer = &self.ctx.tracer;
+        let state = tracer.state_at(t);
+        let (gw, gh) = self.grid;
+        let (w, h) = tracer.size();
+        let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
+        let small: Vec<glam::Vec3> = (0..gh)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                let state = &state;
+                (0..gw).map(move |x| {
+                    tracer
+                        .sample(state, (x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy)
+                        .color
+                })
+            })
+            .collect();
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.front = upscale(
+            &Image {
+                width: gw,
+                height: gh,
+                pixels: small,
+            },
+            w,
+            h,
+        );
+    }
+}
+
+/// The largest `gw × gh ≤ n` grid with (about) the aspect of `w × h`, within `w × h`.
+pub fn reduced_grid(w: u32, h: u32, n: u64) -> (u32, u32) {
+    let aspect = w as f64 / h as f64;
+    let gw = ((n as f64 * aspect).sqrt().floor() as u64).clamp(1, w as u64);
+    let gh = (n / gw).clamp(1, h as u64);
+    (gw as u32, gh as u32)
+}
+
+/// Bilinear upscaling (texel centers aligned, edges clamped).
+pub fn upscale(src: &Image, w: u32, h: u32) -> Image {
+    if src.width == w && src.height == h {
+        return src.clone();
+    }
+    let (sw, sh) = (src.width as f32, src.height as f32);
+    let mut out = Image::new(w, h);
+    for y in 0..h {
+        let v = ((y as f32 + 0.5) * sh / h as f32 - 0.5).clamp(0.0, sh - 1.0);
+        let (y0, fy) = (v.floor() as u32, v.fract());
+        let y1 = (y0 + 1).min(src.height - 1);
+        for x in 0..w {
+            let u = ((x as f32 + 0.5) * sw / w as f32 - 0.5).clamp(0.0, sw - 1.0);
+            let (x0, fx) = (u.floor() as u32, u.fract());
+            let x1 = (x0 + 1).min(src.width - 1);
+            let a = src.get(x0, y0).lerp(src.get(x1, y0), fx);
+            let b = src.get(x0, y1).lerp(src.get(x1, y1), fx);
+            out.pixels[(y * w + x) as usize] = a.lerp(b, fy);
+        }
+    }
+    out
+}
+
+impl Method for Framed {
+    fn display(&mut self, t: f64) -> Displayed<'_> {
+        // Frames shown by `t`: only the newest needs rendering, but all were traced.
+        let mut newest = None;
+        while self.shown_at(self.next_frame) <= t + TIME_EPS {
+            newest = Some(self.next_frame);
+            self.next_frame += 1;
+            self.samples += self.samples_per_frame();
+        }
+        if let Some(j) = newest {
+            let start = self.frame_start(j);
+            self.render_frame(start);
+            self.front_time = Some(start);
+        }
+        let info = self.front_time.unwrap_or(self.ctx.clock.start);
+        Displayed {
+            image: &self.front,
+            mean_age: t - info,
+        }
+    }
+
+    fn samples_used(&self) -> u64 {
+        self.samples
+    }
+    fn trace_seconds(&self) -> f64 {
+        self.trace_s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reduced_grids_fit_the_budget() {
+        assert_eq!(reduced_grid(256, 256, 6666), (81, 82));
+        assert!(81 * 82 <= 6666);
+        assert_eq!(reduced_grid(256, 256, 1_000_000), (256, 256));
+        assert_eq!(reduced_grid(256, 128, 2), (2, 1));
+        assert_eq!(reduced_grid(256, 256, 1), (1, 1));
+    }
+
+    #[test]
+    fn upscale_of_constant_is_constant() {
+        let src = Image {
+            width: 2,
+            height: 3,
+            pixels: vec![glam::Vec3::splat(0.25); 6],
+        };
+        let up = upscale(&src, 7, 5);
+        assert!(up
+            .pixels
+            .iter()
+            .all(|p| (*p - glam::Vec3::splat(0.25)).length() < 1e-6));
+    }
+}

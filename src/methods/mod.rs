@@ -1,0 +1,145 @@
+//! Rendering methods compared by the evaluation: one file per method, one enum naming
+//! them all. Adding a method means a new file, a variant of [`MethodKind`] and one arm in
+//! [`MethodKind::build`].
+//!
+//! A method is driven by the simulated [`Clock`]: it may trace the samples the budget
+//! allows up to a display time and must then say what the display shows at that time.
+
+pub mod framed;
+pub mod frameless;
+pub mod ideal;
+
+use std::sync::Arc;
+
+use crate::{evaluation::clock::Clock, image::Image, trace::Tracer};
+
+/// The methods `frameless eval --methods` accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum MethodKind {
+    /// The gold standard: zero delay, stratified supersampling.
+    Ideal,
+    /// Framed, double-buffered at 60 Hz, reduced resolution, upscaled.
+    Framed60Hz,
+    /// Framed, double-buffered, one sample per display pixel, frame rate R/(W·H).
+    FramedFull,
+    /// Framed full resolution at 60 Hz with its own budget W·H·60 (whatever the rate).
+    FullRes60Hz,
+    /// Bishop et al.: random pixel order, newest sample per pixel.
+    TraditionalFrameless,
+}
+
+impl MethodKind {
+    /// Every method, in report order.
+    pub const ALL: &'static [MethodKind] = &[
+        MethodKind::Ideal,
+        MethodKind::Framed60Hz,
+        MethodKind::FramedFull,
+        MethodKind::FullRes60Hz,
+        MethodKind::TraditionalFrameless,
+    ];
+
+    /// Command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodKind::Ideal => "ideal",
+            MethodKind::Framed60Hz => "framed-60hz",
+            MethodKind::FramedFull => "framed-full",
+            MethodKind::FullRes60Hz => "full-res-60hz",
+            MethodKind::TraditionalFrameless => "traditional-frameless",
+        }
+    }
+
+    /// One-line description (shown by `frameless eval --help`).
+    pub fn description(self) -> &'static str {
+        match self {
+            MethodKind::Ideal => "zero delay, stratified supersampling (the reference)",
+            MethodKind::Framed60Hz => {
+                "double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled"
+            }
+            MethodKind::FramedFull => "double-buffered, one sample per pixel, frame rate R/(W*H)",
+            MethodKind::FullRes60Hz => {
+                "double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate"
+            }
+            MethodKind::TraditionalFrameless => {
+                "random pixel order, each sample at its own time, newest sample per pixel"
+            }
+        }
+    }
+
+    /// Parse a command-line name.
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                format!(
+                    "unknown method `{s}`; methods are: {}",
+                    Self::ALL
+                        .iter()
+                        .map(|m| m.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            })
+    }
+
+    /// Whether the method ignores the sample rate (so one run serves every rate).
+    pub fn rate_independent(self) -> bool {
+        matches!(self, MethodKind::Ideal | MethodKind::FullRes60Hz)
+    }
+
+    /// Build the method for one evaluation run.
+    pub fn build(self, ctx: &MethodContext) -> Result<Box<dyn Method>, String> {
+        Ok(match self {
+            MethodKind::Ideal => Box::new(ideal::Ideal::new(ctx)),
+            MethodKind::Framed60Hz => Box::new(framed::Framed::sixty_hz(ctx)?),
+            MethodKind::FramedFull => Box::new(framed::Framed::full_res(ctx)?),
+            MethodKind::FullRes60Hz => Box::new(framed::Framed::full_res_60hz(ctx)?),
+            MethodKind::TraditionalFrameless => Box::new(frameless::Traditional::new(ctx)),
+        })
+    }
+}
+
+/// Everything a method needs to run.
+#[derive(Clone)]
+pub struct MethodContext {
+    /// The tracer (scene, image size, camera).
+    pub tracer: Arc<Tracer>,
+    /// The simulated clock with this run's sample rate.
+    pub clock: Clock,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Samples per pixel of ideal images.
+    pub ideal_spp: u32,
+    /// Where ideal images are cached, if anywhere.
+    pub ideal_cache: Option<Arc<crate::evaluation::cache::IdealCache>>,
+}
+
+/// What the display shows at one refresh.
+pub struct Displayed<'a> {
+    /// The displayed image (linear; the evaluation clamps and quantizes it).
+    pub image: &'a Image,
+    /// Mean over pixels of (display time − time the pixel's information was sampled).
+    pub mean_age: f64,
+}
+
+/// A rendering method under the simulated clock.
+pub trait Method: Send {
+    /// Trace whatever the budget allows up to display time `t` (non-decreasing across
+    /// calls) and return what the display shows then.
+    fn display(&mut self, t: f64) -> Displayed<'_>;
+    /// Samples traced so far.
+    fn samples_used(&self) -> u64;
+    /// Wall-clock seconds spent tracing rays so far (the rest of a method's time is
+    /// its own overhead).
+    fn trace_seconds(&self) -> f64;
+}
+
+/// Mean age of per-pixel information times at display time `t`.
+pub fn mean_age(info_time: &[f64], t: f64) -> f64 {
+    if info_time.is_empty() {
+        return 0.0;
+    }
+    info_time.iter().map(|&s| t - s).sum::<f64>() / info_time.len() as f64
+}
