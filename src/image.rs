@@ -41,10 +41,16 @@ impl Image {
 
     /// The displayed image: 8-bit RGB, clamped and quantized.
     pub fn to_rgb8(&self) -> Vec<u8> {
-        self.pixels
-            .iter()
-            .flat_map(|p| [quantize(p.x), quantize(p.y), quantize(p.z)])
-            .collect()
+        use rayon::prelude::*;
+        let mut out = vec![0u8; self.pixels.len() * 3];
+        out.par_chunks_mut(3 * 4096)
+            .zip(self.pixels.par_chunks(4096))
+            .for_each(|(o, px)| {
+                for (o, p) in o.chunks_exact_mut(3).zip(px) {
+                    o.copy_from_slice(&[quantize(p.x), quantize(p.y), quantize(p.z)]);
+                }
+            });
+        out
     }
 
     /// Write the displayed image as PNG. Writes to a temporary file first and renames,
@@ -54,14 +60,36 @@ impl Image {
     }
 }
 
-/// Write 8-bit RGB data as a PNG file, atomically (temporary file + rename).
+/// Write 8-bit RGB data as a PNG file, atomically (temporary file + rename), with
+/// compact (slower) compression.
 pub fn write_png_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> std::io::Result<()> {
+    write_png(path, width, height, rgb, png::Compression::Balanced)
+}
+
+/// As [`write_png_rgb8`] with fast (larger) compression, for caches.
+pub fn write_png_rgb8_fast(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[u8],
+) -> std::io::Result<()> {
+    write_png(path, width, height, rgb, png::Compression::Fast)
+}
+
+fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[u8],
+    level: png::Compression,
+) -> std::io::Result<()> {
     let tmp = path.with_extension("png.partial");
     {
         let file = BufWriter::new(File::create(&tmp)?);
         let mut enc = png::Encoder::new(file, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        enc.set_compression(level);
         let mut w = enc.write_header().map_err(std::io::Error::other)?;
         w.write_image_data(rgb).map_err(std::io::Error::other)?;
         w.finish().map_err(std::io::Error::other)?;

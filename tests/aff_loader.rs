@@ -634,7 +634,7 @@ fn last_keyframe_block_of_a_name_wins() {
         .iter()
         .map(|n| match &n.kind {
             NodeKind::Animated { track, .. } => *track,
-            NodeKind::Static(_) => panic!("no static node here"),
+            _ => panic!("no static node here"),
         })
         .collect();
     assert_eq!(tracks, vec![Some(1), Some(1), None]);

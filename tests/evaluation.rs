@@ -21,22 +21,54 @@ fn static_scene() -> Scene {
     ];
     Scene {
         name: "static".into(),
-        materials: vec![Material::matte(Vec3::new(0.8, 0.7, 0.5)), Material::matte(Vec3::new(0.2, 0.4, 0.9))],
+        materials: vec![
+            Material::matte(Vec3::new(0.8, 0.7, 0.5)),
+            Material::matte(Vec3::new(0.2, 0.4, 0.9)),
+        ],
         groups: vec![Group {
             node: None,
             triangles: vec![
-                Triangle { p: [floor[0], floor[1], floor[2]], n: None, uv: None, material: 0 },
-                Triangle { p: [floor[0], floor[2], floor[3]], n: None, uv: None, material: 0 },
+                Triangle {
+                    p: [floor[0], floor[1], floor[2]],
+                    n: None,
+                    uv: None,
+                    material: 0,
+                },
+                Triangle {
+                    p: [floor[0], floor[2], floor[3]],
+                    n: None,
+                    uv: None,
+                    material: 0,
+                },
             ],
             spheres: vec![
-                Sphere { center: Vec3::new(-0.6, 0.5, 0.0), radius: 0.5, material: 1 },
-                Sphere { center: Vec3::new(0.7, 0.3, 0.6), radius: 0.3, material: 1 },
+                Sphere {
+                    center: Vec3::new(-0.6, 0.5, 0.0),
+                    radius: 0.5,
+                    material: 1,
+                },
+                Sphere {
+                    center: Vec3::new(0.7, 0.3, 0.6),
+                    radius: 0.3,
+                    material: 1,
+                },
             ],
             ..Default::default()
         }],
-        lights: vec![Light { position: Vec3::new(2.0, 4.0, 3.0), color: Vec3::ONE, track: None, name: None }],
+        lights: vec![Light {
+            position: Vec3::new(2.0, 4.0, 3.0),
+            color: Vec3::ONE,
+            track: None,
+            name: None,
+        }],
         camera: CameraTrack {
-            base: Camera { eye: Vec3::new(0.0, 1.5, 3.0), at: Vec3::new(0.0, 0.3, 0.0), up: Vec3::Y, fov_y_deg: 50.0, hither: 1e-3 },
+            base: Camera {
+                eye: Vec3::new(0.0, 1.5, 3.0),
+                at: Vec3::new(0.0, 0.3, 0.0),
+                up: Vec3::Y,
+                fov_y_deg: 50.0,
+                hither: 1e-3,
+            },
             track: None,
             resolution: None,
         },
@@ -68,7 +100,11 @@ fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> 
 }
 
 fn rms_series(out: &evaluation::EvalOutput, method: &str, rate: f64) -> Vec<f64> {
-    out.frames.iter().filter(|f| f.method == method && f.rate == rate).map(|f| f.rms).collect()
+    out.frames
+        .iter()
+        .filter(|f| f.method == method && f.rate == rate)
+        .map(|f| f.rms)
+        .collect()
 }
 
 #[test]
@@ -81,7 +117,12 @@ fn double_buffering_timing_hand_worked() {
     let rate = 768.0 * 20.0;
     let ctx = MethodContext {
         tracer,
-        clock: Clock { start: 0.0, rate, first_refresh: 0.0, refresh_hz: 60.0 },
+        clock: Clock {
+            start: 0.0,
+            rate,
+            first_refresh: 0.0,
+            refresh_hz: 60.0,
+        },
         seed: 1,
         ideal_spp: 1,
         ideal_cache: None,
@@ -102,10 +143,18 @@ fn double_buffering_timing_hand_worked() {
     }
     // Refreshes 3..5 show frame 0 (sampled at t = 0); 6..7 show frame 1 (t = 0.05).
     for k in 3..6 {
-        assert!((ages[k] - k as f64 / 60.0).abs() < 1e-9, "refresh {k}: {}", ages[k]);
+        assert!(
+            (ages[k] - k as f64 / 60.0).abs() < 1e-9,
+            "refresh {k}: {}",
+            ages[k]
+        );
     }
     for k in 6..8 {
-        assert!((ages[k] - (k as f64 / 60.0 - 0.05)).abs() < 1e-9, "refresh {k}: {}", ages[k]);
+        assert!(
+            (ages[k] - (k as f64 / 60.0 - 0.05)).abs() < 1e-9,
+            "refresh {k}: {}",
+            ages[k]
+        );
     }
     assert_eq!(used, vec![0, 0, 0, 768, 768, 768, 1536, 1536]);
 }
@@ -115,26 +164,45 @@ fn framed_full_reaches_its_floor_once_a_frame_completes_and_frameless_converges(
     // Static scene, no warm-up: both start from a black screen. framed-full completes
     // its first frame after 768/rate s; traditional frameless fills pixels one by one.
     let rate = 768.0 * 12.0; // a frame every 5 refreshes
-    let cfg = config(&[MethodKind::FramedFull, MethodKind::TraditionalFrameless], &[rate], 0.0, 0.5);
+    let cfg = config(
+        &[MethodKind::FramedFull, MethodKind::TraditionalFrameless],
+        &[rate],
+        0.0,
+        0.5,
+    );
     let out = evaluation::run(Arc::new(static_scene()), &cfg, &Silent).unwrap();
     let framed = rms_series(&out, "framed-full", rate);
     let frameless = rms_series(&out, "traditional-frameless", rate);
     // Before completion the screen is black: large error. From refresh 5 on: the floor.
     let floor = framed[5];
     assert!(framed[..5].iter().all(|e| *e > 3.0 * floor), "{framed:?}");
-    assert!(framed[5..].iter().all(|e| (e - floor).abs() < 1e-9), "{framed:?}");
+    assert!(
+        framed[5..].iter().all(|e| (e - floor).abs() < 1e-9),
+        "{framed:?}"
+    );
     // Frameless error falls as the screen fills and ends where the framed image is: both
     // show one pixel-center sample per pixel of the same static scene.
-    assert!(frameless[1] > frameless[4] && frameless[4] >= frameless[6], "{frameless:?}");
+    assert!(
+        frameless[1] > frameless[4] && frameless[4] >= frameless[6],
+        "{frameless:?}"
+    );
     let last = *frameless.last().unwrap();
-    assert!((last - floor).abs() < 1e-9, "frameless {last} vs framed {floor}");
+    assert!(
+        (last - floor).abs() < 1e-9,
+        "frameless {last} vs framed {floor}"
+    );
     // The floor is the aliasing of 1 sample per pixel: small but not zero.
     assert!(floor > 0.0 && floor < 20.0, "{floor}");
 }
 
 #[test]
 fn deterministic_across_thread_counts() {
-    let cfg = config(&[MethodKind::Framed60Hz, MethodKind::TraditionalFrameless], &[20_000.0], 0.1, 0.2);
+    let cfg = config(
+        &[MethodKind::Framed60Hz, MethodKind::TraditionalFrameless],
+        &[20_000.0],
+        0.1,
+        0.2,
+    );
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -150,7 +218,11 @@ fn deterministic_across_thread_counts() {
 #[test]
 fn bad_settings_are_clear_errors() {
     let scene = || Arc::new(static_scene());
-    let err = |cfg: &EvalConfig| evaluation::run(scene(), cfg, &Silent).err().unwrap_or_default();
+    let err = |cfg: &EvalConfig| {
+        evaluation::run(scene(), cfg, &Silent)
+            .err()
+            .unwrap_or_default()
+    };
     let e = err(&config(&[MethodKind::FramedFull], &[0.0], 1.0, 1.0));
     assert!(e.contains("rate"), "{e}");
     let e = err(&config(&[MethodKind::FramedFull], &[100.0], 1.0, 1.0));
@@ -159,7 +231,9 @@ fn bad_settings_are_clear_errors() {
     assert!(e.contains("too low for framed-60hz"), "{e}");
     let e = err(&config(&[MethodKind::FramedFull], &[1e5], 1.0, -1.0));
     assert!(e.contains("duration"), "{e}");
-    assert!(MethodKind::parse("adaptive-magic").unwrap_err().contains("framed-60hz"));
+    assert!(MethodKind::parse("adaptive-magic")
+        .unwrap_err()
+        .contains("framed-60hz"));
 }
 
 #[test]

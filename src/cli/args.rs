@@ -54,6 +54,50 @@ pub enum Command {
     Bench(BenchArgs),
     /// Gold-standard evaluation: methods vs. the ideal image at every refresh.
     Eval(EvalArgs),
+    /// Run the adaptive sampler and write its visualisations (tiling, gradients,
+    /// density, occlusion) and statistics.
+    Sampler(SamplerArgs),
+}
+
+/// Arguments of `frameless sampler`.
+#[derive(Args, Debug)]
+pub struct SamplerArgs {
+    /// Built-in scene name or scene file.
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Time the sampler starts, seconds.
+    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    pub start: f64,
+    /// How long it runs, seconds; the images show the state at the end.
+    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    pub duration: f64,
+    /// Sample budget, samples per second.
+    #[arg(long, default_value = "400k")]
+    pub rate: String,
+    /// Image size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Seed.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Ablation: no reprojection in the sampler.
+    #[arg(long)]
+    pub no_reprojection: bool,
+    /// Ablation: no gain control (fixed tile count).
+    #[arg(long)]
+    pub no_gain_control: bool,
+    /// Ablation: no occlusion term in tile error.
+    #[arg(long)]
+    pub no_occlusion_term: bool,
+    /// Ablation: uniform tiling.
+    #[arg(long)]
+    pub uniform_tiling: bool,
+    /// Output directory.
+    #[arg(long, default_value = "sampler-out")]
+    pub out: PathBuf,
 }
 
 /// Help text of `--methods`, listing every method (a test keeps it complete).
@@ -62,7 +106,10 @@ pub const METHODS_HELP: &str = "Comma-separated methods to evaluate:
   framed-60hz            double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled
   framed-full            double-buffered, one sample per pixel, frame rate R/(W*H)
   full-res-60hz          double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate
-  traditional-frameless  random pixel order, each sample at its own time, newest sample per pixel";
+  traditional-frameless  random pixel order, each sample at its own time, newest sample per pixel
+  adaptive               adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer
+  adaptive-no-reprojection
+                         adaptive frameless without reprojection in the sampler";
 
 /// Arguments of `frameless eval`.
 #[derive(Args, Debug)]
@@ -85,7 +132,7 @@ pub struct EvalArgs {
     /// Sample budgets, samples per second (e.g. 100k,400k,800k).
     #[arg(long, default_value = "100k,400k,800k")]
     pub rates: String,
-    #[arg(long, default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless", long_help = METHODS_HELP, help = "Comma-separated methods (see --help for the list)")]
+    #[arg(long, default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,adaptive", long_help = METHODS_HELP, help = "Comma-separated methods (see --help for the list)")]
     #[allow(missing_docs)]
     pub methods: String,
     /// Seed of every random choice.
@@ -104,7 +151,7 @@ pub struct EvalArgs {
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
     /// Compute FLIP on every n-th frame only (RMS and PSNR are computed on every frame).
-    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..))]
     pub flip_every: u32,
     /// Do not read or write the ideal-image cache.
     #[arg(long)]

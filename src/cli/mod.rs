@@ -83,6 +83,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Eval(a) => eval(a),
+        Command::Sampler(a) => sampler(a),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;
@@ -200,6 +201,87 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         100.0 * evaluation::overhead_fraction(t)
     );
     println!("report: {}", report.display());
+    Ok(())
+}
+
+fn sampler(a: args::SamplerArgs) -> Result<()> {
+    use crate::methods::{
+        adaptive::{vis, Adaptive, SamplerParams},
+        Method, MethodContext,
+    };
+    let rate = report::parse_rate(&a.rate)
+        .map_err(anyhow::Error::msg)
+        .context("--rate")?;
+    if !(a.duration > 0.0 && a.duration <= 3600.0) {
+        bail!("--duration {} must be in (0, 3600] seconds", a.duration);
+    }
+    let mut params = SamplerParams::paper();
+    params.reprojection = !a.no_reprojection;
+    params.gain_control = !a.no_gain_control;
+    params.occlusion_term = !a.no_occlusion_term;
+    params.uniform_tiling = a.uniform_tiling;
+    let Size(w, h) = a.size;
+    let scene = Arc::new(load_scene(&a.scene)?);
+    let tracer = Arc::new(
+        Tracer::new(scene, w, h, TraceOptions::default())
+            .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+    );
+    let clock = evaluation::clock::Clock {
+        start: a.start,
+        rate,
+        first_refresh: a.start,
+        refresh_hz: 60.0,
+    };
+    let ctx = MethodContext {
+        tracer,
+        clock,
+        seed: a.seed,
+        ideal_spp: 1,
+        ideal_cache: None,
+    };
+    let mut m = Adaptive::new(&ctx, params).map_err(anyhow::Error::msg)?;
+    let frames = (a.duration * 60.0).ceil() as u64;
+    let bar = progress_bar(frames, "sampling");
+    let t0 = Instant::now();
+    let mut display = crate::image::Image::new(w, h);
+    for k in 1..=frames {
+        display = m.display(a.start + k as f64 / 60.0).image.clone();
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let wall = t0.elapsed().as_secs_f64();
+    let end = a.start + frames as f64 / 60.0;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let s = m.sampler();
+    let save = |name: &str, img: &crate::image::Image| -> Result<()> {
+        let p = a.out.join(name);
+        img.save_png(&p)
+            .with_context(|| format!("writing {}", p.display()))
+    };
+    save("display.png", &display)?;
+    save("tiling.png", &vis::tiling_overlay(s, &display))?;
+    save("gradients.png", &vis::gradient_map(s))?;
+    save("density.png", &vis::density_map(s))?;
+    save("occlusion.png", &vis::occlusion_map(s, end))?;
+    let (trace_s, total_s) = s.timing();
+    let gain_inputs = {
+        let (gs, gt, age) = s.gain_inputs(end);
+        serde_json::json!({"gs": gs, "gt": gt, "age_s": age})
+    };
+    let stats = serde_json::json!({
+        "scene": a.scene, "width": w, "height": h, "rate": rate, "start": a.start, "end": end,
+        "tiles": s.tiling().len(), "target_tiles": s.target_tiles(),
+        "gain_inputs": gain_inputs,
+        "counters": s.counters(),
+        "sampler_s": total_s, "trace_s": trace_s,
+        "control_overhead": if total_s > 0.0 { (total_s - trace_s) / total_s } else { 0.0 },
+        "wall_s": wall,
+    });
+    let p = a.out.join("stats.json");
+    std::fs::write(&p, serde_json::to_string_pretty(&stats)?)
+        .with_context(|| format!("writing {}", p.display()))?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    println!("images: {}", a.out.display());
     Ok(())
 }
 

@@ -13,7 +13,7 @@ use std::{
 };
 
 use crate::{
-    image::{read_png_rgb8, write_png_rgb8, Image},
+    image::{read_png_rgb8, write_png_rgb8_fast, Image},
     render::still,
     sampling::rng::mix64,
     scene::{CameraPath, Scene},
@@ -94,7 +94,7 @@ impl IdealCache {
         let (w, h) = self.size;
         let rgb = img.to_rgb8();
         // A failed write only costs a re-render next time.
-        let _ = write_png_rgb8(&path, w, h, &rgb);
+        let _ = write_png_rgb8_fast(&path, w, h, &rgb);
         from_rgb8(w, h, &rgb)
     }
 

@@ -143,19 +143,22 @@ pub fn upscale(src: &Image, w: u32, h: u32) -> Image {
     }
     let (sw, sh) = (src.width as f32, src.height as f32);
     let mut out = Image::new(w, h);
-    for y in 0..h {
-        let v = ((y as f32 + 0.5) * sh / h as f32 - 0.5).clamp(0.0, sh - 1.0);
-        let (y0, fy) = (v.floor() as u32, v.fract());
-        let y1 = (y0 + 1).min(src.height - 1);
-        for x in 0..w {
-            let u = ((x as f32 + 0.5) * sw / w as f32 - 0.5).clamp(0.0, sw - 1.0);
-            let (x0, fx) = (u.floor() as u32, u.fract());
-            let x1 = (x0 + 1).min(src.width - 1);
-            let a = src.get(x0, y0).lerp(src.get(x1, y0), fx);
-            let b = src.get(x0, y1).lerp(src.get(x1, y1), fx);
-            out.pixels[(y * w + x) as usize] = a.lerp(b, fy);
-        }
-    }
+    out.pixels
+        .par_chunks_mut(w as usize)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let v = ((y as f32 + 0.5) * sh / h as f32 - 0.5).clamp(0.0, sh - 1.0);
+            let (y0, fy) = (v.floor() as u32, v.fract());
+            let y1 = (y0 + 1).min(src.height - 1);
+            for (x, px) in row.iter_mut().enumerate() {
+                let u = ((x as f32 + 0.5) * sw / w as f32 - 0.5).clamp(0.0, sw - 1.0);
+                let (x0, fx) = (u.floor() as u32, u.fract());
+                let x1 = (x0 + 1).min(src.width - 1);
+                let a = src.get(x0, y0).lerp(src.get(x1, y0), fx);
+                let b = src.get(x0, y1).lerp(src.get(x1, y1), fx);
+                *px = a.lerp(b, fy);
+            }
+        });
     out
 }
 

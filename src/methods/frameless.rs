@@ -73,39 +73,34 @@ pub(crate) fn trace_batch(tracer: &Tracer, time: f64, pixels: &[u32]) -> Vec<gla
 impl Method for Traditional {
     fn display(&mut self, t: f64) -> Displayed<'_> {
         let end = self.ctx.clock.samples_until(t);
-        // Samples are traced in batches sharing a quantized scene state; results are
-        // written in sample order, so a later sample of the same pixel wins.
-        let mut batch: Vec<(u32, f64)> = Vec::new();
-        let mut batch_key = None;
+        let n = self.order.len() as u64;
         let tracer = self.ctx.tracer.clone();
+        let clock = self.ctx.clock;
         let mut trace_s = 0.0;
-        let mut flush = |batch: &mut Vec<(u32, f64)>, image: &mut Image, info: &mut [f64]| {
-            if batch.is_empty() {
-                return;
-            }
-            let pixels: Vec<u32> = batch.iter().map(|(p, _)| *p).collect();
-            let t0 = std::time::Instant::now();
-            let colors = trace_batch(&tracer, batch[0].1, &pixels);
-            trace_s += t0.elapsed().as_secs_f64();
-            for ((p, ts), c) in batch.iter().zip(colors) {
-                image.pixels[*p as usize] = c;
-                info[*p as usize] = *ts;
-            }
-            batch.clear();
-        };
+        // Batches share one quantized scene state and lie within one pass, so their
+        // pixels are distinct and can be written in any order.
         while self.next_sample < end {
-            let i = self.next_sample;
-            let ts = self.ctx.clock.sample_time(i);
-            let key = Tracer::quantize(ts);
-            if batch_key != Some(key) {
-                flush(&mut batch, &mut self.image, &mut self.info_time);
-                batch_key = Some(key);
+            let i0 = self.next_sample;
+            let key = Tracer::quantize(clock.sample_time(i0));
+            let pass_end = (i0 / n + 1) * n;
+            let mut i1 = i0 + 1;
+            let limit = end.min(pass_end);
+            // Samples per state are few hundred at most at the paper's rates: a linear
+            // scan is cheaper than solving for the boundary and exact about rounding.
+            while i1 < limit && Tracer::quantize(clock.sample_time(i1)) == key {
+                i1 += 1;
             }
-            let p = self.pixel_of(i);
-            batch.push((p, ts));
-            self.next_sample += 1;
+            self.pixel_of(i0); // make sure `order` is this pass's permutation
+            let (a, b) = ((i0 % n) as usize, ((i1 - 1) % n) as usize + 1);
+            let t0 = std::time::Instant::now();
+            let colors = trace_batch(&tracer, clock.sample_time(i0), &self.order[a..b]);
+            trace_s += t0.elapsed().as_secs_f64();
+            for (k, (&p, c)) in self.order[a..b].iter().zip(colors).enumerate() {
+                self.image.pixels[p as usize] = c;
+                self.info_time[p as usize] = clock.sample_time(i0 + k as u64);
+            }
+            self.next_sample = i1;
         }
-        flush(&mut batch, &mut self.image, &mut self.info_time);
         self.trace_s += trace_s;
         Displayed {
             image: &self.image,

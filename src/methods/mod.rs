@@ -5,6 +5,7 @@
 //! A method is driven by the simulated [`Clock`]: it may trace the samples the budget
 //! allows up to a display time and must then say what the display shows at that time.
 
+pub mod adaptive;
 pub mod framed;
 pub mod frameless;
 pub mod ideal;
@@ -26,6 +27,10 @@ pub enum MethodKind {
     FullRes60Hz,
     /// Bishop et al.: random pixel order, newest sample per pixel.
     TraditionalFrameless,
+    /// Adaptive frameless rendering (the paper's method).
+    Adaptive,
+    /// Adaptive without reprojection in the sampler (paper Fig. 8's ablation).
+    AdaptiveNoReprojection,
 }
 
 impl MethodKind {
@@ -36,6 +41,8 @@ impl MethodKind {
         MethodKind::FramedFull,
         MethodKind::FullRes60Hz,
         MethodKind::TraditionalFrameless,
+        MethodKind::Adaptive,
+        MethodKind::AdaptiveNoReprojection,
     ];
 
     /// Command-line name.
@@ -46,6 +53,8 @@ impl MethodKind {
             MethodKind::FramedFull => "framed-full",
             MethodKind::FullRes60Hz => "full-res-60hz",
             MethodKind::TraditionalFrameless => "traditional-frameless",
+            MethodKind::Adaptive => "adaptive",
+            MethodKind::AdaptiveNoReprojection => "adaptive-no-reprojection",
         }
     }
 
@@ -62,6 +71,12 @@ impl MethodKind {
             }
             MethodKind::TraditionalFrameless => {
                 "random pixel order, each sample at its own time, newest sample per pixel"
+            }
+            MethodKind::Adaptive => {
+                "adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer"
+            }
+            MethodKind::AdaptiveNoReprojection => {
+                "adaptive frameless without reprojection in the sampler"
             }
         }
     }
@@ -97,6 +112,14 @@ impl MethodKind {
             MethodKind::FramedFull => Box::new(framed::Framed::full_res(ctx)?),
             MethodKind::FullRes60Hz => Box::new(framed::Framed::full_res_60hz(ctx)?),
             MethodKind::TraditionalFrameless => Box::new(frameless::Traditional::new(ctx)),
+            MethodKind::Adaptive => Box::new(adaptive::Adaptive::new(
+                ctx,
+                adaptive::SamplerParams::paper(),
+            )?),
+            MethodKind::AdaptiveNoReprojection => Box::new(adaptive::Adaptive::new(
+                ctx,
+                adaptive::SamplerParams::no_reprojection(),
+            )?),
         })
     }
 }

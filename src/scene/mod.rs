@@ -11,7 +11,9 @@ pub mod builtin;
 pub mod camera;
 pub mod camera_path;
 pub mod error;
+pub mod gltf;
 pub mod material;
+pub mod obj;
 pub mod texture;
 
 use std::path::PathBuf;
@@ -47,6 +49,8 @@ pub enum NodeKind {
         /// The resolved keyframe track, if any.
         track: Option<TrackId>,
     },
+    /// A glTF node driven by animation samplers, evaluated exactly as glTF specifies.
+    Sampled(Box<gltf::NodeAnimation>),
 }
 
 /// One node of the transform hierarchy.
@@ -254,6 +258,7 @@ impl Scene {
                 Some(tr) => self.tracks[*tr as usize].matrix(t),
                 None => Mat4::IDENTITY,
             },
+            NodeKind::Sampled(anim) => anim.matrix(t),
         }
     }
 
@@ -289,7 +294,10 @@ impl Scene {
     pub fn node_is_animated(&self, id: NodeId) -> bool {
         let mut cur = Some(id);
         while let Some(n) = cur {
-            if let NodeKind::Animated { track: Some(_), .. } = &self.nodes[n as usize].kind {
+            if matches!(
+                &self.nodes[n as usize].kind,
+                NodeKind::Animated { track: Some(_), .. } | NodeKind::Sampled(_)
+            ) {
                 return true;
             }
             cur = self.nodes[n as usize].parent;
@@ -363,10 +371,8 @@ pub fn load(arg: &str) -> Result<Scene, SceneError> {
         .unwrap_or_default();
     match ext.as_str() {
         "aff" => aff::load(path),
-        "gltf" | "glb" | "obj" => Err(SceneError::Invalid {
-            name: arg.to_string(),
-            message: format!(".{ext} input is not supported yet (see issue: glTF and OBJ)"),
-        }),
+        "gltf" | "glb" => gltf::load(path),
+        "obj" => obj::load(path),
         _ => Err(SceneError::UnknownFormat {
             path: path.to_path_buf(),
             builtins: builtin::NAMES.join(", "),

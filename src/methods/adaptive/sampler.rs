@@ -1,0 +1,737 @@
+//! The adaptive frameless sampler (paper §4, §6.1, Fig. 5).
+//!
+//! Each iteration visits a tile chosen uniformly at random: it completes the crosshair
+//! the tile initiated on its previous visit (five new co-temporal samples), reprojects
+//! `r` crosshairs of the tile to the current view (with an occlusion ray each,
+//! replacing occluded ones), and initiates the next crosshair at a random location in
+//! the tile. After every chunk of completed crosshairs the K-D tiling is adjusted:
+//! gain control sets the tile count from image-wide gradients, then splits and merges
+//! equalise tile error. Every ray consumes one slot of the sample budget.
+
+use std::{sync::Arc, time::Instant};
+
+use glam::Vec3;
+
+use super::{
+    deep_buffer::{Crosshair, DeepBuffer},
+    params::SamplerParams,
+    tiling::{Pending, Rect, TileStats, Tiling, NONE},
+};
+use crate::{
+    evaluation::clock::Clock,
+    sampling::Rng,
+    trace::{Sample, SceneState, Tracer},
+};
+
+/// A traced sample as streamed to the reconstructor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamSample {
+    /// Sub-pixel position where it was traced.
+    pub x: f32,
+    /// Sub-pixel position where it was traced.
+    pub y: f32,
+    /// Time it was traced.
+    pub t: f64,
+    /// Everything the tracer returned.
+    pub sample: Sample,
+}
+
+/// Counters of the sampler's work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct SamplerCounters {
+    /// Rays traced (every kind), i.e. budget used.
+    pub rays: u64,
+    /// Crosshair centers and neighbours traced.
+    pub crosshair_samples: u64,
+    /// Initiating samples.
+    pub initiating_samples: u64,
+    /// Occlusion rays.
+    pub occlusion_rays: u64,
+    /// Crosshairs reprojected.
+    pub reprojected: u64,
+    /// Reprojected crosshairs found occluded (and replaced).
+    pub occluded: u64,
+    /// Reprojected crosshairs that left the screen.
+    pub offscreen: u64,
+    /// Tile visits.
+    pub visits: u64,
+    /// Tiling adjustments.
+    pub adjustments: u64,
+    /// Splits.
+    pub splits: u64,
+    /// Merges.
+    pub merges: u64,
+}
+
+/// Upper bound of rays in one visit: complete (5) + r × (occlusion 1 + replace 5) + 1.
+fn max_rays_per_visit(p: &SamplerParams) -> u64 {
+    5 + p.reprojections_per_visit as u64 * 6 + 1
+}
+
+/// The sampler's state.
+pub struct Sampler {
+    params: SamplerParams,
+    tracer: Arc<Tracer>,
+    clock: Clock,
+    width: u32,
+    height: u32,
+    tiling: Tiling,
+    buffer: DeepBuffer,
+    occl_px: Vec<f64>,
+    t_ref: f64,
+    rng: Rng,
+    target_tiles: f64,
+    since_adjust: usize,
+    next_sample: u64,
+    budget_end: u64,
+    init_cursor: u32,
+    initialized: bool,
+    state: Option<(i64, Arc<SceneState>)>,
+    stream: Vec<StreamSample>,
+    counters: SamplerCounters,
+    trace_s: f64,
+    total_s: f64,
+    error_sums: (f64, f64, f64),
+    error_sums_tiles: usize,
+}
+
+/// Tiles examined per tiling adjustment.
+const ADJUST_CANDIDATES: usize = 64;
+/// Adjustments between full recomputations of the error normalisation sums.
+const ERROR_SUMS_EVERY: u64 = 32;
+
+/// Shortest time span a temporal gradient is measured over, seconds.
+const MIN_GRADIENT_DT: f64 = 1e-3;
+
+/// Seconds after which weights are rebased so that `exp` never overflows.
+const REBASE_AFTER_S: f64 = 20.0;
+
+impl Sampler {
+    /// A sampler for `tracer`'s scene and image, spending `clock.rate` rays per second.
+    pub fn new(
+        tracer: Arc<Tracer>,
+        clock: Clock,
+        params: SamplerParams,
+        seed: u64,
+    ) -> Result<Self, String> {
+        params.validate()?;
+        let (width, height) = tracer.size();
+        let mut s = Self {
+            params,
+            tracer,
+            clock,
+            width,
+            height,
+            tiling: Tiling::new(width, height),
+            buffer: DeepBuffer::new(width, height, params.depth),
+            occl_px: vec![0.0; (width * height) as usize],
+            t_ref: clock.start,
+            rng: Rng::new(&[seed, 0xada9]),
+            target_tiles: params.fixed_tiles as f64,
+            since_adjust: 0,
+            next_sample: 0,
+            budget_end: 0,
+            init_cursor: 0,
+            initialized: false,
+            state: None,
+            stream: Vec::new(),
+            counters: SamplerCounters::default(),
+            trace_s: 0.0,
+            total_s: 0.0,
+            error_sums: (0.0, 0.0, 0.0),
+            error_sums_tiles: 1,
+        };
+        if params.uniform_tiling || !params.gain_control {
+            // Start from a balanced grid of the fixed size (uniform tiling keeps it).
+            s.grow_uniform(params.fixed_tiles.min(s.max_tiles()));
+        }
+        Ok(s)
+    }
+
+    /// The tiling.
+    pub fn tiling(&self) -> &Tiling {
+        &self.tiling
+    }
+
+    /// Image size `(width, height)`.
+    pub fn buffer_size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// The deep buffer.
+    pub fn buffer(&self) -> &DeepBuffer {
+        &self.buffer
+    }
+
+    /// Work counters.
+    pub fn counters(&self) -> SamplerCounters {
+        self.counters
+    }
+
+    /// Parameters.
+    pub fn params(&self) -> &SamplerParams {
+        &self.params
+    }
+
+    /// Seconds spent in the tracer, and in the sampler overall.
+    pub fn timing(&self) -> (f64, f64) {
+        (self.trace_s, self.total_s)
+    }
+
+    /// The tile-count target of gain control.
+    pub fn target_tiles(&self) -> f64 {
+        self.target_tiles
+    }
+
+    /// Samples traced since the last call (for the reconstructor).
+    pub fn drain_stream(&mut self) -> Vec<StreamSample> {
+        std::mem::take(&mut self.stream)
+    }
+
+    /// Per-pixel decayed occlusion weight, relative to an event happening now.
+    pub fn occlusion_at(&self, x: u32, y: u32, now: f64) -> f64 {
+        self.occl_px[(y * self.width + x) as usize] / self.weight(now)
+    }
+
+    fn max_tiles(&self) -> usize {
+        ((self.width as f64 * self.height as f64 * self.params.max_tiles_per_pixel) as usize).max(1)
+    }
+
+    #[inline]
+    fn weight(&self, t: f64) -> f64 {
+        (self.params.decay * (t - self.t_ref)).exp()
+    }
+
+    fn contribution(&self, c: &Crosshair) -> TileStats {
+        let w = self.weight(c.t);
+        let (mut l, mut l2) = (0.0f64, 0.0f64);
+        for &v in &c.lum {
+            l += v as f64;
+            l2 += v as f64 * v as f64;
+        }
+        TileStats {
+            wc: w,
+            wl: w * l,
+            wl2: w * l2,
+            wgx: w * c.gx as f64,
+            wgy: w * c.gy as f64,
+            wgt: w * c.gt as f64,
+            count: 1.0,
+            sum_t: c.t,
+            wt: w * c.t,
+            occl: 0.0,
+        }
+    }
+
+    /// Statistics of a rectangle computed from the deep buffer (splits, validation).
+    pub fn stats_of(&self, r: Rect) -> TileStats {
+        let mut s = TileStats::default();
+        for y in r.y0..r.y1 {
+            for x in r.x0..r.x1 {
+                for c in self.buffer.iter_at(x, y) {
+                    s.add(&self.contribution(c), 1.0);
+                }
+                s.occl += self.occl_px[(y * self.width + x) as usize];
+            }
+        }
+        s
+    }
+
+    fn pixel_of(&self, x: f32, y: f32) -> Option<(u32, u32)> {
+        if x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32 {
+            Some((
+                (x as u32).min(self.width - 1),
+                (y as u32).min(self.height - 1),
+            ))
+        } else {
+            None
+        }
+    }
+
+    fn insert_front(&mut self, c: Crosshair) {
+        let Some((px, py)) = self.pixel_of(c.x, c.y) else {
+            return;
+        };
+        let leaf = self.tiling.leaf_at(px, py);
+        let add = self.contribution(&c);
+        self.tiling.add_path(leaf, &add, 1.0);
+        if let Some(old) = self.buffer.push_front(px, py, c) {
+            let sub = self.contribution(&old);
+            self.tiling.add_path(leaf, &sub, -1.0);
+        }
+    }
+
+    fn record_occlusion(&mut self, px: u32, py: u32, now: f64) {
+        let w = self.weight(now);
+        self.occl_px[(py * self.width + px) as usize] += w;
+        let leaf = self.tiling.leaf_at(px, py);
+        self.tiling.add_path(
+            leaf,
+            &TileStats {
+                occl: w,
+                ..Default::default()
+            },
+            1.0,
+        );
+    }
+
+    fn state(&mut self, t: f64) -> Arc<SceneState> {
+        let key = Tracer::quantize(t);
+        match &self.state {
+            Some((k, s)) if *k == key => s.clone(),
+            _ => {
+                let s = self.tracer.state_at(t);
+                self.state = Some((key, s.clone()));
+                s
+            }
+        }
+    }
+
+    fn trace(&mut self, state: &SceneState, x: f32, y: f32, t: f64) -> Sample {
+        let t0 = Instant::now();
+        let s = self.tracer.sample(state, x, y);
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.counters.rays += 1;
+        self.stream.push(StreamSample { x, y, t, sample: s });
+        s
+    }
+
+    /// Trace a full crosshair at `(x, y)`; `old` is the earlier sample at the same
+    /// location `(luminance, time)` for the temporal gradient.
+    fn trace_crosshair(
+        &mut self,
+        state: &SceneState,
+        x: f32,
+        y: f32,
+        t: f64,
+        old: Option<(f32, f64)>,
+    ) -> Crosshair {
+        let c = self.trace(state, x, y, t);
+        let offsets = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+        let mut lum = [c.luminance; 5];
+        let mut p = [c.hit_point; 5];
+        for (k, (dx, dy)) in offsets.iter().enumerate() {
+            let (nx, ny) = (x + dx, y + dy);
+            if self.pixel_of(nx, ny).is_some() {
+                let s = self.trace(state, nx, ny, t);
+                lum[k + 1] = s.luminance;
+                p[k + 1] = s.hit_point;
+            }
+        }
+        self.counters.crosshair_samples += 5;
+        let l0 = lum[0];
+        let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5;
+        let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5;
+        let gt = match old {
+            Some((lo, to)) if t > to => {
+                ((l0 - lo).abs() as f64 / (t - to).max(MIN_GRADIENT_DT)) as f32
+            }
+            _ => 0.0,
+        };
+        Crosshair {
+            x,
+            y,
+            t,
+            lum,
+            p,
+            velocity: c.velocity,
+            gx,
+            gy,
+            gt,
+        }
+    }
+
+    fn random_in(&mut self, r: Rect) -> (f32, f32) {
+        let x = r.x0 as f32 + self.rng.uniform() * r.width() as f32;
+        let y = r.y0 as f32 + self.rng.uniform() * r.height() as f32;
+        // Keep strictly inside the rectangle despite rounding.
+        (x.min(r.x1 as f32 - 1e-3), y.min(r.y1 as f32 - 1e-3))
+    }
+
+    /// Reproject one crosshair taken from the tile; returns the rays it used.
+    fn reproject(&mut self, state: &SceneState, mut c: Crosshair, now: f64) {
+        self.counters.reprojected += 1;
+        let cam = state.camera;
+        let dt = (now - c.t) as f32;
+        let moved: [Vec3; 5] = std::array::from_fn(|k| c.p[k] + c.velocity * dt);
+        let Some((x, y, _)) = cam.project(moved[0]) else {
+            self.counters.offscreen += 1;
+            return;
+        };
+        let Some((px, py)) = self.pixel_of(x, y) else {
+            self.counters.offscreen += 1;
+            return;
+        };
+        // Occlusion ray from the reprojected center toward the eye.
+        let t0 = Instant::now();
+        let occluded = self.tracer.occluded(state, moved[0], cam.eye);
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.counters.rays += 1;
+        self.counters.occlusion_rays += 1;
+        if occluded {
+            self.counters.occluded += 1;
+            self.record_occlusion(px, py, now);
+            let fresh = self.trace_crosshair(state, x, y, now, Some((c.lum[0], c.t)));
+            self.insert_front(fresh);
+            self.since_adjust += 1;
+            return;
+        }
+        // Spatial gradients from the neighbours' new positions.
+        let grad = |k: usize| -> f32 {
+            match cam.project(moved[k]) {
+                Some((nx, ny, _)) => {
+                    let d = ((nx - x).powi(2) + (ny - y).powi(2)).sqrt().max(0.25);
+                    (c.lum[0] - c.lum[k]).abs() / d
+                }
+                None => (c.lum[0] - c.lum[k]).abs(),
+            }
+        };
+        c.gx = (grad(1) + grad(2)) * 0.5;
+        c.gy = (grad(3) + grad(4)) * 0.5;
+        // Temporal gradient against the newest crosshair at the destination. The paper
+        // divides by that sample's age; we divide by the time between the two samples,
+        // over which the difference arose: a very recent newest sample otherwise
+        // inflates the gradient without bound.
+        if let Some(n) = self.buffer.newest(px, py) {
+            let dt = (n.t - c.t).abs().max(MIN_GRADIENT_DT);
+            c.gt = ((c.lum[0] - n.lum[0]).abs() as f64 / dt) as f32;
+        }
+        c.x = x;
+        c.y = y;
+        c.p = moved;
+        // The crosshair keeps its time: reprojection moves information, it does not
+        // refresh it. It goes to the back of its new queue, replacing an older one.
+        let leaf = self.tiling.leaf_at(px, py);
+        if self.buffer.len_at(px, py) == self.buffer.depth() {
+            match self.buffer.iter_at(px, py).last() {
+                Some(back) if back.t < c.t => {
+                    let old = self.buffer.pop_back(px, py).expect("full queue");
+                    let sub = self.contribution(&old);
+                    self.tiling.add_path(leaf, &sub, -1.0);
+                }
+                _ => return,
+            }
+        }
+        let add = self.contribution(&c);
+        self.tiling.add_path(leaf, &add, 1.0);
+        let _ = self.buffer.push_back(px, py, c);
+    }
+
+    fn visit(&mut self, leaf: u32, now: f64) {
+        let state = self.state(now);
+        self.counters.visits += 1;
+        let rect = self.tiling.node(leaf).rect;
+        if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
+            let c = self.trace_crosshair(&state, p.x, p.y, now, Some((p.lum, p.t)));
+            self.insert_front(c);
+            self.since_adjust += 1;
+        }
+        if self.params.reprojection {
+            for _ in 0..self.params.reprojections_per_visit {
+                let (x, y) = self.random_in(rect);
+                let (px, py) = (x as u32, y as u32);
+                if let Some(c) = self.buffer.pop_front(px, py) {
+                    let sub = self.contribution(&c);
+                    self.tiling.add_path(leaf, &sub, -1.0);
+                    self.reproject(&state, c, now);
+                }
+            }
+        }
+        // The tiling may not have changed during the visit; the leaf is still a tile.
+        let (x, y) = self.random_in(rect);
+        let s = self.trace(&state, x, y, now);
+        self.counters.initiating_samples += 1;
+        let leaf_now = self.tiling.leaf_at(x as u32, y as u32);
+        self.tiling.node_mut(leaf_now).pending = Some(Pending {
+            x,
+            y,
+            t: now,
+            lum: s.luminance,
+        });
+    }
+
+    /// The initial spatially gridded, co-temporal crosshairs (resumable: the budget may
+    /// run out part way).
+    fn initialize(&mut self) {
+        let sp = self.params.init_spacing;
+        let (nx, ny) = (self.width.div_ceil(sp), self.height.div_ceil(sp));
+        let now = self.clock.start;
+        let state = self.state(now);
+        while self.init_cursor < nx * ny {
+            if self.next_sample + 5 > self.budget_end {
+                return;
+            }
+            let (gx, gy) = (self.init_cursor % nx, self.init_cursor / nx);
+            let (x, y) = (
+                (gx * sp + sp / 2).min(self.width - 1),
+                (gy * sp + sp / 2).min(self.height - 1),
+            );
+            let t = self.clock.sample_time(self.next_sample);
+            let before = self.counters.rays;
+            let c = self.trace_crosshair(&state, x as f32 + 0.5, y as f32 + 0.5, t, None);
+            self.insert_front(c);
+            self.next_sample += self.counters.rays - before;
+            self.init_cursor += 1;
+        }
+        self.initialized = true;
+    }
+
+    /// Run every visit the budget allows up to time `t`.
+    pub fn run_until(&mut self, t: f64) {
+        let t_start = Instant::now();
+        self.budget_end = self.clock.samples_until(t);
+        if !self.initialized {
+            self.initialize();
+        }
+        let max_cost = max_rays_per_visit(&self.params);
+        while self.initialized && self.next_sample + max_cost <= self.budget_end {
+            let now = self.clock.sample_time(self.next_sample);
+            if now - self.t_ref > REBASE_AFTER_S {
+                self.rebase(now);
+            }
+            let k = self.rng.below(self.tiling.len() as u32) as usize;
+            let leaf = self.tiling.leaves()[k];
+            let before = self.counters.rays;
+            self.visit(leaf, now);
+            self.next_sample += self.counters.rays - before;
+            if self.since_adjust >= self.params.chunk {
+                self.since_adjust = 0;
+                self.adjust(now);
+            }
+        }
+        self.total_s += t_start.elapsed().as_secs_f64();
+    }
+
+    fn rebase(&mut self, now: f64) {
+        let f = (-self.params.decay * (now - self.t_ref)).exp();
+        self.tiling.scale_weights(f);
+        for o in &mut self.occl_px {
+            *o *= f;
+        }
+        self.t_ref = now;
+    }
+
+    /// The raw terms `(v, u, o)` of one tile's error.
+    fn error_terms(&self, leaf: u32, mean_empty: f64, w_now: f64) -> (f64, f64, f64) {
+        let b = self.params.depth as f64;
+        let n = self.tiling.node(leaf);
+        let s = n.rect.area() as f64;
+        let v = n.stats.variance();
+        let empty = (s * b - n.stats.count).max(0.0);
+        let u = if empty > 0.0 {
+            1.0 - (self.params.undersampling_m * mean_empty / empty).min(1.0)
+        } else {
+            0.0
+        };
+        let o = n.stats.occl / w_now / (s * b);
+        (v, u, o)
+    }
+
+    fn error_context(&self, now: f64) -> (f64, f64) {
+        let total = self.tiling.total();
+        let capacity = self.width as f64 * self.height as f64 * self.params.depth as f64;
+        let mean_empty = (capacity - total.count).max(0.0) / self.tiling.len() as f64;
+        (mean_empty, self.weight(now))
+    }
+
+    /// Recompute the sums `(Σv, Σu, Σo)` over all tiles that normalise tile error.
+    fn refresh_error_sums(&mut self, now: f64) {
+        let (me, w) = self.error_context(now);
+        let mut sums = (0.0, 0.0, 0.0);
+        for &l in self.tiling.leaves() {
+            let (v, u, o) = self.error_terms(l, me, w);
+            sums.0 += v;
+            sums.1 += u;
+            sums.2 += o;
+        }
+        self.error_sums = sums;
+        self.error_sums_tiles = self.tiling.len();
+    }
+
+    /// Tile error `E = s·(κ v/Σv + λ u/Σu + (1−κ−λ) o/Σo)`.
+    fn error(&self, leaf: u32, mean_empty: f64, w_now: f64) -> f64 {
+        let p = &self.params;
+        let (v, u, o) = self.error_terms(leaf, mean_empty, w_now);
+        let (sv, su, so) = self.error_sums;
+        let (kappa, lambda) = if p.occlusion_term {
+            (p.kappa, p.lambda)
+        } else {
+            (1.0 - p.lambda, p.lambda)
+        };
+        let norm = |x: f64, sum: f64| if sum > 0.0 { x / sum } else { 0.0 };
+        let s = self.tiling.node(leaf).rect.area() as f64;
+        s * (kappa * norm(v, sv) + lambda * norm(u, su) + (1.0 - kappa - lambda) * norm(o, so))
+    }
+
+    /// Every tile's error (visualisation and tests; O(tiles)).
+    pub fn tile_errors(&mut self, now: f64) -> Vec<(u32, f64)> {
+        self.refresh_error_sums(now);
+        let (me, w) = self.error_context(now);
+        self.tiling
+            .leaves()
+            .iter()
+            .map(|&l| (l, self.error(l, me, w)))
+            .collect()
+    }
+
+    /// Image-wide inputs of gain control: age-weighted mean spatial gradient
+    /// `(Gx + Gy)/2`, temporal gradient `Gt`, and age-weighted mean sample age `T`.
+    pub fn gain_inputs(&self, now: f64) -> (f64, f64, f64) {
+        let total = self.tiling.total();
+        let (gx, gy, gt) = total.gradients();
+        (0.5 * (gx + gy), gt, total.weighted_age(now))
+    }
+
+    /// Gain control: the tile count for which `dC/ds · S = i · dC/dt · T`, i.e. tiles of
+    /// width `S = i·Gt·T/Gs`, clamped to `[min_tiles, max_tiles]`.
+    fn gain_target(&self, now: f64) -> f64 {
+        let (gs, gt, age) = self.gain_inputs(now);
+        let pixels = self.width as f64 * self.height as f64;
+        let (lo, hi) = (self.params.min_tiles as f64, self.max_tiles() as f64);
+        if gs <= 1e-9 {
+            return lo; // a flat image needs no adaptation
+        }
+        let s = self.params.gain_i * gt * age / gs; // tile width in pixels
+        if s <= 1e-9 {
+            return hi; // static: adapt as finely as allowed
+        }
+        (pixels / (s * s)).clamp(lo, hi)
+    }
+
+    fn split_tile(&mut self, leaf: u32) {
+        // The first child's statistics come from the buffer (a scan bounded by the
+        // tile's area); the second's are the remainder.
+        let r = self.tiling.node(leaf).rect;
+        let half = if r.width() >= r.height() {
+            Rect {
+                x1: r.x0 + r.width() / 2,
+                ..r
+            }
+        } else {
+            Rect {
+                y1: r.y0 + r.height() / 2,
+                ..r
+            }
+        };
+        let s = self.stats_of(half);
+        self.tiling.split(leaf, |_| s);
+        self.counters.splits += 1;
+    }
+
+    fn grow_uniform(&mut self, n: usize) {
+        while self.tiling.len() < n {
+            // Split the largest tile: a near-uniform grid.
+            let Some(&l) = self
+                .tiling
+                .leaves()
+                .iter()
+                .filter(|&&l| self.tiling.splittable(l, self.params.min_tile_side))
+                .max_by_key(|&&l| self.tiling.node(l).rect.area())
+            else {
+                break;
+            };
+            self.split_tile(l);
+        }
+    }
+
+    /// After a chunk of crosshairs: steer the tile count, then balance tile errors.
+    ///
+    /// Bounded work: candidates for splitting and merging come from a random subset of
+    /// `ADJUST_CANDIDATES` tiles, and the sums that normalise tile error are refreshed
+    /// only every `ERROR_SUMS_EVERY` adjustments or when the tile count has moved by
+    /// more than 10%; at most `max_adjust_ops` splits and merges happen.
+    fn adjust(&mut self, now: f64) {
+        self.counters.adjustments += 1;
+        let p = self.params;
+        if p.uniform_tiling {
+            return;
+        }
+        if p.gain_control {
+            let target = self.gain_target(now);
+            self.target_tiles =
+                p.gain_smoothing * self.target_tiles + (1.0 - p.gain_smoothing) * target;
+        }
+        let stale = self.tiling.len().abs_diff(self.error_sums_tiles) * 10 > self.error_sums_tiles;
+        if self.counters.adjustments % ERROR_SUMS_EVERY == 1 || stale {
+            self.refresh_error_sums(now);
+        }
+        let (me, w) = self.error_context(now);
+        let n_leaves = self.tiling.len();
+        let mut splits: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
+        let mut pairs: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
+        for _ in 0..ADJUST_CANDIDATES.min(n_leaves * 2) {
+            let l = self.tiling.leaves()[self.rng.below(n_leaves as u32) as usize];
+            let e = self.error(l, me, w);
+            if self.tiling.splittable(l, p.min_tile_side) {
+                splits.push((e, l));
+            }
+            let parent = self.tiling.node(l).parent;
+            if parent != NONE && self.tiling.mergeable(parent) {
+                let c = self.tiling.node(parent).children;
+                let sib = if c == l { c + 1 } else { c };
+                pairs.push((e + self.error(sib, me, w), parent));
+            }
+        }
+        splits.sort_by(|a, b| b.0.total_cmp(&a.0));
+        splits.dedup_by_key(|x| x.1);
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        pairs.dedup_by_key(|x| x.1);
+        let mut splits = splits.into_iter().peekable();
+        let mut pairs = pairs.into_iter().peekable();
+        let mut ops = 0;
+        while ops < p.max_adjust_ops {
+            // Drop candidates that earlier operations of this adjustment invalidated.
+            while splits
+                .peek()
+                .is_some_and(|&(_, l)| self.tiling.node(l).leaf_slot == NONE)
+            {
+                splits.next();
+            }
+            while pairs
+                .peek()
+                .is_some_and(|&(_, n)| !self.tiling.mergeable(n))
+            {
+                pairs.next();
+            }
+            let n = self.tiling.len() as f64;
+            if n < self.target_tiles - 0.5 {
+                let Some((_, l)) = splits.next() else { break };
+                self.split_tile(l);
+                ops += 1;
+            } else if n > self.target_tiles + 0.5 {
+                let Some((_, parent)) = pairs.next() else {
+                    break;
+                };
+                self.tiling.merge(parent);
+                self.counters.merges += 1;
+                ops += 1;
+            } else {
+                match (splits.peek().copied(), pairs.peek().copied()) {
+                    (Some((emax, l)), Some((epair, parent)))
+                        if emax > p.balance_ratio * epair
+                            && self.tiling.node(l).parent != parent =>
+                    {
+                        splits.next();
+                        pairs.next();
+                        self.tiling.merge(parent);
+                        self.counters.merges += 1;
+                        self.split_tile(l);
+                        ops += 2;
+                    }
+                    _ => break,
+                }
+            }
+        }
+    }
+
+    /// Check the tiling against the deep buffer (tests; expensive).
+    pub fn validate(&self) -> Result<(), String> {
+        let f = |r: Rect| self.stats_of(r);
+        self.tiling.validate(Some(&f), 1e-6)
+    }
+
+    /// Samples (rays) used so far.
+    pub fn samples_used(&self) -> u64 {
+        self.next_sample
+    }
+}
