@@ -82,9 +82,10 @@
 //!   to the center of the scene bounds at `t = 0` but at least a quarter of the bounding
 //!   radius; `color·intensity` (already lux) for directional lights. Spot cones and
 //!   `range` are ignored (spots shine as points). A directional light becomes a point
-//!   light 1000 bounding radii from the center, against its direction. Lights on animated
-//!   nodes follow them like the camera does (translation only). With no lights, one
-//!   white light of color 1 is placed above and to the right of the camera.
+//!   light 1000 bounding radii from the center, against its direction. Point and spot
+//!   lights on animated nodes follow them the way the camera does (position only); a
+//!   directional light keeps its direction at `t = 0`. With no lights, one white light of
+//!   color 1 is placed above and to the right of the camera at `t = 0`.
 //! - **Extensions.** A file requiring an extension other than `KHR_lights_punctual`,
 //!   `KHR_materials_ior`, `KHR_materials_transmission` or `KHR_mesh_quantization` is
 //!   rejected, since it cannot be shown as intended.
@@ -1127,7 +1128,7 @@ impl<'a> Build<'a> {
     fn run(&mut self, camera_name: Option<&str>) -> Result<(), SceneError> {
         let doc = self.doc;
         let root = &doc.root;
-        let channels = self.collect_channels()?;
+        let mut channels = self.collect_channels()?;
         let roots = self.scene_roots()?;
 
         // Depth-first, parents before children; glTF node index → scene node id.
@@ -1137,7 +1138,6 @@ impl<'a> Build<'a> {
         let mut range: Option<(f32, f32)> = None;
         let mut stack: Vec<(usize, Option<NodeId>)> =
             roots.into_iter().rev().map(|i| (i, None)).collect();
-        let mut channels = channels;
         while let Some((gi, parent)) = stack.pop() {
             let node = root.nodes.get(gi).ok_or_else(|| {
                 doc.invalid(format!(

@@ -517,7 +517,12 @@ impl Sampler {
         let n = self.tiling.node(leaf);
         let s = n.rect.area() as f64;
         let v = n.stats.variance();
-        let empty = (s * b - n.stats.count).max(0.0);
+        // Undersampling compares empty *fractions* of the tile's and the image's slots.
+        // The paper compares counts (empty slots in the tile against the mean per tile);
+        // with counts every large tile looks undersampled, so large uniform tiles are
+        // split as soon as they are merged and the tiling cannot coarsen where the image
+        // is flat.
+        let empty = (s * b - n.stats.count).max(0.0) / (s * b);
         let u = if empty > 0.0 {
             1.0 - (self.params.undersampling_m * mean_empty / empty).min(1.0)
         } else {
@@ -530,7 +535,7 @@ impl Sampler {
     fn error_context(&self, now: f64) -> (f64, f64) {
         let total = self.tiling.total();
         let capacity = self.width as f64 * self.height as f64 * self.params.depth as f64;
-        let mean_empty = (capacity - total.count).max(0.0) / self.tiling.len() as f64;
+        let mean_empty = (capacity - total.count).max(0.0) / capacity;
         (mean_empty, self.weight(now))
     }
 
