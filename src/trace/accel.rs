@@ -283,6 +283,20 @@ pub struct InstanceState {
     pub aabb: Aabb,
 }
 
+impl InstanceState {
+    /// A world-space ray in the instance's local space. The direction is not
+    /// renormalised, so hit distances `t` stay comparable with world-space ones.
+    #[inline]
+    pub fn local_ray(&self, r: &Ray) -> Ray {
+        Ray::new(
+            self.inv.transform_point3a(r.origin),
+            self.inv.transform_vector3a(r.direction),
+            r.tmin,
+            r.tmax,
+        )
+    }
+}
+
 impl Boundable for InstanceState {
     fn aabb(&self) -> Aabb {
         self.aabb

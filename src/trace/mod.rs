@@ -364,12 +364,7 @@ impl Tracer {
             let mut rh = RayHit::none();
             top.ray_traverse(r, &mut rh, |wr, id| {
                 let inst = &state.instances[top.primitive_indices[id] as usize];
-                let local = Ray::new(
-                    inst.inv.transform_point3a(wr.origin),
-                    inst.inv.transform_vector3a(wr.direction),
-                    wr.tmin,
-                    wr.tmax,
-                );
+                let local = inst.local_ray(wr);
                 match self.instance_groups[inst.group as usize].1.closest(&local) {
                     Some((t, p)) => {
                         best = Some(Hit {
@@ -413,12 +408,7 @@ impl Tracer {
             let mut blocked = false;
             top.ray_traverse_miss(*ray, |wr, id| {
                 let inst = &state.instances[top.primitive_indices[id] as usize];
-                let local = Ray::new(
-                    inst.inv.transform_point3a(wr.origin),
-                    inst.inv.transform_vector3a(wr.direction),
-                    wr.tmin,
-                    wr.tmax,
-                );
+                let local = inst.local_ray(wr);
                 if self.instance_groups[inst.group as usize]
                     .1
                     .occlusion(&local, &tr, &mut acc)
@@ -492,12 +482,7 @@ impl Tracer {
             }
             HitWhere::Instance(ii, pr) => {
                 let inst = &state.instances[ii as usize];
-                let lray = Ray::new(
-                    inst.inv.transform_point3a(ray.origin),
-                    inst.inv.transform_vector3a(ray.direction),
-                    ray.tmin,
-                    ray.tmax,
-                );
+                let lray = inst.local_ray(ray);
                 let g = &self.instance_groups[inst.group as usize].1;
                 let (pl, ng, n, uv, material) = group_surface(g, pr, &lray);
                 Surface {
