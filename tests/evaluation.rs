@@ -191,6 +191,19 @@ fn framed_full_reaches_its_floor_once_a_frame_completes_and_frameless_converges(
         (last - floor).abs() < 1e-9,
         "frameless {last} vs framed {floor}"
     );
+    // Temporal instability: a static scene shown steadily does not flicker at all; the
+    // frameless display changes as it fills while the ideal does not.
+    let flicker: Vec<f64> = out
+        .frames
+        .iter()
+        .filter(|f| f.method == "framed-full")
+        .filter_map(|f| f.flicker)
+        .collect();
+    assert!(flicker[5..].iter().all(|f| *f == 0.0), "{flicker:?}");
+    assert!(out
+        .frames
+        .iter()
+        .any(|f| f.method == "traditional-frameless" && f.flicker.unwrap_or(0.0) > 0.0));
     // The floor is the aliasing of 1 sample per pixel: small but not zero.
     assert!(floor > 0.0 && floor < 20.0, "{floor}");
 }

@@ -31,6 +31,25 @@ pub fn psnr(rms: f64) -> f64 {
     (20.0 * (255.0 / rms).log10()).min(PSNR_CAP_DB)
 }
 
+/// Temporal instability between two refreshes: mean over channels of
+/// `|(shown − shown_prev) − (ideal − ideal_prev)|`, in 0–255 units. Zero when the display
+/// changes exactly as the ideal does (including not at all on a still scene).
+pub fn flicker(shown_prev: &[u8], shown: &[u8], ideal_prev: &[u8], ideal: &[u8]) -> f64 {
+    let n = shown.len();
+    assert!(shown_prev.len() == n && ideal_prev.len() == n && ideal.len() == n);
+    if n == 0 {
+        return 0.0;
+    }
+    let sum: i64 = (0..n)
+        .map(|i| {
+            let d = shown[i] as i64 - shown_prev[i] as i64;
+            let e = ideal[i] as i64 - ideal_prev[i] as i64;
+            (d - e).abs()
+        })
+        .sum();
+    sum as f64 / n as f64
+}
+
 /// Mean FLIP error (NVIDIA's LDR-FLIP, default viewing distance: 67 pixels per degree)
 /// between a reference and a test image of `w × h` 8-bit RGB pixels.
 pub fn flip_mean(reference: &[u8], test: &[u8], w: u32, h: u32) -> f64 {
@@ -63,6 +82,18 @@ mod tests {
         assert!(psnr(255.0).abs() < 1e-12);
         // RMS 25.5 is 20 dB.
         assert!((psnr(25.5) - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn flicker_counts_only_change_the_ideal_does_not_have() {
+        let a = vec![10u8, 20, 30];
+        let b = vec![12u8, 20, 27];
+        // The display changes exactly as the ideal: no flicker.
+        assert_eq!(flicker(&a, &b, &a, &b), 0.0);
+        // The ideal is still, the display changes by 2 and 3: mean 5/3.
+        assert!((flicker(&a, &b, &a, &a) - 5.0 / 3.0).abs() < 1e-12);
+        // The display is still while the ideal changes: lag counts too.
+        assert!((flicker(&a, &a, &a, &b) - 5.0 / 3.0).abs() < 1e-12);
     }
 
     #[test]

@@ -140,6 +140,11 @@ pub struct FrameRow {
     pub psnr: f64,
     /// Mean FLIP error (`None` on frames where it was not computed).
     pub flip: Option<f64>,
+    /// Temporal instability: mean absolute difference, in 0–255 units, between the
+    /// displayed image's change since the previous refresh and the ideal image's own
+    /// change (`None` on the first frame). Scintillation raises it; faithfully following
+    /// real change does not.
+    pub flicker: Option<f64>,
     /// Mean age of the displayed information, seconds.
     pub age_s: f64,
 }
@@ -163,6 +168,8 @@ pub struct ResultRow {
     pub flip_mean: f64,
     /// Frames whose FLIP was computed.
     pub flip_frames: usize,
+    /// Mean temporal instability (see [`FrameRow::flicker`]).
+    pub flicker_mean: f64,
     /// Mean information age, seconds.
     pub age_mean_s: f64,
     /// Samples traced over warm-up and window.
@@ -349,13 +356,15 @@ pub fn run(
         timing.methods_s += tm.elapsed().as_secs_f64();
         timing.trace_s += method.trace_seconds();
         let tq = Instant::now();
-        let metrics: Vec<(f64, Option<f64>)> = shown
+        let metrics: Vec<(f64, Option<f64>, Option<f64>)> = shown
             .par_iter()
             .zip(ideal.par_iter())
             .enumerate()
             .map(|(k, ((rgb, _), id))| {
                 let flip = (k % cfg.flip_every == 0).then(|| metrics::flip_mean(id, rgb, w, h));
-                (metrics::rms(id, rgb), flip)
+                let flicker =
+                    (k > 0).then(|| metrics::flicker(&shown[k - 1].0, rgb, &ideal[k - 1], id));
+                (metrics::rms(id, rgb), flip, flicker)
             })
             .collect();
         timing.metrics_s += tq.elapsed().as_secs_f64();
@@ -366,7 +375,7 @@ pub fn run(
         };
         for r in rows_for {
             let mut rows = Vec::with_capacity(n);
-            for (k, ((_, age), (rms, flip))) in shown.iter().zip(&metrics).enumerate() {
+            for (k, ((_, age), (rms, flip, flicker))) in shown.iter().zip(&metrics).enumerate() {
                 rows.push(FrameRow {
                     method: kind.name().into(),
                     rate: r,
@@ -375,12 +384,14 @@ pub fn run(
                     rms: *rms,
                     psnr: metrics::psnr(*rms),
                     flip: *flip,
+                    flicker: *flicker,
                     age_s: *age,
                 });
             }
             let mean =
                 |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
             let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
+            let flickers: Vec<f64> = rows.iter().filter_map(|r| r.flicker).collect();
             results.push(ResultRow {
                 method: kind.name().into(),
                 rate: r,
@@ -390,6 +401,7 @@ pub fn run(
                 psnr_mean: mean(|r| r.psnr),
                 flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
                 flip_frames: flips.len(),
+                flicker_mean: flickers.iter().sum::<f64>() / flickers.len().max(1) as f64,
                 age_mean_s: mean(|r| r.age_s),
                 samples: method.samples_used(),
             });

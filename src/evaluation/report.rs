@@ -71,10 +71,15 @@ pub fn markdown(s: &Summary) -> String {
         "# Evaluation: {} at {}x{}, {} Hz, t = {} s + {} s (warm-up {} s, seed {}, ideal {} spp)\n",
         s.scene, s.width, s.height, s.refresh_hz, s.start, s.duration, s.warmup, s.seed, s.ideal_spp
     );
-    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 4] = [
+    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 5] = [
         ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 1),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2),
         ("Mean FLIP (lower is better)", |r| r.flip_mean, 4),
+        (
+            "Temporal instability (0–255, change not in the ideal; lower is better)",
+            |r| r.flicker_mean,
+            2,
+        ),
         ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1),
     ];
     for (title, f, prec) in tables {
@@ -106,12 +111,13 @@ pub fn markdown(s: &Summary) -> String {
 }
 
 fn csv(out: &EvalOutput) -> String {
-    let mut s = String::from("method,rate,frame,time,rms,psnr,flip,age_s\n");
+    let mut s = String::from("method,rate,frame,time,rms,psnr,flip,flicker,age_s\n");
     for f in &out.frames {
         let flip = f.flip.map(|v| format!("{v:.6}")).unwrap_or_default();
+        let flicker = f.flicker.map(|v| format!("{v:.4}")).unwrap_or_default();
         let _ = writeln!(
             s,
-            "{},{},{},{:.6},{:.4},{:.4},{flip},{:.6}",
+            "{},{},{},{:.6},{:.4},{:.4},{flip},{flicker},{:.6}",
             f.method, f.rate, f.frame, f.time, f.rms, f.psnr, f.age_s
         );
     }
@@ -246,9 +252,10 @@ fn html(
     );
     let methods = methods_in_order(s);
     let rates = rates_in_order(s);
-    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 3] = [
+    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 4] = [
         ("Mean RMS error (0–255)", |r| r.rms_mean, 1),
         ("Mean FLIP", |r| r.flip_mean, 4),
+        ("Temporal instability (0–255)", |r| r.flicker_mean, 2),
         ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1),
     ];
     for (title, f, prec) in tables {
