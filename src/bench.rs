@@ -59,6 +59,107 @@ pub struct BenchReport {
     pub shaded_samples_per_s_all: f64,
     /// Fully shaded samples per second on one thread.
     pub shaded_samples_per_s_1t: f64,
+    /// One reconstructor refresh, 400K samples at 256×256, one thread, ms.
+    pub reconstruct_ms_1t: f64,
+    /// One reconstructor refresh, 400K samples at 256×256, all threads, ms.
+    pub reconstruct_ms_all: f64,
+    /// One reconstructor refresh, 6 × 512² samples at 512×512, all threads, ms.
+    pub reconstruct_ms_512_all: f64,
+    /// One reconstructor refresh, 6 × 1024² samples at 1024×1024, all threads, ms.
+    pub reconstruct_ms_1024_all: f64,
+}
+
+/// A reconstructor at `width × height` with a full ring of `n` synthetic samples:
+/// random positions over the view of the `reconstruct_bench` camera, hit points at
+/// random depths, slow random velocities, random colors, traced at rate `n` per second
+/// over the second before time 1; and a tiling split into tiles of about 256 pixels
+/// with synthetic gradients. Returns the reconstructor, camera and tiling.
+pub fn reconstruct_fixture(
+    width: u32,
+    height: u32,
+    n: usize,
+    seed: u64,
+) -> (
+    crate::reconstruction::Reconstructor,
+    crate::scene::CameraFrame,
+    crate::methods::adaptive::tiling::Tiling,
+) {
+    use crate::{
+        methods::adaptive::tiling::{TileStats, Tiling},
+        reconstruction::{ReconParams, Reconstructor, RingSample},
+        scene::Camera,
+    };
+    use glam::Vec3;
+    let camera = Camera {
+        eye: Vec3::new(0.0, 0.0, 5.0),
+        at: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 60.0,
+        hither: 1e-3,
+    }
+    .frame(width, height);
+    let rate = n as f64;
+    let mut rng = Rng::new(&[seed, 0x7ec0]);
+    let mut r = Reconstructor::new(
+        width,
+        height,
+        rate,
+        ReconParams {
+            ring_factor: n as f64 / (width as f64 * height as f64),
+            ..ReconParams::paper()
+        },
+    );
+    for i in 0..n {
+        let x = rng.uniform() * width as f32;
+        let y = rng.uniform() * height as f32;
+        let depth = 2.0 + 6.0 * rng.uniform();
+        let v = Vec3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, 0.0) * 0.2;
+        r.push(RingSample {
+            x,
+            y,
+            t: i as f64 / rate,
+            color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+            hit_point: camera.eye + camera.direction(x, y) * depth,
+            velocity: v,
+        });
+    }
+    let mut tiling = Tiling::new(width, height);
+    let target = ((width * height) / 256).max(1) as usize;
+    let mut k = 0;
+    while tiling.len() < target && k < tiling.len() {
+        let leaf = tiling.leaves()[k];
+        if tiling.splittable(leaf, 4) {
+            let g = rng.uniform() as f64;
+            let stats = TileStats {
+                wc: 1.0,
+                wgx: 0.05 * g,
+                wgy: 0.05 * (1.0 - g),
+                wgt: 0.5 * rng.uniform() as f64,
+                ..TileStats::default()
+            };
+            tiling.split(leaf, |_| stats);
+        } else {
+            k += 1;
+        }
+    }
+    (r, camera, tiling)
+}
+
+/// Milliseconds of one reconstructor refresh on the [`reconstruct_fixture`] (best of
+/// `repeats`, after `warmup` refreshes that settle the splat scale map).
+pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats: usize) -> f64 {
+    let (mut r, camera, tiling) = reconstruct_fixture(width, height, n, 1);
+    let t = 1.0;
+    for _ in 0..warmup {
+        r.reconstruct(t, &camera, &tiling);
+    }
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        std::hint::black_box(r.reconstruct(t, &camera, &tiling));
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    best * 1e3
 }
 
 /// Random sub-pixel positions in random pixel order: a shuffled permutation of all
@@ -140,6 +241,10 @@ pub fn run(
     let sa = best_rate(opts.repeats, shaded_pts.len(), || {
         std::hint::black_box(shaded(shaded_pts));
     });
+    let rc1 = one.install(|| reconstruct_ms(256, 256, 400_000, 2, opts.repeats));
+    let rca = reconstruct_ms(256, 256, 400_000, 2, opts.repeats);
+    let rc512 = reconstruct_ms(512, 512, 6 * 512 * 512, 1, 2);
+    let rc1024 = reconstruct_ms(1024, 1024, 6 * 1024 * 1024, 1, 1);
     BenchReport {
         scene: tracer.scene().name.clone(),
         width: w,
@@ -153,5 +258,9 @@ pub fn run(
         primary_mrays_per_s_all: pa / 1e6,
         shaded_samples_per_s_all: sa,
         shaded_samples_per_s_1t: s1,
+        reconstruct_ms_1t: rc1,
+        reconstruct_ms_all: rca,
+        reconstruct_ms_512_all: rc512,
+        reconstruct_ms_1024_all: rc1024,
     }
 }

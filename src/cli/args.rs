@@ -62,7 +62,7 @@ pub enum Command {
 /// Arguments of `frameless sampler`.
 #[derive(Args, Debug)]
 pub struct SamplerArgs {
-    /// Built-in scene name or scene file.
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
     #[arg(long, default_value = "toycar")]
     pub scene: String,
     /// Camera path CSV overriding the scene's camera.
@@ -109,12 +109,19 @@ pub const METHODS_HELP: &str = "Comma-separated methods to evaluate:
   traditional-frameless  random pixel order, each sample at its own time, newest sample per pixel
   adaptive               adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer
   adaptive-no-reprojection
-                         adaptive frameless without reprojection in the sampler";
+                         adaptive frameless without reprojection in the sampler
+  adaptive-no-reproj-recon
+                         adaptive frameless without reprojection in the reconstructor
+  adaptive-fixed-filter  adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)
+  point-tracking         framed full resolution, rays aimed at the previous frame's hit points, last 3 frames averaged
+  point-tracking-no-blend
+                         point tracking showing only the newest frame
+  taa                    60 Hz at reduced resolution, Halton jitter, reprojected clamped history, blend 0.1";
 
 /// Arguments of `frameless eval`.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Built-in scene name or scene file.
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
     #[arg(long, default_value = "toycar")]
     pub scene: String,
     /// Camera path CSV overriding the scene's camera.
@@ -172,7 +179,7 @@ fn finite_f64(s: &str) -> Result<f64, String> {
 /// Arguments of `frameless still`.
 #[derive(Args, Debug)]
 pub struct StillArgs {
-    /// Built-in scene name or scene file (.aff).
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
     #[arg(long, default_value = "toycar")]
     pub scene: String,
     /// Camera path CSV overriding the scene's camera.
@@ -201,7 +208,7 @@ pub struct StillArgs {
 /// Arguments of `frameless bench`.
 #[derive(Args, Debug)]
 pub struct BenchArgs {
-    /// Built-in scene name or scene file.
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
     #[arg(long, default_value = "toycar")]
     pub scene: String,
     /// Scene time (default: the start of its animation).

@@ -124,6 +124,14 @@ pub fn run(cli: Cli) -> Result<()> {
                     "shaded all       {:.0} samples/s",
                     report.shaded_samples_per_s_all
                 );
+                println!(
+                    "reconstruct      {:.1} ms 1 thread, {:.1} ms all (400K, 256x256)",
+                    report.reconstruct_ms_1t, report.reconstruct_ms_all
+                );
+                println!(
+                    "reconstruct all  {:.1} ms 512x512, {:.1} ms 1024x1024 (6 x pixels)",
+                    report.reconstruct_ms_512_all, report.reconstruct_ms_1024_all
+                );
             }
             Ok(())
         }

@@ -112,7 +112,15 @@ impl EvalConfig {
                             report::rate_label(r), self.width, self.height, pixels / r, self.warmup + self.duration
                         ));
                     }
-                    MethodKind::Framed60Hz if r < 60.0 => {
+                    MethodKind::PointTracking | MethodKind::PointTrackingNoBlend
+                        if pixels / r > self.warmup + self.duration =>
+                    {
+                        return Err(format!(
+                            "rate {} is too low for point tracking: one {}x{} frame takes {:.2} s, longer than warm-up + duration ({:.2} s)",
+                            report::rate_label(r), self.width, self.height, pixels / r, self.warmup + self.duration
+                        ));
+                    }
+                    MethodKind::Framed60Hz | MethodKind::Taa if r < 60.0 => {
                         return Err(format!("rate {r} is too low for framed-60hz: it needs at least 60 samples/s (one per frame)"));
                     }
                     _ => {}
@@ -174,6 +182,9 @@ pub struct ResultRow {
     pub age_mean_s: f64,
     /// Samples traced over warm-up and window.
     pub samples: u64,
+    /// Method-specific statistics (point tracking: points-per-pixel shares, cost ratio).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub extra: Option<serde_json::Value>,
 }
 
 /// Where the time of a run went.
@@ -404,6 +415,7 @@ pub fn run(
                 flicker_mean: flickers.iter().sum::<f64>() / flickers.len().max(1) as f64,
                 age_mean_s: mean(|r| r.age_s),
                 samples: method.samples_used(),
+                extra: method.extra_stats(),
             });
             for (sr, k, list) in strips.iter_mut() {
                 if *sr == r {

@@ -9,6 +9,8 @@ pub mod adaptive;
 pub mod framed;
 pub mod frameless;
 pub mod ideal;
+pub mod point_tracking;
+pub mod taa;
 
 use std::sync::Arc;
 
@@ -31,6 +33,16 @@ pub enum MethodKind {
     Adaptive,
     /// Adaptive without reprojection in the sampler (paper Fig. 8's ablation).
     AdaptiveNoReprojection,
+    /// Adaptive whose reconstructor splats samples where they were traced.
+    AdaptiveNoReprojRecon,
+    /// Adaptive whose reconstructor uses a fixed, non-adaptive filter.
+    AdaptiveFixedFilter,
+    /// Point tracking (Martin et al. 2002) with the three-frame blend.
+    PointTracking,
+    /// Point tracking without the blend.
+    PointTrackingNoBlend,
+    /// TAA / temporal upsampling at 60 Hz.
+    Taa,
 }
 
 impl MethodKind {
@@ -43,6 +55,11 @@ impl MethodKind {
         MethodKind::TraditionalFrameless,
         MethodKind::Adaptive,
         MethodKind::AdaptiveNoReprojection,
+        MethodKind::AdaptiveNoReprojRecon,
+        MethodKind::AdaptiveFixedFilter,
+        MethodKind::PointTracking,
+        MethodKind::PointTrackingNoBlend,
+        MethodKind::Taa,
     ];
 
     /// Command-line name.
@@ -55,6 +72,11 @@ impl MethodKind {
             MethodKind::TraditionalFrameless => "traditional-frameless",
             MethodKind::Adaptive => "adaptive",
             MethodKind::AdaptiveNoReprojection => "adaptive-no-reprojection",
+            MethodKind::AdaptiveNoReprojRecon => "adaptive-no-reproj-recon",
+            MethodKind::AdaptiveFixedFilter => "adaptive-fixed-filter",
+            MethodKind::PointTracking => "point-tracking",
+            MethodKind::PointTrackingNoBlend => "point-tracking-no-blend",
+            MethodKind::Taa => "taa",
         }
     }
 
@@ -77,6 +99,19 @@ impl MethodKind {
             }
             MethodKind::AdaptiveNoReprojection => {
                 "adaptive frameless without reprojection in the sampler"
+            }
+            MethodKind::AdaptiveNoReprojRecon => {
+                "adaptive frameless without reprojection in the reconstructor"
+            }
+            MethodKind::AdaptiveFixedFilter => {
+                "adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)"
+            }
+            MethodKind::PointTracking => {
+                "framed full resolution, rays aimed at the previous frame's hit points, last 3 frames averaged"
+            }
+            MethodKind::PointTrackingNoBlend => "point tracking showing only the newest frame",
+            MethodKind::Taa => {
+                "60 Hz at reduced resolution, Halton jitter, reprojected clamped history, blend 0.1"
             }
         }
     }
@@ -120,6 +155,21 @@ impl MethodKind {
                 ctx,
                 adaptive::SamplerParams::no_reprojection(),
             )?),
+            MethodKind::AdaptiveNoReprojRecon => Box::new(adaptive::Adaptive::with_reconstructor(
+                ctx,
+                adaptive::SamplerParams::paper(),
+                crate::reconstruction::ReconParams::no_reprojection(),
+            )?),
+            MethodKind::AdaptiveFixedFilter => Box::new(adaptive::Adaptive::with_reconstructor(
+                ctx,
+                adaptive::SamplerParams::paper(),
+                crate::reconstruction::ReconParams::fixed_filter(),
+            )?),
+            MethodKind::PointTracking => Box::new(point_tracking::PointTracking::new(ctx, true)),
+            MethodKind::PointTrackingNoBlend => {
+                Box::new(point_tracking::PointTracking::new(ctx, false))
+            }
+            MethodKind::Taa => Box::new(taa::Taa::new(ctx)?),
         })
     }
 }
@@ -157,6 +207,10 @@ pub trait Method: Send {
     /// Wall-clock seconds spent tracing rays so far (the rest of a method's time is
     /// its own overhead).
     fn trace_seconds(&self) -> f64;
+    /// Method-specific statistics for the summary (e.g. point tracking's histogram).
+    fn extra_stats(&self) -> Option<serde_json::Value> {
+        None
+    }
 }
 
 /// Mean age of per-pixel information times at display time `t`.

@@ -1,7 +1,8 @@
 //! Adaptive frameless rendering (Dayal et al. 2005): the closed-loop sampler over a K-D
-//! tiling of a temporally deep buffer. Until the adaptive reconstructor lands, the
-//! display shows the newest sample at each pixel (holes filled from the nearest sampled
-//! neighbour), i.e. traditional frameless display of adaptively placed samples.
+//! tiling of a temporally deep buffer. The display is the adaptive space-time
+//! reconstructor ([`crate::reconstruction`]) fed by the sampler's stream, with filters
+//! from the sampler's tiling; the reported mean age is the pixel mean of the
+//! weight-averaged sample age of the reconstruction.
 
 pub mod deep_buffer;
 pub mod params;
@@ -9,36 +10,53 @@ pub mod sampler;
 pub mod tiling;
 pub mod vis;
 
-use super::{mean_age, Displayed, Method, MethodContext};
-use crate::image::Image;
+use std::sync::Arc;
+
+use super::{Displayed, Method, MethodContext};
+use crate::{
+    image::Image,
+    reconstruction::{ReconParams, Reconstructor},
+    trace::Tracer,
+};
 pub use params::SamplerParams;
 pub use sampler::Sampler;
 
-/// The `adaptive` method of the evaluation.
+/// The `adaptive` method of the evaluation (and its ablations).
 pub struct Adaptive {
     sampler: Sampler,
-    image: Image,
-    info_time: Vec<f64>,
-    sampled: Vec<bool>,
-    shown: Image,
+    recon: Reconstructor,
+    tracer: Arc<Tracer>,
 }
 
 impl Adaptive {
-    /// Create for one run with the given sampler parameters.
+    /// Create for one run with the given sampler parameters and the paper's
+    /// reconstructor.
     pub fn new(ctx: &MethodContext, params: SamplerParams) -> Result<Self, String> {
+        Self::with_reconstructor(ctx, params, ReconParams::paper())
+    }
+
+    /// Create for one run with the given sampler and reconstructor parameters.
+    pub fn with_reconstructor(
+        ctx: &MethodContext,
+        params: SamplerParams,
+        recon: ReconParams,
+    ) -> Result<Self, String> {
         let (w, h) = ctx.tracer.size();
         Ok(Self {
             sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?,
-            image: Image::new(w, h),
-            info_time: vec![ctx.clock.start; (w * h) as usize],
-            sampled: vec![false; (w * h) as usize],
-            shown: Image::new(w, h),
+            recon: Reconstructor::new(w, h, ctx.clock.rate, recon),
+            tracer: ctx.tracer.clone(),
         })
     }
 
     /// The sampler (for visualisations and statistics).
     pub fn sampler(&self) -> &Sampler {
         &self.sampler
+    }
+
+    /// The reconstructor.
+    pub fn reconstructor(&self) -> &Reconstructor {
+        &self.recon
     }
 }
 
@@ -74,22 +92,13 @@ pub fn fill_holes(img: &Image, sampled: &[bool], max_r: i32) -> Image {
 impl Method for Adaptive {
     fn display(&mut self, t: f64) -> Displayed<'_> {
         self.sampler.run_until(t);
-        let w = self.image.width;
-        for s in self.sampler.drain_stream() {
-            let (x, y) = (s.x as u32, s.y as u32);
-            if x < w && y < self.image.height {
-                let i = (y * w + x) as usize;
-                if s.t >= self.info_time[i] || !self.sampled[i] {
-                    self.image.pixels[i] = s.sample.color;
-                    self.info_time[i] = s.t;
-                    self.sampled[i] = true;
-                }
-            }
-        }
-        self.shown = fill_holes(&self.image, &self.sampled, 8);
+        let stream = self.sampler.drain_stream();
+        self.recon.push_stream(&stream);
+        let camera = self.tracer.state_at(t).camera;
+        self.recon.reconstruct(t, &camera, self.sampler.tiling());
         Displayed {
-            image: &self.shown,
-            mean_age: mean_age(&self.info_time, t),
+            image: self.recon.image(),
+            mean_age: self.recon.mean_age(),
         }
     }
 

@@ -1,0 +1,247 @@
+//! Point tracking and TAA on small hand-built cases.
+
+use std::sync::Arc;
+
+use frameless::{
+    evaluation::{self, clock::Clock, EvalConfig, Silent},
+    methods::{point_tracking::PointTracking, taa::Taa, Method, MethodContext, MethodKind},
+    scene::{
+        animation::KeyframeTrack, Camera, CameraPath, CameraTrack, Group, Light, Material, Node,
+        NodeKind, Scene, Sphere, Triangle,
+    },
+    trace::{TraceOptions, Tracer},
+};
+use glam::Vec3;
+
+fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Triangle> {
+    let p = [
+        Vec3::new(x0, y0, z),
+        Vec3::new(x1, y0, z),
+        Vec3::new(x1, y1, z),
+        Vec3::new(x0, y1, z),
+    ];
+    vec![
+        Triangle {
+            p: [p[0], p[1], p[2]],
+            n: None,
+            uv: None,
+            material,
+        },
+        Triangle {
+            p: [p[0], p[2], p[3]],
+            n: None,
+            uv: None,
+            material,
+        },
+    ]
+}
+
+fn base(groups: Vec<Group>) -> Scene {
+    Scene {
+        name: "t".into(),
+        materials: vec![
+            Material::matte(Vec3::new(0.8, 0.7, 0.5)),
+            Material::matte(Vec3::new(0.1, 0.3, 0.9)),
+        ],
+        groups,
+        lights: vec![Light {
+            position: Vec3::new(1.0, 2.0, 4.0),
+            color: Vec3::ONE,
+            track: None,
+            name: None,
+        }],
+        camera: CameraTrack {
+            base: Camera {
+                eye: Vec3::new(0.0, 0.0, 1.0),
+                at: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 90.0,
+                hither: 1e-3,
+            },
+            track: None,
+            resolution: None,
+        },
+        ambient: Vec3::splat(0.3),
+        ..Default::default()
+    }
+}
+
+#[test]
+fn point_tracking_histogram_on_a_one_pixel_pan() {
+    // A wall at distance 1 with a 90° view: 32 pixels span 2 units, one pixel 1/16 unit.
+    // The camera slides one pixel to the right per frame, so every cached point lands on
+    // the pixel to the left of where it was: the right column receives none, every other
+    // pixel exactly one.
+    let (w, rate) = (32u32, 32.0 * 32.0 * 10.0); // 10 frames per second
+    let step = 2.0 / w as f32;
+    let text = format!(
+        "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n0,0,0,1,0,0,0,0,1,0,90\n1,{s},0,1,{s},0,0,0,1,0,90\n",
+        s = step * 10.0
+    );
+    let scene = base(vec![Group {
+        node: None,
+        triangles: quad(-5.0, 5.0, -5.0, 5.0, 0.0, 0),
+        ..Default::default()
+    }]);
+    let tracer = Tracer::new(Arc::new(scene), w, w, TraceOptions::default())
+        .with_camera_path(Some(CameraPath::parse("p.csv", &text).unwrap()));
+    let ctx = MethodContext {
+        tracer: Arc::new(tracer),
+        clock: Clock {
+            start: 0.0,
+            rate,
+            first_refresh: 0.0,
+            refresh_hz: 60.0,
+        },
+        seed: 1,
+        ideal_spp: 1,
+        ideal_cache: None,
+    };
+    let mut m = PointTracking::new(&ctx, true);
+    m.display(0.25); // frames 0 and 1 complete (0.1 s each) and are tracked once
+    let s = m.stats();
+    assert_eq!(s.tracked_frames, 1);
+    assert_eq!(s.histogram, [w as u64, (w * w - w) as u64, 0, 0, 0]);
+    assert!(s.plain_trace_s > 0.0 && s.tracked_trace_s > 0.0);
+}
+
+/// Static scene with edges (sphere silhouettes) so antialiasing matters.
+fn static_scene() -> Scene {
+    let mut s = base(vec![Group {
+        node: None,
+        triangles: quad(-5.0, 5.0, -5.0, 5.0, -1.0, 0),
+        spheres: vec![
+            Sphere {
+                center: Vec3::new(-0.3, 0.1, -0.5),
+                radius: 0.35,
+                material: 1,
+            },
+            Sphere {
+                center: Vec3::new(0.45, -0.25, -0.3),
+                radius: 0.2,
+                material: 1,
+            },
+        ],
+        ..Default::default()
+    }]);
+    s.camera.base.eye = Vec3::new(0.0, 0.0, 1.5);
+    s
+}
+
+fn cfg(methods: &[MethodKind], rate: f64, duration: f64) -> EvalConfig {
+    EvalConfig {
+        scene_name: "t".into(),
+        camera_path: None,
+        start: 0.0,
+        duration,
+        width: 48,
+        height: 48,
+        rates: vec![rate],
+        methods: methods.to_vec(),
+        seed: 2,
+        ideal_spp: 16,
+        warmup: 0.0,
+        refresh_hz: 60.0,
+        max_depth: 2,
+        cache_dir: None,
+        strip_frames: vec![],
+        flip_every: 1000,
+    }
+}
+
+#[test]
+fn taa_converges_toward_the_antialiased_ideal_on_a_static_scene() {
+    // 48x48 display, 1,152 samples per frame at 69,120 samples/s: a 33x34 grid, upsampled.
+    let out = evaluation::run(
+        Arc::new(static_scene()),
+        &cfg(&[MethodKind::Taa, MethodKind::Framed60Hz], 69_120.0, 1.0),
+        &Silent,
+    )
+    .unwrap();
+    let series = |m: &str| -> Vec<f64> {
+        out.frames
+            .iter()
+            .filter(|f| f.method == m)
+            .map(|f| f.rms)
+            .collect()
+    };
+    let (taa, framed) = (series("taa"), series("framed-60hz"));
+    let tail = |v: &[f64]| v[v.len() - 10..].iter().sum::<f64>() / 10.0;
+    // First shown frame (refresh 1) is one jittered frame; later ones accumulate.
+    assert!(
+        tail(&taa) < 0.85 * taa[1],
+        "taa first {} vs end {}",
+        taa[1],
+        tail(&taa)
+    );
+    assert!(
+        tail(&taa) < 0.8 * tail(&framed),
+        "taa {} vs framed {}",
+        tail(&taa),
+        tail(&framed)
+    );
+}
+
+#[test]
+fn taa_rejects_history_at_a_disocclusion() {
+    // A near blocker disappears at t = 0.5 (visibility track): the wall behind it is
+    // disoccluded and history there must be rejected, not blended in as a ghost.
+    let mut scene = static_scene();
+    scene.tracks.push(KeyframeTrack {
+        name: "b".into(),
+        visibility: vec![(0.5, false)],
+        ..Default::default()
+    });
+    scene.nodes.push(Node {
+        parent: None,
+        kind: NodeKind::Animated {
+            name: "b".into(),
+            track: Some(0),
+        },
+    });
+    scene.groups.push(Group {
+        node: Some(0),
+        triangles: quad(-0.4, 0.4, -0.4, 0.4, 0.5, 1),
+        ..Default::default()
+    });
+    let tracer = Arc::new(Tracer::new(
+        Arc::new(scene),
+        48,
+        48,
+        TraceOptions::default(),
+    ));
+    let ctx = MethodContext {
+        tracer: tracer.clone(),
+        clock: Clock {
+            start: 0.0,
+            rate: 69_120.0,
+            first_refresh: 0.0,
+            refresh_hz: 60.0,
+        },
+        seed: 1,
+        ideal_spp: 1,
+        ideal_cache: None,
+    };
+    let mut m = Taa::new(&ctx).unwrap();
+    // Frame j starts at refresh j and is shown at refresh j + 1: frame 30, the first
+    // without the blocker, is traced by the display call for refresh 31.
+    let mut before = 0;
+    for k in 0..=31 {
+        m.display(k as f64 / 60.0);
+        if k == 30 {
+            before = m.rejections;
+        }
+    }
+    let rejected = m.rejections - before;
+    assert!(
+        rejected > 48 * 48 / 8,
+        "only {rejected} pixels rejected history"
+    );
+    // Right away the center shows the wall, not a blend with the blocker.
+    let shown = m.display(31.0 / 60.0).image.get(24, 24);
+    let truth = tracer.trace(24.5, 24.5, 0.5).color;
+    assert!(
+        (shown - truth).length() < 0.1,
+        "shown {shown:?} vs wall {truth:?}"
+    );
+}
