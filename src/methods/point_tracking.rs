@@ -31,6 +31,9 @@ pub struct PointTrackingStats {
     pub tracked_frames: u64,
     /// Pixels that received 0, 1, 2, 3 and 4 or more reprojected points, summed.
     pub histogram: [u64; 5],
+    /// The same, counting only pixels whose ray hit geometry (rays into the background
+    /// leave no point to track, so a view with sky has that many zero-point pixels).
+    pub histogram_geometry: [u64; 5],
     /// Seconds spent reprojecting cached points.
     pub reproject_s: f64,
     /// Seconds spent tracing the tracked rays.
@@ -44,6 +47,12 @@ impl PointTrackingStats {
     pub fn shares(&self) -> [f64; 5] {
         let total: u64 = self.histogram.iter().sum();
         self.histogram.map(|c| c as f64 / total.max(1) as f64)
+    }
+
+    /// Shares among pixels showing geometry.
+    pub fn shares_geometry(&self) -> [f64; 5] {
+        let total: u64 = self.histogram_geometry.iter().sum();
+        self.histogram_geometry.map(|c| c as f64 / total.max(1) as f64)
     }
 
     /// Cost of point tracking (reprojection + tracking) over plain ray tracing.
@@ -142,7 +151,7 @@ impl PointTracking {
         if tracked {
             self.stats.reproject_s += t0.elapsed().as_secs_f64();
             self.stats.tracked_frames += 1;
-            for c in counts {
+            for &c in &counts {
                 self.stats.histogram[(c as usize).min(4)] += 1;
             }
         }
@@ -158,6 +167,11 @@ impl PointTracking {
             .collect();
         let traced = t1.elapsed().as_secs_f64();
         if tracked {
+            for (c, s) in counts.iter().zip(&samples) {
+                if s.hit {
+                    self.stats.histogram_geometry[(*c as usize).min(4)] += 1;
+                }
+            }
             self.stats.tracked_trace_s += traced;
             let t2 = Instant::now();
             let plain: f32 = (0..w * h)
@@ -234,6 +248,10 @@ impl Method for PointTracking {
         Some(serde_json::json!({
             "tracked_frames": s.tracked_frames,
             "points_per_pixel_share": { "0": s.shares()[0], "1": s.shares()[1], "2": s.shares()[2], "3": s.shares()[3], "4+": s.shares()[4] },
+            "points_per_pixel_share_geometry": {
+                "0": s.shares_geometry()[0], "1": s.shares_geometry()[1], "2": s.shares_geometry()[2],
+                "3": s.shares_geometry()[3], "4+": s.shares_geometry()[4]
+            },
             "cost_ratio_vs_plain": s.cost_ratio(),
             "reproject_s": s.reproject_s,
             "tracked_trace_s": s.tracked_trace_s,

@@ -7,7 +7,8 @@
 //! history is the previous output fetched with a Catmull–Rom filter at the pixel's
 //! position in the previous frame (motion vectors from the ray tracer: the hit point
 //! moved back by its velocity, projected with the previous camera), clamped to the
-//! YCoCg bounding box of the current estimate's 3×3 neighbourhood, and rejected when it
+//! YCoCg bounding box of the 3×3 low-resolution samples around the pixel, and rejected
+//! when it
 //! falls off screen or its depth disagrees with the previous frame's depth there by more
 //! than `DEPTH_TOLERANCE` (a disocclusion). Output = lerp(history, current, `ALPHA`).
 
@@ -215,16 +216,17 @@ impl Taa {
                 if disoccluded {
                     return (c, true);
                 }
-                // Neighbourhood clamp in YCoCg.
-                let (x, y) = (q % w, q / w);
+                // Neighbourhood clamp in YCoCg over the 3×3 low-resolution samples around
+                // the pixel (the current frame's own samples, not their interpolation:
+                // the interpolated neighbourhood moves with the jitter and makes the
+                // clamp flicker).
+                let (x, y) = ((q % w) as f32 + 0.5, (q / w) as f32 + 0.5);
+                let (gi, gj) = (((x / sx - jx).round() as i32).clamp(0, gw as i32 - 1), ((y / sy - jy).round() as i32).clamp(0, gh as i32 - 1));
                 let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-                for dy in -1i32..=1 {
-                    for dx in -1i32..=1 {
-                        let (nx, ny) = (
-                            (x as i32 + dx).clamp(0, w as i32 - 1),
-                            (y as i32 + dy).clamp(0, h as i32 - 1),
-                        );
-                        let n = to_ycocg(current[(ny as u32 * w + nx as u32) as usize].0);
+                for dj in -1i32..=1 {
+                    for di in -1i32..=1 {
+                        let (ni, nj) = ((gi + di).clamp(0, gw as i32 - 1) as u32, (gj + dj).clamp(0, gh as i32 - 1) as u32);
+                        let n = to_ycocg(low[(nj * gw + ni) as usize].color);
                         lo = lo.min(n);
                         hi = hi.max(n);
                     }
