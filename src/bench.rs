@@ -67,6 +67,12 @@ pub struct BenchReport {
     pub reconstruct_ms_512_all: f64,
     /// One reconstructor refresh, 6 × 1024² samples at 1024×1024, all threads, ms.
     pub reconstruct_ms_1024_all: f64,
+    /// Milliseconds of one reconstructor refresh on this scene after the adaptive sampler
+    /// has run 1 s at 400K samples/s (ring of 400K real samples and the real tiling),
+    /// one thread.
+    pub reconstruct_scene_ms_1t: f64,
+    /// The same on all threads.
+    pub reconstruct_scene_ms_all: f64,
 }
 
 /// A reconstructor at `width × height` with a full ring of `n` synthetic samples:
@@ -162,6 +168,37 @@ pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats:
     best * 1e3
 }
 
+/// Milliseconds of one refresh of the `adaptive` method's reconstructor on `tracer`'s
+/// scene after its sampler ran for 1 s at 400K samples/s from `time` (best of
+/// `repeats`; nothing new is sampled during the timed refreshes).
+pub fn reconstruct_scene_ms(tracer: &std::sync::Arc<Tracer>, time: f64, repeats: usize) -> f64 {
+    use crate::methods::{adaptive, Method, MethodContext};
+    let ctx = MethodContext {
+        tracer: tracer.clone(),
+        clock: crate::evaluation::clock::Clock {
+            start: time,
+            rate: 400_000.0,
+            first_refresh: time,
+            refresh_hz: 60.0,
+        },
+        seed: 1,
+        ideal_spp: 1,
+        ideal_cache: None,
+    };
+    let Ok(mut m) = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper()) else {
+        return f64::NAN;
+    };
+    let end = time + 1.0;
+    m.display(end);
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        std::hint::black_box(m.display(end).mean_age);
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    best * 1e3
+}
+
 /// Random sub-pixel positions in random pixel order: a shuffled permutation of all
 /// pixels, repeated, each with a jitter.
 pub fn random_pixel_order(width: u32, height: u32, n: usize, seed: u64) -> Vec<(f32, f32)> {
@@ -192,7 +229,7 @@ fn best_rate(repeats: usize, n: usize, mut f: impl FnMut()) -> f64 {
 
 /// Measure the tracer. `load_s` and `build_s` are passed through to the report.
 pub fn run(
-    tracer: &Tracer,
+    tracer: &std::sync::Arc<Tracer>,
     time: f64,
     opts: BenchOptions,
     load_s: f64,
@@ -245,6 +282,8 @@ pub fn run(
     let rca = reconstruct_ms(256, 256, 400_000, 2, opts.repeats);
     let rc512 = reconstruct_ms(512, 512, 6 * 512 * 512, 1, 2);
     let rc1024 = reconstruct_ms(1024, 1024, 6 * 1024 * 1024, 1, 1);
+    let rs1 = one.install(|| reconstruct_scene_ms(tracer, time, opts.repeats));
+    let rsa = reconstruct_scene_ms(tracer, time, opts.repeats);
     BenchReport {
         scene: tracer.scene().name.clone(),
         width: w,
@@ -262,5 +301,7 @@ pub fn run(
         reconstruct_ms_all: rca,
         reconstruct_ms_512_all: rc512,
         reconstruct_ms_1024_all: rc1024,
+        reconstruct_scene_ms_1t: rs1,
+        reconstruct_scene_ms_all: rsa,
     }
 }

@@ -52,7 +52,8 @@ impl PointTrackingStats {
     /// Shares among pixels showing geometry.
     pub fn shares_geometry(&self) -> [f64; 5] {
         let total: u64 = self.histogram_geometry.iter().sum();
-        self.histogram_geometry.map(|c| c as f64 / total.max(1) as f64)
+        self.histogram_geometry
+            .map(|c| c as f64 / total.max(1) as f64)
     }
 
     /// Cost of point tracking (reprojection + tracking) over plain ray tracing.

@@ -221,11 +221,17 @@ impl Taa {
                 // the interpolated neighbourhood moves with the jitter and makes the
                 // clamp flicker).
                 let (x, y) = ((q % w) as f32 + 0.5, (q / w) as f32 + 0.5);
-                let (gi, gj) = (((x / sx - jx).round() as i32).clamp(0, gw as i32 - 1), ((y / sy - jy).round() as i32).clamp(0, gh as i32 - 1));
+                let (gi, gj) = (
+                    ((x / sx - jx).round() as i32).clamp(0, gw as i32 - 1),
+                    ((y / sy - jy).round() as i32).clamp(0, gh as i32 - 1),
+                );
                 let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
                 for dj in -1i32..=1 {
                     for di in -1i32..=1 {
-                        let (ni, nj) = ((gi + di).clamp(0, gw as i32 - 1) as u32, (gj + dj).clamp(0, gh as i32 - 1) as u32);
+                        let (ni, nj) = (
+                            (gi + di).clamp(0, gw as i32 - 1) as u32,
+                            (gj + dj).clamp(0, gh as i32 - 1) as u32,
+                        );
                         let n = to_ycocg(low[(nj * gw + ni) as usize].color);
                         lo = lo.min(n);
                         hi = hi.max(n);
