@@ -11,43 +11,14 @@ use frameless::{
     },
     scene::{
         animation::{KeyframeTrack, TcbKey, VectorSpline},
-        Camera, CameraPath, CameraTrack, Group, Material, Node, NodeKind, Scene, Triangle,
+        Camera, CameraPath, CameraTrack, Group, Material, Node, NodeKind, Scene,
     },
     trace::{TraceOptions, Tracer},
 };
 use glam::Vec3;
 
-/// A flat-shaded material: ambient only, so luminance is exactly its color.
-fn flat(c: f32) -> Material {
-    Material {
-        ambient: Vec3::splat(c),
-        diffuse: Vec3::ZERO,
-        ..Material::default()
-    }
-}
-
-fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Triangle> {
-    let p = [
-        Vec3::new(x0, y0, z),
-        Vec3::new(x1, y0, z),
-        Vec3::new(x1, y1, z),
-        Vec3::new(x0, y1, z),
-    ];
-    vec![
-        Triangle {
-            p: [p[0], p[1], p[2]],
-            n: None,
-            uv: None,
-            material,
-        },
-        Triangle {
-            p: [p[0], p[2], p[3]],
-            n: None,
-            uv: None,
-            material,
-        },
-    ]
-}
+mod common;
+use common::{flat, quad};
 
 /// Camera looking down −z at the square [−1, 1]² filling the view.
 fn camera() -> CameraTrack {

@@ -7,34 +7,14 @@ use frameless::{
     methods::{point_tracking::PointTracking, taa::Taa, Method, MethodContext, MethodKind},
     scene::{
         animation::KeyframeTrack, Camera, CameraPath, CameraTrack, Group, Light, Material, Node,
-        NodeKind, Scene, Sphere, Triangle,
+        NodeKind, Scene, Sphere,
     },
     trace::{TraceOptions, Tracer},
 };
 use glam::Vec3;
 
-fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Triangle> {
-    let p = [
-        Vec3::new(x0, y0, z),
-        Vec3::new(x1, y0, z),
-        Vec3::new(x1, y1, z),
-        Vec3::new(x0, y1, z),
-    ];
-    vec![
-        Triangle {
-            p: [p[0], p[1], p[2]],
-            n: None,
-            uv: None,
-            material,
-        },
-        Triangle {
-            p: [p[0], p[2], p[3]],
-            n: None,
-            uv: None,
-            material,
-        },
-    ]
-}
+mod common;
+use common::quad;
 
 fn base(groups: Vec<Group>) -> Scene {
     Scene {

@@ -24,36 +24,8 @@ use frameless::{
 };
 use glam::Vec3;
 
-fn flat(c: f32) -> Material {
-    Material {
-        ambient: Vec3::splat(c),
-        diffuse: Vec3::ZERO,
-        ..Material::default()
-    }
-}
-
-fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Triangle> {
-    let p = [
-        Vec3::new(x0, y0, z),
-        Vec3::new(x1, y0, z),
-        Vec3::new(x1, y1, z),
-        Vec3::new(x0, y1, z),
-    ];
-    vec![
-        Triangle {
-            p: [p[0], p[1], p[2]],
-            n: None,
-            uv: None,
-            material,
-        },
-        Triangle {
-            p: [p[0], p[2], p[3]],
-            n: None,
-            uv: None,
-            material,
-        },
-    ]
-}
+mod common;
+use common::{flat, quad};
 
 fn camera() -> Camera {
     Camera {
