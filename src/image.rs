@@ -76,6 +76,16 @@ pub fn write_png_rgb8_fast(
     write_png(path, width, height, rgb, png::Compression::Fast)
 }
 
+/// Write bytes to `path` atomically (temporary file beside it + rename), so an
+/// interrupted run never leaves a truncated file that looks complete.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let tmp = path.with_file_name(name);
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
+}
+
 fn write_png(
     path: &Path,
     width: u32,

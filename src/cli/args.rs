@@ -57,6 +57,49 @@ pub enum Command {
     /// Run the adaptive sampler and write its visualisations (tiling, gradients,
     /// density, occlusion) and statistics.
     Sampler(SamplerArgs),
+    /// Paper Table 1 and Fig. 8 on the BART kitchen: every method on the Interactive,
+    /// Bart and Toycar animations at each rate, with the paper's numbers beside ours.
+    Table1(Table1Args),
+}
+
+/// Arguments of `frameless table1`.
+#[derive(Args, Debug)]
+pub struct Table1Args {
+    /// The BART folder (holding `kitchen/kitchen.aff`); default `$FRAMELESS_BART_DIR`.
+    #[arg(long)]
+    pub bart: Option<PathBuf>,
+    /// Animations to run, comma-separated (interactive, bart, toycar).
+    #[arg(long, default_value = "interactive,bart,toycar")]
+    pub animations: String,
+    /// Sampling rates (samples/s), comma-separated; suffixes k and M.
+    #[arg(long, default_value = "100k,400k,800k")]
+    pub rates: String,
+    /// Methods, comma-separated (default: the paper's, point tracking, TAA and the
+    /// adaptive-no-reprojection ablation of Fig. 8).
+    #[arg(long)]
+    pub methods: Option<String>,
+    /// Override every animation's window length (seconds), e.g. for a quick trial.
+    #[arg(long, value_parser = finite_f64)]
+    pub duration: Option<f64>,
+    /// Display size.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Samples per pixel of the ideal images.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub ideal_spp: u32,
+    /// Compute FLIP on every n-th refresh.
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..))]
+    pub flip_every: u32,
+    /// Ideal-image cache (default `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`).
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
+    /// animation.
+    #[arg(long, default_value = "table1-out")]
+    pub out: PathBuf,
 }
 
 /// Arguments of `frameless sampler`.

@@ -84,6 +84,7 @@ pub fn run(cli: Cli) -> Result<()> {
         }
         Command::Eval(a) => eval(a),
         Command::Sampler(a) => sampler(a),
+        Command::Table1(a) => table1(a),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;
@@ -214,6 +215,133 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         100.0 * evaluation::overhead_fraction(t)
     );
     println!("report: {}", report.display());
+    Ok(())
+}
+
+fn table1(a: args::Table1Args) -> Result<()> {
+    use evaluation::table1::{self, AnimationResult, TableSummary};
+    let bart = match a.bart.clone().or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)) {
+        Some(b) => b,
+        None => bail!("--bart is required (the BART folder holding kitchen/kitchen.aff), or set FRAMELESS_BART_DIR"),
+    };
+    let kitchen = bart.join("kitchen/kitchen.aff");
+    if !kitchen.is_file() {
+        bail!("{} not found: --bart must name the BART folder holding kitchen/kitchen.aff", kitchen.display());
+    }
+    let animations = a
+        .animations
+        .split(',')
+        .map(|n| table1::animation(n.trim()))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(anyhow::Error::msg)
+        .context("--animations")?;
+    let rates = a
+        .rates
+        .split(',')
+        .map(report::parse_rate)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(anyhow::Error::msg)
+        .context("--rates")?;
+    let methods = match &a.methods {
+        Some(m) => m
+            .split(',')
+            .map(|m| MethodKind::parse(m.trim()))
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(anyhow::Error::msg)
+            .context("--methods")?,
+        None => table1::METHODS.to_vec(),
+    };
+    let Size(w, h) = a.size;
+    let cache_dir = a.cache_dir.clone().unwrap_or_else(default_cache_dir);
+    // Validate every configuration before the first (long) run starts.
+    let mut cfgs = Vec::new();
+    for anim in &animations {
+        let camera_path = match anim.camera_path {
+            Some(text) => Some(
+                CameraPath::parse(anim.camera_path_file.unwrap_or(anim.name), text)
+                    .map_err(anyhow::Error::from)?,
+            ),
+            None => None,
+        };
+        let mut cfg = EvalConfig {
+            scene_name: format!("kitchen ({})", anim.name),
+            camera_path,
+            start: anim.start,
+            duration: a.duration.unwrap_or(anim.duration),
+            width: w,
+            height: h,
+            rates: rates.clone(),
+            methods: methods.clone(),
+            seed: a.seed,
+            ideal_spp: a.ideal_spp,
+            warmup: 1.0,
+            refresh_hz: 60.0,
+            max_depth: 5,
+            cache_dir: Some(cache_dir.clone()),
+            strip_frames: Vec::new(),
+            flip_every: a.flip_every as usize,
+        };
+        let n = cfg.frames();
+        cfg.strip_frames = vec![n / 4, n / 2, (3 * n) / 4];
+        cfg.strip_frames.dedup();
+        cfg.validate()
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("animation {}", anim.name))?;
+        cfgs.push(cfg);
+    }
+    let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
+    let t0 = Instant::now();
+    let mut results = Vec::new();
+    let mut cost = Vec::new();
+    for (anim, cfg) in animations.iter().zip(&cfgs) {
+        let bar = progress_bar(0, anim.name);
+        struct Bar(ProgressBar);
+        impl evaluation::Progress for Bar {
+            fn total(&self, n: u64) {
+                self.0.set_length(n);
+            }
+            fn step(&self, msg: &str) {
+                self.0.set_message(msg.to_string());
+                self.0.inc(1);
+            }
+        }
+        let ta = Instant::now();
+        let mut out = evaluation::run(scene.clone(), cfg, &Bar(bar.clone()))
+            .map_err(anyhow::Error::msg)
+            .with_context(|| format!("animation {}", anim.name))?;
+        bar.finish_and_clear();
+        report::write_all(&mut out, &a.out.join(anim.name)).map_err(anyhow::Error::msg)?;
+        let t = &out.summary.timing;
+        let line = format!(
+            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache; methods {:.0} s)",
+            anim.name,
+            ta.elapsed().as_secs_f64(),
+            t.ideal_s,
+            t.ideal_cache_hits,
+            cfg.frames(),
+            t.methods_s
+        );
+        eprintln!("{line}");
+        cost.push(line);
+        results.push(AnimationResult {
+            name: anim.name.to_string(),
+            description: anim.description.to_string(),
+            camera_path: anim.camera_path_file.map(str::to_string),
+            summary: out.summary,
+        });
+    }
+    let threads = rayon::current_num_threads();
+    let cost = format!(
+        "wall time {:.0} s on {threads} threads; {}",
+        t0.elapsed().as_secs_f64(),
+        cost.join("; ")
+    );
+    let table = TableSummary { animations: results };
+    table1::write_combined(&table, &a.out, &cost).map_err(anyhow::Error::msg)?;
+    print!("{}", table1::markdown(&table));
+    print!("{}", table1::targets(&table));
+    println!("cost: {cost}");
+    println!("report: {}", a.out.join("report.html").display());
     Ok(())
 }
 

@@ -6,6 +6,7 @@ pub mod cache;
 pub mod clock;
 pub mod metrics;
 pub mod report;
+pub mod table1;
 
 use std::{path::PathBuf, sync::Arc, time::Instant};
 
