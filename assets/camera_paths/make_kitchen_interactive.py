@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
 """Writes kitchen_interactive.csv: a camera path written to mimic a person at the viewer.
 
-Rows at 30 Hz (the rate a viewer recording would have), scene time 3.9-9.1 s (the
-evaluation window 5-9 s plus its 1 s warm-up). A slow walk with drifting gaze, broken by
-fast turns (up to ~340 deg/s, like a mouse flick) and small hand jitter. Deterministic:
+Rows at 30 Hz (the rate a viewer recording would have), scene time 3.9-8.1 s (the
+evaluation window 5-8 s plus its 1 s warm-up). A slow walk with drifting gaze, broken by
+fast turns (85 deg in 0.25 s, like a mouse flick) and small hand jitter. Deterministic:
 the jitter is a fixed sum of sines. Run from this folder: python3 make_kitchen_interactive.py
 """
 import math
@@ -11,16 +11,16 @@ import math
 # (time s, yaw deg, pitch deg): yaw 0 looks along +x, 90 along +z. Between keys the gaze
 # eases with a smoothstep, so short gaps are fast turns and long gaps slow drifts.
 GAZE = [
-    (3.9, -10, -25), (5.2, -20, -24),   # following the car, slow
-    (5.45, 65, -12),                     # flick left: 85 deg in 0.25 s
-    (6.3, 70, -10),                      # look around
-    (6.7, -55, -22),                     # flick back right: 125 deg in 0.4 s
-    (7.8, -30, -28),                     # slow pan
-    (8.1, -125, -15),                    # fast turn: 95 deg in 0.3 s
-    (9.1, -115, -18),
+    (3.9, -10, -25), (5.0, -20, -24),   # following the car, slow
+    (5.25, 65, -12),                     # flick left: 85 deg in 0.25 s
+    (5.9, 70, -10),                      # look around
+    (6.3, -55, -22),                     # flick back right: 125 deg in 0.4 s
+    (7.0, -30, -28),                     # slow pan
+    (7.3, -125, -15),                    # fast turn: 95 deg in 0.3 s
+    (8.1, -115, -18),
 ]
 # (time s, eye x, y, z): a slow walk across the room.
-WALK = [(3.9, 1.5, 1.2, 2.8), (6.5, 1.8, 1.22, 2.7), (9.1, 2.3, 1.2, 2.3)]
+WALK = [(3.9, 1.5, 1.2, 2.8), (6.0, 1.8, 1.22, 2.7), (8.1, 2.3, 1.2, 2.3)]
 
 
 def smooth(a):
@@ -38,7 +38,7 @@ def interp(keys, t):
 def main():
     with open("kitchen_interactive.csv", "w") as f:
         f.write("t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n")
-        n = int(round((9.1 - 3.9) * 30))
+        n = int(round((8.1 - 3.9) * 30))
         for i in range(n + 1):
             t = 3.9 + i / 30
             yaw, pitch = interp(GAZE, t)

@@ -34,20 +34,20 @@ pub struct Animation {
 pub const ANIMATIONS: [Animation; 3] = [
     Animation {
         name: "interactive",
-        description: "a person-like walk with fast turns (up to ~340°/s) and hand jitter, \
-                      written to mimic a viewer recording (assets/camera_paths/make_kitchen_interactive.py); \
-                      t = 5–9 s while the toy car drives",
+        description: "a person-like walk with three fast turns (85° in 0.25 s, 125° in 0.4 s, \
+                      95° in 0.3 s) and hand jitter, written to mimic a viewer recording \
+                      (assets/camera_paths/make_kitchen_interactive.py); t = 5–8 s while the toy car drives",
         start: 5.0,
-        duration: 4.0,
+        duration: 3.0,
         camera_path: Some(include_str!("../../assets/camera_paths/kitchen_interactive.csv")),
         camera_path_file: Some("kitchen_interactive.csv"),
     },
     Animation {
         name: "bart",
-        description: "the kitchen's own camera animation, t = 4–8 s: a descent to floor level, \
-                      a 75° turn in 0.5 s, and the toy car driving",
-        start: 4.0,
-        duration: 4.0,
+        description: "the kitchen's own camera animation, t = 4.5–7.5 s: the end of the descent \
+                      to floor level, a 75° turn in 0.5 s, and the toy car driving",
+        start: 4.5,
+        duration: 3.0,
         camera_path: None,
         camera_path_file: None,
     },
