@@ -60,6 +60,47 @@ pub enum Command {
     /// Paper Table 1 and Fig. 8 on the BART kitchen: every method on the Interactive,
     /// Bart and Toycar animations at each rate, with the paper's numbers beside ours.
     Table1(Table1Args),
+    /// Render a sequence of displayed images of one method under the simulated clock
+    /// (one PNG per refresh).
+    Render(RenderArgs),
+}
+
+/// Arguments of `frameless render`.
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// The method (see `frameless eval --help` for the list).
+    #[arg(long, default_value = "adaptive")]
+    pub method: String,
+    /// Sampling rate (samples per second of scene time); suffixes k and M.
+    #[arg(long, default_value = "400k")]
+    pub rate: String,
+    /// First displayed refresh (seconds).
+    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    pub start: f64,
+    /// Length of the sequence (seconds).
+    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    pub duration: f64,
+    /// Sampling before the first refresh (seconds).
+    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    pub warmup: f64,
+    /// Display refresh rate (Hz).
+    #[arg(long, default_value = "60", value_parser = finite_f64)]
+    pub fps: f64,
+    /// Display size.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output folder for `frame_NNNNN.png` and `stats.json`.
+    #[arg(long, default_value = "render-out")]
+    pub out: PathBuf,
 }
 
 /// Arguments of `frameless table1`.

@@ -1,0 +1,59 @@
+//! `frameless render`: one PNG per refresh plus statistics; bad arguments fail cleanly.
+
+use std::process::Command;
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("frameless-render-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn writes_one_png_per_refresh_and_stats() {
+    let out = tmp("ok");
+    let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
+        .args([
+            "render", "--scene", "toycar", "--method", "traditional-frameless", "--rate", "50k",
+            "--size", "32x24", "--duration", "0.1", "--fps", "30", "--warmup", "0.2",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    for k in 0..3 {
+        assert!(out.join(format!("frame_{k:05}.png")).is_file(), "frame {k}");
+    }
+    assert!(!out.join("frame_00003.png").exists());
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(v["frames"], 3);
+    // 50K samples/s over 0.2 s warm-up + 2 refresh intervals of 1/30 s.
+    let samples = v["samples"].as_u64().unwrap();
+    assert!((10_000..=14_000).contains(&samples), "{samples}");
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn bad_arguments_fail_without_output() {
+    let out = tmp("bad");
+    for args in [
+        &["--method", "nope"][..],
+        &["--rate", "fast"],
+        &["--duration", "0"],
+        &["--fps", "-1"],
+        &["--method", "framed-full", "--rate", "1k"],
+        &["--scene", "/nonexistent.aff"],
+    ] {
+        let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .arg("render")
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(!st.status.success(), "{args:?}");
+        assert!(String::from_utf8_lossy(&st.stderr).contains("error"), "{args:?}");
+        assert!(!out.exists(), "{args:?} wrote output");
+    }
+}
