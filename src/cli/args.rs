@@ -104,9 +104,15 @@ pub struct ViewArgs {
     /// Write the last displayed image to this PNG on exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
+    /// Visualisation shown at start: image, tiling, gradients or density (key V cycles).
+    #[arg(long, default_value = "image")]
+    pub vis: String,
     /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
     #[arg(long, value_parser = finite_f64)]
     pub ring_factor: Option<f64>,
+    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
+    #[arg(long, value_parser = finite_f64)]
+    pub max_radius: Option<f64>,
     /// No reprojection in the sampler's controller.
     #[arg(long)]
     pub no_reprojection: bool,

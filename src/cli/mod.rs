@@ -316,6 +316,12 @@ fn view(a: args::ViewArgs) -> Result<()> {
         }
         cfg.recon.ring_factor = f;
     }
+    if let Some(r) = a.max_radius {
+        if !(r >= 1.0 && r <= 64.0) {
+            bail!("--max-radius {r} must be in [1, 64] pixels");
+        }
+        cfg.recon.max_radius = r as f32;
+    }
     cfg.validate()?;
     if let Some(s) = a.seconds {
         if !(s > 0.0 && s <= 86400.0) {
@@ -357,7 +363,7 @@ fn view(a: args::ViewArgs) -> Result<()> {
         seconds: a.seconds,
         record: a.record.clone(),
         screenshot: a.screenshot.clone(),
-        ..Default::default()
+        visualisation: realtime::Visualisation::parse(&a.vis).context("--vis")?,
     };
     realtime::run_viewer(tracer, cfg, opts)?;
     Ok(())

@@ -127,6 +127,21 @@ impl Visualisation {
         }
     }
 
+    /// Parse a name.
+    pub fn parse(s: &str) -> Result<Self, RealtimeError> {
+        let all = [
+            Visualisation::Image,
+            Visualisation::Tiling,
+            Visualisation::Gradients,
+            Visualisation::Density,
+        ];
+        all.into_iter().find(|v| v.name() == s).ok_or_else(|| {
+            RealtimeError::Config(format!(
+                "unknown visualisation `{s}` (expected image, tiling, gradients or density)"
+            ))
+        })
+    }
+
     /// Name for the title bar.
     pub fn name(self) -> &'static str {
         match self {
@@ -207,6 +222,7 @@ impl RtConfig {
 pub fn realtime_recon() -> ReconParams {
     ReconParams {
         ring_factor: 2.0,
+        max_radius: 8.0,
         ..ReconParams::paper()
     }
 }
