@@ -356,6 +356,13 @@ fn view(a: args::ViewArgs) -> Result<()> {
             st.pipeline.mean_age_s * 1e3,
             st.pipeline.sampling_threads
         );
+        if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {
+            println!(
+                "this run got {:.0}% of the machine's {} cores (load average before: {load:.1})",
+                share * 100.0,
+                st.pipeline.cores
+            );
+        }
         println!("wrote {}", a.out.join("stats.json").display());
         return Ok(());
     }

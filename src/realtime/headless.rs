@@ -49,6 +49,33 @@ pub struct HeadlessStats {
     pub display: DisplayStats,
     /// Image files written.
     pub images: Vec<String>,
+    /// CPU seconds this process used during the run (Linux; `null` elsewhere).
+    pub process_cpu_s: Option<f64>,
+    /// `process_cpu_s / (seconds × cores)`: the share of the machine the run got. Far
+    /// below 1 with every thread busy means other processes held the cores.
+    pub machine_share: Option<f64>,
+    /// The 1-minute load average before the run (Linux), for judging contention.
+    pub load_average_before: Option<f64>,
+}
+
+/// User + system CPU seconds of this process, from `/proc/self/stat` (Linux).
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are the 14th and
+    // 15th fields of the line, in clock ticks (100 per second on Linux).
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// Run the pipeline for `opts.seconds`, then write images and `stats.json` to
@@ -69,6 +96,8 @@ pub fn run_headless(
         source,
     })?;
     let (w, h) = tracer.size();
+    let load_average_before = load_average();
+    let cpu0 = process_cpu_seconds();
     let t_start = Instant::now();
     let pipeline = Pipeline::start(tracer, config)?;
     let clock = pipeline.clock();
@@ -97,6 +126,8 @@ pub fn run_headless(
     let display = pacer.stats(seconds);
     let pipeline_stats = pipeline.stop()?;
     let wall_s = t_start.elapsed().as_secs_f64();
+    let process_cpu_s = cpu0.zip(process_cpu_seconds()).map(|(a, b)| b - a);
+    let machine_share = process_cpu_s.map(|c| c / (wall_s * pipeline_stats.cores as f64));
     let mut images = Vec::new();
     for (i, f) in kept.iter().enumerate() {
         let name = format!("display_{i}_t{:.2}.png", f.time);
@@ -118,6 +149,9 @@ pub fn run_headless(
         pipeline: pipeline_stats,
         display,
         images,
+        process_cpu_s,
+        machine_share,
+        load_average_before,
     };
     let p = opts.out.join("stats.json");
     let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");
