@@ -77,9 +77,12 @@ pub struct ViewArgs {
     /// Method: adaptive, traditional-frameless or framed.
     #[arg(long, default_value = "adaptive")]
     pub method: String,
-    /// Sampling threads [default: cores − 1, at least 1].
+    /// Sampling threads [default: adaptive cores − 1 (at least 1), others all cores].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub sampling_threads: Option<u16>,
+    /// Threads of the reconstructor [default: half the cores, at least 1].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub recon_threads: Option<u16>,
     /// Display refresh rate, Hz.
     #[arg(long, default_value = "60", value_parser = finite_f64)]
     pub refresh_hz: f64,

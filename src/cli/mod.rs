@@ -306,6 +306,9 @@ fn view(a: args::ViewArgs) -> Result<()> {
     if let Some(n) = a.sampling_threads {
         cfg.sampling_threads = n as usize;
     }
+    if let Some(n) = a.recon_threads {
+        cfg.recon_threads = n as usize;
+    }
     cfg.refresh_hz = a.refresh_hz;
     cfg.start = a.start;
     cfg.seed = a.seed;

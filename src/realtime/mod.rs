@@ -160,6 +160,9 @@ pub struct RtConfig {
     pub method: RtMethod,
     /// Sampling threads (besides the controller and image threads).
     pub sampling_threads: usize,
+    /// Threads the reconstructor's parallel splatting may use (its own pool, so that
+    /// reconstruction cannot take every core from sampling and the display).
+    pub recon_threads: usize,
     /// Display refresh rate, Hz: the image thread reconstructs at most this often.
     pub refresh_hz: f64,
     /// Scene time when the pipeline starts.
@@ -173,15 +176,21 @@ pub struct RtConfig {
 }
 
 impl RtConfig {
-    /// Defaults for `method`: one sampling thread per core but one (the image thread
-    /// needs a core to keep the display on time; measured in
-    /// `docs/results/realtime/`), the paper's sampler, and a reconstructor whose ring
-    /// holds 2 × pixels samples instead of 6 (see [`realtime_recon`]).
+    /// Defaults for `method`: for adaptive one sampling thread per core but one (the
+    /// controller and the reconstruction need the rest; measured in
+    /// `docs/results/realtime/`), one per core for the others,
+    /// reconstruction on half the cores, the paper's sampler, and the real-time
+    /// reconstructor ([`realtime_recon`]).
     pub fn new(method: RtMethod) -> Self {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         Self {
             method,
-            sampling_threads: cores.saturating_sub(1).max(1),
+            sampling_threads: match method {
+                RtMethod::Adaptive => cores.saturating_sub(1).max(1),
+                // Nothing else of theirs needs a core: the image thread only copies.
+                RtMethod::TraditionalFrameless | RtMethod::Framed => cores,
+            },
+            recon_threads: (cores / 2).max(1),
             refresh_hz: 60.0,
             start: 0.0,
             seed: 1,
@@ -196,6 +205,12 @@ impl RtConfig {
             return Err(RealtimeError::Config(format!(
                 "sampling threads {} out of range 1..=256",
                 self.sampling_threads
+            )));
+        }
+        if !(1..=256).contains(&self.recon_threads) {
+            return Err(RealtimeError::Config(format!(
+                "reconstruction threads {} out of range 1..=256",
+                self.recon_threads
             )));
         }
         if !(self.refresh_hz.is_finite() && (1.0..=1000.0).contains(&self.refresh_hz)) {

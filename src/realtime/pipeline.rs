@@ -109,6 +109,8 @@ pub struct PipelineStats {
     pub method: &'static str,
     /// Sampling threads.
     pub sampling_threads: usize,
+    /// Threads of the reconstructor's pool.
+    pub recon_threads: usize,
     /// Other threads of the pipeline (controller, image thread).
     pub other_threads: usize,
     /// Cores the OS reports.
@@ -288,6 +290,7 @@ impl Pipeline {
         PipelineStats {
             method: cfg.method.name(),
             sampling_threads: cfg.sampling_threads,
+            recon_threads: cfg.recon_threads,
             other_threads: if cfg.method == RtMethod::Adaptive { 2 } else { 1 },
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
@@ -395,6 +398,13 @@ fn image_thread(s: &Shared, input: Input) {
             front_time: (0, f64::NAN),
         },
     };
+    // The reconstructor splats in parallel with rayon; its own pool bounds how many
+    // cores that takes. Without a pool it runs on the calling thread.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(s.config.recon_threads)
+        .thread_name(|i| format!("frameless-recon-{i}"))
+        .build()
+        .ok();
     let period = 1.0 / s.config.refresh_hz;
     let mut k: u64 = 1;
     let mut seq = 0;
@@ -410,7 +420,11 @@ fn image_thread(s: &Shared, input: Input) {
         k = (s.clock.elapsed() / period).floor() as u64 + 1;
         let t0 = Instant::now();
         let t = s.clock.now();
-        let Some((image, mean_age, tiling)) = build(s, &mut b, t) else {
+        let built = match &pool {
+            Some(p) => p.install(|| build(s, &mut b, t)),
+            None => build(s, &mut b, t),
+        };
+        let Some((image, mean_age, tiling)) = built else {
             continue;
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
