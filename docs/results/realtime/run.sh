@@ -12,14 +12,14 @@ OUT=$HERE/runs
 mkdir -p "$OUT"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$OUT/load.txt"
 # Table 1 shape: sampling threads vs. sampling / reconstruction time and FPS, kitchen
-# 256x256 with its camera moving (t = 8 s on), adaptive method.
+# 256x256 with its camera moving (from t = 0), adaptive method.
 for n in 1 2 4 8; do
-  "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 --start 8 \
+  "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
     --sampling-threads "$n" --images 2 --out "$OUT/kitchen_t$n"
 done
 # Throughput targets: kitchen 256x256 at 60 Hz, toycar 640x480 at 30 Hz, each method.
 for m in adaptive traditional-frameless framed; do
-  "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 --start 8 \
+  "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
     --method "$m" --out "$OUT/kitchen_$m"
   "$BIN" view --headless --seconds "$SECS" --scene toycar --size 640x480 --start 1 \
     --refresh-hz 30 --method "$m" --out "$OUT/toycar640_$m"
