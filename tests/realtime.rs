@@ -13,8 +13,7 @@ use std::{
 
 use frameless::{
     realtime::{
-        run_headless, CameraRecorder, FlyCamera, HeadlessOptions, PixelLocks, RtConfig,
-        RtMethod,
+        run_headless, CameraRecorder, FlyCamera, HeadlessOptions, PixelLocks, RtConfig, RtMethod,
     },
     sampling::Rng,
     scene::{builtin, CameraPath},
@@ -81,7 +80,10 @@ fn no_pixel_is_ever_held_by_two_threads() {
         t.join().unwrap();
     }
     assert_eq!(violations.load(Ordering::SeqCst), 0);
-    assert!(acquired.load(Ordering::Relaxed) > 1000, "threads made progress");
+    assert!(
+        acquired.load(Ordering::Relaxed) > 1000,
+        "threads made progress"
+    );
     println!(
         "{} crosshairs taken, {} conflicts (pixel found taken)",
         acquired.load(Ordering::Relaxed),
@@ -130,7 +132,9 @@ fn recorded_camera_path_replays_to_the_same_camera() {
     }
     // And `frameless eval --camera-path` takes the file.
     let out = Command::new(env!("CARGO_BIN_EXE_frameless"))
-        .args(["eval", "--scene", "toycar", "--size", "32x24", "--start", "0.4"])
+        .args([
+            "eval", "--scene", "toycar", "--size", "32x24", "--start", "0.4",
+        ])
         .args(["--duration", "0.1", "--warmup", "0.1", "--rates", "20k"])
         .args(["--methods", "framed-60hz", "--ideal-spp", "1", "--no-cache"])
         .arg("--camera-path")
@@ -238,7 +242,14 @@ fn viewer_opens_under_xvfb() {
     // A display number unlikely to be in use, derived from the process id.
     let display = format!(":{}", 90 + std::process::id() % 100);
     let mut server = Command::new(xvfb)
-        .args([display.as_str(), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+        .args([
+            display.as_str(),
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -246,7 +257,15 @@ fn viewer_opens_under_xvfb() {
     std::thread::sleep(Duration::from_millis(700));
     let shot = dir.join("shot.png");
     let out = Command::new(env!("CARGO_BIN_EXE_frameless"))
-        .args(["view", "--scene", "toycar", "--size", "64x48", "--seconds", "2"])
+        .args([
+            "view",
+            "--scene",
+            "toycar",
+            "--size",
+            "64x48",
+            "--seconds",
+            "2",
+        ])
         .arg("--screenshot")
         .arg(&shot)
         .arg("--record")

@@ -320,7 +320,7 @@ fn view(a: args::ViewArgs) -> Result<()> {
         cfg.recon.ring_factor = f;
     }
     if let Some(r) = a.max_radius {
-        if !(r >= 1.0 && r <= 64.0) {
+        if !(1.0..=64.0).contains(&r) {
             bail!("--max-radius {r} must be in [1, 64] pixels");
         }
         cfg.recon.max_radius = r as f32;

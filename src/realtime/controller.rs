@@ -87,8 +87,7 @@ pub(crate) fn run(s: &Shared, rx: Receiver<AdaptiveBatch>, tx: Sender<Vec<Stream
         first_refresh: s.config.start,
         refresh_hz: s.config.refresh_hz,
     };
-    let mut sampler = match Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed)
-    {
+    let mut sampler = match Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed) {
         Ok(x) => x,
         Err(_) => return, // validated by the pipeline before it started
     };

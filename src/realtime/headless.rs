@@ -105,14 +105,16 @@ pub fn run_headless(
     let n_images = opts.images.min(100);
     let mut kept: Vec<Arc<Frame>> = Vec::new();
     let mut rgb = Vec::new();
+    let mut last_seq = 0;
     while clock.elapsed() < opts.seconds {
         pacer.wait();
         let frame = pipeline.latest();
         let seq = frame.as_ref().map_or(0, |f| f.seq);
         if let Some(f) = &frame {
             // What a display does with a new image: quantize it to 8 bits.
-            if kept.last().map_or(true, |k| k.seq != f.seq) {
+            if f.seq != last_seq {
                 rgb = f.image.to_rgb8();
+                last_seq = f.seq;
             }
             let due = (kept.len() + 1) as f64 * opts.seconds / n_images.max(1) as f64;
             if kept.len() < n_images && clock.elapsed() + 1.0 / config.refresh_hz >= due {

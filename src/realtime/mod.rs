@@ -94,11 +94,14 @@ impl RtMethod {
 
     /// Parse a command-line name.
     pub fn parse(s: &str) -> Result<Self, RealtimeError> {
-        Self::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
-            RealtimeError::Config(format!(
-                "unknown method `{s}` (expected adaptive, traditional-frameless or framed)"
-            ))
-        })
+        Self::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                RealtimeError::Config(format!(
+                    "unknown method `{s}` (expected adaptive, traditional-frameless or framed)"
+                ))
+            })
     }
 }
 

@@ -162,11 +162,7 @@ impl Pipeline {
         let shared = Arc::new(Shared {
             clock: WallClock::new(config.start),
             locks: PixelLocks::new(w, h),
-            framed_job: Mutex::new(Arc::new(sampling::FrameJob::new(
-                0,
-                config.start,
-                &tracer,
-            ))),
+            framed_job: Mutex::new(Arc::new(sampling::FrameJob::new(0, config.start, &tracer))),
             tracer,
             config,
             stop: AtomicBool::new(false),
@@ -291,7 +287,11 @@ impl Pipeline {
             method: cfg.method.name(),
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
-            other_threads: if cfg.method == RtMethod::Adaptive { 2 } else { 1 },
+            other_threads: if cfg.method == RtMethod::Adaptive {
+                2
+            } else {
+                1
+            },
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
             samples,
@@ -353,7 +353,7 @@ enum Input {
 enum Builder {
     Adaptive {
         rx: Receiver<Vec<StreamSample>>,
-        recon: Option<Reconstructor>,
+        recon: Option<Box<Reconstructor>>,
         /// Ray counts at recent images, to measure the rate the filters assume.
         rate_window: VecDeque<(f64, u64)>,
         last_rebuild: f64,
@@ -442,11 +442,7 @@ fn image_thread(s: &Shared, input: Input) {
         if mean_age.is_finite() {
             st.ages.push(mean_age);
         }
-        if let Builder::Adaptive {
-            recon: Some(r),
-            ..
-        } = &b
-        {
+        if let Builder::Adaptive { recon: Some(r), .. } = &b {
             st.ring_capacity = r.capacity();
         }
     }
@@ -496,7 +492,7 @@ fn build(s: &Shared, b: &mut Builder, t: f64) -> Option<Built> {
                     }
                     lock(&s.image_stats).rebuilds += 1;
                 }
-                *recon = Some(fresh);
+                *recon = Some(Box::new(fresh));
                 *last_rebuild = el;
                 lock(&s.image_stats).recon_rate = rate;
             }
@@ -526,7 +522,11 @@ fn build(s: &Shared, b: &mut Builder, t: f64) -> Option<Built> {
                     n += 1;
                 }
             }
-            Some((image.clone(), if n > 0 { sum / n as f64 } else { f64::NAN }, None))
+            Some((
+                image.clone(),
+                if n > 0 { sum / n as f64 } else { f64::NAN },
+                None,
+            ))
         }
         Builder::Framed {
             rx,

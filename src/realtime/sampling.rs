@@ -95,7 +95,13 @@ pub(crate) fn adaptive(s: &Shared, thread: u64, tx: Sender<AdaptiveBatch>) {
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
             let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
-            let cross = [(cx, cy), (cx + 1, cy), (cx - 1, cy), (cx, cy + 1), (cx, cy - 1)];
+            let cross = [
+                (cx, cy),
+                (cx + 1, cy),
+                (cx - 1, cy),
+                (cx, cy + 1),
+                (cx, cy - 1),
+            ];
             let Some(guard) = s.locks.try_lock_many(&cross) else {
                 continue; // another thread is at this crosshair: visit another tile
             };
@@ -190,7 +196,10 @@ pub(crate) fn frameless(s: &Shared, thread: u64, tx: Sender<Vec<(u32, Vec3, f64)
             s.rays.fetch_add(k, Ordering::Relaxed);
             s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
             busy = 0.0;
-            if tx.send(std::mem::replace(&mut batch, Vec::with_capacity(1024))).is_err() {
+            if tx
+                .send(std::mem::replace(&mut batch, Vec::with_capacity(1024)))
+                .is_err()
+            {
                 return;
             }
             sent = Instant::now();

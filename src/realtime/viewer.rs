@@ -31,11 +31,7 @@ use super::{
     pacing::Pacer,
     Pipeline, RealtimeError, RtConfig, RtMethod, Visualisation,
 };
-use crate::{
-    image::Image,
-    methods::adaptive::vis,
-    trace::Tracer,
-};
+use crate::{image::Image, methods::adaptive::vis, trace::Tracer};
 
 /// Settings of the viewer.
 #[derive(Clone, Debug, Default)]
@@ -116,7 +112,9 @@ struct App {
 
 impl App {
     fn pipeline(&self) -> &Pipeline {
-        self.pipeline.as_ref().expect("pipeline runs while the window is open")
+        self.pipeline
+            .as_ref()
+            .expect("pipeline runs while the window is open")
     }
 
     fn fail(&mut self, el: &ActiveEventLoop, e: RealtimeError) {
@@ -195,7 +193,9 @@ impl App {
         if fwd == 0.0 && right == 0.0 && up == 0.0 && turn == 0.0 {
             return;
         }
-        let fast = if self.keys.contains(&KeyCode::ShiftLeft) || self.keys.contains(&KeyCode::ShiftRight) {
+        let fast = if self.keys.contains(&KeyCode::ShiftLeft)
+            || self.keys.contains(&KeyCode::ShiftRight)
+        {
             4.0
         } else {
             1.0
@@ -278,7 +278,11 @@ impl App {
                 age * 1e3,
                 self.opts.visualisation.name(),
                 self.config.sampling_threads,
-                if self.opts.record.is_some() { " · REC" } else { "" },
+                if self.opts.record.is_some() {
+                    " · REC"
+                } else {
+                    ""
+                },
             ));
         }
         Ok(())

@@ -311,10 +311,7 @@ impl Tracer {
         let (generation, live) = *self.live_camera.read().unwrap_or_else(|e| e.into_inner());
         {
             let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some((_, _, s)) = cache
-                .iter()
-                .find(|(k, g, _)| *k == key && *g == generation)
-            {
+            if let Some((_, _, s)) = cache.iter().find(|(k, g, _)| *k == key && *g == generation) {
                 return s.clone();
             }
         }

@@ -9,6 +9,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 BIN=${FRAMELESS_BIN:-$HERE/../../../target/release/frameless}
 KITCHEN=$BART/kitchen/kitchen.aff
 OUT=$HERE/runs
+rm -rf "$OUT"
 mkdir -p "$OUT"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$OUT/load.txt"
 # Table 1 shape: sampling threads vs. sampling / reconstruction time and FPS, kitchen
@@ -20,9 +21,9 @@ done
 # Throughput targets: kitchen 256x256 at 60 Hz, toycar 640x480 at 30 Hz, each method.
 for m in adaptive traditional-frameless framed; do
   "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
-    --method "$m" --out "$OUT/kitchen_$m"
+    --method "$m" --images 1 --out "$OUT/kitchen_$m"
   "$BIN" view --headless --seconds "$SECS" --scene toycar --size 640x480 --start 1 \
-    --refresh-hz 30 --method "$m" --out "$OUT/toycar640_$m"
+    --refresh-hz 30 --method "$m" --images 1 --out "$OUT/toycar640_$m"
 done
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/load.txt"
 python3 "$HERE/table.py" "$OUT"

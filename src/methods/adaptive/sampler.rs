@@ -119,8 +119,7 @@ pub fn crosshair_with(
     old: Option<(f32, f64)>,
     mut trace: impl FnMut(f32, f32) -> Sample,
 ) -> Crosshair {
-    let on_screen =
-        |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
+    let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
     let c = trace(x, y);
     let offsets = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
     let mut lum = [c.luminance; 5];
