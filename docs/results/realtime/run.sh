@@ -8,7 +8,7 @@ SECS=${2:-8}
 HERE=$(cd "$(dirname "$0")" && pwd)
 BIN=${FRAMELESS_BIN:-$HERE/../../../target/release/frameless}
 KITCHEN=$BART/kitchen/kitchen.aff
-OUT=$HERE/runs
+OUT=${OUT:-$HERE/runs}
 rm -rf "$OUT"
 mkdir -p "$OUT"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$OUT/load.txt"
