@@ -9,6 +9,7 @@ pub mod cli;
 pub mod evaluation;
 pub mod image;
 pub mod methods;
+pub mod realtime;
 pub mod reconstruction;
 pub mod render;
 pub mod sampling;

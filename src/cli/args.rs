@@ -63,6 +63,9 @@ pub enum Command {
     /// Render a sequence of displayed images of one method under the simulated clock
     /// (one PNG per refresh).
     Render(RenderArgs),
+    /// The real-time pipeline: an interactive window, or `--headless` for a number of
+    /// seconds writing images and statistics.
+    View(ViewArgs),
 }
 
 /// Arguments of `frameless render`.
@@ -141,6 +144,68 @@ pub struct Table1Args {
     /// animation.
     #[arg(long, default_value = "table1-out")]
     pub out: PathBuf,
+}
+
+/// Arguments of `frameless view`.
+#[derive(Args, Debug)]
+pub struct ViewArgs {
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera (the input of a headless run).
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Image size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Method: adaptive, traditional-frameless or framed.
+    #[arg(long, default_value = "adaptive")]
+    pub method: String,
+    /// Sampling threads [default: adaptive cores − 1 (at least 1), others all cores].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub sampling_threads: Option<u16>,
+    /// Threads of the reconstructor [default: half the cores, at least 1].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub recon_threads: Option<u16>,
+    /// Display refresh rate, Hz.
+    #[arg(long, default_value = "60", value_parser = finite_f64)]
+    pub refresh_hz: f64,
+    /// Scene time at start, seconds.
+    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    pub start: f64,
+    /// Run this many wall-clock seconds, then stop (required with --headless).
+    #[arg(long, value_parser = finite_f64)]
+    pub seconds: Option<f64>,
+    /// No window: run the pipeline, write images and stats.json to --out.
+    #[arg(long)]
+    pub headless: bool,
+    /// Output directory of --headless.
+    #[arg(long, default_value = "view-out")]
+    pub out: PathBuf,
+    /// Displayed images --headless writes, evenly spaced.
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100))]
+    pub images: u32,
+    /// Record the camera path to this CSV file (replay with `eval --camera-path`).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Write the last displayed image to this PNG on exit.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Visualisation shown at start: image, tiling, gradients or density (key V cycles).
+    #[arg(long, default_value = "image")]
+    pub vis: String,
+    /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
+    #[arg(long, value_parser = finite_f64)]
+    pub ring_factor: Option<f64>,
+    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
+    #[arg(long, value_parser = finite_f64)]
+    pub max_radius: Option<f64>,
+    /// No reprojection in the sampler's controller.
+    #[arg(long)]
+    pub no_reprojection: bool,
+    /// Seed of the threads' random choices.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
 }
 
 /// Arguments of `frameless sampler`.

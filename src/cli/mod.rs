@@ -86,6 +86,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sampler(a) => sampler(a),
         Command::Table1(a) => table1(a),
         Command::Render(a) => render(a),
+        Command::View(a) => view(a),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;
@@ -518,6 +519,86 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         .with_context(|| format!("writing {}", p.display()))?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     println!("images: {}", a.out.display());
+    Ok(())
+}
+
+fn view(a: args::ViewArgs) -> Result<()> {
+    use crate::realtime::{self, RtConfig, RtMethod};
+    let method = RtMethod::parse(&a.method).context("--method")?;
+    let mut cfg = RtConfig::new(method);
+    if let Some(n) = a.sampling_threads {
+        cfg.sampling_threads = n as usize;
+    }
+    if let Some(n) = a.recon_threads {
+        cfg.recon_threads = n as usize;
+    }
+    cfg.refresh_hz = a.refresh_hz;
+    cfg.start = a.start;
+    cfg.seed = a.seed;
+    cfg.sampler.reprojection = !a.no_reprojection;
+    if let Some(f) = a.ring_factor {
+        if !(f > 0.0 && f <= 64.0) {
+            bail!("--ring-factor {f} must be in (0, 64]");
+        }
+        cfg.recon.ring_factor = f;
+    }
+    if let Some(r) = a.max_radius {
+        if !(1.0..=64.0).contains(&r) {
+            bail!("--max-radius {r} must be in [1, 64] pixels");
+        }
+        cfg.recon.max_radius = r as f32;
+    }
+    cfg.validate()?;
+    if let Some(s) = a.seconds {
+        if !(s > 0.0 && s <= 86400.0) {
+            bail!("--seconds {s} must be in (0, 86400]");
+        }
+    }
+    let Size(w, h) = a.size;
+    let scene = Arc::new(load_scene(&a.scene)?);
+    let tracer = Arc::new(
+        Tracer::new(scene, w, h, TraceOptions::default())
+            .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+    );
+    if a.headless {
+        let Some(seconds) = a.seconds else {
+            bail!("--headless needs --seconds N");
+        };
+        let opts = realtime::HeadlessOptions {
+            seconds,
+            out: a.out.clone(),
+            images: a.images as usize,
+            scene: a.scene.clone(),
+        };
+        let st = realtime::run_headless(tracer, cfg, &opts)?;
+        println!(
+            "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, mean age {:.0} ms, {} sampling threads",
+            cfg.method.name(),
+            st.samples_per_s,
+            st.display_fps,
+            st.display.present_hz,
+            st.display.late_refreshes,
+            st.pipeline.reconstruct_ms_mean,
+            st.pipeline.mean_age_s * 1e3,
+            st.pipeline.sampling_threads
+        );
+        if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {
+            println!(
+                "this run got {:.0}% of the machine's {} cores (load average before: {load:.1})",
+                share * 100.0,
+                st.pipeline.cores
+            );
+        }
+        println!("wrote {}", a.out.join("stats.json").display());
+        return Ok(());
+    }
+    let opts = realtime::ViewerOptions {
+        seconds: a.seconds,
+        record: a.record.clone(),
+        screenshot: a.screenshot.clone(),
+        visualisation: realtime::Visualisation::parse(&a.vis).context("--vis")?,
+    };
+    realtime::run_viewer(tracer, cfg, opts)?;
     Ok(())
 }
 

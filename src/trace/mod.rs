@@ -10,7 +10,10 @@ pub mod accel;
 pub mod intersect;
 mod shade;
 
-use std::sync::{Arc, Mutex};
+use std::sync::{
+    atomic::{AtomicU64, Ordering},
+    Arc, Mutex, RwLock,
+};
 
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec3A};
 use obvhs::{
@@ -22,7 +25,7 @@ use obvhs::{
     BvhBuildParams,
 };
 
-use crate::scene::{CameraFrame, CameraPath, MaterialId, Scene, Triangle};
+use crate::scene::{Camera, CameraFrame, CameraPath, MaterialId, Scene, Triangle};
 use accel::{
     build_top_level, transform_aabb, Analytic, BoxPrim, GroupAccel, InstanceState, PrimRef,
 };
@@ -122,7 +125,14 @@ pub struct Tracer {
     instance_groups: Vec<(u32, GroupAccel)>,
     anim_base: Option<Bvh2>,
     scene_scale: f32,
-    cache: Mutex<Vec<(i64, Arc<SceneState>)>>,
+    /// Cached states keyed by (time quantum, camera generation).
+    cache: Mutex<Vec<(i64, u64, Arc<SceneState>)>>,
+    /// A live camera that overrides path and scene (the interactive viewer), with the
+    /// generation it was set in. A state built under one generation is never served
+    /// under another, so a state built concurrently with a camera change cannot leak
+    /// the old view into the cache.
+    live_camera: RwLock<(u64, Option<Camera>)>,
+    camera_generation: AtomicU64,
 }
 
 const CACHE_STATES: usize = 8;
@@ -215,6 +225,44 @@ impl Tracer {
             anim_base,
             scene_scale,
             cache: Mutex::new(Vec::new()),
+            live_camera: RwLock::new((0, None)),
+            camera_generation: AtomicU64::new(0),
+        }
+    }
+
+    /// Override the camera of every state built from now on (`None`: back to the
+    /// camera path or the scene's camera). Used by the interactive viewer; safe to call
+    /// while other threads trace.
+    pub fn set_live_camera(&self, camera: Option<Camera>) {
+        let mut live = self.live_camera.write().unwrap_or_else(|e| e.into_inner());
+        if live.1 == camera {
+            return;
+        }
+        let generation = live.0 + 1;
+        *live = (generation, camera);
+        self.camera_generation.store(generation, Ordering::Release);
+    }
+
+    /// The live camera override, if any.
+    pub fn live_camera(&self) -> Option<Camera> {
+        self.live_camera.read().unwrap_or_else(|e| e.into_inner()).1
+    }
+
+    /// Changes whenever the live camera changes: a state cached by a caller under
+    /// `(quantize(t), camera_generation())` is current while both match.
+    pub fn camera_generation(&self) -> u64 {
+        self.camera_generation.load(Ordering::Acquire)
+    }
+
+    /// The view (camera path, else the scene's camera; the live camera overrides both)
+    /// at time `t`, unquantized.
+    pub fn camera_at(&self, t: f64) -> Camera {
+        if let Some(c) = self.live_camera() {
+            return c;
+        }
+        match &self.camera_path {
+            Some(p) => p.at(t as f32),
+            None => self.scene.camera_at(t as f32),
         }
     }
 
@@ -260,27 +308,29 @@ impl Tracer {
     /// The scene state at time `t` (quantized to [`TIME_QUANTUM`]), cached.
     pub fn state_at(&self, t: f64) -> Arc<SceneState> {
         let key = Self::quantize(t);
+        let (generation, live) = *self.live_camera.read().unwrap_or_else(|e| e.into_inner());
         {
             let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some((_, s)) = cache.iter().find(|(k, _)| *k == key) {
+            if let Some((_, _, s)) = cache.iter().find(|(k, g, _)| *k == key && *g == generation) {
                 return s.clone();
             }
         }
-        let state = Arc::new(self.build_state(key as f64 * TIME_QUANTUM));
+        let state = Arc::new(self.build_state(key as f64 * TIME_QUANTUM, live));
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         if cache.len() >= CACHE_STATES {
             cache.remove(0);
         }
-        cache.push((key, state.clone()));
+        cache.push((key, generation, state.clone()));
         state
     }
 
-    fn build_state(&self, time: f64) -> SceneState {
+    fn build_state(&self, time: f64, live: Option<Camera>) -> SceneState {
         let scene = &self.scene;
         let t = time as f32;
-        let cam = match &self.camera_path {
-            Some(p) => p.at(t),
-            None => scene.camera_at(t),
+        let cam = match (live, &self.camera_path) {
+            (Some(c), _) => c,
+            (None, Some(p)) => p.at(t),
+            (None, None) => scene.camera_at(t),
         };
         let camera = cam.frame(self.width, self.height);
         let lights = scene.lights_at(t);

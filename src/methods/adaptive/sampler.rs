@@ -106,6 +106,52 @@ const MIN_GRADIENT_DT: f64 = 1e-3;
 /// Seconds after which weights are rebased so that `exp` never overflows.
 const REBASE_AFTER_S: f64 = 20.0;
 
+/// A crosshair at `(x, y, t)`: the center and its on-screen neighbours one pixel away
+/// in ±x and ±y, traced by `trace` (center first, then +x, −x, +y, −y), with gradients;
+/// `old` is the earlier sample at the same location `(luminance, time)` for the temporal
+/// gradient. Shared by the sequential sampler and the real-time sampling threads.
+pub fn crosshair_with(
+    width: u32,
+    height: u32,
+    x: f32,
+    y: f32,
+    t: f64,
+    old: Option<(f32, f64)>,
+    mut trace: impl FnMut(f32, f32) -> Sample,
+) -> Crosshair {
+    let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
+    let c = trace(x, y);
+    let offsets = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+    let mut lum = [c.luminance; 5];
+    let mut p = [c.hit_point; 5];
+    for (k, (dx, dy)) in offsets.iter().enumerate() {
+        let (nx, ny) = (x + dx, y + dy);
+        if on_screen(nx, ny) {
+            let s = trace(nx, ny);
+            lum[k + 1] = s.luminance;
+            p[k + 1] = s.hit_point;
+        }
+    }
+    let l0 = lum[0];
+    let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5;
+    let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5;
+    let gt = match old {
+        Some((lo, to)) if t > to => ((l0 - lo).abs() as f64 / (t - to).max(MIN_GRADIENT_DT)) as f32,
+        _ => 0.0,
+    };
+    Crosshair {
+        x,
+        y,
+        t,
+        lum,
+        p,
+        velocity: c.velocity,
+        gx,
+        gy,
+        gt,
+    }
+}
+
 impl Sampler {
     /// A sampler for `tracer`'s scene and image, spending `clock.rate` rays per second.
     pub fn new(
@@ -306,39 +352,10 @@ impl Sampler {
         t: f64,
         old: Option<(f32, f64)>,
     ) -> Crosshair {
-        let c = self.trace(state, x, y, t);
-        let offsets = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
-        let mut lum = [c.luminance; 5];
-        let mut p = [c.hit_point; 5];
-        for (k, (dx, dy)) in offsets.iter().enumerate() {
-            let (nx, ny) = (x + dx, y + dy);
-            if self.pixel_of(nx, ny).is_some() {
-                let s = self.trace(state, nx, ny, t);
-                lum[k + 1] = s.luminance;
-                p[k + 1] = s.hit_point;
-            }
-        }
+        let (w, h) = (self.width, self.height);
+        let c = crosshair_with(w, h, x, y, t, old, |sx, sy| self.trace(state, sx, sy, t));
         self.counters.crosshair_samples += 5;
-        let l0 = lum[0];
-        let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5;
-        let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5;
-        let gt = match old {
-            Some((lo, to)) if t > to => {
-                ((l0 - lo).abs() as f64 / (t - to).max(MIN_GRADIENT_DT)) as f32
-            }
-            _ => 0.0,
-        };
-        Crosshair {
-            x,
-            y,
-            t,
-            lum,
-            p,
-            velocity: c.velocity,
-            gx,
-            gy,
-            gt,
-        }
+        c
     }
 
     fn random_in(&mut self, r: Rect) -> (f32, f32) {
@@ -726,6 +743,79 @@ impl Sampler {
                     _ => break,
                 }
             }
+        }
+    }
+
+    /// Real-time mode: take in a crosshair traced elsewhere (by a sampling thread) at
+    /// time `now`, then adjust the tiling after every chunk, as a visit would.
+    /// `rays` is what tracing it cost.
+    pub fn ingest_crosshair(&mut self, c: Crosshair, rays: u64, now: f64) {
+        if now - self.t_ref > REBASE_AFTER_S {
+            self.rebase(now);
+        }
+        self.counters.rays += rays;
+        self.counters.crosshair_samples += 5;
+        self.next_sample += rays;
+        self.insert_front(c);
+        self.since_adjust += 1;
+        if self.since_adjust >= self.params.chunk {
+            self.since_adjust = 0;
+            self.adjust(now);
+        }
+    }
+
+    /// Real-time mode: an initiating sample traced elsewhere becomes the pending
+    /// crosshair of the tile it lies in (replacing what was pending there).
+    pub fn ingest_pending(&mut self, p: Pending) {
+        self.counters.rays += 1;
+        self.counters.initiating_samples += 1;
+        self.next_sample += 1;
+        self.counters.visits += 1;
+        let Some((px, py)) = self.pixel_of(p.x, p.y) else {
+            return;
+        };
+        let leaf = self.tiling.leaf_at(px, py);
+        self.tiling.node_mut(leaf).pending = Some(p);
+    }
+
+    /// Real-time mode: clear the pending crosshair at `(x, y)` if it is still the one
+    /// initiated at time `t` (a sampling thread completed it).
+    pub fn clear_pending(&mut self, x: f32, y: f32, t: f64) {
+        let Some((px, py)) = self.pixel_of(x, y) else {
+            return;
+        };
+        let leaf = self.tiling.leaf_at(px, py);
+        let n = self.tiling.node_mut(leaf);
+        if n.pending.is_some_and(|p| p.t == t && p.x == x && p.y == y) {
+            n.pending = None;
+        }
+    }
+
+    /// Real-time mode: the reprojection step of a visit to the tile containing pixel
+    /// `(px, py)` at time `now` (`reprojections_per_visit` crosshairs, occlusion rays
+    /// traced on the calling thread). Replacement crosshairs go to the stream.
+    pub fn reproject_visit(&mut self, px: u32, py: u32, now: f64) {
+        if !self.params.reprojection || px >= self.width || py >= self.height {
+            return;
+        }
+        let state = self.state(now);
+        let leaf = self.tiling.leaf_at(px, py);
+        let rect = self.tiling.node(leaf).rect;
+        let before = self.counters.rays;
+        for _ in 0..self.params.reprojections_per_visit {
+            let (x, y) = self.random_in(rect);
+            let (qx, qy) = (x as u32, y as u32);
+            if let Some(c) = self.buffer.pop_front(qx, qy) {
+                let l = self.tiling.leaf_at(qx, qy);
+                let sub = self.contribution(&c);
+                self.tiling.add_path(l, &sub, -1.0);
+                self.reproject(&state, c, now);
+            }
+        }
+        self.next_sample += self.counters.rays - before;
+        if self.since_adjust >= self.params.chunk {
+            self.since_adjust = 0;
+            self.adjust(now);
         }
     }
 

@@ -3,14 +3,18 @@
 
 use glam::Vec3;
 
-use super::Sampler;
+use super::{tiling::Tiling, Sampler};
 use crate::image::Image;
 
 /// Tile borders drawn in yellow over `base` (paper Fig. 3).
 pub fn tiling_overlay(s: &Sampler, base: &Image) -> Image {
+    tiling_overlay_of(s.tiling(), base)
+}
+
+/// [`tiling_overlay`] from a tiling alone (the real-time mode holds a snapshot).
+pub fn tiling_overlay_of(t: &Tiling, base: &Image) -> Image {
     let mut img = base.clone();
     let w = img.width;
-    let t = s.tiling();
     for &l in t.leaves() {
         let r = t.node(l).rect;
         for x in r.x0..r.x1 {
@@ -23,10 +27,8 @@ pub fn tiling_overlay(s: &Sampler, base: &Image) -> Image {
     img
 }
 
-fn per_tile(s: &Sampler, f: impl Fn(u32) -> Vec3) -> Image {
-    let (w, h) = (s.buffer_size().0, s.buffer_size().1);
+fn per_tile(t: &Tiling, (w, h): (u32, u32), f: impl Fn(u32) -> Vec3) -> Image {
     let mut img = Image::new(w, h);
-    let t = s.tiling();
     for &l in t.leaves() {
         let r = t.node(l).rect;
         let c = f(l);
@@ -53,7 +55,11 @@ fn p95(mut v: Vec<f64>) -> f64 {
 /// Per-tile gradients as color: red Gx, green Gy, blue Gt (paper Fig. 4), each scaled by
 /// its 95th percentile over tiles.
 pub fn gradient_map(s: &Sampler) -> Image {
-    let t = s.tiling();
+    gradient_map_of(s.tiling(), s.buffer_size())
+}
+
+/// [`gradient_map`] from a tiling of a `size` image.
+pub fn gradient_map_of(t: &Tiling, size: (u32, u32)) -> Image {
     let g: Vec<(f64, f64, f64)> = t
         .leaves()
         .iter()
@@ -64,7 +70,7 @@ pub fn gradient_map(s: &Sampler) -> Image {
         p95(g.iter().map(|v| v.1).collect()),
         p95(g.iter().map(|v| v.2).collect()),
     );
-    per_tile(s, |l| {
+    per_tile(t, size, |l| {
         let (gx, gy, gt) = t.node(l).stats.gradients();
         Vec3::new((gx / sx) as f32, (gy / sy) as f32, (gt / st) as f32)
     })
@@ -73,7 +79,11 @@ pub fn gradient_map(s: &Sampler) -> Image {
 /// Local sample rate (samples per pixel per second ∝ 1 / tile area, since tiles are
 /// chosen uniformly) on a log scale, dark = sparse, bright = dense (paper Fig. 7 left).
 pub fn density_map(s: &Sampler) -> Image {
-    let t = s.tiling();
+    density_map_of(s.tiling(), s.buffer_size())
+}
+
+/// [`density_map`] from a tiling of a `size` image.
+pub fn density_map_of(t: &Tiling, size: (u32, u32)) -> Image {
     let areas: Vec<f64> = t
         .leaves()
         .iter()
@@ -83,7 +93,7 @@ pub fn density_map(s: &Sampler) -> Image {
         .iter()
         .fold((f64::MAX, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     let span = (amax / amin).ln().max(1e-9);
-    per_tile(s, |l| {
+    per_tile(t, size, |l| {
         let a = t.node(l).rect.area() as f64;
         let v = (1.0 - (a / amin).ln() / span) as f32;
         Vec3::new(v, v * 0.8, v * 0.3)

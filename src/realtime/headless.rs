@@ -1,0 +1,162 @@
+//! The headless mode: the real-time pipeline for a number of wall-clock seconds with
+//! a display loop that presents at the refresh rate but draws nowhere; writes a few
+//! displayed images and `stats.json`. Input is the scene's own animation or a camera
+//! path given to the tracer.
+
+use std::{path::PathBuf, sync::Arc, time::Instant};
+
+use super::{
+    pacing::{DisplayStats, Pacer},
+    Frame, Pipeline, PipelineStats, RealtimeError, RtConfig,
+};
+use crate::trace::Tracer;
+
+/// Settings of a headless run.
+#[derive(Clone, Debug)]
+pub struct HeadlessOptions {
+    /// Wall-clock seconds to run.
+    pub seconds: f64,
+    /// Output directory.
+    pub out: PathBuf,
+    /// Displayed images to write, evenly spaced over the run.
+    pub images: usize,
+    /// Scene name (recorded in the statistics).
+    pub scene: String,
+}
+
+/// What `stats.json` holds.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct HeadlessStats {
+    /// Scene.
+    pub scene: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Scene time at the start.
+    pub start: f64,
+    /// Seconds asked for.
+    pub seconds_requested: f64,
+    /// Wall time from start to all threads joined.
+    pub wall_s: f64,
+    /// Samples per second (shaded samples delivered to the display side).
+    pub samples_per_s: f64,
+    /// New images shown per second.
+    pub display_fps: f64,
+    /// The pipeline's figures.
+    pub pipeline: PipelineStats,
+    /// The display's figures.
+    pub display: DisplayStats,
+    /// Image files written.
+    pub images: Vec<String>,
+    /// CPU seconds this process used during the run (Linux; `null` elsewhere).
+    pub process_cpu_s: Option<f64>,
+    /// `process_cpu_s / (seconds × cores)`: the share of the machine the run got. Far
+    /// below 1 with every thread busy means other processes held the cores.
+    pub machine_share: Option<f64>,
+    /// The 1-minute load average before the run (Linux), for judging contention.
+    pub load_average_before: Option<f64>,
+}
+
+/// User + system CPU seconds of this process, from `/proc/self/stat` (Linux).
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are the 14th and
+    // 15th fields of the line, in clock ticks (100 per second on Linux).
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// Run the pipeline for `opts.seconds`, then write images and `stats.json` to
+/// `opts.out`.
+pub fn run_headless(
+    tracer: Arc<Tracer>,
+    config: RtConfig,
+    opts: &HeadlessOptions,
+) -> Result<HeadlessStats, RealtimeError> {
+    if !(opts.seconds.is_finite() && opts.seconds > 0.0 && opts.seconds <= 86400.0) {
+        return Err(RealtimeError::Config(format!(
+            "seconds {} out of range (0, 86400]",
+            opts.seconds
+        )));
+    }
+    std::fs::create_dir_all(&opts.out).map_err(|source| RealtimeError::Io {
+        path: opts.out.clone(),
+        source,
+    })?;
+    let (w, h) = tracer.size();
+    let load_average_before = load_average();
+    let cpu0 = process_cpu_seconds();
+    let t_start = Instant::now();
+    let pipeline = Pipeline::start(tracer, config)?;
+    let clock = pipeline.clock();
+    let mut pacer = Pacer::new(clock, config.refresh_hz);
+    let n_images = opts.images.min(100);
+    let mut kept: Vec<Arc<Frame>> = Vec::new();
+    let mut rgb = Vec::new();
+    let mut last_seq = 0;
+    while clock.elapsed() < opts.seconds {
+        pacer.wait();
+        let frame = pipeline.latest();
+        let seq = frame.as_ref().map_or(0, |f| f.seq);
+        if let Some(f) = &frame {
+            // What a display does with a new image: quantize it to 8 bits.
+            if f.seq != last_seq {
+                rgb = f.image.to_rgb8();
+                last_seq = f.seq;
+            }
+            let due = (kept.len() + 1) as f64 * opts.seconds / n_images.max(1) as f64;
+            if kept.len() < n_images && clock.elapsed() + 1.0 / config.refresh_hz >= due {
+                kept.push(f.clone());
+            }
+        }
+        pacer.present(seq);
+    }
+    let _ = rgb;
+    let seconds = clock.elapsed();
+    let display = pacer.stats(seconds);
+    let pipeline_stats = pipeline.stop()?;
+    let wall_s = t_start.elapsed().as_secs_f64();
+    let process_cpu_s = cpu0.zip(process_cpu_seconds()).map(|(a, b)| b - a);
+    let machine_share = process_cpu_s.map(|c| c / (wall_s * pipeline_stats.cores as f64));
+    let mut images = Vec::new();
+    for (i, f) in kept.iter().enumerate() {
+        let name = format!("display_{i}_t{:.2}.png", f.time);
+        let p = opts.out.join(&name);
+        f.image
+            .save_png(&p)
+            .map_err(|source| RealtimeError::Io { path: p, source })?;
+        images.push(name);
+    }
+    let stats = HeadlessStats {
+        scene: opts.scene.clone(),
+        width: w,
+        height: h,
+        start: config.start,
+        seconds_requested: opts.seconds,
+        wall_s,
+        samples_per_s: pipeline_stats.samples_per_s,
+        display_fps: display.display_fps,
+        pipeline: pipeline_stats,
+        display,
+        images,
+        process_cpu_s,
+        machine_share,
+        load_average_before,
+    };
+    let p = opts.out.join("stats.json");
+    let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");
+    std::fs::write(&p, text).map_err(|source| RealtimeError::Io { path: p, source })?;
+    Ok(stats)
+}
