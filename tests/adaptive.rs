@@ -302,3 +302,34 @@ fn evaluation_with_adaptive_is_thread_count_independent() {
     };
     assert_eq!(run(1).frames, run(2).frames);
 }
+
+#[test]
+fn keep_static_spends_no_occlusion_rays_on_a_still_view_only() {
+    // A still camera over a still scene: every crosshair would reproject onto itself,
+    // so with `skip_static_reprojection` none is reprojected and no occlusion ray is
+    // spent; once the camera moves, crosshairs are reprojected again.
+    let mut p = SamplerParams::paper();
+    p.skip_static_reprojection = true;
+    let c = ctx(edge_scene(), 48, 100_000.0);
+    let mut s = Sampler::new(c.tracer.clone(), c.clock, p, 1).unwrap();
+    s.run_until(0.5);
+    let k = s.counters();
+    assert_eq!(k.occlusion_rays, 0, "{k:?}");
+    assert!(k.static_kept > 1000, "{k:?}");
+    let mut paper = Sampler::new(c.tracer.clone(), c.clock, SamplerParams::paper(), 1).unwrap();
+    paper.run_until(0.5);
+    assert!(paper.counters().occlusion_rays > 1000, "{:?}", paper.counters());
+    assert_eq!(paper.counters().static_kept, 0);
+
+    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                0.5,0,0,1,0,0,0,0,1,0,90\n\
+                1.5,1,0,1,1,0,0,0,1,0,90\n";
+    let tracer = Tracer::new(Arc::new(motion_scene(0.0)), 48, 48, TraceOptions::default())
+        .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
+    let mut s = Sampler::new(Arc::new(tracer), c.clock, p, 1).unwrap();
+    s.run_until(0.5);
+    let still = s.counters().occlusion_rays;
+    s.run_until(1.0);
+    let moving = s.counters().occlusion_rays - still;
+    assert!(moving > 1000, "occlusion rays while the camera moves: {moving}");
+}

@@ -259,6 +259,7 @@ pub const METHODS_HELP: &str = "Comma-separated methods to evaluate:
   adaptive               adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer
   adaptive-no-reprojection
                          adaptive frameless without reprojection in the sampler
+  adaptive-keep-static   adaptive frameless; the sampler does not reproject crosshairs that cannot have moved
   adaptive-no-reproj-recon
                          adaptive frameless without reprojection in the reconstructor
   adaptive-fixed-filter  adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)

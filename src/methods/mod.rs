@@ -33,6 +33,9 @@ pub enum MethodKind {
     Adaptive,
     /// Adaptive without reprojection in the sampler (paper Fig. 8's ablation).
     AdaptiveNoReprojection,
+    /// Adaptive whose sampler leaves crosshairs that cannot have moved in place (no
+    /// occlusion ray spent on them; not in the paper).
+    AdaptiveKeepStatic,
     /// Adaptive whose reconstructor splats samples where they were traced.
     AdaptiveNoReprojRecon,
     /// Adaptive whose reconstructor uses a fixed, non-adaptive filter.
@@ -55,6 +58,7 @@ impl MethodKind {
         MethodKind::TraditionalFrameless,
         MethodKind::Adaptive,
         MethodKind::AdaptiveNoReprojection,
+        MethodKind::AdaptiveKeepStatic,
         MethodKind::AdaptiveNoReprojRecon,
         MethodKind::AdaptiveFixedFilter,
         MethodKind::PointTracking,
@@ -72,6 +76,7 @@ impl MethodKind {
             MethodKind::TraditionalFrameless => "traditional-frameless",
             MethodKind::Adaptive => "adaptive",
             MethodKind::AdaptiveNoReprojection => "adaptive-no-reprojection",
+            MethodKind::AdaptiveKeepStatic => "adaptive-keep-static",
             MethodKind::AdaptiveNoReprojRecon => "adaptive-no-reproj-recon",
             MethodKind::AdaptiveFixedFilter => "adaptive-fixed-filter",
             MethodKind::PointTracking => "point-tracking",
@@ -99,6 +104,9 @@ impl MethodKind {
             }
             MethodKind::AdaptiveNoReprojection => {
                 "adaptive frameless without reprojection in the sampler"
+            }
+            MethodKind::AdaptiveKeepStatic => {
+                "adaptive frameless; the sampler does not reproject crosshairs that cannot have moved"
             }
             MethodKind::AdaptiveNoReprojRecon => {
                 "adaptive frameless without reprojection in the reconstructor"
@@ -155,6 +163,11 @@ impl MethodKind {
                 ctx,
                 adaptive::SamplerParams::no_reprojection(),
             )?),
+            MethodKind::AdaptiveKeepStatic => Box::new(adaptive::Adaptive::new(ctx, {
+                let mut p = adaptive::SamplerParams::paper();
+                p.skip_static_reprojection = true;
+                p
+            })?),
             MethodKind::AdaptiveNoReprojRecon => Box::new(adaptive::Adaptive::with_reconstructor(
                 ctx,
                 adaptive::SamplerParams::paper(),

@@ -44,6 +44,15 @@ pub struct SamplerParams {
     pub init_spacing: u32,
     /// Ablation: reproject crosshairs in the sampler.
     pub reprojection: bool,
+    /// Leave crosshairs that cannot have moved where they are: zero velocity and a
+    /// camera unchanged since they were traced. Their reprojection is the identity, so
+    /// its occlusion ray (one sample of the budget, SPEC §5) is spent only to detect a
+    /// moving occluder, which the tile's temporal gradient already draws samples to.
+    /// Not in the paper (which reprojects every crosshair), so off by default: under a
+    /// fixed view it frees about a quarter of the budget for colour samples, but a
+    /// moving occluder in front of static crosshairs then draws fewer samples
+    /// (docs/results/table1). The `adaptive-keep-static` method turns it on.
+    pub skip_static_reprojection: bool,
     /// Ablation: closed-loop gain control (off: the tile count stays at `fixed_tiles`).
     pub gain_control: bool,
     /// Ablation: include the occlusion term (off: its weight goes to variance).
@@ -80,6 +89,7 @@ impl SamplerParams {
             gain_smoothing: 0.9,
             init_spacing: 4,
             reprojection: true,
+            skip_static_reprojection: false,
             gain_control: true,
             occlusion_term: true,
             uniform_tiling: false,

@@ -53,6 +53,9 @@ pub struct SamplerCounters {
     pub occluded: u64,
     /// Reprojected crosshairs that left the screen.
     pub offscreen: u64,
+    /// Crosshairs left in place because they cannot have moved
+    /// (`skip_static_reprojection`).
+    pub static_kept: u64,
     /// Tile visits.
     pub visits: u64,
     /// Tiling adjustments.
@@ -87,6 +90,9 @@ pub struct Sampler {
     init_cursor: u32,
     initialized: bool,
     state: Option<(i64, Arc<SceneState>)>,
+    /// Time of the first state seen with the current camera: crosshairs traced at or
+    /// after it were traced from the camera the display has now.
+    camera_since: f64,
     stream: Vec<StreamSample>,
     counters: SamplerCounters,
     trace_s: f64,
@@ -180,6 +186,7 @@ impl Sampler {
             init_cursor: 0,
             initialized: false,
             state: None,
+            camera_since: f64::NEG_INFINITY,
             stream: Vec::new(),
             counters: SamplerCounters::default(),
             trace_s: 0.0,
@@ -327,6 +334,13 @@ impl Sampler {
             Some((k, s)) if *k == key => s.clone(),
             _ => {
                 let s = self.tracer.state_at(t);
+                let same_camera = self.state.as_ref().is_some_and(|(_, old)| {
+                    let (a, b) = (&old.camera, &s.camera);
+                    a.eye == b.eye && a.corner == b.corner && a.du == b.du && a.dv == b.dv
+                });
+                if !same_camera {
+                    self.camera_since = t;
+                }
                 self.state = Some((key, s.clone()));
                 s
             }
@@ -363,6 +377,24 @@ impl Sampler {
         let y = r.y0 as f32 + self.rng.uniform() * r.height() as f32;
         // Keep strictly inside the rectangle despite rounding.
         (x.min(r.x1 as f32 - 1e-3), y.min(r.y1 as f32 - 1e-3))
+    }
+
+    /// Whether the oldest crosshair at a pixel stays where it is instead of being
+    /// reprojected: it cannot have moved (see `skip_static_reprojection`).
+    fn keeps_in_place(&mut self, px: u32, py: u32) -> bool {
+        if !self.params.skip_static_reprojection {
+            return false;
+        }
+        let since = self.camera_since;
+        let keep = self
+            .buffer
+            .iter_at(px, py)
+            .next()
+            .is_some_and(|c| c.velocity == Vec3::ZERO && c.t >= since);
+        if keep {
+            self.counters.static_kept += 1;
+        }
+        keep
     }
 
     /// Reproject one crosshair taken from the tile; returns the rays it used.
@@ -447,6 +479,9 @@ impl Sampler {
             for _ in 0..self.params.reprojections_per_visit {
                 let (x, y) = self.random_in(rect);
                 let (px, py) = (x as u32, y as u32);
+                if self.keeps_in_place(px, py) {
+                    continue;
+                }
                 if let Some(c) = self.buffer.pop_front(px, py) {
                     let sub = self.contribution(&c);
                     self.tiling.add_path(leaf, &sub, -1.0);
@@ -805,6 +840,9 @@ impl Sampler {
         for _ in 0..self.params.reprojections_per_visit {
             let (x, y) = self.random_in(rect);
             let (qx, qy) = (x as u32, y as u32);
+            if self.keeps_in_place(qx, qy) {
+                continue;
+            }
             if let Some(c) = self.buffer.pop_front(qx, qy) {
                 let l = self.tiling.leaf_at(qx, qy);
                 let sub = self.contribution(&c);
