@@ -23,6 +23,7 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     let (mut kept, mut area, mut wide, mut tall) = (0usize, 0f64, 0f64, 0f64);
     let mut hist_w = [0usize; 8];
     let mut old = 0usize;
+    let (mut rowgroups, mut bandsplats) = (0f64, 0f64);
     let mut max_et = 0f32;
     for e in f {
         max_et = max_et.max(e[2]);
@@ -58,6 +59,8 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
             continue;
         }
         let (nw, nh) = ((x1 - x0 + 1) as f64, (y1 - y0 + 1) as f64);
+        rowgroups += nh * (x1 / 8 - x0 / 8 + 1) as f64;
+        bandsplats += (y1 / 32 - y0 / 32 + 1) as f64;
         area += nw * nh;
         wide += nw;
         tall += nh;
@@ -73,6 +76,7 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     let q = |v: &[f32]| format!("{:.3}/{:.3}/{:.3}/{:.3}", v[v.len() / 10], v[v.len() / 2], v[v.len() * 9 / 10], v[v.len() - 1]);
     println!("ring {n}, kept {kept} ({:.1}%), older than 3·max e_t: {old}", 100.0 * kept as f64 / n as f64);
     println!("mean footprint {:.1} px ({:.1} × {:.1}), width histogram by 8: {hist_w:?}", area / kept as f64, wide / kept as f64, tall / kept as f64);
+    println!("row-groups of 8 {rowgroups}, splats in 32-row bands {bandsplats}");
     println!("pixel quantiles p10/p50/p90/max: e_x {}  e_t {}  scale {}", q(&exs), q(&ets), q(&scs));
     println!("holes {}, mean age {:.4}", r.holes(), r.mean_age());
 }
