@@ -73,11 +73,32 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     exs.sort_by(f32::total_cmp);
     let mut scs: Vec<f32> = sc.to_vec();
     scs.sort_by(f32::total_cmp);
-    let q = |v: &[f32]| format!("{:.3}/{:.3}/{:.3}/{:.3}", v[v.len() / 10], v[v.len() / 2], v[v.len() * 9 / 10], v[v.len() - 1]);
-    println!("ring {n}, kept {kept} ({:.1}%), older than 3·max e_t: {old}", 100.0 * kept as f64 / n as f64);
-    println!("mean footprint {:.1} px ({:.1} × {:.1}), width histogram by 8: {hist_w:?}", area / kept as f64, wide / kept as f64, tall / kept as f64);
+    let q = |v: &[f32]| {
+        format!(
+            "{:.3}/{:.3}/{:.3}/{:.3}",
+            v[v.len() / 10],
+            v[v.len() / 2],
+            v[v.len() * 9 / 10],
+            v[v.len() - 1]
+        )
+    };
+    println!(
+        "ring {n}, kept {kept} ({:.1}%), older than 3·max e_t: {old}",
+        100.0 * kept as f64 / n as f64
+    );
+    println!(
+        "mean footprint {:.1} px ({:.1} × {:.1}), width histogram by 8: {hist_w:?}",
+        area / kept as f64,
+        wide / kept as f64,
+        tall / kept as f64
+    );
     println!("row-groups of 8 {rowgroups}, splats in 32-row bands {bandsplats}");
-    println!("pixel quantiles p10/p50/p90/max: e_x {}  e_t {}  scale {}", q(&exs), q(&ets), q(&scs));
+    println!(
+        "pixel quantiles p10/p50/p90/max: e_x {}  e_t {}  scale {}",
+        q(&exs),
+        q(&ets),
+        q(&scs)
+    );
     println!("holes {}, mean age {:.4}", r.holes(), r.mean_age());
 }
 
@@ -89,9 +110,20 @@ fn main() {
         let s = if what == "fixture" { 256 } else { 512 };
         let n = if s == 256 { 400_000 } else { 6 * s * s };
         let (mut r, cam, tiling) = reconstruct_fixture(s as u32, s as u32, n, 1);
-        let mut areas: Vec<u32> = tiling.leaves().iter().map(|&l| tiling.node(l).rect.area()).collect();
+        let mut areas: Vec<u32> = tiling
+            .leaves()
+            .iter()
+            .map(|&l| tiling.node(l).rect.area())
+            .collect();
         areas.sort();
-        println!("tiles {}, area p10/p50/p90/max {} {} {} {}", areas.len(), areas[areas.len() / 10], areas[areas.len() / 2], areas[areas.len() * 9 / 10], areas[areas.len() - 1]);
+        println!(
+            "tiles {}, area p10/p50/p90/max {} {} {} {}",
+            areas.len(),
+            areas[areas.len() / 10],
+            areas[areas.len() / 2],
+            areas[areas.len() * 9 / 10],
+            areas[areas.len() - 1]
+        );
         for _ in 0..2 {
             r.reconstruct(1.0, &cam, &tiling);
         }
@@ -105,7 +137,12 @@ fn main() {
     }
     let scene = frameless::scene::load(what).expect("scene");
     let time = scene.time_range().0 as f64;
-    let tracer = Arc::new(Tracer::new(Arc::new(scene), 256, 256, TraceOptions::default()));
+    let tracer = Arc::new(Tracer::new(
+        Arc::new(scene),
+        256,
+        256,
+        TraceOptions::default(),
+    ));
     let ctx = MethodContext {
         tracer: tracer.clone(),
         clock: Clock {
@@ -124,7 +161,11 @@ fn main() {
     m.display(end);
     let cam = tracer.state_at(end).camera;
     let tiling = m.sampler().tiling();
-    let mut areas: Vec<f32> = tiling.leaves().iter().map(|&l| tiling.node(l).rect.area() as f32).collect();
+    let mut areas: Vec<f32> = tiling
+        .leaves()
+        .iter()
+        .map(|&l| tiling.node(l).rect.area() as f32)
+        .collect();
     let mut gs: [Vec<f32>; 3] = Default::default();
     for &l in tiling.leaves() {
         let g = tiling.node(l).stats.gradients();
@@ -133,9 +174,27 @@ fn main() {
         gs[2].push(g.2.abs() as f32);
     }
     areas.sort_by(f32::total_cmp);
-    for v in &mut gs { v.sort_by(f32::total_cmp); }
-    let q = |v: &[f32]| format!("{:.4}/{:.4}/{:.4}/{:.4}/{:.4}", v[v.len() / 10], v[v.len() / 4], v[v.len() / 2], v[v.len()*3/4], v[v.len() * 9 / 10]);
-    println!("tiles {}, area p10/25/50/75/90 {}; |gx| {} |gy| {} |gt| {}", areas.len(), q(&areas), q(&gs[0]), q(&gs[1]), q(&gs[2]));
+    for v in &mut gs {
+        v.sort_by(f32::total_cmp);
+    }
+    let q = |v: &[f32]| {
+        format!(
+            "{:.4}/{:.4}/{:.4}/{:.4}/{:.4}",
+            v[v.len() / 10],
+            v[v.len() / 4],
+            v[v.len() / 2],
+            v[v.len() * 3 / 4],
+            v[v.len() * 9 / 10]
+        )
+    };
+    println!(
+        "tiles {}, area p10/25/50/75/90 {}; |gx| {} |gy| {} |gt| {}",
+        areas.len(),
+        q(&areas),
+        q(&gs[0]),
+        q(&gs[1]),
+        q(&gs[2])
+    );
     stats(m.reconstructor(), &cam, end);
     for _ in 0..reps {
         let t0 = Instant::now();

@@ -168,12 +168,15 @@ pub fn fast_exp_neg(x: f32) -> f32 {
     let r = v + MAGIC;
     let fi = r - MAGIC; // v rounded to the nearest integer, |fi| ≤ 126
     let f = v - fi; // [−½, ½]
-                    // 2^f on [−½, ½]: Taylor coefficients ln2^k/k! (truncation error < 1e-8).
-    let p = 1.0
-        + f * (std::f32::consts::LN_2
-            + f * (0.240_226_5
-                + f * (0.055_504_11
-                    + f * (0.009_618_129 + f * (0.001_333_355_8 + f * 0.000_154_035_3)))));
+                    // 2^f on [−½, ½]: Taylor coefficients ln2^k/k! (truncation error < 1e-8), Horner
+                    // steps fused.
+    let p = 0.000_154_035_3f32
+        .mul_add(f, 0.001_333_355_8)
+        .mul_add(f, 0.009_618_129)
+        .mul_add(f, 0.055_504_11)
+        .mul_add(f, 0.240_226_5)
+        .mul_add(f, std::f32::consts::LN_2)
+        .mul_add(f, 1.0);
     // fi + 127 ∈ [1, 127]: a normal power of two.
     let bits = r
         .to_bits()
@@ -194,7 +197,6 @@ type Lanes = [f32; LANES];
 /// `0, 1, …, LANES − 1`.
 const LANE_INDEX: Lanes = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
 
-
 /// Accumulated weight below which a pixel counts as a hole: far splat tails reach
 /// f32's denormal range, where `Σw·c / Σw` loses all precision.
 const MIN_WEIGHT: f32 = 1e-24;
@@ -202,6 +204,7 @@ const MIN_WEIGHT: f32 = 1e-24;
 const PREP_CHUNK: usize = 16384;
 /// Rows per band of the splat with several threads (tasks for the thread pool), and
 /// per task of the resolve pass (whose fixed bands make its sums thread-independent).
+/// Band heights are powers of two.
 const BAND_ROWS: usize = 8;
 /// Rows per band of the splat on one thread.
 const SINGLE_THREAD_BAND_ROWS: usize = 32;
@@ -213,6 +216,8 @@ const MAX_GROUPS: usize = MAX_SPAN / LANES + 1;
 const CHANNELS: usize = 5;
 /// Accumulators of `LANES` adjacent pixels (aligned), one vector per channel.
 type Cell = [Lanes; CHANNELS];
+/// Pushes per block of the ring's running largest time (see `block_max_t`).
+const TIME_BLOCK: u64 = 256;
 /// Relative margin of the stale-prefix cut over the per-sample temporal cutoff, far
 /// above f32 rounding of `age / e_t`, so the cut never drops a sample that the
 /// per-sample test would keep.
@@ -295,7 +300,11 @@ impl Projector {
         let d = p - self.eye;
         let z = d.dot(self.forward);
         let iz = 1.0 / z;
-        (d.dot(self.u) * iz - self.ou, d.dot(self.v) * iz - self.ov, z > 1e-6)
+        (
+            d.dot(self.u) * iz - self.ou,
+            d.dot(self.v) * iz - self.ov,
+            z > 1e-6,
+        )
     }
 }
 
@@ -368,8 +377,9 @@ impl Placer<'_> {
         // the image, so a sample just outside still lights the border within its
         // footprint (a NaN coordinate clamps too; `ok` discards it).
         let (w, h) = (self.width, self.height);
-        let px = (x.floor() as i64).clamp(0, w as i64 - 1) as u32;
-        let py = (y.floor() as i64).clamp(0, h as i64 - 1) as u32;
+        // Clamped as floats (`max` first, so NaN becomes 0): truncation is then floor.
+        let px = x.max(0.0).min((w - 1) as f32) as u32;
+        let py = y.max(0.0).min((h - 1) as f32) as u32;
         Located {
             x,
             y,
@@ -590,6 +600,8 @@ fn bin_piece(
     bands: usize,
     band_rows: usize,
 ) {
+    debug_assert!(band_rows.is_power_of_two());
+    let band_shift = band_rows.trailing_zeros();
     out.resize_with(bands, Vec::new);
     out.iter_mut().for_each(Vec::clear);
     let mut loc = [Located::default(); LOCATE_BLOCK];
@@ -609,7 +621,7 @@ fn bin_piece(
                 continue;
             };
             let s = placer.splat(s, &p);
-            let (b0, b1) = (s.y0 as usize / band_rows, s.y1 as usize / band_rows);
+            let (b0, b1) = (s.y0 as usize >> band_shift, s.y1 as usize >> band_shift);
             for o in &mut out[b0..=b1] {
                 o.push(s);
             }
@@ -620,6 +632,7 @@ fn bin_piece(
 /// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
 /// ring order.
 #[inline(never)]
+#[allow(clippy::too_many_arguments)]
 fn splat_band(
     binned: &[Vec<Vec<Splat>>],
     b: usize,
@@ -658,9 +671,14 @@ pub struct Reconstructor {
     ring: VecDeque<RingSample>,
     /// Samples ever pushed.
     pushed: u64,
-    /// Push index of the last sample traced before its predecessor in the ring (0:
-    /// none); the ring is in time order when it is no later than the oldest sample's.
-    last_inversion: u64,
+    /// Largest time pushed so far (NaN counts as +∞).
+    max_t: f64,
+    /// `max_t` at the end of each block of `TIME_BLOCK` pushes, from block
+    /// `first_block` on (the last entry is for the block being filled): non-decreasing
+    /// whatever the order samples come in, so the stale prefix of the ring is found by
+    /// binary search even when several sampling threads interleave their batches.
+    block_max_t: VecDeque<f64>,
+    first_block: u64,
     /// Cut the ring's stale prefix before placing samples (off only to test the cut).
     skip_stale: bool,
     /// Filter per tile at the last refresh.
@@ -707,7 +725,9 @@ impl Reconstructor {
             capacity,
             ring: VecDeque::with_capacity(capacity.min(1 << 24)),
             pushed: 0,
-            last_inversion: 0,
+            max_t: f64::NEG_INFINITY,
+            block_max_t: VecDeque::new(),
+            first_block: 0,
             skip_stale: true,
             tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
             lookup: vec![
@@ -749,18 +769,30 @@ impl Reconstructor {
     }
 
     /// Append a sample (the oldest is dropped once the ring is full). Samples should
-    /// come in the order they were traced; out-of-order samples are still reconstructed
-    /// correctly, only without skipping the stale part of the ring until they leave it.
+    /// come about in the order they were traced: any order is reconstructed the same,
+    /// but the stale part of the ring is skipped only up to the first sample pushed
+    /// after a recent one.
     pub fn push(&mut self, s: RingSample) {
-        if let Some(b) = self.ring.back() {
-            if !(s.t >= b.t) {
-                self.last_inversion = self.pushed;
-            }
+        // Written so that a NaN time also lands here.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(s.t <= self.max_t) {
+            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
         }
         if self.ring.len() == self.capacity {
             self.ring.pop_front();
+            let front = self.pushed - self.ring.len() as u64;
+            while (self.first_block + 1) * TIME_BLOCK <= front {
+                self.block_max_t.pop_front();
+                self.first_block += 1;
+            }
         }
         self.ring.push_back(s);
+        let block = self.pushed / TIME_BLOCK;
+        if block >= self.first_block + self.block_max_t.len() as u64 {
+            self.block_max_t.push_back(self.max_t);
+        } else if let Some(b) = self.block_max_t.back_mut() {
+            *b = self.max_t;
+        }
         self.pushed += 1;
     }
 
@@ -799,13 +831,12 @@ impl Reconstructor {
 
     /// The filter extents each pixel had at the last refresh (`[e_x, e_y, e_t]`).
     pub fn filter_map(&self) -> &[[f32; 3]] {
-        self.filters
-            .get_or_init(|| self.lookup.iter().map(|l| self.tiles[l.tile as usize].e).collect())
-    }
-
-    /// Whether the ring is in time order.
-    fn ordered(&self) -> bool {
-        self.last_inversion <= self.pushed - self.ring.len() as u64
+        self.filters.get_or_init(|| {
+            self.lookup
+                .iter()
+                .map(|l| self.tiles[l.tile as usize].e)
+                .collect()
+        })
     }
 
     /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
@@ -815,8 +846,10 @@ impl Reconstructor {
         self.filters = OnceLock::new();
         self.tiles.clear();
         if let Some(e) = self.params.fixed_filter {
-            self.tiles
-                .push(TileFilter::new([e.ex as f32, e.ey as f32, e.et as f32], cut));
+            self.tiles.push(TileFilter::new(
+                [e.ex as f32, e.ey as f32, e.et as f32],
+                cut,
+            ));
             self.lookup.iter_mut().for_each(|l| l.tile = 0);
             return;
         }
@@ -828,8 +861,10 @@ impl Reconstructor {
             let (gx, gy, gt) = n.stats.gradients();
             let e = filter::extents(1.0 / rl, gx, gy, gt, &self.params.bounds);
             let k = self.tiles.len() as u32;
-            self.tiles
-                .push(TileFilter::new([e.ex as f32, e.ey as f32, e.et as f32], cut));
+            self.tiles.push(TileFilter::new(
+                [e.ex as f32, e.ey as f32, e.et as f32],
+                cut,
+            ));
             let x1 = (r.x1 as usize).min(w);
             for y in r.y0 as usize..(r.y1 as usize).min(self.height as usize) {
                 for l in &mut self.lookup[y * w + r.x0 as usize..y * w + x1] {
@@ -849,20 +884,22 @@ impl Reconstructor {
         &self.image
     }
 
-    /// The ring from its first sample that may be within the temporal cutoff of some
-    /// tile: all older ones would fail the per-sample test `age / e_t ≤ temporal_cutoff`
-    /// for every tile (only cut while the ring is in time order).
+    /// Index in the ring from which samples may be within the temporal cutoff of some
+    /// tile: every sample before it was pushed in a block whose largest time so far is
+    /// older than `temporal_cutoff · max e_t` (with a margin), so it would fail the
+    /// per-sample test `age / e_t ≤ temporal_cutoff` for every tile.
     fn live_start(&self, t: f64) -> usize {
-        if !(self.skip_stale && self.ordered()) {
+        if !self.skip_stale {
             return 0;
         }
         let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
         let tc = t - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
-        if tc.is_finite() {
-            self.ring.partition_point(|s| s.t < tc)
-        } else {
-            0
+        if !tc.is_finite() {
+            return 0;
         }
+        let j = self.block_max_t.partition_point(|&m| m < tc) as u64;
+        let front = self.pushed - self.ring.len() as u64;
+        (((self.first_block + j) * TIME_BLOCK).saturating_sub(front) as usize).min(self.ring.len())
     }
 
     fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
@@ -1056,7 +1093,11 @@ impl Reconstructor {
                     if s[3] > 0.0 {
                         let inv = 1.0 / s[3];
                         out = (
-                            Vec3::new((s[0] * inv) as f32, (s[1] * inv) as f32, (s[2] * inv) as f32),
+                            Vec3::new(
+                                (s[0] * inv) as f32,
+                                (s[1] * inv) as f32,
+                                (s[2] * inv) as f32,
+                            ),
                             s[4] * inv,
                         );
                         break;
@@ -1161,7 +1202,11 @@ mod tests {
             .map(|i| {
                 let x = rng.uniform() * (w as f32 + 4.0) - 2.0;
                 let y = rng.uniform() * (h as f32 + 4.0) - 2.0;
-                let depth = if rng.uniform() < 0.02 { -1.0 } else { 1.0 + rng.uniform() };
+                let depth = if rng.uniform() < 0.02 {
+                    -1.0
+                } else {
+                    1.0 + rng.uniform()
+                };
                 RingSample {
                     x,
                     y,
@@ -1202,7 +1247,12 @@ mod tests {
     /// Sums `[r, g, b, w, w·age]` and coverage per pixel by direct evaluation of the
     /// Gaussian in f64 for every sample of the ring (no stale-prefix cut, no bands), with
     /// the filters and splat scale the next refresh will use.
-    fn direct(r: &mut Reconstructor, t: f64, c: &CameraFrame, tiling: &Tiling) -> Vec<([f64; 5], u32)> {
+    fn direct(
+        r: &mut Reconstructor,
+        t: f64,
+        c: &CameraFrame,
+        tiling: &Tiling,
+    ) -> Vec<([f64; 5], u32)> {
         r.update_filters(tiling);
         let p = r.params;
         let placer = Placer {
@@ -1265,7 +1315,11 @@ mod tests {
 
     #[test]
     fn fast_path_matches_direct_evaluation() {
-        for params in [ReconParams::paper(), ReconParams::no_reprojection(), ReconParams::fixed_filter()] {
+        for params in [
+            ReconParams::paper(),
+            ReconParams::no_reprojection(),
+            ReconParams::fixed_filter(),
+        ] {
             for (w, h) in [(40, 30), (67, 41)] {
                 let (mut r, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
                 check_against_direct(&mut r, &c, &tiling);
@@ -1274,10 +1328,8 @@ mod tests {
     }
 
     #[test]
-    fn out_of_order_ring_is_reconstructed_without_the_stale_cut() {
+    fn out_of_order_ring_matches_direct_evaluation() {
         let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, true, ReconParams::paper(), GTS);
-        assert!(!r.ordered());
-        assert_eq!(r.live_start(1.0), 0);
         check_against_direct(&mut r, &c, &tiling);
     }
 
@@ -1285,8 +1337,18 @@ mod tests {
     fn stale_cut_never_drops_a_sample_that_counts() {
         // Ages up to 3 s against e_t of at most a fraction of that: the cut skips most
         // of the ring and must give exactly the image of the full per-sample test.
-        let run = |skip: bool| {
-            let (mut r, c, tiling) = random_setup(48, 32, 6000, 3.0, false, ReconParams::paper(), [3.0, 10.0, 30.0, 100.0]);
+        // In order, and with two samples far apart swapped (as interleaved batches of
+        // sampling threads would be, only more so).
+        let run = |skip: bool, shuffle: bool| {
+            let (mut r, c, tiling) = random_setup(
+                48,
+                32,
+                6000,
+                3.0,
+                shuffle,
+                ReconParams::paper(),
+                [3.0, 10.0, 30.0, 100.0],
+            );
             r.skip_stale = skip;
             let mut out = Vec::new();
             for k in 0..3 {
@@ -1301,16 +1363,23 @@ mod tests {
                     }
                 }
                 r.reconstruct(1.0, &c, &tiling);
-                out.push((r.image().clone(), r.coverage().to_vec(), r.mean_age(), r.holes()));
+                out.push((
+                    r.image().clone(),
+                    r.coverage().to_vec(),
+                    r.mean_age(),
+                    r.holes(),
+                ));
             }
             out
         };
-        let (a, b) = (run(true), run(false));
-        for (x, y) in a.iter().zip(&b) {
-            assert_eq!(x.0.pixels, y.0.pixels);
-            assert_eq!(x.1, y.1);
-            assert_eq!(x.2.to_bits(), y.2.to_bits());
-            assert_eq!(x.3, y.3);
+        for shuffle in [false, true] {
+            let (a, b) = (run(true, shuffle), run(false, shuffle));
+            for (x, y) in a.iter().zip(&b) {
+                assert_eq!(x.0.pixels, y.0.pixels);
+                assert_eq!(x.1, y.1);
+                assert_eq!(x.2.to_bits(), y.2.to_bits());
+                assert_eq!(x.3, y.3);
+            }
         }
     }
 
@@ -1319,7 +1388,8 @@ mod tests {
         // A narrow filter (1 px) over the last 0.3 s: most pixels are holes with 3
         // samples, few with 100.
         for n in [3, 30, 100] {
-            let (mut r, c, tiling) = random_setup(37, 29, n, 0.3, false, ReconParams::fixed_filter(), GTS);
+            let (mut r, c, tiling) =
+                random_setup(37, 29, n, 0.3, false, ReconParams::fixed_filter(), GTS);
             r.reconstruct(1.0, &c, &tiling);
             assert!(r.holes() > 0, "{n} samples should leave holes");
             let mut ages = Vec::new();
@@ -1332,6 +1402,54 @@ mod tests {
             assert_eq!(images[0], images[1]);
             assert!(images[0].iter().all(|p| p.is_finite() && *p != Vec3::ZERO));
         }
+    }
+
+    #[test]
+    fn stale_cut_follows_the_ring_as_it_wraps() {
+        // A ring of 1000 samples fed 5000, one per ms, with some late arrivals: the cut
+        // must stay within the ring and skip only samples older than the cutoff time.
+        let mut r = Reconstructor::new(
+            10,
+            10,
+            1000.0,
+            ReconParams {
+                ring_factor: 10.0,
+                ..ReconParams::paper()
+            },
+        );
+        r.tiles = vec![TileFilter::new([1.0, 1.0, 0.1], 2.5)];
+        for i in 0..5000u32 {
+            let t = if i % 97 == 0 {
+                i as f64 * 1e-3 - 0.2
+            } else {
+                i as f64 * 1e-3
+            };
+            r.push(RingSample {
+                x: 1.0,
+                y: 1.0,
+                t,
+                color: Vec3::ONE,
+                hit_point: Vec3::ZERO,
+                velocity: Vec3::ZERO,
+            });
+            if i % 250 == 0 || i > 4990 {
+                let now = i as f64 * 1e-3;
+                let start = r.live_start(now);
+                assert!(start <= r.ring().len());
+                let tc = now - 0.3 * (1.0 + STALE_MARGIN);
+                assert!(r.ring().range(..start).all(|s| s.t < tc), "push {i}");
+                // Blocks are 256 pushes: at most two blocks' worth of stale samples stay.
+                let stale = r.ring().iter().filter(|s| s.t < tc - 0.2).count();
+                assert!(
+                    stale <= start + 2 * TIME_BLOCK as usize,
+                    "push {i}: {stale} stale, cut {start}"
+                );
+            }
+        }
+        assert_eq!(
+            r.block_max_t.len() as u64,
+            r.pushed.div_ceil(TIME_BLOCK) - r.first_block
+        );
     }
 
     #[test]
