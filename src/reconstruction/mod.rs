@@ -1,7 +1,8 @@
 //! The adaptive space-time reconstructor (paper §5, §6.2; SPEC §4).
 //!
-//! The reconstructor keeps its own deep buffer: a temporally ordered ring of the `N`
-//! most recent samples the sampler traced. At each display refresh (time `t`) it
+//! The reconstructor keeps its own deep buffer: a ring of the `N` most recent samples
+//! the sampler traced, in the order they were pushed. At each display refresh (time
+//! `t`) it
 //!
 //! 1. reprojects every sample to the current view: world point `hit_point + velocity ·
 //!    (t − t_sample)` projected by the current camera (misses carry a far hit point,
@@ -12,22 +13,50 @@
 //!    tile's local sample rate and gradients, [`filter::extents`]) and the splat scale
 //!    of that pixel (from the previous refresh's coverage map);
 //! 3. splats it: a Gaussian `w = exp(−½((dx/e_x)² + (dy/e_y)² + (age/e_t)²))` over
-//!    the pixels whose centers lie within `spatial_cutoff · scale` sigmas (and at most
-//!    `max_radius` pixels) — the splat scale widens the footprint (the paper's point
-//!    size), not the kernel, so a wide splat only matters where no nearer sample
-//!    outweighs it; samples older than `temporal_cutoff · e_t` are skipped;
+//!    the pixels whose centers lie within `spatial_cutoff · scale` sigmas along x and
+//!    along y (a box, at most `max_radius` pixels from the sample) — the splat scale
+//!    widens the footprint (the paper's point size), not the kernel, so a wide splat
+//!    only matters where no nearer sample outweighs it; samples older than
+//!    `temporal_cutoff · e_t` are skipped;
 //! 4. divides accumulated weighted color by accumulated weight; pixels no sample
-//!    reached (accumulated weight below `MIN_WEIGHT` = 1e-24: holes) are filled from the coarsest-necessary level of a 2×2 pull
-//!    pyramid of the same sums (a wider box pass: the weighted mean of the nearest
-//!    block that has samples), so a hole never shows black unless nothing at all was
-//!    sampled yet;
-//! 5. updates the splat scale map from the coverage (samples reaching each pixel):
-//!    fewer than `undersampled` → ×`grow`, more than `oversampled` → ×`shrink`,
-//!    clamped to `scale_bounds`.
+//!    reached (accumulated weight below `MIN_WEIGHT` = 1e-24: holes) are filled from
+//!    the coarsest-necessary level of a 2×2 pull pyramid of the same sums (a wider box
+//!    pass: the weighted mean of the nearest block that has samples), so a hole never
+//!    shows black unless nothing at all was sampled yet;
+//! 5. updates the splat scale map from the coverage (samples whose footprint covers
+//!    each pixel): fewer than `undersampled` → ×`grow`, more than `oversampled` →
+//!    ×`shrink`, clamped to `scale_bounds`.
 //!
-//! Splatting runs in parallel over horizontal bands of rows; each band visits the
-//! samples touching it in ring order and writes only its own pixels, so every pixel's
-//! sums are formed in the same order whatever the thread count (bit-identical images).
+//! How a refresh stays cheap (the same images as evaluating the above directly, up to
+//! f32 rounding: `tests::fast_path_matches_direct_evaluation`):
+//!
+//! - **Stale cut.** Samples older than `temporal_cutoff ·` (largest `e_t` of any tile)
+//!   fail step 3 wherever they land, so they are skipped before reprojection: `push`
+//!   keeps the running largest time at the end of every block of 256 pushes
+//!   (non-decreasing whatever order samples come in), and a binary search finds the
+//!   blocks that are stale as a whole. With the camera moving (BART kitchen) this skips
+//!   about 70% of the ring.
+//! - **Filters per tile.** Each refresh computes one filter per tile (with the
+//!   constants a splat needs) and a per-pixel `(tile, scale)` lookup, so a sample finds
+//!   both in one cache line. Samples are reprojected a block of 64 at a time before
+//!   their pixels are looked up, so the lookups are in flight together instead of each
+//!   waiting behind the previous sample's unpredictable cull branch.
+//!   [`Reconstructor::filter_map`] is built from the table on request.
+//! - **Vector splats.** Accumulators are cells of 8 aligned pixels × 5 channels (weighted
+//!   r, g, b, weight, weighted age), one 256-bit vector per channel. A splat computes
+//!   the Gaussian column weights of the cells it touches (8 lanes at a time, zero
+//!   outside its footprint, branch-free fast exp), multiplies them by its colour once,
+//!   and adds `(g_x·c)·g_y` to each row with one fused multiply-add per channel and
+//!   cell. Coverage comes from corner differences, four per splat and band.
+//! - **No allocation per refresh**: bins, accumulators and the pull pyramid are
+//!   reused; a few holes read memoised block sums around them instead of a whole
+//!   pyramid (the same sums added in the same order, so the same image).
+//!
+//! Splatting runs in parallel over horizontal bands of rows (8 rows with several
+//! threads, 32 on one); each band visits the samples touching it in ring order and
+//! writes only its own pixels, and every weight is computed from offsets to the
+//! splat's own first row and column, so every pixel's sums are formed from the same
+//! terms in the same order whatever the thread count (bit-identical images).
 
 pub mod filter;
 
@@ -205,7 +234,7 @@ const PREP_CHUNK: usize = 16384;
 /// Rows per band of the splat with several threads (tasks for the thread pool), and
 /// per task of the resolve pass (whose fixed bands make its sums thread-independent).
 /// Band heights are powers of two.
-const BAND_ROWS: usize = 8;
+const BAND_ROWS: usize = 16;
 /// Rows per band of the splat on one thread.
 const SINGLE_THREAD_BAND_ROWS: usize = 32;
 /// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
