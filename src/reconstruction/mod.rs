@@ -52,7 +52,7 @@
 //!   reused; a few holes read memoised block sums around them instead of a whole
 //!   pyramid (the same sums added in the same order, so the same image).
 //!
-//! Splatting runs in parallel over horizontal bands of rows (8 rows with several
+//! Splatting runs in parallel over horizontal bands of rows (16 rows with several
 //! threads, 32 on one); each band visits the samples touching it in ring order and
 //! writes only its own pixels, and every weight is computed from offsets to the
 //! splat's own first row and column, so every pixel's sums are formed from the same
