@@ -1,7 +1,8 @@
 //! The adaptive space-time reconstructor (paper §5, §6.2; SPEC §4).
 //!
-//! The reconstructor keeps its own deep buffer: a temporally ordered ring of the `N`
-//! most recent samples the sampler traced. At each display refresh (time `t`) it
+//! The reconstructor keeps its own deep buffer: a ring of the `N` most recent samples
+//! the sampler traced, in the order they were pushed. At each display refresh (time
+//! `t`) it
 //!
 //! 1. reprojects every sample to the current view: world point `hit_point + velocity ·
 //!    (t − t_sample)` projected by the current camera (misses carry a far hit point,
@@ -12,26 +13,57 @@
 //!    tile's local sample rate and gradients, [`filter::extents`]) and the splat scale
 //!    of that pixel (from the previous refresh's coverage map);
 //! 3. splats it: a Gaussian `w = exp(−½((dx/e_x)² + (dy/e_y)² + (age/e_t)²))` over
-//!    the pixels whose centers lie within `spatial_cutoff · scale` sigmas (and at most
-//!    `max_radius` pixels) — the splat scale widens the footprint (the paper's point
-//!    size), not the kernel, so a wide splat only matters where no nearer sample
-//!    outweighs it; samples older than `temporal_cutoff · e_t` are skipped;
+//!    the pixels whose centers lie within `spatial_cutoff · scale` sigmas along x and
+//!    along y (a box, at most `max_radius` pixels from the sample) — the splat scale
+//!    widens the footprint (the paper's point size), not the kernel, so a wide splat
+//!    only matters where no nearer sample outweighs it; samples older than
+//!    `temporal_cutoff · e_t` are skipped;
 //! 4. divides accumulated weighted color by accumulated weight; pixels no sample
-//!    reached (accumulated weight below `MIN_WEIGHT` = 1e-24: holes) are filled from the coarsest-necessary level of a 2×2 pull
-//!    pyramid of the same sums (a wider box pass: the weighted mean of the nearest
-//!    block that has samples), so a hole never shows black unless nothing at all was
-//!    sampled yet;
-//! 5. updates the splat scale map from the coverage (samples reaching each pixel):
-//!    fewer than `undersampled` → ×`grow`, more than `oversampled` → ×`shrink`,
-//!    clamped to `scale_bounds`.
+//!    reached (accumulated weight below `MIN_WEIGHT` = 1e-24: holes) are filled from
+//!    the coarsest-necessary level of a 2×2 pull pyramid of the same sums (a wider box
+//!    pass: the weighted mean of the nearest block that has samples), so a hole never
+//!    shows black unless nothing at all was sampled yet;
+//! 5. updates the splat scale map from the coverage (samples whose footprint covers
+//!    each pixel): fewer than `undersampled` → ×`grow`, more than `oversampled` →
+//!    ×`shrink`, clamped to `scale_bounds`.
 //!
-//! Splatting runs in parallel over horizontal bands of rows; each band visits the
-//! samples touching it in ring order and writes only its own pixels, so every pixel's
-//! sums are formed in the same order whatever the thread count (bit-identical images).
+//! How a refresh stays cheap (the same images as evaluating the above directly, up to
+//! f32 rounding: `tests::fast_path_matches_direct_evaluation`):
+//!
+//! - **Stale cut.** Samples older than `temporal_cutoff ·` (largest `e_t` of any tile)
+//!   fail step 3 wherever they land, so they are skipped before reprojection: `push`
+//!   keeps the running largest time at the end of every block of 256 pushes
+//!   (non-decreasing whatever order samples come in), and a binary search finds the
+//!   blocks that are stale as a whole. With the camera moving (BART kitchen) this skips
+//!   about 70% of the ring.
+//! - **Filters per tile.** Each refresh computes one filter per tile (with the
+//!   constants a splat needs) and a per-pixel `(tile, scale)` lookup, so a sample finds
+//!   both in one cache line. Samples are reprojected a block of 64 at a time before
+//!   their pixels are looked up, so the lookups are in flight together instead of each
+//!   waiting behind the previous sample's unpredictable cull branch.
+//!   [`Reconstructor::filter_map`] is built from the table on request.
+//! - **Vector splats.** Accumulators are cells of 8 aligned pixels × 5 channels (weighted
+//!   r, g, b, weight, weighted age), one 256-bit vector per channel. A splat computes
+//!   the Gaussian column weights of the cells it touches (8 lanes at a time, zero
+//!   outside its footprint, branch-free fast exp), multiplies them by its colour once,
+//!   and adds `(g_x·c)·g_y` to each row with one fused multiply-add per channel and
+//!   cell. Coverage comes from corner differences, four per splat and band.
+//! - **No allocation per refresh**: bins, accumulators and the pull pyramid are
+//!   reused; a few holes read memoised block sums around them instead of a whole
+//!   pyramid (the same sums added in the same order, so the same image).
+//!
+//! Splatting runs in parallel over horizontal bands of rows (16 rows with several
+//! threads, 32 on one); each band visits the samples touching it in ring order and
+//! writes only its own pixels, and every weight is computed from offsets to the
+//! splat's own first row and column, so every pixel's sums are formed from the same
+//! terms in the same order whatever the thread count (bit-identical images).
 
 pub mod filter;
 
-use std::collections::VecDeque;
+use std::{
+    collections::{HashMap, VecDeque},
+    sync::OnceLock,
+};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -151,18 +183,112 @@ impl From<&StreamSample> for RingSample {
     }
 }
 
+/// `e^x` for `x ≤ 0` (relative error below 1e-5, growing with |x| from rounding `x·log2 e`
+/// in f32; 0 below −87): `2^(x·log2 e)` split into an exponent and a degree-6 polynomial
+/// of the fraction. Deterministic and much cheaper than `f32::exp` in the splat loop.
+///
+/// Branch-free and without float→int conversion (the integer part is rounded by adding
+/// 1.5·2²³, which leaves it in the low mantissa bits), so that loops over lanes of it
+/// compile to vector instructions.
+#[inline(always)]
+pub fn fast_exp_neg(x: f32) -> f32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2^23
+    let v = x.max(-87.0) * std::f32::consts::LOG2_E;
+    let r = v + MAGIC;
+    let fi = r - MAGIC; // v rounded to the nearest integer, |fi| ≤ 126
+    let f = v - fi; // [−½, ½]
+                    // 2^f on [−½, ½]: Taylor coefficients ln2^k/k! (truncation error < 1e-8), Horner
+                    // steps fused.
+    let p = 0.000_154_035_3f32
+        .mul_add(f, 0.001_333_355_8)
+        .mul_add(f, 0.009_618_129)
+        .mul_add(f, 0.055_504_11)
+        .mul_add(f, 0.240_226_5)
+        .mul_add(f, std::f32::consts::LN_2)
+        .mul_add(f, 1.0);
+    // fi + 127 ∈ [1, 127]: a normal power of two.
+    let bits = r
+        .to_bits()
+        .wrapping_sub(MAGIC.to_bits())
+        .wrapping_add(127)
+        .wrapping_shl(23);
+    let e = p * f32::from_bits(bits);
+    if x < -87.0 {
+        0.0
+    } else {
+        e
+    }
+}
+
+/// Lanes of the vectorised splat loops (one 256-bit register of f32).
+const LANES: usize = 8;
+type Lanes = [f32; LANES];
+/// `0, 1, …, LANES − 1`.
+const LANE_INDEX: Lanes = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+
+/// Accumulated weight below which a pixel counts as a hole: far splat tails reach
+/// f32's denormal range, where `Σw·c / Σw` loses all precision.
+const MIN_WEIGHT: f32 = 1e-24;
+/// Samples per task of the parallel splat preparation (with more than one thread).
+const PREP_CHUNK: usize = 16384;
+/// Rows per band of the splat with several threads (tasks for the thread pool), and
+/// per task of the resolve pass (whose fixed bands make its sums thread-independent).
+/// Band heights are powers of two.
+const BAND_ROWS: usize = 16;
+/// Rows per band of the splat on one thread.
+const SINGLE_THREAD_BAND_ROWS: usize = 32;
+/// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
+const MAX_SPAN: usize = 128;
+/// Most groups of `LANES` columns a footprint touches.
+const MAX_GROUPS: usize = MAX_SPAN / LANES + 1;
+/// Accumulated channels: weighted red, green, blue, weight, weighted age.
+const CHANNELS: usize = 5;
+/// Accumulators of `LANES` adjacent pixels (aligned), one vector per channel.
+type Cell = [Lanes; CHANNELS];
+/// Pushes per block of the ring's running largest time (see `block_max_t`).
+const TIME_BLOCK: u64 = 256;
+/// Relative margin of the stale-prefix cut over the per-sample temporal cutoff, far
+/// above f32 rounding of `age / e_t`, so the cut never drops a sample that the
+/// per-sample test would keep.
+const STALE_MARGIN: f64 = 1e-3;
+
+/// A tile's filter at one refresh, with the per-sample constants derived from it.
+#[derive(Clone, Copy, Debug)]
+struct TileFilter {
+    /// `[e_x, e_y, e_t]`.
+    e: [f32; 3],
+    inv_et: f32,
+    /// `½/e_x²`, `½/e_y²`.
+    ax: f32,
+    ay: f32,
+    /// Footprint radii at splat scale 1: `spatial_cutoff · e_x`, `· e_y`.
+    cx: f32,
+    cy: f32,
+}
+
+impl TileFilter {
+    fn new(e: [f32; 3], spatial_cutoff: f32) -> Self {
+        Self {
+            e,
+            inv_et: 1.0 / e[2],
+            ax: 0.5 / (e[0] * e[0]),
+            ay: 0.5 / (e[1] * e[1]),
+            cx: spatial_cutoff * e[0],
+            cy: spatial_cutoff * e[1],
+        }
+    }
+}
+
 /// A sample prepared for splatting at one refresh.
 #[derive(Clone, Copy, Debug)]
 struct Splat {
     x: f32,
     y: f32,
-    /// Temporal weight factor.
-    wt: f32,
     /// `½/σx²`, `½/σy²`.
     ax: f32,
     ay: f32,
-    age: f32,
-    color: [f32; 3],
+    /// Temporal weight × (red, green, blue, 1, age).
+    c: [f32; CHANNELS],
     /// Inclusive pixel bounding box of the footprint (clipped to the image).
     x0: u16,
     x1: u16,
@@ -170,36 +296,399 @@ struct Splat {
     y1: u16,
 }
 
-/// `e^x` for `x ≤ 0` (relative error below 1e-5, growing with |x| from rounding `x·log2 e` in f32; 0 below −87): `2^(x·log2 e)` split
-/// into an exponent and a degree-6 polynomial of the fraction. Deterministic and much
-/// cheaper than `f32::exp` in the splat loop.
-#[inline(always)]
-pub fn fast_exp_neg(x: f32) -> f32 {
-    if x < -87.0 {
-        return 0.0;
-    }
-    let v = x * std::f32::consts::LOG2_E;
-    let fi = v.round();
-    let f = v - fi; // [−½, ½]
-                    // 2^f on [−½, ½]: Taylor coefficients ln2^k/k! (truncation error < 1e-8).
-    let p = 1.0
-        + f * (std::f32::consts::LN_2
-            + f * (0.240_226_5
-                + f * (0.055_504_11
-                    + f * (0.009_618_129 + f * (0.001_333_355_8 + f * 0.000_154_035_3)))));
-    let bits = ((fi as i32 + 127) as u32) << 23;
-    p * f32::from_bits(bits)
+/// `camera.project` with the per-view constants hoisted: `x = (d·u)/z − corner·u` with
+/// `u = du/|du|²` (the same map, rounded differently).
+#[derive(Clone, Copy, Debug)]
+struct Projector {
+    eye: Vec3,
+    forward: Vec3,
+    u: Vec3,
+    v: Vec3,
+    ou: f32,
+    ov: f32,
 }
 
-/// Accumulated weight below which a pixel counts as a hole: far splat tails reach
-/// f32's denormal range, where `Σw·c / Σw` loses all precision.
-const MIN_WEIGHT: f32 = 1e-24;
-/// Samples per task of the parallel splat preparation.
-const PREP_CHUNK: usize = 16384;
-/// Rows per band of the parallel splat.
-const BAND_ROWS: usize = 8;
-/// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
-const MAX_SPAN: usize = 128;
+impl Projector {
+    fn new(c: &CameraFrame) -> Self {
+        let u = c.du / c.du.length_squared();
+        let v = c.dv / c.dv.length_squared();
+        Self {
+            eye: c.eye,
+            forward: c.forward,
+            u,
+            v,
+            ou: c.corner.dot(u),
+            ov: c.corner.dot(v),
+        }
+    }
+
+    /// Pixel coordinates, and whether the point is in front of the eye (only then are
+    /// the coordinates meaningful).
+    #[inline(always)]
+    fn project(&self, p: Vec3) -> (f32, f32, bool) {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        let iz = 1.0 / z;
+        (
+            d.dot(self.u) * iz - self.ou,
+            d.dot(self.v) * iz - self.ov,
+            z > 1e-6,
+        )
+    }
+}
+
+/// A sample placed at one refresh: where it lands, its filter, temporal weight argument
+/// and footprint. Shared by the splat and the tests' direct evaluation, so both agree
+/// on which samples reach which pixels.
+#[derive(Clone, Copy, Debug)]
+struct Placed {
+    x: f32,
+    y: f32,
+    age: f32,
+    /// `age / e_t` (at most `temporal_cutoff`).
+    a: f32,
+    filter: TileFilter,
+    x0: i32,
+    x1: i32,
+    y0: i32,
+    y1: i32,
+}
+
+/// What a sample needs of the pixel it lands in.
+#[derive(Clone, Copy, Debug)]
+struct Lookup {
+    /// Index of the pixel's tile in the filter table.
+    tile: u32,
+    /// The pixel's splat scale.
+    scale: f32,
+}
+
+/// Where a sample lands at one refresh, before its filter is known.
+#[derive(Clone, Copy, Debug, Default)]
+struct Located {
+    x: f32,
+    y: f32,
+    age: f32,
+    /// The pixel it lands in, clamped to the image.
+    pixel: u32,
+    /// In front of the eye, at finite coordinates.
+    ok: bool,
+}
+
+/// Samples located before their pixels are looked up in [`bin_piece`]: the lookups
+/// of a whole block are then independent loads in flight together, instead of each
+/// waiting behind the unpredictable cull branch of the previous sample.
+const LOCATE_BLOCK: usize = 64;
+
+/// What placing a sample needs at one refresh.
+struct Placer<'a> {
+    t: f64,
+    proj: Option<Projector>,
+    width: i32,
+    height: i32,
+    lookup: &'a [Lookup],
+    tiles: &'a [TileFilter],
+    temporal_cutoff: f32,
+    max_r: f32,
+}
+
+impl Placer<'_> {
+    /// Reproject `s`: where it lands and in which pixel (without branches on the data,
+    /// see [`LOCATE_BLOCK`]).
+    #[inline(always)]
+    fn locate(&self, s: &RingSample) -> Located {
+        let dt = self.t - s.t;
+        let (x, y, front) = match &self.proj {
+            Some(p) => p.project(s.hit_point + s.velocity * dt as f32),
+            None => (s.x, s.y, true),
+        };
+        // The filter and scale are those of the pixel the sample lands in, clamped to
+        // the image, so a sample just outside still lights the border within its
+        // footprint (a NaN coordinate clamps too; `ok` discards it).
+        let (w, h) = (self.width, self.height);
+        // Clamped as floats (`max` first, so NaN becomes 0): truncation is then floor.
+        let px = x.max(0.0).min((w - 1) as f32) as u32;
+        let py = y.max(0.0).min((h - 1) as f32) as u32;
+        Located {
+            x,
+            y,
+            age: dt.max(0.0) as f32,
+            pixel: py * w as u32 + px,
+            ok: front & x.is_finite() & y.is_finite(),
+        }
+    }
+
+    /// Place one sample.
+    #[cfg(test)]
+    fn place(&self, s: &RingSample) -> Option<Placed> {
+        let l = self.locate(s);
+        self.finish(&l, self.lookup[l.pixel as usize])
+    }
+
+    /// The filter, temporal cull and footprint of a located sample.
+    #[inline(always)]
+    fn finish(&self, l: &Located, look: Lookup) -> Option<Placed> {
+        let (x, y, age) = (l.x, l.y, l.age);
+        let (w, h) = (self.width, self.height);
+        let f = self.tiles[look.tile as usize];
+        let a = age * f.inv_et;
+        if !(l.ok && a <= self.temporal_cutoff) {
+            return None;
+        }
+        let sc = look.scale;
+        let rx = (f.cx * sc).min(self.max_r);
+        let ry = (f.cy * sc).min(self.max_r);
+        // Pixel k's center is k + 0.5.
+        let x0 = ((x - 0.5 - rx).ceil() as i32).max(0);
+        let x1 = ((x - 0.5 + rx).floor() as i32).min(w - 1);
+        let y0 = ((y - 0.5 - ry).ceil() as i32).max(0);
+        let y1 = ((y - 0.5 + ry).floor() as i32).min(h - 1);
+        if x0 > x1 || y0 > y1 {
+            return None;
+        }
+        Some(Placed {
+            x,
+            y,
+            age,
+            a,
+            filter: f,
+            x0,
+            x1,
+            y0,
+            y1,
+        })
+    }
+
+    #[inline(always)]
+    fn splat(&self, s: &RingSample, p: &Placed) -> Splat {
+        let wt = fast_exp_neg(-0.5 * p.a * p.a);
+        let c = s.color;
+        Splat {
+            x: p.x,
+            y: p.y,
+            ax: p.filter.ax,
+            ay: p.filter.ay,
+            c: [wt * c.x, wt * c.y, wt * c.z, wt, wt * p.age],
+            x0: p.x0 as u16,
+            x1: p.x1 as u16,
+            y0: p.y0 as u16,
+            y1: p.y1 as u16,
+        }
+    }
+}
+
+/// Gaussian weights `exp(−a·(b + k)²)` of the lanes `k = o + l`, zero where `k` is
+/// outside `[lo, hi]`. One loop over independent lanes, which compiles to vector code.
+#[inline(always)]
+fn gauss_lanes(a: f32, b: f32, o: f32, lo: f32, hi: f32) -> Lanes {
+    let mut out = [0f32; LANES];
+    for l in 0..LANES {
+        let k = o + LANE_INDEX[l];
+        let d = b + k;
+        let e = fast_exp_neg(-a * d * d);
+        out[l] = if k >= lo && k <= hi { e } else { 0.0 };
+    }
+    out
+}
+
+/// Add one splat to the rows `by0..by1` of a band's accumulators (`gpr` cells per row)
+/// and count it in the band's coverage corner differences `cov` (rows of `cstride`).
+///
+/// Columns go in the aligned groups of `LANES` that the footprint touches; lanes
+/// outside it carry weight 0 (adding `+0` leaves every sum as it is), so each group is
+/// one vector operation per channel on one [`Cell`]. Each pixel gets
+/// `(g_x·c)·g_y` added with one rounding, its weights taken from offsets to the
+/// footprint's first group and first row, so the sum is the same whichever band
+/// computes it.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn splat_one(
+    s: &Splat,
+    by0: usize,
+    by1: usize,
+    gpr: usize,
+    acc: &mut [Cell],
+    cstride: usize,
+    cov: &mut [i32],
+    gx: &mut [Lanes; MAX_GROUPS],
+) {
+    let (x0, x1) = (s.x0 as usize, s.x1 as usize);
+    let g0 = x0 / LANES;
+    let groups = x1 / LANES - g0 + 1;
+    let bx = (g0 * LANES) as f32 + 0.5 - s.x;
+    // The footprint's columns relative to the first group's (exact in f32).
+    let (lo, hi) = ((x0 - g0 * LANES) as f32, (x1 - g0 * LANES) as f32);
+    // A running offset in f32 (an integer conversion per group makes the compiler
+    // vectorise across groups instead of lanes).
+    let mut o = 0f32;
+    for g in gx[..groups].iter_mut() {
+        *g = gauss_lanes(s.ax, bx, o, lo, hi);
+        o += LANES as f32;
+    }
+    let y0 = (s.y0 as usize).max(by0);
+    let y1 = (s.y1 as usize + 1).min(by1);
+    let rows = Rows {
+        s,
+        y0,
+        y1,
+        by0,
+        gpr,
+        g0,
+    };
+    match groups {
+        1 => rows.add::<1>(gx, acc),
+        2 => rows.add::<2>(gx, acc),
+        3 => rows.add::<3>(gx, acc),
+        _ => rows.add_any(&gx[..groups], acc),
+    }
+    // Coverage corners within the band (made per-row differences in `splat_band`).
+    let r0 = (y0 - by0) * cstride;
+    cov[r0 + x0] += 1;
+    cov[r0 + x1 + 1] -= 1;
+    if y1 < by1 {
+        let r1 = (y1 - by0) * cstride;
+        cov[r1 + x0] -= 1;
+        cov[r1 + x1 + 1] += 1;
+    }
+}
+
+/// The rows of one splat within one band.
+struct Rows<'a> {
+    s: &'a Splat,
+    y0: usize,
+    y1: usize,
+    by0: usize,
+    gpr: usize,
+    g0: usize,
+}
+
+impl Rows<'_> {
+    /// Call `f(r, g_y)` for every row (`r` relative to the band), row weights computed
+    /// `LANES` rows at a time from offsets to the footprint's first row.
+    #[inline(always)]
+    fn each(&self, mut f: impl FnMut(usize, f32)) {
+        let s = self.s;
+        let by = s.y0 as f32 + 0.5 - s.y;
+        let mut y = self.y0;
+        while y < self.y1 {
+            let o = (y - s.y0 as usize) as f32;
+            let gy = gauss_lanes(s.ay, by, o, f32::NEG_INFINITY, f32::INFINITY);
+            let n = (self.y1 - y).min(LANES);
+            for (i, &gy) in gy[..n].iter().enumerate() {
+                f(y + i - self.by0, gy);
+            }
+            y += n;
+        }
+    }
+
+    /// Footprints of `G` groups: the products `g_x·c` stay in registers over the rows.
+    #[inline(always)]
+    fn add<const G: usize>(&self, gx: &[Lanes; MAX_GROUPS], acc: &mut [Cell]) {
+        let c = self.s.c;
+        let gxc: [Cell; G] = std::array::from_fn(|j| c.map(|c| gx[j].map(|g| g * c)));
+        let (gpr, g0) = (self.gpr, self.g0);
+        self.each(|r, gy| {
+            let cells: &mut [Cell; G] = (&mut acc[r * gpr + g0..r * gpr + g0 + G])
+                .try_into()
+                .unwrap();
+            for (cell, gxc) in cells.iter_mut().zip(&gxc) {
+                for (d, gxc) in cell.iter_mut().zip(gxc) {
+                    for l in 0..LANES {
+                        d[l] = gxc[l].mul_add(gy, d[l]);
+                    }
+                }
+            }
+        });
+    }
+
+    /// Wider footprints: the same sums, products formed per row.
+    #[inline(always)]
+    fn add_any(&self, gx: &[Lanes], acc: &mut [Cell]) {
+        let c = self.s.c;
+        let (gpr, g0) = (self.gpr, self.g0);
+        self.each(|r, gy| {
+            let cells = &mut acc[r * gpr + g0..r * gpr + g0 + gx.len()];
+            for (cell, gx) in cells.iter_mut().zip(gx) {
+                for (d, &c) in cell.iter_mut().zip(&c) {
+                    for l in 0..LANES {
+                        d[l] = (gx[l] * c).mul_add(gy, d[l]);
+                    }
+                }
+            }
+        });
+    }
+}
+
+/// Place the samples of `piece` and append their splats to the lists of the bands
+/// they touch.
+#[inline(never)]
+fn bin_piece(
+    placer: &Placer,
+    piece: &[RingSample],
+    out: &mut Vec<Vec<Splat>>,
+    bands: usize,
+    band_rows: usize,
+) {
+    debug_assert!(band_rows.is_power_of_two());
+    let band_shift = band_rows.trailing_zeros();
+    out.resize_with(bands, Vec::new);
+    out.iter_mut().for_each(Vec::clear);
+    let mut loc = [Located::default(); LOCATE_BLOCK];
+    let mut look = [Lookup {
+        tile: 0,
+        scale: 1.0,
+    }; LOCATE_BLOCK];
+    for block in piece.chunks(LOCATE_BLOCK) {
+        for (l, s) in loc.iter_mut().zip(block) {
+            *l = placer.locate(s);
+        }
+        for (k, l) in look.iter_mut().zip(&loc[..block.len()]) {
+            *k = placer.lookup[l.pixel as usize];
+        }
+        for ((s, l), &k) in block.iter().zip(&loc).zip(&look) {
+            let Some(p) = placer.finish(l, k) else {
+                continue;
+            };
+            let s = placer.splat(s, &p);
+            let (b0, b1) = (s.y0 as usize >> band_shift, s.y1 as usize >> band_shift);
+            for o in &mut out[b0..=b1] {
+                o.push(s);
+            }
+        }
+    }
+}
+
+/// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
+/// ring order.
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn splat_band(
+    binned: &[Vec<Vec<Splat>>],
+    b: usize,
+    band_rows: usize,
+    h: usize,
+    gpr: usize,
+    acc: &mut [Cell],
+    cstride: usize,
+    cov: &mut [i32],
+) {
+    acc.fill([[0.0; LANES]; CHANNELS]);
+    cov.fill(0);
+    let by0 = b * band_rows;
+    let by1 = (by0 + band_rows).min(h);
+    // Column weights of the current splat (here so they are not zeroed per splat).
+    let mut gx = [[0f32; LANES]; MAX_GROUPS];
+    for s in binned.iter().flat_map(|c| c[b].iter()) {
+        splat_one(s, by0, by1, gpr, acc, cstride, cov, &mut gx);
+    }
+    // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
+    for r in 1..by1 - by0 {
+        let (prev, row) = cov[(r - 1) * cstride..(r + 1) * cstride].split_at_mut(cstride);
+        for (d, &p) in row.iter_mut().zip(prev.iter()) {
+            *d += p;
+        }
+    }
+}
 
 /// The adaptive reconstructor.
 pub struct Reconstructor {
@@ -209,12 +698,41 @@ pub struct Reconstructor {
     rate: f64,
     capacity: usize,
     ring: VecDeque<RingSample>,
-    filters: Vec<[f32; 3]>,
+    /// Samples ever pushed.
+    pushed: u64,
+    /// Largest time pushed so far (NaN counts as +∞).
+    max_t: f64,
+    /// `max_t` at the end of each block of `TIME_BLOCK` pushes, from block
+    /// `first_block` on (the last entry is for the block being filled): non-decreasing
+    /// whatever the order samples come in, so the stale prefix of the ring is found by
+    /// binary search even when several sampling threads interleave their batches.
+    block_max_t: VecDeque<f64>,
+    first_block: u64,
+    /// Cut the ring's stale prefix before placing samples (off only to test the cut).
+    skip_stale: bool,
+    /// Filter per tile at the last refresh.
+    tiles: Vec<TileFilter>,
+    /// Each pixel's tile and splat scale (the scale also in `scale`, the public map),
+    /// together so a sample finds both in one cache line.
+    lookup: Vec<Lookup>,
+    /// Per-pixel filter map, built on request from `tiles` and `tile_of`.
+    filters: OnceLock<Vec<[f32; 3]>>,
     scale: Vec<f32>,
     coverage: Vec<u32>,
-    accum: Vec<[f32; 6]>,
-    /// Splats of the last refresh: per chunk of the ring (in ring order), per band.
+    /// Accumulators, `gpr` cells per row.
+    acc: Vec<Cell>,
+    gpr: usize,
+    /// Per-row coverage differences, rows of `width + 1`.
+    cov: Vec<i32>,
+    /// Rows per band of the splat at the last refresh.
+    band_rows: usize,
+    /// Splats of the last refresh: per piece of the ring (in ring order), per band.
+    /// Kept across refreshes so their allocations are reused.
     binned: Vec<Vec<Vec<Splat>>>,
+    /// Pieces of `binned` filled at the last refresh.
+    pieces: usize,
+    /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
+    pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
     image: Image,
     mean_age: f64,
     holes: usize,
@@ -226,6 +744,8 @@ impl Reconstructor {
     pub fn new(width: u32, height: u32, rate: f64, params: ReconParams) -> Self {
         let n = (width * height) as usize;
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);
+        let gpr = (width as usize).div_ceil(LANES);
+        let scale0 = params.scale_bounds.0.max(1e-3);
         Self {
             params,
             width,
@@ -233,11 +753,29 @@ impl Reconstructor {
             rate,
             capacity,
             ring: VecDeque::with_capacity(capacity.min(1 << 24)),
-            filters: vec![[1.0, 1.0, 1.0]; n],
-            scale: vec![params.scale_bounds.0.max(1e-3); n],
+            pushed: 0,
+            max_t: f64::NEG_INFINITY,
+            block_max_t: VecDeque::new(),
+            first_block: 0,
+            skip_stale: true,
+            tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
+            lookup: vec![
+                Lookup {
+                    tile: 0,
+                    scale: scale0
+                };
+                n
+            ],
+            filters: OnceLock::new(),
+            scale: vec![scale0; n],
             coverage: vec![0; n],
-            accum: vec![[0.0; 6]; n],
+            acc: vec![[[0.0; LANES]; CHANNELS]; height as usize * gpr],
+            gpr,
+            cov: vec![0; height as usize * (width as usize + 1)],
+            band_rows: BAND_ROWS,
             binned: Vec::new(),
+            pieces: 0,
+            pyramid: Vec::new(),
             image: Image::new(width, height),
             mean_age: 0.0,
             holes: n,
@@ -259,13 +797,32 @@ impl Reconstructor {
         &self.ring
     }
 
-    /// Append a sample (the oldest is dropped once the ring is full). Samples must come
-    /// in the order they were traced.
+    /// Append a sample (the oldest is dropped once the ring is full). Samples should
+    /// come about in the order they were traced: any order is reconstructed the same,
+    /// but the stale part of the ring is skipped only up to the first sample pushed
+    /// after a recent one.
     pub fn push(&mut self, s: RingSample) {
+        // Written so that a NaN time also lands here.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(s.t <= self.max_t) {
+            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
+        }
         if self.ring.len() == self.capacity {
             self.ring.pop_front();
+            let front = self.pushed - self.ring.len() as u64;
+            while (self.first_block + 1) * TIME_BLOCK <= front {
+                self.block_max_t.pop_front();
+                self.first_block += 1;
+            }
         }
         self.ring.push_back(s);
+        let block = self.pushed / TIME_BLOCK;
+        if block >= self.first_block + self.block_max_t.len() as u64 {
+            self.block_max_t.push_back(self.max_t);
+        } else if let Some(b) = self.block_max_t.back_mut() {
+            *b = self.max_t;
+        }
+        self.pushed += 1;
     }
 
     /// Append the sampler's stream.
@@ -303,15 +860,26 @@ impl Reconstructor {
 
     /// The filter extents each pixel had at the last refresh (`[e_x, e_y, e_t]`).
     pub fn filter_map(&self) -> &[[f32; 3]] {
-        &self.filters
+        self.filters.get_or_init(|| {
+            self.lookup
+                .iter()
+                .map(|l| self.tiles[l.tile as usize].e)
+                .collect()
+        })
     }
 
-    /// Rebuild the per-pixel filter map from the sampler's tiling.
+    /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
     fn update_filters(&mut self, tiling: &Tiling) {
         let w = self.width as usize;
+        let cut = self.params.spatial_cutoff;
+        self.filters = OnceLock::new();
+        self.tiles.clear();
         if let Some(e) = self.params.fixed_filter {
-            let f = [e.ex as f32, e.ey as f32, e.et as f32];
-            self.filters.iter_mut().for_each(|p| *p = f);
+            self.tiles.push(TileFilter::new(
+                [e.ex as f32, e.ey as f32, e.et as f32],
+                cut,
+            ));
+            self.lookup.iter_mut().for_each(|l| l.tile = 0);
             return;
         }
         let tiles = tiling.len();
@@ -321,10 +889,16 @@ impl Reconstructor {
             let rl = filter::local_rate(self.rate, tiles, r.area());
             let (gx, gy, gt) = n.stats.gradients();
             let e = filter::extents(1.0 / rl, gx, gy, gt, &self.params.bounds);
-            let f = [e.ex as f32, e.ey as f32, e.et as f32];
+            let k = self.tiles.len() as u32;
+            self.tiles.push(TileFilter::new(
+                [e.ex as f32, e.ey as f32, e.et as f32],
+                cut,
+            ));
             let x1 = (r.x1 as usize).min(w);
             for y in r.y0 as usize..(r.y1 as usize).min(self.height as usize) {
-                self.filters[y * w + r.x0 as usize..y * w + x1].fill(f);
+                for l in &mut self.lookup[y * w + r.x0 as usize..y * w + x1] {
+                    l.tile = k;
+                }
             }
         }
     }
@@ -336,215 +910,264 @@ impl Reconstructor {
         self.prepare_splats(t, camera);
         self.splat();
         self.resolve();
-        self.adapt_scale();
         &self.image
     }
 
+    /// Index in the ring from which samples may be within the temporal cutoff of some
+    /// tile: every sample before it was pushed in a block whose largest time so far is
+    /// older than `temporal_cutoff · max e_t` (with a margin), so it would fail the
+    /// per-sample test `age / e_t ≤ temporal_cutoff` for every tile.
+    fn live_start(&self, t: f64) -> usize {
+        if !self.skip_stale {
+            return 0;
+        }
+        let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
+        let tc = t - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
+        if !tc.is_finite() {
+            return 0;
+        }
+        let j = self.block_max_t.partition_point(|&m| m < tc) as u64;
+        let front = self.pushed - self.ring.len() as u64;
+        (((self.first_block + j) * TIME_BLOCK).saturating_sub(front) as usize).min(self.ring.len())
+    }
+
     fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
-        let (w, h) = (self.width as i32, self.height as i32);
+        let start = self.live_start(t);
         let p = self.params;
-        let filters = &self.filters;
-        let scale = &self.scale;
-        let max_r = p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5);
-        let make = |s: &RingSample| -> Option<Splat> {
-            let age = (t - s.t).max(0.0);
-            let (x, y) = if p.reproject {
-                let world = s.hit_point + s.velocity * (t - s.t) as f32;
-                let (x, y, _) = camera.project(world)?;
-                (x, y)
-            } else {
-                (s.x, s.y)
-            };
-            if !(x.is_finite() && y.is_finite()) {
-                return None;
-            }
-            // Filter and scale of the pixel the sample lands in (clamped to the image,
-            // so a sample just outside still lights the border within its footprint).
-            let px = (x.floor() as i64).clamp(0, w as i64 - 1) as usize;
-            let py = (y.floor() as i64).clamp(0, h as i64 - 1) as usize;
-            let i = py * w as usize + px;
-            let [ex, ey, et] = filters[i];
-            let a = age as f32 / et;
-            if a > p.temporal_cutoff {
-                return None;
-            }
-            let sc = scale[i];
-            let rx = (p.spatial_cutoff * ex * sc).min(max_r);
-            let ry = (p.spatial_cutoff * ey * sc).min(max_r);
-            // Pixel k's center is k + 0.5.
-            let x0 = ((x - 0.5 - rx).ceil() as i32).max(0);
-            let x1 = ((x - 0.5 + rx).floor() as i32).min(w - 1);
-            let y0 = ((y - 0.5 - ry).ceil() as i32).max(0);
-            let y1 = ((y - 0.5 + ry).floor() as i32).min(h - 1);
-            if x0 > x1 || y0 > y1 {
-                return None;
-            }
-            Some(Splat {
-                x,
-                y,
-                wt: fast_exp_neg(-0.5 * a * a),
-                ax: 0.5 / (ex * ex),
-                ay: 0.5 / (ey * ey),
-                age: age as f32,
-                color: s.color.to_array(),
-                x0: x0 as u16,
-                x1: x1 as u16,
-                y0: y0 as u16,
-                y1: y1 as u16,
-            })
+        let placer = Placer {
+            t,
+            proj: p.reproject.then(|| Projector::new(camera)),
+            width: self.width as i32,
+            height: self.height as i32,
+            lookup: &self.lookup,
+            tiles: &self.tiles,
+            temporal_cutoff: p.temporal_cutoff,
+            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
         };
-        let bands = (h as usize).div_ceil(BAND_ROWS);
-        let chunk = PREP_CHUNK.max(self.ring.len().div_ceil(64));
+        let threads = rayon::current_num_threads();
+        // Bands only split the work (every pixel sums its splats in ring order whatever
+        // the bands): on one thread tall bands duplicate fewer splats.
+        let band_rows = if threads <= 1 {
+            SINGLE_THREAD_BAND_ROWS
+        } else {
+            BAND_ROWS
+        };
+        self.band_rows = band_rows;
+        let bands = (self.height as usize).div_ceil(band_rows);
+        // The live part of the ring in pieces, in ring order. Pieces only split the
+        // work: every band later sums its splats in ring order whatever the pieces.
         let (a, b) = self.ring.as_slices();
-        self.binned = a
-            .par_chunks(chunk)
-            .chain(b.par_chunks(chunk))
-            .map(|c| {
-                let cap = c.len() * 3 / (2 * bands) + 16;
-                let mut out: Vec<Vec<Splat>> =
-                    (0..bands).map(|_| Vec::with_capacity(cap)).collect();
-                for s in c.iter().filter_map(make) {
-                    let (b0, b1) = (s.y0 as usize / BAND_ROWS, s.y1 as usize / BAND_ROWS);
-                    for o in &mut out[b0..=b1] {
-                        o.push(s);
-                    }
-                }
-                out
-            })
-            .collect();
+        let (a, b) = if start <= a.len() {
+            (&a[start..], b)
+        } else {
+            (&a[a.len()..], &b[start - a.len()..])
+        };
+        let live = a.len() + b.len();
+        let chunk = if threads <= 1 {
+            live.max(1)
+        } else {
+            PREP_CHUNK.max(live.div_ceil(4 * threads))
+        };
+        let pieces: Vec<&[RingSample]> = a.chunks(chunk).chain(b.chunks(chunk)).collect();
+        if self.binned.len() < pieces.len() {
+            self.binned.resize_with(pieces.len(), Vec::new);
+        }
+        self.pieces = pieces.len();
+        pieces
+            .par_iter()
+            .zip(self.binned.par_iter_mut())
+            .for_each(|(piece, out)| bin_piece(&placer, piece, out, bands, band_rows));
     }
 
     fn splat(&mut self) {
-        let w = self.width as usize;
-        let binned = &self.binned;
-        self.accum
-            .par_chunks_mut(BAND_ROWS * w)
+        let h = self.height as usize;
+        let (gpr, cstride) = (self.gpr, self.width as usize + 1);
+        let binned = &self.binned[..self.pieces];
+        let rows = self.band_rows;
+        self.acc
+            .par_chunks_mut(rows * gpr)
+            .zip(self.cov.par_chunks_mut(rows * cstride))
             .enumerate()
-            .for_each(|(b, acc)| {
-                acc.fill([0.0; 6]);
-                let band_y0 = b * BAND_ROWS;
-                let band_y1 = band_y0 + acc.len() / w; // exclusive
-                let mut gx = [0f32; MAX_SPAN];
-                for s in binned.iter().flat_map(|c| c[b].iter()) {
-                    let (x0, x1) = (s.x0 as usize, s.x1 as usize);
-                    let n = x1 - x0 + 1;
-                    let gx = &mut gx[..n];
-                    let mut dx = x0 as f32 + 0.5 - s.x;
-                    for g in gx.iter_mut() {
-                        *g = fast_exp_neg(-s.ax * dx * dx);
-                        dx += 1.0;
-                    }
-                    let y0 = (s.y0 as usize).max(band_y0);
-                    let y1 = (s.y1 as usize + 1).min(band_y1);
-                    let [r, g, bl] = s.color;
-                    for y in y0..y1 {
-                        let dy = y as f32 + 0.5 - s.y;
-                        let gy = s.wt * fast_exp_neg(-s.ay * dy * dy);
-                        let c = [gy * r, gy * g, gy * bl, gy, gy * s.age];
-                        let row = (y - band_y0) * w + x0;
-                        for (p, &gxi) in acc[row..row + n].iter_mut().zip(gx.iter()) {
-                            p[0] += gxi * c[0];
-                            p[1] += gxi * c[1];
-                            p[2] += gxi * c[2];
-                            p[3] += gxi * c[3];
-                            p[4] += gxi * c[4];
-                            p[5] += 1.0;
-                        }
-                    }
-                }
-            });
-        for (c, a) in self.coverage.iter_mut().zip(&self.accum) {
-            *c = a[5] as u32;
+            .for_each(|(b, (acc, cov))| splat_band(binned, b, rows, h, gpr, acc, cstride, cov));
+    }
+
+    /// Accumulated sums of pixel `(x, y)` (zero for a hole).
+    #[inline]
+    fn sums(&self, x: usize, y: usize) -> [f64; CHANNELS] {
+        let cell = &self.acc[y * self.gpr + x / LANES];
+        let l = x % LANES;
+        if cell[3][l] >= MIN_WEIGHT {
+            std::array::from_fn(|c| cell[c][l] as f64)
+        } else {
+            [0.0; CHANNELS]
         }
     }
 
-    /// Quotients, hole filling, mean age.
+    /// Quotients, coverage, splat scale adaptation, hole filling, mean age.
     fn resolve(&mut self) {
         let (w, h) = (self.width as usize, self.height as usize);
-        let mut holes = 0usize;
-        let mut age_sum = 0f64;
-        for (px, a) in self.image.pixels.iter_mut().zip(&self.accum) {
-            if a[3] >= MIN_WEIGHT {
-                *px = Vec3::new(a[0] / a[3], a[1] / a[3], a[2] / a[3]);
-                age_sum += (a[4] / a[3]) as f64;
-            } else {
-                holes += 1;
-            }
-        }
+        let (gpr, cstride) = (self.gpr, w + 1);
+        let p = self.params;
+        let per_band: Vec<(usize, f64)> = self
+            .image
+            .pixels
+            .par_chunks_mut(BAND_ROWS * w)
+            .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.lookup.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.acc.par_chunks(BAND_ROWS * gpr))
+            .zip(self.cov.par_chunks(BAND_ROWS * cstride))
+            .map(|(((((px, coverage), scale), lookup), acc), cov)| {
+                let (mut holes, mut age) = (0usize, 0f64);
+                for (r, (((px, coverage), scale), lookup)) in px
+                    .chunks_mut(w)
+                    .zip(coverage.chunks_mut(w))
+                    .zip(scale.chunks_mut(w))
+                    .zip(lookup.chunks_mut(w))
+                    .enumerate()
+                {
+                    let cells = &acc[r * gpr..(r + 1) * gpr];
+                    let cov = &cov[r * cstride..(r + 1) * cstride];
+                    let mut count = 0i32;
+                    for x in 0..w {
+                        let [cr, cg, cb, cw, ca] = cells[x / LANES].map(|c| c[x % LANES]);
+                        count += cov[x];
+                        coverage[x] = count as u32;
+                        let s = &mut scale[x];
+                        if (count as u32) < p.undersampled {
+                            *s *= p.grow;
+                        } else if count as u32 > p.oversampled {
+                            *s *= p.shrink;
+                        }
+                        *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
+                        lookup[x].scale = *s;
+                        if cw >= MIN_WEIGHT {
+                            px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
+                            age += (ca / cw) as f64;
+                        } else {
+                            holes += 1;
+                        }
+                    }
+                }
+                (holes, age)
+            })
+            .collect();
+        // Band order, so the sum does not depend on the thread count.
+        let mut age_sum: f64 = per_band.iter().map(|b| b.1).sum();
+        let holes: usize = per_band.iter().map(|b| b.0).sum();
         self.holes = holes;
         if holes > 0 {
-            // Pull pyramid of the sums (f64), level k has blocks of 2^k × 2^k pixels.
-            let mut levels: Vec<(usize, usize, Vec<[f64; 5]>)> = Vec::new();
-            let base: Vec<[f64; 5]> = self
-                .accum
-                .iter()
-                .map(|a| {
-                    if a[3] >= MIN_WEIGHT {
-                        [a[0], a[1], a[2], a[3], a[4]].map(|v| v as f64)
-                    } else {
-                        [0.0; 5]
-                    }
-                })
-                .collect();
-            levels.push((w, h, base));
-            while {
-                let (lw, lh, _) = levels.last().unwrap();
-                *lw > 1 || *lh > 1
-            } {
-                let (lw, lh, prev) = levels.last().unwrap();
-                let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
-                let mut next = vec![[0f64; 5]; nw * nh];
-                for y in 0..*lh {
-                    for x in 0..*lw {
-                        let d = &mut next[(y / 2) * nw + x / 2];
-                        let s = &prev[y * lw + x];
-                        for c in 0..5 {
-                            d[c] += s[c];
-                        }
-                    }
-                }
-                levels.push((nw, nh, next));
-            }
-            for y in 0..h {
-                for x in 0..w {
-                    let i = y * w + x;
-                    if self.accum[i][3] >= MIN_WEIGHT {
-                        continue;
-                    }
-                    let mut out = (Vec3::ZERO, 0.0);
-                    for (k, (lw, _, l)) in levels.iter().enumerate().skip(1) {
-                        let s = &l[(y >> k) * lw + (x >> k)];
-                        if s[3] > 0.0 {
-                            let inv = 1.0 / s[3];
-                            out = (
-                                Vec3::new(
-                                    (s[0] * inv) as f32,
-                                    (s[1] * inv) as f32,
-                                    (s[2] * inv) as f32,
-                                ),
-                                s[4] * inv,
-                            );
-                            break;
-                        }
-                    }
-                    self.image.pixels[i] = out.0;
-                    age_sum += out.1;
-                }
-            }
+            age_sum += self.fill_holes(self.holes * 64 > w * h);
         }
         self.mean_age = age_sum / (w * h).max(1) as f64;
     }
 
-    fn adapt_scale(&mut self) {
-        let p = self.params;
-        for (s, &c) in self.scale.iter_mut().zip(&self.coverage) {
-            if c < p.undersampled {
-                *s *= p.grow;
-            } else if c > p.oversampled {
-                *s *= p.shrink;
-            }
-            *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
+    /// Fill holes from the coarsest-necessary level of a 2×2 pull pyramid of the sums;
+    /// returns the sum of the filled pixels' ages. Few holes (the usual case) read only
+    /// the blocks around them; many build the whole pyramid. Both add the same values
+    /// in the same order, so they give the same image.
+    fn fill_holes(&mut self, dense: bool) -> f64 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut dims = vec![(w, h)];
+        while let Some(&(lw, lh)) = dims.last().filter(|d| d.0 > 1 || d.1 > 1) {
+            dims.push((lw.div_ceil(2), lh.div_ceil(2)));
         }
+        if dense {
+            let mut pyramid = std::mem::take(&mut self.pyramid);
+            pyramid.resize_with(dims.len() - 1, Default::default);
+            for k in 1..dims.len() {
+                let (nw, nh) = dims[k];
+                let (lw, lh) = dims[k - 1];
+                let (done, rest) = pyramid.split_at_mut(k - 1);
+                let level = &mut rest[0];
+                *level = (nw, nh, std::mem::take(&mut level.2));
+                level.2.clear();
+                level.2.resize(nw * nh, [0.0; CHANNELS]);
+                for by in 0..nh {
+                    for bx in 0..nw {
+                        let mut sum = [0f64; CHANNELS];
+                        for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                            let (x, y) = (2 * bx + cx, 2 * by + cy);
+                            if x < lw && y < lh {
+                                let s = if k == 1 {
+                                    self.sums(x, y)
+                                } else {
+                                    done[k - 2].2[y * lw + x]
+                                };
+                                for c in 0..CHANNELS {
+                                    sum[c] += s[c];
+                                }
+                            }
+                        }
+                        level.2[by * nw + bx] = sum;
+                    }
+                }
+            }
+            self.pyramid = pyramid;
+        }
+        let mut memo: HashMap<(usize, usize, usize), [f64; CHANNELS]> = HashMap::new();
+        let mut age_sum = 0.0;
+        for y in 0..h {
+            for x in 0..w {
+                if self.acc[y * self.gpr + x / LANES][3][x % LANES] >= MIN_WEIGHT {
+                    continue;
+                }
+                let mut out = (Vec3::ZERO, 0.0);
+                for k in 1..dims.len() {
+                    let s = if dense {
+                        self.pyramid[k - 1].2[(y >> k) * dims[k].0 + (x >> k)]
+                    } else {
+                        self.block_sum(&dims, &mut memo, k, x >> k, y >> k)
+                    };
+                    if s[3] > 0.0 {
+                        let inv = 1.0 / s[3];
+                        out = (
+                            Vec3::new(
+                                (s[0] * inv) as f32,
+                                (s[1] * inv) as f32,
+                                (s[2] * inv) as f32,
+                            ),
+                            s[4] * inv,
+                        );
+                        break;
+                    }
+                }
+                self.image.pixels[y * w + x] = out.0;
+                age_sum += out.1;
+            }
+        }
+        age_sum
+    }
+
+    /// Sums of block `(bx, by)` of pyramid level `k` (blocks of `2^k × 2^k` pixels),
+    /// added as the dense pyramid adds them.
+    fn block_sum(
+        &self,
+        dims: &[(usize, usize)],
+        memo: &mut HashMap<(usize, usize, usize), [f64; CHANNELS]>,
+        k: usize,
+        bx: usize,
+        by: usize,
+    ) -> [f64; CHANNELS] {
+        if k == 0 {
+            return self.sums(bx, by);
+        }
+        if let Some(s) = memo.get(&(k, bx, by)) {
+            return *s;
+        }
+        let (lw, lh) = dims[k - 1];
+        let mut sum = [0f64; CHANNELS];
+        for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let (x, y) = (2 * bx + cx, 2 * by + cy);
+            if x < lw && y < lh {
+                let s = self.block_sum(dims, memo, k - 1, x, y);
+                for c in 0..CHANNELS {
+                    sum[c] += s[c];
+                }
+            }
+        }
+        memo.insert((k, bx, by), sum);
+        sum
     }
 }
 
@@ -585,6 +1208,277 @@ mod tests {
         assert!(r.holes() > 0);
         // Splats grew where undersampled.
         assert!(r.splat_scale().iter().all(|&s| s > 1.0));
+    }
+
+    /// A reconstructor at `w × h` with `n` random samples over `span` seconds before
+    /// `t = 1` (slowly moving, some behind or beside the view), samples pushed in order
+    /// unless `shuffle`, and a tiling of 16 tiles with spatial gradients of every kind
+    /// and the temporal gradients `gts`.
+    fn random_setup(
+        w: u32,
+        h: u32,
+        n: usize,
+        span: f64,
+        shuffle: bool,
+        params: ReconParams,
+        gts: [f64; 4],
+    ) -> (Reconstructor, CameraFrame, Tiling) {
+        use crate::methods::adaptive::tiling::TileStats;
+        let c = cam(w, h);
+        let mut rng = crate::sampling::Rng::new(&[11, n as u64]);
+        let mut r = Reconstructor::new(w, h, n as f64 / span, params);
+        let mut samples: Vec<RingSample> = (0..n)
+            .map(|i| {
+                let x = rng.uniform() * (w as f32 + 4.0) - 2.0;
+                let y = rng.uniform() * (h as f32 + 4.0) - 2.0;
+                let depth = if rng.uniform() < 0.02 {
+                    -1.0
+                } else {
+                    1.0 + rng.uniform()
+                };
+                RingSample {
+                    x,
+                    y,
+                    t: 1.0 - span + span * i as f64 / n as f64,
+                    color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+                    hit_point: c.eye + c.direction(x, y) * depth,
+                    velocity: Vec3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, 0.0) * 0.3,
+                }
+            })
+            .collect();
+        if shuffle {
+            samples.swap(n / 3, n / 2);
+        }
+        for s in samples {
+            r.push(s);
+        }
+        let mut tiling = Tiling::new(w, h);
+        while tiling.len() < 16 {
+            let l = tiling.leaves()[0];
+            tiling.split(l, |_| TileStats::default());
+        }
+        for (k, l) in tiling.leaves().to_vec().into_iter().enumerate() {
+            let g = (k % 4) as f64 / 3.0;
+            tiling.node_mut(l).stats = TileStats {
+                wc: 1.0,
+                wgx: 0.2 * g,
+                wgy: 0.2 * (1.0 - g),
+                wgt: gts[k / 4],
+                ..TileStats::default()
+            };
+        }
+        (r, c, tiling)
+    }
+
+    /// Static, slow and fast tiles.
+    const GTS: [f64; 4] = [0.0, 0.3, 3.0, 30.0];
+
+    /// Sums `[r, g, b, w, w·age]` and coverage per pixel by direct evaluation of the
+    /// Gaussian in f64 for every sample of the ring (no stale-prefix cut, no bands), with
+    /// the filters and splat scale the next refresh will use.
+    fn direct(
+        r: &mut Reconstructor,
+        t: f64,
+        c: &CameraFrame,
+        tiling: &Tiling,
+    ) -> Vec<([f64; 5], u32)> {
+        r.update_filters(tiling);
+        let p = r.params;
+        let placer = Placer {
+            t,
+            proj: p.reproject.then(|| Projector::new(c)),
+            width: r.width as i32,
+            height: r.height as i32,
+            lookup: &r.lookup,
+            tiles: &r.tiles,
+            temporal_cutoff: p.temporal_cutoff,
+            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+        };
+        let w = r.width as usize;
+        let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
+        for s in &r.ring {
+            let Some(q) = placer.place(s) else { continue };
+            let [ex, ey, _] = q.filter.e.map(|e| e as f64);
+            for y in q.y0..=q.y1 {
+                for x in q.x0..=q.x1 {
+                    let dx = (x as f64 + 0.5 - q.x as f64) / ex;
+                    let dy = (y as f64 + 0.5 - q.y as f64) / ey;
+                    let a = q.a as f64;
+                    let wgt = (-0.5 * (dx * dx + dy * dy + a * a)).exp();
+                    let o = &mut out[y as usize * w + x as usize];
+                    let col = s.color.as_dvec3();
+                    for (k, v) in [col.x, col.y, col.z, 1.0, q.age as f64].iter().enumerate() {
+                        o.0[k] += wgt * v;
+                    }
+                    o.1 += 1;
+                }
+            }
+        }
+        out
+    }
+
+    /// The fast path (bands, lanes, fast exp, stale cut) against direct evaluation.
+    fn check_against_direct(r: &mut Reconstructor, c: &CameraFrame, tiling: &Tiling) {
+        for _ in 0..3 {
+            let d = direct(r, 1.0, c, tiling);
+            r.reconstruct(1.0, c, tiling);
+            let mut compared = 0;
+            for (i, (sums, cov)) in d.iter().enumerate() {
+                assert_eq!(r.coverage()[i], *cov, "coverage of pixel {i}");
+                if sums[3] < 1e-20 {
+                    continue;
+                }
+                compared += 1;
+                let px = r.image().pixels[i];
+                for (k, v) in px.to_array().iter().enumerate() {
+                    let want = sums[k] / sums[3];
+                    assert!(
+                        (*v as f64 - want).abs() <= 1e-4 * (1.0 + want.abs()),
+                        "pixel {i} channel {k}: {v} vs {want}"
+                    );
+                }
+            }
+            assert!(compared > d.len() / 2, "only {compared} pixels compared");
+        }
+    }
+
+    #[test]
+    fn fast_path_matches_direct_evaluation() {
+        for params in [
+            ReconParams::paper(),
+            ReconParams::no_reprojection(),
+            ReconParams::fixed_filter(),
+        ] {
+            for (w, h) in [(40, 30), (67, 41)] {
+                let (mut r, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+                check_against_direct(&mut r, &c, &tiling);
+            }
+        }
+    }
+
+    #[test]
+    fn out_of_order_ring_matches_direct_evaluation() {
+        let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, true, ReconParams::paper(), GTS);
+        check_against_direct(&mut r, &c, &tiling);
+    }
+
+    #[test]
+    fn stale_cut_never_drops_a_sample_that_counts() {
+        // Ages up to 3 s against e_t of at most a fraction of that: the cut skips most
+        // of the ring and must give exactly the image of the full per-sample test.
+        // In order, and with two samples far apart swapped (as interleaved batches of
+        // sampling threads would be, only more so).
+        let run = |skip: bool, shuffle: bool| {
+            let (mut r, c, tiling) = random_setup(
+                48,
+                32,
+                6000,
+                3.0,
+                shuffle,
+                ReconParams::paper(),
+                [3.0, 10.0, 30.0, 100.0],
+            );
+            r.skip_stale = skip;
+            let mut out = Vec::new();
+            for k in 0..3 {
+                r.update_filters(&tiling);
+                let start = r.live_start(1.0);
+                if skip && k == 0 {
+                    assert!(start > 1000, "the cut skipped only {start} samples");
+                    // Everything cut is beyond the cutoff of every tile.
+                    let max_et = r.tiles.iter().fold(0f32, |m, f| m.max(f.e[2]));
+                    for s in r.ring.range(..start) {
+                        assert!((1.0 - s.t) as f32 > r.params.temporal_cutoff * max_et);
+                    }
+                }
+                r.reconstruct(1.0, &c, &tiling);
+                out.push((
+                    r.image().clone(),
+                    r.coverage().to_vec(),
+                    r.mean_age(),
+                    r.holes(),
+                ));
+            }
+            out
+        };
+        for shuffle in [false, true] {
+            let (a, b) = (run(true, shuffle), run(false, shuffle));
+            for (x, y) in a.iter().zip(&b) {
+                assert_eq!(x.0.pixels, y.0.pixels);
+                assert_eq!(x.1, y.1);
+                assert_eq!(x.2.to_bits(), y.2.to_bits());
+                assert_eq!(x.3, y.3);
+            }
+        }
+    }
+
+    #[test]
+    fn sparse_and_dense_hole_filling_agree() {
+        // A narrow filter (1 px) over the last 0.3 s: most pixels are holes with 3
+        // samples, few with 100.
+        for n in [3, 30, 100] {
+            let (mut r, c, tiling) =
+                random_setup(37, 29, n, 0.3, false, ReconParams::fixed_filter(), GTS);
+            r.reconstruct(1.0, &c, &tiling);
+            assert!(r.holes() > 0, "{n} samples should leave holes");
+            let mut ages = Vec::new();
+            let mut images = Vec::new();
+            for dense in [false, true] {
+                ages.push(r.fill_holes(dense).to_bits());
+                images.push(r.image().pixels.clone());
+            }
+            assert_eq!(ages[0], ages[1]);
+            assert_eq!(images[0], images[1]);
+            assert!(images[0].iter().all(|p| p.is_finite() && *p != Vec3::ZERO));
+        }
+    }
+
+    #[test]
+    fn stale_cut_follows_the_ring_as_it_wraps() {
+        // A ring of 1000 samples fed 5000, one per ms, with some late arrivals: the cut
+        // must stay within the ring and skip only samples older than the cutoff time.
+        let mut r = Reconstructor::new(
+            10,
+            10,
+            1000.0,
+            ReconParams {
+                ring_factor: 10.0,
+                ..ReconParams::paper()
+            },
+        );
+        r.tiles = vec![TileFilter::new([1.0, 1.0, 0.1], 2.5)];
+        for i in 0..5000u32 {
+            let t = if i % 97 == 0 {
+                i as f64 * 1e-3 - 0.2
+            } else {
+                i as f64 * 1e-3
+            };
+            r.push(RingSample {
+                x: 1.0,
+                y: 1.0,
+                t,
+                color: Vec3::ONE,
+                hit_point: Vec3::ZERO,
+                velocity: Vec3::ZERO,
+            });
+            if i % 250 == 0 || i > 4990 {
+                let now = i as f64 * 1e-3;
+                let start = r.live_start(now);
+                assert!(start <= r.ring().len());
+                let tc = now - 0.3 * (1.0 + STALE_MARGIN);
+                assert!(r.ring().range(..start).all(|s| s.t < tc), "push {i}");
+                // Blocks are 256 pushes: at most two blocks' worth of stale samples stay.
+                let stale = r.ring().iter().filter(|s| s.t < tc - 0.2).count();
+                assert!(
+                    stale <= start + 2 * TIME_BLOCK as usize,
+                    "push {i}: {stale} stale, cut {start}"
+                );
+            }
+        }
+        assert_eq!(
+            r.block_max_t.len() as u64,
+            r.pushed.div_ceil(TIME_BLOCK) - r.first_block
+        );
     }
 
     #[test]
