@@ -28,7 +28,7 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     for e in f {
         max_et = max_et.max(e[2]);
     }
-    for s in r.ring() {
+    for s in r.ring().iter() {
         let age = (t - s.t).max(0.0) as f32;
         if age > p.temporal_cutoff * max_et {
             old += 1;

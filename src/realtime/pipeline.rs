@@ -487,8 +487,8 @@ fn build(s: &Shared, b: &mut Builder, t: f64) -> Option<Built> {
             if stale {
                 let mut fresh = Reconstructor::new(w, h, rate, s.config.recon);
                 if let Some(old) = recon.take() {
-                    for r in old.ring() {
-                        fresh.push(*r);
+                    for r in old.ring().iter() {
+                        fresh.push(r);
                     }
                     lock(&s.image_stats).rebuilds += 1;
                 }

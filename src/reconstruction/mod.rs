@@ -59,11 +59,9 @@
 //! terms in the same order whatever the thread count (bit-identical images).
 
 pub mod filter;
+pub mod ring;
 
-use std::{
-    collections::{HashMap, VecDeque},
-    sync::OnceLock,
-};
+use std::{collections::HashMap, sync::OnceLock};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -74,6 +72,8 @@ use crate::{
     scene::CameraFrame,
 };
 pub use filter::{Extents, FilterBounds};
+pub use ring::Ring;
+use ring::field;
 
 /// Parameters of the reconstructor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -220,6 +220,16 @@ pub fn fast_exp_neg(x: f32) -> f32 {
     }
 }
 
+/// The integer value of `v`, which must be an integer of magnitude below 2²²: `v` plus
+/// 1.5·2²³ holds it in the low mantissa bits. Unlike `as`, which saturates and maps
+/// NaN to 0, this compiles to two vector instructions per 8 lanes (and gives some
+/// value, not undefined behaviour, for other `v`).
+#[inline(always)]
+fn small_int(v: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0; // 1.5 · 2^23
+    (v + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits()) as i32
+}
+
 /// Lanes of the vectorised splat loops (one 256-bit register of f32).
 const LANES: usize = 8;
 type Lanes = [f32; LANES];
@@ -239,14 +249,10 @@ const BAND_ROWS: usize = 16;
 const SINGLE_THREAD_BAND_ROWS: usize = 32;
 /// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
 const MAX_SPAN: usize = 128;
-/// Most groups of `LANES` columns a footprint touches.
-const MAX_GROUPS: usize = MAX_SPAN / LANES + 1;
 /// Accumulated channels: weighted red, green, blue, weight, weighted age.
 const CHANNELS: usize = 5;
 /// Accumulators of `LANES` adjacent pixels (aligned), one vector per channel.
 type Cell = [Lanes; CHANNELS];
-/// Pushes per block of the ring's running largest time (see `block_max_t`).
-const TIME_BLOCK: u64 = 256;
 /// Relative margin of the stale-prefix cut over the per-sample temporal cutoff, far
 /// above f32 rounding of `age / e_t`, so the cut never drops a sample that the
 /// per-sample test would keep.
@@ -337,9 +343,10 @@ impl Projector {
     }
 }
 
-/// A sample placed at one refresh: where it lands, its filter, temporal weight argument
-/// and footprint. Shared by the splat and the tests' direct evaluation, so both agree
-/// on which samples reach which pixels.
+/// A sample placed at one refresh by the tests' direct evaluation: where it lands, its
+/// filter, temporal weight argument and footprint ([`bin_piece`] computes the same
+/// lane-wise).
+#[cfg(test)]
 #[derive(Clone, Copy, Debug)]
 struct Placed {
     x: f32,
@@ -354,7 +361,8 @@ struct Placed {
     y1: i32,
 }
 
-/// What a sample needs of the pixel it lands in.
+/// What a sample needs of the pixel it lands in. Eight bytes, so that the table of a
+/// 256×256 image stays in a core's L2 cache: samples land in scattered pixels.
 #[derive(Clone, Copy, Debug)]
 struct Lookup {
     /// Index of the pixel's tile in the filter table.
@@ -389,19 +397,15 @@ struct Placer<'a> {
     lookup: &'a [Lookup],
     tiles: &'a [TileFilter],
     temporal_cutoff: f32,
+    /// Footprint radius bound (see [`Reconstructor::max_r`]).
     max_r: f32,
 }
 
 impl Placer<'_> {
-    /// Reproject `s`: where it lands and in which pixel (without branches on the data,
-    /// see [`LOCATE_BLOCK`]).
+    /// Where a sample at `(x, y)` (in front of the eye if `front`), traced `dt`
+    /// seconds ago, lands (without branches on the data, see [`LOCATE_BLOCK`]).
     #[inline(always)]
-    fn locate(&self, s: &RingSample) -> Located {
-        let dt = self.t - s.t;
-        let (x, y, front) = match &self.proj {
-            Some(p) => p.project(s.hit_point + s.velocity * dt as f32),
-            None => (s.x, s.y, true),
-        };
+    fn located(&self, x: f32, y: f32, front: bool, dt: f64) -> Located {
         // The filter and scale are those of the pixel the sample lands in, clamped to
         // the image, so a sample just outside still lights the border within its
         // footprint (a NaN coordinate clamps too; `ok` discards it).
@@ -418,6 +422,52 @@ impl Placer<'_> {
         }
     }
 
+    /// Reproject `s`: where it lands and in which pixel.
+    #[cfg(test)]
+    fn locate(&self, s: &RingSample) -> Located {
+        let dt = self.t - s.t;
+        let (x, y, front) = match &self.proj {
+            Some(p) => p.project(s.hit_point + s.velocity * dt as f32),
+            None => (s.x, s.y, true),
+        };
+        self.located(x, y, front, dt)
+    }
+
+    /// [`Placer::located`] for the samples at physical indices `p0..p0 + n` of
+    /// `ring` (the same arithmetic in the same order as [`Placer::locate`]), one array
+    /// per field so that it compiles to vector code. A sample that is not `ok` gets a
+    /// NaN age, which fails the temporal cull just as `ok == false` does.
+    #[inline(always)]
+    fn locate_block(&self, ring: &Ring, p0: usize, n: usize, b: &mut Block) {
+        use field::*;
+        let ts = &ring.t[p0..p0 + n];
+        let f = |k: usize| &ring.f[k][p0..p0 + n];
+        let mut put = |i: usize, l: Located| {
+            b.x[i] = l.x;
+            b.y[i] = l.y;
+            b.age[i] = if l.ok { l.age } else { f32::NAN };
+            b.pixel[i] = l.pixel;
+        };
+        match &self.proj {
+            Some(p) => {
+                let (hx, hy, hz, vx, vy, vz) = (f(HX), f(HY), f(HZ), f(VX), f(VY), f(VZ));
+                for i in 0..n {
+                    let dt = self.t - ts[i];
+                    let hit = Vec3::new(hx[i], hy[i], hz[i]);
+                    let vel = Vec3::new(vx[i], vy[i], vz[i]);
+                    let (x, y, front) = p.project(hit + vel * dt as f32);
+                    put(i, self.located(x, y, front, dt));
+                }
+            }
+            None => {
+                let (sx, sy) = (f(X), f(Y));
+                for i in 0..n {
+                    put(i, self.located(sx[i], sy[i], true, self.t - ts[i]));
+                }
+            }
+        }
+    }
+
     /// Place one sample.
     #[cfg(test)]
     fn place(&self, s: &RingSample) -> Option<Placed> {
@@ -426,24 +476,40 @@ impl Placer<'_> {
     }
 
     /// The filter, temporal cull and footprint of a located sample.
-    #[inline(always)]
+    #[cfg(test)]
     fn finish(&self, l: &Located, look: Lookup) -> Option<Placed> {
-        let (x, y, age) = (l.x, l.y, l.age);
-        let (w, h) = (self.width, self.height);
         let f = self.tiles[look.tile as usize];
-        let a = age * f.inv_et;
+        let a = l.age * f.inv_et;
         if !(l.ok && a <= self.temporal_cutoff) {
             return None;
         }
-        let sc = look.scale;
-        let rx = (f.cx * sc).min(self.max_r);
-        let ry = (f.cy * sc).min(self.max_r);
-        // Pixel k's center is k + 0.5.
-        let x0 = ((x - 0.5 - rx).ceil() as i32).max(0);
-        let x1 = ((x - 0.5 + rx).floor() as i32).min(w - 1);
-        let y0 = ((y - 0.5 - ry).ceil() as i32).max(0);
-        let y1 = ((y - 0.5 + ry).floor() as i32).min(h - 1);
-        if x0 > x1 || y0 > y1 {
+        let rx = (f.cx * look.scale).min(self.max_r);
+        let ry = (f.cy * look.scale).min(self.max_r);
+        self.footprint(l.x, l.y, l.age, a, f, rx, ry)
+    }
+
+    /// The footprint of a sample landing at `(x, y)` that passed the temporal cull.
+    #[cfg(test)]
+    #[allow(clippy::too_many_arguments)]
+    fn footprint(
+        &self,
+        x: f32,
+        y: f32,
+        age: f32,
+        a: f32,
+        f: TileFilter,
+        rx: f32,
+        ry: f32,
+    ) -> Option<Placed> {
+        let (w, h) = ((self.width - 1) as f32, (self.height - 1) as f32);
+        // Pixel k's center is k + 0.5. Clamped as floats (x is finite, so are these);
+        // within the image when the footprint is not empty, where the conversions to
+        // integers are exact.
+        let x0 = (x - 0.5 - rx).ceil().max(0.0);
+        let x1 = (x - 0.5 + rx).floor().min(w);
+        let y0 = (y - 0.5 - ry).ceil().max(0.0);
+        let y1 = (y - 0.5 + ry).floor().min(h);
+        if !(x0 <= x1 && y0 <= y1) {
             return None;
         }
         Some(Placed {
@@ -452,28 +518,58 @@ impl Placer<'_> {
             age,
             a,
             filter: f,
-            x0,
-            x1,
-            y0,
-            y1,
+            x0: x0 as i32,
+            x1: x1 as i32,
+            y0: y0 as i32,
+            y1: y1 as i32,
         })
     }
+}
 
-    #[inline(always)]
-    fn splat(&self, s: &RingSample, p: &Placed) -> Splat {
-        let wt = fast_exp_neg(-0.5 * p.a * p.a);
-        let c = s.color;
-        Splat {
-            x: p.x,
-            y: p.y,
-            ax: p.filter.ax,
-            ay: p.filter.ay,
-            c: [wt * c.x, wt * c.y, wt * c.z, wt, wt * p.age],
-            x0: p.x0 as u16,
-            x1: p.x1 as u16,
-            y0: p.y0 as u16,
-            y1: p.y1 as u16,
-        }
+/// One block of samples in [`bin_piece`], one array per field.
+struct Block {
+    x: [f32; LOCATE_BLOCK],
+    y: [f32; LOCATE_BLOCK],
+    /// NaN where the sample is not `ok` (see [`Located`]).
+    age: [f32; LOCATE_BLOCK],
+    pixel: [u32; LOCATE_BLOCK],
+    /// The landing pixel's [`Lookup`], one array per field.
+    tile: [u32; LOCATE_BLOCK],
+    inv_et: [f32; LOCATE_BLOCK],
+    rx: [f32; LOCATE_BLOCK],
+    ry: [f32; LOCATE_BLOCK],
+    /// Temporal weight `exp(−½ (age / e_t)²)`.
+    wt: [f32; LOCATE_BLOCK],
+    /// Footprint (inclusive pixel bounds; meaningful for kept samples only).
+    x0: [i32; LOCATE_BLOCK],
+    x1: [i32; LOCATE_BLOCK],
+    y0: [i32; LOCATE_BLOCK],
+    y1: [i32; LOCATE_BLOCK],
+    /// 1 where the sample passes the temporal cull and reaches a pixel.
+    keep: [u32; LOCATE_BLOCK],
+    /// Indices of those samples.
+    kept: [u8; LOCATE_BLOCK],
+}
+
+impl Block {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            x: [0.0; LOCATE_BLOCK],
+            y: [0.0; LOCATE_BLOCK],
+            age: [0.0; LOCATE_BLOCK],
+            pixel: [0; LOCATE_BLOCK],
+            tile: [0; LOCATE_BLOCK],
+            inv_et: [0.0; LOCATE_BLOCK],
+            rx: [0.0; LOCATE_BLOCK],
+            ry: [0.0; LOCATE_BLOCK],
+            wt: [0.0; LOCATE_BLOCK],
+            x0: [0; LOCATE_BLOCK],
+            x1: [0; LOCATE_BLOCK],
+            y0: [0; LOCATE_BLOCK],
+            y1: [0; LOCATE_BLOCK],
+            keep: [0; LOCATE_BLOCK],
+            kept: [0; LOCATE_BLOCK],
+        })
     }
 }
 
@@ -491,6 +587,13 @@ fn gauss_lanes(a: f32, b: f32, o: f32, lo: f32, hi: f32) -> Lanes {
     out
 }
 
+/// Most rows of one splat within one band (the tallest band).
+const MAX_BAND_ROWS: usize = if BAND_ROWS > SINGLE_THREAD_BAND_ROWS {
+    BAND_ROWS
+} else {
+    SINGLE_THREAD_BAND_ROWS
+};
+
 /// Add one splat to the rows `by0..by1` of a band's accumulators (`gpr` cells per row)
 /// and count it in the band's coverage corner differences `cov` (rows of `cstride`).
 ///
@@ -501,7 +604,6 @@ fn gauss_lanes(a: f32, b: f32, o: f32, lo: f32, hi: f32) -> Lanes {
 /// footprint's first group and first row, so the sum is the same whichever band
 /// computes it.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn splat_one(
     s: &Splat,
     by0: usize,
@@ -510,36 +612,40 @@ fn splat_one(
     acc: &mut [Cell],
     cstride: usize,
     cov: &mut [i32],
-    gx: &mut [Lanes; MAX_GROUPS],
 ) {
     let (x0, x1) = (s.x0 as usize, s.x1 as usize);
     let g0 = x0 / LANES;
     let groups = x1 / LANES - g0 + 1;
-    let bx = (g0 * LANES) as f32 + 0.5 - s.x;
-    // The footprint's columns relative to the first group's (exact in f32).
-    let (lo, hi) = ((x0 - g0 * LANES) as f32, (x1 - g0 * LANES) as f32);
-    // A running offset in f32 (an integer conversion per group makes the compiler
-    // vectorise across groups instead of lanes).
-    let mut o = 0f32;
-    for g in gx[..groups].iter_mut() {
-        *g = gauss_lanes(s.ax, bx, o, lo, hi);
-        o += LANES as f32;
-    }
     let y0 = (s.y0 as usize).max(by0);
     let y1 = (s.y1 as usize + 1).min(by1);
-    let rows = Rows {
+    // The rows of this band, `gpr` cells each, from the footprint's first.
+    let rows = &mut acc[(y0 - by0) * gpr..(y1 - by0) * gpr];
+    // Row weights from offsets to the footprint's first row, `LANES` at a time.
+    let mut gy = [0f32; MAX_BAND_ROWS + LANES];
+    let by = s.y0 as f32 + 0.5 - s.y;
+    let o0 = (y0 - s.y0 as usize) as f32;
+    for (k, g) in gy[..(y1 - y0).div_ceil(LANES) * LANES]
+        .chunks_exact_mut(LANES)
+        .enumerate()
+    {
+        let o = o0 + (k * LANES) as f32;
+        g.copy_from_slice(&gauss_lanes(s.ay, by, o, f32::NEG_INFINITY, f32::INFINITY));
+    }
+    let gy = &gy[..y1 - y0];
+    let cols = Cols {
         s,
-        y0,
-        y1,
-        by0,
-        gpr,
         g0,
+        bx: (g0 * LANES) as f32 + 0.5 - s.x,
+        // The footprint's columns relative to the first group's (exact in f32).
+        lo: (x0 - g0 * LANES) as f32,
+        hi: (x1 - g0 * LANES) as f32,
     };
     match groups {
-        1 => rows.add::<1>(gx, acc),
-        2 => rows.add::<2>(gx, acc),
-        3 => rows.add::<3>(gx, acc),
-        _ => rows.add_any(&gx[..groups], acc),
+        1 => cols.add::<1>(rows, gpr, gy),
+        2 => cols.add::<2>(rows, gpr, gy),
+        3 => cols.add::<3>(rows, gpr, gy),
+        4 => cols.add::<4>(rows, gpr, gy),
+        _ => cols.add_any(groups, rows, gpr, gy),
     }
     // Coverage corners within the band (made per-row differences in `splat_band`).
     let r0 = (y0 - by0) * cstride;
@@ -552,45 +658,41 @@ fn splat_one(
     }
 }
 
-/// The rows of one splat within one band.
-struct Rows<'a> {
+/// The columns of one splat.
+struct Cols<'a> {
     s: &'a Splat,
-    y0: usize,
-    y1: usize,
-    by0: usize,
-    gpr: usize,
+    /// First group of `LANES` columns.
     g0: usize,
+    /// `x` offset of the first group's first pixel center from the splat.
+    bx: f32,
+    /// First and last footprint column relative to the first group's first column.
+    lo: f32,
+    hi: f32,
 }
 
-impl Rows<'_> {
-    /// Call `f(r, g_y)` for every row (`r` relative to the band), row weights computed
-    /// `LANES` rows at a time from offsets to the footprint's first row.
+impl Cols<'_> {
+    /// `g_x · c` of group `j` (lane weights zero outside the footprint).
     #[inline(always)]
-    fn each(&self, mut f: impl FnMut(usize, f32)) {
-        let s = self.s;
-        let by = s.y0 as f32 + 0.5 - s.y;
-        let mut y = self.y0;
-        while y < self.y1 {
-            let o = (y - s.y0 as usize) as f32;
-            let gy = gauss_lanes(s.ay, by, o, f32::NEG_INFINITY, f32::INFINITY);
-            let n = (self.y1 - y).min(LANES);
-            for (i, &gy) in gy[..n].iter().enumerate() {
-                f(y + i - self.by0, gy);
+    fn weighted(&self, j: usize) -> Cell {
+        let g = gauss_lanes(self.s.ax, self.bx, (j * LANES) as f32, self.lo, self.hi);
+        let mut out = [[0f32; LANES]; CHANNELS];
+        for (o, &c) in out.iter_mut().zip(&self.s.c) {
+            for l in 0..LANES {
+                o[l] = g[l] * c;
             }
-            y += n;
         }
+        out
     }
 
     /// Footprints of `G` groups: the products `g_x·c` stay in registers over the rows.
     #[inline(always)]
-    fn add<const G: usize>(&self, gx: &[Lanes; MAX_GROUPS], acc: &mut [Cell]) {
-        let c = self.s.c;
-        let gxc: [Cell; G] = std::array::from_fn(|j| c.map(|c| gx[j].map(|g| g * c)));
-        let (gpr, g0) = (self.gpr, self.g0);
-        self.each(|r, gy| {
-            let cells: &mut [Cell; G] = (&mut acc[r * gpr + g0..r * gpr + g0 + G])
-                .try_into()
-                .unwrap();
+    fn add<const G: usize>(&self, rows: &mut [Cell], gpr: usize, gy: &[f32]) {
+        let mut gxc = [[[0f32; LANES]; CHANNELS]; G];
+        for (j, g) in gxc.iter_mut().enumerate() {
+            *g = self.weighted(j);
+        }
+        for (row, &gy) in rows.chunks_exact_mut(gpr).zip(gy) {
+            let cells: &mut [Cell; G] = (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
             for (cell, gxc) in cells.iter_mut().zip(&gxc) {
                 for (d, gxc) in cell.iter_mut().zip(gxc) {
                     for l in 0..LANES {
@@ -598,33 +700,38 @@ impl Rows<'_> {
                     }
                 }
             }
-        });
+        }
     }
 
-    /// Wider footprints: the same sums, products formed per row.
+    /// Wider footprints: the same sums, a group at a time over the rows.
     #[inline(always)]
-    fn add_any(&self, gx: &[Lanes], acc: &mut [Cell]) {
-        let c = self.s.c;
-        let (gpr, g0) = (self.gpr, self.g0);
-        self.each(|r, gy| {
-            let cells = &mut acc[r * gpr + g0..r * gpr + g0 + gx.len()];
-            for (cell, gx) in cells.iter_mut().zip(gx) {
-                for (d, &c) in cell.iter_mut().zip(&c) {
+    fn add_any(&self, groups: usize, rows: &mut [Cell], gpr: usize, gy: &[f32]) {
+        for j in 0..groups {
+            let gxc = self.weighted(j);
+            let k = self.g0 + j;
+            for (row, &gy) in rows.chunks_exact_mut(gpr).zip(gy) {
+                for (d, gxc) in row[k].iter_mut().zip(&gxc) {
                     for l in 0..LANES {
-                        d[l] = (gx[l] * c).mul_add(gy, d[l]);
+                        d[l] = gxc[l].mul_add(gy, d[l]);
                     }
                 }
             }
-        });
+        }
     }
 }
 
-/// Place the samples of `piece` and append their splats to the lists of the bands
-/// they touch.
+/// Place the samples at physical indices `piece` of the ring and append their splats
+/// to the lists of the bands they touch, in ring order.
+///
+/// A block of samples goes through each stage before the next: reprojection (vector
+/// code over the ring's field arrays), the pixel lookups (independent loads in flight
+/// together), the temporal cull (a list of survivors, no branch per sample), and only
+/// then the footprints and splats of the survivors.
 #[inline(never)]
 fn bin_piece(
     placer: &Placer,
-    piece: &[RingSample],
+    ring: &Ring,
+    piece: std::ops::Range<usize>,
     out: &mut Vec<Vec<Splat>>,
     bands: usize,
     band_rows: usize,
@@ -633,28 +740,66 @@ fn bin_piece(
     let band_shift = band_rows.trailing_zeros();
     out.resize_with(bands, Vec::new);
     out.iter_mut().for_each(Vec::clear);
-    let mut loc = [Located::default(); LOCATE_BLOCK];
-    let mut look = [Lookup {
-        tile: 0,
-        scale: 1.0,
-    }; LOCATE_BLOCK];
-    for block in piece.chunks(LOCATE_BLOCK) {
-        for (l, s) in loc.iter_mut().zip(block) {
-            *l = placer.locate(s);
+    let mut b = Block::new();
+    let (tc, max_r) = (placer.temporal_cutoff, placer.max_r);
+    let (wm, hm) = ((placer.width - 1) as f32, (placer.height - 1) as f32);
+    let (cr, cg, cb) = (&ring.f[field::R], &ring.f[field::G], &ring.f[field::B]);
+    let mut p0 = piece.start;
+    while p0 < piece.end {
+        let n = LOCATE_BLOCK.min(piece.end - p0);
+        placer.locate_block(ring, p0, n, &mut b);
+        for i in 0..n {
+            let l = placer.lookup[b.pixel[i] as usize];
+            let f = &placer.tiles[l.tile as usize];
+            b.tile[i] = l.tile;
+            b.inv_et[i] = f.inv_et;
+            b.rx[i] = (f.cx * l.scale).min(max_r);
+            b.ry[i] = (f.cy * l.scale).min(max_r);
         }
-        for (k, l) in look.iter_mut().zip(&loc[..block.len()]) {
-            *k = placer.lookup[l.pixel as usize];
+        // The cull, footprint and temporal weight of every lane ([`Placer::finish`]
+        // and [`Placer::splat`], the same arithmetic), in vector code.
+        for i in 0..n {
+            let (x, y) = (b.x[i], b.y[i]);
+            let a = b.age[i] * b.inv_et[i];
+            let x0 = (x - 0.5 - b.rx[i]).ceil().max(0.0);
+            let x1 = (x - 0.5 + b.rx[i]).floor().min(wm);
+            let y0 = (y - 0.5 - b.ry[i]).ceil().max(0.0);
+            let y1 = (y - 0.5 + b.ry[i]).floor().min(hm);
+            b.x0[i] = small_int(x0);
+            b.x1[i] = small_int(x1);
+            b.y0[i] = small_int(y0);
+            b.y1[i] = small_int(y1);
+            b.wt[i] = fast_exp_neg(-0.5 * a * a);
+            // A NaN age (not `ok`) fails the first test.
+            b.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
         }
-        for ((s, l), &k) in block.iter().zip(&loc).zip(&look) {
-            let Some(p) = placer.finish(l, k) else {
-                continue;
+        let mut m = 0;
+        for i in 0..n {
+            b.kept[m] = i as u8;
+            m += b.keep[i] as usize;
+        }
+        for &i in &b.kept[..m] {
+            let i = i as usize;
+            let f = &placer.tiles[b.tile[i] as usize];
+            let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
+            let (q, wt) = (p0 + i, b.wt[i]);
+            let s = Splat {
+                x: b.x[i],
+                y: b.y[i],
+                ax: f.ax,
+                ay: f.ay,
+                c: [wt * cr[q], wt * cg[q], wt * cb[q], wt, wt * b.age[i]],
+                x0: x0 as u16,
+                x1: x1 as u16,
+                y0: y0 as u16,
+                y1: y1 as u16,
             };
-            let s = placer.splat(s, &p);
-            let (b0, b1) = (s.y0 as usize >> band_shift, s.y1 as usize >> band_shift);
+            let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);
             for o in &mut out[b0..=b1] {
                 o.push(s);
             }
         }
+        p0 += n;
     }
 }
 
@@ -676,10 +821,8 @@ fn splat_band(
     cov.fill(0);
     let by0 = b * band_rows;
     let by1 = (by0 + band_rows).min(h);
-    // Column weights of the current splat (here so they are not zeroed per splat).
-    let mut gx = [[0f32; LANES]; MAX_GROUPS];
     for s in binned.iter().flat_map(|c| c[b].iter()) {
-        splat_one(s, by0, by1, gpr, acc, cstride, cov, &mut gx);
+        splat_one(s, by0, by1, gpr, acc, cstride, cov);
     }
     // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
     for r in 1..by1 - by0 {
@@ -697,17 +840,7 @@ pub struct Reconstructor {
     height: u32,
     rate: f64,
     capacity: usize,
-    ring: VecDeque<RingSample>,
-    /// Samples ever pushed.
-    pushed: u64,
-    /// Largest time pushed so far (NaN counts as +∞).
-    max_t: f64,
-    /// `max_t` at the end of each block of `TIME_BLOCK` pushes, from block
-    /// `first_block` on (the last entry is for the block being filled): non-decreasing
-    /// whatever the order samples come in, so the stale prefix of the ring is found by
-    /// binary search even when several sampling threads interleave their batches.
-    block_max_t: VecDeque<f64>,
-    first_block: u64,
+    ring: Ring,
     /// Cut the ring's stale prefix before placing samples (off only to test the cut).
     skip_stale: bool,
     /// Filter per tile at the last refresh.
@@ -752,17 +885,13 @@ impl Reconstructor {
             height,
             rate,
             capacity,
-            ring: VecDeque::with_capacity(capacity.min(1 << 24)),
-            pushed: 0,
-            max_t: f64::NEG_INFINITY,
-            block_max_t: VecDeque::new(),
-            first_block: 0,
+            ring: Ring::new(capacity),
             skip_stale: true,
             tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
             lookup: vec![
                 Lookup {
                     tile: 0,
-                    scale: scale0
+                    scale: scale0,
                 };
                 n
             ],
@@ -793,7 +922,7 @@ impl Reconstructor {
     }
 
     /// Samples in the ring, oldest first.
-    pub fn ring(&self) -> &VecDeque<RingSample> {
+    pub fn ring(&self) -> &Ring {
         &self.ring
     }
 
@@ -802,27 +931,7 @@ impl Reconstructor {
     /// but the stale part of the ring is skipped only up to the first sample pushed
     /// after a recent one.
     pub fn push(&mut self, s: RingSample) {
-        // Written so that a NaN time also lands here.
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        if !(s.t <= self.max_t) {
-            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
-        }
-        if self.ring.len() == self.capacity {
-            self.ring.pop_front();
-            let front = self.pushed - self.ring.len() as u64;
-            while (self.first_block + 1) * TIME_BLOCK <= front {
-                self.block_max_t.pop_front();
-                self.first_block += 1;
-            }
-        }
-        self.ring.push_back(s);
-        let block = self.pushed / TIME_BLOCK;
-        if block >= self.first_block + self.block_max_t.len() as u64 {
-            self.block_max_t.push_back(self.max_t);
-        } else if let Some(b) = self.block_max_t.back_mut() {
-            *b = self.max_t;
-        }
-        self.pushed += 1;
+        self.ring.push(&s);
     }
 
     /// Append the sampler's stream.
@@ -870,7 +979,6 @@ impl Reconstructor {
 
     /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
     fn update_filters(&mut self, tiling: &Tiling) {
-        let w = self.width as usize;
         let cut = self.params.spatial_cutoff;
         self.filters = OnceLock::new();
         self.tiles.clear();
@@ -880,8 +988,23 @@ impl Reconstructor {
                 cut,
             ));
             self.lookup.iter_mut().for_each(|l| l.tile = 0);
-            return;
+        } else {
+            self.tile_filters(tiling);
         }
+        for (l, &sc) in self.lookup.iter_mut().zip(&self.scale) {
+            l.scale = sc;
+        }
+    }
+
+    /// Footprint radius bound: `max_radius`, within the widest span a splat handles.
+    fn max_r(&self) -> f32 {
+        self.params.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5)
+    }
+
+    /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
+    fn tile_filters(&mut self, tiling: &Tiling) {
+        let w = self.width as usize;
+        let cut = self.params.spatial_cutoff;
         let tiles = tiling.len();
         for &l in tiling.leaves() {
             let n = tiling.node(l);
@@ -923,12 +1046,7 @@ impl Reconstructor {
         }
         let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
         let tc = t - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
-        if !tc.is_finite() {
-            return 0;
-        }
-        let j = self.block_max_t.partition_point(|&m| m < tc) as u64;
-        let front = self.pushed - self.ring.len() as u64;
-        (((self.first_block + j) * TIME_BLOCK).saturating_sub(front) as usize).min(self.ring.len())
+        self.ring.live_start(tc)
     }
 
     fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
@@ -942,7 +1060,7 @@ impl Reconstructor {
             lookup: &self.lookup,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+            max_r: self.max_r(),
         };
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
@@ -956,27 +1074,26 @@ impl Reconstructor {
         let bands = (self.height as usize).div_ceil(band_rows);
         // The live part of the ring in pieces, in ring order. Pieces only split the
         // work: every band later sums its splats in ring order whatever the pieces.
-        let (a, b) = self.ring.as_slices();
-        let (a, b) = if start <= a.len() {
-            (&a[start..], b)
-        } else {
-            (&a[a.len()..], &b[start - a.len()..])
-        };
-        let live = a.len() + b.len();
+        let runs = self.ring.runs(start);
+        let live = runs[0].len() + runs[1].len();
         let chunk = if threads <= 1 {
             live.max(1)
         } else {
             PREP_CHUNK.max(live.div_ceil(4 * threads))
         };
-        let pieces: Vec<&[RingSample]> = a.chunks(chunk).chain(b.chunks(chunk)).collect();
+        let pieces: Vec<std::ops::Range<usize>> = runs
+            .into_iter()
+            .flat_map(|r| r.clone().step_by(chunk).map(move |p| p..(p + chunk).min(r.end)))
+            .collect();
         if self.binned.len() < pieces.len() {
             self.binned.resize_with(pieces.len(), Vec::new);
         }
         self.pieces = pieces.len();
+        let ring = &self.ring;
         pieces
             .par_iter()
             .zip(self.binned.par_iter_mut())
-            .for_each(|(piece, out)| bin_piece(&placer, piece, out, bands, band_rows));
+            .for_each(|(piece, out)| bin_piece(&placer, ring, piece.clone(), out, bands, band_rows));
     }
 
     fn splat(&mut self) {
@@ -1014,16 +1131,14 @@ impl Reconstructor {
             .par_chunks_mut(BAND_ROWS * w)
             .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
             .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.lookup.par_chunks_mut(BAND_ROWS * w))
             .zip(self.acc.par_chunks(BAND_ROWS * gpr))
             .zip(self.cov.par_chunks(BAND_ROWS * cstride))
-            .map(|(((((px, coverage), scale), lookup), acc), cov)| {
+            .map(|((((px, coverage), scale), acc), cov)| {
                 let (mut holes, mut age) = (0usize, 0f64);
-                for (r, (((px, coverage), scale), lookup)) in px
+                for (r, ((px, coverage), scale)) in px
                     .chunks_mut(w)
                     .zip(coverage.chunks_mut(w))
                     .zip(scale.chunks_mut(w))
-                    .zip(lookup.chunks_mut(w))
                     .enumerate()
                 {
                     let cells = &acc[r * gpr..(r + 1) * gpr];
@@ -1040,7 +1155,6 @@ impl Reconstructor {
                             *s *= p.shrink;
                         }
                         *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
-                        lookup[x].scale = *s;
                         if cw >= MIN_WEIGHT {
                             px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
                             age += (ca / cw) as f64;
@@ -1174,6 +1288,7 @@ impl Reconstructor {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::reconstruction::ring::TIME_BLOCK;
     use crate::scene::Camera;
 
     fn cam(w: u32, h: u32) -> CameraFrame {
@@ -1292,12 +1407,12 @@ mod tests {
             lookup: &r.lookup,
             tiles: &r.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+            max_r: r.max_r(),
         };
         let w = r.width as usize;
         let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
-        for s in &r.ring {
-            let Some(q) = placer.place(s) else { continue };
+        for s in r.ring.iter() {
+            let Some(q) = placer.place(&s) else { continue };
             let [ex, ey, _] = q.filter.e.map(|e| e as f64);
             for y in q.y0..=q.y1 {
                 for x in q.x0..=q.x1 {
@@ -1357,6 +1472,23 @@ mod tests {
     }
 
     #[test]
+    fn wrapped_ring_matches_direct_evaluation() {
+        // More pushes than the capacity: the live range wraps around the ring's
+        // arrays, and a refresh must read it in ring order across the wrap.
+        for ring_factor in [1.0, 1.7] {
+            let params = ReconParams {
+                ring_factor,
+                ..ReconParams::paper()
+            };
+            let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, false, params, GTS);
+            assert_eq!(r.ring().len(), r.capacity());
+            let runs = r.ring.runs(0);
+            assert!(!runs[1].is_empty(), "the ring should wrap");
+            check_against_direct(&mut r, &c, &tiling);
+        }
+    }
+
+    #[test]
     fn out_of_order_ring_matches_direct_evaluation() {
         let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, true, ReconParams::paper(), GTS);
         check_against_direct(&mut r, &c, &tiling);
@@ -1387,7 +1519,7 @@ mod tests {
                     assert!(start > 1000, "the cut skipped only {start} samples");
                     // Everything cut is beyond the cutoff of every tile.
                     let max_et = r.tiles.iter().fold(0f32, |m, f| m.max(f.e[2]));
-                    for s in r.ring.range(..start) {
+                    for s in r.ring.iter().take(start) {
                         assert!((1.0 - s.t) as f32 > r.params.temporal_cutoff * max_et);
                     }
                 }
@@ -1466,7 +1598,7 @@ mod tests {
                 let start = r.live_start(now);
                 assert!(start <= r.ring().len());
                 let tc = now - 0.3 * (1.0 + STALE_MARGIN);
-                assert!(r.ring().range(..start).all(|s| s.t < tc), "push {i}");
+                assert!(r.ring().iter().take(start).all(|s| s.t < tc), "push {i}");
                 // Blocks are 256 pushes: at most two blocks' worth of stale samples stay.
                 let stale = r.ring().iter().filter(|s| s.t < tc - 0.2).count();
                 assert!(
@@ -1476,8 +1608,8 @@ mod tests {
             }
         }
         assert_eq!(
-            r.block_max_t.len() as u64,
-            r.pushed.div_ceil(TIME_BLOCK) - r.first_block
+            r.ring.block_max_t.len() as u64,
+            r.ring.pushed.div_ceil(TIME_BLOCK) - r.ring.first_block
         );
     }
 

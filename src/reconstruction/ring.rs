@@ -1,0 +1,250 @@
+//! The reconstructor's deep buffer: the `N` most recent samples in push order, stored
+//! as a struct of arrays.
+//!
+//! A refresh reads every live sample's hit point, velocity and time to reproject it,
+//! and the color of only those that pass the temporal cull (about a third on the
+//! bench fixture). One array per field lets the reprojection read dense lanes in
+//! vector code, and a culled sample costs no load of its color; a ring of 56-byte
+//! structs made every sample cost a whole cache line's worth of scattered fields.
+//!
+//! The ring also keeps the running largest time at the end of every block of
+//! [`TIME_BLOCK`] pushes, so that the prefix of samples too old to count anywhere is
+//! found by binary search (see [`Ring::live_start`]).
+
+use std::collections::VecDeque;
+
+use glam::Vec3;
+
+use super::RingSample;
+
+/// Pushes per block of the ring's running largest time (see [`Ring::live_start`]).
+pub(crate) const TIME_BLOCK: u64 = 256;
+
+/// Field indices of [`Ring::f`].
+pub(crate) mod field {
+    /// Sub-pixel position where the sample was traced.
+    pub const X: usize = 0;
+    pub const Y: usize = 1;
+    /// Color.
+    pub const R: usize = 2;
+    pub const G: usize = 3;
+    pub const B: usize = 4;
+    /// Hit point.
+    pub const HX: usize = 5;
+    pub const HY: usize = 6;
+    pub const HZ: usize = 7;
+    /// Velocity of the hit point.
+    pub const VX: usize = 8;
+    pub const VY: usize = 9;
+    pub const VZ: usize = 10;
+    /// Number of f32 fields.
+    pub const COUNT: usize = 11;
+}
+
+/// A fixed-capacity ring of samples, oldest first (see the module doc).
+#[derive(Clone, Debug)]
+pub struct Ring {
+    capacity: usize,
+    /// The f32 fields, indexed by [`field`] and then by physical index.
+    pub(crate) f: [Vec<f32>; field::COUNT],
+    /// Times, by physical index.
+    pub(crate) t: Vec<f64>,
+    /// Physical index of the oldest sample (0 until the ring is full).
+    head: usize,
+    /// Samples ever pushed.
+    pub(crate) pushed: u64,
+    /// Largest time pushed so far (NaN counts as +∞).
+    max_t: f64,
+    /// `max_t` at the end of each block of `TIME_BLOCK` pushes, from block
+    /// `first_block` on (the last entry is for the block being filled): non-decreasing
+    /// whatever the order samples come in, so the stale prefix of the ring is found by
+    /// binary search even when several sampling threads interleave their batches.
+    pub(crate) block_max_t: VecDeque<f64>,
+    pub(crate) first_block: u64,
+}
+
+impl Ring {
+    /// An empty ring holding at most `capacity` (at least 1) samples.
+    pub fn new(capacity: usize) -> Self {
+        let capacity = capacity.max(1);
+        // Reserve what is surely needed soon, not a huge capacity that may never fill.
+        let reserve = capacity.min(1 << 20);
+        Self {
+            capacity,
+            f: std::array::from_fn(|_| Vec::with_capacity(reserve)),
+            t: Vec::with_capacity(reserve),
+            head: 0,
+            pushed: 0,
+            max_t: f64::NEG_INFINITY,
+            block_max_t: VecDeque::new(),
+            first_block: 0,
+        }
+    }
+
+    /// Most samples held.
+    pub fn capacity(&self) -> usize {
+        self.capacity
+    }
+
+    /// Samples held.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// No sample held.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Physical index of logical index `i` (0 = oldest), for `i < len`.
+    #[inline]
+    pub(crate) fn phys(&self, i: usize) -> usize {
+        let p = self.head + i;
+        if p >= self.t.len() {
+            p - self.t.len()
+        } else {
+            p
+        }
+    }
+
+    /// The sample at physical index `p`.
+    #[inline]
+    pub(crate) fn at(&self, p: usize) -> RingSample {
+        use field::*;
+        let f = |k: usize| self.f[k][p];
+        RingSample {
+            x: f(X),
+            y: f(Y),
+            t: self.t[p],
+            color: Vec3::new(f(R), f(G), f(B)),
+            hit_point: Vec3::new(f(HX), f(HY), f(HZ)),
+            velocity: Vec3::new(f(VX), f(VY), f(VZ)),
+        }
+    }
+
+    /// The `i`-th oldest sample.
+    pub fn get(&self, i: usize) -> Option<RingSample> {
+        (i < self.len()).then(|| self.at(self.phys(i)))
+    }
+
+    /// The oldest sample.
+    pub fn front(&self) -> Option<RingSample> {
+        self.get(0)
+    }
+
+    /// The newest sample.
+    pub fn back(&self) -> Option<RingSample> {
+        self.len().checked_sub(1).and_then(|i| self.get(i))
+    }
+
+    /// The samples, oldest first.
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = RingSample> + '_ {
+        (0..self.len()).map(|i| self.at(self.phys(i)))
+    }
+
+    /// Append a sample, dropping the oldest once the ring is full.
+    pub fn push(&mut self, s: &RingSample) {
+        use field::*;
+        // Written so that a NaN time also lands here.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(s.t <= self.max_t) {
+            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
+        }
+        let mut v = [0f32; COUNT];
+        v[X] = s.x;
+        v[Y] = s.y;
+        [v[R], v[G], v[B]] = s.color.to_array();
+        [v[HX], v[HY], v[HZ]] = s.hit_point.to_array();
+        [v[VX], v[VY], v[VZ]] = s.velocity.to_array();
+        if self.t.len() < self.capacity {
+            for (f, v) in self.f.iter_mut().zip(v) {
+                f.push(v);
+            }
+            self.t.push(s.t);
+        } else {
+            let h = self.head;
+            for (f, v) in self.f.iter_mut().zip(v) {
+                f[h] = v;
+            }
+            self.t[h] = s.t;
+            self.head = if h + 1 == self.capacity { 0 } else { h + 1 };
+            // The oldest sample is now the one after the overwritten one.
+            let front = self.pushed + 1 - self.len() as u64;
+            while (self.first_block + 1) * TIME_BLOCK <= front {
+                self.block_max_t.pop_front();
+                self.first_block += 1;
+            }
+        }
+        let block = self.pushed / TIME_BLOCK;
+        if block >= self.first_block + self.block_max_t.len() as u64 {
+            self.block_max_t.push_back(self.max_t);
+        } else if let Some(b) = self.block_max_t.back_mut() {
+            *b = self.max_t;
+        }
+        self.pushed += 1;
+    }
+
+    /// Logical index from which samples may be as recent as `cutoff`: every sample
+    /// before it was pushed in a block whose largest time so far is below `cutoff`.
+    pub(crate) fn live_start(&self, cutoff: f64) -> usize {
+        if !cutoff.is_finite() {
+            return 0;
+        }
+        let j = self.block_max_t.partition_point(|&m| m < cutoff) as u64;
+        let front = self.pushed - self.len() as u64;
+        (((self.first_block + j) * TIME_BLOCK).saturating_sub(front) as usize).min(self.len())
+    }
+
+    /// The physical index ranges holding the logical range `start..len`, in ring order
+    /// (the second is empty unless the range wraps).
+    pub(crate) fn runs(&self, start: usize) -> [std::ops::Range<usize>; 2] {
+        let n = self.len();
+        let start = start.min(n);
+        if n == 0 {
+            return [0..0, 0..0];
+        }
+        let p = self.phys(start.min(n - 1));
+        let live = n - start;
+        let first = live.min(n - p);
+        [p..p + first, 0..live - first]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(t: f64) -> RingSample {
+        RingSample {
+            x: t as f32,
+            y: -t as f32,
+            t,
+            color: Vec3::new(1.0, 2.0, 3.0) * t as f32,
+            hit_point: Vec3::new(4.0, 5.0, 6.0) * t as f32,
+            velocity: Vec3::new(7.0, 8.0, 9.0) * t as f32,
+        }
+    }
+
+    #[test]
+    fn keeps_the_newest_in_order_and_runs_cover_the_live_range() {
+        let mut r = Ring::new(7);
+        for k in 0..40 {
+            r.push(&sample(k as f64));
+            let n = r.len();
+            assert_eq!(n, (k + 1).min(7));
+            let all: Vec<RingSample> = r.iter().collect();
+            let want: Vec<RingSample> = (k + 1 - n..=k).map(|i| sample(i as f64)).collect();
+            assert_eq!(all, want);
+            assert_eq!(r.front(), want.first().copied());
+            assert_eq!(r.back(), want.last().copied());
+            for start in 0..=n {
+                let got: Vec<RingSample> = r
+                    .runs(start)
+                    .into_iter()
+                    .flat_map(|run| run.map(|p| r.at(p)))
+                    .collect();
+                assert_eq!(got, want[start..], "push {k}, start {start}");
+            }
+        }
+    }
+}
