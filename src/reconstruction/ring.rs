@@ -45,7 +45,11 @@ pub(crate) mod field {
 #[derive(Clone, Debug)]
 pub struct Ring {
     capacity: usize,
-    /// The f32 fields, indexed by [`field`] and then by physical index.
+    /// Samples held.
+    len: usize,
+    /// The f32 fields, indexed by [`field`] and then by physical index (each
+    /// `capacity` long from the start: zeroed allocations cost no memory until
+    /// written, and a push is then only stores).
     pub(crate) f: [Vec<f32>; field::COUNT],
     /// Times, by physical index.
     pub(crate) t: Vec<f64>,
@@ -67,12 +71,11 @@ impl Ring {
     /// An empty ring holding at most `capacity` (at least 1) samples.
     pub fn new(capacity: usize) -> Self {
         let capacity = capacity.max(1);
-        // Reserve what is surely needed soon, not a huge capacity that may never fill.
-        let reserve = capacity.min(1 << 20);
         Self {
             capacity,
-            f: std::array::from_fn(|_| Vec::with_capacity(reserve)),
-            t: Vec::with_capacity(reserve),
+            len: 0,
+            f: std::array::from_fn(|_| vec![0.0; capacity]),
+            t: vec![0.0; capacity],
             head: 0,
             pushed: 0,
             max_t: f64::NEG_INFINITY,
@@ -88,20 +91,20 @@ impl Ring {
 
     /// Samples held.
     pub fn len(&self) -> usize {
-        self.t.len()
+        self.len
     }
 
     /// No sample held.
     pub fn is_empty(&self) -> bool {
-        self.t.is_empty()
+        self.len == 0
     }
 
-    /// Physical index of logical index `i` (0 = oldest), for `i < len`.
+    /// Physical index of logical index `i` (0 = oldest; `len`: the next slot).
     #[inline]
     pub(crate) fn phys(&self, i: usize) -> usize {
         let p = self.head + i;
-        if p >= self.t.len() {
-            p - self.t.len()
+        if p >= self.capacity {
+            p - self.capacity
         } else {
             p
         }
@@ -156,18 +159,17 @@ impl Ring {
         [v[R], v[G], v[B]] = s.color.to_array();
         [v[HX], v[HY], v[HZ]] = s.hit_point.to_array();
         [v[VX], v[VY], v[VZ]] = s.velocity.to_array();
-        if self.t.len() < self.capacity {
-            for (f, v) in self.f.iter_mut().zip(v) {
-                f.push(v);
-            }
-            self.t.push(s.t);
+        // The slot after the newest: a free one until the ring is full, then the
+        // oldest's.
+        let p = self.phys(self.len);
+        for (f, v) in self.f.iter_mut().zip(v) {
+            f[p] = v;
+        }
+        self.t[p] = s.t;
+        if self.len < self.capacity {
+            self.len += 1;
         } else {
-            let h = self.head;
-            for (f, v) in self.f.iter_mut().zip(v) {
-                f[h] = v;
-            }
-            self.t[h] = s.t;
-            self.head = if h + 1 == self.capacity { 0 } else { h + 1 };
+            self.head = if p + 1 == self.capacity { 0 } else { p + 1 };
             // The oldest sample is now the one after the overwritten one.
             let front = self.pushed + 1 - self.len() as u64;
             while (self.first_block + 1) * TIME_BLOCK <= front {
@@ -200,12 +202,9 @@ impl Ring {
     pub(crate) fn runs(&self, start: usize) -> [std::ops::Range<usize>; 2] {
         let n = self.len();
         let start = start.min(n);
-        if n == 0 {
-            return [0..0, 0..0];
-        }
-        let p = self.phys(start.min(n - 1));
+        let p = self.phys(start);
         let live = n - start;
-        let first = live.min(n - p);
+        let first = live.min(self.capacity - p);
         [p..p + first, 0..live - first]
     }
 }
