@@ -246,7 +246,7 @@ const PREP_CHUNK: usize = 16384;
 /// Band heights are powers of two.
 const BAND_ROWS: usize = 16;
 /// Rows per band of the splat on one thread.
-const SINGLE_THREAD_BAND_ROWS: usize = 32;
+const SINGLE_THREAD_BAND_ROWS: usize = 64;
 /// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
 const MAX_SPAN: usize = 128;
 /// Accumulated channels: weighted red, green, blue, weight, weighted age.
@@ -587,13 +587,6 @@ fn gauss_lanes(a: f32, b: f32, o: f32, lo: f32, hi: f32) -> Lanes {
     out
 }
 
-/// Most rows of one splat within one band (the tallest band).
-const MAX_BAND_ROWS: usize = if BAND_ROWS > SINGLE_THREAD_BAND_ROWS {
-    BAND_ROWS
-} else {
-    SINGLE_THREAD_BAND_ROWS
-};
-
 /// Add one splat to the rows `by0..by1` of a band's accumulators (`gpr` cells per row)
 /// and count it in the band's coverage corner differences `cov` (rows of `cstride`).
 ///
@@ -620,32 +613,22 @@ fn splat_one(
     let y1 = (s.y1 as usize + 1).min(by1);
     // The rows of this band, `gpr` cells each, from the footprint's first.
     let rows = &mut acc[(y0 - by0) * gpr..(y1 - by0) * gpr];
-    // Row weights from offsets to the footprint's first row, `LANES` at a time.
-    let mut gy = [0f32; MAX_BAND_ROWS + LANES];
-    let by = s.y0 as f32 + 0.5 - s.y;
-    let o0 = (y0 - s.y0 as usize) as f32;
-    for (k, g) in gy[..(y1 - y0).div_ceil(LANES) * LANES]
-        .chunks_exact_mut(LANES)
-        .enumerate()
-    {
-        let o = o0 + (k * LANES) as f32;
-        g.copy_from_slice(&gauss_lanes(s.ay, by, o, f32::NEG_INFINITY, f32::INFINITY));
-    }
-    let gy = &gy[..y1 - y0];
     let cols = Cols {
         s,
         g0,
+        by: s.y0 as f32 + 0.5 - s.y,
+        o0: (y0 - s.y0 as usize) as f32,
         bx: (g0 * LANES) as f32 + 0.5 - s.x,
         // The footprint's columns relative to the first group's (exact in f32).
         lo: (x0 - g0 * LANES) as f32,
         hi: (x1 - g0 * LANES) as f32,
     };
     match groups {
-        1 => cols.add::<1>(rows, gpr, gy),
-        2 => cols.add::<2>(rows, gpr, gy),
-        3 => cols.add::<3>(rows, gpr, gy),
-        4 => cols.add::<4>(rows, gpr, gy),
-        _ => cols.add_any(groups, rows, gpr, gy),
+        1 => cols.add::<1>(rows, gpr),
+        2 => cols.add::<2>(rows, gpr),
+        3 => cols.add::<3>(rows, gpr),
+        4 => cols.add::<4>(rows, gpr),
+        _ => cols.add_any(groups, rows, gpr),
     }
     // Coverage corners within the band (made per-row differences in `splat_band`).
     let r0 = (y0 - by0) * cstride;
@@ -658,11 +641,15 @@ fn splat_one(
     }
 }
 
-/// The columns of one splat.
+/// The columns and rows of one splat within one band.
 struct Cols<'a> {
     s: &'a Splat,
     /// First group of `LANES` columns.
     g0: usize,
+    /// `y` offset of the footprint's first row's center from the splat.
+    by: f32,
+    /// The band's first row of the footprint, relative to the footprint's first row.
+    o0: f32,
     /// `x` offset of the first group's first pixel center from the splat.
     bx: f32,
     /// First and last footprint column relative to the first group's first column.
@@ -684,19 +671,31 @@ impl Cols<'_> {
         out
     }
 
+    /// Row weights `g_y` of the `k`-th run of `LANES` rows of the band's part of the
+    /// footprint, from offsets to the footprint's first row.
+    #[inline(always)]
+    fn row_weights(&self, k: usize) -> Lanes {
+        let o = self.o0 + (k * LANES) as f32;
+        gauss_lanes(self.s.ay, self.by, o, f32::NEG_INFINITY, f32::INFINITY)
+    }
+
     /// Footprints of `G` groups: the products `g_x·c` stay in registers over the rows.
     #[inline(always)]
-    fn add<const G: usize>(&self, rows: &mut [Cell], gpr: usize, gy: &[f32]) {
+    fn add<const G: usize>(&self, rows: &mut [Cell], gpr: usize) {
         let mut gxc = [[[0f32; LANES]; CHANNELS]; G];
         for (j, g) in gxc.iter_mut().enumerate() {
             *g = self.weighted(j);
         }
-        for (row, &gy) in rows.chunks_exact_mut(gpr).zip(gy) {
-            let cells: &mut [Cell; G] = (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
-            for (cell, gxc) in cells.iter_mut().zip(&gxc) {
-                for (d, gxc) in cell.iter_mut().zip(gxc) {
-                    for l in 0..LANES {
-                        d[l] = gxc[l].mul_add(gy, d[l]);
+        for (k, run) in rows.chunks_mut(LANES * gpr).enumerate() {
+            let gy = self.row_weights(k);
+            for (row, &gy) in run.chunks_exact_mut(gpr).zip(&gy) {
+                let cells: &mut [Cell; G] =
+                    (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
+                for (cell, gxc) in cells.iter_mut().zip(&gxc) {
+                    for (d, gxc) in cell.iter_mut().zip(gxc) {
+                        for l in 0..LANES {
+                            d[l] = gxc[l].mul_add(gy, d[l]);
+                        }
                     }
                 }
             }
@@ -705,14 +704,17 @@ impl Cols<'_> {
 
     /// Wider footprints: the same sums, a group at a time over the rows.
     #[inline(always)]
-    fn add_any(&self, groups: usize, rows: &mut [Cell], gpr: usize, gy: &[f32]) {
+    fn add_any(&self, groups: usize, rows: &mut [Cell], gpr: usize) {
         for j in 0..groups {
             let gxc = self.weighted(j);
-            let k = self.g0 + j;
-            for (row, &gy) in rows.chunks_exact_mut(gpr).zip(gy) {
-                for (d, gxc) in row[k].iter_mut().zip(&gxc) {
-                    for l in 0..LANES {
-                        d[l] = gxc[l].mul_add(gy, d[l]);
+            let c = self.g0 + j;
+            for (k, run) in rows.chunks_mut(LANES * gpr).enumerate() {
+                let gy = self.row_weights(k);
+                for (row, &gy) in run.chunks_exact_mut(gpr).zip(&gy) {
+                    for (d, gxc) in row[c].iter_mut().zip(&gxc) {
+                        for l in 0..LANES {
+                            d[l] = gxc[l].mul_add(gy, d[l]);
+                        }
                     }
                 }
             }
