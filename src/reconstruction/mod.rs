@@ -37,11 +37,17 @@
 //!   blocks that are stale as a whole. With the camera moving (BART kitchen) this skips
 //!   about 70% of the ring.
 //! - **Filters per tile.** Each refresh computes one filter per tile (with the
-//!   constants a splat needs) and a per-pixel `(tile, scale)` lookup, so a sample finds
-//!   both in one cache line. Samples are reprojected a block of 64 at a time before
-//!   their pixels are looked up, so the lookups are in flight together instead of each
-//!   waiting behind the previous sample's unpredictable cull branch.
+//!   constants a splat needs) and a per-pixel `(tile, scale)` lookup of 8 bytes, so a
+//!   sample finds both in one load from a table that fits a core's L2 cache (256×256).
 //!   [`Reconstructor::filter_map`] is built from the table on request.
+//! - **A struct-of-arrays ring, placed in blocks.** The ring ([`ring::Ring`]) keeps
+//!   one array per field. Samples go through each stage a block of 64 at a time:
+//!   reprojection in vector code over the hit point, velocity and time arrays; the
+//!   pixel lookups, independent loads in flight together; the temporal cull,
+//!   footprint and temporal weight of every lane in vector code (float bounds turned
+//!   into integers without saturating conversions); then a list of survivors, and
+//!   only they read their color and are binned. No branch depends on a sample until
+//!   the survivors' loop.
 //! - **Vector splats.** Accumulators are cells of 8 aligned pixels × 5 channels (weighted
 //!   r, g, b, weight, weighted age), one 256-bit vector per channel. A splat computes
 //!   the Gaussian column weights of the cells it touches (8 lanes at a time, zero
@@ -53,7 +59,7 @@
 //!   pyramid (the same sums added in the same order, so the same image).
 //!
 //! Splatting runs in parallel over horizontal bands of rows (16 rows with several
-//! threads, 32 on one); each band visits the samples touching it in ring order and
+//! threads, 64 on one); each band visits the samples touching it in ring order and
 //! writes only its own pixels, and every weight is computed from offsets to the
 //! splat's own first row and column, so every pixel's sums are formed from the same
 //! terms in the same order whatever the thread count (bit-identical images).
