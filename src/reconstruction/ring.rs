@@ -7,9 +7,9 @@
 //! vector code, and a culled sample costs no load of its color; a ring of 56-byte
 //! structs made every sample cost a whole cache line's worth of scattered fields.
 //!
-//! The ring also keeps the running largest time at the end of every block of
-//! [`TIME_BLOCK`] pushes, so that the prefix of samples too old to count anywhere is
-//! found by binary search (see [`Ring::live_start`]).
+//! The ring also keeps the running largest time at the end of every block of 256
+//! pushes, so that the prefix of samples too old to count anywhere is found by binary
+//! search (`Ring::live_start`).
 
 use std::collections::VecDeque;
 
