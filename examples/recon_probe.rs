@@ -7,9 +7,8 @@
 use std::{sync::Arc, time::Instant};
 
 use frameless::{
-    bench::reconstruct_fixture,
-    evaluation::clock::Clock,
-    methods::{adaptive, Method, MethodContext},
+    bench::{adaptive_after_one_second, reconstruct_fixture},
+    methods::Method,
     reconstruction::Reconstructor,
     scene::CameraFrame,
     trace::{TraceOptions, Tracer},
@@ -143,21 +142,7 @@ fn main() {
         256,
         TraceOptions::default(),
     ));
-    let ctx = MethodContext {
-        tracer: tracer.clone(),
-        clock: Clock {
-            start: time,
-            rate: 400_000.0,
-            first_refresh: time,
-            refresh_hz: 60.0,
-        },
-        seed: 1,
-        ideal_spp: 1,
-        ideal_cache: None,
-    };
-    let mut m = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper()).unwrap();
-    let end = time + 1.0;
-    m.display(end);
+    let (mut m, end) = adaptive_after_one_second(&tracer, time).expect("adaptive");
     m.display(end);
     let cam = tracer.state_at(end).camera;
     let tiling = m.sampler().tiling();

@@ -188,6 +188,26 @@ pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats:
 /// scene after its sampler ran for 1 s at 400K samples/s from `time` (best of
 /// `repeats`; nothing new is sampled during the timed refreshes).
 pub fn reconstruct_scene_ms(tracer: &std::sync::Arc<Tracer>, time: f64, repeats: usize) -> f64 {
+    use crate::methods::Method;
+    let Ok((mut m, end)) = adaptive_after_one_second(tracer, time) else {
+        return f64::NAN;
+    };
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        std::hint::black_box(m.display(end).mean_age);
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    best * 1e3
+}
+
+/// The `adaptive` method (paper parameters, seed 1) on `tracer`'s scene after its
+/// sampler ran for 1 s at 400K samples/s from `time`, with one image displayed at the
+/// end of that second; returns it and that time.
+pub fn adaptive_after_one_second(
+    tracer: &std::sync::Arc<Tracer>,
+    time: f64,
+) -> Result<(crate::methods::adaptive::Adaptive, f64), String> {
     use crate::methods::{adaptive, Method, MethodContext};
     let ctx = MethodContext {
         tracer: tracer.clone(),
@@ -201,18 +221,10 @@ pub fn reconstruct_scene_ms(tracer: &std::sync::Arc<Tracer>, time: f64, repeats:
         ideal_spp: 1,
         ideal_cache: None,
     };
-    let Ok(mut m) = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper()) else {
-        return f64::NAN;
-    };
+    let mut m = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper())?;
     let end = time + 1.0;
     m.display(end);
-    let mut best = f64::INFINITY;
-    for _ in 0..repeats.max(1) {
-        let t0 = Instant::now();
-        std::hint::black_box(m.display(end).mean_age);
-        best = best.min(t0.elapsed().as_secs_f64());
-    }
-    best * 1e3
+    Ok((m, end))
 }
 
 /// Random sub-pixel positions in random pixel order: a shuffled permutation of all

@@ -318,7 +318,11 @@ fn keep_static_spends_no_occlusion_rays_on_a_still_view_only() {
     assert!(k.static_kept > 1000, "{k:?}");
     let mut paper = Sampler::new(c.tracer.clone(), c.clock, SamplerParams::paper(), 1).unwrap();
     paper.run_until(0.5);
-    assert!(paper.counters().occlusion_rays > 1000, "{:?}", paper.counters());
+    assert!(
+        paper.counters().occlusion_rays > 1000,
+        "{:?}",
+        paper.counters()
+    );
     assert_eq!(paper.counters().static_kept, 0);
 
     let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
@@ -331,5 +335,8 @@ fn keep_static_spends_no_occlusion_rays_on_a_still_view_only() {
     let still = s.counters().occlusion_rays;
     s.run_until(1.0);
     let moving = s.counters().occlusion_rays - still;
-    assert!(moving > 1000, "occlusion rays while the camera moves: {moving}");
+    assert!(
+        moving > 1000,
+        "occlusion rays while the camera moves: {moving}"
+    );
 }

@@ -13,14 +13,31 @@ fn writes_one_png_per_refresh_and_stats() {
     let out = tmp("ok");
     let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
         .args([
-            "render", "--scene", "toycar", "--method", "traditional-frameless", "--rate", "50k",
-            "--size", "32x24", "--duration", "0.1", "--fps", "30", "--warmup", "0.2",
+            "render",
+            "--scene",
+            "toycar",
+            "--method",
+            "traditional-frameless",
+            "--rate",
+            "50k",
+            "--size",
+            "32x24",
+            "--duration",
+            "0.1",
+            "--fps",
+            "30",
+            "--warmup",
+            "0.2",
         ])
         .arg("--out")
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     for k in 0..3 {
         assert!(out.join(format!("frame_{k:05}.png")).is_file(), "frame {k}");
     }
@@ -53,7 +70,10 @@ fn bad_arguments_fail_without_output() {
             .output()
             .unwrap();
         assert!(!st.status.success(), "{args:?}");
-        assert!(String::from_utf8_lossy(&st.stderr).contains("error"), "{args:?}");
+        assert!(
+            String::from_utf8_lossy(&st.stderr).contains("error"),
+            "{args:?}"
+        );
         assert!(!out.exists(), "{args:?} wrote output");
     }
 }

@@ -34,8 +34,16 @@ fn tiny_table_has_every_animation_and_the_paper_beside_it() {
         .args(["table1", "--bart"])
         .arg(&bart)
         .args([
-            "--size", "32x32", "--duration", "0.05", "--rates", "100k", "--ideal-spp", "1",
-            "--methods", "traditional-frameless,adaptive,full-res-60hz",
+            "--size",
+            "32x32",
+            "--duration",
+            "0.05",
+            "--rates",
+            "100k",
+            "--ideal-spp",
+            "1",
+            "--methods",
+            "traditional-frameless,adaptive,full-res-60hz",
         ])
         .arg("--cache-dir")
         .arg(&cache)
@@ -43,7 +51,11 @@ fn tiny_table_has_every_animation_and_the_paper_beside_it() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let anims = v["animations"].as_array().unwrap();

@@ -147,20 +147,8 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
-    let rates = a
-        .rates
-        .split(',')
-        .map(report::parse_rate)
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(anyhow::Error::msg)
-        .context("--rates")?;
-    let methods = a
-        .methods
-        .split(',')
-        .map(|m| MethodKind::parse(m.trim()))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(anyhow::Error::msg)
-        .context("--methods")?;
+    let rates = parse_list(&a.rates, report::parse_rate).context("--rates")?;
+    let methods = parse_list(&a.methods, MethodKind::parse).context("--methods")?;
     let Size(w, h) = a.size;
     let cache_dir = if a.no_cache {
         None
@@ -185,23 +173,12 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
     };
-    let n = cfg.frames();
-    cfg.strip_frames = vec![n / 4, n / 2, (3 * n) / 4];
-    cfg.strip_frames.dedup();
+    cfg.strip_frames = quartile_frames(cfg.frames());
     cfg.validate().map_err(anyhow::Error::msg)?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = progress_bar(0, "evaluating");
-    struct Bar(ProgressBar);
-    impl evaluation::Progress for Bar {
-        fn total(&self, n: u64) {
-            self.0.set_length(n);
-        }
-        fn step(&self, msg: &str) {
-            self.0.set_message(msg.to_string());
-            self.0.inc(1);
-        }
-    }
-    let mut out = evaluation::run(scene, &cfg, &Bar(bar.clone())).map_err(anyhow::Error::msg)?;
+    let mut out =
+        evaluation::run(scene, &cfg, &BarProgress(bar.clone())).map_err(anyhow::Error::msg)?;
     bar.finish_and_clear();
     let report = report::write_all(&mut out, &a.out).map_err(anyhow::Error::msg)?;
     print!("{}", report::markdown(&out.summary));
@@ -322,29 +299,15 @@ fn table1(a: args::Table1Args) -> Result<()> {
     };
     let kitchen = bart.join("kitchen/kitchen.aff");
     if !kitchen.is_file() {
-        bail!("{} not found: --bart must name the BART folder holding kitchen/kitchen.aff", kitchen.display());
+        bail!(
+            "{} not found: --bart must name the BART folder holding kitchen/kitchen.aff",
+            kitchen.display()
+        );
     }
-    let animations = a
-        .animations
-        .split(',')
-        .map(|n| table1::animation(n.trim()))
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(anyhow::Error::msg)
-        .context("--animations")?;
-    let rates = a
-        .rates
-        .split(',')
-        .map(report::parse_rate)
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(anyhow::Error::msg)
-        .context("--rates")?;
+    let animations = parse_list(&a.animations, table1::animation).context("--animations")?;
+    let rates = parse_list(&a.rates, report::parse_rate).context("--rates")?;
     let methods = match &a.methods {
-        Some(m) => m
-            .split(',')
-            .map(|m| MethodKind::parse(m.trim()))
-            .collect::<Result<Vec<_>, _>>()
-            .map_err(anyhow::Error::msg)
-            .context("--methods")?,
+        Some(m) => parse_list(m, MethodKind::parse).context("--methods")?,
         None => table1::METHODS.to_vec(),
     };
     let Size(w, h) = a.size;
@@ -377,9 +340,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             strip_frames: Vec::new(),
             flip_every: a.flip_every as usize,
         };
-        let n = cfg.frames();
-        cfg.strip_frames = vec![n / 4, n / 2, (3 * n) / 4];
-        cfg.strip_frames.dedup();
+        cfg.strip_frames = quartile_frames(cfg.frames());
         cfg.validate()
             .map_err(anyhow::Error::msg)
             .with_context(|| format!("animation {}", anim.name))?;
@@ -391,18 +352,8 @@ fn table1(a: args::Table1Args) -> Result<()> {
     let mut cost = Vec::new();
     for (anim, cfg) in animations.iter().zip(&cfgs) {
         let bar = progress_bar(0, anim.name);
-        struct Bar(ProgressBar);
-        impl evaluation::Progress for Bar {
-            fn total(&self, n: u64) {
-                self.0.set_length(n);
-            }
-            fn step(&self, msg: &str) {
-                self.0.set_message(msg.to_string());
-                self.0.inc(1);
-            }
-        }
         let ta = Instant::now();
-        let mut out = evaluation::run(scene.clone(), cfg, &Bar(bar.clone()))
+        let mut out = evaluation::run(scene.clone(), cfg, &BarProgress(bar.clone()))
             .map_err(anyhow::Error::msg)
             .with_context(|| format!("animation {}", anim.name))?;
         bar.finish_and_clear();
@@ -432,7 +383,9 @@ fn table1(a: args::Table1Args) -> Result<()> {
         t0.elapsed().as_secs_f64(),
         cost.join("; ")
     );
-    let table = TableSummary { animations: results };
+    let table = TableSummary {
+        animations: results,
+    };
     table1::write_combined(&table, &a.out, &cost).map_err(anyhow::Error::msg)?;
     print!("{}", table1::markdown(&table));
     print!("{}", table1::targets(&table));
@@ -632,6 +585,37 @@ pub fn load_scene(arg: &str) -> Result<Scene> {
 fn load_camera_path(p: Option<&Path>) -> Result<Option<CameraPath>> {
     p.map(|p| CameraPath::load(p).map_err(anyhow::Error::from))
         .transpose()
+}
+
+/// An evaluation's progress on a progress bar.
+struct BarProgress(ProgressBar);
+
+impl evaluation::Progress for BarProgress {
+    fn total(&self, n: u64) {
+        self.0.set_length(n);
+    }
+    fn step(&self, msg: &str) {
+        self.0.set_message(msg.to_string());
+        self.0.inc(1);
+    }
+}
+
+/// The items of a comma-separated option, each parsed by `parse` (trimmed).
+fn parse_list<T, E: std::fmt::Display>(
+    list: &str,
+    parse: impl Fn(&str) -> Result<T, E>,
+) -> Result<Vec<T>> {
+    list.split(',')
+        .map(|item| parse(item.trim()).map_err(|e| anyhow::anyhow!("{e}")))
+        .collect()
+}
+
+/// The strip frames of an evaluation of `n` frames: at a quarter, half and three
+/// quarters.
+fn quartile_frames(n: usize) -> Vec<usize> {
+    let mut f = vec![n / 4, n / 2, (3 * n) / 4];
+    f.dedup();
+    f
 }
 
 fn progress_bar(len: u64, what: &str) -> ProgressBar {

@@ -159,7 +159,8 @@ pub struct TableSummary {
 
 fn cell<'a>(s: &'a Summary, method: &str, rate: f64) -> Option<&'a super::ResultRow> {
     s.results.iter().find(|r| {
-        r.method == method && (r.rate == rate || MethodKind::parse(method).is_ok_and(|k| k.rate_independent()))
+        r.method == method
+            && (r.rate == rate || MethodKind::parse(method).is_ok_and(|k| k.rate_independent()))
     })
 }
 
@@ -202,8 +203,18 @@ pub fn markdown(t: &TableSummary) -> String {
         out.push('\n');
     };
     let metrics: [(&str, fn(&super::ResultRow) -> f64, usize, bool); 3] = [
-        ("Mean RMS error, 0–255 (paper's in parentheses)", |r| r.rms_mean, 1, true),
-        ("Mean FLIP (the paper reports none)", |r| r.flip_mean, 3, false),
+        (
+            "Mean RMS error, 0–255 (paper's in parentheses)",
+            |r| r.rms_mean,
+            1,
+            true,
+        ),
+        (
+            "Mean FLIP (the paper reports none)",
+            |r| r.flip_mean,
+            3,
+            false,
+        ),
         ("Temporal instability, 0–255", |r| r.flicker_mean, 2, false),
     ];
     for (title, f, prec, with_paper) in metrics {
@@ -256,13 +267,25 @@ pub fn targets(t: &TableSummary) -> String {
                 );
             }
             if let Some(taa) = get("taa") {
-                let _ = write!(line, "; TAA {taa:.1} ({})", if ad < taa { "adaptive ahead" } else { "TAA ahead" });
+                let _ = write!(
+                    line,
+                    "; TAA {taa:.1} ({})",
+                    if ad < taa {
+                        "adaptive ahead"
+                    } else {
+                        "TAA ahead"
+                    }
+                );
             }
             if let Some(fr) = get("full-res-60hz") {
                 let _ = write!(
                     line,
                     "; full-res-60hz {fr:.1} ({})",
-                    if ad <= fr { "adaptive no worse" } else { "full-res better" }
+                    if ad <= fr {
+                        "adaptive no worse"
+                    } else {
+                        "full-res better"
+                    }
                 );
             }
             out.push_str(&line);
@@ -317,7 +340,11 @@ pub fn html(t: &TableSummary, cost: &str) -> String {
         rates.dedup();
         for r in rates {
             let p = format!("{}/rms_{}.svg", a.name, rate_label(r));
-            let _ = write!(h, "<img src=\"{p}\" alt=\"RMS over time, {}\">", rate_label(r));
+            let _ = write!(
+                h,
+                "<img src=\"{p}\" alt=\"RMS over time, {}\">",
+                rate_label(r)
+            );
         }
     }
     let _ = write!(h, "<h2>Cost</h2><p>{}</p></body></html>", escape(cost));
@@ -325,7 +352,9 @@ pub fn html(t: &TableSummary, cost: &str) -> String {
 }
 
 fn escape(s: &str) -> String {
-    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// Write the combined outputs into `dir` (the per-animation folders are written by
@@ -370,7 +399,9 @@ mod tests {
     #[test]
     fn animations_are_known_and_unique() {
         assert!(animation("bart").is_ok());
-        assert!(animation("nope").unwrap_err().contains("interactive, bart, toycar"));
+        assert!(animation("nope")
+            .unwrap_err()
+            .contains("interactive, bart, toycar"));
         for m in METHODS {
             assert!(MethodKind::parse(m.name()).is_ok());
         }

@@ -78,8 +78,8 @@ use crate::{
     scene::CameraFrame,
 };
 pub use filter::{Extents, FilterBounds};
-pub use ring::Ring;
 use ring::field;
+pub use ring::Ring;
 
 /// Parameters of the reconstructor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -403,7 +403,7 @@ struct Placer<'a> {
     lookup: &'a [Lookup],
     tiles: &'a [TileFilter],
     temporal_cutoff: f32,
-    /// Footprint radius bound (see [`Reconstructor::max_r`]).
+    /// Footprint radius bound.
     max_r: f32,
 }
 
@@ -440,7 +440,7 @@ impl Placer<'_> {
     }
 
     /// [`Placer::located`] for the samples at physical indices `p0..p0 + n` of
-    /// `ring` (the same arithmetic in the same order as [`Placer::locate`]), one array
+    /// `ring` (the same arithmetic in the same order as `Placer::locate`), one array
     /// per field so that it compiles to vector code. A sample that is not `ok` gets a
     /// NaN age, which fails the temporal cull just as `ok == false` does.
     #[inline(always)]
@@ -489,9 +489,33 @@ impl Placer<'_> {
         if !(l.ok && a <= self.temporal_cutoff) {
             return None;
         }
-        let rx = (f.cx * look.scale).min(self.max_r);
-        let ry = (f.cy * look.scale).min(self.max_r);
+        let (rx, ry) = self.radii(&f, look.scale);
         self.footprint(l.x, l.y, l.age, a, f, rx, ry)
+    }
+
+    /// Footprint radii of a sample landing in a pixel of tile filter `f` and splat scale
+    /// `scale`.
+    #[inline(always)]
+    fn radii(&self, f: &TileFilter, scale: f32) -> (f32, f32) {
+        (
+            (f.cx * scale).min(self.max_r),
+            (f.cy * scale).min(self.max_r),
+        )
+    }
+
+    /// Inclusive pixel bounds `[x0, x1, y0, y1]` of a footprint of radii `rx`, `ry`
+    /// around `(x, y)`, clamped to the image as floats (pixel k's center is k + 0.5).
+    /// For finite inputs these are integers, within the image when the footprint is not
+    /// empty (`x0 <= x1 && y0 <= y1`), where the conversions to integers are exact.
+    #[inline(always)]
+    fn bounds(&self, x: f32, y: f32, rx: f32, ry: f32) -> [f32; 4] {
+        let (w, h) = ((self.width - 1) as f32, (self.height - 1) as f32);
+        [
+            (x - 0.5 - rx).ceil().max(0.0),
+            (x - 0.5 + rx).floor().min(w),
+            (y - 0.5 - ry).ceil().max(0.0),
+            (y - 0.5 + ry).floor().min(h),
+        ]
     }
 
     /// The footprint of a sample landing at `(x, y)` that passed the temporal cull.
@@ -507,14 +531,7 @@ impl Placer<'_> {
         rx: f32,
         ry: f32,
     ) -> Option<Placed> {
-        let (w, h) = ((self.width - 1) as f32, (self.height - 1) as f32);
-        // Pixel k's center is k + 0.5. Clamped as floats (x is finite, so are these);
-        // within the image when the footprint is not empty, where the conversions to
-        // integers are exact.
-        let x0 = (x - 0.5 - rx).ceil().max(0.0);
-        let x1 = (x - 0.5 + rx).floor().min(w);
-        let y0 = (y - 0.5 - ry).ceil().max(0.0);
-        let y1 = (y - 0.5 + ry).floor().min(h);
+        let [x0, x1, y0, y1] = self.bounds(x, y, rx, ry);
         if !(x0 <= x1 && y0 <= y1) {
             return None;
         }
@@ -695,8 +712,7 @@ impl Cols<'_> {
         for (k, run) in rows.chunks_mut(LANES * gpr).enumerate() {
             let gy = self.row_weights(k);
             for (row, &gy) in run.chunks_exact_mut(gpr).zip(&gy) {
-                let cells: &mut [Cell; G] =
-                    (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
+                let cells: &mut [Cell; G] = (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
                 for (cell, gxc) in cells.iter_mut().zip(&gxc) {
                     for (d, gxc) in cell.iter_mut().zip(gxc) {
                         for l in 0..LANES {
@@ -749,8 +765,7 @@ fn bin_piece(
     out.resize_with(bands, Vec::new);
     out.iter_mut().for_each(Vec::clear);
     let mut b = Block::new();
-    let (tc, max_r) = (placer.temporal_cutoff, placer.max_r);
-    let (wm, hm) = ((placer.width - 1) as f32, (placer.height - 1) as f32);
+    let tc = placer.temporal_cutoff;
     let (cr, cg, cb) = (&ring.f[field::R], &ring.f[field::G], &ring.f[field::B]);
     let mut p0 = piece.start;
     while p0 < piece.end {
@@ -761,18 +776,13 @@ fn bin_piece(
             let f = &placer.tiles[l.tile as usize];
             b.tile[i] = l.tile;
             b.inv_et[i] = f.inv_et;
-            b.rx[i] = (f.cx * l.scale).min(max_r);
-            b.ry[i] = (f.cy * l.scale).min(max_r);
+            (b.rx[i], b.ry[i]) = placer.radii(f, l.scale);
         }
-        // The cull, footprint and temporal weight of every lane ([`Placer::finish`]
-        // and [`Placer::splat`], the same arithmetic), in vector code.
+        // The cull, footprint and temporal weight of every lane (the arithmetic of the
+        // tests' `Placer::finish`), in vector code.
         for i in 0..n {
-            let (x, y) = (b.x[i], b.y[i]);
             let a = b.age[i] * b.inv_et[i];
-            let x0 = (x - 0.5 - b.rx[i]).ceil().max(0.0);
-            let x1 = (x - 0.5 + b.rx[i]).floor().min(wm);
-            let y0 = (y - 0.5 - b.ry[i]).ceil().max(0.0);
-            let y1 = (y - 0.5 + b.ry[i]).floor().min(hm);
+            let [x0, x1, y0, y1] = placer.bounds(b.x[i], b.y[i], b.rx[i], b.ry[i]);
             b.x0[i] = small_int(x0);
             b.x1[i] = small_int(x1);
             b.y0[i] = small_int(y0);
@@ -1004,9 +1014,21 @@ impl Reconstructor {
         }
     }
 
-    /// Footprint radius bound: `max_radius`, within the widest span a splat handles.
-    fn max_r(&self) -> f32 {
-        self.params.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5)
+    /// What placing samples at display time `t` seen by `camera` needs (filters as of
+    /// the last `update_filters`).
+    fn placer(&self, t: f64, camera: &CameraFrame) -> Placer<'_> {
+        let p = &self.params;
+        Placer {
+            t,
+            proj: p.reproject.then(|| Projector::new(camera)),
+            width: self.width as i32,
+            height: self.height as i32,
+            lookup: &self.lookup,
+            tiles: &self.tiles,
+            temporal_cutoff: p.temporal_cutoff,
+            // Within the widest span a splat handles.
+            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+        }
     }
 
     /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
@@ -1059,17 +1081,6 @@ impl Reconstructor {
 
     fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
         let start = self.live_start(t);
-        let p = self.params;
-        let placer = Placer {
-            t,
-            proj: p.reproject.then(|| Projector::new(camera)),
-            width: self.width as i32,
-            height: self.height as i32,
-            lookup: &self.lookup,
-            tiles: &self.tiles,
-            temporal_cutoff: p.temporal_cutoff,
-            max_r: self.max_r(),
-        };
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.
@@ -1091,17 +1102,26 @@ impl Reconstructor {
         };
         let pieces: Vec<std::ops::Range<usize>> = runs
             .into_iter()
-            .flat_map(|r| r.clone().step_by(chunk).map(move |p| p..(p + chunk).min(r.end)))
+            .flat_map(|r| {
+                r.clone()
+                    .step_by(chunk)
+                    .map(move |p| p..(p + chunk).min(r.end))
+            })
             .collect();
-        if self.binned.len() < pieces.len() {
-            self.binned.resize_with(pieces.len(), Vec::new);
+        // Taken out while the placer borrows the rest of `self`.
+        let mut binned = std::mem::take(&mut self.binned);
+        if binned.len() < pieces.len() {
+            binned.resize_with(pieces.len(), Vec::new);
         }
         self.pieces = pieces.len();
-        let ring = &self.ring;
+        let placer = self.placer(t, camera);
         pieces
             .par_iter()
-            .zip(self.binned.par_iter_mut())
-            .for_each(|(piece, out)| bin_piece(&placer, ring, piece.clone(), out, bands, band_rows));
+            .zip(binned.par_iter_mut())
+            .for_each(|(piece, out)| {
+                bin_piece(&placer, &self.ring, piece.clone(), out, bands, band_rows)
+            });
+        self.binned = binned;
     }
 
     fn splat(&mut self) {
@@ -1406,17 +1426,7 @@ mod tests {
         tiling: &Tiling,
     ) -> Vec<([f64; 5], u32)> {
         r.update_filters(tiling);
-        let p = r.params;
-        let placer = Placer {
-            t,
-            proj: p.reproject.then(|| Projector::new(c)),
-            width: r.width as i32,
-            height: r.height as i32,
-            lookup: &r.lookup,
-            tiles: &r.tiles,
-            temporal_cutoff: p.temporal_cutoff,
-            max_r: r.max_r(),
-        };
+        let placer = r.placer(t, c);
         let w = r.width as usize;
         let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
         for s in r.ring.iter() {
