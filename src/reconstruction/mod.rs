@@ -239,8 +239,10 @@ fn small_int(v: f32) -> i32 {
 /// Lanes of the vectorised splat loops (one 256-bit register of f32).
 const LANES: usize = 8;
 type Lanes = [f32; LANES];
-/// `0, 1, …, LANES − 1`.
-const LANE_INDEX: Lanes = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+/// `1, 2, …, LANES`: lane `l`'s index plus one. Lane indices are added as `(o − 1) +
+/// (l + 1)` (exact for small integers): with a `0` in the table, the compiler drops
+/// that lane's addition and assembles the vector lane by lane.
+const LANE_INDEX_1: Lanes = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0];
 
 /// Accumulated weight below which a pixel counts as a hole: far splat tails reach
 /// f32's denormal range, where `Σw·c / Σw` loses all precision.
@@ -416,9 +418,10 @@ impl Placer<'_> {
         // the image, so a sample just outside still lights the border within its
         // footprint (a NaN coordinate clamps too; `ok` discards it).
         let (w, h) = (self.width, self.height);
-        // Clamped as floats (`max` first, so NaN becomes 0): truncation is then floor.
-        let px = x.max(0.0).min((w - 1) as f32) as u32;
-        let py = y.max(0.0).min((h - 1) as f32) as u32;
+        // Clamped as floats (`max` first, so NaN becomes 0), then floored: integers
+        // within the image, which `small_int` converts exactly in vector code.
+        let px = small_int(x.max(0.0).min((w - 1) as f32).floor()) as u32;
+        let py = small_int(y.max(0.0).min((h - 1) as f32).floor()) as u32;
         Located {
             x,
             y,
@@ -497,10 +500,10 @@ impl Placer<'_> {
     /// `scale`.
     #[inline(always)]
     fn radii(&self, f: &TileFilter, scale: f32) -> (f32, f32) {
-        (
-            (f.cx * scale).min(self.max_r),
-            (f.cy * scale).min(self.max_r),
-        )
+        // Not `f32::min`, whose NaN handling costs three instructions: neither side
+        // is NaN.
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        (min(f.cx * scale, self.max_r), min(f.cy * scale, self.max_r))
     }
 
     /// Inclusive pixel bounds `[x0, x1, y0, y1]` of a footprint of radii `rx`, `ry`
@@ -563,6 +566,8 @@ struct Block {
     ry: [f32; LOCATE_BLOCK],
     /// Temporal weight `exp(−½ (age / e_t)²)`.
     wt: [f32; LOCATE_BLOCK],
+    /// Red, green and blue times the temporal weight.
+    wc: [[f32; LOCATE_BLOCK]; 3],
     /// Footprint (inclusive pixel bounds; meaningful for kept samples only).
     x0: [i32; LOCATE_BLOCK],
     x1: [i32; LOCATE_BLOCK],
@@ -586,6 +591,7 @@ impl Block {
             rx: [0.0; LOCATE_BLOCK],
             ry: [0.0; LOCATE_BLOCK],
             wt: [0.0; LOCATE_BLOCK],
+            wc: [[0.0; LOCATE_BLOCK]; 3],
             x0: [0; LOCATE_BLOCK],
             x1: [0; LOCATE_BLOCK],
             y0: [0; LOCATE_BLOCK],
@@ -596,19 +602,35 @@ impl Block {
     }
 }
 
-/// Gaussian weights `exp(−a·(b + k)²)` of the lanes `k = o + l`, zero where `k` is
-/// outside `[lo, hi]`. One loop over independent lanes, which compiles to vector code.
+/// Gaussian weights `exp(−a·(b + k)²)` of the lanes `k = o + l`. One loop over
+/// independent lanes, which compiles to vector code.
 #[inline(always)]
-fn gauss_lanes(a: f32, b: f32, o: f32, lo: f32, hi: f32) -> Lanes {
+fn gauss_lanes(a: f32, b: f32, o: f32) -> Lanes {
     let mut out = [0f32; LANES];
+    let o1 = o - 1.0;
     for l in 0..LANES {
-        let k = o + LANE_INDEX[l];
-        let d = b + k;
-        let e = fast_exp_neg(-a * d * d);
-        out[l] = if k >= lo && k <= hi { e } else { 0.0 };
+        let d = b + (o1 + LANE_INDEX_1[l]);
+        out[l] = fast_exp_neg(-a * d * d);
     }
     out
 }
+
+/// `PREFIX[n][l]` is 1 for lanes `l < n`, else 0: masks lanes outside a footprint by a
+/// multiplication (the weights are finite), which stays vector code where a comparison
+/// of small integers became per-lane scalar code.
+const PREFIX: [Lanes; LANES + 1] = {
+    let mut t = [[0f32; LANES]; LANES + 1];
+    let mut n = 0;
+    while n <= LANES {
+        let mut l = 0;
+        while l < n {
+            t[n][l] = 1.0;
+            l += 1;
+        }
+        n += 1;
+    }
+    t
+};
 
 /// Add one splat to the rows `by0..by1` of a band's accumulators (`gpr` cells per row)
 /// and count it in the band's coverage corner differences `cov` (rows of `cstride`).
@@ -629,6 +651,8 @@ fn splat_one(
     cstride: usize,
     cov: &mut [i32],
 ) {
+    // Small integers as `u32` (not `usize`) where they become floats: a `u64` to `f32`
+    // conversion costs a branch and several instructions on x86-64.
     let (x0, x1) = (s.x0 as usize, s.x1 as usize);
     let g0 = x0 / LANES;
     let groups = x1 / LANES - g0 + 1;
@@ -640,18 +664,20 @@ fn splat_one(
         s,
         g0,
         by: s.y0 as f32 + 0.5 - s.y,
-        o0: (y0 - s.y0 as usize) as f32,
-        bx: (g0 * LANES) as f32 + 0.5 - s.x,
-        // The footprint's columns relative to the first group's (exact in f32).
-        lo: (x0 - g0 * LANES) as f32,
-        hi: (x1 - g0 * LANES) as f32,
+        o0: (y0 - s.y0 as usize) as u32 as f32,
+        bx: (g0 * LANES) as u32 as f32 + 0.5 - s.x,
+        // The footprint's first column within the first group, and its last within
+        // the last group.
+        lo: x0 % LANES,
+        hi: x1 % LANES,
+        groups,
     };
     match groups {
-        1 => cols.add::<1>(rows, gpr),
-        2 => cols.add::<2>(rows, gpr),
-        3 => cols.add::<3>(rows, gpr),
-        4 => cols.add::<4>(rows, gpr),
-        _ => cols.add_any(groups, rows, gpr),
+        1 => cols.add::<1>(rows, y1 - y0, gpr),
+        2 => cols.add::<2>(rows, y1 - y0, gpr),
+        3 => cols.add::<3>(rows, y1 - y0, gpr),
+        4 => cols.add::<4>(rows, y1 - y0, gpr),
+        _ => cols.add_any(groups, rows, y1 - y0, gpr),
     }
     // Coverage corners within the band (made per-row differences in `splat_band`).
     let r0 = (y0 - by0) * cstride;
@@ -675,20 +701,30 @@ struct Cols<'a> {
     o0: f32,
     /// `x` offset of the first group's first pixel center from the splat.
     bx: f32,
-    /// First and last footprint column relative to the first group's first column.
-    lo: f32,
-    hi: f32,
+    /// The footprint's first column within the first group, last within the last.
+    lo: usize,
+    hi: usize,
+    /// Groups of `LANES` columns it touches.
+    groups: usize,
 }
 
 impl Cols<'_> {
     /// `g_x · c` of group `j` (lane weights zero outside the footprint).
     #[inline(always)]
     fn weighted(&self, j: usize) -> Cell {
-        let g = gauss_lanes(self.s.ax, self.bx, (j * LANES) as f32, self.lo, self.hi);
+        let g = gauss_lanes(self.s.ax, self.bx, (j * LANES) as u32 as f32);
+        // Lanes before the first column (first group) and after the last (last group).
+        let first = if j == 0 { self.lo } else { 0 };
+        let last = if j + 1 == self.groups {
+            self.hi
+        } else {
+            LANES - 1
+        };
+        let (skip, keep) = (&PREFIX[first], &PREFIX[last + 1]);
         let mut out = [[0f32; LANES]; CHANNELS];
         for (o, &c) in out.iter_mut().zip(&self.s.c) {
             for l in 0..LANES {
-                o[l] = g[l] * c;
+                o[l] = g[l] * ((keep[l] - skip[l]) * c);
             }
         }
         out
@@ -698,21 +734,35 @@ impl Cols<'_> {
     /// footprint, from offsets to the footprint's first row.
     #[inline(always)]
     fn row_weights(&self, k: usize) -> Lanes {
-        let o = self.o0 + (k * LANES) as f32;
-        gauss_lanes(self.s.ay, self.by, o, f32::NEG_INFINITY, f32::INFINITY)
+        let o = self.o0 + (k * LANES) as u32 as f32;
+        gauss_lanes(self.s.ay, self.by, o)
     }
 
-    /// Footprints of `G` groups: the products `g_x·c` stay in registers over the rows.
+    /// Footprints of `G` groups, `nrows` rows of `gpr` cells: the products `g_x·c`
+    /// stay in registers over the rows.
     #[inline(always)]
-    fn add<const G: usize>(&self, rows: &mut [Cell], gpr: usize) {
+    fn add<const G: usize>(&self, rows: &mut [Cell], nrows: usize, gpr: usize) {
         let mut gxc = [[[0f32; LANES]; CHANNELS]; G];
         for (j, g) in gxc.iter_mut().enumerate() {
             *g = self.weighted(j);
         }
-        for (k, run) in rows.chunks_mut(LANES * gpr).enumerate() {
+        if nrows == 0 {
+            return;
+        }
+        // One bounds check for the splat, not one per row: the last row's groups end
+        // within `rows`, and every earlier row's end before them.
+        assert!(self.g0 + G <= gpr && nrows * gpr <= rows.len());
+        // Rows by index, not `chunks(gpr)`: a chunk iterator divides by its length.
+        for k in 0..nrows.div_ceil(LANES) {
             let gy = self.row_weights(k);
-            for (row, &gy) in run.chunks_exact_mut(gpr).zip(&gy) {
-                let cells: &mut [Cell; G] = (&mut row[self.g0..self.g0 + G]).try_into().unwrap();
+            let n = (nrows - k * LANES).min(LANES);
+            for (i, &gy) in gy[..n].iter().enumerate() {
+                let o = (k * LANES + i) * gpr + self.g0;
+                // SAFETY: the row `k·LANES + i < nrows`, so `o + G ≤ (nrows − 1)·gpr +
+                // gpr ≤ rows.len()` by the assertion above: `o..o + G` lies within
+                // `rows`, which is borrowed mutably, so `cells` is the only reference to
+                // those cells while it lives; `[Cell; G]` has the alignment of `Cell`.
+                let cells = unsafe { &mut *rows.as_mut_ptr().add(o).cast::<[Cell; G]>() };
                 for (cell, gxc) in cells.iter_mut().zip(&gxc) {
                     for (d, gxc) in cell.iter_mut().zip(gxc) {
                         for l in 0..LANES {
@@ -726,14 +776,16 @@ impl Cols<'_> {
 
     /// Wider footprints: the same sums, a group at a time over the rows.
     #[inline(always)]
-    fn add_any(&self, groups: usize, rows: &mut [Cell], gpr: usize) {
+    fn add_any(&self, groups: usize, rows: &mut [Cell], nrows: usize, gpr: usize) {
         for j in 0..groups {
             let gxc = self.weighted(j);
             let c = self.g0 + j;
-            for (k, run) in rows.chunks_mut(LANES * gpr).enumerate() {
+            for k in 0..nrows.div_ceil(LANES) {
                 let gy = self.row_weights(k);
-                for (row, &gy) in run.chunks_exact_mut(gpr).zip(&gy) {
-                    for (d, gxc) in row[c].iter_mut().zip(&gxc) {
+                let n = (nrows - k * LANES).min(LANES);
+                for (i, &gy) in gy[..n].iter().enumerate() {
+                    let cell = &mut rows[(k * LANES + i) * gpr + c];
+                    for (d, gxc) in cell.iter_mut().zip(&gxc) {
                         for l in 0..LANES {
                             d[l] = gxc[l].mul_add(gy, d[l]);
                         }
@@ -778,8 +830,11 @@ fn bin_piece(
             b.inv_et[i] = f.inv_et;
             (b.rx[i], b.ry[i]) = placer.radii(f, l.scale);
         }
-        // The cull, footprint and temporal weight of every lane (the arithmetic of the
-        // tests' `Placer::finish`), in vector code.
+        // The cull, footprint, temporal weight and weighted color of every lane (the
+        // arithmetic of the tests' `Placer::finish`), in vector code: reading every
+        // lane's color here streams the ring's color arrays, where reading only the
+        // survivors' later waits on each one's cache miss.
+        let (r, g, bl) = (&cr[p0..p0 + n], &cg[p0..p0 + n], &cb[p0..p0 + n]);
         for i in 0..n {
             let a = b.age[i] * b.inv_et[i];
             let [x0, x1, y0, y1] = placer.bounds(b.x[i], b.y[i], b.rx[i], b.ry[i]);
@@ -787,7 +842,11 @@ fn bin_piece(
             b.x1[i] = small_int(x1);
             b.y0[i] = small_int(y0);
             b.y1[i] = small_int(y1);
-            b.wt[i] = fast_exp_neg(-0.5 * a * a);
+            let wt = fast_exp_neg(-0.5 * a * a);
+            b.wt[i] = wt;
+            b.wc[0][i] = wt * r[i];
+            b.wc[1][i] = wt * g[i];
+            b.wc[2][i] = wt * bl[i];
             // A NaN age (not `ok`) fails the first test.
             b.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
         }
@@ -800,13 +859,13 @@ fn bin_piece(
             let i = i as usize;
             let f = &placer.tiles[b.tile[i] as usize];
             let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
-            let (q, wt) = (p0 + i, b.wt[i]);
+            let wt = b.wt[i];
             let s = Splat {
                 x: b.x[i],
                 y: b.y[i],
                 ax: f.ax,
                 ay: f.ay,
-                c: [wt * cr[q], wt * cg[q], wt * cb[q], wt, wt * b.age[i]],
+                c: [b.wc[0][i], b.wc[1][i], b.wc[2][i], wt, wt * b.age[i]],
                 x0: x0 as u16,
                 x1: x1 as u16,
                 y0: y0 as u16,
