@@ -82,7 +82,7 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
         )
     };
     println!(
-        "ring {n}, kept {kept} ({:.1}%), older than 3·max e_t: {old}",
+        "ring {n}, kept {kept} ({:.1}%), older than cutoff·max e_t: {old}",
         100.0 * kept as f64 / n as f64
     );
     println!(

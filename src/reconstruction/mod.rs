@@ -94,7 +94,11 @@ pub struct ReconParams {
     pub bounds: FilterBounds,
     /// Spatial footprint radius in sigmas.
     pub spatial_cutoff: f32,
-    /// Samples older than this many temporal sigmas get no weight.
+    /// Samples older than this many temporal sigmas get no weight. Default 2.5, the
+    /// spatial cutoff: the kernel's support is cut at the same
+    /// number of sigmas in space and time, so a dropped sample weighs at most
+    /// e^(−3.125) ≈ 4.4% of a fresh one at the same place. (3 sigmas changed the
+    /// Table 1 RMS by at most 0.1 of 255 and cost 12% more per refresh: README.)
     pub temporal_cutoff: f32,
     /// Largest footprint radius, pixels (bounds the cost of one splat).
     pub max_radius: f32,
@@ -121,7 +125,7 @@ impl ReconParams {
             fixed_filter: None,
             bounds: FilterBounds::default(),
             spatial_cutoff: 2.5,
-            temporal_cutoff: 3.0,
+            temporal_cutoff: 2.5,
             max_radius: 24.0,
             undersampled: 4,
             oversampled: 32,
