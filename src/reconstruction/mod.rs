@@ -766,6 +766,8 @@ impl Cols<'_> {
                 // gpr ≤ rows.len()` by the assertion above: `o..o + G` lies within
                 // `rows`, which is borrowed mutably, so `cells` is the only reference to
                 // those cells while it lives; `[Cell; G]` has the alignment of `Cell`.
+                // Exercised against direct evaluation, footprints of one to many groups
+                // and at the image's edges, by `tests::fast_path_matches_direct_evaluation`.
                 let cells = unsafe { &mut *rows.as_mut_ptr().add(o).cast::<[Cell; G]>() };
                 for (cell, gxc) in cells.iter_mut().zip(&gxc) {
                     for (d, gxc) in cell.iter_mut().zip(gxc) {
