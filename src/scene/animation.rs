@@ -244,7 +244,7 @@ impl KeyframeTrack {
                 best = Some((kt, v));
             }
         }
-        best.map_or(true, |(_, v)| v)
+        best.is_none_or(|(_, v)| v)
     }
 }
 
