@@ -27,7 +27,7 @@ use std::{
     time::{Duration, Instant},
 };
 
-use crossbeam_channel::{bounded, Receiver};
+use crossbeam_channel::{bounded, Receiver, Sender};
 use glam::Vec3;
 
 use super::{
@@ -188,11 +188,7 @@ impl Pipeline {
             RtMethod::Adaptive => {
                 let (to_ctrl, ctrl_rx) = bounded(256);
                 let (to_img, img_rx) = bounded::<Vec<StreamSample>>(256);
-                for i in 0..config.sampling_threads {
-                    let (s, tx) = (shared.clone(), to_ctrl.clone());
-                    p.spawn("sampling", move || sampling::adaptive(&s, i as u64, tx))?;
-                }
-                drop(to_ctrl);
+                p.spawn_sampling(config.sampling_threads, to_ctrl, sampling::adaptive)?;
                 let s = shared.clone();
                 p.spawn("controller", move || controller::run(&s, ctrl_rx, to_img))?;
                 let s = shared.clone();
@@ -200,26 +196,33 @@ impl Pipeline {
             }
             RtMethod::TraditionalFrameless => {
                 let (tx, rx) = bounded(256);
-                for i in 0..config.sampling_threads {
-                    let (s, tx) = (shared.clone(), tx.clone());
-                    p.spawn("sampling", move || sampling::frameless(&s, i as u64, tx))?;
-                }
-                drop(tx);
+                p.spawn_sampling(config.sampling_threads, tx, sampling::frameless)?;
                 let s = shared.clone();
                 p.spawn("image", move || image_thread(&s, Input::Frameless(rx)))?;
             }
             RtMethod::Framed => {
                 let (tx, rx) = bounded(1024);
-                for i in 0..config.sampling_threads {
-                    let (s, tx) = (shared.clone(), tx.clone());
-                    p.spawn("sampling", move || sampling::framed(&s, i as u64, tx))?;
-                }
-                drop(tx);
+                p.spawn_sampling(config.sampling_threads, tx, sampling::framed)?;
                 let s = shared.clone();
                 p.spawn("image", move || image_thread(&s, Input::Framed(rx)))?;
             }
         }
         Ok(p)
+    }
+
+    /// `n` sampling threads running `f(shared, thread index, sender)`, each with a
+    /// clone of `tx` (dropped here, so the channel closes when they all end).
+    fn spawn_sampling<T: Send + 'static>(
+        &mut self,
+        n: usize,
+        tx: Sender<T>,
+        f: fn(&Shared, u64, Sender<T>),
+    ) -> Result<(), RealtimeError> {
+        for i in 0..n {
+            let (s, tx) = (self.shared.clone(), tx.clone());
+            self.spawn("sampling", move || f(&s, i as u64, tx))?;
+        }
+        Ok(())
     }
 
     fn spawn(

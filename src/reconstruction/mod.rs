@@ -655,8 +655,6 @@ fn splat_one(
     cstride: usize,
     cov: &mut [i32],
 ) {
-    // Small integers as `u32` (not `usize`) where they become floats: a `u64` to `f32`
-    // conversion costs a branch and several instructions on x86-64.
     let (x0, x1) = (s.x0 as usize, s.x1 as usize);
     let g0 = x0 / LANES;
     let groups = x1 / LANES - g0 + 1;
@@ -668,6 +666,8 @@ fn splat_one(
         s,
         g0,
         by: s.y0 as f32 + 0.5 - s.y,
+        // Small integers become floats through `u32`: from `usize` (`u64`) the
+        // conversion costs a branch and several instructions on x86-64.
         o0: (y0 - s.y0 as usize) as u32 as f32,
         bx: (g0 * LANES) as u32 as f32 + 0.5 - s.x,
         // The footprint's first column within the first group, and its last within
@@ -750,9 +750,6 @@ impl Cols<'_> {
         for (j, g) in gxc.iter_mut().enumerate() {
             *g = self.weighted(j);
         }
-        if nrows == 0 {
-            return;
-        }
         // One bounds check for the splat, not one per row: the last row's groups end
         // within `rows`, and every earlier row's end before them.
         assert!(self.g0 + G <= gpr && nrows * gpr <= rows.len());
@@ -762,10 +759,11 @@ impl Cols<'_> {
             let n = (nrows - k * LANES).min(LANES);
             for (i, &gy) in gy[..n].iter().enumerate() {
                 let o = (k * LANES + i) * gpr + self.g0;
-                // SAFETY: the row `k·LANES + i < nrows`, so `o + G ≤ (nrows − 1)·gpr +
-                // gpr ≤ rows.len()` by the assertion above: `o..o + G` lies within
-                // `rows`, which is borrowed mutably, so `cells` is the only reference to
-                // those cells while it lives; `[Cell; G]` has the alignment of `Cell`.
+                // SAFETY: the row `r = k·LANES + i < nrows` and `g0 + G ≤ gpr`, so
+                // `o + G = r·gpr + g0 + G ≤ nrows·gpr ≤ rows.len()` by the assertion
+                // above: `o..o + G` lies within `rows`, which is borrowed mutably, so
+                // `cells` is the only reference to those cells while it lives;
+                // `[Cell; G]` has the alignment of `Cell`.
                 // Exercised against direct evaluation, footprints of one to many groups
                 // and at the image's edges, by `tests::fast_path_matches_direct_evaluation`.
                 let cells = unsafe { &mut *rows.as_mut_ptr().add(o).cast::<[Cell; G]>() };

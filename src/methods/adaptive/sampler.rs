@@ -466,6 +466,25 @@ impl Sampler {
         let _ = self.buffer.push_back(px, py, c);
     }
 
+    /// The reprojection step of a visit to `leaf`: `reprojections_per_visit` random
+    /// pixels of the tile give up their oldest crosshair, which is reprojected to `now`
+    /// (the tiling does not change meanwhile, so each one's tile is `leaf`).
+    fn reproject_in(&mut self, state: &SceneState, leaf: u32, now: f64) {
+        let rect = self.tiling.node(leaf).rect;
+        for _ in 0..self.params.reprojections_per_visit {
+            let (x, y) = self.random_in(rect);
+            let (px, py) = (x as u32, y as u32);
+            if self.keeps_in_place(px, py) {
+                continue;
+            }
+            if let Some(c) = self.buffer.pop_front(px, py) {
+                let sub = self.contribution(&c);
+                self.tiling.add_path(leaf, &sub, -1.0);
+                self.reproject(state, c, now);
+            }
+        }
+    }
+
     fn visit(&mut self, leaf: u32, now: f64) {
         let state = self.state(now);
         self.counters.visits += 1;
@@ -476,18 +495,7 @@ impl Sampler {
             self.since_adjust += 1;
         }
         if self.params.reprojection {
-            for _ in 0..self.params.reprojections_per_visit {
-                let (x, y) = self.random_in(rect);
-                let (px, py) = (x as u32, y as u32);
-                if self.keeps_in_place(px, py) {
-                    continue;
-                }
-                if let Some(c) = self.buffer.pop_front(px, py) {
-                    let sub = self.contribution(&c);
-                    self.tiling.add_path(leaf, &sub, -1.0);
-                    self.reproject(&state, c, now);
-                }
-            }
+            self.reproject_in(&state, leaf, now);
         }
         // The tiling may not have changed during the visit; the leaf is still a tile.
         let (x, y) = self.random_in(rect);
@@ -835,21 +843,8 @@ impl Sampler {
         }
         let state = self.state(now);
         let leaf = self.tiling.leaf_at(px, py);
-        let rect = self.tiling.node(leaf).rect;
         let before = self.counters.rays;
-        for _ in 0..self.params.reprojections_per_visit {
-            let (x, y) = self.random_in(rect);
-            let (qx, qy) = (x as u32, y as u32);
-            if self.keeps_in_place(qx, qy) {
-                continue;
-            }
-            if let Some(c) = self.buffer.pop_front(qx, qy) {
-                let l = self.tiling.leaf_at(qx, qy);
-                let sub = self.contribution(&c);
-                self.tiling.add_path(l, &sub, -1.0);
-                self.reproject(&state, c, now);
-            }
-        }
+        self.reproject_in(&state, leaf, now);
         self.next_sample += self.counters.rays - before;
         if self.since_adjust >= self.params.chunk {
             self.since_adjust = 0;
