@@ -109,11 +109,7 @@ fn main() {
         let s = if what == "fixture" { 256 } else { 512 };
         let n = if s == 256 { 400_000 } else { 6 * s * s };
         let (mut r, cam, tiling) = reconstruct_fixture(s as u32, s as u32, n, 1);
-        let mut areas: Vec<u32> = tiling
-            .leaves()
-            .iter()
-            .map(|&l| tiling.node(l).rect.area())
-            .collect();
+        let mut areas: Vec<u32> = tiling.tiles.iter().map(|t| t.rect.area()).collect();
         areas.sort();
         println!(
             "tiles {}, area p10/p50/p90/max {} {} {} {}",

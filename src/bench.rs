@@ -97,7 +97,7 @@ pub fn reconstruct_fixture(
 ) -> (
     crate::reconstruction::Reconstructor,
     crate::scene::CameraFrame,
-    crate::methods::adaptive::tiling::Tiling,
+    crate::tiles::TilingSnapshot,
 ) {
     use crate::{
         methods::adaptive::tiling::{TileStats, Tiling},
@@ -167,7 +167,7 @@ pub fn reconstruct_fixture(
             ..TileStats::default()
         };
     }
-    (r, camera, tiling)
+    (r, camera, tiling.snapshot())
 }
 
 /// Milliseconds of one reconstructor refresh on the [`reconstruct_fixture`] (best of
@@ -214,7 +214,7 @@ pub fn adaptive_after_one_second(
     use crate::methods::{adaptive, Method, MethodContext};
     let ctx = MethodContext {
         tracer: tracer.clone(),
-        clock: crate::evaluation::clock::Clock {
+        clock: crate::clock::Clock {
             start: time,
             rate: 400_000.0,
             first_refresh: time,

@@ -6,6 +6,7 @@
 
 pub mod bench;
 pub mod cli;
+pub mod clock;
 pub mod evaluation;
 pub mod image;
 pub mod methods;
@@ -14,4 +15,5 @@ pub mod reconstruction;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod tiles;
 pub mod trace;

@@ -4,7 +4,8 @@
 use std::sync::Arc;
 
 use frameless::{
-    evaluation::{self, clock::Clock, EvalConfig, Silent},
+    clock::Clock,
+    evaluation::{self, EvalConfig, Silent},
     methods::{
         adaptive::{Adaptive, Sampler, SamplerParams},
         Method, MethodContext, MethodKind,

@@ -3,7 +3,8 @@
 use std::sync::Arc;
 
 use frameless::{
-    evaluation::{self, clock::Clock, EvalConfig, Silent},
+    clock::Clock,
+    evaluation::{self, EvalConfig, Silent},
     methods::{point_tracking::PointTracking, taa::Taa, Method, MethodContext, MethodKind},
     scene::{
         animation::KeyframeTrack, Camera, CameraPath, CameraTrack, Group, Light, Material, Node,

@@ -4,7 +4,8 @@
 use std::sync::Arc;
 
 use frameless::{
-    evaluation::{self, clock::Clock, EvalConfig, Silent},
+    clock::Clock,
+    evaluation::{self, EvalConfig, Silent},
     methods::{framed::Framed, Method, MethodContext, MethodKind},
     scene::{Camera, CameraTrack, Group, Light, Material, Scene, Sphere, Triangle},
     trace::{TraceOptions, Tracer},

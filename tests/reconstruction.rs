@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use frameless::{
-    evaluation::clock::Clock,
+    clock::Clock,
     image::Image,
     methods::{
         adaptive::{tiling::Tiling, Adaptive, SamplerParams},
@@ -207,7 +207,7 @@ fn constant_field_reconstructs_exactly_including_holes() {
             }
             let mut tiling = Tiling::new(w, h);
             tiling.split(0, |_| Default::default());
-            let img = r.reconstruct(0.06, &cam, &tiling).clone();
+            let img = r.reconstruct(0.06, &cam, &tiling.snapshot()).clone();
             if expect_holes && params.fixed_filter.is_none() {
                 assert!(r.holes() > 0, "holes expected with {n} samples");
             }

@@ -247,7 +247,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
     );
     let ctx = MethodContext {
         tracer,
-        clock: evaluation::clock::Clock {
+        clock: crate::clock::Clock {
             start: a.start - a.warmup,
             rate,
             first_refresh: a.start,
@@ -416,7 +416,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         Tracer::new(scene, w, h, TraceOptions::default())
             .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
     );
-    let clock = evaluation::clock::Clock {
+    let clock = crate::clock::Clock {
         start: a.start,
         rate,
         first_refresh: a.start,

@@ -2,8 +2,6 @@
 //! display and sample budget under a simulated clock; at every refresh its displayed
 //! image is compared with the ideal image of that instant.
 
-pub mod cache;
-pub mod clock;
 pub mod metrics;
 pub mod report;
 pub mod table1;
@@ -14,12 +12,12 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::{
+    clock::Clock,
     methods::{ideal::ideal_image, MethodContext, MethodKind},
+    render::cache::IdealCache,
     scene::{CameraPath, Scene},
     trace::{TraceOptions, Tracer},
 };
-use cache::IdealCache;
-use clock::Clock;
 
 /// Settings of one evaluation run.
 #[derive(Clone, Debug)]

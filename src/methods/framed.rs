@@ -14,7 +14,7 @@
 use rayon::prelude::*;
 
 use super::{Displayed, Method, MethodContext};
-use crate::{evaluation::clock::TIME_EPS, image::Image};
+use crate::{clock::TIME_EPS, image::Image};
 
 /// A double-buffered framed renderer.
 pub struct Framed {

@@ -14,7 +14,7 @@ pub mod taa;
 
 use std::sync::Arc;
 
-use crate::{evaluation::clock::Clock, image::Image, trace::Tracer};
+use crate::{clock::Clock, image::Image, trace::Tracer};
 
 /// The methods `frameless eval --methods` accepts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -199,7 +199,7 @@ pub struct MethodContext {
     /// Samples per pixel of ideal images.
     pub ideal_spp: u32,
     /// Where ideal images are cached, if anywhere.
-    pub ideal_cache: Option<Arc<crate::evaluation::cache::IdealCache>>,
+    pub ideal_cache: Option<Arc<crate::render::cache::IdealCache>>,
 }
 
 /// What the display shows at one refresh.

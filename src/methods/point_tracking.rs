@@ -22,7 +22,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{Displayed, Method, MethodContext};
-use crate::{evaluation::clock::TIME_EPS, image::Image};
+use crate::{clock::TIME_EPS, image::Image};
 
 /// What point tracking measured over a run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]

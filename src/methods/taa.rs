@@ -16,7 +16,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{framed::reduced_grid, Displayed, Method, MethodContext};
-use crate::{evaluation::clock::TIME_EPS, image::Image, scene::CameraFrame, trace::Sample};
+use crate::{clock::TIME_EPS, image::Image, scene::CameraFrame, trace::Sample};
 
 /// Weight of the current frame in the exponential blend (the usual ≈ 0.1).
 pub const ALPHA: f32 = 0.1;

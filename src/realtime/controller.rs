@@ -24,13 +24,13 @@ use super::{
     sampling::AdaptiveBatch,
 };
 use crate::{
-    evaluation::clock::Clock,
+    clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::StreamSample,
         tiling::{Pending, Rect},
         Sampler,
     },
+    trace::StreamSample,
 };
 
 /// What a sampling thread did on one visit.

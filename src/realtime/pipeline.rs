@@ -35,10 +35,8 @@ use super::{
     RtMethod,
 };
 use crate::{
-    image::Image,
-    methods::adaptive::{sampler::StreamSample, tiling::Tiling},
-    reconstruction::Reconstructor,
-    trace::Tracer,
+    image::Image, methods::adaptive::tiling::Tiling, reconstruction::Reconstructor,
+    trace::StreamSample, trace::Tracer,
 };
 
 /// One displayed image.
@@ -504,7 +502,7 @@ fn build(s: &Shared, b: &mut Builder, t: f64) -> Option<Built> {
                 r.push_stream(batch);
             }
             let camera = s.tracer.state_at(t).camera;
-            let img = r.reconstruct(t, &camera, &tiling).clone();
+            let img = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
             Some((img, r.mean_age(), Some(tiling)))
         }
         Builder::Frameless {

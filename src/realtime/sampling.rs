@@ -16,11 +16,11 @@ use glam::Vec3;
 use super::{controller::Visit, pipeline::Shared};
 use crate::{
     methods::adaptive::{
-        sampler::{crosshair_with, StreamSample},
+        sampler::crosshair_with,
         tiling::{Pending, Rect},
     },
     sampling::Rng,
-    trace::{SceneState, Tracer},
+    trace::{SceneState, StreamSample, Tracer},
 };
 
 /// Longest a batch is held before it is sent, seconds.

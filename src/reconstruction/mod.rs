@@ -72,11 +72,7 @@ use std::{collections::HashMap, sync::OnceLock};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{
-    image::Image,
-    methods::adaptive::{sampler::StreamSample, tiling::Tiling},
-    scene::CameraFrame,
-};
+use crate::{image::Image, scene::CameraFrame, tiles::TilingSnapshot, trace::StreamSample};
 pub use filter::{Extents, FilterBounds};
 use ring::field;
 pub use ring::Ring;
@@ -1059,7 +1055,7 @@ impl Reconstructor {
     }
 
     /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
-    fn update_filters(&mut self, tiling: &Tiling) {
+    fn update_filters(&mut self, tiling: &TilingSnapshot) {
         let cut = self.params.spatial_cutoff;
         self.filters = OnceLock::new();
         self.tiles.clear();
@@ -1095,15 +1091,14 @@ impl Reconstructor {
     }
 
     /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
-    fn tile_filters(&mut self, tiling: &Tiling) {
+    fn tile_filters(&mut self, tiling: &TilingSnapshot) {
         let w = self.width as usize;
         let cut = self.params.spatial_cutoff;
-        let tiles = tiling.len();
-        for &l in tiling.leaves() {
-            let n = tiling.node(l);
-            let r = n.rect;
+        let tiles = tiling.tiles.len();
+        for tile in &tiling.tiles {
+            let r = tile.rect;
             let rl = filter::local_rate(self.rate, tiles, r.area());
-            let (gx, gy, gt) = n.stats.gradients();
+            let (gx, gy, gt) = (tile.gx, tile.gy, tile.gt);
             let e = filter::extents(1.0 / rl, gx, gy, gt, &self.params.bounds);
             let k = self.tiles.len() as u32;
             self.tiles.push(TileFilter::new(
@@ -1121,7 +1116,7 @@ impl Reconstructor {
 
     /// Reconstruct the image at display time `t` seen by `camera`, with filters from
     /// `tiling` (the sampler's current tiling).
-    pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &Tiling) -> &Image {
+    pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
         self.update_filters(tiling);
         self.prepare_splats(t, camera);
         self.splat();
@@ -1407,7 +1402,9 @@ mod tests {
             hit_point: p,
             velocity: Vec3::ZERO,
         });
-        let img = r.reconstruct(0.01, &c, &Tiling::new(w, h)).clone();
+        let img = r
+            .reconstruct(0.01, &c, &TilingSnapshot::whole(w, h))
+            .clone();
         for px in &img.pixels {
             assert!((*px - Vec3::new(0.25, 0.5, 0.75)).abs().max_element() < 1e-6);
         }
@@ -1428,8 +1425,8 @@ mod tests {
         shuffle: bool,
         params: ReconParams,
         gts: [f64; 4],
-    ) -> (Reconstructor, CameraFrame, Tiling) {
-        use crate::methods::adaptive::tiling::TileStats;
+    ) -> (Reconstructor, CameraFrame, TilingSnapshot) {
+        use crate::tiles::{Rect, TileGradients};
         let c = cam(w, h);
         let mut rng = crate::sampling::Rng::new(&[11, n as u64]);
         let mut r = Reconstructor::new(w, h, n as f64 / span, params);
@@ -1458,20 +1455,22 @@ mod tests {
         for s in samples {
             r.push(s);
         }
-        let mut tiling = Tiling::new(w, h);
-        while tiling.len() < 16 {
-            let l = tiling.leaves()[0];
-            tiling.split(l, |_| TileStats::default());
-        }
-        for (k, l) in tiling.leaves().to_vec().into_iter().enumerate() {
+        // A 4 × 4 grid of tiles.
+        let mut tiling = TilingSnapshot::default();
+        for k in 0..16u32 {
+            let (i, j) = (k % 4, k / 4);
             let g = (k % 4) as f64 / 3.0;
-            tiling.node_mut(l).stats = TileStats {
-                wc: 1.0,
-                wgx: 0.2 * g,
-                wgy: 0.2 * (1.0 - g),
-                wgt: gts[k / 4],
-                ..TileStats::default()
-            };
+            tiling.tiles.push(TileGradients {
+                rect: Rect {
+                    x0: w * i / 4,
+                    y0: h * j / 4,
+                    x1: w * (i + 1) / 4,
+                    y1: h * (j + 1) / 4,
+                },
+                gx: 0.2 * g,
+                gy: 0.2 * (1.0 - g),
+                gt: gts[k as usize / 4],
+            });
         }
         (r, c, tiling)
     }
@@ -1486,7 +1485,7 @@ mod tests {
         r: &mut Reconstructor,
         t: f64,
         c: &CameraFrame,
-        tiling: &Tiling,
+        tiling: &TilingSnapshot,
     ) -> Vec<([f64; 5], u32)> {
         r.update_filters(tiling);
         let placer = r.placer(t, c);
@@ -1514,7 +1513,7 @@ mod tests {
     }
 
     /// The fast path (bands, lanes, fast exp, stale cut) against direct evaluation.
-    fn check_against_direct(r: &mut Reconstructor, c: &CameraFrame, tiling: &Tiling) {
+    fn check_against_direct(r: &mut Reconstructor, c: &CameraFrame, tiling: &TilingSnapshot) {
         for _ in 0..3 {
             let d = direct(r, 1.0, c, tiling);
             r.reconstruct(1.0, c, tiling);

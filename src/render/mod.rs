@@ -1,3 +1,4 @@
 //! Image renderers built on the tracer.
 
+pub mod cache;
 pub mod still;

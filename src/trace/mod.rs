@@ -56,6 +56,20 @@ pub struct Sample {
     pub hit: bool,
 }
 
+/// A traced sample with where and when it was traced: what samplers stream to a
+/// reconstructor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamSample {
+    /// Sub-pixel position where it was traced.
+    pub x: f32,
+    /// Sub-pixel position where it was traced.
+    pub y: f32,
+    /// Time it was traced.
+    pub t: f64,
+    /// Everything the tracer returned.
+    pub sample: Sample,
+}
+
 /// Tracer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceOptions {

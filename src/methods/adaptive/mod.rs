@@ -95,7 +95,8 @@ impl Method for Adaptive {
         let stream = self.sampler.drain_stream();
         self.recon.push_stream(&stream);
         let camera = self.tracer.state_at(t).camera;
-        self.recon.reconstruct(t, &camera, self.sampler.tiling());
+        self.recon
+            .reconstruct(t, &camera, &self.sampler.tiling().snapshot());
         Displayed {
             image: self.recon.image(),
             mean_age: self.recon.mean_age(),

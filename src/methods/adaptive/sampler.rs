@@ -18,23 +18,10 @@ use super::{
     tiling::{Pending, Rect, TileStats, Tiling, NONE},
 };
 use crate::{
-    evaluation::clock::Clock,
+    clock::Clock,
     sampling::Rng,
-    trace::{Sample, SceneState, Tracer},
+    trace::{Sample, SceneState, StreamSample, Tracer},
 };
-
-/// A traced sample as streamed to the reconstructor.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StreamSample {
-    /// Sub-pixel position where it was traced.
-    pub x: f32,
-    /// Sub-pixel position where it was traced.
-    pub y: f32,
-    /// Time it was traced.
-    pub t: f64,
-    /// Everything the tracer returned.
-    pub sample: Sample,
-}
 
 /// Counters of the sampler's work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]

@@ -3,6 +3,9 @@
 //! its block (the deep-buffer samples inside its rectangle), so merging two tiles is
 //! free and splitting one needs a scan of one child only.
 
+pub use crate::tiles::Rect;
+use crate::tiles::{TileGradients, TilingSnapshot};
+
 /// Marks "no node".
 pub const NONE: u32 = u32::MAX;
 
@@ -117,38 +120,6 @@ pub struct Pending {
     pub lum: f32,
 }
 
-/// A rectangle of pixels `[x0, x1) × [y0, y1)`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Rect {
-    /// Left, inclusive.
-    pub x0: u32,
-    /// Top, inclusive.
-    pub y0: u32,
-    /// Right, exclusive.
-    pub x1: u32,
-    /// Bottom, exclusive.
-    pub y1: u32,
-}
-
-impl Rect {
-    /// Width in pixels.
-    pub fn width(&self) -> u32 {
-        self.x1 - self.x0
-    }
-    /// Height in pixels.
-    pub fn height(&self) -> u32 {
-        self.y1 - self.y0
-    }
-    /// Area in pixels.
-    pub fn area(&self) -> u32 {
-        self.width() * self.height()
-    }
-    /// Whether pixel `(x, y)` lies inside.
-    pub fn contains(&self, x: u32, y: u32) -> bool {
-        x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
-    }
-}
-
 /// One node of the K-D tree.
 #[derive(Clone, Debug)]
 pub struct Node {
@@ -221,6 +192,26 @@ impl Tiling {
     /// Number of tiles.
     pub fn len(&self) -> usize {
         self.leaves.len()
+    }
+
+    /// The tiles and their gradients, as the reconstructor reads them.
+    pub fn snapshot(&self) -> TilingSnapshot {
+        TilingSnapshot {
+            tiles: self
+                .leaves
+                .iter()
+                .map(|&l| {
+                    let n = self.node(l);
+                    let (gx, gy, gt) = n.stats.gradients();
+                    TileGradients {
+                        rect: n.rect,
+                        gx,
+                        gy,
+                        gt,
+                    }
+                })
+                .collect(),
+        }
     }
 
     /// Whether there are no tiles (never true).
