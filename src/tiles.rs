@@ -6,6 +6,8 @@
 //! filters. Keeping that snapshot down here lets the reconstructor sit below the
 //! methods that feed it.
 
+use crate::sampling::Rng;
+
 /// A rectangle of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rect {
@@ -35,6 +37,14 @@ impl Rect {
     /// Whether pixel `(x, y)` lies inside.
     pub fn contains(&self, x: u32, y: u32) -> bool {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
+    }
+
+    /// A uniformly random sub-pixel position inside.
+    pub fn random_point(&self, rng: &mut Rng) -> (f32, f32) {
+        let x = self.x0 as f32 + rng.uniform() * self.width() as f32;
+        let y = self.y0 as f32 + rng.uniform() * self.height() as f32;
+        // Keep strictly inside the rectangle despite rounding.
+        (x.min(self.x1 as f32 - 1e-3), y.min(self.y1 as f32 - 1e-3))
     }
 }
 

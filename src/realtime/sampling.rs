@@ -15,51 +15,13 @@ use glam::Vec3;
 
 use super::{controller::Visit, pipeline::Shared};
 use crate::{
-    methods::adaptive::{
-        sampler::crosshair_with,
-        tiling::{Pending, Rect},
-    },
+    methods::adaptive::{sampler::crosshair_with, tiling::Pending},
     sampling::Rng,
-    trace::{SceneState, StreamSample, Tracer},
+    trace::{SceneState, StateCache, StreamSample, Tracer},
 };
 
 /// Longest a batch is held before it is sent, seconds.
 const BATCH_S: f64 = 1e-3;
-
-/// The scene state of the current instant, rebuilt when the 1 ms quantum or the live
-/// camera changes.
-struct StateCache {
-    key: (i64, u64),
-    state: Option<Arc<SceneState>>,
-}
-
-impl StateCache {
-    fn new() -> Self {
-        Self {
-            key: (i64::MIN, u64::MAX),
-            state: None,
-        }
-    }
-
-    fn at(&mut self, tracer: &Tracer, t: f64) -> Arc<SceneState> {
-        let key = (Tracer::quantize(t), tracer.camera_generation());
-        match &self.state {
-            Some(s) if key == self.key => s.clone(),
-            _ => {
-                let s = tracer.state_at(t);
-                self.key = key;
-                self.state = Some(s.clone());
-                s
-            }
-        }
-    }
-}
-
-fn random_in(rng: &mut Rng, r: Rect) -> (f32, f32) {
-    let x = r.x0 as f32 + rng.uniform() * r.width() as f32;
-    let y = r.y0 as f32 + rng.uniform() * r.height() as f32;
-    (x.min(r.x1 as f32 - 1e-3), y.min(r.y1 as f32 - 1e-3))
-}
 
 /// A batch for the controller.
 #[derive(Default)]
@@ -89,7 +51,7 @@ pub(crate) fn adaptive(s: &Shared, thread: u64, tx: Sender<AdaptiveBatch>) {
             snap_seq = seq;
         }
         let now = s.clock.now();
-        let state = states.at(tracer, now);
+        let state = states.at(tracer, now).0;
         let k = rng.below(snap.rects.len() as u32) as usize;
         let rect = snap.rects[k];
         let t0 = Instant::now();
@@ -126,7 +88,7 @@ pub(crate) fn adaptive(s: &Shared, thread: u64, tx: Sender<AdaptiveBatch>) {
             });
         }
         for _ in 0..4 {
-            let (x, y) = random_in(&mut rng, rect);
+            let (x, y) = rect.random_point(&mut rng);
             let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
                 continue;
             };
@@ -176,7 +138,7 @@ pub(crate) fn frameless(s: &Shared, thread: u64, tx: Sender<Vec<(u32, Vec3, f64)
     let mut busy = 0.0f64;
     while !s.stopped() {
         let now = s.clock.now();
-        let state = states.at(tracer, now);
+        let state = states.at(tracer, now).0;
         let t0 = Instant::now();
         for _ in 0..16 {
             let p = rng.below(n);

@@ -70,6 +70,49 @@ pub struct StreamSample {
     pub sample: Sample,
 }
 
+/// The scene state of the latest instant asked for, for one caller that asks about the
+/// same instant many times in a row: the tracer's shared cache takes a lock, this does
+/// not. Rebuilt when the 1 ms quantum or the live camera changes.
+pub struct StateCache {
+    key: (i64, u64),
+    state: Option<Arc<SceneState>>,
+}
+
+impl Default for StateCache {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl StateCache {
+    /// Empty.
+    pub fn new() -> Self {
+        Self {
+            key: (i64::MIN, u64::MAX),
+            state: None,
+        }
+    }
+
+    /// The state at `t`, and whether it differs from the one held before.
+    pub fn at(&mut self, tracer: &Tracer, t: f64) -> (Arc<SceneState>, bool) {
+        let key = (Tracer::quantize(t), tracer.camera_generation());
+        match &self.state {
+            Some(s) if key == self.key => (s.clone(), false),
+            _ => {
+                let s = tracer.state_at(t);
+                self.key = key;
+                self.state = Some(s.clone());
+                (s, true)
+            }
+        }
+    }
+
+    /// The state held now, if any.
+    pub fn current(&self) -> Option<&Arc<SceneState>> {
+        self.state.as_ref()
+    }
+}
+
 /// Tracer settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceOptions {

@@ -20,7 +20,7 @@ use super::{
 use crate::{
     clock::Clock,
     sampling::Rng,
-    trace::{Sample, SceneState, StreamSample, Tracer},
+    trace::{Sample, SceneState, StateCache, StreamSample, Tracer},
 };
 
 /// Counters of the sampler's work.
@@ -76,7 +76,7 @@ pub struct Sampler {
     budget_end: u64,
     init_cursor: u32,
     initialized: bool,
-    state: Option<(i64, Arc<SceneState>)>,
+    states: StateCache,
     /// Time of the first state seen with the current camera: crosshairs traced at or
     /// after it were traced from the camera the display has now.
     camera_since: f64,
@@ -172,7 +172,7 @@ impl Sampler {
             budget_end: 0,
             init_cursor: 0,
             initialized: false,
-            state: None,
+            states: StateCache::new(),
             camera_since: f64::NEG_INFINITY,
             stream: Vec::new(),
             counters: SamplerCounters::default(),
@@ -316,22 +316,18 @@ impl Sampler {
     }
 
     fn state(&mut self, t: f64) -> Arc<SceneState> {
-        let key = Tracer::quantize(t);
-        match &self.state {
-            Some((k, s)) if *k == key => s.clone(),
-            _ => {
-                let s = self.tracer.state_at(t);
-                let same_camera = self.state.as_ref().is_some_and(|(_, old)| {
-                    let (a, b) = (&old.camera, &s.camera);
-                    a.eye == b.eye && a.corner == b.corner && a.du == b.du && a.dv == b.dv
-                });
-                if !same_camera {
-                    self.camera_since = t;
-                }
-                self.state = Some((key, s.clone()));
-                s
+        let old_camera = self.states.current().map(|s| s.camera);
+        let (s, fresh) = self.states.at(&self.tracer, t);
+        if fresh {
+            let same_camera = old_camera.is_some_and(|a| {
+                let b = &s.camera;
+                a.eye == b.eye && a.corner == b.corner && a.du == b.du && a.dv == b.dv
+            });
+            if !same_camera {
+                self.camera_since = t;
             }
         }
+        s
     }
 
     fn trace(&mut self, state: &SceneState, x: f32, y: f32, t: f64) -> Sample {
@@ -357,13 +353,6 @@ impl Sampler {
         let c = crosshair_with(w, h, x, y, t, old, |sx, sy| self.trace(state, sx, sy, t));
         self.counters.crosshair_samples += 5;
         c
-    }
-
-    fn random_in(&mut self, r: Rect) -> (f32, f32) {
-        let x = r.x0 as f32 + self.rng.uniform() * r.width() as f32;
-        let y = r.y0 as f32 + self.rng.uniform() * r.height() as f32;
-        // Keep strictly inside the rectangle despite rounding.
-        (x.min(r.x1 as f32 - 1e-3), y.min(r.y1 as f32 - 1e-3))
     }
 
     /// Whether the oldest crosshair at a pixel stays where it is instead of being
@@ -459,7 +448,7 @@ impl Sampler {
     fn reproject_in(&mut self, state: &SceneState, leaf: u32, now: f64) {
         let rect = self.tiling.node(leaf).rect;
         for _ in 0..self.params.reprojections_per_visit {
-            let (x, y) = self.random_in(rect);
+            let (x, y) = rect.random_point(&mut self.rng);
             let (px, py) = (x as u32, y as u32);
             if self.keeps_in_place(px, py) {
                 continue;
@@ -485,7 +474,7 @@ impl Sampler {
             self.reproject_in(&state, leaf, now);
         }
         // The tiling may not have changed during the visit; the leaf is still a tile.
-        let (x, y) = self.random_in(rect);
+        let (x, y) = rect.random_point(&mut self.rng);
         let s = self.trace(&state, x, y, now);
         self.counters.initiating_samples += 1;
         let leaf_now = self.tiling.leaf_at(x as u32, y as u32);
