@@ -210,7 +210,7 @@ pub fn reconstruct_scene_ms(tracer: &std::sync::Arc<Tracer>, time: f64, repeats:
 pub fn adaptive_after_one_second(
     tracer: &std::sync::Arc<Tracer>,
     time: f64,
-) -> Result<(crate::methods::adaptive::Adaptive, f64), String> {
+) -> Result<(crate::methods::adaptive::Adaptive, f64), crate::methods::MethodError> {
     use crate::methods::{adaptive, Method, MethodContext};
     let ctx = MethodContext {
         tracer: tracer.clone(),

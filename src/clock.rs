@@ -52,6 +52,47 @@ impl Clock {
     }
 }
 
+/// `400000` → `400K`, `1500000` → `1.5M`.
+pub fn rate_label(r: f64) -> String {
+    let (v, unit) = if r >= 1e6 {
+        (r / 1e6, "M")
+    } else if r >= 1e3 {
+        (r / 1e3, "K")
+    } else {
+        (r, "")
+    };
+    let s = format!("{v:.2}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    format!("{s}{unit}")
+}
+
+/// A sample rate that does not parse.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum RateError {
+    /// Not a number with an optional k/M suffix.
+    #[error("`{0}` is not a rate (e.g. 400k, 1.5M, 100000)")]
+    NotARate(String),
+    /// Zero, negative or not finite.
+    #[error("rate `{0}` must be positive")]
+    NotPositive(String),
+}
+
+/// Parse `100k`, `1.5M`, `400000` into samples per second.
+pub fn parse_rate(s: &str) -> Result<f64, RateError> {
+    let t = s.trim();
+    let (num, mul) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
+        _ => (t, 1.0),
+    };
+    let v: f64 = num.parse().map_err(|_| RateError::NotARate(s.into()))?;
+    let v = v * mul;
+    if !(v.is_finite() && v > 0.0) {
+        return Err(RateError::NotPositive(s.into()));
+    }
+    Ok(v)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

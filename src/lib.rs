@@ -5,7 +5,6 @@
 #![deny(missing_docs)]
 
 pub mod bench;
-pub mod cli;
 pub mod clock;
 pub mod evaluation;
 pub mod image;

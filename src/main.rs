@@ -1,5 +1,8 @@
-//! The `frameless` binary: a thin shell over the library's `cli` module.
+//! The `frameless` binary: command-line parsing (clap) over the library; errors are
+//! reported with `anyhow` here and typed everywhere below.
+
+mod cli;
 
 fn main() -> std::process::ExitCode {
-    frameless::cli::main()
+    cli::main()
 }

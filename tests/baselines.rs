@@ -139,14 +139,14 @@ fn taa_converges_toward_the_antialiased_ideal_on_a_static_scene() {
         &Silent,
     )
     .unwrap();
-    let series = |m: &str| -> Vec<f64> {
+    let series = |m: MethodKind| -> Vec<f64> {
         out.frames
             .iter()
             .filter(|f| f.method == m)
             .map(|f| f.rms)
             .collect()
     };
-    let (taa, framed) = (series("taa"), series("framed-60hz"));
+    let (taa, framed) = (series(MethodKind::Taa), series(MethodKind::Framed60Hz));
     let tail = |v: &[f64]| v[v.len() - 10..].iter().sum::<f64>() / 10.0;
     // First shown frame (refresh 1) is one jittered frame; later ones accumulate.
     assert!(

@@ -100,7 +100,7 @@ fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> 
     }
 }
 
-fn rms_series(out: &evaluation::EvalOutput, method: &str, rate: f64) -> Vec<f64> {
+fn rms_series(out: &evaluation::EvalOutput, method: MethodKind, rate: f64) -> Vec<f64> {
     out.frames
         .iter()
         .filter(|f| f.method == method && f.rate == rate)
@@ -172,8 +172,8 @@ fn framed_full_reaches_its_floor_once_a_frame_completes_and_frameless_converges(
         0.5,
     );
     let out = evaluation::run(Arc::new(static_scene()), &cfg, &Silent).unwrap();
-    let framed = rms_series(&out, "framed-full", rate);
-    let frameless = rms_series(&out, "traditional-frameless", rate);
+    let framed = rms_series(&out, MethodKind::FramedFull, rate);
+    let frameless = rms_series(&out, MethodKind::TraditionalFrameless, rate);
     // Before completion the screen is black: large error. From refresh 5 on: the floor.
     let floor = framed[5];
     assert!(framed[..5].iter().all(|e| *e > 3.0 * floor), "{framed:?}");
@@ -197,14 +197,14 @@ fn framed_full_reaches_its_floor_once_a_frame_completes_and_frameless_converges(
     let flicker: Vec<f64> = out
         .frames
         .iter()
-        .filter(|f| f.method == "framed-full")
+        .filter(|f| f.method == MethodKind::FramedFull)
         .filter_map(|f| f.flicker)
         .collect();
     assert!(flicker[5..].iter().all(|f| *f == 0.0), "{flicker:?}");
     assert!(out
         .frames
         .iter()
-        .any(|f| f.method == "traditional-frameless" && f.flicker.unwrap_or(0.0) > 0.0));
+        .any(|f| f.method == MethodKind::TraditionalFrameless && f.flicker.unwrap_or(0.0) > 0.0));
     // The floor is the aliasing of 1 sample per pixel: small but not zero.
     assert!(floor > 0.0 && floor < 20.0, "{floor}");
 }
@@ -235,6 +235,7 @@ fn bad_settings_are_clear_errors() {
     let err = |cfg: &EvalConfig| {
         evaluation::run(scene(), cfg, &Silent)
             .err()
+            .map(|e| e.to_string())
             .unwrap_or_default()
     };
     let e = err(&config(&[MethodKind::FramedFull], &[0.0], 1.0, 1.0));
@@ -247,6 +248,7 @@ fn bad_settings_are_clear_errors() {
     assert!(e.contains("duration"), "{e}");
     assert!(MethodKind::parse("adaptive-magic")
         .unwrap_err()
+        .to_string()
         .contains("framed-60hz"));
 }
 

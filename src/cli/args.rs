@@ -3,6 +3,7 @@
 use std::{path::PathBuf, str::FromStr};
 
 use clap::{Args, Parser, Subcommand};
+use frameless::{clock::parse_rate, methods::MethodKind};
 
 /// Largest image side accepted.
 pub const MAX_SIDE: u32 = 16384;
@@ -77,12 +78,12 @@ pub struct RenderArgs {
     /// Camera path CSV overriding the scene's camera.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
-    /// The method (see `frameless eval --help` for the list).
+    /// The method.
     #[arg(long, default_value = "adaptive")]
-    pub method: String,
+    pub method: MethodKind,
     /// Sampling rate (samples per second of scene time); suffixes k and M.
-    #[arg(long, default_value = "400k")]
-    pub rate: String,
+    #[arg(long, default_value = "400k", value_parser = parse_rate)]
+    pub rate: f64,
     /// First displayed refresh (seconds).
     #[arg(long, default_value = "0", value_parser = finite_f64)]
     pub start: f64,
@@ -116,12 +117,12 @@ pub struct Table1Args {
     #[arg(long, default_value = "interactive,bart,toycar")]
     pub animations: String,
     /// Sampling rates (samples/s), comma-separated; suffixes k and M.
-    #[arg(long, default_value = "100k,400k,800k")]
-    pub rates: String,
+    #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
+    pub rates: Vec<f64>,
     /// Methods, comma-separated (default: the paper's, point tracking, TAA and the
     /// adaptive-no-reprojection ablation of Fig. 8).
-    #[arg(long)]
-    pub methods: Option<String>,
+    #[arg(long, value_delimiter = ',')]
+    pub methods: Option<Vec<MethodKind>>,
     /// Override every animation's window length (seconds), e.g. for a quick trial.
     #[arg(long, value_parser = finite_f64)]
     pub duration: Option<f64>,
@@ -224,8 +225,8 @@ pub struct SamplerArgs {
     #[arg(long, default_value = "1", value_parser = finite_f64)]
     pub duration: f64,
     /// Sample budget, samples per second.
-    #[arg(long, default_value = "400k")]
-    pub rate: String,
+    #[arg(long, default_value = "400k", value_parser = parse_rate)]
+    pub rate: f64,
     /// Image size WxH.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
@@ -249,25 +250,6 @@ pub struct SamplerArgs {
     pub out: PathBuf,
 }
 
-/// Help text of `--methods`, listing every method (a test keeps it complete).
-pub const METHODS_HELP: &str = "Comma-separated methods to evaluate:
-  ideal                  zero delay, stratified supersampling (the reference)
-  framed-60hz            double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled
-  framed-full            double-buffered, one sample per pixel, frame rate R/(W*H)
-  full-res-60hz          double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate
-  traditional-frameless  random pixel order, each sample at its own time, newest sample per pixel
-  adaptive               adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer
-  adaptive-no-reprojection
-                         adaptive frameless without reprojection in the sampler
-  adaptive-keep-static   adaptive frameless; the sampler does not reproject crosshairs that cannot have moved
-  adaptive-no-reproj-recon
-                         adaptive frameless without reprojection in the reconstructor
-  adaptive-fixed-filter  adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)
-  point-tracking         framed full resolution, rays aimed at the previous frame's hit points, last 3 frames averaged
-  point-tracking-no-blend
-                         point tracking showing only the newest frame
-  taa                    60 Hz at reduced resolution, Halton jitter, reprojected clamped history, blend 0.1";
-
 /// Arguments of `frameless eval`.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -287,11 +269,15 @@ pub struct EvalArgs {
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// Sample budgets, samples per second (e.g. 100k,400k,800k).
-    #[arg(long, default_value = "100k,400k,800k")]
-    pub rates: String,
-    #[arg(long, default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,adaptive", long_help = METHODS_HELP, help = "Comma-separated methods (see --help for the list)")]
-    #[allow(missing_docs)]
-    pub methods: String,
+    #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
+    pub rates: Vec<f64>,
+    /// Methods to evaluate, comma-separated.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,adaptive"
+    )]
+    pub methods: Vec<MethodKind>,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -390,11 +376,35 @@ mod tests {
     use super::*;
 
     #[test]
-    fn methods_help_lists_every_method() {
-        for m in crate::methods::MethodKind::ALL {
-            assert!(METHODS_HELP.contains(m.name()), "{}", m.name());
-            assert!(METHODS_HELP.contains(m.description()), "{}", m.name());
+    fn eval_help_lists_every_method() {
+        use clap::CommandFactory;
+        let mut cmd = Cli::command();
+        let eval = cmd.find_subcommand_mut("eval").expect("eval command");
+        let help = eval.render_long_help().to_string();
+        for m in MethodKind::ALL {
+            assert!(help.contains(m.name()), "{}", m.name());
+            assert!(help.contains(m.description()), "{}", m.name());
         }
+    }
+
+    #[test]
+    fn lists_parse_into_typed_values() {
+        let cli = Cli::try_parse_from([
+            "frameless",
+            "eval",
+            "--methods",
+            "adaptive, taa",
+            "--rates",
+            "100k,1.5M",
+        ])
+        .expect("parses");
+        let Command::Eval(a) = cli.command else {
+            panic!("eval expected")
+        };
+        assert_eq!(a.methods, vec![MethodKind::Adaptive, MethodKind::Taa]);
+        assert_eq!(a.rates, vec![100_000.0, 1_500_000.0]);
+        assert!(Cli::try_parse_from(["frameless", "eval", "--methods", "adaptive-magic"]).is_err());
+        assert!(Cli::try_parse_from(["frameless", "eval", "--rates", "fast"]).is_err());
     }
 
     #[test]

@@ -10,17 +10,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 pub use args::{Cli, Command, Size};
 
-use crate::{
+use frameless::{
     bench,
     evaluation::{self, report, EvalConfig},
-    methods::MethodKind,
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
 };
 
 /// Entry point of the `frameless` binary; returns the process exit code.
-pub fn main() -> std::process::ExitCode {
+pub(crate) fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -147,8 +146,6 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
-    let rates = parse_list(&a.rates, report::parse_rate).context("--rates")?;
-    let methods = parse_list(&a.methods, MethodKind::parse).context("--methods")?;
     let Size(w, h) = a.size;
     let cache_dir = if a.no_cache {
         None
@@ -162,8 +159,8 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         duration: a.duration,
         width: w,
         height: h,
-        rates,
-        methods,
+        rates: a.rates.clone(),
+        methods: a.methods.clone(),
         seed: a.seed,
         ideal_spp: a.ideal_spp,
         warmup: a.warmup,
@@ -174,13 +171,12 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         flip_every: a.flip_every as usize,
     };
     cfg.strip_frames = quartile_frames(cfg.frames());
-    cfg.validate().map_err(anyhow::Error::msg)?;
+    cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = progress_bar(0, "evaluating");
-    let mut out =
-        evaluation::run(scene, &cfg, &BarProgress(bar.clone())).map_err(anyhow::Error::msg)?;
+    let mut out = evaluation::run(scene, &cfg, &BarProgress(bar.clone()))?;
     bar.finish_and_clear();
-    let report = report::write_all(&mut out, &a.out).map_err(anyhow::Error::msg)?;
+    let report = report::write_all(&mut out, &a.out)?;
     print!("{}", report::markdown(&out.summary));
     let t = &out.summary.timing;
     println!(
@@ -198,13 +194,8 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 }
 
 fn render(a: args::RenderArgs) -> Result<()> {
-    use crate::methods::MethodContext;
-    let method = MethodKind::parse(a.method.trim())
-        .map_err(anyhow::Error::msg)
-        .context("--method")?;
-    let rate = report::parse_rate(&a.rate)
-        .map_err(anyhow::Error::msg)
-        .context("--rate")?;
+    use frameless::methods::MethodContext;
+    let (method, rate) = (a.method, a.rate);
     if !(a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration {} must be in (0, 3600] seconds", a.duration);
     }
@@ -239,7 +230,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         strip_frames: Vec::new(),
         flip_every: 1,
     };
-    check.validate().map_err(anyhow::Error::msg)?;
+    check.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::default())
@@ -247,7 +238,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
     );
     let ctx = MethodContext {
         tracer,
-        clock: crate::clock::Clock {
+        clock: frameless::clock::Clock {
             start: a.start - a.warmup,
             rate,
             first_refresh: a.start,
@@ -257,7 +248,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         ideal_spp: 16,
         ideal_cache: None,
     };
-    let mut m = method.build(&ctx).map_err(anyhow::Error::msg)?;
+    let mut m = method.build(&ctx)?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let bar = progress_bar(frames, "rendering");
     let t0 = Instant::now();
@@ -267,7 +258,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         let shown = m.display(t);
         ages += shown.mean_age;
         let p = a.out.join(format!("frame_{k:05}.png"));
-        crate::image::write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8())
+        frameless::image::write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8())
             .with_context(|| format!("writing {}", p.display()))?;
         bar.inc(1);
     }
@@ -280,7 +271,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         "extra": m.extra_stats(),
     });
     let p = a.out.join("stats.json");
-    crate::image::write_atomic(&p, serde_json::to_string_pretty(&stats)?.as_bytes())
+    frameless::image::write_atomic(&p, serde_json::to_string_pretty(&stats)?.as_bytes())
         .with_context(|| format!("writing {}", p.display()))?;
     println!(
         "wrote {frames} frames of {} to {} ({:.1} s)",
@@ -305,9 +296,9 @@ fn table1(a: args::Table1Args) -> Result<()> {
         );
     }
     let animations = parse_list(&a.animations, table1::animation).context("--animations")?;
-    let rates = parse_list(&a.rates, report::parse_rate).context("--rates")?;
+    let rates = a.rates.clone();
     let methods = match &a.methods {
-        Some(m) => parse_list(m, MethodKind::parse).context("--methods")?,
+        Some(m) => m.clone(),
         None => table1::METHODS.to_vec(),
     };
     let Size(w, h) = a.size;
@@ -342,7 +333,6 @@ fn table1(a: args::Table1Args) -> Result<()> {
         };
         cfg.strip_frames = quartile_frames(cfg.frames());
         cfg.validate()
-            .map_err(anyhow::Error::msg)
             .with_context(|| format!("animation {}", anim.name))?;
         cfgs.push(cfg);
     }
@@ -354,10 +344,9 @@ fn table1(a: args::Table1Args) -> Result<()> {
         let bar = progress_bar(0, anim.name);
         let ta = Instant::now();
         let mut out = evaluation::run(scene.clone(), cfg, &BarProgress(bar.clone()))
-            .map_err(anyhow::Error::msg)
             .with_context(|| format!("animation {}", anim.name))?;
         bar.finish_and_clear();
-        report::write_all(&mut out, &a.out.join(anim.name)).map_err(anyhow::Error::msg)?;
+        report::write_all(&mut out, &a.out.join(anim.name))?;
         let t = &out.summary.timing;
         let line = format!(
             "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache; methods {:.0} s)",
@@ -386,7 +375,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
     let table = TableSummary {
         animations: results,
     };
-    table1::write_combined(&table, &a.out, &cost).map_err(anyhow::Error::msg)?;
+    table1::write_combined(&table, &a.out, &cost)?;
     print!("{}", table1::markdown(&table));
     print!("{}", table1::targets(&table));
     println!("cost: {cost}");
@@ -395,13 +384,11 @@ fn table1(a: args::Table1Args) -> Result<()> {
 }
 
 fn sampler(a: args::SamplerArgs) -> Result<()> {
-    use crate::methods::{
+    use frameless::methods::{
         adaptive::{vis, Adaptive, SamplerParams},
         Method, MethodContext,
     };
-    let rate = report::parse_rate(&a.rate)
-        .map_err(anyhow::Error::msg)
-        .context("--rate")?;
+    let rate = a.rate;
     if !(a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration {} must be in (0, 3600] seconds", a.duration);
     }
@@ -416,7 +403,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         Tracer::new(scene, w, h, TraceOptions::default())
             .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
     );
-    let clock = crate::clock::Clock {
+    let clock = frameless::clock::Clock {
         start: a.start,
         rate,
         first_refresh: a.start,
@@ -429,11 +416,11 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         ideal_spp: 1,
         ideal_cache: None,
     };
-    let mut m = Adaptive::new(&ctx, params).map_err(anyhow::Error::msg)?;
+    let mut m = Adaptive::new(&ctx, params)?;
     let frames = (a.duration * 60.0).ceil() as u64;
     let bar = progress_bar(frames, "sampling");
     let t0 = Instant::now();
-    let mut display = crate::image::Image::new(w, h);
+    let mut display = frameless::image::Image::new(w, h);
     for k in 1..=frames {
         display = m.display(a.start + k as f64 / 60.0).image.clone();
         bar.inc(1);
@@ -443,7 +430,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     let end = a.start + frames as f64 / 60.0;
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let s = m.sampler();
-    let save = |name: &str, img: &crate::image::Image| -> Result<()> {
+    let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
         let p = a.out.join(name);
         img.save_png(&p)
             .with_context(|| format!("writing {}", p.display()))
@@ -476,7 +463,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
 }
 
 fn view(a: args::ViewArgs) -> Result<()> {
-    use crate::realtime::{self, RtConfig, RtMethod};
+    use frameless::realtime::{self, RtConfig, RtMethod};
     let method = RtMethod::parse(&a.method).context("--method")?;
     let mut cfg = RtConfig::new(method);
     if let Some(n) = a.sampling_threads {

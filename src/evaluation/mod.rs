@@ -13,11 +13,80 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     clock::Clock,
-    methods::{ideal::ideal_image, MethodContext, MethodKind},
+    methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
     render::cache::IdealCache,
     scene::{CameraPath, Scene},
     trace::{TraceOptions, Tracer},
 };
+
+/// Why an evaluation could not run or write its outputs.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    /// A setting is out of range.
+    #[error("{option} {why}")]
+    Config {
+        /// The option, as users write it.
+        option: &'static str,
+        /// What is wrong and what would do.
+        why: String,
+    },
+    /// A method cannot run as asked.
+    #[error(transparent)]
+    Method(#[from] MethodError),
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file or folder.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A plot could not be drawn.
+    #[error("plot {}: {why}", path.display())]
+    Plot {
+        /// The SVG file.
+        path: PathBuf,
+        /// The plotting library's message.
+        why: String,
+    },
+    /// A method traced more samples than its budget (a bug).
+    #[error("internal error: {method} used {used} samples by t = {t}, budget {budget}")]
+    OverBudget {
+        /// The method.
+        method: MethodKind,
+        /// Samples traced.
+        used: u64,
+        /// Display time.
+        t: f64,
+        /// Samples allowed by then.
+        budget: u64,
+    },
+    /// No Table 1 animation has this name.
+    #[error("unknown animation '{name}': expected one of {expected}")]
+    UnknownAnimation {
+        /// The name asked for.
+        name: String,
+        /// The names there are.
+        expected: String,
+    },
+}
+
+impl EvalError {
+    /// An I/O error on `path`.
+    pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        EvalError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    fn config(option: &'static str, why: impl Into<String>) -> Self {
+        EvalError::Config {
+            option,
+            why: why.into(),
+        }
+    }
+}
 
 /// Settings of one evaluation run.
 #[derive(Clone, Debug)]
@@ -63,67 +132,79 @@ impl EvalConfig {
         ((self.duration * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
     }
 
+    /// The simulated clock at `rate`: sample 0 at the start of the warm-up.
+    pub fn clock(&self, rate: f64) -> Clock {
+        Clock {
+            start: self.start - self.warmup,
+            rate,
+            first_refresh: self.start,
+            refresh_hz: self.refresh_hz,
+        }
+    }
+
+    /// Display time of evaluated refresh `k`.
+    pub fn refresh(&self, k: usize) -> f64 {
+        self.start + k as f64 / self.refresh_hz
+    }
+
+    /// What the methods' budget rules need to know of this run.
+    pub fn shape(&self) -> RunShape {
+        RunShape {
+            width: self.width,
+            height: self.height,
+            refresh_hz: self.refresh_hz,
+            ideal_spp: self.ideal_spp,
+            seconds: self.warmup + self.duration,
+        }
+    }
+
     /// Check the settings; the error says what is wrong and how to fix it.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), EvalError> {
         let finite_pos = |v: f64| v.is_finite() && v > 0.0;
+        let bad = |option, why: String| Err(EvalError::config(option, why));
         if !self.start.is_finite() {
-            return Err("--start must be a finite number".into());
+            return bad("--start", "must be a finite number".into());
         }
         if !finite_pos(self.duration) || self.duration > 3600.0 {
-            return Err(format!(
-                "--duration {} must be in (0, 3600] seconds",
-                self.duration
-            ));
+            return bad(
+                "--duration",
+                format!("{} must be in (0, 3600] seconds", self.duration),
+            );
         }
         if !(self.warmup.is_finite() && self.warmup >= 0.0) {
-            return Err(format!("--warmup {} must be ≥ 0", self.warmup));
+            return bad("--warmup", format!("{} must be ≥ 0", self.warmup));
         }
         if !finite_pos(self.refresh_hz) {
-            return Err("refresh rate must be positive".into());
+            return bad("refresh rate", "must be positive".into());
         }
         if self.rates.is_empty() {
-            return Err("no rates given".into());
+            return bad("--rates", "lists no rate".into());
         }
         if self.methods.is_empty() {
-            return Err("no methods given".into());
+            return bad("--methods", "lists no method".into());
         }
         if self.flip_every == 0 {
-            return Err("--flip-every must be at least 1".into());
+            return bad("--flip-every", "must be at least 1".into());
         }
         if self.ideal_spp == 0 {
-            return Err("--ideal-spp must be at least 1".into());
+            return bad("--ideal-spp", "must be at least 1".into());
         }
-        let pixels = self.width as f64 * self.height as f64;
+        let shape = self.shape();
         for &r in &self.rates {
             if !finite_pos(r) {
-                return Err(format!(
-                    "rate {r} must be a positive number of samples per second"
-                ));
+                return bad(
+                    "--rates",
+                    format!("{r} must be a positive number of samples per second"),
+                );
             }
             if r > 1e10 {
-                return Err(format!("rate {r} is absurd (more than 1e10 samples/s)"));
+                return bad(
+                    "--rates",
+                    format!("{r} is absurd (more than 1e10 samples/s)"),
+                );
             }
             for m in &self.methods {
-                match m {
-                    MethodKind::FramedFull if pixels / r > self.warmup + self.duration => {
-                        return Err(format!(
-                            "rate {} is too low for framed-full: one {}x{} frame takes {:.2} s, longer than warm-up + duration ({:.2} s)",
-                            report::rate_label(r), self.width, self.height, pixels / r, self.warmup + self.duration
-                        ));
-                    }
-                    MethodKind::PointTracking | MethodKind::PointTrackingNoBlend
-                        if pixels / r > self.warmup + self.duration =>
-                    {
-                        return Err(format!(
-                            "rate {} is too low for point tracking: one {}x{} frame takes {:.2} s, longer than warm-up + duration ({:.2} s)",
-                            report::rate_label(r), self.width, self.height, pixels / r, self.warmup + self.duration
-                        ));
-                    }
-                    MethodKind::Framed60Hz | MethodKind::Taa if r < 60.0 => {
-                        return Err(format!("rate {r} is too low for framed-60hz: it needs at least 60 samples/s (one per frame)"));
-                    }
-                    _ => {}
-                }
+                (m.info().check_rate)(&shape, r)?;
             }
         }
         Ok(())
@@ -133,8 +214,8 @@ impl EvalConfig {
 /// One displayed frame's measurements.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct FrameRow {
-    /// Method name.
-    pub method: String,
+    /// The method.
+    pub method: MethodKind,
     /// Requested sample rate (the table column).
     pub rate: f64,
     /// Frame index in the window.
@@ -159,8 +240,8 @@ pub struct FrameRow {
 /// Aggregates of one method at one rate.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ResultRow {
-    /// Method name.
-    pub method: String,
+    /// The method.
+    pub method: MethodKind,
     /// Requested sample rate (the table column).
     pub rate: f64,
     /// The rate the method actually used (differs for `full-res-60hz` and `ideal`).
@@ -238,8 +319,8 @@ pub struct EvalOutput {
     pub summary: Summary,
     /// Every frame's measurements.
     pub frames: Vec<FrameRow>,
-    /// Strip images: `(rate, frame, [(method, 8-bit RGB)])`, ideal first.
-    pub strips: Vec<(f64, usize, Vec<(String, Vec<u8>)>)>,
+    /// Strip images: `(rate, frame, [(label, 8-bit RGB)])`, the ideal image first.
+    pub strips: Vec<Strip>,
 }
 
 /// Progress reporting hooks.
@@ -257,12 +338,25 @@ impl Progress for Silent {
     fn step(&self, _: &str) {}
 }
 
+/// Strip images at one rate and frame: `(rate, frame, [(label, 8-bit RGB)])`, the
+/// ideal image first.
+pub type Strip = (f64, usize, Vec<(String, Vec<u8>)>);
+
+/// One method's displayed images over the window, and what it cost.
+struct Shown {
+    /// Per refresh: the displayed image (8-bit RGB) and its mean information age.
+    frames: Vec<(Vec<u8>, f64)>,
+    samples: u64,
+    extra: Option<serde_json::Value>,
+    effective_rate: f64,
+}
+
 /// Run an evaluation (no files written; see [`report::write_all`]).
 pub fn run(
     scene: Arc<Scene>,
     cfg: &EvalConfig,
     progress: &dyn Progress,
-) -> Result<EvalOutput, String> {
+) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = Arc::new(
         Tracer::new(
@@ -278,58 +372,50 @@ pub fn run(
     let cache = match &cfg.cache_dir {
         Some(dir) => Some(Arc::new(
             IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
-                .map_err(|e| format!("ideal cache {}: {e}", dir.display()))?,
+                .map_err(|e| EvalError::io(dir, e))?,
         )),
         None => None,
     };
     let n = cfg.frames();
-    let runs: Vec<(MethodKind, f64)> = {
-        let mut v = Vec::new();
-        for m in &cfg.methods {
-            if m.rate_independent() {
-                v.push((*m, cfg.rates[0]));
-            } else {
-                v.extend(cfg.rates.iter().map(|r| (*m, *r)));
-            }
+    // Each method once per rate, or once for all rates when it ignores the rate.
+    let mut runs: Vec<(MethodKind, f64)> = Vec::new();
+    for m in &cfg.methods {
+        if m.rate_independent() {
+            runs.push((*m, cfg.rates[0]));
+        } else {
+            runs.extend(cfg.rates.iter().map(|r| (*m, *r)));
         }
-        v
-    };
+    }
     progress.total((n * (1 + runs.len())) as u64);
     let mut timing = Timing::default();
-    let base_clock = |rate: f64| Clock {
-        start: cfg.start - cfg.warmup,
-        rate,
-        first_refresh: cfg.start,
-        refresh_hz: cfg.refresh_hz,
-    };
     let ctx_for = |rate: f64| MethodContext {
         tracer: tracer.clone(),
-        clock: base_clock(rate),
+        clock: cfg.clock(rate),
         seed: cfg.seed,
         ideal_spp: cfg.ideal_spp,
         ideal_cache: cache.clone(),
     };
-    let refresh = |k: usize| cfg.start + k as f64 / cfg.refresh_hz;
 
     // Ideal images, as displayed.
     let t0 = Instant::now();
     let ideal_ctx = ctx_for(cfg.rates[0]);
     let mut ideal: Vec<Vec<u8>> = Vec::with_capacity(n);
     for k in 0..n {
+        let t = cfg.refresh(k);
         if cache
             .as_ref()
-            .is_some_and(|c| c.contains(refresh(k), cfg.ideal_spp, cfg.seed))
+            .is_some_and(|c| c.contains(t, cfg.ideal_spp, cfg.seed))
         {
             timing.ideal_cache_hits += 1;
         }
-        ideal.push(ideal_image(&ideal_ctx, refresh(k)).to_rgb8());
+        ideal.push(ideal_image(&ideal_ctx, t).to_rgb8());
         progress.step("ideal images");
     }
     timing.ideal_s = t0.elapsed().as_secs_f64();
 
     let mut frames = Vec::new();
     let mut results = Vec::new();
-    let mut strips: Vec<(f64, usize, Vec<(String, Vec<u8>)>)> = Vec::new();
+    let mut strips: Vec<Strip> = Vec::new();
     for rate in &cfg.rates {
         for &k in &cfg.strip_frames {
             if k < n {
@@ -337,46 +423,14 @@ pub fn run(
             }
         }
     }
-    let (w, h) = (cfg.width, cfg.height);
     for (kind, rate) in runs {
-        let ctx = ctx_for(rate);
-        let mut method = kind.build(&ctx)?;
-        let effective_rate = match kind {
-            MethodKind::FullRes60Hz => w as f64 * h as f64 * 60.0,
-            MethodKind::Ideal => w as f64 * h as f64 * cfg.ideal_spp as f64 * cfg.refresh_hz,
-            _ => rate,
-        };
-        let budget_clock = base_clock(effective_rate);
-        let mut shown: Vec<(Vec<u8>, f64)> = Vec::with_capacity(n);
+        let mut method = kind.build(&ctx_for(rate))?;
         let tm = Instant::now();
-        for k in 0..n {
-            let t = refresh(k);
-            let d = method.display(t);
-            shown.push((d.image.to_rgb8(), d.mean_age));
-            if kind != MethodKind::Ideal && method.samples_used() > budget_clock.samples_until(t) {
-                return Err(format!(
-                    "internal error: {} used {} samples by t = {t}, budget {}",
-                    kind.name(),
-                    method.samples_used(),
-                    budget_clock.samples_until(t)
-                ));
-            }
-            progress.step(kind.name());
-        }
+        let shown = show(cfg, kind, rate, method.as_mut(), progress)?;
         timing.methods_s += tm.elapsed().as_secs_f64();
         timing.trace_s += method.trace_seconds();
         let tq = Instant::now();
-        let metrics: Vec<(f64, Option<f64>, Option<f64>)> = shown
-            .par_iter()
-            .zip(ideal.par_iter())
-            .enumerate()
-            .map(|(k, ((rgb, _), id))| {
-                let flip = (k % cfg.flip_every == 0).then(|| metrics::flip_mean(id, rgb, w, h));
-                let flicker =
-                    (k > 0).then(|| metrics::flicker(&shown[k - 1].0, rgb, &ideal[k - 1], id));
-                (metrics::rms(id, rgb), flip, flicker)
-            })
-            .collect();
+        let metrics = measure(cfg, &shown.frames, &ideal);
         timing.metrics_s += tq.elapsed().as_secs_f64();
         let rows_for: Vec<f64> = if kind.rate_independent() {
             cfg.rates.clone()
@@ -384,41 +438,27 @@ pub fn run(
             vec![rate]
         };
         for r in rows_for {
-            let mut rows = Vec::with_capacity(n);
-            for (k, ((_, age), (rms, flip, flicker))) in shown.iter().zip(&metrics).enumerate() {
-                rows.push(FrameRow {
-                    method: kind.name().into(),
+            let rows: Vec<FrameRow> = shown
+                .frames
+                .iter()
+                .zip(&metrics)
+                .enumerate()
+                .map(|(k, ((_, age), (rms, flip, flicker)))| FrameRow {
+                    method: kind,
                     rate: r,
                     frame: k,
-                    time: refresh(k),
+                    time: cfg.refresh(k),
                     rms: *rms,
                     psnr: metrics::psnr(*rms),
                     flip: *flip,
                     flicker: *flicker,
                     age_s: *age,
-                });
-            }
-            let mean =
-                |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
-            let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
-            let flickers: Vec<f64> = rows.iter().filter_map(|r| r.flicker).collect();
-            results.push(ResultRow {
-                method: kind.name().into(),
-                rate: r,
-                effective_rate,
-                frames: n,
-                rms_mean: mean(|r| r.rms),
-                psnr_mean: mean(|r| r.psnr),
-                flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
-                flip_frames: flips.len(),
-                flicker_mean: flickers.iter().sum::<f64>() / flickers.len().max(1) as f64,
-                age_mean_s: mean(|r| r.age_s),
-                samples: method.samples_used(),
-                extra: method.extra_stats(),
-            });
+                })
+                .collect();
+            results.push(aggregate(kind, r, &rows, &shown));
             for (sr, k, list) in strips.iter_mut() {
                 if *sr == r {
-                    list.push((kind.name().into(), shown[*k].0.clone()));
+                    list.push((kind.name().into(), shown.frames[*k].0.clone()));
                 }
             }
             frames.extend(rows);
@@ -426,8 +466,8 @@ pub fn run(
     }
     let summary = Summary {
         scene: cfg.scene_name.clone(),
-        width: w,
-        height: h,
+        width: cfg.width,
+        height: cfg.height,
         refresh_hz: cfg.refresh_hz,
         start: cfg.start,
         duration: cfg.duration,
@@ -443,6 +483,84 @@ pub fn run(
         frames,
         strips,
     })
+}
+
+/// Ask `method` what it displays at every refresh of the window, holding it to its
+/// budget.
+fn show(
+    cfg: &EvalConfig,
+    kind: MethodKind,
+    rate: f64,
+    method: &mut dyn Method,
+    progress: &dyn Progress,
+) -> Result<Shown, EvalError> {
+    let n = cfg.frames();
+    let budget = kind.info().budget;
+    let effective_rate = budget.effective_rate(&cfg.shape(), rate);
+    let budget_clock = cfg.clock(effective_rate);
+    let mut frames: Vec<(Vec<u8>, f64)> = Vec::with_capacity(n);
+    for k in 0..n {
+        let t = cfg.refresh(k);
+        let d = method.display(t);
+        frames.push((d.image.to_rgb8(), d.mean_age));
+        if budget.enforced() && method.samples_used() > budget_clock.samples_until(t) {
+            return Err(EvalError::OverBudget {
+                method: kind,
+                used: method.samples_used(),
+                t,
+                budget: budget_clock.samples_until(t),
+            });
+        }
+        progress.step(kind.name());
+    }
+    Ok(Shown {
+        frames,
+        samples: method.samples_used(),
+        extra: method.extra_stats(),
+        effective_rate,
+    })
+}
+
+/// Per frame: RMS, FLIP (on every `flip_every`-th frame) and temporal instability
+/// (from the second frame on), computed in parallel.
+fn measure(
+    cfg: &EvalConfig,
+    shown: &[(Vec<u8>, f64)],
+    ideal: &[Vec<u8>],
+) -> Vec<(f64, Option<f64>, Option<f64>)> {
+    let (w, h) = (cfg.width, cfg.height);
+    shown
+        .par_iter()
+        .zip(ideal.par_iter())
+        .enumerate()
+        .map(|(k, ((rgb, _), id))| {
+            let flip = (k % cfg.flip_every == 0).then(|| metrics::flip_mean(id, rgb, w, h));
+            let flicker =
+                (k > 0).then(|| metrics::flicker(&shown[k - 1].0, rgb, &ideal[k - 1], id));
+            (metrics::rms(id, rgb), flip, flicker)
+        })
+        .collect()
+}
+
+/// The means of one method's frames at one rate.
+fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> ResultRow {
+    let mean = |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+    let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
+    let flickers: Vec<f64> = rows.iter().filter_map(|r| r.flicker).collect();
+    ResultRow {
+        method: kind,
+        rate,
+        effective_rate: shown.effective_rate,
+        frames: rows.len(),
+        rms_mean: mean(|r| r.rms),
+        psnr_mean: mean(|r| r.psnr),
+        flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
+        flip_frames: flips.len(),
+        flicker_mean: flickers.iter().sum::<f64>() / flickers.len().max(1) as f64,
+        age_mean_s: mean(|r| r.age_s),
+        samples: shown.samples,
+        extra: shown.extra.clone(),
+    }
 }
 
 /// Share of the methods' evaluation time (running methods, metrics, output) not spent

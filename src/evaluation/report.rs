@@ -5,46 +5,15 @@ use std::{fmt::Write as _, path::Path};
 
 use plotters::prelude::*;
 
-use super::{EvalOutput, Summary};
-use crate::image::write_png_rgb8;
+use super::{EvalError, EvalOutput, Summary};
+pub use crate::clock::{parse_rate, rate_label};
+use crate::{image::write_png_rgb8, methods::MethodKind};
 
-/// `400000` → `400K`, `1500000` → `1.5M`.
-pub fn rate_label(r: f64) -> String {
-    let (v, unit) = if r >= 1e6 {
-        (r / 1e6, "M")
-    } else if r >= 1e3 {
-        (r / 1e3, "K")
-    } else {
-        (r, "")
-    };
-    let s = format!("{v:.2}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    format!("{s}{unit}")
-}
-
-/// Parse `100k`, `1.5M`, `400000` into samples per second.
-pub fn parse_rate(s: &str) -> Result<f64, String> {
-    let t = s.trim();
-    let (num, mul) = match t.chars().last() {
-        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
-        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
-        _ => (t, 1.0),
-    };
-    let v: f64 = num
-        .parse()
-        .map_err(|_| format!("`{s}` is not a rate (e.g. 400k, 1.5M, 100000)"))?;
-    let v = v * mul;
-    if !(v.is_finite() && v > 0.0) {
-        return Err(format!("rate `{s}` must be positive"));
-    }
-    Ok(v)
-}
-
-fn methods_in_order(s: &Summary) -> Vec<String> {
-    let mut m: Vec<String> = Vec::new();
+fn methods_in_order(s: &Summary) -> Vec<MethodKind> {
+    let mut m: Vec<MethodKind> = Vec::new();
     for r in &s.results {
         if !m.contains(&r.method) {
-            m.push(r.method.clone());
+            m.push(r.method);
         }
     }
     m
@@ -136,7 +105,7 @@ const PALETTE: [RGBColor; 8] = [
 ];
 
 /// RMS over time at one rate, one line per method (paper Fig. 8), as SVG.
-pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), String> {
+pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), EvalError> {
     let s = &out.summary;
     let methods = methods_in_order(s);
     let series: Vec<(String, Vec<(f64, f64)>)> = methods
@@ -148,7 +117,7 @@ pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), String> 
                 .filter(|f| &f.method == m && f.rate == rate)
                 .map(|f| (f.frame as f64, f.rms))
                 .collect();
-            (m.clone(), pts)
+            (m.name().to_string(), pts)
         })
         .collect();
     let ymax = series
@@ -158,7 +127,10 @@ pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), String> 
         * 1.05;
     let xmax = (s.duration * s.refresh_hz).max(1.0);
     let root = SVGBackend::new(path, (800, 450)).into_drawing_area();
-    let e = |e: Box<dyn std::error::Error>| e.to_string();
+    let e = |e: Box<dyn std::error::Error>| EvalError::Plot {
+        path: path.to_path_buf(),
+        why: e.to_string(),
+    };
     root.fill(&WHITE).map_err(|x| e(Box::new(x)))?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
@@ -313,11 +285,11 @@ fn html(
 }
 
 /// Write every output into `dir`; returns the report's path.
-pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf, String> {
+pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf, EvalError> {
     let t0 = std::time::Instant::now();
-    let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
+    let io = EvalError::io;
     std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-    let write = |name: &str, text: &str| -> Result<(), String> {
+    let write = |name: &str, text: &str| -> Result<(), EvalError> {
         let p = dir.join(name);
         std::fs::write(&p, text).map_err(|e| io(&p, e))
     };
@@ -343,7 +315,8 @@ pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf,
     write("report.html", &html(out, &plots, &strip_files))?;
     write(
         "summary.json",
-        &serde_json::to_string_pretty(&out.summary).map_err(|e| e.to_string())?,
+        // A summary of numbers and strings always serialises.
+        &serde_json::to_string_pretty(&out.summary).expect("summary serialises"),
     )?;
     Ok(dir.join("report.html"))
 }

@@ -10,7 +10,7 @@ use std::{fmt::Write as _, path::Path};
 
 use serde::{Deserialize, Serialize};
 
-use super::{report::rate_label, Summary};
+use super::{report::rate_label, EvalError, Summary};
 use crate::methods::MethodKind;
 
 /// One of the paper's animations, as evaluated here.
@@ -63,13 +63,13 @@ pub const ANIMATIONS: [Animation; 3] = [
 ];
 
 /// Look an animation up by name.
-pub fn animation(name: &str) -> Result<&'static Animation, String> {
+pub fn animation(name: &str) -> Result<&'static Animation, EvalError> {
     ANIMATIONS.iter().find(|a| a.name == name).ok_or_else(|| {
         let names: Vec<_> = ANIMATIONS.iter().map(|a| a.name).collect();
-        format!(
-            "unknown animation '{name}': expected one of {}",
-            names.join(", ")
-        )
+        EvalError::UnknownAnimation {
+            name: name.into(),
+            expected: names.join(", "),
+        }
     })
 }
 
@@ -85,52 +85,53 @@ pub const METHODS: [MethodKind; 8] = [
     MethodKind::Taa,
 ];
 
-/// The paper's Table 1 (RMS, 0–255): `(our method name, animation, rate, value)`.
+/// The paper's Table 1 (RMS, 0–255): `(our method, animation, rate, value)`.
 /// The paper's "400K 60 Hz" and "400K Full Res" rows are our `framed-60hz` and
 /// `framed-full` at each rate; "Full Res 60 Hz" runs at its own 10× budget.
-pub const PAPER: [(&str, &str, f64, f64); 35] = {
+pub const PAPER: [(MethodKind, &str, f64, f64); 35] = {
+    use MethodKind::*;
     const K: f64 = 1000.0;
     [
-        ("framed-60hz", "interactive", 100.0 * K, 92.7),
-        ("framed-60hz", "interactive", 400.0 * K, 71.8),
-        ("framed-60hz", "interactive", 800.0 * K, 60.9),
-        ("framed-60hz", "bart", 400.0 * K, 112.0),
-        ("framed-60hz", "bart", 800.0 * K, 100.0),
-        ("framed-60hz", "toycar", 400.0 * K, 47.0),
-        ("framed-60hz", "toycar", 800.0 * K, 42.8),
-        ("framed-full", "interactive", 100.0 * K, 110.0),
-        ("framed-full", "interactive", 400.0 * K, 72.6),
-        ("framed-full", "interactive", 800.0 * K, 60.4),
-        ("framed-full", "bart", 400.0 * K, 127.0),
-        ("framed-full", "bart", 800.0 * K, 112.0),
-        ("framed-full", "toycar", 400.0 * K, 43.8),
-        ("framed-full", "toycar", 800.0 * K, 38.9),
-        ("traditional-frameless", "interactive", 100.0 * K, 80.8),
-        ("traditional-frameless", "interactive", 400.0 * K, 48.8),
-        ("traditional-frameless", "interactive", 800.0 * K, 39.3),
-        ("traditional-frameless", "bart", 400.0 * K, 92.3),
-        ("traditional-frameless", "bart", 800.0 * K, 74.8),
-        ("traditional-frameless", "toycar", 400.0 * K, 35.3),
-        ("traditional-frameless", "toycar", 800.0 * K, 32.5),
-        ("adaptive", "interactive", 100.0 * K, 34.4),
-        ("adaptive", "interactive", 400.0 * K, 24.1),
-        ("adaptive", "interactive", 800.0 * K, 23.6),
-        ("adaptive", "bart", 400.0 * K, 50.1),
-        ("adaptive", "bart", 800.0 * K, 51.9),
-        ("adaptive", "toycar", 400.0 * K, 20.4),
-        ("adaptive", "toycar", 800.0 * K, 18.5),
-        ("full-res-60hz", "interactive", 100.0 * K, 28.0),
-        ("full-res-60hz", "interactive", 400.0 * K, 28.0),
-        ("full-res-60hz", "interactive", 800.0 * K, 28.0),
-        ("full-res-60hz", "bart", 400.0 * K, 30.7),
-        ("full-res-60hz", "bart", 800.0 * K, 30.7),
-        ("full-res-60hz", "toycar", 400.0 * K, 29.4),
-        ("full-res-60hz", "toycar", 800.0 * K, 29.4),
+        (Framed60Hz, "interactive", 100.0 * K, 92.7),
+        (Framed60Hz, "interactive", 400.0 * K, 71.8),
+        (Framed60Hz, "interactive", 800.0 * K, 60.9),
+        (Framed60Hz, "bart", 400.0 * K, 112.0),
+        (Framed60Hz, "bart", 800.0 * K, 100.0),
+        (Framed60Hz, "toycar", 400.0 * K, 47.0),
+        (Framed60Hz, "toycar", 800.0 * K, 42.8),
+        (FramedFull, "interactive", 100.0 * K, 110.0),
+        (FramedFull, "interactive", 400.0 * K, 72.6),
+        (FramedFull, "interactive", 800.0 * K, 60.4),
+        (FramedFull, "bart", 400.0 * K, 127.0),
+        (FramedFull, "bart", 800.0 * K, 112.0),
+        (FramedFull, "toycar", 400.0 * K, 43.8),
+        (FramedFull, "toycar", 800.0 * K, 38.9),
+        (TraditionalFrameless, "interactive", 100.0 * K, 80.8),
+        (TraditionalFrameless, "interactive", 400.0 * K, 48.8),
+        (TraditionalFrameless, "interactive", 800.0 * K, 39.3),
+        (TraditionalFrameless, "bart", 400.0 * K, 92.3),
+        (TraditionalFrameless, "bart", 800.0 * K, 74.8),
+        (TraditionalFrameless, "toycar", 400.0 * K, 35.3),
+        (TraditionalFrameless, "toycar", 800.0 * K, 32.5),
+        (Adaptive, "interactive", 100.0 * K, 34.4),
+        (Adaptive, "interactive", 400.0 * K, 24.1),
+        (Adaptive, "interactive", 800.0 * K, 23.6),
+        (Adaptive, "bart", 400.0 * K, 50.1),
+        (Adaptive, "bart", 800.0 * K, 51.9),
+        (Adaptive, "toycar", 400.0 * K, 20.4),
+        (Adaptive, "toycar", 800.0 * K, 18.5),
+        (FullRes60Hz, "interactive", 100.0 * K, 28.0),
+        (FullRes60Hz, "interactive", 400.0 * K, 28.0),
+        (FullRes60Hz, "interactive", 800.0 * K, 28.0),
+        (FullRes60Hz, "bart", 400.0 * K, 30.7),
+        (FullRes60Hz, "bart", 800.0 * K, 30.7),
+        (FullRes60Hz, "toycar", 400.0 * K, 29.4),
+        (FullRes60Hz, "toycar", 800.0 * K, 29.4),
     ]
 };
 
 /// The paper's value for a cell, if it reported one.
-pub fn paper_value(method: &str, animation: &str, rate: f64) -> Option<f64> {
+pub fn paper_value(method: MethodKind, animation: &str, rate: f64) -> Option<f64> {
     PAPER
         .iter()
         .find(|(m, a, r, _)| *m == method && *a == animation && *r == rate)
@@ -157,11 +158,10 @@ pub struct TableSummary {
     pub animations: Vec<AnimationResult>,
 }
 
-fn cell<'a>(s: &'a Summary, method: &str, rate: f64) -> Option<&'a super::ResultRow> {
-    s.results.iter().find(|r| {
-        r.method == method
-            && (r.rate == rate || MethodKind::parse(method).is_ok_and(|k| k.rate_independent()))
-    })
+fn cell(s: &Summary, method: MethodKind, rate: f64) -> Option<&super::ResultRow> {
+    s.results
+        .iter()
+        .find(|r| r.method == method && (r.rate == rate || method.rate_independent()))
 }
 
 /// The measured table beside the paper's: one Markdown table per metric, rows are
@@ -174,19 +174,20 @@ pub fn markdown(t: &TableSummary) -> String {
         rates.dedup();
         // The rate-independent method's own budget is not a column.
         rates.retain(|&r| {
-            a.summary.results.iter().any(|x| {
-                x.rate == r && !MethodKind::parse(&x.method).is_ok_and(|k| k.rate_independent())
-            })
+            a.summary
+                .results
+                .iter()
+                .any(|x| x.rate == r && !x.method.rate_independent())
         });
         for r in rates {
             cols.push((&a.name, r, &a.summary));
         }
     }
-    let mut methods: Vec<String> = Vec::new();
+    let mut methods: Vec<MethodKind> = Vec::new();
     for a in &t.animations {
         for r in &a.summary.results {
             if !methods.contains(&r.method) {
-                methods.push(r.method.clone());
+                methods.push(r.method);
             }
         }
     }
@@ -223,11 +224,11 @@ pub fn markdown(t: &TableSummary) -> String {
         for m in &methods {
             let _ = write!(out, "| {m} |");
             for (a, r, s) in &cols {
-                match cell(s, m, *r) {
+                match cell(s, *m, *r) {
                     Some(x) => {
                         let _ = write!(out, " {:.*}", prec, f(x));
                         if with_paper {
-                            if let Some(p) = paper_value(m, a, *r) {
+                            if let Some(p) = paper_value(*m, a, *r) {
                                 let _ = write!(out, " ({p})");
                             }
                         }
@@ -251,22 +252,24 @@ pub fn targets(t: &TableSummary) -> String {
         let mut rates: Vec<f64> = s
             .results
             .iter()
-            .filter(|r| r.method == "adaptive")
+            .filter(|r| r.method == MethodKind::Adaptive)
             .map(|r| r.rate)
             .collect();
         rates.sort_by(f64::total_cmp);
         for r in rates {
-            let get = |m: &str| cell(s, m, r).map(|x| x.rms_mean);
-            let Some(ad) = get("adaptive") else { continue };
+            let get = |m: MethodKind| cell(s, m, r).map(|x| x.rms_mean);
+            let Some(ad) = get(MethodKind::Adaptive) else {
+                continue;
+            };
             let mut line = format!("- {} {}: adaptive RMS {ad:.1}", a.name, rate_label(r));
-            if let Some(tf) = get("traditional-frameless") {
+            if let Some(tf) = get(MethodKind::TraditionalFrameless) {
                 let _ = write!(
                     line,
                     "; ÷ traditional frameless {tf:.1} = {:.2} (target ≤ 0.5)",
                     ad / tf
                 );
             }
-            if let Some(taa) = get("taa") {
+            if let Some(taa) = get(MethodKind::Taa) {
                 let _ = write!(
                     line,
                     "; TAA {taa:.1} ({})",
@@ -277,7 +280,7 @@ pub fn targets(t: &TableSummary) -> String {
                     }
                 );
             }
-            if let Some(fr) = get("full-res-60hz") {
+            if let Some(fr) = get(MethodKind::FullRes60Hz) {
                 let _ = write!(
                     line,
                     "; full-res-60hz {fr:.1} ({})",
@@ -359,10 +362,10 @@ fn escape(s: &str) -> String {
 
 /// Write the combined outputs into `dir` (the per-animation folders are written by
 /// the evaluation itself).
-pub fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), String> {
-    let io = |p: &Path, e: std::io::Error| format!("{}: {e}", p.display());
+pub fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), EvalError> {
+    let io = EvalError::io;
     std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
-    let write = |name: &str, text: &str| -> Result<(), String> {
+    let write = |name: &str, text: &str| -> Result<(), EvalError> {
         let p = dir.join(name);
         crate::image::write_atomic(&p, text.as_bytes()).map_err(|e| io(&p, e))
     };
@@ -373,7 +376,8 @@ pub fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), St
     write("report.html", &html(t, cost))?;
     write(
         "summary.json",
-        &serde_json::to_string_pretty(t).map_err(|e| e.to_string())?,
+        // Numbers and strings always serialise.
+        &serde_json::to_string_pretty(t).expect("table summary serialises"),
     )?;
     Ok(())
 }
@@ -401,13 +405,13 @@ mod tests {
         assert!(animation("bart").is_ok());
         assert!(animation("nope")
             .unwrap_err()
+            .to_string()
             .contains("interactive, bart, toycar"));
         for m in METHODS {
-            assert!(MethodKind::parse(m.name()).is_ok());
+            assert_eq!(MethodKind::parse(m.name()), Ok(m));
         }
-        // Every paper row names one of our methods.
-        for (m, a, _, _) in PAPER {
-            assert!(MethodKind::parse(m).is_ok(), "{m}");
+        // Every paper row names one of our animations.
+        for (_, a, _, _) in PAPER {
             assert!(animation(a).is_ok(), "{a}");
         }
     }

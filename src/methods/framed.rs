@@ -13,8 +13,39 @@
 
 use rayon::prelude::*;
 
-use super::{Displayed, Method, MethodContext};
+use super::{
+    any_rate, one_frame_in_run, sixty_per_second, Budget, Displayed, Method, MethodContext,
+    MethodError, MethodInfo,
+};
 use crate::{clock::TIME_EPS, image::Image};
+
+/// `framed-60hz`.
+pub const FRAMED_60HZ: MethodInfo = MethodInfo {
+    name: "framed-60hz",
+    description:
+        "double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled",
+    budget: Budget::Rate,
+    check_rate: |_, rate| sixty_per_second("framed-60hz", rate),
+    build: |ctx| Ok(Box::new(Framed::sixty_hz(ctx)?)),
+};
+
+/// `framed-full`.
+pub const FRAMED_FULL: MethodInfo = MethodInfo {
+    name: "framed-full",
+    description: "double-buffered, one sample per pixel, frame rate R/(W*H)",
+    budget: Budget::Rate,
+    check_rate: |shape, rate| one_frame_in_run("framed-full", shape, rate),
+    build: |ctx| Ok(Box::new(Framed::full_res(ctx)?)),
+};
+
+/// `full-res-60hz`.
+pub const FULL_RES_60HZ: MethodInfo = MethodInfo {
+    name: "full-res-60hz",
+    description: "double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate",
+    budget: Budget::Own(|s| s.pixels() * 60.0),
+    check_rate: any_rate,
+    build: |ctx| Ok(Box::new(Framed::full_res_60hz(ctx)?)),
+};
 
 /// A double-buffered framed renderer.
 pub struct Framed {
@@ -29,10 +60,14 @@ pub struct Framed {
 }
 
 impl Framed {
-    fn new(ctx: &MethodContext, grid: (u32, u32), duration: f64) -> Result<Self, String> {
+    fn new(ctx: &MethodContext, grid: (u32, u32), duration: f64) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
         if !(duration.is_finite() && duration > 0.0) {
-            return Err("frame duration must be positive".into());
+            return Err(MethodError::Parameter {
+                group: "framed",
+                name: "frame duration",
+                why: "must be positive and finite",
+            });
         }
         Ok(Self {
             ctx: ctx.clone(),
@@ -47,26 +82,21 @@ impl Framed {
     }
 
     /// `framed-60hz`: the largest grid of the display's aspect with at most R/60 samples.
-    pub fn sixty_hz(ctx: &MethodContext) -> Result<Self, String> {
+    pub fn sixty_hz(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
+        sixty_per_second("framed-60hz", ctx.clock.rate)?;
         let per_frame = (ctx.clock.rate / 60.0).floor();
-        if per_frame < 1.0 {
-            return Err(format!(
-                "rate {} samples/s is too low for framed-60hz: it needs at least 60 (one sample per frame)",
-                ctx.clock.rate
-            ));
-        }
         Self::new(ctx, reduced_grid(w, h, per_frame as u64), 1.0 / 60.0)
     }
 
     /// `framed-full`: one sample per pixel, frame time W·H/R.
-    pub fn full_res(ctx: &MethodContext) -> Result<Self, String> {
+    pub fn full_res(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
         Self::new(ctx, (w, h), (w as f64 * h as f64) / ctx.clock.rate)
     }
 
     /// `full-res-60hz`: one sample per pixel at 60 Hz (budget W·H·60).
-    pub fn full_res_60hz(ctx: &MethodContext) -> Result<Self, String> {
+    pub fn full_res_60hz(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
         Self::new(ctx, (w, h), 1.0 / 60.0)
     }

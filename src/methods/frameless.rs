@@ -7,8 +7,17 @@
 
 use rayon::prelude::*;
 
-use super::{mean_age, Displayed, Method, MethodContext};
+use super::{any_rate, mean_age, Budget, Displayed, Method, MethodContext, MethodInfo};
 use crate::{image::Image, sampling::Rng, trace::Tracer};
+
+/// `traditional-frameless`.
+pub const TRADITIONAL_FRAMELESS: MethodInfo = MethodInfo {
+    name: "traditional-frameless",
+    description: "random pixel order, each sample at its own time, newest sample per pixel",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| Ok(Box::new(Traditional::new(ctx))),
+};
 
 /// The traditional frameless renderer.
 pub struct Traditional {

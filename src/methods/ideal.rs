@@ -1,8 +1,17 @@
 //! The gold standard: the exact image at each refresh time, antialiased by stratified
 //! supersampling, with zero delay. Not a contender; viewable as a method.
 
-use super::{Displayed, Method, MethodContext};
+use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodInfo};
 use crate::{image::Image, render::still};
+
+/// `ideal`: every refresh supersampled, held to no budget.
+pub const IDEAL: MethodInfo = MethodInfo {
+    name: "ideal",
+    description: "zero delay, stratified supersampling (the reference)",
+    budget: Budget::Unbounded(|s| s.pixels() * s.ideal_spp as f64 * s.refresh_hz),
+    check_rate: any_rate,
+    build: |ctx| Ok(Box::new(Ideal::new(ctx))),
+};
 
 /// The ideal renderer.
 pub struct Ideal {

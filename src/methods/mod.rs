@@ -1,189 +1,283 @@
-//! Rendering methods compared by the evaluation: one file per method, one enum naming
-//! them all. Adding a method means a new file, a variant of [`MethodKind`] and one arm in
-//! [`MethodKind::build`].
+//! Rendering methods compared by the evaluation.
+//!
+//! Each method lives in one file that defines its [`MethodInfo`]: name, description,
+//! budget rules and constructor. The [`registry!`] below lists every method once; it
+//! declares the files and derives [`MethodKind`], the typed name that the evaluation,
+//! Table 1, the CLI (clap) and the reports (serde) use. None of them matches on a
+//! variant: they read the description. Adding a method is one file defining a
+//! `MethodInfo` and one line in the registry (see `docs/ARCHITECTURE.md`).
 //!
 //! A method is driven by the simulated [`Clock`]: it may trace the samples the budget
 //! allows up to a display time and must then say what the display shows at that time.
 
-pub mod adaptive;
-pub mod framed;
-pub mod frameless;
-pub mod ideal;
-pub mod point_tracking;
-pub mod taa;
-
 use std::sync::Arc;
 
-use crate::{clock::Clock, image::Image, trace::Tracer};
+use crate::{
+    clock::{rate_label, Clock},
+    image::Image,
+    render::cache::IdealCache,
+    trace::Tracer,
+};
 
-/// The methods `frameless eval --methods` accepts.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum MethodKind {
-    /// The gold standard: zero delay, stratified supersampling.
-    Ideal,
-    /// Framed, double-buffered at 60 Hz, reduced resolution, upscaled.
-    Framed60Hz,
-    /// Framed, double-buffered, one sample per display pixel, frame rate R/(W·H).
-    FramedFull,
-    /// Framed full resolution at 60 Hz with its own budget W·H·60 (whatever the rate).
-    FullRes60Hz,
-    /// Bishop et al.: random pixel order, newest sample per pixel.
-    TraditionalFrameless,
-    /// Adaptive frameless rendering (the paper's method).
-    Adaptive,
-    /// Adaptive without reprojection in the sampler (paper Fig. 8's ablation).
-    AdaptiveNoReprojection,
-    /// Adaptive whose sampler leaves crosshairs that cannot have moved in place (no
-    /// occlusion ray spent on them; not in the paper).
-    AdaptiveKeepStatic,
-    /// Adaptive whose reconstructor splats samples where they were traced.
-    AdaptiveNoReprojRecon,
-    /// Adaptive whose reconstructor uses a fixed, non-adaptive filter.
-    AdaptiveFixedFilter,
-    /// Point tracking (Martin et al. 2002) with the three-frame blend.
-    PointTracking,
-    /// Point tracking without the blend.
-    PointTrackingNoBlend,
-    /// TAA / temporal upsampling at 60 Hz.
-    Taa,
+/// Declares the method files and derives [`MethodKind`] from
+/// `file { Variant => INFO, ... }` lines, where `file::INFO` is the variant's
+/// [`MethodInfo`]. A line's variants are in report order; attributes on a variant
+/// (e.g. `#[cfg(test)]`) apply to it everywhere.
+macro_rules! registry {
+    ($( $file:ident { $( $(#[$attr:meta])* $variant:ident => $info:ident ),+ $(,)? } )*) => {
+        $( pub mod $file; )*
+
+        /// The methods `frameless eval --methods` accepts, in report order. Each
+        /// variant's name, description and rules are its [`MethodInfo`].
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[allow(missing_docs)] // documented by their descriptions
+        pub enum MethodKind {
+            $( $( $(#[$attr])* $variant, )+ )*
+        }
+
+        impl MethodKind {
+            /// Every method, in report order.
+            pub const ALL: &'static [MethodKind] = &[ $( $( $(#[$attr])* MethodKind::$variant, )+ )* ];
+
+            /// The method's description.
+            pub fn info(self) -> &'static MethodInfo {
+                match self {
+                    $( $( $(#[$attr])* MethodKind::$variant => &$file::$info, )+ )*
+                }
+            }
+        }
+    };
+}
+
+registry! {
+    ideal { Ideal => IDEAL }
+    framed { Framed60Hz => FRAMED_60HZ, FramedFull => FRAMED_FULL, FullRes60Hz => FULL_RES_60HZ }
+    frameless { TraditionalFrameless => TRADITIONAL_FRAMELESS }
+    adaptive {
+        Adaptive => ADAPTIVE,
+        AdaptiveNoReprojection => ADAPTIVE_NO_REPROJECTION,
+        AdaptiveKeepStatic => ADAPTIVE_KEEP_STATIC,
+        AdaptiveNoReprojRecon => ADAPTIVE_NO_REPROJ_RECON,
+        AdaptiveFixedFilter => ADAPTIVE_FIXED_FILTER,
+    }
+    point_tracking { PointTracking => POINT_TRACKING, PointTrackingNoBlend => POINT_TRACKING_NO_BLEND }
+    taa { Taa => TAA }
+    test_method { #[cfg(test)] TestFrameless => TEST_FRAMELESS }
+}
+
+/// A method: everything the evaluation, Table 1, the CLI and the reports know of it.
+pub struct MethodInfo {
+    /// Command-line and report name.
+    pub name: &'static str,
+    /// One line, shown by `frameless eval --help`.
+    pub description: &'static str,
+    /// How it spends the sample budget.
+    pub budget: Budget,
+    /// Whether it can run at a rate in a run of a given shape (checked before any work
+    /// starts, so that a bad combination fails at once).
+    pub check_rate: fn(&RunShape, f64) -> Result<(), MethodError>,
+    /// Build it for one run.
+    pub build: fn(&MethodContext) -> Result<Box<dyn Method>, MethodError>,
+}
+
+/// How a method spends the sample budget.
+#[derive(Clone, Copy, Debug)]
+pub enum Budget {
+    /// It traces at the evaluated rate.
+    Rate,
+    /// It has its own budget whatever the rate (samples per second for a run of this
+    /// shape), so one run serves every rate column.
+    Own(fn(&RunShape) -> f64),
+    /// The reference: held to no budget; what it spends, in samples per second.
+    Unbounded(fn(&RunShape) -> f64),
+}
+
+impl Budget {
+    /// The rate the method actually uses when `rate` is asked.
+    pub fn effective_rate(&self, shape: &RunShape, rate: f64) -> f64 {
+        match self {
+            Budget::Rate => rate,
+            Budget::Own(f) | Budget::Unbounded(f) => f(shape),
+        }
+    }
+
+    /// Whether the method ignores the asked rate (one run serves every rate).
+    pub fn rate_independent(&self) -> bool {
+        !matches!(self, Budget::Rate)
+    }
+
+    /// Whether the evaluation holds the method to its budget.
+    pub fn enforced(&self) -> bool {
+        !matches!(self, Budget::Unbounded(_))
+    }
+}
+
+/// What a method's budget rules need to know of a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunShape {
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// Display refresh rate, Hz.
+    pub refresh_hz: f64,
+    /// Samples per pixel of ideal images.
+    pub ideal_spp: u32,
+    /// Warm-up plus the evaluated window, seconds.
+    pub seconds: f64,
+}
+
+impl RunShape {
+    /// Display pixels.
+    pub fn pixels(&self) -> f64 {
+        self.width as f64 * self.height as f64
+    }
+}
+
+/// Why a method cannot run.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MethodError {
+    /// The sample rate cannot feed the method.
+    #[error("rate {rate} is too low for {method}: {why}")]
+    RateTooLow {
+        /// The method, as users name it.
+        method: &'static str,
+        /// The rate, as users write it.
+        rate: String,
+        /// What the method would need.
+        why: String,
+    },
+    /// A parameter is out of range.
+    #[error("{group} parameter {name}: {why}")]
+    Parameter {
+        /// Whose parameter (e.g. `sampler`).
+        group: &'static str,
+        /// Which.
+        name: &'static str,
+        /// The valid range.
+        why: &'static str,
+    },
+    /// A consistency check of a method's data failed (a bug).
+    #[error("inconsistent {what}: {why}")]
+    Inconsistent {
+        /// Which structure.
+        what: &'static str,
+        /// What does not hold.
+        why: String,
+    },
+}
+
+/// [`MethodInfo::check_rate`] of a method that runs at any positive rate.
+pub fn any_rate(_: &RunShape, _: f64) -> Result<(), MethodError> {
+    Ok(())
+}
+
+/// The check of a method that must finish at least one full-resolution frame within the
+/// run to show anything.
+pub fn one_frame_in_run(
+    method: &'static str,
+    shape: &RunShape,
+    rate: f64,
+) -> Result<(), MethodError> {
+    let frame_s = shape.pixels() / rate;
+    if frame_s > shape.seconds {
+        return Err(MethodError::RateTooLow {
+            method,
+            rate: rate_label(rate),
+            why: format!(
+                "one {}x{} frame takes {frame_s:.2} s, longer than warm-up + duration ({:.2} s)",
+                shape.width, shape.height, shape.seconds
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// The check of a method that renders a frame every 1/60 s and needs a sample in each.
+pub fn sixty_per_second(method: &'static str, rate: f64) -> Result<(), MethodError> {
+    if rate < 60.0 {
+        return Err(MethodError::RateTooLow {
+            method,
+            rate: rate_label(rate),
+            why: "it needs at least 60 samples/s (one per frame)".into(),
+        });
+    }
+    Ok(())
 }
 
 impl MethodKind {
-    /// Every method, in report order.
-    pub const ALL: &'static [MethodKind] = &[
-        MethodKind::Ideal,
-        MethodKind::Framed60Hz,
-        MethodKind::FramedFull,
-        MethodKind::FullRes60Hz,
-        MethodKind::TraditionalFrameless,
-        MethodKind::Adaptive,
-        MethodKind::AdaptiveNoReprojection,
-        MethodKind::AdaptiveKeepStatic,
-        MethodKind::AdaptiveNoReprojRecon,
-        MethodKind::AdaptiveFixedFilter,
-        MethodKind::PointTracking,
-        MethodKind::PointTrackingNoBlend,
-        MethodKind::Taa,
-    ];
-
-    /// Command-line name.
+    /// Command-line and report name.
     pub fn name(self) -> &'static str {
-        match self {
-            MethodKind::Ideal => "ideal",
-            MethodKind::Framed60Hz => "framed-60hz",
-            MethodKind::FramedFull => "framed-full",
-            MethodKind::FullRes60Hz => "full-res-60hz",
-            MethodKind::TraditionalFrameless => "traditional-frameless",
-            MethodKind::Adaptive => "adaptive",
-            MethodKind::AdaptiveNoReprojection => "adaptive-no-reprojection",
-            MethodKind::AdaptiveKeepStatic => "adaptive-keep-static",
-            MethodKind::AdaptiveNoReprojRecon => "adaptive-no-reproj-recon",
-            MethodKind::AdaptiveFixedFilter => "adaptive-fixed-filter",
-            MethodKind::PointTracking => "point-tracking",
-            MethodKind::PointTrackingNoBlend => "point-tracking-no-blend",
-            MethodKind::Taa => "taa",
-        }
+        self.info().name
     }
 
-    /// One-line description (shown by `frameless eval --help`).
+    /// One-line description.
     pub fn description(self) -> &'static str {
-        match self {
-            MethodKind::Ideal => "zero delay, stratified supersampling (the reference)",
-            MethodKind::Framed60Hz => {
-                "double-buffered at 60 Hz, R/60 samples per frame at reduced resolution, upscaled"
-            }
-            MethodKind::FramedFull => "double-buffered, one sample per pixel, frame rate R/(W*H)",
-            MethodKind::FullRes60Hz => {
-                "double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate"
-            }
-            MethodKind::TraditionalFrameless => {
-                "random pixel order, each sample at its own time, newest sample per pixel"
-            }
-            MethodKind::Adaptive => {
-                "adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer"
-            }
-            MethodKind::AdaptiveNoReprojection => {
-                "adaptive frameless without reprojection in the sampler"
-            }
-            MethodKind::AdaptiveKeepStatic => {
-                "adaptive frameless; the sampler does not reproject crosshairs that cannot have moved"
-            }
-            MethodKind::AdaptiveNoReprojRecon => {
-                "adaptive frameless without reprojection in the reconstructor"
-            }
-            MethodKind::AdaptiveFixedFilter => {
-                "adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)"
-            }
-            MethodKind::PointTracking => {
-                "framed full resolution, rays aimed at the previous frame's hit points, last 3 frames averaged"
-            }
-            MethodKind::PointTrackingNoBlend => "point tracking showing only the newest frame",
-            MethodKind::Taa => {
-                "60 Hz at reduced resolution, Halton jitter, reprojected clamped history, blend 0.1"
-            }
-        }
+        self.info().description
     }
 
     /// Parse a command-line name.
-    pub fn parse(s: &str) -> Result<Self, String> {
+    pub fn parse(s: &str) -> Result<Self, UnknownMethod> {
         Self::ALL
             .iter()
             .copied()
             .find(|m| m.name() == s)
-            .ok_or_else(|| {
-                format!(
-                    "unknown method `{s}`; methods are: {}",
-                    Self::ALL
-                        .iter()
-                        .map(|m| m.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                )
-            })
+            .ok_or_else(|| UnknownMethod(s.to_string()))
     }
 
     /// Whether the method ignores the sample rate (so one run serves every rate).
     pub fn rate_independent(self) -> bool {
-        matches!(self, MethodKind::Ideal | MethodKind::FullRes60Hz)
+        self.info().budget.rate_independent()
     }
 
-    /// Build the method for one evaluation run.
-    pub fn build(self, ctx: &MethodContext) -> Result<Box<dyn Method>, String> {
-        Ok(match self {
-            MethodKind::Ideal => Box::new(ideal::Ideal::new(ctx)),
-            MethodKind::Framed60Hz => Box::new(framed::Framed::sixty_hz(ctx)?),
-            MethodKind::FramedFull => Box::new(framed::Framed::full_res(ctx)?),
-            MethodKind::FullRes60Hz => Box::new(framed::Framed::full_res_60hz(ctx)?),
-            MethodKind::TraditionalFrameless => Box::new(frameless::Traditional::new(ctx)),
-            MethodKind::Adaptive => Box::new(adaptive::Adaptive::new(
-                ctx,
-                adaptive::SamplerParams::paper(),
-            )?),
-            MethodKind::AdaptiveNoReprojection => Box::new(adaptive::Adaptive::new(
-                ctx,
-                adaptive::SamplerParams::no_reprojection(),
-            )?),
-            MethodKind::AdaptiveKeepStatic => Box::new(adaptive::Adaptive::new(ctx, {
-                let mut p = adaptive::SamplerParams::paper();
-                p.skip_static_reprojection = true;
-                p
-            })?),
-            MethodKind::AdaptiveNoReprojRecon => Box::new(adaptive::Adaptive::with_reconstructor(
-                ctx,
-                adaptive::SamplerParams::paper(),
-                crate::reconstruction::ReconParams::no_reprojection(),
-            )?),
-            MethodKind::AdaptiveFixedFilter => Box::new(adaptive::Adaptive::with_reconstructor(
-                ctx,
-                adaptive::SamplerParams::paper(),
-                crate::reconstruction::ReconParams::fixed_filter(),
-            )?),
-            MethodKind::PointTracking => Box::new(point_tracking::PointTracking::new(ctx, true)),
-            MethodKind::PointTrackingNoBlend => {
-                Box::new(point_tracking::PointTracking::new(ctx, false))
-            }
-            MethodKind::Taa => Box::new(taa::Taa::new(ctx)?),
-        })
+    /// Build the method for one run.
+    pub fn build(self, ctx: &MethodContext) -> Result<Box<dyn Method>, MethodError> {
+        (self.info().build)(ctx)
+    }
+}
+
+/// A method name that no method has.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown method `{0}`; methods are: {list}", list = method_names())]
+pub struct UnknownMethod(pub String);
+
+fn method_names() -> String {
+    let names: Vec<&str> = MethodKind::ALL.iter().map(|m| m.name()).collect();
+    names.join(", ")
+}
+
+impl std::fmt::Display for MethodKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for MethodKind {
+    type Err = UnknownMethod;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::parse(s)
+    }
+}
+
+impl serde::Serialize for MethodKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MethodKind {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        Self::parse(&s).map_err(serde::de::Error::custom)
+    }
+}
+
+impl clap::ValueEnum for MethodKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        Self::ALL
+    }
+    fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
+        Some(clap::builder::PossibleValue::new(self.name()).help(self.description()))
     }
 }
 
@@ -199,7 +293,7 @@ pub struct MethodContext {
     /// Samples per pixel of ideal images.
     pub ideal_spp: u32,
     /// Where ideal images are cached, if anywhere.
-    pub ideal_cache: Option<Arc<crate::render::cache::IdealCache>>,
+    pub ideal_cache: Option<Arc<IdealCache>>,
 }
 
 /// What the display shows at one refresh.

@@ -21,8 +21,27 @@ use glam::Vec3;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::{Displayed, Method, MethodContext};
+use super::{one_frame_in_run, Budget, Displayed, Method, MethodContext, MethodInfo};
 use crate::{clock::TIME_EPS, image::Image};
+
+/// `point-tracking`.
+pub const POINT_TRACKING: MethodInfo = MethodInfo {
+    name: "point-tracking",
+    description:
+        "framed full resolution, rays aimed at the previous frame's hit points, last 3 frames averaged",
+    budget: Budget::Rate,
+    check_rate: |shape, rate| one_frame_in_run("point-tracking", shape, rate),
+    build: |ctx| Ok(Box::new(PointTracking::new(ctx, true))),
+};
+
+/// `point-tracking-no-blend`.
+pub const POINT_TRACKING_NO_BLEND: MethodInfo = MethodInfo {
+    name: "point-tracking-no-blend",
+    description: "point tracking showing only the newest frame",
+    budget: Budget::Rate,
+    check_rate: |shape, rate| one_frame_in_run("point-tracking-no-blend", shape, rate),
+    build: |ctx| Ok(Box::new(PointTracking::new(ctx, false))),
+};
 
 /// What point tracking measured over a run.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]

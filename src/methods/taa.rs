@@ -15,8 +15,20 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{framed::reduced_grid, Displayed, Method, MethodContext};
+use super::{
+    framed::reduced_grid, sixty_per_second, Budget, Displayed, Method, MethodContext,
+    MethodError, MethodInfo,
+};
 use crate::{clock::TIME_EPS, image::Image, scene::CameraFrame, trace::Sample};
+
+/// `taa`.
+pub const TAA: MethodInfo = MethodInfo {
+    name: "taa",
+    description: "60 Hz at reduced resolution, Halton jitter, reprojected clamped history, blend 0.1",
+    budget: Budget::Rate,
+    check_rate: |_, rate| sixty_per_second("taa", rate),
+    build: |ctx| Ok(Box::new(Taa::new(ctx)?)),
+};
 
 /// Weight of the current frame in the exponential blend (the usual ≈ 0.1).
 pub const ALPHA: f32 = 0.1;
@@ -96,15 +108,10 @@ pub struct Taa {
 
 impl Taa {
     /// Create for one run.
-    pub fn new(ctx: &MethodContext) -> Result<Self, String> {
+    pub fn new(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
+        sixty_per_second("taa", ctx.clock.rate)?;
         let per_frame = (ctx.clock.rate / 60.0).floor();
-        if per_frame < 1.0 {
-            return Err(format!(
-                "rate {} samples/s is too low for taa: it needs at least 60",
-                ctx.clock.rate
-            ));
-        }
         Ok(Self {
             ctx: ctx.clone(),
             grid: reduced_grid(w, h, per_frame as u64),

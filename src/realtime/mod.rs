@@ -228,7 +228,9 @@ impl RtConfig {
         if !(self.recon.ring_factor.is_finite() && self.recon.ring_factor > 0.0) {
             return Err(RealtimeError::Config("ring factor must be positive".into()));
         }
-        self.sampler.validate().map_err(RealtimeError::Config)
+        self.sampler
+            .validate()
+            .map_err(|e| RealtimeError::Config(e.to_string()))
     }
 }
 

@@ -12,14 +12,78 @@ pub mod vis;
 
 use std::sync::Arc;
 
-use super::{Displayed, Method, MethodContext};
+use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodError, MethodInfo};
 use crate::{
-    image::Image,
     reconstruction::{ReconParams, Reconstructor},
     trace::Tracer,
 };
 pub use params::SamplerParams;
 pub use sampler::Sampler;
+
+/// `adaptive`: the paper's sampler and reconstructor.
+pub const ADAPTIVE: MethodInfo = MethodInfo {
+    name: "adaptive",
+    description: "adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::paper())?)),
+};
+
+/// `adaptive-no-reprojection`: the ablation of paper Fig. 8.
+pub const ADAPTIVE_NO_REPROJECTION: MethodInfo = MethodInfo {
+    name: "adaptive-no-reprojection",
+    description: "adaptive frameless without reprojection in the sampler",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::no_reprojection())?)),
+};
+
+/// `adaptive-keep-static` (not in the paper): no occlusion ray for crosshairs that
+/// cannot have moved.
+pub const ADAPTIVE_KEEP_STATIC: MethodInfo = MethodInfo {
+    name: "adaptive-keep-static",
+    description:
+        "adaptive frameless; the sampler does not reproject crosshairs that cannot have moved",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| {
+        let params = SamplerParams {
+            skip_static_reprojection: true,
+            ..SamplerParams::paper()
+        };
+        Ok(Box::new(Adaptive::new(ctx, params)?))
+    },
+};
+
+/// `adaptive-no-reproj-recon`: the reconstructor splats samples where they were traced.
+pub const ADAPTIVE_NO_REPROJ_RECON: MethodInfo = MethodInfo {
+    name: "adaptive-no-reproj-recon",
+    description: "adaptive frameless without reprojection in the reconstructor",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| {
+        Ok(Box::new(Adaptive::with_reconstructor(
+            ctx,
+            SamplerParams::paper(),
+            ReconParams::no_reprojection(),
+        )?))
+    },
+};
+
+/// `adaptive-fixed-filter`: the reconstructor's filter does not adapt.
+pub const ADAPTIVE_FIXED_FILTER: MethodInfo = MethodInfo {
+    name: "adaptive-fixed-filter",
+    description: "adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| {
+        Ok(Box::new(Adaptive::with_reconstructor(
+            ctx,
+            SamplerParams::paper(),
+            ReconParams::fixed_filter(),
+        )?))
+    },
+};
 
 /// The `adaptive` method of the evaluation (and its ablations).
 pub struct Adaptive {
@@ -31,7 +95,7 @@ pub struct Adaptive {
 impl Adaptive {
     /// Create for one run with the given sampler parameters and the paper's
     /// reconstructor.
-    pub fn new(ctx: &MethodContext, params: SamplerParams) -> Result<Self, String> {
+    pub fn new(ctx: &MethodContext, params: SamplerParams) -> Result<Self, MethodError> {
         Self::with_reconstructor(ctx, params, ReconParams::paper())
     }
 
@@ -40,7 +104,7 @@ impl Adaptive {
         ctx: &MethodContext,
         params: SamplerParams,
         recon: ReconParams,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
         Ok(Self {
             sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?,
@@ -58,35 +122,6 @@ impl Adaptive {
     pub fn reconstructor(&self) -> &Reconstructor {
         &self.recon
     }
-}
-
-/// Fill unsampled pixels from the nearest sampled one (growing rings, up to `max_r`).
-pub fn fill_holes(img: &Image, sampled: &[bool], max_r: i32) -> Image {
-    let (w, h) = (img.width as i32, img.height as i32);
-    let mut out = img.clone();
-    for y in 0..h {
-        for x in 0..w {
-            if sampled[(y * w + x) as usize] {
-                continue;
-            }
-            'search: for r in 1..=max_r {
-                for dy in -r..=r {
-                    for dx in -r..=r {
-                        if dx.abs() != r && dy.abs() != r {
-                            continue;
-                        }
-                        let (sx, sy) = (x + dx, y + dy);
-                        if sx >= 0 && sy >= 0 && sx < w && sy < h && sampled[(sy * w + sx) as usize]
-                        {
-                            out.pixels[(y * w + x) as usize] = img.pixels[(sy * w + sx) as usize];
-                            break 'search;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    out
 }
 
 impl Method for Adaptive {

@@ -1,6 +1,8 @@
 //! Parameters of the adaptive frameless sampler, with the paper's defaults where the
 //! paper gives them and documented choices where it does not.
 
+use crate::methods::MethodError;
+
 /// Every knob of the adaptive sampler.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SamplerParams {
@@ -105,8 +107,14 @@ impl SamplerParams {
     }
 
     /// Check ranges; the message names the bad field.
-    pub fn validate(&self) -> Result<(), String> {
-        let bad = |f: &str, why: &str| Err(format!("sampler parameter {f}: {why}"));
+    pub fn validate(&self) -> Result<(), MethodError> {
+        let bad = |name: &'static str, why: &'static str| {
+            Err(MethodError::Parameter {
+                group: "sampler",
+                name,
+                why,
+            })
+        };
         if self.depth == 0 || self.depth > 64 {
             return bad("depth", "must be in 1..=64");
         }

@@ -19,6 +19,7 @@ use super::{
 };
 use crate::{
     clock::Clock,
+    methods::MethodError,
     sampling::Rng,
     trace::{Sample, SceneState, StateCache, StreamSample, Tracer},
 };
@@ -152,7 +153,7 @@ impl Sampler {
         clock: Clock,
         params: SamplerParams,
         seed: u64,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, MethodError> {
         params.validate()?;
         let (width, height) = tracer.size();
         let mut s = Self {
@@ -829,7 +830,7 @@ impl Sampler {
     }
 
     /// Check the tiling against the deep buffer (tests; expensive).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MethodError> {
         let f = |r: Rect| self.stats_of(r);
         self.tiling.validate(Some(&f), 1e-6)
     }

@@ -4,7 +4,10 @@
 //! free and splitting one needs a scan of one child only.
 
 pub use crate::tiles::Rect;
-use crate::tiles::{TileGradients, TilingSnapshot};
+use crate::{
+    methods::MethodError,
+    tiles::{TileGradients, TilingSnapshot},
+};
 
 /// Marks "no node".
 pub const NONE: u32 = u32::MAX;
@@ -358,7 +361,13 @@ impl Tiling {
         &self,
         stats_of: Option<&dyn Fn(Rect) -> TileStats>,
         tol: f64,
-    ) -> Result<(), String> {
+    ) -> Result<(), MethodError> {
+        let bad = |why: String| {
+            Err(MethodError::Inconsistent {
+                what: "tiling",
+                why,
+            })
+        };
         let mut covered = vec![0u8; (self.width * self.height) as usize];
         let mut stack = vec![0u32];
         let mut leaf_count = 0;
@@ -371,18 +380,18 @@ impl Tiling {
                     y1: self.height,
                 })
         {
-            return Err("root must cover the image and have no parent".into());
+            return bad("root must cover the image and have no parent".into());
         }
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i as usize];
             if n.rect.area() == 0 {
-                return Err(format!("node {i} has an empty rectangle"));
+                return bad(format!("node {i} has an empty rectangle"));
             }
             if n.children == NONE {
                 leaf_count += 1;
                 let slot = n.leaf_slot as usize;
                 if self.leaves.get(slot) != Some(&i) {
-                    return Err(format!("leaf {i} not at its slot {slot}"));
+                    return bad(format!("leaf {i} not at its slot {slot}"));
                 }
                 for y in n.rect.y0..n.rect.y1 {
                     for x in n.rect.x0..n.rect.x1 {
@@ -391,13 +400,13 @@ impl Tiling {
                 }
                 if let Some(p) = n.pending {
                     if !n.rect.contains(p.x as u32, p.y as u32) {
-                        return Err(format!("tile {i} holds a pending crosshair outside it"));
+                        return bad(format!("tile {i} holds a pending crosshair outside it"));
                     }
                 }
                 if let Some(f) = stats_of {
                     let want = f(n.rect);
                     if !n.stats.approx_eq(&want, tol) {
-                        return Err(format!(
+                        return bad(format!(
                             "tile {i} statistics {:?} differ from the buffer's {want:?}",
                             n.stats
                         ));
@@ -409,10 +418,10 @@ impl Tiling {
                     &self.nodes[n.children as usize + 1],
                 );
                 if a.parent != i || b.parent != i {
-                    return Err(format!("children of {i} do not point back"));
+                    return bad(format!("children of {i} do not point back"));
                 }
                 if n.leaf_slot != NONE || n.pending.is_some() {
-                    return Err(format!("inner node {i} is marked as a tile"));
+                    return bad(format!("inner node {i} is marked as a tile"));
                 }
                 let (ra, rb, r) = (a.rect, b.rect, n.rect);
                 let vertical = ra.x1 == rb.x0
@@ -431,12 +440,12 @@ impl Tiling {
                     ra.y0 == r.y0 && rb.y1 == r.y1
                 };
                 if !(vertical || horizontal) || !spans {
-                    return Err(format!("children of {i} do not split it exactly"));
+                    return bad(format!("children of {i} do not split it exactly"));
                 }
                 let mut sum = a.stats;
                 sum.add(&b.stats, 1.0);
                 if !n.stats.approx_eq(&sum, tol) {
-                    return Err(format!(
+                    return bad(format!(
                         "node {i} statistics are not the sum of its children's"
                     ));
                 }
@@ -445,14 +454,14 @@ impl Tiling {
             }
         }
         if leaf_count != self.leaves.len() {
-            return Err(format!(
+            return bad(format!(
                 "{} tiles reachable, {} listed",
                 leaf_count,
                 self.leaves.len()
             ));
         }
         if let Some(p) = covered.iter().position(|&c| c != 1) {
-            return Err(format!("pixel {p} covered {} times", covered[p]));
+            return bad(format!("pixel {p} covered {} times", covered[p]));
         }
         Ok(())
     }
