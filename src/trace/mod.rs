@@ -345,18 +345,6 @@ impl Tracer {
         self.options
     }
 
-    /// Number of primitives in the static world and in animated instances.
-    pub fn primitive_counts(&self) -> (usize, usize) {
-        (
-            self.static_geo.len(),
-            self.instance_groups
-                .iter()
-                .map(|(_, g)| g.len())
-                .sum::<usize>()
-                + self.scene.animated_triangles.len(),
-        )
-    }
-
     /// Quantize a time to the state grid.
     pub fn quantize(t: f64) -> i64 {
         (t / TIME_QUANTUM).round() as i64

@@ -605,17 +605,6 @@ impl Sampler {
         s * (kappa * norm(v, sv) + lambda * norm(u, su) + (1.0 - kappa - lambda) * norm(o, so))
     }
 
-    /// Every tile's error (visualisation and tests; O(tiles)).
-    pub fn tile_errors(&mut self, now: f64) -> Vec<(u32, f64)> {
-        self.refresh_error_sums(now);
-        let (me, w) = self.error_context(now);
-        self.tiling
-            .leaves()
-            .iter()
-            .map(|&l| (l, self.error(l, me, w)))
-            .collect()
-    }
-
     /// Image-wide inputs of gain control: age-weighted mean spatial gradient
     /// `(Gx + Gy)/2`, temporal gradient `Gt`, and age-weighted mean sample age `T`.
     pub fn gain_inputs(&self, now: f64) -> (f64, f64, f64) {
