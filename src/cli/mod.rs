@@ -194,90 +194,32 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 }
 
 fn render(a: args::RenderArgs) -> Result<()> {
-    use frameless::methods::MethodContext;
-    let (method, rate) = (a.method, a.rate);
-    if !(a.duration > 0.0 && a.duration <= 3600.0) {
-        bail!("--duration {} must be in (0, 3600] seconds", a.duration);
-    }
-    if !(a.warmup >= 0.0 && a.warmup <= 3600.0) {
-        bail!("--warmup {} must be in [0, 3600] seconds", a.warmup);
-    }
-    if !(a.fps > 0.0 && a.fps <= 1000.0) {
-        bail!("--fps {} must be in (0, 1000]", a.fps);
-    }
-    let frames = (a.duration * a.fps + 1e-9).floor().max(1.0) as u64;
-    if frames > 100_000 {
-        bail!("{frames} frames is too many (at most 100000): shorten --duration or lower --fps");
-    }
-    // The same checks as an evaluation of this method (e.g. a rate too low for a
-    // framed method to finish one frame).
+    use frameless::evaluation::sequence::{render_sequence, SequenceConfig};
     let Size(w, h) = a.size;
-    let check = EvalConfig {
+    let cfg = SequenceConfig {
         scene_name: a.scene.clone(),
-        camera_path: None,
+        camera_path: load_camera_path(a.camera_path.as_deref())?,
+        method: a.method,
+        rate: a.rate,
         start: a.start,
         duration: a.duration,
+        warmup: a.warmup,
+        fps: a.fps,
         width: w,
         height: h,
-        rates: vec![rate],
-        methods: vec![method],
         seed: a.seed,
-        ideal_spp: 1,
-        warmup: a.warmup,
-        refresh_hz: a.fps,
-        max_depth: 5,
-        cache_dir: None,
-        strip_frames: Vec::new(),
-        flip_every: 1,
     };
-    check.validate()?;
+    cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
-    let tracer = Arc::new(
-        Tracer::new(scene, w, h, TraceOptions::default())
-            .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
-    );
-    let ctx = MethodContext {
-        tracer,
-        clock: frameless::clock::Clock {
-            start: a.start - a.warmup,
-            rate,
-            first_refresh: a.start,
-            refresh_hz: a.fps,
-        },
-        seed: a.seed,
-        ideal_spp: 16,
-        ideal_cache: None,
-    };
-    let mut m = method.build(&ctx)?;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let bar = progress_bar(frames, "rendering");
-    let t0 = Instant::now();
-    let mut ages = 0.0;
-    for k in 0..frames {
-        let t = a.start + k as f64 / a.fps;
-        let shown = m.display(t);
-        ages += shown.mean_age;
-        let p = a.out.join(format!("frame_{k:05}.png"));
-        frameless::image::write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8())
-            .with_context(|| format!("writing {}", p.display()))?;
-        bar.inc(1);
-    }
+    let bar = progress_bar(0, "rendering");
+    let stats = render_sequence(scene, &cfg, &a.out, &BarProgress(bar.clone()))?;
     bar.finish_and_clear();
-    let stats = serde_json::json!({
-        "scene": a.scene, "method": method.name(), "rate": rate, "width": w, "height": h,
-        "start": a.start, "duration": a.duration, "warmup": a.warmup, "fps": a.fps,
-        "frames": frames, "samples": m.samples_used(), "trace_s": m.trace_seconds(),
-        "mean_age_s": ages / frames as f64, "wall_s": t0.elapsed().as_secs_f64(),
-        "extra": m.extra_stats(),
-    });
-    let p = a.out.join("stats.json");
-    frameless::image::write_atomic(&p, serde_json::to_string_pretty(&stats)?.as_bytes())
-        .with_context(|| format!("writing {}", p.display()))?;
     println!(
-        "wrote {frames} frames of {} to {} ({:.1} s)",
-        method.name(),
+        "wrote {} frames of {} to {} ({:.1} s)",
+        stats.frames,
+        cfg.method,
         a.out.display(),
-        t0.elapsed().as_secs_f64()
+        stats.wall_s
     );
     Ok(())
 }

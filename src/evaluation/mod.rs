@@ -4,6 +4,7 @@
 
 pub mod metrics;
 pub mod report;
+pub mod sequence;
 pub mod table1;
 
 use std::{path::PathBuf, sync::Arc, time::Instant};

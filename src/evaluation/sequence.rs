@@ -1,0 +1,197 @@
+//! One method rendered as an image sequence (`frameless render`): what the display
+//! shows at every refresh, as PNG files, with the run's statistics. The method is held
+//! to the same rules as in an evaluation, but nothing is compared.
+
+use std::{path::Path, sync::Arc, time::Instant};
+
+use serde::Serialize;
+
+use super::{EvalConfig, EvalError, Progress};
+use crate::{
+    image::{write_atomic, write_png_rgb8_fast},
+    methods::{MethodContext, MethodKind},
+    scene::{CameraPath, Scene},
+    trace::{TraceOptions, Tracer},
+};
+
+/// Most frames one sequence may have.
+pub const MAX_FRAMES: u64 = 100_000;
+
+/// Settings of one sequence.
+#[derive(Clone, Debug)]
+pub struct SequenceConfig {
+    /// How the user named the scene (for `stats.json`).
+    pub scene_name: String,
+    /// Camera path overriding the scene camera.
+    pub camera_path: Option<CameraPath>,
+    /// The method.
+    pub method: MethodKind,
+    /// Sample budget, samples per second.
+    pub rate: f64,
+    /// First displayed refresh, seconds of scene time.
+    pub start: f64,
+    /// Length of the sequence, seconds.
+    pub duration: f64,
+    /// Sampling before the first refresh, seconds.
+    pub warmup: f64,
+    /// Display refresh rate, Hz.
+    pub fps: f64,
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+/// `stats.json` of a sequence.
+#[derive(Clone, Debug, Serialize)]
+pub struct SequenceStats {
+    /// Scene as named by the user.
+    pub scene: String,
+    /// The method.
+    pub method: MethodKind,
+    /// Sample budget.
+    pub rate: f64,
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// First refresh.
+    pub start: f64,
+    /// Length, seconds.
+    pub duration: f64,
+    /// Warm-up, seconds.
+    pub warmup: f64,
+    /// Refresh rate.
+    pub fps: f64,
+    /// Frames written.
+    pub frames: u64,
+    /// Samples traced.
+    pub samples: u64,
+    /// Seconds spent tracing.
+    pub trace_s: f64,
+    /// Mean over frames of the mean information age, seconds.
+    pub mean_age_s: f64,
+    /// Wall-clock seconds of the whole sequence.
+    pub wall_s: f64,
+    /// Method-specific statistics.
+    pub extra: Option<serde_json::Value>,
+}
+
+impl SequenceConfig {
+    /// Number of frames.
+    pub fn frames(&self) -> u64 {
+        (self.duration * self.fps + 1e-9).floor().max(1.0) as u64
+    }
+
+    /// Check the settings: the ranges, and the same checks as an evaluation of this
+    /// method (e.g. a rate too low for a framed method to finish one frame).
+    pub fn validate(&self) -> Result<(), EvalError> {
+        let bad = |option, why: String| Err(EvalError::Config { option, why });
+        if !(self.duration > 0.0 && self.duration <= 3600.0) {
+            return bad(
+                "--duration",
+                format!("{} must be in (0, 3600] seconds", self.duration),
+            );
+        }
+        if !(self.warmup >= 0.0 && self.warmup <= 3600.0) {
+            return bad(
+                "--warmup",
+                format!("{} must be in [0, 3600] seconds", self.warmup),
+            );
+        }
+        if !(self.fps > 0.0 && self.fps <= 1000.0) {
+            return bad("--fps", format!("{} must be in (0, 1000]", self.fps));
+        }
+        let frames = self.frames();
+        if frames > MAX_FRAMES {
+            return bad(
+                "--duration",
+                format!("gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower --fps"),
+            );
+        }
+        EvalConfig {
+            scene_name: self.scene_name.clone(),
+            camera_path: None,
+            start: self.start,
+            duration: self.duration,
+            width: self.width,
+            height: self.height,
+            rates: vec![self.rate],
+            methods: vec![self.method],
+            seed: self.seed,
+            ideal_spp: 1,
+            warmup: self.warmup,
+            refresh_hz: self.fps,
+            max_depth: 5,
+            cache_dir: None,
+            strip_frames: Vec::new(),
+            flip_every: 1,
+        }
+        .validate()
+    }
+}
+
+/// Render the sequence into `out` (`frame_NNNNN.png`, then `stats.json`, written last
+/// and atomically so that its presence means the sequence is complete).
+pub fn render_sequence(
+    scene: Arc<Scene>,
+    cfg: &SequenceConfig,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<SequenceStats, EvalError> {
+    cfg.validate()?;
+    let (w, h) = (cfg.width, cfg.height);
+    let tracer = Arc::new(
+        Tracer::new(scene, w, h, TraceOptions::default()).with_camera_path(cfg.camera_path.clone()),
+    );
+    let ctx = MethodContext {
+        tracer,
+        clock: crate::clock::Clock {
+            start: cfg.start - cfg.warmup,
+            rate: cfg.rate,
+            first_refresh: cfg.start,
+            refresh_hz: cfg.fps,
+        },
+        seed: cfg.seed,
+        ideal_spp: 16,
+        ideal_cache: None,
+    };
+    let mut m = cfg.method.build(&ctx)?;
+    std::fs::create_dir_all(out).map_err(|e| EvalError::io(out, e))?;
+    let frames = cfg.frames();
+    progress.total(frames);
+    let t0 = Instant::now();
+    let mut ages = 0.0;
+    for k in 0..frames {
+        let t = cfg.start + k as f64 / cfg.fps;
+        let shown = m.display(t);
+        ages += shown.mean_age;
+        let p = out.join(format!("frame_{k:05}.png"));
+        write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()).map_err(|e| EvalError::io(&p, e))?;
+        progress.step("rendering");
+    }
+    let stats = SequenceStats {
+        scene: cfg.scene_name.clone(),
+        method: cfg.method,
+        rate: cfg.rate,
+        width: w,
+        height: h,
+        start: cfg.start,
+        duration: cfg.duration,
+        warmup: cfg.warmup,
+        fps: cfg.fps,
+        frames,
+        samples: m.samples_used(),
+        trace_s: m.trace_seconds(),
+        mean_age_s: ages / frames as f64,
+        wall_s: t0.elapsed().as_secs_f64(),
+        extra: m.extra_stats(),
+    };
+    let p = out.join("stats.json");
+    // Numbers and strings always serialise.
+    let json = serde_json::to_string_pretty(&stats).expect("stats serialise");
+    write_atomic(&p, json.as_bytes()).map_err(|e| EvalError::io(&p, e))?;
+    Ok(stats)
+}
