@@ -133,17 +133,9 @@ impl Framed {
         let state = tracer.state_at(t);
         let (gw, gh) = self.grid;
         let (w, h) = tracer.size();
-        let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
         let small: Vec<glam::Vec3> = (0..gh)
             .into_par_iter()
-            .flat_map_iter(|y| {
-                let state = &state;
-                (0..gw).map(move |x| {
-                    tracer
-                        .sample(state, (x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy)
-                        .color
-                })
-            })
+            .flat_map_iter(|y| trace_row(tracer, &state, (gw, gh), y))
             .collect();
         self.trace_s += t0.elapsed().as_secs_f64();
         self.front = upscale(
@@ -219,6 +211,25 @@ impl Method for Framed {
     fn trace_seconds(&self) -> f64 {
         self.trace_s
     }
+}
+
+/// Row `y` of a `grid` of cells spread over the tracer's image, traced through the
+/// cells' centres in one scene state: the colours, left to right. Used by [`Framed`] and
+/// by the real-time framed method (whose grid is the image's).
+pub fn trace_row<'a>(
+    tracer: &'a crate::trace::Tracer,
+    state: &'a crate::trace::SceneState,
+    grid: (u32, u32),
+    y: u32,
+) -> impl Iterator<Item = glam::Vec3> + 'a {
+    let (w, h) = tracer.size();
+    let (gw, gh) = grid;
+    let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
+    (0..gw).map(move |x| {
+        tracer
+            .sample(state, (x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy)
+            .color
+    })
 }
 
 #[cfg(test)]

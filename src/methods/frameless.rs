@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use super::{any_rate, mean_age, Budget, Displayed, Method, MethodContext, MethodInfo};
+use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodInfo};
 use crate::{image::Image, sampling::Rng, trace::Tracer};
 
 /// `traditional-frameless`.
@@ -22,8 +22,7 @@ pub const TRADITIONAL_FRAMELESS: MethodInfo = MethodInfo {
 /// The traditional frameless renderer.
 pub struct Traditional {
     ctx: MethodContext,
-    image: Image,
-    info_time: Vec<f64>,
+    newest: NewestSamples,
     next_sample: u64,
     pass: u64,
     order: Vec<u32>,
@@ -44,8 +43,7 @@ impl Traditional {
         let n = w * h;
         Self {
             ctx: ctx.clone(),
-            image: Image::new(w, h),
-            info_time: vec![ctx.clock.start; n as usize],
+            newest: NewestSamples::new(w, h, ctx.clock.start),
             next_sample: 0,
             pass: 0,
             order: permutation(n, ctx.seed, 0),
@@ -105,15 +103,14 @@ impl Method for Traditional {
             let colors = trace_batch(&tracer, clock.sample_time(i0), &self.order[a..b]);
             trace_s += t0.elapsed().as_secs_f64();
             for (k, (&p, c)) in self.order[a..b].iter().zip(colors).enumerate() {
-                self.image.pixels[p as usize] = c;
-                self.info_time[p as usize] = clock.sample_time(i0 + k as u64);
+                self.newest.set(p, c, clock.sample_time(i0 + k as u64));
             }
             self.next_sample = i1;
         }
         self.trace_s += trace_s;
         Displayed {
-            image: &self.image,
-            mean_age: mean_age(&self.info_time, t),
+            image: &self.newest.image,
+            mean_age: self.newest.mean_age(t),
         }
     }
 
@@ -122,5 +119,43 @@ impl Method for Traditional {
     }
     fn trace_seconds(&self) -> f64 {
         self.trace_s
+    }
+}
+
+/// The newest sample at every pixel, and when the information each pixel shows was
+/// traced: what a frameless display shows. Used by [`Traditional`] and by the real-time
+/// traditional frameless method.
+pub struct NewestSamples {
+    /// The newest sample's colour at every pixel.
+    pub image: Image,
+    info_time: Vec<f64>,
+}
+
+impl NewestSamples {
+    /// A black `w × h` image whose pixels all show information from time `info_time`
+    /// (NaN: no information yet).
+    pub fn new(w: u32, h: u32, info_time: f64) -> Self {
+        Self {
+            image: Image::new(w, h),
+            info_time: vec![info_time; (w * h) as usize],
+        }
+    }
+
+    /// Pixel `p` (row-major) now shows colour `c`, traced at time `t`.
+    #[inline]
+    pub fn set(&mut self, p: u32, c: glam::Vec3, t: f64) {
+        self.image.pixels[p as usize] = c;
+        self.info_time[p as usize] = t;
+    }
+
+    /// Mean age at time `t` of the information of the pixels that have some (NaN when
+    /// none has), summed in pixel order.
+    pub fn mean_age(&self, t: f64) -> f64 {
+        let informed = || self.info_time.iter().filter(|s| s.is_finite());
+        let n = informed().count();
+        if n == 0 {
+            return f64::NAN;
+        }
+        informed().map(|&s| t - s).sum::<f64>() / n as f64
     }
 }

@@ -319,11 +319,3 @@ pub trait Method: Send {
         None
     }
 }
-
-/// Mean age of per-pixel information times at display time `t`.
-pub fn mean_age(info_time: &[f64], t: f64) -> f64 {
-    if info_time.is_empty() {
-        return 0.0;
-    }
-    info_time.iter().map(|&s| t - s).sum::<f64>() / info_time.len() as f64
-}

@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use super::WallClock;
+use super::clock::WallClock;
 
 /// The display's refresh schedule and what it showed.
 pub struct Pacer {

@@ -1,104 +1,28 @@
-//! The pipeline: thread set-up, the image thread (reconstruction at the display rate),
-//! and the statistics.
-//!
-//! Threads and what flows between them:
+//! The pipeline: it starts the method's threads, runs the image thread that calls the
+//! method's image builder at the display rate, and reports the statistics. It knows no
+//! method by name: it looks the configured one up in the registry
+//! ([`RtMethod`](super::RtMethod)'s description) and starts it.
 //!
 //! ```text
-//!  sampling ×N ──crosshairs, initiating samples──► controller (Sampler: deep buffer,
-//!      ▲                                            tiling, gain control, reprojection)
-//!      └──── tile snapshot (Arc, ~1 ms) ◄───────────┘   │ samples + tiling (Arc)
-//!                                                       ▼
-//!                                                 image thread: Reconstructor at the
-//!                                                 display rate ──► latest Frame (Arc)
-//!                                                       ▼
-//!                                   display (window / headless) presents at each refresh
+//!  method's threads (sampling ×N, adaptive: controller) ──► image thread: the
+//!  method's builder at the display rate ──► latest Frame (Arc) ──► display (window /
+//!  headless) presents the newest at each refresh, never waiting for one
 //! ```
-//!
-//! Traditional frameless and framed have no controller: their sampling threads send
-//! pixels (or rows) straight to the image thread.
 
 use std::{
-    collections::VecDeque,
-    sync::{
-        atomic::{AtomicBool, AtomicU64, Ordering},
-        Arc, Mutex,
-    },
+    sync::{atomic::Ordering, Arc},
     thread::JoinHandle,
     time::{Duration, Instant},
 };
 
-use crossbeam_channel::{bounded, Receiver, Sender};
-use glam::Vec3;
-
 use super::{
-    clock::WallClock, controller, pixel_locks::PixelLocks, sampling, RealtimeError, RtConfig,
-    RtMethod,
+    clock::WallClock,
+    config::{RealtimeError, RtConfig},
+    shared::{lock, ImageBuilder, Shared, Spawner},
 };
-use crate::{
-    image::Image, methods::adaptive::tiling::Tiling, reconstruction::Reconstructor,
-    trace::StreamSample, trace::Tracer,
-};
+use crate::trace::Tracer;
 
-/// One displayed image.
-pub struct Frame {
-    /// Increases with every new image.
-    pub seq: u64,
-    /// Linear RGB.
-    pub image: Image,
-    /// Scene time it shows.
-    pub time: f64,
-    /// Mean age of the information in it, seconds.
-    pub mean_age: f64,
-    /// The tiling it was reconstructed with (adaptive only; for visualisations).
-    pub tiling: Option<Arc<Tiling>>,
-}
-
-/// A lock that survives a panicking holder: the data are plain values, always valid.
-pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|e| e.into_inner())
-}
-
-/// State shared by every thread of one pipeline.
-pub(crate) struct Shared {
-    pub tracer: Arc<Tracer>,
-    pub clock: WallClock,
-    pub config: RtConfig,
-    pub stop: AtomicBool,
-    pub locks: PixelLocks,
-    /// Shaded samples delivered to the image thread's input.
-    pub samples: AtomicU64,
-    /// Every ray traced (samples plus occlusion rays).
-    pub rays: AtomicU64,
-    /// Nanoseconds sampling threads spent tracing (summed over threads).
-    pub busy_ns: AtomicU64,
-    /// Visits whose reprojection step the controller ran, and skipped (behind).
-    pub reprojected_visits: AtomicU64,
-    pub skipped_reprojections: AtomicU64,
-    pub tiles: AtomicU64,
-    pub snapshot: Mutex<Arc<controller::TileSnapshot>>,
-    pub snapshot_seq: AtomicU64,
-    pub tiling: Mutex<Option<Arc<Tiling>>>,
-    pub framed_job: Mutex<Arc<sampling::FrameJob>>,
-    pub latest: Mutex<Option<Arc<Frame>>>,
-    pub image_stats: Mutex<ImageThreadStats>,
-}
-
-impl Shared {
-    pub fn stopped(&self) -> bool {
-        self.stop.load(Ordering::Relaxed)
-    }
-}
-
-/// What the image thread measured.
-#[derive(Clone, Debug, Default)]
-pub(crate) struct ImageThreadStats {
-    pub images: u64,
-    pub build_ms: Vec<f64>,
-    pub ages: Vec<f64>,
-    pub recon_rate: f64,
-    pub ring_capacity: usize,
-    pub rebuilds: u64,
-}
+pub use super::shared::Frame;
 
 /// Statistics of a pipeline run so far.
 #[derive(Clone, Debug, serde::Serialize)]
@@ -109,7 +33,8 @@ pub struct PipelineStats {
     pub sampling_threads: usize,
     /// Threads of the reconstructor's pool.
     pub recon_threads: usize,
-    /// Other threads of the pipeline (controller, image thread).
+    /// Other threads of the pipeline (the image thread, and the method's own, such as
+    /// the adaptive controller).
     pub other_threads: usize,
     /// Cores the OS reports.
     pub cores: usize,
@@ -156,87 +81,17 @@ impl Pipeline {
     /// Start the threads; scene time `config.start` is now.
     pub fn start(tracer: Arc<Tracer>, config: RtConfig) -> Result<Self, RealtimeError> {
         config.validate()?;
-        let (w, h) = tracer.size();
-        let shared = Arc::new(Shared {
-            clock: WallClock::new(config.start),
-            locks: PixelLocks::new(w, h),
-            framed_job: Mutex::new(Arc::new(sampling::FrameJob::new(0, config.start, &tracer))),
-            tracer,
-            config,
-            stop: AtomicBool::new(false),
-            samples: AtomicU64::new(0),
-            rays: AtomicU64::new(0),
-            busy_ns: AtomicU64::new(0),
-            reprojected_visits: AtomicU64::new(0),
-            skipped_reprojections: AtomicU64::new(0),
-            tiles: AtomicU64::new(1),
-            snapshot: Mutex::new(Arc::new(controller::TileSnapshot::whole(w, h))),
-            snapshot_seq: AtomicU64::new(0),
-            tiling: Mutex::new(None),
-            latest: Mutex::new(None),
-            image_stats: Mutex::new(ImageThreadStats::default()),
-        });
-        let mut p = Pipeline {
-            shared: shared.clone(),
-            handles: Vec::new(),
-        };
-        // Channels are bounded so that a slow consumer slows its producers instead of
-        // growing memory without limit; the capacities hold ~100 ms of batches.
-        match config.method {
-            RtMethod::Adaptive => {
-                let (to_ctrl, ctrl_rx) = bounded(256);
-                let (to_img, img_rx) = bounded::<Vec<StreamSample>>(256);
-                p.spawn_sampling(config.sampling_threads, to_ctrl, sampling::adaptive)?;
-                let s = shared.clone();
-                p.spawn("controller", move || controller::run(&s, ctrl_rx, to_img))?;
-                let s = shared.clone();
-                p.spawn("image", move || image_thread(&s, Input::Adaptive(img_rx)))?;
-            }
-            RtMethod::TraditionalFrameless => {
-                let (tx, rx) = bounded(256);
-                p.spawn_sampling(config.sampling_threads, tx, sampling::frameless)?;
-                let s = shared.clone();
-                p.spawn("image", move || image_thread(&s, Input::Frameless(rx)))?;
-            }
-            RtMethod::Framed => {
-                let (tx, rx) = bounded(1024);
-                p.spawn_sampling(config.sampling_threads, tx, sampling::framed)?;
-                let s = shared.clone();
-                p.spawn("image", move || image_thread(&s, Input::Framed(rx)))?;
-            }
-        }
+        let shared = Arc::new(Shared::new(tracer, config));
+        let mut handles = Vec::new();
+        let mut spawner = Spawner::new(&shared, &mut handles);
+        // On an error here the handles go with `p`, whose drop stops and joins them.
+        let started = (config.method.info().start)(&mut spawner);
+        let mut p = Pipeline { shared, handles };
+        let builder = started?;
+        let s = p.shared.clone();
+        Spawner::new(&p.shared, &mut p.handles)
+            .spawn("image", move || image_thread(&s, builder))?;
         Ok(p)
-    }
-
-    /// `n` sampling threads running `f(shared, thread index, sender)`, each with a
-    /// clone of `tx` (dropped here, so the channel closes when they all end).
-    fn spawn_sampling<T: Send + 'static>(
-        &mut self,
-        n: usize,
-        tx: Sender<T>,
-        f: fn(&Shared, u64, Sender<T>),
-    ) -> Result<(), RealtimeError> {
-        for i in 0..n {
-            let (s, tx) = (self.shared.clone(), tx.clone());
-            self.spawn("sampling", move || f(&s, i as u64, tx))?;
-        }
-        Ok(())
-    }
-
-    fn spawn(
-        &mut self,
-        what: &'static str,
-        f: impl FnOnce() + Send + 'static,
-    ) -> Result<(), RealtimeError> {
-        let h = std::thread::Builder::new()
-            .name(format!("frameless-{what}"))
-            .spawn(f)
-            .map_err(|source| {
-                self.shared.stop.store(true, Ordering::Relaxed);
-                RealtimeError::Spawn { what, source }
-            })?;
-        self.handles.push((what, h));
-        Ok(())
     }
 
     /// The newest image, if any yet.
@@ -284,15 +139,12 @@ impl Pipeline {
             s.skipped_reprojections.load(Ordering::Relaxed),
         );
         let cfg = &s.config;
+        let info = cfg.method.info();
         PipelineStats {
-            method: cfg.method.name(),
+            method: info.name,
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
-            other_threads: if cfg.method == RtMethod::Adaptive {
-                2
-            } else {
-                1
-            },
+            other_threads: 1 + info.extra_threads, // the image thread and the method's
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
             samples,
@@ -343,62 +195,11 @@ impl Drop for Pipeline {
     }
 }
 
-/// What the image thread receives.
-enum Input {
-    Adaptive(Receiver<Vec<StreamSample>>),
-    Frameless(Receiver<Vec<(u32, Vec3, f64)>>),
-    Framed(Receiver<sampling::FramedRow>),
-}
-
-/// Method-specific image state of the image thread.
-enum Builder {
-    Adaptive {
-        rx: Receiver<Vec<StreamSample>>,
-        recon: Option<Box<Reconstructor>>,
-        /// Ray counts at recent images, to measure the rate the filters assume.
-        rate_window: VecDeque<(f64, u64)>,
-        last_rebuild: f64,
-    },
-    Frameless {
-        rx: Receiver<Vec<(u32, Vec3, f64)>>,
-        image: Image,
-        info_time: Vec<f64>,
-    },
-    Framed {
-        rx: Receiver<sampling::FramedRow>,
-        /// Frames being assembled: id, scene time, image, rows received.
-        building: Vec<(u64, f64, Image, u32)>,
-        front: Image,
-        /// Id and scene time of the frame shown.
-        front_time: (u64, f64),
-    },
-}
-
-/// Reconstruct (or assemble) an image at every display refresh, concurrently with
-/// sampling. When building an image takes longer than a refresh period the thread
+/// Build an image at every display refresh with the method's builder, concurrently
+/// with sampling. When building an image takes longer than a refresh period the thread
 /// starts the next one at once: images then come at a lower rate, while the display
 /// keeps refreshing on time with the newest one.
-fn image_thread(s: &Shared, input: Input) {
-    let (w, h) = s.tracer.size();
-    let mut b = match input {
-        Input::Adaptive(rx) => Builder::Adaptive {
-            rx,
-            recon: None,
-            rate_window: VecDeque::new(),
-            last_rebuild: 0.0,
-        },
-        Input::Frameless(rx) => Builder::Frameless {
-            rx,
-            image: Image::new(w, h),
-            info_time: vec![f64::NAN; (w * h) as usize],
-        },
-        Input::Framed(rx) => Builder::Framed {
-            rx,
-            building: Vec::new(),
-            front: Image::new(w, h),
-            front_time: (0, f64::NAN),
-        },
-    };
+fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
     // The reconstructor splats in parallel with rayon; its own pool bounds how many
     // cores that takes. Without a pool it runs on the calling thread.
     let pool = rayon::ThreadPoolBuilder::new()
@@ -422,143 +223,27 @@ fn image_thread(s: &Shared, input: Input) {
         let t0 = Instant::now();
         let t = s.clock.now();
         let built = match &pool {
-            Some(p) => p.install(|| build(s, &mut b, t)),
-            None => build(s, &mut b, t),
+            Some(p) => p.install(|| builder.build(t)),
+            None => builder.build(t),
         };
-        let Some((image, mean_age, tiling)) = built else {
+        let Some(built) = built else {
             continue;
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         seq += 1;
+        let mean_age = built.mean_age;
         *lock(&s.latest) = Some(Arc::new(Frame {
             seq,
-            image,
+            image: built.image,
             time: t,
             mean_age,
-            tiling,
+            tiling: built.tiling,
         }));
         let mut st = lock(&s.image_stats);
         st.images += 1;
         st.build_ms.push(ms);
         if mean_age.is_finite() {
             st.ages.push(mean_age);
-        }
-        if let Builder::Adaptive { recon: Some(r), .. } = &b {
-            st.ring_capacity = r.capacity();
-        }
-    }
-}
-
-type Built = (Image, f64, Option<Arc<Tiling>>);
-
-fn build(s: &Shared, b: &mut Builder, t: f64) -> Option<Built> {
-    let (w, h) = s.tracer.size();
-    match b {
-        Builder::Adaptive {
-            rx,
-            recon,
-            rate_window,
-            last_rebuild,
-        } => {
-            let tiling = lock(&s.tiling).clone()?;
-            let batches: Vec<Vec<StreamSample>> = rx.try_iter().collect();
-            // The filters need the sample rate R; it is measured over the last second
-            // and the reconstructor is rebuilt (keeping its ring) when the rate drifts
-            // by more than 25%, at most once a second.
-            let rays = s.rays.load(Ordering::Relaxed);
-            let el = s.clock.elapsed();
-            rate_window.push_back((el, rays));
-            while rate_window.len() > 2 && el - rate_window[0].0 > 1.0 {
-                rate_window.pop_front();
-            }
-            let (e0, r0) = rate_window[0];
-            let rate = if el - e0 > 0.05 {
-                (rays - r0) as f64 / (el - e0)
-            } else {
-                rays as f64 / el.max(1e-3)
-            }
-            .max(1.0);
-            let stale = match recon {
-                None => true,
-                Some(_) => {
-                    let cur = lock(&s.image_stats).recon_rate;
-                    (rate / cur - 1.0).abs() > 0.25 && el - *last_rebuild > 1.0
-                }
-            };
-            if stale {
-                let mut fresh = Reconstructor::new(w, h, rate, s.config.recon);
-                if let Some(old) = recon.take() {
-                    for r in old.ring().iter() {
-                        fresh.push(r);
-                    }
-                    lock(&s.image_stats).rebuilds += 1;
-                }
-                *recon = Some(Box::new(fresh));
-                *last_rebuild = el;
-                lock(&s.image_stats).recon_rate = rate;
-            }
-            let r = recon.as_mut()?;
-            for batch in &batches {
-                r.push_stream(batch);
-            }
-            let camera = s.tracer.state_at(t).camera;
-            let img = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
-            Some((img, r.mean_age(), Some(tiling)))
-        }
-        Builder::Frameless {
-            rx,
-            image,
-            info_time,
-        } => {
-            for batch in rx.try_iter() {
-                for (p, c, ts) in batch {
-                    image.pixels[p as usize] = c;
-                    info_time[p as usize] = ts;
-                }
-            }
-            let (mut sum, mut n) = (0.0, 0usize);
-            for &ti in info_time.iter() {
-                if ti.is_finite() {
-                    sum += t - ti;
-                    n += 1;
-                }
-            }
-            Some((
-                image.clone(),
-                if n > 0 { sum / n as f64 } else { f64::NAN },
-                None,
-            ))
-        }
-        Builder::Framed {
-            rx,
-            building,
-            front,
-            front_time,
-        } => {
-            for row in rx.try_iter() {
-                let i = match building.iter().position(|f| f.0 == row.frame) {
-                    Some(i) => i,
-                    None => {
-                        building.push((row.frame, row.time, Image::new(w, h), 0));
-                        building.len() - 1
-                    }
-                };
-                let f = &mut building[i];
-                let y = row.y as usize * w as usize;
-                f.2.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
-                f.3 += 1;
-                if f.3 == h {
-                    let (id, ft, img, _) = building.swap_remove(i);
-                    if id >= front_time.0 || front_time.1.is_nan() {
-                        *front = img;
-                        *front_time = (id, ft);
-                    }
-                    // Older unfinished frames can never be shown any more.
-                    building.retain(|f| f.0 > id);
-                }
-            }
-            let age = t - front_time.1;
-            Some((front.clone(), age, None))
         }
     }
 }

@@ -2,11 +2,12 @@
 //! newest image of the pipeline at every display refresh.
 //!
 //! Keys: W/S or ↑/↓ move forward/back, A/D strafe, ←/→ turn, Q/E down/up, Shift ×4
-//! speed, left mouse drag looks around; 1/2/3 switch to adaptive, traditional
-//! frameless, framed; V cycles the visualisation (image, tiling, gradients, density);
-//! P writes a screenshot; Esc quits. The title bar shows samples/s, display FPS and
-//! the mean age of the information on screen. Neither X11 nor Wayland libraries are
-//! linked: winit and softbuffer load them at run time.
+//! speed, left mouse drag looks around; the digit keys switch methods in
+//! [`RtMethod::ALL`] order (1 adaptive, 2 traditional frameless, 3 framed); V cycles
+//! the visualisation (image, tiling, gradients, density); P writes a screenshot; Esc
+//! quits. The title bar shows samples/s, display FPS and the mean age of the
+//! information on screen. Neither X11 nor Wayland libraries are linked: winit and
+//! softbuffer load them at run time.
 
 use std::{
     collections::HashSet,
@@ -85,6 +86,16 @@ pub fn run_viewer(
         .run_app(&mut app)
         .map_err(|e| RealtimeError::Window(e.to_string()))?;
     app.finish()
+}
+
+/// Digit key n switches to the n-th method of [`RtMethod::ALL`].
+fn method_key(code: KeyCode) -> Option<RtMethod> {
+    use KeyCode::*;
+    const DIGITS: [KeyCode; 9] = [
+        Digit1, Digit2, Digit3, Digit4, Digit5, Digit6, Digit7, Digit8, Digit9,
+    ];
+    let i = DIGITS.iter().position(|&d| d == code)?;
+    RtMethod::ALL.get(i).copied()
 }
 
 struct App {
@@ -359,16 +370,16 @@ impl ApplicationHandler for App {
                         el.exit();
                         Ok(())
                     }
-                    KeyCode::Digit1 => self.switch_method(RtMethod::Adaptive),
-                    KeyCode::Digit2 => self.switch_method(RtMethod::TraditionalFrameless),
-                    KeyCode::Digit3 => self.switch_method(RtMethod::Framed),
                     KeyCode::KeyV => {
                         self.opts.visualisation = self.opts.visualisation.next();
                         self.shown_seq = 0;
                         Ok(())
                     }
                     KeyCode::KeyP => self.screenshot(),
-                    _ => Ok(()),
+                    _ => match method_key(code) {
+                        Some(m) => self.switch_method(m),
+                        None => Ok(()),
+                    },
                 }
             }
             WindowEvent::MouseInput {

@@ -1,0 +1,397 @@
+//! The real-time adaptive method: adaptive sampling threads, one controller thread that
+//! owns the tiling and the deep buffer (afr-optix keeps "the hierarchy on one
+//! processor"), and the adaptive space-time reconstructor on the image thread.
+//!
+//! ```text
+//!  sampling ×N ──crosshairs, initiating samples──► controller (Sampler: deep buffer,
+//!      ▲                                            tiling, gain control, reprojection)
+//!      └──── tile snapshot (Arc, ~1 ms) ◄───────────┘   │ samples + tiling copy (Arc)
+//!                                                       ▼
+//!                                     image thread: Reconstructor at the display rate
+//! ```
+//!
+//! A sampling thread visits a tile of the published snapshot chosen uniformly at
+//! random; it completes the crosshair the tile's pending sample initiated (taking its
+//! five pixels) and initiates the next one at a random location in the tile (taking that
+//! pixel). A taken pixel means another thread is there: it picks another tile or
+//! location.
+//!
+//! The controller holds an ordinary [`Sampler`] and feeds it what the sampling threads
+//! traced: completed crosshairs (inserted, with tile statistics updated and the tiling
+//! adjusted after every chunk, exactly as in a sequential visit) and initiating samples
+//! (which become their tile's pending crosshair). The reprojection step of each visit
+//! runs there too, occlusion rays included — but only while the controller keeps up
+//! with its input: when batches queue up it skips reprojection for that batch, so that
+//! the tiling never lags behind the samples (the share that ran is reported). About
+//! every millisecond it publishes the tile selection (rectangles and pending crosshairs)
+//! for the sampling threads, and at twice the display rate a copy of the tiling for the
+//! reconstructor's filters.
+//!
+//! The reconstructor's filters need the sample rate; the image builder measures it.
+
+use std::{
+    collections::VecDeque,
+    sync::{
+        atomic::{AtomicU64, Ordering},
+        Arc, Mutex,
+    },
+    time::{Duration, Instant},
+};
+
+use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, Sender};
+
+use super::{
+    config::RealtimeError,
+    shared::{lock, Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
+};
+use crate::{
+    clock::Clock,
+    methods::adaptive::{
+        deep_buffer::Crosshair,
+        sampler::crosshair_with,
+        tiling::{Pending, Rect, Tiling},
+        Sampler,
+    },
+    reconstruction::Reconstructor,
+    sampling::Rng,
+    trace::{StateCache, StreamSample},
+};
+
+/// The adaptive method's description.
+pub(crate) const METHOD: MethodInfo = MethodInfo {
+    name: "adaptive",
+    about: "adaptive sampler + adaptive space-time reconstructor",
+    // One sampling thread per core but one: the controller and the reconstruction
+    // need the rest (measured in `docs/results/realtime/`).
+    default_sampling_threads: |cores| cores.saturating_sub(1).max(1),
+    extra_threads: 1, // the controller
+    start,
+};
+
+/// How often the sampling threads' snapshot is republished.
+const SNAPSHOT_EVERY: Duration = Duration::from_millis(1);
+
+/// What the controller publishes for the other threads of the method.
+struct Published {
+    /// The tile selection the sampling threads read.
+    snapshot: Mutex<Arc<TileSnapshot>>,
+    /// Bumped with every new snapshot, so that readers lock only when it changed.
+    snapshot_seq: AtomicU64,
+    /// A copy of the tiling for the reconstructor's filters; `None` until the
+    /// controller has a sampler.
+    tiling: Mutex<Option<Arc<Tiling>>>,
+}
+
+fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+    let s = sp.shared().clone();
+    let (w, h) = s.tracer.size();
+    let published = Arc::new(Published {
+        snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
+        snapshot_seq: AtomicU64::new(0),
+        tiling: Mutex::new(None),
+    });
+    // Channels are bounded so that a slow consumer slows its producers instead of
+    // growing memory without limit; the capacities hold ~100 ms of batches.
+    let (to_ctrl, ctrl_rx) = bounded(256);
+    let (to_img, img_rx) = bounded(256);
+    let (s1, p1) = (s.clone(), published.clone());
+    sp.sampling_threads(to_ctrl, move |i, tx| sample(&s1, &p1, i, tx))?;
+    let (s2, p2) = (s.clone(), published.clone());
+    sp.spawn("controller", move || control(&s2, &p2, ctrl_rx, to_img))?;
+    Ok(Box::new(Builder {
+        s,
+        published,
+        rx: img_rx,
+        recon: None,
+        recon_rate: 0.0,
+        rate_window: VecDeque::new(),
+        last_rebuild: 0.0,
+    }))
+}
+
+/// The tile selection the sampling threads read.
+struct TileSnapshot {
+    /// The tiles.
+    rects: Vec<Rect>,
+    /// Each tile's pending crosshair.
+    pending: Vec<Option<Pending>>,
+}
+
+impl TileSnapshot {
+    /// One tile, nothing pending.
+    fn whole(w: u32, h: u32) -> Self {
+        Self {
+            rects: vec![Rect {
+                x0: 0,
+                y0: 0,
+                x1: w,
+                y1: h,
+            }],
+            pending: vec![None],
+        }
+    }
+
+    fn of(sampler: &Sampler) -> Self {
+        let t = sampler.tiling();
+        let leaves = t.leaves();
+        Self {
+            rects: leaves.iter().map(|&l| t.node(l).rect).collect(),
+            pending: leaves.iter().map(|&l| t.node(l).pending).collect(),
+        }
+    }
+}
+
+/// What a sampling thread did on one visit.
+enum Visit {
+    /// It completed the crosshair `pending` initiated.
+    Completed {
+        crosshair: Crosshair,
+        rays: u32,
+        pending: Pending,
+    },
+    /// It initiated a crosshair.
+    Initiated(Pending),
+}
+
+/// A batch for the controller.
+#[derive(Default)]
+struct Batch {
+    visits: Vec<Visit>,
+    stream: Vec<StreamSample>,
+}
+
+/// A sampling thread: visits at the current time, batched for the controller.
+fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
+    let mut states = StateCache::new();
+    let mut snap_seq = u64::MAX;
+    let mut snap = lock(&published.snapshot).clone();
+    let mut batch = Batch::default();
+    let mut sent = Instant::now();
+    let mut busy = 0.0f64;
+    while !s.stopped() {
+        let seq = published.snapshot_seq.load(Ordering::Acquire);
+        if seq != snap_seq {
+            snap = lock(&published.snapshot).clone();
+            snap_seq = seq;
+        }
+        let now = s.clock.now();
+        let state = states.at(tracer, now).0;
+        let k = rng.below(snap.rects.len() as u32) as usize;
+        let rect = snap.rects[k];
+        let t0 = Instant::now();
+        if let Some(p) = snap.pending[k] {
+            let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
+            let cross = [
+                (cx, cy),
+                (cx + 1, cy),
+                (cx - 1, cy),
+                (cx, cy + 1),
+                (cx, cy - 1),
+            ];
+            let Some(guard) = s.locks.try_lock_many(&cross) else {
+                continue; // another thread is at this crosshair: visit another tile
+            };
+            let mut rays = 0;
+            let stream = &mut batch.stream;
+            let c = crosshair_with(w, h, p.x, p.y, now, Some((p.lum, p.t)), |x, y| {
+                rays += 1;
+                let sample = tracer.sample(&state, x, y);
+                stream.push(StreamSample {
+                    x,
+                    y,
+                    t: now,
+                    sample,
+                });
+                sample
+            });
+            drop(guard);
+            batch.visits.push(Visit::Completed {
+                crosshair: c,
+                rays,
+                pending: p,
+            });
+        }
+        for _ in 0..4 {
+            let (x, y) = rect.random_point(&mut rng);
+            let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
+                continue;
+            };
+            let sample = tracer.sample(&state, x, y);
+            drop(guard);
+            batch.stream.push(StreamSample {
+                x,
+                y,
+                t: now,
+                sample,
+            });
+            batch.visits.push(Visit::Initiated(Pending {
+                x,
+                y,
+                t: now,
+                lum: sample.luminance,
+            }));
+            break;
+        }
+        busy += t0.elapsed().as_secs_f64();
+        if batch.visits.len() >= 256 || sent.elapsed().as_secs_f64() > BATCH_S {
+            let n = batch.stream.len() as u64;
+            s.samples.fetch_add(n, Ordering::Relaxed);
+            s.rays.fetch_add(n, Ordering::Relaxed);
+            s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
+            busy = 0.0;
+            if tx.send(std::mem::take(&mut batch)).is_err() {
+                return;
+            }
+            sent = Instant::now();
+        }
+    }
+}
+
+/// The controller thread: the sampler's one owner.
+fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Vec<StreamSample>>) {
+    // The sampler takes its clock's start as the origin of its decay weights; the rate
+    // and the refresh only pace `run_until`, the sequential budget, which is never
+    // called here (the sampling threads feed the sampler). Hence no rate.
+    let clock = Clock {
+        start: s.config.start,
+        rate: f64::NAN,
+        first_refresh: s.config.start,
+        refresh_hz: s.config.refresh_hz,
+    };
+    let mut sampler = match Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed) {
+        Ok(x) => x,
+        Err(_) => return, // validated by the pipeline before it started
+    };
+    let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
+    let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
+    publish_tiling(published, &sampler);
+    while !s.stopped() {
+        match rx.recv_timeout(Duration::from_millis(2)) {
+            Ok(batch) => {
+                // Behind: more batches are waiting than the one in hand.
+                let reproject = rx.is_empty();
+                let mut own_rays = 0u64;
+                for v in batch.visits {
+                    match v {
+                        Visit::Completed {
+                            crosshair,
+                            rays,
+                            pending,
+                        } => {
+                            sampler.clear_pending(pending.x, pending.y, pending.t);
+                            let t = crosshair.t;
+                            let (px, py) = (crosshair.x as u32, crosshair.y as u32);
+                            sampler.ingest_crosshair(crosshair, rays as u64, t);
+                            if reproject {
+                                let before = sampler.counters().rays;
+                                sampler.reproject_visit(px, py, s.clock.now());
+                                own_rays += sampler.counters().rays - before;
+                                s.reprojected_visits.fetch_add(1, Ordering::Relaxed);
+                            } else {
+                                s.skipped_reprojections.fetch_add(1, Ordering::Relaxed);
+                            }
+                        }
+                        Visit::Initiated(p) => sampler.ingest_pending(p),
+                    }
+                }
+                let mut stream = batch.stream;
+                let extra = sampler.drain_stream(); // replacement crosshairs
+                s.samples.fetch_add(extra.len() as u64, Ordering::Relaxed);
+                s.rays.fetch_add(own_rays, Ordering::Relaxed);
+                stream.extend(extra);
+                if tx.send(stream).is_err() {
+                    return;
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => return,
+        }
+        if snap_at.elapsed() >= SNAPSHOT_EVERY {
+            *lock(&published.snapshot) = Arc::new(TileSnapshot::of(&sampler));
+            published.snapshot_seq.fetch_add(1, Ordering::Release);
+            s.tiles
+                .store(sampler.tiling().len() as u64, Ordering::Relaxed);
+            snap_at = Instant::now();
+        }
+        if tiling_at.elapsed() >= tiling_every {
+            publish_tiling(published, &sampler);
+            tiling_at = Instant::now();
+        }
+    }
+}
+
+fn publish_tiling(published: &Published, sampler: &Sampler) {
+    *lock(&published.tiling) = Some(Arc::new(sampler.tiling().clone()));
+}
+
+/// The image thread's side: the reconstructor, fed with what the controller passed
+/// on, filtered with the newest tiling copy.
+struct Builder {
+    s: Arc<Shared>,
+    published: Arc<Published>,
+    rx: Receiver<Vec<StreamSample>>,
+    recon: Option<Box<Reconstructor>>,
+    /// The sample rate `recon`'s filters were built for, /s.
+    recon_rate: f64,
+    /// Ray counts at recent images, to measure the rate the filters assume.
+    rate_window: VecDeque<(f64, u64)>,
+    last_rebuild: f64,
+}
+
+impl ImageBuilder for Builder {
+    fn build(&mut self, t: f64) -> Option<Built> {
+        let s = &*self.s;
+        let (w, h) = s.tracer.size();
+        let tiling = lock(&self.published.tiling).clone()?;
+        let batches: Vec<Vec<StreamSample>> = self.rx.try_iter().collect();
+        // The filters need the sample rate R; it is measured over the last second and
+        // the reconstructor is rebuilt (keeping its ring) when the rate drifts by more
+        // than 25%, at most once a second.
+        let rays = s.rays.load(Ordering::Relaxed);
+        let el = s.clock.elapsed();
+        let window = &mut self.rate_window;
+        window.push_back((el, rays));
+        while window.len() > 2 && el - window[0].0 > 1.0 {
+            window.pop_front();
+        }
+        let (e0, r0) = window[0];
+        let rate = if el - e0 > 0.05 {
+            (rays - r0) as f64 / (el - e0)
+        } else {
+            rays as f64 / el.max(1e-3)
+        }
+        .max(1.0);
+        let stale = match self.recon {
+            None => true,
+            Some(_) => (rate / self.recon_rate - 1.0).abs() > 0.25 && el - self.last_rebuild > 1.0,
+        };
+        if stale {
+            let mut fresh = Reconstructor::new(w, h, rate, s.config.recon);
+            if let Some(old) = self.recon.take() {
+                for r in old.ring().iter() {
+                    fresh.push(r);
+                }
+                lock(&s.image_stats).rebuilds += 1;
+            }
+            self.recon = Some(Box::new(fresh));
+            self.last_rebuild = el;
+            self.recon_rate = rate;
+            lock(&s.image_stats).recon_rate = rate;
+        }
+        let r = self.recon.as_mut()?;
+        for batch in &batches {
+            r.push_stream(batch);
+        }
+        let camera = s.tracer.state_at(t).camera;
+        let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
+        lock(&s.image_stats).ring_capacity = r.capacity();
+        Some(Built {
+            image,
+            mean_age: r.mean_age(),
+            tiling: Some(tiling),
+        })
+    }
+}

@@ -1,0 +1,168 @@
+//! The real-time framed method: double-buffered frames at full resolution, as fast as
+//! the machine goes. Sampling threads take rows of the current frame (traced at the
+//! frame's start time, through pixel centres, as the evaluation's
+//! [`Framed`](crate::methods::framed::Framed) does); the thread that finds the rows
+//! exhausted starts the next frame at the current time. The image thread assembles the
+//! rows and shows the newest complete frame.
+
+use std::{
+    sync::{
+        atomic::{AtomicU32, Ordering},
+        Arc, Mutex,
+    },
+    time::Instant,
+};
+
+use crossbeam_channel::{bounded, Receiver, Sender};
+use glam::Vec3;
+
+use super::{
+    config::RealtimeError,
+    shared::{lock, Built, ImageBuilder, MethodInfo, Shared, Spawner},
+};
+use crate::{
+    image::Image,
+    methods::framed::trace_row,
+    trace::{SceneState, Tracer},
+};
+
+/// The framed method's description.
+pub(crate) const METHOD: MethodInfo = MethodInfo {
+    name: "framed",
+    about: "double-buffered frames at full resolution, as fast as they go",
+    // Nothing else of it needs a core: the image thread only copies.
+    default_sampling_threads: |cores| cores,
+    extra_threads: 0,
+    start,
+};
+
+/// One frame being traced: the scene state at its start, rows handed out in order.
+/// Each row goes to exactly one thread (the atomic counter), so pixels are never
+/// shared.
+struct FrameJob {
+    id: u64,
+    time: f64,
+    state: Arc<SceneState>,
+    next_row: AtomicU32,
+}
+
+impl FrameJob {
+    fn new(id: u64, time: f64, tracer: &Tracer) -> Self {
+        Self {
+            id,
+            time,
+            state: tracer.state_at(time),
+            next_row: AtomicU32::new(0),
+        }
+    }
+}
+
+/// A traced row of a frame.
+struct Row {
+    frame: u64,
+    time: f64,
+    y: u32,
+    pixels: Vec<Vec3>,
+}
+
+fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+    let s = sp.shared().clone();
+    let job = Arc::new(Mutex::new(Arc::new(FrameJob::new(
+        0,
+        s.config.start,
+        &s.tracer,
+    ))));
+    // Bounded, so that a slow image thread slows the sampling threads instead of
+    // growing memory; ~100 ms of rows.
+    let (tx, rx) = bounded(1024);
+    let s1 = s.clone();
+    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx))?;
+    let (w, h) = s.tracer.size();
+    Ok(Box::new(Builder {
+        size: (w, h),
+        rx,
+        building: Vec::new(),
+        front: Image::new(w, h),
+        front_time: (0, f64::NAN),
+    }))
+}
+
+/// A sampling thread: rows of the current frame until stopped.
+fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>) {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    while !s.stopped() {
+        let cur = lock(job).clone();
+        let y = cur.next_row.fetch_add(1, Ordering::Relaxed);
+        if y >= h {
+            let mut j = lock(job);
+            if j.id == cur.id {
+                *j = Arc::new(FrameJob::new(cur.id + 1, s.clock.now(), tracer));
+            }
+            continue;
+        }
+        let t0 = Instant::now();
+        let pixels: Vec<Vec3> = trace_row(tracer, &cur.state, (w, h), y).collect();
+        s.busy_ns
+            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        s.samples.fetch_add(w as u64, Ordering::Relaxed);
+        s.rays.fetch_add(w as u64, Ordering::Relaxed);
+        if tx
+            .send(Row {
+                frame: cur.id,
+                time: cur.time,
+                y,
+                pixels,
+            })
+            .is_err()
+        {
+            return;
+        }
+    }
+}
+
+/// The image thread's side: frames assembled from their rows, the newest complete one
+/// shown (the front buffer).
+struct Builder {
+    size: (u32, u32),
+    rx: Receiver<Row>,
+    /// Frames being assembled: id, scene time, image, rows received.
+    building: Vec<(u64, f64, Image, u32)>,
+    front: Image,
+    /// Id and scene time of the frame shown (NaN: none yet).
+    front_time: (u64, f64),
+}
+
+impl ImageBuilder for Builder {
+    fn build(&mut self, t: f64) -> Option<Built> {
+        let (w, h) = self.size;
+        for row in self.rx.try_iter() {
+            let building = &mut self.building;
+            let i = match building.iter().position(|f| f.0 == row.frame) {
+                Some(i) => i,
+                None => {
+                    building.push((row.frame, row.time, Image::new(w, h), 0));
+                    building.len() - 1
+                }
+            };
+            let f = &mut building[i];
+            let y = row.y as usize * w as usize;
+            f.2.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
+            f.3 += 1;
+            if f.3 == h {
+                let (id, ft, img, _) = building.swap_remove(i);
+                if id >= self.front_time.0 || self.front_time.1.is_nan() {
+                    self.front = img;
+                    self.front_time = (id, ft);
+                }
+                // Older unfinished frames can never be shown any more.
+                building.retain(|f| f.0 > id);
+            }
+        }
+        Some(Built {
+            image: self.front.clone(),
+            mean_age: t - self.front_time.1,
+            tiling: None,
+        })
+    }
+}

@@ -1,0 +1,109 @@
+//! The real-time traditional frameless method (Bishop et al. 1994): sampling threads
+//! trace random pixels through their centres, each at the current time, and the image
+//! thread shows the newest sample of every pixel ([`NewestSamples`], as the evaluation's
+//! [`Traditional`](crate::methods::frameless::Traditional) does). It runs no thread of
+//! its own besides: the image thread only copies.
+
+use std::{sync::atomic::Ordering, time::Instant};
+
+use crossbeam_channel::{bounded, Receiver, Sender};
+use glam::Vec3;
+
+use super::{
+    config::RealtimeError,
+    shared::{Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
+};
+use crate::{methods::frameless::NewestSamples, sampling::Rng, trace::StateCache};
+
+/// The traditional frameless method's description.
+pub(crate) const METHOD: MethodInfo = MethodInfo {
+    name: "traditional-frameless",
+    about: "random pixels, the newest sample shown at every pixel",
+    // Nothing else of it needs a core: the image thread only copies.
+    default_sampling_threads: |cores| cores,
+    extra_threads: 0,
+    start,
+};
+
+/// Traced pixels: index (row-major), colour, time.
+type Batch = Vec<(u32, Vec3, f64)>;
+
+fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+    let s = sp.shared().clone();
+    // Bounded, so that a slow image thread slows the sampling threads instead of
+    // growing memory; ~100 ms of batches.
+    let (tx, rx) = bounded(256);
+    let s1 = s.clone();
+    sp.sampling_threads(tx, move |i, tx| sample(&s1, i, tx))?;
+    let (w, h) = s.tracer.size();
+    Ok(Box::new(Builder {
+        rx,
+        newest: NewestSamples::new(w, h, f64::NAN),
+    }))
+}
+
+/// A sampling thread: a random pixel (taken, traced through its centre at the current
+/// time, released), over and over.
+fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let n = w * h;
+    let mut rng = Rng::new(&[s.config.seed, 0xf4a3e1, thread]);
+    let mut states = StateCache::new();
+    let mut batch = Vec::with_capacity(1024);
+    let mut sent = Instant::now();
+    let mut busy = 0.0f64;
+    while !s.stopped() {
+        let now = s.clock.now();
+        let state = states.at(tracer, now).0;
+        let t0 = Instant::now();
+        for _ in 0..16 {
+            let p = rng.below(n);
+            let Some(guard) = s.locks.try_lock(p % w, p / w) else {
+                continue; // taken: another pixel
+            };
+            let c = tracer
+                .sample(&state, (p % w) as f32 + 0.5, (p / w) as f32 + 0.5)
+                .color;
+            drop(guard);
+            batch.push((p, c, now));
+        }
+        busy += t0.elapsed().as_secs_f64();
+        if batch.len() >= 1024 || sent.elapsed().as_secs_f64() > BATCH_S {
+            let k = batch.len() as u64;
+            s.samples.fetch_add(k, Ordering::Relaxed);
+            s.rays.fetch_add(k, Ordering::Relaxed);
+            s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
+            busy = 0.0;
+            if tx
+                .send(std::mem::replace(&mut batch, Vec::with_capacity(1024)))
+                .is_err()
+            {
+                return;
+            }
+            sent = Instant::now();
+        }
+    }
+}
+
+/// The image thread's side: the newest sample per pixel. Pixels not sampled yet have
+/// no information time and do not count in the mean age.
+struct Builder {
+    rx: Receiver<Batch>,
+    newest: NewestSamples,
+}
+
+impl ImageBuilder for Builder {
+    fn build(&mut self, t: f64) -> Option<Built> {
+        for batch in self.rx.try_iter() {
+            for (p, c, ts) in batch {
+                self.newest.set(p, c, ts);
+            }
+        }
+        Some(Built {
+            image: self.newest.image.clone(),
+            mean_age: self.newest.mean_age(t),
+            tiling: None,
+        })
+    }
+}

@@ -1,0 +1,195 @@
+//! What every thread of one pipeline shares, and the interface between the generic
+//! pipeline and a real-time method.
+//!
+//! A method is a static [`MethodInfo`] in its own file. The pipeline gives its `start`
+//! a [`Spawner`]; the method starts its sampling threads (and any others it needs)
+//! through it, keeping whatever state only it uses in its own types, and returns an
+//! [`ImageBuilder`] that the pipeline's image thread calls at the display rate. This
+//! file knows no method and no pipeline, so both can depend on it.
+
+use std::{
+    sync::{
+        atomic::{AtomicBool, AtomicU64, Ordering},
+        Arc, Mutex,
+    },
+    thread::JoinHandle,
+};
+
+use crossbeam_channel::Sender;
+
+use super::{
+    clock::WallClock,
+    config::{RealtimeError, RtConfig},
+    pixel_locks::PixelLocks,
+};
+use crate::{image::Image, methods::adaptive::tiling::Tiling, trace::Tracer};
+
+/// Longest a sampling thread holds a batch before it sends it, seconds: long enough
+/// that channel traffic stays small next to tracing, short next to a refresh.
+pub(crate) const BATCH_S: f64 = 1e-3;
+
+/// One displayed image.
+pub struct Frame {
+    /// Increases with every new image.
+    pub seq: u64,
+    /// Linear RGB.
+    pub image: Image,
+    /// Scene time it shows.
+    pub time: f64,
+    /// Mean age of the information in it, seconds.
+    pub mean_age: f64,
+    /// The tiling it was reconstructed with (adaptive only; for visualisations).
+    pub tiling: Option<Arc<Tiling>>,
+}
+
+/// A lock that survives a panicking holder: the data are plain values, always valid.
+pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// State shared by every thread of one pipeline, whatever the method.
+pub(crate) struct Shared {
+    pub tracer: Arc<Tracer>,
+    pub clock: WallClock,
+    pub config: RtConfig,
+    pub stop: AtomicBool,
+    pub locks: PixelLocks,
+    /// Shaded samples delivered to the image thread's input.
+    pub samples: AtomicU64,
+    /// Every ray traced (samples plus occlusion rays).
+    pub rays: AtomicU64,
+    /// Nanoseconds sampling threads spent tracing (summed over threads).
+    pub busy_ns: AtomicU64,
+    /// Adaptive: visits whose reprojection step the controller ran, and skipped
+    /// (behind). Here rather than in the method so that the statistics can report them
+    /// for every method (as zeros).
+    pub reprojected_visits: AtomicU64,
+    pub skipped_reprojections: AtomicU64,
+    /// Adaptive: tiles now (1 for the other methods: the whole image).
+    pub tiles: AtomicU64,
+    pub latest: Mutex<Option<Arc<Frame>>>,
+    pub image_stats: Mutex<ImageThreadStats>,
+}
+
+impl Shared {
+    /// Nothing running yet; scene time `config.start` is now.
+    pub fn new(tracer: Arc<Tracer>, config: RtConfig) -> Self {
+        let (w, h) = tracer.size();
+        Self {
+            clock: WallClock::new(config.start),
+            locks: PixelLocks::new(w, h),
+            tracer,
+            config,
+            stop: AtomicBool::new(false),
+            samples: AtomicU64::new(0),
+            rays: AtomicU64::new(0),
+            busy_ns: AtomicU64::new(0),
+            reprojected_visits: AtomicU64::new(0),
+            skipped_reprojections: AtomicU64::new(0),
+            tiles: AtomicU64::new(1),
+            latest: Mutex::new(None),
+            image_stats: Mutex::new(ImageThreadStats::default()),
+        }
+    }
+
+    pub fn stopped(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+}
+
+/// What the image thread measured.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ImageThreadStats {
+    pub images: u64,
+    pub build_ms: Vec<f64>,
+    pub ages: Vec<f64>,
+    /// Adaptive: the sample rate the reconstructor's filters assume, and its ring's
+    /// capacity (the builder reports them; the pipeline only passes them on).
+    pub recon_rate: f64,
+    pub ring_capacity: usize,
+    pub rebuilds: u64,
+}
+
+/// An image a method built for the display.
+pub(crate) struct Built {
+    /// Linear RGB.
+    pub image: Image,
+    /// Mean age of the information in it, seconds (NaN: nothing in it yet).
+    pub mean_age: f64,
+    /// The tiling it was reconstructed with, for the visualisations.
+    pub tiling: Option<Arc<Tiling>>,
+}
+
+/// A method's side of the image thread: it drains what the method's threads sent and
+/// builds the image shown at scene time `t`. `None`: nothing to show yet.
+pub(crate) trait ImageBuilder: Send {
+    fn build(&mut self, t: f64) -> Option<Built>;
+}
+
+/// The description of one real-time method, a `const` in the method's own file that
+/// the registry (the parent module) maps its [`RtMethod`](super::config::RtMethod) variant to.
+pub(crate) struct MethodInfo {
+    /// Command-line name.
+    pub name: &'static str,
+    /// One line for help texts.
+    pub about: &'static str,
+    /// Default sampling threads on a machine with this many cores.
+    pub default_sampling_threads: fn(usize) -> usize,
+    /// Threads it runs besides its sampling threads and the pipeline's image thread.
+    pub extra_threads: usize,
+    /// Start its threads; the image thread then calls the builder it returns.
+    pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
+}
+
+/// What a method starts its threads with: the shared state, and a place for the
+/// handles that the pipeline joins when it stops.
+pub(crate) struct Spawner<'a> {
+    shared: &'a Arc<Shared>,
+    handles: &'a mut Vec<(&'static str, JoinHandle<()>)>,
+}
+
+impl<'a> Spawner<'a> {
+    pub fn new(
+        shared: &'a Arc<Shared>,
+        handles: &'a mut Vec<(&'static str, JoinHandle<()>)>,
+    ) -> Self {
+        Self { shared, handles }
+    }
+
+    pub fn shared(&self) -> &Arc<Shared> {
+        self.shared
+    }
+
+    /// Start a thread named `frameless-{what}`. When that fails every thread started
+    /// so far is told to stop, so that the pipeline can join them.
+    pub fn spawn(
+        &mut self,
+        what: &'static str,
+        f: impl FnOnce() + Send + 'static,
+    ) -> Result<(), RealtimeError> {
+        let h = std::thread::Builder::new()
+            .name(format!("frameless-{what}"))
+            .spawn(f)
+            .map_err(|source| {
+                self.shared.stop.store(true, Ordering::Relaxed);
+                RealtimeError::Spawn { what, source }
+            })?;
+        self.handles.push((what, h));
+        Ok(())
+    }
+
+    /// `config.sampling_threads` sampling threads running `f(thread index, sender)`,
+    /// each with a clone of `tx` (dropped here, so the channel closes when they all
+    /// end).
+    pub fn sampling_threads<T: Send + 'static>(
+        &mut self,
+        tx: Sender<T>,
+        f: impl Fn(u64, Sender<T>) + Clone + Send + 'static,
+    ) -> Result<(), RealtimeError> {
+        for i in 0..self.shared.config.sampling_threads {
+            let (f, tx) = (f.clone(), tx.clone());
+            self.spawn("sampling", move || f(i as u64, tx))?;
+        }
+        Ok(())
+    }
+}
