@@ -12,6 +12,7 @@ pub mod camera;
 pub mod camera_path;
 pub mod error;
 pub mod gltf;
+mod loader;
 pub mod material;
 pub mod obj;
 pub mod texture;

@@ -43,7 +43,9 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 
 use super::{
-    gltf::{decode_image, default_camera, default_light, world_bounds, BACKGROUND, MAX_TRIANGLES},
+    loader::{
+        decode_image, default_camera, default_light, world_bounds, BACKGROUND, MAX_TRIANGLES,
+    },
     CameraTrack, Group, Material, MaterialId, Scene, SceneError, TextureId, Triangle,
 };
 
@@ -627,9 +629,10 @@ impl Build<'_> {
         let file_name = path
             .file_name()
             .map_or(name.clone(), |s| s.to_string_lossy().into_owned());
-        let tex = decode_image(&file_name, &bytes).map_err(|m| SceneError::Texture {
+        let tex = decode_image(&file_name, &bytes).map_err(|source| SceneError::Texture {
             path: path.clone(),
-            message: format!("{m} ({context})"),
+            source,
+            context: Some(context),
         })?;
         self.scene.textures.push(tex);
         let id = (self.scene.textures.len() - 1) as TextureId;

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
-use super::SceneError;
+use super::{error::ImageError, SceneError};
 
 /// An RGB texture.
 #[derive(Clone, Debug, PartialEq)]
@@ -57,18 +57,19 @@ impl Texture {
             .file_name()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        Self::parse_ppm(&name, &bytes).map_err(|message| SceneError::Texture {
+        Self::parse_ppm(&name, &bytes).map_err(|source| SceneError::Texture {
             path: path.to_path_buf(),
-            message,
+            source,
+            context: None,
         })
     }
 
-    /// Parse PPM bytes; the error is a plain description.
-    pub fn parse_ppm(name: &str, bytes: &[u8]) -> Result<Self, String> {
+    /// Parse PPM bytes; the error does not name the file, which the caller knows.
+    pub fn parse_ppm(name: &str, bytes: &[u8]) -> Result<Self, ImageError> {
         let mut pos = 0usize;
         let mut fields = [0u32; 3];
         if bytes.len() < 2 || &bytes[0..2] != b"P6" {
-            return Err("not a binary PPM (missing P6 magic)".into());
+            return Err(ImageError::NotPpm);
         }
         pos += 2;
         for (i, field) in fields.iter_mut().enumerate() {
@@ -92,28 +93,33 @@ impl Texture {
             let text = std::str::from_utf8(&bytes[start..pos]).unwrap_or("");
             *field = text
                 .parse::<u32>()
-                .map_err(|_| format!("header {what} is missing or not a number"))?;
+                .map_err(|_| ImageError::PpmHeaderField(what))?;
         }
         // Exactly one whitespace byte separates the header from the data.
         if !bytes.get(pos).is_some_and(|b| b.is_ascii_whitespace()) {
-            return Err("header not followed by whitespace".into());
+            return Err(ImageError::PpmHeaderEnd);
         }
         pos += 1;
         let [w, h, maxval] = fields;
         if w == 0 || h == 0 || w > MAX_TEXTURE_SIDE || h > MAX_TEXTURE_SIDE {
-            return Err(format!("absurd size {w}x{h}"));
+            return Err(ImageError::Size {
+                width: w,
+                height: h,
+            });
         }
         if maxval == 0 || maxval > 65535 {
-            return Err(format!("maxval {maxval} out of range 1..=65535"));
+            return Err(ImageError::PpmMaxval(maxval));
         }
         let bpc = if maxval < 256 { 1 } else { 2 };
         let need = (w as usize) * (h as usize) * 3 * bpc;
         let data = &bytes[pos..];
         if data.len() < need {
-            return Err(format!(
-                "truncated pixel data: {} bytes, {need} expected for {w}x{h}",
-                data.len()
-            ));
+            return Err(ImageError::PpmTruncated {
+                got: data.len(),
+                need,
+                width: w,
+                height: h,
+            });
         }
         let scale = 1.0 / maxval as f32;
         let texels = (0..(w * h) as usize)
