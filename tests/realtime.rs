@@ -217,7 +217,12 @@ fn view_rejects_bad_input() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--seconds"));
     let out = run(&["--headless", "--seconds", "1", "--method", "bogus"]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown method"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("invalid value 'bogus'"), "{err}");
+    assert!(
+        err.contains("traditional-frameless"),
+        "the error lists the methods: {err}"
+    );
     let out = run(&["--headless", "--seconds", "-1"]);
     assert!(!out.status.success());
     let out = run(&["--headless", "--seconds", "1", "--ring-factor", "0"]);

@@ -3,7 +3,11 @@
 use std::{path::PathBuf, str::FromStr};
 
 use clap::{Args, Parser, Subcommand};
-use frameless::{clock::parse_rate, methods::MethodKind};
+use frameless::{
+    clock::parse_rate,
+    methods::MethodKind,
+    realtime::{RtMethod, Visualisation},
+};
 
 /// Largest image side accepted.
 pub const MAX_SIDE: u32 = 16384;
@@ -159,9 +163,9 @@ pub struct ViewArgs {
     /// Image size WxH.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
-    /// Method: adaptive, traditional-frameless or framed.
+    /// The real-time method.
     #[arg(long, default_value = "adaptive")]
-    pub method: String,
+    pub method: RtMethod,
     /// Sampling threads [default: adaptive cores − 1 (at least 1), others all cores].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub sampling_threads: Option<u16>,
@@ -192,9 +196,9 @@ pub struct ViewArgs {
     /// Write the last displayed image to this PNG on exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-    /// Visualisation shown at start: image, tiling, gradients or density (key V cycles).
+    /// Visualisation shown at start (key V cycles).
     #[arg(long, default_value = "image")]
-    pub vis: String,
+    pub vis: Visualisation,
     /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
     #[arg(long, value_parser = finite_f64)]
     pub ring_factor: Option<f64>,

@@ -405,8 +405,8 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
 }
 
 fn view(a: args::ViewArgs) -> Result<()> {
-    use frameless::realtime::{self, RtConfig, RtMethod};
-    let method = RtMethod::parse(&a.method).context("--method")?;
+    use frameless::realtime::{self, RtConfig};
+    let method = a.method;
     let mut cfg = RtConfig::new(method);
     if let Some(n) = a.sampling_threads {
         cfg.sampling_threads = n as usize;
@@ -478,7 +478,7 @@ fn view(a: args::ViewArgs) -> Result<()> {
         seconds: a.seconds,
         record: a.record.clone(),
         screenshot: a.screenshot.clone(),
-        visualisation: realtime::Visualisation::parse(&a.vis).context("--vis")?,
+        visualisation: a.vis,
     };
     realtime::run_viewer(tracer, cfg, opts)?;
     Ok(())
