@@ -125,7 +125,7 @@ pub struct Table1Args {
     pub rates: Vec<f64>,
     /// Methods, comma-separated (default: the paper's, point tracking, TAA and the
     /// adaptive-no-reprojection ablation of Fig. 8).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = trimmed::<MethodKind>())]
     pub methods: Option<Vec<MethodKind>>,
     /// Override every animation's window length (seconds), e.g. for a quick trial.
     #[arg(long, value_parser = finite_f64)]
@@ -279,6 +279,7 @@ pub struct EvalArgs {
     #[arg(
         long,
         value_delimiter = ',',
+        value_parser = trimmed::<MethodKind>(),
         default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,adaptive"
     )]
     pub methods: Vec<MethodKind>,
@@ -373,6 +374,40 @@ fn parse_rays(s: &str) -> Result<usize, String> {
         return Err(format!("rays {n} out of range 1024..=268435456"));
     }
     Ok(n)
+}
+
+/// A clap enum parser that ignores blanks around the value, so that a list written
+/// `adaptive, taa` parses; possible values are still listed in `--help`.
+fn trimmed<E: clap::ValueEnum + Clone + Send + Sync + 'static>() -> Trimmed<E> {
+    Trimmed(clap::builder::EnumValueParser::new())
+}
+
+#[derive(Clone)]
+struct Trimmed<E: clap::ValueEnum + Clone + Send + Sync + 'static>(
+    clap::builder::EnumValueParser<E>,
+);
+
+impl<E: clap::ValueEnum + Clone + Send + Sync + 'static> clap::builder::TypedValueParser
+    for Trimmed<E>
+{
+    type Value = E;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<E, clap::Error> {
+        let text = value.to_string_lossy();
+        self.0
+            .parse_ref(cmd, arg, std::ffi::OsStr::new(text.trim()))
+    }
+
+    fn possible_values(
+        &self,
+    ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        self.0.possible_values()
+    }
 }
 
 #[cfg(test)]

@@ -9,11 +9,11 @@ use ::gltf::json;
 use glam::{Mat4, Quat, Vec3, Vec4};
 use json::validation::Checked;
 
-use super::build::Build;
+use super::container::Doc;
 use crate::scene::{
     animation::{KeyframeTrack, RotationSpline, TcbKey, VectorSpline},
     error::SamplerError,
-    NodeId, SceneError,
+    NodeId, Scene, SceneError,
 };
 
 /// Rate at which animated camera and light nodes are sampled into keyframe tracks, Hz.
@@ -241,126 +241,121 @@ pub(super) struct Channels {
     pub(super) scale: Option<Sampler>,
 }
 
-impl Build<'_> {
-    /// Samplers of every animation, by target node.
-    pub(super) fn collect_channels(&mut self) -> Result<HashMap<usize, Channels>, SceneError> {
-        use json::animation::{Interpolation as I, Property};
-        let doc = self.doc;
-        let mut out: HashMap<usize, Channels> = HashMap::new();
-        for (ai, anim) in doc.root.animations.iter().enumerate() {
-            for (ci, ch) in anim.channels.iter().enumerate() {
-                let ctx = format!("animation {ai} channel {ci}");
-                let target = match ch.target.path {
-                    Checked::Valid(Property::Translation) => SamplerTarget::Translation,
-                    Checked::Valid(Property::Rotation) => SamplerTarget::Rotation,
-                    Checked::Valid(Property::Scale) => SamplerTarget::Scale,
-                    Checked::Valid(Property::MorphTargetWeights) => {
-                        self.warn("morph target weight animation is ignored".into());
-                        continue;
-                    }
-                    Checked::Invalid => {
-                        return Err(doc.invalid(format!("{ctx}: invalid target path")));
-                    }
-                };
-                let node = ch.target.node.value();
-                if node >= doc.root.nodes.len() {
-                    return Err(doc.invalid(format!(
-                        "{ctx}: target node {node} does not exist ({} defined)",
-                        doc.root.nodes.len()
-                    )));
+/// Samplers of every animation, by target node.
+pub(super) fn collect_channels(
+    doc: &Doc,
+    warn: &mut dyn FnMut(String),
+) -> Result<HashMap<usize, Channels>, SceneError> {
+    use json::animation::{Interpolation as I, Property};
+    let mut out: HashMap<usize, Channels> = HashMap::new();
+    for (ai, anim) in doc.root.animations.iter().enumerate() {
+        for (ci, ch) in anim.channels.iter().enumerate() {
+            let ctx = format!("animation {ai} channel {ci}");
+            let target = match ch.target.path {
+                Checked::Valid(Property::Translation) => SamplerTarget::Translation,
+                Checked::Valid(Property::Rotation) => SamplerTarget::Rotation,
+                Checked::Valid(Property::Scale) => SamplerTarget::Scale,
+                Checked::Valid(Property::MorphTargetWeights) => {
+                    warn("morph target weight animation is ignored".into());
+                    continue;
                 }
-                let si = ch.sampler.value();
-                let s = anim.samplers.get(si).ok_or_else(|| {
-                    doc.invalid(format!(
-                        "{ctx}: sampler {si} does not exist ({} defined)",
-                        anim.samplers.len()
-                    ))
-                })?;
-                let interpolation = match s.interpolation {
-                    Checked::Valid(I::Step) => Interpolation::Step,
-                    Checked::Valid(I::Linear) => Interpolation::Linear,
-                    Checked::Valid(I::CubicSpline) => Interpolation::CubicSpline,
-                    Checked::Invalid => {
-                        return Err(doc.invalid(format!("{ctx}: invalid interpolation")));
-                    }
-                };
-                let (times, _) = doc.floats(
-                    s.input.value(),
-                    &format!("{ctx} input"),
-                    &[json::accessor::Type::Scalar],
-                )?;
-                let ty = if target == SamplerTarget::Rotation {
-                    json::accessor::Type::Vec4
-                } else {
-                    json::accessor::Type::Vec3
-                };
-                let (vals, comps) =
-                    doc.floats(s.output.value(), &format!("{ctx} output"), &[ty])?;
-                let values = vals
-                    .chunks_exact(comps)
-                    .map(|c| {
-                        if comps == 4 {
-                            Vec4::from_slice(c)
-                        } else {
-                            Vec3::from_slice(c).extend(0.0)
-                        }
-                    })
-                    .collect();
-                let sampler =
-                    Sampler::new(target, interpolation, times, values).map_err(|source| {
-                        SceneError::Sampler {
-                            file: doc.file.clone(),
-                            context: ctx,
-                            source,
-                        }
-                    })?;
-                let slot = out.entry(node).or_default();
-                match target {
-                    SamplerTarget::Translation => slot.translation = Some(sampler),
-                    SamplerTarget::Rotation => slot.rotation = Some(sampler),
-                    SamplerTarget::Scale => slot.scale = Some(sampler),
+                Checked::Invalid => {
+                    return Err(doc.invalid(format!("{ctx}: invalid target path")));
                 }
+            };
+            let node = ch.target.node.value();
+            if node >= doc.root.nodes.len() {
+                return Err(doc.invalid(format!(
+                    "{ctx}: target node {node} does not exist ({} defined)",
+                    doc.root.nodes.len()
+                )));
+            }
+            let si = ch.sampler.value();
+            let s = anim.samplers.get(si).ok_or_else(|| {
+                doc.invalid(format!(
+                    "{ctx}: sampler {si} does not exist ({} defined)",
+                    anim.samplers.len()
+                ))
+            })?;
+            let interpolation = match s.interpolation {
+                Checked::Valid(I::Step) => Interpolation::Step,
+                Checked::Valid(I::Linear) => Interpolation::Linear,
+                Checked::Valid(I::CubicSpline) => Interpolation::CubicSpline,
+                Checked::Invalid => {
+                    return Err(doc.invalid(format!("{ctx}: invalid interpolation")));
+                }
+            };
+            let (times, _) = doc.floats(
+                s.input.value(),
+                &format!("{ctx} input"),
+                &[json::accessor::Type::Scalar],
+            )?;
+            let ty = if target == SamplerTarget::Rotation {
+                json::accessor::Type::Vec4
+            } else {
+                json::accessor::Type::Vec3
+            };
+            let (vals, comps) = doc.floats(s.output.value(), &format!("{ctx} output"), &[ty])?;
+            let values = vals
+                .chunks_exact(comps)
+                .map(|c| {
+                    if comps == 4 {
+                        Vec4::from_slice(c)
+                    } else {
+                        Vec3::from_slice(c).extend(0.0)
+                    }
+                })
+                .collect();
+            let sampler = Sampler::new(target, interpolation, times, values).map_err(|source| {
+                SceneError::Sampler {
+                    file: doc.file.clone(),
+                    context: ctx,
+                    source,
+                }
+            })?;
+            let slot = out.entry(node).or_default();
+            match target {
+                SamplerTarget::Translation => slot.translation = Some(sampler),
+                SamplerTarget::Rotation => slot.rotation = Some(sampler),
+                SamplerTarget::Scale => slot.scale = Some(sampler),
             }
         }
-        Ok(out)
     }
+    Ok(out)
+}
 
-    /// Sample a node's world transform over the animation range into a keyframe track
-    /// (translation, and rotation when asked), for the camera and lights, which follow
-    /// tracks rather than nodes.
-    pub(super) fn bake(&mut self, node: NodeId, name: &str, rotation: bool) -> Option<u32> {
-        let range = self.scene.animation?;
-        let (start, end) = (range.start, range.end);
-        let samples = ((end - start) * BAKE_RATE)
-            .ceil()
-            .clamp(1.0, MAX_BAKE_SAMPLES as f32) as usize;
-        let step = (end - start) / samples as f32;
-        let mut tkeys = Vec::with_capacity(samples + 3);
-        let mut rkeys = Vec::with_capacity(samples + 3);
-        // One extra key before and after: the spline uses its end keys only for tangents.
-        for i in -1..=samples as i64 + 1 {
-            let t = start + step * i as f32;
-            let (_, r, p) = self
-                .scene
-                .node_world(node, t)
-                .to_scale_rotation_translation();
-            let (axis, angle) = r.to_axis_angle();
-            tkeys.push(tcb_key(t, p));
-            rkeys.push(tcb_key(t, (axis, angle.to_degrees())));
-        }
-        let track = KeyframeTrack {
-            name: name.to_string(),
-            translation: VectorSpline::new(tkeys),
-            rotation: if rotation {
-                RotationSpline::new(rkeys)
-            } else {
-                None
-            },
-            ..Default::default()
-        };
-        self.scene.tracks.push(track);
-        Some((self.scene.tracks.len() - 1) as u32)
+/// Sample a node's world transform over the animation range into a keyframe track
+/// (translation, and rotation when asked), for the camera and lights, which follow
+/// tracks rather than nodes.
+pub(super) fn bake(scene: &mut Scene, node: NodeId, name: &str, rotation: bool) -> Option<u32> {
+    let range = scene.animation?;
+    let (start, end) = (range.start, range.end);
+    let samples = ((end - start) * BAKE_RATE)
+        .ceil()
+        .clamp(1.0, MAX_BAKE_SAMPLES as f32) as usize;
+    let step = (end - start) / samples as f32;
+    let mut tkeys = Vec::with_capacity(samples + 3);
+    let mut rkeys = Vec::with_capacity(samples + 3);
+    // One extra key before and after: the spline uses its end keys only for tangents.
+    for i in -1..=samples as i64 + 1 {
+        let t = start + step * i as f32;
+        let (_, r, p) = scene.node_world(node, t).to_scale_rotation_translation();
+        let (axis, angle) = r.to_axis_angle();
+        tkeys.push(tcb_key(t, p));
+        rkeys.push(tcb_key(t, (axis, angle.to_degrees())));
     }
+    let track = KeyframeTrack {
+        name: name.to_string(),
+        translation: VectorSpline::new(tkeys),
+        rotation: if rotation {
+            RotationSpline::new(rkeys)
+        } else {
+            None
+        },
+        ..Default::default()
+    };
+    scene.tracks.push(track);
+    Some((scene.tracks.len() - 1) as u32)
 }
 
 /// A Catmull–Rom key (tension, continuity and bias zero).

@@ -9,7 +9,10 @@ use std::path::Path;
 use ::gltf::json;
 use glam::{Mat4, Quat, Vec3, Vec4};
 
-use super::{animation::NodeAnimation, container::Doc};
+use super::{
+    animation::{self, NodeAnimation},
+    container::Doc,
+};
 use crate::scene::{
     loader::{default_light, world_bounds, BACKGROUND},
     AnimationRange, Group, MaterialId, Node, NodeId, NodeKind, Scene, SceneError, TextureId,
@@ -60,7 +63,8 @@ impl<'a> Build<'a> {
     pub(super) fn run(&mut self, camera_name: Option<&str>) -> Result<(), SceneError> {
         let doc = self.doc;
         let root = &doc.root;
-        let mut channels = self.collect_channels()?;
+        let doc = self.doc;
+        let mut channels = animation::collect_channels(doc, &mut |m| self.warn(m))?;
         let roots = self.scene_roots()?;
 
         // Depth-first, parents before children; glTF node index → scene node id.

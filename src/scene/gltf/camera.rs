@@ -95,7 +95,7 @@ impl Build<'_> {
             hither,
         };
         let track = if self.scene.node_is_animated(id) {
-            self.bake(id, "camera", true)
+            super::animation::bake(&mut self.scene, id, "camera", true)
         } else {
             None
         };

@@ -53,7 +53,7 @@ impl Build<'_> {
             let directional = matches!(l.type_, Checked::Valid(L::Directional));
             let name = l.name.clone().unwrap_or_else(|| format!("light {li}"));
             let track = if self.scene.node_is_animated(id) && !directional {
-                self.bake(id, &name, false)
+                super::animation::bake(&mut self.scene, id, &name, false)
             } else {
                 None
             };
