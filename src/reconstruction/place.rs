@@ -1,0 +1,473 @@
+//! Placing samples at one refresh: the stale cut, reprojection to the current view,
+//! the filter table lookups, the temporal cull and footprints, lane-wise in blocks of
+//! [`LOCATE_BLOCK`] samples, and binning of the survivors' [`Splat`]s into row bands.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+#[cfg(test)]
+use super::RingSample;
+use super::{
+    filter_table::{Lookup, TileFilter},
+    lanes::{fast_exp_neg, small_int},
+    ring::{field, Ring},
+    splat::{Splat, BAND_ROWS, SINGLE_THREAD_BAND_ROWS},
+    Reconstructor,
+};
+use crate::scene::CameraFrame;
+
+/// Samples per task of the parallel splat preparation (with more than one thread).
+const PREP_CHUNK: usize = 16384;
+
+/// Widest footprint in pixels along x (`2·max_radius + 1` is clamped to it).
+const MAX_SPAN: usize = 128;
+
+/// Relative margin of the stale-prefix cut over the per-sample temporal cutoff, far
+/// above f32 rounding of `age / e_t`, so the cut never drops a sample that the
+/// per-sample test would keep.
+pub(super) const STALE_MARGIN: f64 = 1e-3;
+
+/// `camera.project` with the per-view constants hoisted: `x = (d·u)/z − corner·u` with
+/// `u = du/|du|²` (the same map, rounded differently).
+#[derive(Clone, Copy, Debug)]
+struct Projector {
+    eye: Vec3,
+    forward: Vec3,
+    u: Vec3,
+    v: Vec3,
+    ou: f32,
+    ov: f32,
+}
+
+impl Projector {
+    fn new(c: &CameraFrame) -> Self {
+        let u = c.du / c.du.length_squared();
+        let v = c.dv / c.dv.length_squared();
+        Self {
+            eye: c.eye,
+            forward: c.forward,
+            u,
+            v,
+            ou: c.corner.dot(u),
+            ov: c.corner.dot(v),
+        }
+    }
+
+    /// Pixel coordinates, and whether the point is in front of the eye (only then are
+    /// the coordinates meaningful).
+    #[inline(always)]
+    fn project(&self, p: Vec3) -> (f32, f32, bool) {
+        let d = p - self.eye;
+        let z = d.dot(self.forward);
+        let iz = 1.0 / z;
+        (
+            d.dot(self.u) * iz - self.ou,
+            d.dot(self.v) * iz - self.ov,
+            z > 1e-6,
+        )
+    }
+}
+
+/// A sample placed at one refresh by the tests' direct evaluation: where it lands, its
+/// filter, temporal weight argument and footprint ([`bin_piece`] computes the same
+/// lane-wise).
+#[cfg(test)]
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Placed {
+    pub(super) x: f32,
+    pub(super) y: f32,
+    pub(super) age: f32,
+    /// `age / e_t` (at most `temporal_cutoff`).
+    pub(super) a: f32,
+    pub(super) filter: TileFilter,
+    pub(super) x0: i32,
+    pub(super) x1: i32,
+    pub(super) y0: i32,
+    pub(super) y1: i32,
+}
+
+/// Where a sample lands at one refresh, before its filter is known.
+#[derive(Clone, Copy, Debug)]
+struct Located {
+    x: f32,
+    y: f32,
+    age: f32,
+    /// The pixel it lands in, clamped to the image.
+    pixel: u32,
+    /// In front of the eye, at finite coordinates.
+    ok: bool,
+}
+
+/// Samples located before their pixels are looked up in [`bin_piece`]: the lookups
+/// of a whole block are then independent loads in flight together, instead of each
+/// waiting behind the unpredictable cull branch of the previous sample.
+const LOCATE_BLOCK: usize = 64;
+
+/// What placing a sample needs at one refresh.
+pub(super) struct Placer<'a> {
+    t: f64,
+    proj: Option<Projector>,
+    width: i32,
+    height: i32,
+    lookup: &'a [Lookup],
+    tiles: &'a [TileFilter],
+    temporal_cutoff: f32,
+    /// Footprint radius bound.
+    max_r: f32,
+}
+
+impl Placer<'_> {
+    /// Where a sample at `(x, y)` (in front of the eye if `front`), traced `dt`
+    /// seconds ago, lands (without branches on the data, see [`LOCATE_BLOCK`]).
+    #[inline(always)]
+    fn located(&self, x: f32, y: f32, front: bool, dt: f64) -> Located {
+        // The filter and scale are those of the pixel the sample lands in, clamped to
+        // the image, so a sample just outside still lights the border within its
+        // footprint (a NaN coordinate clamps too; `ok` discards it).
+        let (w, h) = (self.width, self.height);
+        // Clamped as floats (`max` first, so NaN becomes 0), then floored: integers
+        // within the image, which `small_int` converts exactly in vector code.
+        let px = small_int(x.max(0.0).min((w - 1) as f32).floor()) as u32;
+        let py = small_int(y.max(0.0).min((h - 1) as f32).floor()) as u32;
+        Located {
+            x,
+            y,
+            age: dt.max(0.0) as f32,
+            pixel: py * w as u32 + px,
+            ok: front & x.is_finite() & y.is_finite(),
+        }
+    }
+
+    /// Reproject `s`: where it lands and in which pixel.
+    #[cfg(test)]
+    fn locate(&self, s: &RingSample) -> Located {
+        let dt = self.t - s.t;
+        let (x, y, front) = match &self.proj {
+            Some(p) => p.project(s.hit_point + s.velocity * dt as f32),
+            None => (s.x, s.y, true),
+        };
+        self.located(x, y, front, dt)
+    }
+
+    /// [`Placer::located`] for the samples at physical indices `p0..p0 + n` of
+    /// `ring` (the same arithmetic in the same order as `Placer::locate`), one array
+    /// per field so that it compiles to vector code. A sample that is not `ok` gets a
+    /// NaN age, which fails the temporal cull just as `ok == false` does.
+    #[inline(always)]
+    fn locate_block(&self, ring: &Ring, p0: usize, n: usize, b: &mut Block) {
+        use field::*;
+        let ts = &ring.t[p0..p0 + n];
+        let f = |k: usize| &ring.f[k][p0..p0 + n];
+        let mut put = |i: usize, l: Located| {
+            b.x[i] = l.x;
+            b.y[i] = l.y;
+            b.age[i] = if l.ok { l.age } else { f32::NAN };
+            b.pixel[i] = l.pixel;
+        };
+        match &self.proj {
+            Some(p) => {
+                let (hx, hy, hz, vx, vy, vz) = (f(HX), f(HY), f(HZ), f(VX), f(VY), f(VZ));
+                for i in 0..n {
+                    let dt = self.t - ts[i];
+                    let hit = Vec3::new(hx[i], hy[i], hz[i]);
+                    let vel = Vec3::new(vx[i], vy[i], vz[i]);
+                    let (x, y, front) = p.project(hit + vel * dt as f32);
+                    put(i, self.located(x, y, front, dt));
+                }
+            }
+            None => {
+                let (sx, sy) = (f(X), f(Y));
+                for i in 0..n {
+                    put(i, self.located(sx[i], sy[i], true, self.t - ts[i]));
+                }
+            }
+        }
+    }
+
+    /// Place one sample.
+    #[cfg(test)]
+    pub(super) fn place(&self, s: &RingSample) -> Option<Placed> {
+        let l = self.locate(s);
+        self.finish(&l, self.lookup[l.pixel as usize])
+    }
+
+    /// The filter, temporal cull and footprint of a located sample.
+    #[cfg(test)]
+    fn finish(&self, l: &Located, look: Lookup) -> Option<Placed> {
+        let f = self.tiles[look.tile as usize];
+        let a = l.age * f.inv_et;
+        if !(l.ok && a <= self.temporal_cutoff) {
+            return None;
+        }
+        let (rx, ry) = self.radii(&f, look.scale);
+        self.footprint(l.x, l.y, l.age, a, f, rx, ry)
+    }
+
+    /// Footprint radii of a sample landing in a pixel of tile filter `f` and splat scale
+    /// `scale`.
+    #[inline(always)]
+    fn radii(&self, f: &TileFilter, scale: f32) -> (f32, f32) {
+        // Not `f32::min`, whose NaN handling costs three instructions: neither side
+        // is NaN.
+        let min = |a: f32, b: f32| if a < b { a } else { b };
+        (min(f.cx * scale, self.max_r), min(f.cy * scale, self.max_r))
+    }
+
+    /// Inclusive pixel bounds `[x0, x1, y0, y1]` of a footprint of radii `rx`, `ry`
+    /// around `(x, y)`, clamped to the image as floats (pixel k's center is k + 0.5).
+    /// For finite inputs these are integers, within the image when the footprint is not
+    /// empty (`x0 <= x1 && y0 <= y1`), where the conversions to integers are exact.
+    #[inline(always)]
+    fn bounds(&self, x: f32, y: f32, rx: f32, ry: f32) -> [f32; 4] {
+        let (w, h) = ((self.width - 1) as f32, (self.height - 1) as f32);
+        [
+            (x - 0.5 - rx).ceil().max(0.0),
+            (x - 0.5 + rx).floor().min(w),
+            (y - 0.5 - ry).ceil().max(0.0),
+            (y - 0.5 + ry).floor().min(h),
+        ]
+    }
+
+    /// The footprint of a sample landing at `(x, y)` that passed the temporal cull.
+    #[cfg(test)]
+    #[allow(clippy::too_many_arguments)]
+    fn footprint(
+        &self,
+        x: f32,
+        y: f32,
+        age: f32,
+        a: f32,
+        f: TileFilter,
+        rx: f32,
+        ry: f32,
+    ) -> Option<Placed> {
+        let [x0, x1, y0, y1] = self.bounds(x, y, rx, ry);
+        if !(x0 <= x1 && y0 <= y1) {
+            return None;
+        }
+        Some(Placed {
+            x,
+            y,
+            age,
+            a,
+            filter: f,
+            x0: x0 as i32,
+            x1: x1 as i32,
+            y0: y0 as i32,
+            y1: y1 as i32,
+        })
+    }
+}
+
+/// One block of samples in [`bin_piece`], one array per field.
+struct Block {
+    x: [f32; LOCATE_BLOCK],
+    y: [f32; LOCATE_BLOCK],
+    /// NaN where the sample is not `ok` (see [`Located`]).
+    age: [f32; LOCATE_BLOCK],
+    pixel: [u32; LOCATE_BLOCK],
+    /// The landing pixel's [`Lookup`], one array per field.
+    tile: [u32; LOCATE_BLOCK],
+    inv_et: [f32; LOCATE_BLOCK],
+    rx: [f32; LOCATE_BLOCK],
+    ry: [f32; LOCATE_BLOCK],
+    /// Temporal weight `exp(−½ (age / e_t)²)`.
+    wt: [f32; LOCATE_BLOCK],
+    /// Red, green and blue times the temporal weight.
+    wc: [[f32; LOCATE_BLOCK]; 3],
+    /// Footprint (inclusive pixel bounds; meaningful for kept samples only).
+    x0: [i32; LOCATE_BLOCK],
+    x1: [i32; LOCATE_BLOCK],
+    y0: [i32; LOCATE_BLOCK],
+    y1: [i32; LOCATE_BLOCK],
+    /// 1 where the sample passes the temporal cull and reaches a pixel.
+    keep: [u32; LOCATE_BLOCK],
+    /// Indices of those samples.
+    kept: [u8; LOCATE_BLOCK],
+}
+
+impl Block {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            x: [0.0; LOCATE_BLOCK],
+            y: [0.0; LOCATE_BLOCK],
+            age: [0.0; LOCATE_BLOCK],
+            pixel: [0; LOCATE_BLOCK],
+            tile: [0; LOCATE_BLOCK],
+            inv_et: [0.0; LOCATE_BLOCK],
+            rx: [0.0; LOCATE_BLOCK],
+            ry: [0.0; LOCATE_BLOCK],
+            wt: [0.0; LOCATE_BLOCK],
+            wc: [[0.0; LOCATE_BLOCK]; 3],
+            x0: [0; LOCATE_BLOCK],
+            x1: [0; LOCATE_BLOCK],
+            y0: [0; LOCATE_BLOCK],
+            y1: [0; LOCATE_BLOCK],
+            keep: [0; LOCATE_BLOCK],
+            kept: [0; LOCATE_BLOCK],
+        })
+    }
+}
+
+/// Place the samples at physical indices `piece` of the ring and append their splats
+/// to the lists of the bands they touch, in ring order.
+///
+/// A block of samples goes through each stage before the next: reprojection (vector
+/// code over the ring's field arrays), the pixel lookups (independent loads in flight
+/// together), the temporal cull (a list of survivors, no branch per sample), and only
+/// then the footprints and splats of the survivors.
+#[inline(never)]
+fn bin_piece(
+    placer: &Placer,
+    ring: &Ring,
+    piece: std::ops::Range<usize>,
+    out: &mut Vec<Vec<Splat>>,
+    bands: usize,
+    band_rows: usize,
+) {
+    debug_assert!(band_rows.is_power_of_two());
+    let band_shift = band_rows.trailing_zeros();
+    out.resize_with(bands, Vec::new);
+    out.iter_mut().for_each(Vec::clear);
+    let mut b = Block::new();
+    let tc = placer.temporal_cutoff;
+    let (cr, cg, cb) = (&ring.f[field::R], &ring.f[field::G], &ring.f[field::B]);
+    let mut p0 = piece.start;
+    while p0 < piece.end {
+        let n = LOCATE_BLOCK.min(piece.end - p0);
+        placer.locate_block(ring, p0, n, &mut b);
+        for i in 0..n {
+            let l = placer.lookup[b.pixel[i] as usize];
+            let f = &placer.tiles[l.tile as usize];
+            b.tile[i] = l.tile;
+            b.inv_et[i] = f.inv_et;
+            (b.rx[i], b.ry[i]) = placer.radii(f, l.scale);
+        }
+        // The cull, footprint, temporal weight and weighted color of every lane (the
+        // arithmetic of the tests' `Placer::finish`), in vector code: reading every
+        // lane's color here streams the ring's color arrays, where reading only the
+        // survivors' later waits on each one's cache miss.
+        let (r, g, bl) = (&cr[p0..p0 + n], &cg[p0..p0 + n], &cb[p0..p0 + n]);
+        for i in 0..n {
+            let a = b.age[i] * b.inv_et[i];
+            let [x0, x1, y0, y1] = placer.bounds(b.x[i], b.y[i], b.rx[i], b.ry[i]);
+            b.x0[i] = small_int(x0);
+            b.x1[i] = small_int(x1);
+            b.y0[i] = small_int(y0);
+            b.y1[i] = small_int(y1);
+            let wt = fast_exp_neg(-0.5 * a * a);
+            b.wt[i] = wt;
+            b.wc[0][i] = wt * r[i];
+            b.wc[1][i] = wt * g[i];
+            b.wc[2][i] = wt * bl[i];
+            // A NaN age (not `ok`) fails the first test.
+            b.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
+        }
+        let mut m = 0;
+        for i in 0..n {
+            b.kept[m] = i as u8;
+            m += b.keep[i] as usize;
+        }
+        for &i in &b.kept[..m] {
+            let i = i as usize;
+            let f = &placer.tiles[b.tile[i] as usize];
+            let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
+            let wt = b.wt[i];
+            let s = Splat {
+                x: b.x[i],
+                y: b.y[i],
+                ax: f.ax,
+                ay: f.ay,
+                c: [b.wc[0][i], b.wc[1][i], b.wc[2][i], wt, wt * b.age[i]],
+                x0: x0 as u16,
+                x1: x1 as u16,
+                y0: y0 as u16,
+                y1: y1 as u16,
+            };
+            let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);
+            for o in &mut out[b0..=b1] {
+                o.push(s);
+            }
+        }
+        p0 += n;
+    }
+}
+
+impl Reconstructor {
+    /// What placing samples at display time `t` seen by `camera` needs (filters as of
+    /// the last `update_filters`).
+    pub(super) fn placer(&self, t: f64, camera: &CameraFrame) -> Placer<'_> {
+        let p = &self.params;
+        Placer {
+            t,
+            proj: p.reproject.then(|| Projector::new(camera)),
+            width: self.width as i32,
+            height: self.height as i32,
+            lookup: &self.lookup,
+            tiles: &self.tiles,
+            temporal_cutoff: p.temporal_cutoff,
+            // Within the widest span a splat handles.
+            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+        }
+    }
+
+    /// Index in the ring from which samples may be within the temporal cutoff of some
+    /// tile: every sample before it was pushed in a block whose largest time so far is
+    /// older than `temporal_cutoff · max e_t` (with a margin), so it would fail the
+    /// per-sample test `age / e_t ≤ temporal_cutoff` for every tile.
+    pub(super) fn live_start(&self, t: f64) -> usize {
+        if !self.skip_stale {
+            return 0;
+        }
+        let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
+        let tc = t - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
+        self.ring.live_start(tc)
+    }
+
+    /// Place the live part of the ring and bin its splats by band, pieces of the ring
+    /// in parallel.
+    pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
+        let start = self.live_start(t);
+        let threads = rayon::current_num_threads();
+        // Bands only split the work (every pixel sums its splats in ring order whatever
+        // the bands): on one thread tall bands duplicate fewer splats.
+        let band_rows = if threads <= 1 {
+            SINGLE_THREAD_BAND_ROWS
+        } else {
+            BAND_ROWS
+        };
+        self.band_rows = band_rows;
+        let bands = (self.height as usize).div_ceil(band_rows);
+        // The live part of the ring in pieces, in ring order. Pieces only split the
+        // work: every band later sums its splats in ring order whatever the pieces.
+        let runs = self.ring.runs(start);
+        let live = runs[0].len() + runs[1].len();
+        let chunk = if threads <= 1 {
+            live.max(1)
+        } else {
+            PREP_CHUNK.max(live.div_ceil(4 * threads))
+        };
+        let pieces: Vec<std::ops::Range<usize>> = runs
+            .into_iter()
+            .flat_map(|r| {
+                r.clone()
+                    .step_by(chunk)
+                    .map(move |p| p..(p + chunk).min(r.end))
+            })
+            .collect();
+        // Taken out while the placer borrows the rest of `self`.
+        let mut binned = std::mem::take(&mut self.binned);
+        if binned.len() < pieces.len() {
+            binned.resize_with(pieces.len(), Vec::new);
+        }
+        self.pieces = pieces.len();
+        let placer = self.placer(t, camera);
+        pieces
+            .par_iter()
+            .zip(binned.par_iter_mut())
+            .for_each(|(piece, out)| {
+                bin_piece(&placer, &self.ring, piece.clone(), out, bands, band_rows)
+            });
+        self.binned = binned;
+    }
+}

@@ -1,0 +1,70 @@
+//! Resolving the accumulators into the image: weighted sums divided by weight, the
+//! coverage map and the splat scale it drives for the next refresh, the mean age;
+//! holes go to [`holes`](super::holes).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{lanes::LANES, splat::BAND_ROWS, Reconstructor};
+
+/// Accumulated weight below which a pixel counts as a hole: far splat tails reach
+/// f32's denormal range, where `Σw·c / Σw` loses all precision.
+pub(super) const MIN_WEIGHT: f32 = 1e-24;
+
+impl Reconstructor {
+    /// Quotients, coverage, splat scale adaptation, hole filling, mean age.
+    pub(super) fn resolve(&mut self) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (gpr, cstride) = (self.gpr, w + 1);
+        let p = self.params;
+        let per_band: Vec<(usize, f64)> = self
+            .image
+            .pixels
+            .par_chunks_mut(BAND_ROWS * w)
+            .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.acc.par_chunks(BAND_ROWS * gpr))
+            .zip(self.cov.par_chunks(BAND_ROWS * cstride))
+            .map(|((((px, coverage), scale), acc), cov)| {
+                let (mut holes, mut age) = (0usize, 0f64);
+                for (r, ((px, coverage), scale)) in px
+                    .chunks_mut(w)
+                    .zip(coverage.chunks_mut(w))
+                    .zip(scale.chunks_mut(w))
+                    .enumerate()
+                {
+                    let cells = &acc[r * gpr..(r + 1) * gpr];
+                    let cov = &cov[r * cstride..(r + 1) * cstride];
+                    let mut count = 0i32;
+                    for x in 0..w {
+                        let [cr, cg, cb, cw, ca] = cells[x / LANES].map(|c| c[x % LANES]);
+                        count += cov[x];
+                        coverage[x] = count as u32;
+                        let s = &mut scale[x];
+                        if (count as u32) < p.undersampled {
+                            *s *= p.grow;
+                        } else if count as u32 > p.oversampled {
+                            *s *= p.shrink;
+                        }
+                        *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
+                        if cw >= MIN_WEIGHT {
+                            px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
+                            age += (ca / cw) as f64;
+                        } else {
+                            holes += 1;
+                        }
+                    }
+                }
+                (holes, age)
+            })
+            .collect();
+        // Band order, so the sum does not depend on the thread count.
+        let mut age_sum: f64 = per_band.iter().map(|b| b.1).sum();
+        let holes: usize = per_band.iter().map(|b| b.0).sum();
+        self.holes = holes;
+        if holes > 0 {
+            age_sum += self.fill_holes(self.holes * 64 > w * h);
+        }
+        self.mean_age = age_sum / (w * h).max(1) as f64;
+    }
+}

@@ -1,0 +1,346 @@
+//! Tests of the whole refresh: the fast path (stale cut, blocks, bands, lanes, fast
+//! exp) against direct evaluation of the Gaussian, the stale cut, hole filling.
+
+use super::{place::STALE_MARGIN, ring::TIME_BLOCK, *};
+use crate::scene::Camera;
+
+fn cam(w: u32, h: u32) -> CameraFrame {
+    Camera {
+        eye: Vec3::new(0.0, 0.0, 1.0),
+        at: Vec3::ZERO,
+        up: Vec3::Y,
+        fov_y_deg: 90.0,
+        hither: 1e-3,
+    }
+    .frame(w, h)
+}
+
+#[test]
+fn single_sample_fills_the_image_with_its_color() {
+    let (w, h) = (16, 16);
+    let c = cam(w, h);
+    let mut r = Reconstructor::new(w, h, 1000.0, ReconParams::paper());
+    let p = c.eye + c.direction(3.2, 5.7) * 2.0;
+    r.push(RingSample {
+        x: 3.2,
+        y: 5.7,
+        t: 0.0,
+        color: Vec3::new(0.25, 0.5, 0.75),
+        hit_point: p,
+        velocity: Vec3::ZERO,
+    });
+    let img = r
+        .reconstruct(0.01, &c, &TilingSnapshot::whole(w, h))
+        .clone();
+    for px in &img.pixels {
+        assert!((*px - Vec3::new(0.25, 0.5, 0.75)).abs().max_element() < 1e-6);
+    }
+    assert!(r.holes() > 0);
+    // Splats grew where undersampled.
+    assert!(r.splat_scale().iter().all(|&s| s > 1.0));
+}
+
+/// A reconstructor at `w × h` with `n` random samples over `span` seconds before
+/// `t = 1` (slowly moving, some behind or beside the view), samples pushed in order
+/// unless `shuffle`, and a tiling of 16 tiles with spatial gradients of every kind
+/// and the temporal gradients `gts`.
+fn random_setup(
+    w: u32,
+    h: u32,
+    n: usize,
+    span: f64,
+    shuffle: bool,
+    params: ReconParams,
+    gts: [f64; 4],
+) -> (Reconstructor, CameraFrame, TilingSnapshot) {
+    use crate::tiles::{Rect, TileGradients};
+    let c = cam(w, h);
+    let mut rng = crate::sampling::Rng::new(&[11, n as u64]);
+    let mut r = Reconstructor::new(w, h, n as f64 / span, params);
+    let mut samples: Vec<RingSample> = (0..n)
+        .map(|i| {
+            let x = rng.uniform() * (w as f32 + 4.0) - 2.0;
+            let y = rng.uniform() * (h as f32 + 4.0) - 2.0;
+            let depth = if rng.uniform() < 0.02 {
+                -1.0
+            } else {
+                1.0 + rng.uniform()
+            };
+            RingSample {
+                x,
+                y,
+                t: 1.0 - span + span * i as f64 / n as f64,
+                color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+                hit_point: c.eye + c.direction(x, y) * depth,
+                velocity: Vec3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, 0.0) * 0.3,
+            }
+        })
+        .collect();
+    if shuffle {
+        samples.swap(n / 3, n / 2);
+    }
+    for s in samples {
+        r.push(s);
+    }
+    // A 4 × 4 grid of tiles.
+    let mut tiling = TilingSnapshot::default();
+    for k in 0..16u32 {
+        let (i, j) = (k % 4, k / 4);
+        let g = (k % 4) as f64 / 3.0;
+        tiling.tiles.push(TileGradients {
+            rect: Rect {
+                x0: w * i / 4,
+                y0: h * j / 4,
+                x1: w * (i + 1) / 4,
+                y1: h * (j + 1) / 4,
+            },
+            gx: 0.2 * g,
+            gy: 0.2 * (1.0 - g),
+            gt: gts[k as usize / 4],
+        });
+    }
+    (r, c, tiling)
+}
+
+/// Static, slow and fast tiles.
+const GTS: [f64; 4] = [0.0, 0.3, 3.0, 30.0];
+
+/// Sums `[r, g, b, w, w·age]` and coverage per pixel by direct evaluation of the
+/// Gaussian in f64 for every sample of the ring (no stale-prefix cut, no bands), with
+/// the filters and splat scale the next refresh will use.
+fn direct(
+    r: &mut Reconstructor,
+    t: f64,
+    c: &CameraFrame,
+    tiling: &TilingSnapshot,
+) -> Vec<([f64; 5], u32)> {
+    r.update_filters(tiling);
+    let placer = r.placer(t, c);
+    let w = r.width as usize;
+    let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
+    for s in r.ring.iter() {
+        let Some(q) = placer.place(&s) else { continue };
+        let [ex, ey, _] = q.filter.e.map(|e| e as f64);
+        for y in q.y0..=q.y1 {
+            for x in q.x0..=q.x1 {
+                let dx = (x as f64 + 0.5 - q.x as f64) / ex;
+                let dy = (y as f64 + 0.5 - q.y as f64) / ey;
+                let a = q.a as f64;
+                let wgt = (-0.5 * (dx * dx + dy * dy + a * a)).exp();
+                let o = &mut out[y as usize * w + x as usize];
+                let col = s.color.as_dvec3();
+                for (k, v) in [col.x, col.y, col.z, 1.0, q.age as f64].iter().enumerate() {
+                    o.0[k] += wgt * v;
+                }
+                o.1 += 1;
+            }
+        }
+    }
+    out
+}
+
+/// The fast path (bands, lanes, fast exp, stale cut) against direct evaluation.
+fn check_against_direct(r: &mut Reconstructor, c: &CameraFrame, tiling: &TilingSnapshot) {
+    for _ in 0..3 {
+        let d = direct(r, 1.0, c, tiling);
+        r.reconstruct(1.0, c, tiling);
+        let mut compared = 0;
+        for (i, (sums, cov)) in d.iter().enumerate() {
+            assert_eq!(r.coverage()[i], *cov, "coverage of pixel {i}");
+            if sums[3] < 1e-20 {
+                continue;
+            }
+            compared += 1;
+            let px = r.image().pixels[i];
+            for (k, v) in px.to_array().iter().enumerate() {
+                let want = sums[k] / sums[3];
+                assert!(
+                    (*v as f64 - want).abs() <= 1e-4 * (1.0 + want.abs()),
+                    "pixel {i} channel {k}: {v} vs {want}"
+                );
+            }
+        }
+        assert!(compared > d.len() / 2, "only {compared} pixels compared");
+    }
+}
+
+#[test]
+fn fast_path_matches_direct_evaluation() {
+    for params in [
+        ReconParams::paper(),
+        ReconParams::no_reprojection(),
+        ReconParams::fixed_filter(),
+    ] {
+        for (w, h) in [(40, 30), (67, 41)] {
+            let (mut r, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+            check_against_direct(&mut r, &c, &tiling);
+        }
+    }
+}
+
+#[test]
+fn wrapped_ring_matches_direct_evaluation() {
+    // More pushes than the capacity: the live range wraps around the ring's
+    // arrays, and a refresh must read it in ring order across the wrap.
+    for ring_factor in [1.0, 1.7] {
+        let params = ReconParams {
+            ring_factor,
+            ..ReconParams::paper()
+        };
+        let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, false, params, GTS);
+        assert_eq!(r.ring().len(), r.capacity());
+        let runs = r.ring.runs(0);
+        assert!(!runs[1].is_empty(), "the ring should wrap");
+        check_against_direct(&mut r, &c, &tiling);
+    }
+}
+
+#[test]
+fn out_of_order_ring_matches_direct_evaluation() {
+    let (mut r, c, tiling) = random_setup(40, 30, 3000, 1.0, true, ReconParams::paper(), GTS);
+    check_against_direct(&mut r, &c, &tiling);
+}
+
+#[test]
+fn stale_cut_never_drops_a_sample_that_counts() {
+    // Ages up to 3 s against e_t of at most a fraction of that: the cut skips most
+    // of the ring and must give exactly the image of the full per-sample test.
+    // In order, and with two samples far apart swapped (as interleaved batches of
+    // sampling threads would be, only more so).
+    let run = |skip: bool, shuffle: bool| {
+        let (mut r, c, tiling) = random_setup(
+            48,
+            32,
+            6000,
+            3.0,
+            shuffle,
+            ReconParams::paper(),
+            [3.0, 10.0, 30.0, 100.0],
+        );
+        r.skip_stale = skip;
+        let mut out = Vec::new();
+        for k in 0..3 {
+            r.update_filters(&tiling);
+            let start = r.live_start(1.0);
+            if skip && k == 0 {
+                assert!(start > 1000, "the cut skipped only {start} samples");
+                // Everything cut is beyond the cutoff of every tile.
+                let max_et = r.tiles.iter().fold(0f32, |m, f| m.max(f.e[2]));
+                for s in r.ring.iter().take(start) {
+                    assert!((1.0 - s.t) as f32 > r.params.temporal_cutoff * max_et);
+                }
+            }
+            r.reconstruct(1.0, &c, &tiling);
+            out.push((
+                r.image().clone(),
+                r.coverage().to_vec(),
+                r.mean_age(),
+                r.holes(),
+            ));
+        }
+        out
+    };
+    for shuffle in [false, true] {
+        let (a, b) = (run(true, shuffle), run(false, shuffle));
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!(x.0.pixels, y.0.pixels);
+            assert_eq!(x.1, y.1);
+            assert_eq!(x.2.to_bits(), y.2.to_bits());
+            assert_eq!(x.3, y.3);
+        }
+    }
+}
+
+#[test]
+fn sparse_and_dense_hole_filling_agree() {
+    // A narrow filter (1 px) over the last 0.3 s: most pixels are holes with 3
+    // samples, few with 100.
+    for n in [3, 30, 100] {
+        let (mut r, c, tiling) =
+            random_setup(37, 29, n, 0.3, false, ReconParams::fixed_filter(), GTS);
+        r.reconstruct(1.0, &c, &tiling);
+        assert!(r.holes() > 0, "{n} samples should leave holes");
+        let mut ages = Vec::new();
+        let mut images = Vec::new();
+        for dense in [false, true] {
+            ages.push(r.fill_holes(dense).to_bits());
+            images.push(r.image().pixels.clone());
+        }
+        assert_eq!(ages[0], ages[1]);
+        assert_eq!(images[0], images[1]);
+        assert!(images[0].iter().all(|p| p.is_finite() && *p != Vec3::ZERO));
+    }
+}
+
+#[test]
+fn stale_cut_follows_the_ring_as_it_wraps() {
+    // A ring of 1000 samples fed 5000, one per ms, with some late arrivals: the cut
+    // must stay within the ring and skip only samples older than the cutoff time.
+    let mut r = Reconstructor::new(
+        10,
+        10,
+        1000.0,
+        ReconParams {
+            ring_factor: 10.0,
+            ..ReconParams::paper()
+        },
+    );
+    r.tiles = vec![TileFilter::new([1.0, 1.0, 0.1], 2.5)];
+    for i in 0..5000u32 {
+        let t = if i % 97 == 0 {
+            i as f64 * 1e-3 - 0.2
+        } else {
+            i as f64 * 1e-3
+        };
+        r.push(RingSample {
+            x: 1.0,
+            y: 1.0,
+            t,
+            color: Vec3::ONE,
+            hit_point: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+        });
+        if i % 250 == 0 || i > 4990 {
+            let now = i as f64 * 1e-3;
+            let start = r.live_start(now);
+            assert!(start <= r.ring().len());
+            let tc = now - 0.3 * (1.0 + STALE_MARGIN);
+            assert!(r.ring().iter().take(start).all(|s| s.t < tc), "push {i}");
+            // Blocks are 256 pushes: at most two blocks' worth of stale samples stay.
+            let stale = r.ring().iter().filter(|s| s.t < tc - 0.2).count();
+            assert!(
+                stale <= start + 2 * TIME_BLOCK as usize,
+                "push {i}: {stale} stale, cut {start}"
+            );
+        }
+    }
+    assert_eq!(
+        r.ring.block_max_t.len() as u64,
+        r.ring.pushed.div_ceil(TIME_BLOCK) - r.ring.first_block
+    );
+}
+
+#[test]
+fn ring_keeps_the_newest() {
+    let mut r = Reconstructor::new(
+        2,
+        2,
+        1.0,
+        ReconParams {
+            ring_factor: 1.0,
+            ..ReconParams::paper()
+        },
+    );
+    for k in 0..10 {
+        r.push(RingSample {
+            x: 0.0,
+            y: 0.0,
+            t: k as f64,
+            color: Vec3::ZERO,
+            hit_point: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+        });
+    }
+    assert_eq!(r.ring().len(), 4);
+    assert_eq!(r.ring().front().unwrap().t, 6.0);
+}
