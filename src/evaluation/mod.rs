@@ -148,6 +148,37 @@ impl EvalConfig {
         self.start + k as f64 / self.refresh_hz
     }
 
+    /// The method runs: each method once per rate, or once for all rates when it
+    /// ignores the rate.
+    pub fn runs(&self) -> Vec<(MethodKind, f64)> {
+        let mut runs = Vec::new();
+        for m in &self.methods {
+            if m.rate_independent() {
+                runs.push((*m, self.rates[0]));
+            } else {
+                runs.extend(self.rates.iter().map(|r| (*m, *r)));
+            }
+        }
+        runs
+    }
+
+    fn summary(&self, results: Vec<ResultRow>, timing: Timing) -> Summary {
+        Summary {
+            scene: self.scene_name.clone(),
+            width: self.width,
+            height: self.height,
+            refresh_hz: self.refresh_hz,
+            start: self.start,
+            duration: self.duration,
+            warmup: self.warmup,
+            seed: self.seed,
+            ideal_spp: self.ideal_spp,
+            camera_path: self.camera_path.is_some(),
+            results,
+            timing,
+        }
+    }
+
     /// What the methods' budget rules need to know of this run.
     pub fn shape(&self) -> RunShape {
         RunShape {
@@ -378,15 +409,7 @@ pub fn run(
         None => None,
     };
     let n = cfg.frames();
-    // Each method once per rate, or once for all rates when it ignores the rate.
-    let mut runs: Vec<(MethodKind, f64)> = Vec::new();
-    for m in &cfg.methods {
-        if m.rate_independent() {
-            runs.push((*m, cfg.rates[0]));
-        } else {
-            runs.extend(cfg.rates.iter().map(|r| (*m, *r)));
-        }
-    }
+    let runs = cfg.runs();
     progress.total((n * (1 + runs.len())) as u64);
     let mut timing = Timing::default();
     let ctx_for = |rate: f64| MethodContext {
@@ -396,34 +419,15 @@ pub fn run(
         ideal_spp: cfg.ideal_spp,
         ideal_cache: cache.clone(),
     };
-
-    // Ideal images, as displayed.
-    let t0 = Instant::now();
-    let ideal_ctx = ctx_for(cfg.rates[0]);
-    let mut ideal: Vec<Vec<u8>> = Vec::with_capacity(n);
-    for k in 0..n {
-        let t = cfg.refresh(k);
-        if cache
-            .as_ref()
-            .is_some_and(|c| c.contains(t, cfg.ideal_spp, cfg.seed))
-        {
-            timing.ideal_cache_hits += 1;
-        }
-        ideal.push(ideal_image(&ideal_ctx, t).to_rgb8());
-        progress.step("ideal images");
-    }
-    timing.ideal_s = t0.elapsed().as_secs_f64();
-
-    let mut frames = Vec::new();
-    let mut results = Vec::new();
+    let ideal = ideal_images(cfg, &ctx_for(cfg.rates[0]), &mut timing, progress);
     let mut strips: Vec<Strip> = Vec::new();
     for rate in &cfg.rates {
-        for &k in &cfg.strip_frames {
-            if k < n {
-                strips.push((*rate, k, vec![("ideal".to_string(), ideal[k].clone())]));
-            }
+        for &k in cfg.strip_frames.iter().filter(|&&k| k < n) {
+            strips.push((*rate, k, vec![("ideal".to_string(), ideal[k].clone())]));
         }
     }
+    let mut frames = Vec::new();
+    let mut results = Vec::new();
     for (kind, rate) in runs {
         let mut method = kind.build(&ctx_for(rate))?;
         let tm = Instant::now();
@@ -433,57 +437,80 @@ pub fn run(
         let tq = Instant::now();
         let metrics = measure(cfg, &shown.frames, &ideal);
         timing.metrics_s += tq.elapsed().as_secs_f64();
-        let rows_for: Vec<f64> = if kind.rate_independent() {
+        // A rate-independent method's one run fills every rate column.
+        let columns = if kind.rate_independent() {
             cfg.rates.clone()
         } else {
             vec![rate]
         };
-        for r in rows_for {
-            let rows: Vec<FrameRow> = shown
-                .frames
-                .iter()
-                .zip(&metrics)
-                .enumerate()
-                .map(|(k, ((_, age), (rms, flip, flicker)))| FrameRow {
-                    method: kind,
-                    rate: r,
-                    frame: k,
-                    time: cfg.refresh(k),
-                    rms: *rms,
-                    psnr: metrics::psnr(*rms),
-                    flip: *flip,
-                    flicker: *flicker,
-                    age_s: *age,
-                })
-                .collect();
+        for r in columns {
+            let rows = frame_rows(cfg, kind, r, &shown, &metrics);
             results.push(aggregate(kind, r, &rows, &shown));
-            for (sr, k, list) in strips.iter_mut() {
-                if *sr == r {
-                    list.push((kind.name().into(), shown.frames[*k].0.clone()));
-                }
+            for (_, k, list) in strips.iter_mut().filter(|s| s.0 == r) {
+                list.push((kind.name().into(), shown.frames[*k].0.clone()));
             }
             frames.extend(rows);
         }
     }
-    let summary = Summary {
-        scene: cfg.scene_name.clone(),
-        width: cfg.width,
-        height: cfg.height,
-        refresh_hz: cfg.refresh_hz,
-        start: cfg.start,
-        duration: cfg.duration,
-        warmup: cfg.warmup,
-        seed: cfg.seed,
-        ideal_spp: cfg.ideal_spp,
-        camera_path: cfg.camera_path.is_some(),
-        results,
-        timing,
-    };
     Ok(EvalOutput {
-        summary,
+        summary: cfg.summary(results, timing),
         frames,
         strips,
     })
+}
+
+/// The ideal image of every refresh of the window, as displayed (8-bit RGB).
+fn ideal_images(
+    cfg: &EvalConfig,
+    ctx: &MethodContext,
+    timing: &mut Timing,
+    progress: &dyn Progress,
+) -> Vec<Vec<u8>> {
+    let t0 = Instant::now();
+    let ideal = (0..cfg.frames())
+        .map(|k| {
+            let t = cfg.refresh(k);
+            if ctx
+                .ideal_cache
+                .as_ref()
+                .is_some_and(|c| c.contains(t, cfg.ideal_spp, cfg.seed))
+            {
+                timing.ideal_cache_hits += 1;
+            }
+            let image = ideal_image(ctx, t).to_rgb8();
+            progress.step("ideal images");
+            image
+        })
+        .collect();
+    timing.ideal_s = t0.elapsed().as_secs_f64();
+    ideal
+}
+
+/// One method's frames at rate column `rate`.
+fn frame_rows(
+    cfg: &EvalConfig,
+    kind: MethodKind,
+    rate: f64,
+    shown: &Shown,
+    metrics: &[(f64, Option<f64>, Option<f64>)],
+) -> Vec<FrameRow> {
+    shown
+        .frames
+        .iter()
+        .zip(metrics)
+        .enumerate()
+        .map(|(k, ((_, age), (rms, flip, flicker)))| FrameRow {
+            method: kind,
+            rate,
+            frame: k,
+            time: cfg.refresh(k),
+            rms: *rms,
+            psnr: metrics::psnr(*rms),
+            flip: *flip,
+            flicker: *flicker,
+            age_s: *age,
+        })
+        .collect()
 }
 
 /// Ask `method` what it displays at every refresh of the window, holding it to its
