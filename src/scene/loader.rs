@@ -14,6 +14,21 @@ pub(crate) const BACKGROUND: Vec3 = Vec3::new(0.2, 0.22, 0.25);
 /// Largest number of triangles a scene may expand to (meshes are copied per node).
 pub(crate) const MAX_TRIANGLES: usize = 1 << 26;
 
+/// The scene a loader fills in for the file at `path`: named after the file, with the
+/// default background and white ambient light.
+pub(crate) fn empty_scene(path: &std::path::Path) -> Scene {
+    Scene {
+        name: path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        source: Some(path.to_path_buf()),
+        background: BACKGROUND,
+        ambient: Vec3::ONE,
+        ..Default::default()
+    }
+}
+
 /// Which image container some bytes hold, by their magic number.
 fn sniff_image(bytes: &[u8]) -> Option<&'static str> {
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {

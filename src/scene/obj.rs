@@ -44,7 +44,7 @@ use glam::{Vec2, Vec3};
 
 use super::{
     loader::{
-        decode_image, default_camera, default_light, world_bounds, BACKGROUND, MAX_TRIANGLES,
+        decode_image, default_camera, default_light, empty_scene, world_bounds, MAX_TRIANGLES,
     },
     CameraTrack, Group, Material, MaterialId, Scene, SceneError, TextureId, Triangle,
 };
@@ -409,16 +409,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let materials = materials.unwrap_or_default();
     let libraries = libraries.into_inner();
 
-    let mut scene = Scene {
-        name: path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        source: Some(path.to_path_buf()),
-        background: BACKGROUND,
-        ambient: Vec3::ONE,
-        ..Default::default()
-    };
+    let mut scene = empty_scene(path);
     let mut b = Build {
         file: &file,
         materials: &materials,

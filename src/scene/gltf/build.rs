@@ -14,7 +14,7 @@ use super::{
     container::Doc,
 };
 use crate::scene::{
-    loader::{default_light, world_bounds, BACKGROUND},
+    loader::{default_light, empty_scene, world_bounds},
     AnimationRange, Group, MaterialId, Node, NodeId, NodeKind, Scene, SceneError, TextureId,
 };
 
@@ -36,16 +36,7 @@ impl<'a> Build<'a> {
     pub(super) fn new(doc: &'a Doc, path: &Path) -> Self {
         Self {
             doc,
-            scene: Scene {
-                name: path
-                    .file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .unwrap_or_default(),
-                source: Some(path.to_path_buf()),
-                background: BACKGROUND,
-                ambient: Vec3::ONE,
-                ..Default::default()
-            },
+            scene: empty_scene(path),
             materials: HashMap::new(),
             textures: HashMap::new(),
             warnings: Vec::new(),
