@@ -109,3 +109,42 @@ fn bad_arguments_fail_before_work() {
     }
     assert!(!out.exists(), "no output may be written for bad arguments");
 }
+
+/// The Still animation's view of the kitchen does not change over its warm-up and
+/// window: images at several instants are identical, pixel for pixel.
+#[test]
+fn the_still_animation_is_still() {
+    use frameless::{evaluation::table1, render::still, scene::CameraPath};
+    let Some(bart) = bart_dir() else { return };
+    let a = table1::animation("still").expect("a still animation");
+    let path = CameraPath::parse("kitchen_still.csv", a.camera_path.expect("its camera"))
+        .expect("camera path parses");
+    let tracer = tracer_with(&bart, path);
+    let at = |t: f64| still::render(&tracer, t, 1, 1, &|_| {}).pixels;
+    let first = at(a.start - a.warmup);
+    let steps = 8;
+    for k in 1..=steps {
+        let t = a.start - a.warmup + (a.warmup + a.duration) * k as f64 / steps as f64;
+        assert!(at(t) == first, "the view changes at t = {t}");
+    }
+    // The same check sees the toy car in the Toycar close-up.
+    let toycar = table1::animation("toycar").expect("toycar");
+    let path = CameraPath::parse("kitchen_toycar.csv", toycar.camera_path.expect("camera"))
+        .expect("camera path parses");
+    let moving = tracer_with(&bart, path);
+    let at = |t: f64| still::render(&moving, t, 1, 1, &|_| {}).pixels;
+    assert!(
+        at(toycar.start) != at(toycar.start + toycar.duration / 2.0),
+        "the check can see motion"
+    );
+}
+
+fn tracer_with(
+    bart: &std::path::Path,
+    path: frameless::scene::CameraPath,
+) -> frameless::trace::Tracer {
+    let scene = frameless::scene::load(&bart.join("kitchen/kitchen.aff").to_string_lossy())
+        .expect("kitchen loads");
+    frameless::trace::Tracer::new(std::sync::Arc::new(scene), 96, 96, Default::default())
+        .with_camera_path(Some(path))
+}

@@ -266,7 +266,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             methods: methods.clone(),
             seed: a.seed,
             ideal_spp: a.ideal_spp,
-            warmup: 1.0,
+            warmup: anim.warmup,
             refresh_hz: 60.0,
             max_depth: 5,
             cache_dir: Some(cache_dir.clone()),

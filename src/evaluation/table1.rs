@@ -24,14 +24,17 @@ pub struct Animation {
     pub start: f64,
     /// Length of the window (seconds).
     pub duration: f64,
+    /// Seconds every method runs before the window.
+    pub warmup: f64,
     /// Camera-path CSV text overriding the scene camera (`None`: the kitchen's own).
     pub camera_path: Option<&'static str>,
     /// File name of that camera path under `assets/camera_paths/`.
     pub camera_path_file: Option<&'static str>,
 }
 
-/// The paper's three animations on the kitchen, in the paper's column order.
-pub const ANIMATIONS: [Animation; 3] = [
+/// The paper's three animations on the kitchen, in the paper's column order, and a
+/// still view (not in the paper).
+pub const ANIMATIONS: [Animation; 4] = [
     Animation {
         name: "interactive",
         description: "a person-like walk with three fast turns (85° in 0.25 s, 125° in 0.4 s, \
@@ -39,6 +42,7 @@ pub const ANIMATIONS: [Animation; 3] = [
                       (assets/camera_paths/make_kitchen_interactive.py); t = 5–8 s while the toy car drives",
         start: 5.0,
         duration: 3.0,
+        warmup: 1.0,
         camera_path: Some(include_str!("../../assets/camera_paths/kitchen_interactive.csv")),
         camera_path_file: Some("kitchen_interactive.csv"),
     },
@@ -48,6 +52,7 @@ pub const ANIMATIONS: [Animation; 3] = [
                       to floor level, a 75° turn in 0.5 s, and the toy car driving",
         start: 4.5,
         duration: 3.0,
+        warmup: 1.0,
         camera_path: None,
         camera_path_file: None,
     },
@@ -57,8 +62,21 @@ pub const ANIMATIONS: [Animation; 3] = [
                       the toy car enters from the left, turns and leaves on the right, t = 9.5–12.5 s",
         start: 9.5,
         duration: 3.0,
+        warmup: 1.0,
         camera_path: Some(include_str!("../../assets/camera_paths/kitchen_toycar.csv")),
         camera_path_file: Some("kitchen_toycar.csv"),
+    },
+    Animation {
+        name: "still",
+        description: "a fixed view (assets/camera_paths/kitchen_still.csv) of a door, a \
+                      cabinet, tiles and textured walls where nothing moves: renders of it \
+                      at every 0.1 s of t = 0–9 s are identical; t = 5–8 s after a 4 s \
+                      warm-up, what a viewer sees whenever the user stops moving",
+        start: 5.0,
+        duration: 3.0,
+        warmup: 4.0,
+        camera_path: Some(include_str!("../../assets/camera_paths/kitchen_still.csv")),
+        camera_path_file: Some("kitchen_still.csv"),
     },
 ];
 
