@@ -143,18 +143,13 @@ fn double_buffering_timing_hand_worked() {
         assert!((age - k as f64 / 60.0).abs() < 1e-9, "refresh {k}: {age}");
     }
     // Refreshes 3..5 show frame 0 (sampled at t = 0); 6..7 show frame 1 (t = 0.05).
-    for k in 3..6 {
-        assert!(
-            (ages[k] - k as f64 / 60.0).abs() < 1e-9,
-            "refresh {k}: {}",
-            ages[k]
-        );
+    for (k, age) in ages.iter().enumerate().take(6).skip(3) {
+        assert!((age - k as f64 / 60.0).abs() < 1e-9, "refresh {k}: {age}");
     }
-    for k in 6..8 {
+    for (k, age) in ages.iter().enumerate().take(8).skip(6) {
         assert!(
-            (ages[k] - (k as f64 / 60.0 - 0.05)).abs() < 1e-9,
-            "refresh {k}: {}",
-            ages[k]
+            (age - (k as f64 / 60.0 - 0.05)).abs() < 1e-9,
+            "refresh {k}: {age}"
         );
     }
     assert_eq!(used, vec![0, 0, 0, 768, 768, 768, 1536, 1536]);

@@ -9,6 +9,9 @@ use super::{EvalError, EvalOutput, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{image::write_png_rgb8, methods::MethodKind};
 
+/// A table of one metric: title, the value of a row, decimals.
+type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize);
+
 fn methods_in_order(s: &Summary) -> Vec<MethodKind> {
     let mut m: Vec<MethodKind> = Vec::new();
     for r in &s.results {
@@ -40,7 +43,7 @@ pub fn markdown(s: &Summary) -> String {
         "# Evaluation: {} at {}x{}, {} Hz, t = {} s + {} s (warm-up {} s, seed {}, ideal {} spp)\n",
         s.scene, s.width, s.height, s.refresh_hz, s.start, s.duration, s.warmup, s.seed, s.ideal_spp
     );
-    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 5] = [
+    let tables: [Metric; 5] = [
         ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 1),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2),
         ("Mean FLIP (lower is better)", |r| r.flip_mean, 4),
@@ -224,7 +227,7 @@ fn html(
     );
     let methods = methods_in_order(s);
     let rates = rates_in_order(s);
-    let tables: [(&str, fn(&super::ResultRow) -> f64, usize); 4] = [
+    let tables: [Metric; 4] = [
         ("Mean RMS error (0–255)", |r| r.rms_mean, 1),
         ("Mean FLIP", |r| r.flip_mean, 4),
         ("Temporal instability (0–255)", |r| r.flicker_mean, 2),

@@ -221,7 +221,9 @@ pub fn markdown(t: &TableSummary) -> String {
         }
         out.push('\n');
     };
-    let metrics: [(&str, fn(&super::ResultRow) -> f64, usize, bool); 3] = [
+    // Title, the value of a row, decimals, whether the paper's value is shown beside.
+    type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize, bool);
+    let metrics: [Metric; 3] = [
         (
             "Mean RMS error, 0–255 (paper's in parentheses)",
             |r| r.rms_mean,
