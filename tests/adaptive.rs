@@ -290,6 +290,7 @@ fn evaluation_with_adaptive_is_thread_count_independent() {
         warmup: 0.2,
         refresh_hz: 60.0,
         max_depth: 2,
+        texture_filter: frameless::trace::TextureFilter::None,
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 4,

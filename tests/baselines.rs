@@ -124,6 +124,7 @@ fn cfg(methods: &[MethodKind], rate: f64, duration: f64) -> EvalConfig {
         warmup: 0.0,
         refresh_hz: 60.0,
         max_depth: 2,
+        texture_filter: frameless::trace::TextureFilter::None,
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 1000,

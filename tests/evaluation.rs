@@ -94,6 +94,7 @@ fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> 
         warmup,
         refresh_hz: 60.0,
         max_depth: 3,
+        texture_filter: frameless::trace::TextureFilter::None,
         cache_dir: None,
         strip_frames: vec![0],
         flip_every: 1,

@@ -55,6 +55,7 @@ pub fn run(cli: Cli) -> Result<()> {
                 h,
                 TraceOptions {
                     max_depth: a.max_depth,
+                    texture_filter: a.texture_filter,
                 },
             )
             .with_camera_path(path);
@@ -166,6 +167,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         warmup: a.warmup,
         refresh_hz: 60.0,
         max_depth: a.max_depth,
+        texture_filter: a.texture_filter,
         cache_dir,
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
@@ -208,6 +210,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         width: w,
         height: h,
         seed: a.seed,
+        texture_filter: a.texture_filter,
     };
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
@@ -269,6 +272,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             warmup: anim.warmup,
             refresh_hz: 60.0,
             max_depth: 5,
+            texture_filter: a.texture_filter,
             cache_dir: Some(cache_dir.clone()),
             strip_frames: Vec::new(),
             flip_every: a.flip_every as usize,
@@ -439,8 +443,16 @@ fn view(a: args::ViewArgs) -> Result<()> {
     let Size(w, h) = a.size;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
-        Tracer::new(scene, w, h, TraceOptions::default())
-            .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+        Tracer::new(
+            scene,
+            w,
+            h,
+            TraceOptions {
+                texture_filter: a.texture_filter,
+                ..TraceOptions::default()
+            },
+        )
+        .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
     );
     if a.headless {
         let Some(seconds) = a.seconds else {

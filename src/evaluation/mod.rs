@@ -17,7 +17,7 @@ use crate::{
     methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
     render::cache::IdealCache,
     scene::{CameraPath, Scene},
-    trace::{TraceOptions, Tracer},
+    trace::{TextureFilter, TraceOptions, Tracer},
 };
 
 /// Why an evaluation could not run or write its outputs.
@@ -118,6 +118,8 @@ pub struct EvalConfig {
     pub refresh_hz: f64,
     /// Reflection/refraction depth limit.
     pub max_depth: u32,
+    /// Texture filtering of every image traced, ideal images included.
+    pub texture_filter: TextureFilter,
     /// Ideal-image cache directory (`None`: no cache).
     pub cache_dir: Option<PathBuf>,
     /// Frames at which image strips are saved (indices into the window).
@@ -397,6 +399,7 @@ pub fn run(
             cfg.height,
             TraceOptions {
                 max_depth: cfg.max_depth,
+                texture_filter: cfg.texture_filter,
             },
         )
         .with_camera_path(cfg.camera_path.clone()),
@@ -634,6 +637,7 @@ mod tests {
             warmup: 0.2,
             refresh_hz: 60.0,
             max_depth: 3,
+            texture_filter: crate::trace::TextureFilter::None,
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,

@@ -11,7 +11,7 @@ use crate::{
     image::{write_atomic, write_png_rgb8_fast},
     methods::{MethodContext, MethodKind},
     scene::{CameraPath, Scene},
-    trace::{TraceOptions, Tracer},
+    trace::{TextureFilter, TraceOptions, Tracer},
 };
 
 /// Most frames one sequence may have.
@@ -42,6 +42,8 @@ pub struct SequenceConfig {
     pub height: u32,
     /// Seed of every random choice.
     pub seed: u64,
+    /// Texture filtering.
+    pub texture_filter: TextureFilter,
 }
 
 /// `stats.json` of a sequence.
@@ -125,6 +127,7 @@ impl SequenceConfig {
             warmup: self.warmup,
             refresh_hz: self.fps,
             max_depth: 5,
+            texture_filter: self.texture_filter,
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,
@@ -144,7 +147,16 @@ pub fn render_sequence(
     cfg.validate()?;
     let (w, h) = (cfg.width, cfg.height);
     let tracer = Arc::new(
-        Tracer::new(scene, w, h, TraceOptions::default()).with_camera_path(cfg.camera_path.clone()),
+        Tracer::new(
+            scene,
+            w,
+            h,
+            TraceOptions {
+                texture_filter: cfg.texture_filter,
+                ..TraceOptions::default()
+            },
+        )
+        .with_camera_path(cfg.camera_path.clone()),
     );
     let ctx = MethodContext {
         tracer,

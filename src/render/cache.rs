@@ -3,7 +3,9 @@
 //! Ideal images dominate an evaluation's cost, so they are kept across runs and methods,
 //! keyed by everything that determines them: the scene's full content (a hash of its
 //! model, so editing a file or texture changes the key), the camera path, image size,
-//! depth limit, samples per pixel, seed, exact time and [`CACHE_VERSION`]. Entries are
+//! the tracer's options (depth limit, texture filter), the tracer's
+//! [`RENDERER_VERSION`], samples per pixel, seed, exact time and [`CACHE_VERSION`].
+//! Entries are
 //! written to a temporary file and renamed into place, and a file that does not decode
 //! to the right size is re-rendered, so an interrupted run never poisons the cache.
 
@@ -17,10 +19,11 @@ use crate::{
     render::still,
     sampling::rng::mix64,
     scene::{CameraPath, Scene},
-    trace::Tracer,
+    trace::{Tracer, RENDERER_VERSION},
 };
 
-/// Bump when shading or sampling changes what an ideal image looks like.
+/// Bump when the still renderer's sampling or the stored format changes what an entry
+/// holds. Changes to the tracer itself bump [`RENDERER_VERSION`] instead.
 pub const CACHE_VERSION: u64 = 1;
 
 /// A streaming 64-bit hash that accepts formatted text.
@@ -63,11 +66,14 @@ impl IdealCache {
         let mut h = Hasher(CACHE_VERSION);
         let _ = write!(
             h,
-            "{:x}|{}|{:?}|{:?}",
+            "{:x}|{}|{:?}|{:?}|renderer {}",
             scene_fingerprint(tracer.scene()),
             camera_path.map(|p| p.to_csv()).unwrap_or_default(),
             tracer.size(),
-            tracer.options()
+            // Every option, the texture filter included: entries made under one
+            // setting are never served under another.
+            tracer.options(),
+            RENDERER_VERSION
         );
         Ok(Self {
             dir: dir.to_path_buf(),
@@ -113,5 +119,34 @@ pub fn from_rgb8(w: u32, h: u32, rgb: &[u8]) -> Image {
             .chunks(3)
             .map(|c| glam::Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) / 255.0)
             .collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::{
+        scene::builtin,
+        trace::{TextureFilter, TraceOptions},
+    };
+
+    #[test]
+    fn key_covers_the_texture_filter() {
+        let dir = std::env::temp_dir().join(format!("frameless-cache-key-{}", std::process::id()));
+        let scene = Arc::new(builtin::toycar());
+        let key = |texture_filter| {
+            let options = TraceOptions {
+                texture_filter,
+                ..TraceOptions::default()
+            };
+            let tracer = Tracer::new(scene.clone(), 8, 8, options);
+            IdealCache::new(&dir, &tracer, None).unwrap().base_key
+        };
+        let none = key(TextureFilter::None);
+        assert_eq!(none, key(TextureFilter::None));
+        assert_ne!(none, key(TextureFilter::RayCones));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

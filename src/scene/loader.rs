@@ -132,12 +132,7 @@ fn decoded_to_texture(name: &str, data: &::gltf::image::Data) -> Result<Texture,
             }
         })
         .collect();
-    Ok(Texture {
-        name: name.to_string(),
-        width: w,
-        height: h,
-        texels,
-    })
+    Ok(Texture::new(name, w, h, texels))
 }
 
 /// World-space bounds of every triangle at time `t`.

@@ -7,8 +7,11 @@
 //! thousand times per simulated second, never the static world.
 
 pub mod accel;
+pub mod cones;
 pub mod intersect;
 mod shade;
+
+pub use cones::TextureFilter;
 
 use std::sync::{
     atomic::{AtomicU64, Ordering},
@@ -29,6 +32,12 @@ use crate::scene::{Camera, CameraFrame, CameraPath, MaterialId, Scene, Triangle}
 use accel::{
     build_top_level, transform_aabb, Analytic, BoxPrim, GroupAccel, InstanceState, PrimRef,
 };
+use cones::{Footprint, RayCone};
+
+/// Version of what the tracer returns for given options. Bump whenever a change makes
+/// the tracer's output differ for some scene, time and options (shading, intersection,
+/// texture lookups), so that images cached under the old version are not reused.
+pub const RENDERER_VERSION: u32 = 1;
 
 /// Scene state is evaluated at multiples of this many seconds (1 ms).
 pub const TIME_QUANTUM: f64 = 1e-3;
@@ -118,11 +127,17 @@ impl StateCache {
 pub struct TraceOptions {
     /// Maximum number of reflection/refraction bounces after the primary hit.
     pub max_depth: u32,
+    /// Texture filtering. `None` (the default for now) keeps the output of the tracer
+    /// before filtering existed, bit for bit, so committed results stay valid.
+    pub texture_filter: TextureFilter,
 }
 
 impl Default for TraceOptions {
     fn default() -> Self {
-        Self { max_depth: 5 }
+        Self {
+            max_depth: 5,
+            texture_filter: TextureFilter::None,
+        }
     }
 }
 
@@ -611,6 +626,45 @@ impl Tracer {
         }
     }
 
+    /// UV area per unit world area of the hit primitive (ray-cone texture filtering).
+    /// Only triangles of rigid groups carry texture coordinates; everything else has a
+    /// constant UV, density 0.
+    fn uv_density(&self, state: &SceneState, hit: &Hit) -> f32 {
+        let (g, i, m) = match hit.at {
+            HitWhere::Static(PrimRef::Tri(i)) => (&self.static_geo, i, None),
+            HitWhere::Instance(ii, PrimRef::Tri(i)) => {
+                let inst = &state.instances[ii as usize];
+                let g = &self.instance_groups[inst.group as usize].1;
+                (g, i, Some(Mat3::from_mat4(inst.world)))
+            }
+            _ => return 0.0,
+        };
+        let tri = &g.tris[i as usize];
+        let uv = &g.attrs[i as usize].uv;
+        let uv_area2 = (uv[1] - uv[0]).perp_dot(uv[2] - uv[0]).abs();
+        let world_area2 = match m {
+            None => tri.ng.length(),
+            Some(m) => (m * Vec3::from(tri.e1))
+                .cross(m * Vec3::from(tri.e2))
+                .length(),
+        };
+        if world_area2 > 0.0 {
+            uv_area2 / world_area2
+        } else {
+            0.0
+        }
+    }
+
+    /// The footprint at `hit` of a cone that left the ray's origin as `cone`, when
+    /// filtering by ray cones.
+    #[inline]
+    fn footprint(&self, state: &SceneState, hit: &Hit, cone: Option<RayCone>) -> Option<Footprint> {
+        cone.map(|c| Footprint {
+            cone: c.advance(hit.t),
+            uv_density: self.uv_density(state, hit),
+        })
+    }
+
     /// Offset for secondary ray origins, relative to the scene's size.
     fn epsilon(&self, p: Vec3) -> f32 {
         1e-5 * self.scene_scale.max(p.abs().max_element())
@@ -651,7 +705,12 @@ impl Tracer {
             }
             Some(h) => {
                 let s = self.surface(state, &ray, &h);
-                let c = self.shade(state, &ray, &s, 0);
+                let cone = match self.options.texture_filter {
+                    TextureFilter::None => None,
+                    TextureFilter::RayCones => Some(RayCone::primary(&state.camera)),
+                };
+                let fp = self.footprint(state, &h, cone);
+                let c = self.shade(state, &ray, &s, fp, 0);
                 Sample {
                     color: c,
                     luminance: luminance(c),

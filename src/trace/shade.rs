@@ -9,7 +9,10 @@
 use glam::{Vec3, Vec3A};
 use obvhs::ray::Ray;
 
-use super::{SceneState, Surface, Tracer};
+use super::{
+    cones::{texture_lod, Footprint, RayCone},
+    SceneState, Surface, Tracer,
+};
 
 fn reflect(d: Vec3, n: Vec3) -> Vec3 {
     d - 2.0 * d.dot(n) * n
@@ -23,7 +26,16 @@ fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
 }
 
 impl Tracer {
-    pub(crate) fn shade(&self, state: &SceneState, ray: &Ray, s: &Surface, depth: u32) -> Vec3 {
+    /// Shade a hit; `fp` is the ray cone's footprint there when filtering textures by
+    /// ray cones (`None`: unfiltered lookups).
+    pub(crate) fn shade(
+        &self,
+        state: &SceneState,
+        ray: &Ray,
+        s: &Surface,
+        fp: Option<Footprint>,
+        depth: u32,
+    ) -> Vec3 {
         let scene = &self.scene;
         let Some(m) = scene.materials.get(s.material as usize) else {
             return Vec3::new(1.0, 0.0, 1.0); // unreachable for loaded scenes: loud magenta
@@ -38,7 +50,14 @@ impl Tracer {
         let tex = m
             .texture
             .and_then(|t| scene.textures.get(t as usize))
-            .map_or(Vec3::ONE, |t| t.sample(s.uv));
+            .map_or(Vec3::ONE, |t| match fp {
+                None => t.sample(s.uv),
+                Some(f) => {
+                    let lod =
+                        texture_lod(f.cone.width, d.dot(ng), t.width * t.height, f.uv_density);
+                    t.sample_lod(s.uv, lod)
+                }
+            });
         let mut color = scene.ambient * m.ambient * tex;
         let eps = self.epsilon(s.p);
         let p_out = s.p + ng * eps;
@@ -71,6 +90,9 @@ impl Tracer {
         if depth >= self.options.max_depth {
             return color;
         }
+        // Secondary rays carry the cone on from this hit, spread unchanged (flat-mirror
+        // approximation; see `cones`).
+        let cone: Option<RayCone> = fp.map(|f| f.cone);
         let refl_dir = reflect(d, n);
         let mut mirror_weight = if m.is_reflective() {
             m.specular
@@ -83,24 +105,32 @@ impl Tracer {
             match refract(d, n, eta) {
                 Some(t_dir) => {
                     let origin = s.p - ng * eps;
-                    color += m.transmission * self.radiance(state, origin, t_dir, depth + 1);
+                    color += m.transmission * self.radiance(state, origin, t_dir, cone, depth + 1);
                 }
                 None => mirror_weight += Vec3::splat(m.transmission),
             }
         }
         if mirror_weight.max_element() > 0.0 {
-            color += mirror_weight * self.radiance(state, p_out, refl_dir, depth + 1);
+            color += mirror_weight * self.radiance(state, p_out, refl_dir, cone, depth + 1);
         }
         color
     }
 
-    fn radiance(&self, state: &SceneState, origin: Vec3, dir: Vec3, depth: u32) -> Vec3 {
+    fn radiance(
+        &self,
+        state: &SceneState,
+        origin: Vec3,
+        dir: Vec3,
+        cone: Option<RayCone>,
+        depth: u32,
+    ) -> Vec3 {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, f32::INFINITY);
         match self.closest(state, &ray) {
             None => self.scene.background,
             Some(h) => {
                 let s = self.surface(state, &ray, &h);
-                self.shade(state, &ray, &s, depth)
+                let fp = self.footprint(state, &h, cone);
+                self.shade(state, &ray, &s, fp, depth)
             }
         }
     }
