@@ -1,11 +1,14 @@
-//! Point tracking and TAA on small hand-built cases.
+//! Point tracking, TAA and late warp on small hand-built cases.
 
 use std::sync::Arc;
 
 use frameless::{
     clock::Clock,
     evaluation::{self, EvalConfig, Silent},
-    methods::{point_tracking::PointTracking, taa::Taa, Method, MethodContext, MethodKind},
+    methods::{
+        late_warp::LateWarp, point_tracking::PointTracking, taa::Taa, Method, MethodContext,
+        MethodKind,
+    },
     scene::{
         animation::KeyframeTrack, Camera, CameraPath, CameraTrack, Group, Light, Material, Node,
         NodeKind, Scene, Sphere,
@@ -15,7 +18,7 @@ use frameless::{
 use glam::Vec3;
 
 mod common;
-use common::quad;
+use common::{flat, quad};
 
 fn base(groups: Vec<Group>) -> Scene {
     Scene {
@@ -226,4 +229,163 @@ fn taa_rejects_history_at_a_disocclusion() {
         (shown - truth).length() < 0.1,
         "shown {shown:?} vs wall {truth:?}"
     );
+}
+
+/// `static_scene` with a flat white square on the wall (a feature to find) and a 40°
+/// view, seen from a camera that yaws at 180°/s about its fixed eye between t = 0 and
+/// 1/3 s (a pure rotation: about 4.6 pixels per refresh at 64 pixels across).
+fn panned_scene() -> (Scene, CameraPath) {
+    let mut scene = static_scene();
+    // Ambient only: 0.3 · (1 / 0.3) = 1 whatever the lights.
+    scene.materials.push(flat(1.0 / 0.3));
+    scene.groups.push(Group {
+        node: None,
+        triangles: quad(0.3, 0.5, 0.1, 0.3, -0.99, 2),
+        ..Default::default()
+    });
+    let mut text = String::from(frameless::scene::camera_path::HEADER);
+    text.push('\n');
+    for k in 0..=20 {
+        let t = k as f32 / 60.0;
+        let yaw = (-30.0 + 180.0 * t).to_radians();
+        text.push_str(&format!(
+            "{t},0,0,1.5,{},0,{},0,1,0,40\n",
+            yaw.sin(),
+            1.5 - yaw.cos()
+        ));
+    }
+    (scene, CameraPath::parse("yaw.csv", &text).unwrap())
+}
+
+fn panned_cfg(methods: &[MethodKind], path: Option<CameraPath>) -> EvalConfig {
+    EvalConfig {
+        width: 64,
+        height: 64,
+        camera_path: path,
+        // 1,024 samples per frame: a 32x32 grid, upscaled 2x.
+        ..cfg(methods, 61_440.0, 0.3)
+    }
+}
+
+fn rms_series(out: &evaluation::EvalOutput, m: MethodKind) -> Vec<f64> {
+    out.frames
+        .iter()
+        .filter(|f| f.method == m)
+        .map(|f| f.rms)
+        .collect()
+}
+
+#[test]
+fn late_warp_shows_a_panned_scene_in_the_right_place_at_no_ray_cost() {
+    let (scene, path) = panned_scene();
+    let methods = [MethodKind::LateWarp, MethodKind::Framed60Hz];
+    let out = evaluation::run(
+        Arc::new(scene.clone()),
+        &panned_cfg(&methods, Some(path.clone())),
+        &Silent,
+    )
+    .unwrap();
+    // Refresh 0 shows nothing yet; every later refresh shows a frame 1/60 s old.
+    let mean = |v: Vec<f64>| v[1..].iter().sum::<f64>() / (v.len() - 1) as f64;
+    let (warped, stale) = (
+        mean(rms_series(&out, MethodKind::LateWarp)),
+        mean(rms_series(&out, MethodKind::Framed60Hz)),
+    );
+    assert!(
+        warped < 0.6 * stale,
+        "late-warp RMS {warped} vs framed-60hz {stale}"
+    );
+    // The warp traces no rays.
+    let samples = |m: MethodKind| {
+        out.summary
+            .results
+            .iter()
+            .find(|r| r.method == m)
+            .unwrap()
+            .samples
+    };
+    assert_eq!(
+        samples(MethodKind::LateWarp),
+        samples(MethodKind::Framed60Hz)
+    );
+    assert!(samples(MethodKind::LateWarp) > 0);
+
+    // The white square's centroid lands where the camera at display time sees it.
+    let tracer = Arc::new(
+        Tracer::new(Arc::new(scene), 64, 64, TraceOptions::default()).with_camera_path(Some(path)),
+    );
+    let ctx = MethodContext {
+        tracer: tracer.clone(),
+        clock: Clock {
+            start: 0.0,
+            rate: 61_440.0,
+            first_refresh: 0.0,
+            refresh_hz: 60.0,
+        },
+        seed: 1,
+        ideal_spp: 1,
+        ideal_cache: None,
+    };
+    let (mut warp, mut framed) = (
+        LateWarp::new(&ctx).unwrap(),
+        MethodKind::Framed60Hz.build(&ctx).unwrap(),
+    );
+    let centroid = |img: &frameless::image::Image| {
+        let (mut sum, mut n) = ((0.0, 0.0), 0.0);
+        for y in 0..img.height {
+            for x in 0..img.width {
+                // White against a tan wall (blue at most 0.65) and blue spheres.
+                if img.get(x, y).min_element() > 0.9 {
+                    sum = (sum.0 + x as f32 + 0.5, sum.1 + y as f32 + 0.5);
+                    n += 1.0;
+                }
+            }
+        }
+        assert!(n > 4.0, "the square is not on screen");
+        (sum.0 / n, sum.1 / n)
+    };
+    // The square (9° right of the start view's axis) is wholly in the shown frame (the
+    // one started a refresh earlier) from refresh 9.
+    for k in 1..=17 {
+        let t = k as f64 / 60.0;
+        if k < 9 {
+            warp.display(t);
+            framed.display(t);
+            continue;
+        }
+        let (wx, wy) = centroid(warp.display(t).image);
+        let (fx, _) = centroid(framed.display(t).image);
+        let (px, py, _) = tracer
+            .state_at(t)
+            .camera
+            .project(Vec3::new(0.4, 0.2, -0.99))
+            .unwrap();
+        assert!(
+            (wx - px).abs() < 1.0 && (wy - py).abs() < 1.0,
+            "refresh {k}: warped square at ({wx}, {wy}), truly at ({px}, {py})"
+        );
+        assert!(
+            (fx - px).abs() > 3.0,
+            "refresh {k}: the stale frame is not stale"
+        );
+    }
+}
+
+#[test]
+fn late_warp_is_framed_60hz_under_a_still_camera() {
+    let methods = [MethodKind::LateWarp, MethodKind::Framed60Hz];
+    let out = evaluation::run(
+        Arc::new(static_scene()),
+        &panned_cfg(&methods, None),
+        &Silent,
+    )
+    .unwrap();
+    let (warped, framed) = (
+        rms_series(&out, MethodKind::LateWarp),
+        rms_series(&out, MethodKind::Framed60Hz),
+    );
+    assert_eq!(warped.len(), framed.len());
+    for (k, (a, b)) in warped.iter().zip(&framed).enumerate() {
+        assert!((a - b).abs() < 1e-3, "refresh {k}: {a} vs {b}");
+    }
 }

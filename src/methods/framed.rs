@@ -10,6 +10,10 @@
 //!   `W·H·60` whatever rate was asked.
 //!
 //! Each frame samples pixel centers (of its own grid): no antialiasing, as in the paper.
+//!
+//! On request ([`Framed::keep_gbuffer`]) the front frame also keeps what each of its
+//! samples hit ([`GBuffer`]), for display-side reprojection (`late-warp`); that changes
+//! neither the rays traced nor the images.
 
 use rayon::prelude::*;
 
@@ -17,7 +21,48 @@ use super::{
     any_rate, one_frame_in_run, sixty_per_second, Budget, Displayed, Method, MethodContext,
     MethodError, MethodInfo,
 };
-use crate::{clock::TIME_EPS, image::Image};
+use crate::{
+    clock::TIME_EPS,
+    image::Image,
+    scene::CameraFrame,
+    trace::{Sample, SceneState, Tracer},
+};
+
+/// What one grid sample of a frame hit: enough to move it to another time and camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GSample {
+    /// World hit point at the frame's time (on a miss, a far point along the ray).
+    pub hit_point: glam::Vec3,
+    /// World velocity of the hit point (zero on a miss).
+    pub velocity: glam::Vec3,
+    /// Whether the primary ray hit anything (a miss is a direction, not a point).
+    pub hit: bool,
+}
+
+impl From<&Sample> for GSample {
+    fn from(s: &Sample) -> Self {
+        Self {
+            hit_point: s.hit_point,
+            velocity: s.velocity,
+            hit: s.hit,
+        }
+    }
+}
+
+/// A frame's geometry buffer: one [`GSample`] per cell of a grid spread over the display
+/// (cell `(i, j)` traced through its centre), the time the frame saw the scene at and
+/// its camera.
+#[derive(Clone, Debug)]
+pub struct GBuffer {
+    /// Cells across and down.
+    pub grid: (u32, u32),
+    /// Row-major, `grid.0 × grid.1`.
+    pub samples: Vec<GSample>,
+    /// Scene time of the frame.
+    pub time: f64,
+    /// The camera the frame was traced with.
+    pub camera: CameraFrame,
+}
 
 /// `framed-60hz`.
 pub const FRAMED_60HZ: MethodInfo = MethodInfo {
@@ -55,6 +100,8 @@ pub struct Framed {
     next_frame: u64,
     front: Image,
     front_time: Option<f64>,
+    /// `Some` when asked for: the front frame's G-buffer (empty until the first frame).
+    front_gbuffer: Option<Option<GBuffer>>,
     samples: u64,
     trace_s: f64,
 }
@@ -76,9 +123,27 @@ impl Framed {
             next_frame: 0,
             front: Image::new(w, h),
             front_time: None,
+            front_gbuffer: None,
             samples: 0,
             trace_s: 0.0,
         })
+    }
+
+    /// Keep the front frame's [`GBuffer`] from now on (same rays, same images).
+    pub fn keep_gbuffer(mut self) -> Self {
+        self.front_gbuffer = Some(None);
+        self
+    }
+
+    /// The front frame's G-buffer, once a frame is shown and if [`Self::keep_gbuffer`]
+    /// asked for it.
+    pub fn front_gbuffer(&self) -> Option<&GBuffer> {
+        self.front_gbuffer.as_ref().and_then(|g| g.as_ref())
+    }
+
+    /// The image shown now (the front frame, upscaled).
+    pub fn front(&self) -> &Image {
+        &self.front
     }
 
     /// `framed-60hz`: the largest grid of the display's aspect with at most R/60 samples.
@@ -133,10 +198,24 @@ impl Framed {
         let state = tracer.state_at(t);
         let (gw, gh) = self.grid;
         let (w, h) = tracer.size();
-        let small: Vec<glam::Vec3> = (0..gh)
-            .into_par_iter()
-            .flat_map_iter(|y| trace_row(tracer, &state, (gw, gh), y))
-            .collect();
+        let small: Vec<glam::Vec3> = if let Some(gbuffer) = &mut self.front_gbuffer {
+            let samples: Vec<Sample> = (0..gh)
+                .into_par_iter()
+                .flat_map_iter(|y| trace_row_samples(tracer, &state, (gw, gh), y))
+                .collect();
+            *gbuffer = Some(GBuffer {
+                grid: (gw, gh),
+                samples: samples.iter().map(GSample::from).collect(),
+                time: t,
+                camera: state.camera,
+            });
+            samples.iter().map(|s| s.color).collect()
+        } else {
+            (0..gh)
+                .into_par_iter()
+                .flat_map_iter(|y| trace_row(tracer, &state, (gw, gh), y))
+                .collect()
+        };
         self.trace_s += t0.elapsed().as_secs_f64();
         self.front = upscale(
             &Image {
@@ -217,19 +296,25 @@ impl Method for Framed {
 /// cells' centres in one scene state: the colours, left to right. Used by [`Framed`] and
 /// by the real-time framed method (whose grid is the image's).
 pub fn trace_row<'a>(
-    tracer: &'a crate::trace::Tracer,
-    state: &'a crate::trace::SceneState,
+    tracer: &'a Tracer,
+    state: &'a SceneState,
     grid: (u32, u32),
     y: u32,
 ) -> impl Iterator<Item = glam::Vec3> + 'a {
+    trace_row_samples(tracer, state, grid, y).map(|s| s.color)
+}
+
+/// [`trace_row`] with everything the tracer returned, not only the colours.
+pub fn trace_row_samples<'a>(
+    tracer: &'a Tracer,
+    state: &'a SceneState,
+    grid: (u32, u32),
+    y: u32,
+) -> impl Iterator<Item = Sample> + 'a {
     let (w, h) = tracer.size();
     let (gw, gh) = grid;
     let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
-    (0..gw).map(move |x| {
-        tracer
-            .sample(state, (x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy)
-            .color
-    })
+    (0..gw).map(move |x| tracer.sample(state, (x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy))
 }
 
 #[cfg(test)]
