@@ -117,6 +117,10 @@ impl TaauParams {
             why,
         });
         let pos = |v: f32| v.is_finite() && v > 0.0;
+        let at_least = |v: f32, m: f32| v.is_finite() && v >= m;
+        if !pos(self.cut_motion) || !pos(self.cut_fraction) {
+            return bad("cut", "motion and fraction must be positive");
+        }
         if !pos(self.kernel_sigma) || !pos(self.kernel_radius) {
             return bad("kernel", "sigma and radius must be positive");
         }
@@ -127,10 +131,10 @@ impl TaauParams {
         {
             return bad("thresholds", "must be positive");
         }
-        if !(self.still_box_scale >= 1.0) {
+        if !at_least(self.still_box_scale, 1.0) {
             return bad("still_box_scale", "must be at least 1 (the plain box)");
         }
-        if !(self.display_min_weight >= 0.0) || !(self.jitter_phases_per_pixel >= 1.0) {
+        if !at_least(self.display_min_weight, 0.0) || !at_least(self.jitter_phases_per_pixel, 1.0) {
             return bad("display", "min weight ≥ 0 and ≥ 1 jitter phase per pixel");
         }
         Ok(())
