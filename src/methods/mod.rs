@@ -62,6 +62,7 @@ registry! {
     }
     point_tracking { PointTracking => POINT_TRACKING, PointTrackingNoBlend => POINT_TRACKING_NO_BLEND }
     taa { Taa => TAA }
+    taau { Taau => TAAU }
     late_warp { LateWarp => LATE_WARP }
     test_method { #[cfg(test)] TestFrameless => TEST_FRAMELESS }
 }

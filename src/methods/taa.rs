@@ -48,7 +48,7 @@ pub fn halton(mut i: u64, b: u64) -> f32 {
     r as f32
 }
 
-fn to_ycocg(c: Vec3) -> Vec3 {
+pub(crate) fn to_ycocg(c: Vec3) -> Vec3 {
     Vec3::new(
         0.25 * c.x + 0.5 * c.y + 0.25 * c.z,
         0.5 * c.x - 0.5 * c.z,
@@ -56,7 +56,7 @@ fn to_ycocg(c: Vec3) -> Vec3 {
     )
 }
 
-fn from_ycocg(c: Vec3) -> Vec3 {
+pub(crate) fn from_ycocg(c: Vec3) -> Vec3 {
     Vec3::new(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z)
 }
 

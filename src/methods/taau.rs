@@ -1,0 +1,485 @@
+//! TAAU: temporal upsampling as shipped (modelled on FSR 2), at the same budget as `taa`.
+//!
+//! Frames are rendered every 1/60 s at the reduced resolution the budget allows (at most
+//! `R/60` samples), jittered by Halton(2, 3) within a low-resolution cell, and traced at
+//! the frame's start; a frame is shown at the first refresh at or after it completes.
+//! Unlike `taa`'s fixed exponential blend, every jittered sample is accumulated into a
+//! full-resolution history through a small Gaussian kernel around its sub-pixel position,
+//! and each history pixel keeps its accumulated weight: the blend
+//! `(history·w_hist + Σ g·c) / (w_hist + Σ g)` with `w_hist = min(weight, cap)` is a running
+//! mean, so a still scene converges like a supersampled image (error ∝ 1/√N) until the
+//! cap. History is reprojected with the tracer's motion vectors, rejected on
+//! disocclusion (depth), clamped to the current neighbourhood in YCoCg, and its cap is
+//! lowered where things move or the clamp had to pull it far. Pixels that no sample of
+//! this frame reaches keep their reprojected history; where there is too little of
+//! either, the display mixes in the bilinearly upsampled current frame.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{
+    framed::reduced_grid,
+    sixty_per_second,
+    taa::{catmull_rom, from_ycocg, halton, to_ycocg},
+    Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
+};
+use crate::{clock::TIME_EPS, image::Image, scene::CameraFrame, trace::Sample};
+
+/// `taau`.
+pub const TAAU: MethodInfo = MethodInfo {
+    name: "taau",
+    description: "temporal upsampler (FSR 2-like): jittered 60 Hz low-res samples accumulated into a weighted full-res history",
+    budget: Budget::Rate,
+    check_rate: |_, rate| sixty_per_second("taau", rate),
+    build: |ctx| Ok(Box::new(Taau::new(ctx, TaauParams::default())?)),
+};
+
+/// The upsampler's parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TaauParams {
+    /// Standard deviation of the Gaussian accumulation kernel, display pixels. The ideal
+    /// image is a box average over each pixel (σ ≈ 0.29 px); 0.4 px stays close to that
+    /// (little extra blur once converged) while every position in a pixel still gets
+    /// weight, so Halton jitter covers the pixel evenly.
+    pub kernel_sigma: f32,
+    /// Kernel cut-off radius, display pixels: 2.5σ, where the Gaussian is below 5 %.
+    pub kernel_radius: f32,
+    /// History weight cap where nothing moves, in units of a sample at a pixel's centre.
+    /// 64 samples' worth: an error of ~1/8 of one sample's, and the same count as the
+    /// ideal images of the evaluation; at 400K samples/s on 256×256 (≈0.1 samples per
+    /// pixel per frame) it is reached after ~10 s, so a still view keeps improving.
+    pub max_weight: f32,
+    /// Cap once the pixel moves `motion_full_px` or more per frame. Every reprojection
+    /// resamples (and slightly blurs) the history and shading changes with the view, so
+    /// a moving pixel remembers ~8 samples (≈100 frames at 0.1 samples/pixel/frame, but
+    /// then it is new samples that sharpen it).
+    pub moving_weight: f32,
+    /// On-screen motion (display pixels per frame) at which the cap reaches
+    /// `moving_weight`; in between it falls linearly. Sub-pixel drift barely blurs.
+    pub motion_full_px: f32,
+    /// Relative view-depth difference beyond which the previous frame saw another surface
+    /// (a disocclusion): 5 %, as `taa`.
+    pub depth_tolerance: f32,
+    /// YCoCg distance the neighbourhood clamp may move the history before the history is
+    /// taken for stale (lighting changed, a cut that passed the depth test): beyond it
+    /// the weight is capped at `clip_weight`.
+    pub clip_distance: f32,
+    /// The cap after a large clamp: a couple of samples, so new samples take over within
+    /// a few frames without dropping the pixel to one noisy sample.
+    pub clip_weight: f32,
+    /// Accumulated weight below which the display mixes in the bilinearly upsampled
+    /// current frame (for pixels just disoccluded or at the start): half a sample.
+    pub display_min_weight: f32,
+    /// How much the clamp box (the YCoCg min/max of this frame's 3×3 samples around the
+    /// pixel) is widened about its centre where nothing moves; it narrows linearly to the
+    /// plain box at `motion_full_px`. Nine samples three pixels apart cannot bound a
+    /// converged pixel of sub-Nyquist detail (the checkered floor, refractions): with the
+    /// plain box a still `room` view stays at RMS 6.3, 8× gives 3.4 (no clamp: 3.3) while
+    /// a gross change (a light, a cut that passes the depth test) is still caught.
+    pub still_box_scale: f32,
+    /// Jitter phases per display pixel: the Halton sequence repeats after
+    /// `ceil(this · (W·H)/(grid))` frames. FSR 2 suggests 8 per pixel for motion; a still
+    /// view needs about `max_weight` distinct positions per pixel to converge.
+    pub jitter_phases_per_pixel: f32,
+    /// On-screen motion in one frame, as a fraction of the display's larger side, that
+    /// counts as a cut rather than motion: a quarter screen in 1/60 s is 15 screens/s.
+    pub cut_motion: f32,
+    /// Fraction of pixels rejected or moving a cut's distance beyond which the whole
+    /// history is dropped (a cut): a third, far above what fast pans or objects reveal.
+    pub cut_fraction: f32,
+}
+
+impl Default for TaauParams {
+    fn default() -> Self {
+        Self {
+            kernel_sigma: 0.4,
+            kernel_radius: 1.0,
+            max_weight: 64.0,
+            moving_weight: 8.0,
+            motion_full_px: 2.0,
+            depth_tolerance: 0.05,
+            clip_distance: 0.1,
+            clip_weight: 2.0,
+            display_min_weight: 0.5,
+            still_box_scale: 8.0,
+            jitter_phases_per_pixel: 64.0,
+            cut_motion: 0.25,
+            cut_fraction: 0.33,
+        }
+    }
+}
+
+impl TaauParams {
+    fn check(&self) -> Result<(), MethodError> {
+        let bad = |name, why| Err(MethodError::Parameter {
+            group: "taau",
+            name,
+            why,
+        });
+        let pos = |v: f32| v.is_finite() && v > 0.0;
+        let at_least = |v: f32, m: f32| v.is_finite() && v >= m;
+        if !pos(self.cut_motion) || !pos(self.cut_fraction) {
+            return bad("cut", "motion and fraction must be positive");
+        }
+        if !pos(self.kernel_sigma) || !pos(self.kernel_radius) {
+            return bad("kernel", "sigma and radius must be positive");
+        }
+        if !pos(self.max_weight) || !pos(self.moving_weight) || !pos(self.clip_weight) {
+            return bad("weights", "caps must be positive");
+        }
+        if !pos(self.motion_full_px) || !pos(self.depth_tolerance) || !pos(self.clip_distance)
+        {
+            return bad("thresholds", "must be positive");
+        }
+        if !at_least(self.still_box_scale, 1.0) {
+            return bad("still_box_scale", "must be at least 1 (the plain box)");
+        }
+        if !at_least(self.display_min_weight, 0.0) || !at_least(self.jitter_phases_per_pixel, 1.0) {
+            return bad("display", "min weight ≥ 0 and ≥ 1 jitter phase per pixel");
+        }
+        Ok(())
+    }
+}
+
+/// One traced frame, kept for the next frame's disocclusion test.
+struct LowFrame {
+    camera: CameraFrame,
+    jitter: (f32, f32),
+    /// View depth (along the camera axis) of each low-resolution sample; ∞ on a miss.
+    depth: Vec<f32>,
+}
+
+/// The temporal upsampler.
+pub struct Taau {
+    ctx: MethodContext,
+    params: TaauParams,
+    grid: (u32, u32),
+    jitter_period: u64,
+    next_frame: u64,
+    /// Accumulated mean colour per display pixel (where the weight is 0: the upsampled
+    /// current frame, so that filtered fetches next to it stay sensible).
+    history: Image,
+    weight: Vec<f32>,
+    /// Weighted mean time of the samples in each history pixel.
+    info_time: Vec<f64>,
+    output: Image,
+    output_time: Vec<f64>,
+    prev: Option<LowFrame>,
+    samples: u64,
+    trace_s: f64,
+    /// Pixels whose history was rejected (off screen or disoccluded), for tests.
+    pub rejections: u64,
+    /// Frames taken for camera cuts (all history dropped).
+    pub cuts: u64,
+}
+
+impl Taau {
+    /// Create for one run.
+    pub fn new(ctx: &MethodContext, params: TaauParams) -> Result<Self, MethodError> {
+        params.check()?;
+        let (w, h) = ctx.tracer.size();
+        sixty_per_second("taau", ctx.clock.rate)?;
+        let per_frame = (ctx.clock.rate / 60.0).floor();
+        let grid = reduced_grid(w, h, per_frame as u64);
+        let ratio = (w as f64 * h as f64) / (grid.0 as f64 * grid.1 as f64);
+        let n = (w * h) as usize;
+        Ok(Self {
+            ctx: ctx.clone(),
+            params,
+            grid,
+            jitter_period: (params.jitter_phases_per_pixel as f64 * ratio).ceil() as u64,
+            next_frame: 0,
+            history: Image::new(w, h),
+            weight: vec![0.0; n],
+            info_time: vec![ctx.clock.start; n],
+            output: Image::new(w, h),
+            output_time: vec![ctx.clock.start; n],
+            prev: None,
+            samples: 0,
+            trace_s: 0.0,
+            rejections: 0,
+            cuts: 0,
+        })
+    }
+
+    fn frame_start(&self, j: u64) -> f64 {
+        self.ctx.clock.start + j as f64 / 60.0
+    }
+
+    /// Trace frame `j` at time `t` and fold it into the history.
+    fn render_frame(&mut self, j: u64, t: f64) {
+        let p = self.params;
+        let tracer = self.ctx.tracer.clone();
+        let (w, h) = tracer.size();
+        let (gw, gh) = self.grid;
+        let state = tracer.state_at(t);
+        let cam = state.camera;
+        // Index 0 of Halton is (0, 0) for every base; start at 1 as `taa` does.
+        let k = j % self.jitter_period + 1;
+        let (jx, jy) = (halton(k, 2), halton(k, 3));
+        let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
+        let t0 = std::time::Instant::now();
+        let low: Vec<Sample> = (0..gw * gh)
+            .into_par_iter()
+            .map(|q| {
+                tracer.sample(
+                    &state,
+                    ((q % gw) as f32 + jx) * sx,
+                    ((q / gw) as f32 + jy) * sy,
+                )
+            })
+            .collect();
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.samples += (gw * gh) as u64;
+        let low_depth: Vec<f32> = low
+            .iter()
+            .map(|s| {
+                if s.hit {
+                    cam.project(s.hit_point).map_or(f32::INFINITY, |(_, _, z)| z)
+                } else {
+                    f32::INFINITY
+                }
+            })
+            .collect();
+        let cell = |i: i64, j: i64| -> usize {
+            (j.clamp(0, gh as i64 - 1) * gw as i64 + i.clamp(0, gw as i64 - 1)) as usize
+        };
+        let cut_motion = p.cut_motion * w.max(h) as f32;
+        let inv_2s2 = 1.0 / (2.0 * p.kernel_sigma * p.kernel_sigma);
+        let dt = (1.0 / 60.0) as f32;
+        let history = &self.history;
+        let hist_weight = &self.weight;
+        let hist_time = &self.info_time;
+
+        struct Px {
+            hist: Vec3,
+            weight: f32,
+            time: f64,
+            shown: Vec3,
+            shown_time: f64,
+            rejected: bool,
+            cut_like: bool,
+        }
+        let compute = |prev: Option<&LowFrame>| -> Vec<Px> {
+        (0..w * h)
+            .into_par_iter()
+            .map(|q| {
+                let (x, y) = ((q % w) as f32 + 0.5, (q / w) as f32 + 0.5);
+                // Grid coordinates of the pixel centre: sample (i, j) sits at (i, j).
+                let (u, v) = (x / sx - jx, y / sy - jy);
+                // This frame's samples under the kernel.
+                let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+                let r = p.kernel_radius;
+                let (i0, i1) = (
+                    ((x - r) / sx - jx).ceil() as i64,
+                    ((x + r) / sx - jx).floor() as i64,
+                );
+                let (j0, j1) = (
+                    ((y - r) / sy - jy).ceil() as i64,
+                    ((y + r) / sy - jy).floor() as i64,
+                );
+                for gj in j0.max(0)..=j1.min(gh as i64 - 1) {
+                    for gi in i0.max(0)..=i1.min(gw as i64 - 1) {
+                        let (dx, dy) = (
+                            (gi as f32 + jx) * sx - x,
+                            (gj as f32 + jy) * sy - y,
+                        );
+                        let d2 = dx * dx + dy * dy;
+                        if d2 <= r * r {
+                            let g = (-d2 * inv_2s2).exp();
+                            sum += low[(gj * gw as i64 + gi) as usize].color * g;
+                            wsum += g;
+                        }
+                    }
+                }
+                // Bilinear upsampling of this frame: the fallback where little is known.
+                let (uc, vc) = (u.clamp(0.0, gw as f32 - 1.0), v.clamp(0.0, gh as f32 - 1.0));
+                let (x0, y0) = (uc.floor() as i64, vc.floor() as i64);
+                let (fx, fy) = (uc - x0 as f32, vc - y0 as f32);
+                let c = |i, j| low[cell(i, j)].color;
+                let up = c(x0, y0)
+                    .lerp(c(x0 + 1, y0), fx)
+                    .lerp(c(x0, y0 + 1).lerp(c(x0 + 1, y0 + 1), fx), fy);
+                let (ni, nj) = (u.round() as i64, v.round() as i64);
+                let near = &low[cell(ni, nj)];
+
+                // History: where this pixel's surface was in the previous frame.
+                let mut rejected = false;
+                let reprojected = prev.and_then(|pf| {
+                    let (cx, cy, _) = cam.project(near.hit_point)?;
+                    let (ox, oy, pd) = pf.camera.project(near.hit_point - near.velocity * dt)?;
+                    // The nearest sample's displacement, not its position, applies to
+                    // the pixel.
+                    let (px, py) = (x + ox - cx, y + oy - cy);
+                    if !(px >= 0.0 && py >= 0.0 && px < w as f32 && py < h as f32) {
+                        return None;
+                    }
+                    // Disoccluded unless some previous sample around where the point was saw
+                    // it (any of 3×3: at an edge the nearest one may lie across it, and a
+                    // still view must not reject; only 2×2 rejected sphere rims every few
+                    // frames). What slips through at a cut is caught by the cut test below.
+                    let (pu, pv) = (
+                        (ox / sx - pf.jitter.0).round() as i64,
+                        (oy / sy - pf.jitter.1).round() as i64,
+                    );
+                    let pd = if near.hit { pd } else { f32::INFINITY };
+                    let seen = (-1..=1).any(|dj| {
+                        (-1..=1).any(|di| {
+                            let d = pf.depth[cell(pu + di, pv + dj)];
+                            if pd.is_finite() {
+                                (d - pd).abs() <= p.depth_tolerance * pd.max(1e-6)
+                            } else {
+                                !d.is_finite()
+                            }
+                        })
+                    });
+                    if !seen {
+                        return None;
+                    }
+                    let motion = (ox - cx).hypot(oy - cy);
+                    Some((px, py, motion))
+                });
+                if prev.is_some() && reprojected.is_none() {
+                    rejected = true;
+                }
+                let (mut hist_c, mut w_hist, mut t_hist) = (Vec3::ZERO, 0.0f32, t);
+                if let Some((px, py, motion)) = reprojected {
+                    let (bx, by) = (
+                        ((px - 0.5).round() as u32).min(w - 1),
+                        ((py - 0.5).round() as u32).min(h - 1),
+                    );
+                    let b = (by * w + bx) as usize;
+                    let raw = catmull_rom(history, px, py);
+                    // Rectify: clamp to the YCoCg box of this frame's 3×3 samples around
+                    // the pixel (the samples, not their interpolation, which moves with
+                    // the jitter).
+                    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+                    for dj in -1..=1 {
+                        for di in -1..=1 {
+                            let n = to_ycocg(low[cell(ni + di, nj + dj)].color);
+                            lo = lo.min(n);
+                            hi = hi.max(n);
+                        }
+                    }
+                    let s = (motion / p.motion_full_px).clamp(0.0, 1.0);
+                    let scale = p.still_box_scale + (1.0 - p.still_box_scale) * s;
+                    let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5 * scale);
+                    let (lo, hi) = (mid - half, mid + half);
+                    let y_raw = to_ycocg(raw);
+                    let y_clamped = y_raw.clamp(lo, hi);
+                    hist_c = from_ycocg(y_clamped);
+                    let mut cap = p.max_weight + (p.moving_weight - p.max_weight) * s;
+                    if (y_raw - y_clamped).length() > p.clip_distance {
+                        cap = cap.min(p.clip_weight);
+                    }
+                    w_hist = hist_weight[b].min(cap);
+                    t_hist = hist_time[b];
+                }
+                let total = w_hist + wsum;
+                let (hist, time) = if total > 0.0 {
+                    (
+                        (hist_c * w_hist + sum) / total,
+                        (t_hist * w_hist as f64 + t * wsum as f64) / total as f64,
+                    )
+                } else {
+                    (up, t)
+                };
+                // Too little accumulated: lean on the upsampled frame for the display.
+                let fill = (p.display_min_weight - total).max(0.0);
+                let (shown, shown_time) = if fill > 0.0 {
+                    let all = total + fill;
+                    (
+                        (hist * total + up * fill) / all,
+                        (time * total as f64 + t * fill as f64) / all as f64,
+                    )
+                } else {
+                    (hist, time)
+                };
+                Px {
+                    hist,
+                    weight: total.min(p.max_weight),
+                    time,
+                    shown,
+                    shown_time,
+                    rejected,
+                    cut_like: rejected || reprojected.is_some_and(|r| r.2 > cut_motion),
+                }
+            })
+            .collect()
+        };
+        let mut results = compute(self.prev.as_ref());
+        // A camera cut (or a jump as good as one): most of the screen lost its history
+        // or moved by a large part of it; history that passed the per-pixel tests there
+        // is coincidence (a wall seen behind a sphere from the old view), so start over,
+        // as engines do when told of a cut.
+        let cut_like = results.iter().filter(|px| px.cut_like).count();
+        if cut_like as f32 > p.cut_fraction * results.len() as f32 {
+            results = compute(None);
+            for px in &mut results {
+                px.rejected = true;
+            }
+            self.cuts += 1;
+        }
+        for (q, px) in results.into_iter().enumerate() {
+            self.history.pixels[q] = px.hist;
+            self.weight[q] = px.weight;
+            self.info_time[q] = px.time;
+            self.output.pixels[q] = px.shown;
+            self.output_time[q] = px.shown_time;
+            self.rejections += px.rejected as u64;
+        }
+        self.prev = Some(LowFrame {
+            camera: cam,
+            jitter: (jx, jy),
+            depth: low_depth,
+        });
+    }
+}
+
+impl Method for Taau {
+    fn display(&mut self, t: f64) -> Displayed<'_> {
+        // Frame j starts at a refresh and completes at the next one, where it is shown.
+        while self
+            .ctx
+            .clock
+            .first_refresh_at_or_after(self.frame_start(self.next_frame + 1))
+            <= t + TIME_EPS
+        {
+            let start = self.frame_start(self.next_frame);
+            self.render_frame(self.next_frame, start);
+            self.next_frame += 1;
+        }
+        let age = if self.prev.is_some() {
+            self.output_time.iter().map(|s| t - s).sum::<f64>() / self.output_time.len() as f64
+        } else {
+            t - self.ctx.clock.start
+        };
+        Displayed {
+            image: &self.output,
+            mean_age: age,
+        }
+    }
+
+    fn samples_used(&self) -> u64 {
+        self.samples
+    }
+
+    fn trace_seconds(&self) -> f64 {
+        self.trace_s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_parameters_are_valid_and_bad_ones_are_refused() {
+        assert!(TaauParams::default().check().is_ok());
+        let bad = TaauParams {
+            kernel_sigma: 0.0,
+            ..TaauParams::default()
+        };
+        assert!(bad.check().is_err());
+    }
+}
