@@ -84,6 +84,7 @@ fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 1000,
+        texture_filter: frameless::trace::TextureFilter::None,
     }
 }
 
@@ -110,7 +111,15 @@ fn taau_converges_on_a_still_scene_below_one_sample_per_pixel() {
     // A 1-spp image of the same view (one random position per pixel) against the same
     // ideal: a converged upsampler beats it although it traces ~0.5 samples per pixel
     // per frame.
-    let tracer = Tracer::new(Arc::new(scene()), SIZE, SIZE, TraceOptions { max_depth: 2 });
+    let tracer = Tracer::new(
+        Arc::new(scene()),
+        SIZE,
+        SIZE,
+        TraceOptions {
+            max_depth: 2,
+            ..Default::default()
+        },
+    );
     let ideal = still::render(&tracer, 0.5, 16, 2, &|_| {}).to_rgb8();
     let one = still::render(&tracer, 0.5, 1, 7, &|_| {}).to_rgb8();
     let one_spp = metrics::rms(&ideal, &one);
