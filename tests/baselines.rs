@@ -389,3 +389,30 @@ fn late_warp_is_framed_60hz_under_a_still_camera() {
         assert!((a - b).abs() < 1e-3, "refresh {k}: {a} vs {b}");
     }
 }
+
+#[test]
+fn taa_warp_follows_a_pan_that_taau_lags_at_no_ray_cost() {
+    let (scene, path) = panned_scene();
+    let methods = [MethodKind::TaaWarp, MethodKind::Taau];
+    let out = evaluation::run(Arc::new(scene), &panned_cfg(&methods, Some(path)), &Silent).unwrap();
+    // Refresh 0 shows nothing yet; every later refresh shows a frame 1/60 s old.
+    let mean = |v: Vec<f64>| v[1..].iter().sum::<f64>() / (v.len() - 1) as f64;
+    let (warped, plain) = (
+        mean(rms_series(&out, MethodKind::TaaWarp)),
+        mean(rms_series(&out, MethodKind::Taau)),
+    );
+    eprintln!("taa-warp RMS {warped}, taau {plain}");
+    assert!(
+        warped < 0.8 * plain,
+        "taa-warp RMS {warped} vs taau {plain}"
+    );
+    let samples = |m: MethodKind| {
+        out.summary
+            .results
+            .iter()
+            .find(|r| r.method == m)
+            .map(|r| r.samples)
+            .unwrap()
+    };
+    assert_eq!(samples(MethodKind::TaaWarp), samples(MethodKind::Taau));
+}

@@ -64,6 +64,7 @@ registry! {
     taa { Taa => TAA }
     taau { Taau => TAAU }
     late_warp { LateWarp => LATE_WARP }
+    taa_warp { TaaWarp => TAA_WARP }
     test_method { #[cfg(test)] TestFrameless => TEST_FRAMELESS }
 }
 

@@ -18,7 +18,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    framed::reduced_grid,
+    framed::{reduced_grid, GBuffer, GSample},
     sixty_per_second,
     taa::{catmull_rom, from_ycocg, halton, to_ycocg},
     Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
@@ -152,6 +152,8 @@ struct LowFrame {
     jitter: (f32, f32),
     /// View depth (along the camera axis) of each low-resolution sample; ∞ on a miss.
     depth: Vec<f32>,
+    /// Where each low-resolution sample was and how it moved, for a display-side warp.
+    gbuffer: GBuffer,
 }
 
 /// The temporal upsampler.
@@ -446,23 +448,19 @@ impl Taau {
             camera: cam,
             jitter: (jx, jy),
             depth: low_depth,
+            gbuffer: GBuffer {
+                grid: self.grid,
+                samples: low.iter().map(GSample::from).collect(),
+                time: t,
+                camera: cam,
+            },
         });
     }
 }
 
 impl Method for Taau {
     fn display(&mut self, t: f64) -> Displayed<'_> {
-        // Frame j starts at a refresh and completes at the next one, where it is shown.
-        while self
-            .ctx
-            .clock
-            .first_refresh_at_or_after(self.frame_start(self.next_frame + 1))
-            <= t + TIME_EPS
-        {
-            let start = self.frame_start(self.next_frame);
-            self.render_frame(self.next_frame, start);
-            self.next_frame += 1;
-        }
+        self.advance(t);
         let age = if self.prev.is_some() {
             self.output_time.iter().map(|s| t - s).sum::<f64>() / self.output_time.len() as f64
         } else {
@@ -480,6 +478,34 @@ impl Method for Taau {
 
     fn trace_seconds(&self) -> f64 {
         self.trace_s
+    }
+}
+
+impl Taau {
+    /// The image shown now (after the last `display`).
+    pub fn output(&self) -> &Image {
+        &self.output
+    }
+
+    /// Where the samples of the newest frame, the one shown, were (none before the
+    /// first frame completes).
+    pub fn shown_gbuffer(&self) -> Option<&GBuffer> {
+        self.prev.as_ref().map(|f| &f.gbuffer)
+    }
+
+    /// Render every frame that completes by display time `t`.
+    fn advance(&mut self, t: f64) {
+        // Frame j starts at a refresh and completes at the next one, where it is shown.
+        while self
+            .ctx
+            .clock
+            .first_refresh_at_or_after(self.frame_start(self.next_frame + 1))
+            <= t + TIME_EPS
+        {
+            let start = self.frame_start(self.next_frame);
+            self.render_frame(self.next_frame, start);
+            self.next_frame += 1;
+        }
     }
 }
 
