@@ -49,6 +49,10 @@ pub struct Warp {
     out: Image,
     depth: Vec<f32>,
     filled: Vec<bool>,
+    /// Each grid sample's screen motion (kept across warps: no allocation per refresh).
+    moves: Vec<Option<(f32, f32, f32)>>,
+    /// Unfilled display pixels (kept across warps).
+    hole_list: Vec<usize>,
     /// Display pixels that no warped pixel reached in the last warp (filled from
     /// neighbours).
     pub holes: u64,
@@ -79,6 +83,8 @@ impl Warp {
             out: Image::new(width, height),
             depth: vec![f32::INFINITY; n],
             filled: vec![false; n],
+            moves: Vec::new(),
+            hole_list: Vec::new(),
             holes: 0,
         }
     }
@@ -90,11 +96,12 @@ impl Warp {
         debug_assert_eq!((w, h), (self.out.width, self.out.height));
         let (gw, gh) = gbuffer.grid;
         let dt = (t - gbuffer.time) as f32;
-        let moves: Vec<Option<(f32, f32, f32)>> = gbuffer
+        gbuffer
             .samples
             .par_iter()
             .map(|s| motion(s, dt, &gbuffer.camera, camera))
-            .collect();
+            .collect_into_vec(&mut self.moves);
+        let moves = &self.moves;
         self.depth.fill(f32::INFINITY);
         self.filled.fill(false);
         let (cx, cy) = (gw as f32 / w as f32, gh as f32 / h as f32);
@@ -122,7 +129,6 @@ impl Warp {
                 }
             }
         }
-        self.holes = self.filled.iter().filter(|f| !**f).count() as u64;
         self.fill_holes();
         &self.out
     }
@@ -133,10 +139,13 @@ impl Warp {
     }
 
     /// Each hole takes the mean of its valid 8-neighbours, pass after pass, so holes
-    /// close from their border inward with the nearest valid colours.
+    /// close from their border inward with the nearest valid colours. Sets `holes`.
     fn fill_holes(&mut self) {
         let (w, h) = (self.out.width as i64, self.out.height as i64);
-        let mut holes: Vec<usize> = (0..self.filled.len()).filter(|&q| !self.filled[q]).collect();
+        let mut holes = std::mem::take(&mut self.hole_list);
+        holes.clear();
+        holes.extend((0..self.filled.len()).filter(|&q| !self.filled[q]));
+        self.holes = holes.len() as u64;
         let mut fills: Vec<(usize, Vec3)> = Vec::new();
         while !holes.is_empty() {
             fills.clear();
@@ -166,6 +175,7 @@ impl Warp {
                 self.filled[q] = true;
             }
         }
+        self.hole_list = holes;
     }
 }
 

@@ -24,6 +24,19 @@ pub struct TcbKey<T> {
     pub bias: f32,
 }
 
+impl<T> TcbKey<T> {
+    /// A Catmull–Rom key: tension, continuity and bias zero.
+    pub fn catmull_rom(time: f32, value: T) -> Self {
+        Self {
+            time,
+            value,
+            tension: 0.0,
+            continuity: 0.0,
+            bias: 0.0,
+        }
+    }
+}
+
 /// Minimum number of keys of a translation, rotation or scale track.
 pub const MIN_SPLINE_KEYS: usize = 4;
 
@@ -253,13 +266,7 @@ mod tests {
     use super::*;
 
     fn key(time: f32, v: Vec3) -> TcbKey<Vec3> {
-        TcbKey {
-            time,
-            value: v,
-            tension: 0.0,
-            continuity: 0.0,
-            bias: 0.0,
-        }
+        TcbKey::catmull_rom(time, v)
     }
 
     #[test]
@@ -343,13 +350,7 @@ mod tests {
     }
 
     fn rkey(time: f32, deg: f32) -> TcbKey<(Vec3, f32)> {
-        TcbKey {
-            time,
-            value: (Vec3::Y, deg),
-            tension: 0.0,
-            continuity: 0.0,
-            bias: 0.0,
-        }
+        TcbKey::catmull_rom(time, (Vec3::Y, deg))
     }
 
     #[test]

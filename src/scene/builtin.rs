@@ -40,16 +40,6 @@ struct Builder {
     scene: Scene,
 }
 
-fn key<T>(time: f32, value: T) -> TcbKey<T> {
-    TcbKey {
-        time,
-        value,
-        tension: 0.0,
-        continuity: 0.0,
-        bias: 0.0,
-    }
-}
-
 impl Builder {
     fn new(name: &str) -> Self {
         Self {
@@ -255,14 +245,19 @@ fn yaw_keys(times_yaws: &[(f32, f32)]) -> RotationSpline {
     RotationSpline::new(
         times_yaws
             .iter()
-            .map(|&(t, yaw)| key(t, (Vec3::Y, yaw)))
+            .map(|&(t, yaw)| TcbKey::catmull_rom(t, (Vec3::Y, yaw)))
             .collect(),
     )
     .expect("built-in tracks have enough keys")
 }
 
 fn positions(keys: &[(f32, Vec3)]) -> VectorSpline {
-    VectorSpline::new(keys.iter().map(|&(t, p)| key(t, p)).collect()).expect("enough keys")
+    VectorSpline::new(
+        keys.iter()
+            .map(|&(t, p)| TcbKey::catmull_rom(t, p))
+            .collect(),
+    )
+    .expect("enough keys")
 }
 
 /// Static camera, a toy car driving a loop over a reflective checkered floor.

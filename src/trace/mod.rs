@@ -102,24 +102,30 @@ impl StateCache {
         }
     }
 
-    /// The state at `t`, and whether it differs from the one held before.
-    pub fn at(&mut self, tracer: &Tracer, t: f64) -> (Arc<SceneState>, bool) {
+    /// The state at `t`, and whether it replaced the one held before.
+    pub fn at(&mut self, tracer: &Tracer, t: f64) -> (Arc<SceneState>, Held) {
         let key = (Tracer::quantize(t), tracer.camera_generation());
         match &self.state {
-            Some(s) if key == self.key => (s.clone(), false),
+            Some(s) if key == self.key => (s.clone(), Held::Same),
             _ => {
                 let s = tracer.state_at(t);
                 self.key = key;
-                self.state = Some(s.clone());
-                (s, true)
+                let previous = self.state.replace(s.clone());
+                (s, Held::New { previous })
             }
         }
     }
+}
 
-    /// The state held now, if any.
-    pub fn current(&self) -> Option<&Arc<SceneState>> {
-        self.state.as_ref()
-    }
+/// What [`StateCache::at`] did.
+pub enum Held {
+    /// It returned the state it held.
+    Same,
+    /// It built a new state, replacing `previous` (if it held one).
+    New {
+        /// The state held before.
+        previous: Option<Arc<SceneState>>,
+    },
 }
 
 /// Tracer settings.

@@ -21,7 +21,7 @@ use crate::{
     clock::Clock,
     methods::MethodError,
     sampling::Rng,
-    trace::{Sample, SceneState, StateCache, StreamSample, Tracer},
+    trace::{Held, Sample, SceneState, StateCache, StreamSample, Tracer},
 };
 
 /// Counters of the sampler's work.
@@ -317,11 +317,10 @@ impl Sampler {
     }
 
     fn state(&mut self, t: f64) -> Arc<SceneState> {
-        let old_camera = self.states.current().map(|s| s.camera);
-        let (s, fresh) = self.states.at(&self.tracer, t);
-        if fresh {
-            let same_camera = old_camera.is_some_and(|a| {
-                let b = &s.camera;
+        let (s, held) = self.states.at(&self.tracer, t);
+        if let Held::New { previous } = held {
+            let same_camera = previous.is_some_and(|old| {
+                let (a, b) = (&old.camera, &s.camera);
                 a.eye == b.eye && a.corner == b.corner && a.du == b.du && a.dv == b.dv
             });
             if !same_camera {

@@ -341,8 +341,8 @@ pub(super) fn bake(scene: &mut Scene, node: NodeId, name: &str, rotation: bool) 
         let t = start + step * i as f32;
         let (_, r, p) = scene.node_world(node, t).to_scale_rotation_translation();
         let (axis, angle) = r.to_axis_angle();
-        tkeys.push(tcb_key(t, p));
-        rkeys.push(tcb_key(t, (axis, angle.to_degrees())));
+        tkeys.push(TcbKey::catmull_rom(t, p));
+        rkeys.push(TcbKey::catmull_rom(t, (axis, angle.to_degrees())));
     }
     let track = KeyframeTrack {
         name: name.to_string(),
@@ -356,17 +356,6 @@ pub(super) fn bake(scene: &mut Scene, node: NodeId, name: &str, rotation: bool) 
     };
     scene.tracks.push(track);
     Some((scene.tracks.len() - 1) as u32)
-}
-
-/// A Catmull–Rom key (tension, continuity and bias zero).
-fn tcb_key<T>(time: f32, value: T) -> TcbKey<T> {
-    TcbKey {
-        time,
-        value,
-        tension: 0.0,
-        continuity: 0.0,
-        bias: 0.0,
-    }
 }
 
 #[cfg(test)]
