@@ -60,7 +60,7 @@ fn tiny_table_has_every_animation_and_the_paper_beside_it() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     let anims = v["animations"].as_array().unwrap();
     let names: Vec<_> = anims.iter().map(|a| a["name"].as_str().unwrap()).collect();
-    assert_eq!(names, ["interactive", "bart", "toycar"]);
+    assert_eq!(names, ["interactive", "bart", "toycar", "still"]);
     for a in anims {
         let results = a["summary"]["results"].as_array().unwrap();
         assert_eq!(results.len(), 3, "{}", a["name"]);

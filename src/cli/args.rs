@@ -64,7 +64,8 @@ pub enum Command {
     /// density, occlusion) and statistics.
     Sampler(SamplerArgs),
     /// Paper Table 1 and Fig. 8 on the BART kitchen: every method on the Interactive,
-    /// Bart and Toycar animations at each rate, with the paper's numbers beside ours.
+    /// Bart, Toycar and Still animations at each rate, with the paper's numbers beside
+    /// ours.
     Table1(Table1Args),
     /// Render a sequence of displayed images of one method under the simulated clock
     /// (one PNG per refresh).
@@ -107,10 +108,10 @@ pub struct RenderArgs {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Texture filtering: none (full-resolution bilinear lookups, the paper's setting)
-    /// or ray-cones (mip-mapped lookups at each ray's footprint; removes moiré on far
-    /// and grazing textured surfaces).
-    #[arg(long, value_enum, default_value = "none")]
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Output folder for `frame_NNNNN.png` and `stats.json`.
     #[arg(long, default_value = "render-out")]
@@ -123,14 +124,14 @@ pub struct Table1Args {
     /// The BART folder (holding `kitchen/kitchen.aff`); default `$FRAMELESS_BART_DIR`.
     #[arg(long)]
     pub bart: Option<PathBuf>,
-    /// Animations to run, comma-separated (interactive, bart, toycar).
-    #[arg(long, default_value = "interactive,bart,toycar")]
+    /// Animations to run, comma-separated (interactive, bart, toycar, still).
+    #[arg(long, default_value = "interactive,bart,toycar,still")]
     pub animations: String,
     /// Sampling rates (samples/s), comma-separated; suffixes k and M.
     #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
     pub rates: Vec<f64>,
-    /// Methods, comma-separated (default: the paper's, point tracking, TAA and the
-    /// adaptive-no-reprojection ablation of Fig. 8).
+    /// Methods, comma-separated (default: the paper's, the adaptive-no-reprojection
+    /// ablation of Fig. 8, point tracking, TAA and the two late warps).
     #[arg(long, value_delimiter = ',', value_parser = trimmed::<MethodKind>())]
     pub methods: Option<Vec<MethodKind>>,
     /// Override every animation's window length (seconds), e.g. for a quick trial.
@@ -142,16 +143,16 @@ pub struct Table1Args {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Texture filtering: none (full-resolution bilinear lookups, the paper's setting)
-    /// or ray-cones (mip-mapped lookups at each ray's footprint; removes moiré on far
-    /// and grazing textured surfaces).
-    #[arg(long, value_enum, default_value = "none")]
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ideal_spp: u32,
-    /// Compute FLIP on every n-th refresh.
-    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Compute FLIP on every n-th refresh (1: every one).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub flip_every: u32,
     /// Ideal-image cache (default `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`).
     #[arg(long)]
@@ -222,10 +223,10 @@ pub struct ViewArgs {
     /// Seed of the threads' random choices.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Texture filtering: none (full-resolution bilinear lookups, the paper's setting)
-    /// or ray-cones (mip-mapped lookups at each ray's footprint; removes moiré on far
-    /// and grazing textured surfaces).
-    #[arg(long, value_enum, default_value = "none")]
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
 }
 
@@ -296,16 +297,16 @@ pub struct EvalArgs {
         long,
         value_delimiter = ',',
         value_parser = trimmed::<MethodKind>(),
-        default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,adaptive"
+        default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,point-tracking,taa,late-warp,taa-warp,adaptive"
     )]
     pub methods: Vec<MethodKind>,
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Texture filtering: none (full-resolution bilinear lookups, the paper's setting)
-    /// or ray-cones (mip-mapped lookups at each ray's footprint; removes moiré on far
-    /// and grazing textured surfaces).
-    #[arg(long, value_enum, default_value = "none")]
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
@@ -319,8 +320,9 @@ pub struct EvalArgs {
     /// Ideal-image cache directory [default: $FRAMELESS_CACHE or ~/.cache/frameless].
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
-    /// Compute FLIP on every n-th frame only (RMS and PSNR are computed on every frame).
-    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u32).range(1..))]
+    /// Compute FLIP on every n-th frame only (1: every frame; RMS, PSNR and temporal
+    /// instability are always computed on every frame).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub flip_every: u32,
     /// Do not read or write the ideal-image cache.
     #[arg(long)]
@@ -359,10 +361,10 @@ pub struct StillArgs {
     /// Seed of the sample positions.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Texture filtering: none (full-resolution bilinear lookups, the paper's setting)
-    /// or ray-cones (mip-mapped lookups at each ray's footprint; removes moiré on far
-    /// and grazing textured surfaces).
-    #[arg(long, value_enum, default_value = "none")]
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Reflection/refraction depth limit.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64))]

@@ -91,8 +91,9 @@ pub fn animation(name: &str) -> Result<&'static Animation, EvalError> {
     })
 }
 
-/// The methods of the table (SPEC §5) plus the Fig. 8 ablation, in display order.
-pub const METHODS: [MethodKind; 8] = [
+/// The methods of the table (SPEC §5), the Fig. 8 ablation and today's practice (TAA
+/// and the late warps), in display order.
+pub const METHODS: [MethodKind; 10] = [
     MethodKind::Framed60Hz,
     MethodKind::FramedFull,
     MethodKind::TraditionalFrameless,
@@ -101,6 +102,8 @@ pub const METHODS: [MethodKind; 8] = [
     MethodKind::FullRes60Hz,
     MethodKind::PointTracking,
     MethodKind::Taa,
+    MethodKind::LateWarp,
+    MethodKind::TaaWarp,
 ];
 
 /// The paper's Table 1 (RMS, 0–255): `(our method, animation, rate, value)`.

@@ -62,7 +62,6 @@ registry! {
     }
     point_tracking { PointTracking => POINT_TRACKING, PointTrackingNoBlend => POINT_TRACKING_NO_BLEND }
     taa { Taa => TAA }
-    taau { Taau => TAAU }
     late_warp { LateWarp => LATE_WARP }
     taa_warp { TaaWarp => TAA_WARP }
     test_method { #[cfg(test)] TestFrameless => TEST_FRAMELESS }

@@ -1,4 +1,4 @@
-//! `taa-warp`: the temporal upsampler (`taau`) whose newest frame is warped at every
+//! `taa-warp`: the temporal upsampler (`taa`) whose newest frame is warped at every
 //! display refresh to the camera of the refresh time, as a late-warping engine shows a
 //! TAA image. The warp is `late_warp::Warp` (depth, camera change and object velocity
 //! × age; misses by rotation only; depth test; holes from neighbours). Like every late
@@ -7,23 +7,23 @@
 use super::{
     late_warp::Warp,
     sixty_per_second,
-    taau::{Taau, TaauParams},
+    taa::{Taa, TaaParams},
     Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
 };
 
 /// `taa-warp`.
 pub const TAA_WARP: MethodInfo = MethodInfo {
     name: "taa-warp",
-    description: "taau with its newest frame warped to the display-time camera at every refresh (display-side, no rays)",
+    description: "taa with its newest frame warped to the display-time camera at every refresh (display-side, no rays)",
     budget: Budget::Rate,
     check_rate: |_, rate| sixty_per_second("taa-warp", rate),
     build: |ctx| Ok(Box::new(TaaWarp::new(ctx)?)),
 };
 
-/// `taau` warped to every refresh.
+/// `taa` warped to every refresh.
 pub struct TaaWarp {
     ctx: MethodContext,
-    taau: Taau,
+    taa: Taa,
     warp: Warp,
 }
 
@@ -33,7 +33,7 @@ impl TaaWarp {
         let (w, h) = ctx.tracer.size();
         Ok(Self {
             ctx: ctx.clone(),
-            taau: Taau::new(ctx, TaauParams::default())?,
+            taa: Taa::new(ctx, TaaParams::default())?,
             warp: Warp::new(w, h),
         })
     }
@@ -41,10 +41,10 @@ impl TaaWarp {
 
 impl Method for TaaWarp {
     fn display(&mut self, t: f64) -> Displayed<'_> {
-        let mean_age = self.taau.display(t).mean_age;
-        let Some(gbuffer) = self.taau.shown_gbuffer() else {
+        let mean_age = self.taa.display(t).mean_age;
+        let Some(gbuffer) = self.taa.shown_gbuffer() else {
             return Displayed {
-                image: self.taau.output(),
+                image: self.taa.output(),
                 mean_age,
             };
         };
@@ -52,16 +52,16 @@ impl Method for TaaWarp {
         // Warping predicts where old information is now; it adds none, so the age is
         // the upsampler's.
         Displayed {
-            image: self.warp.apply(self.taau.output(), gbuffer, t, &camera),
+            image: self.warp.apply(self.taa.output(), gbuffer, t, &camera),
             mean_age,
         }
     }
 
     fn samples_used(&self) -> u64 {
-        self.taau.samples_used()
+        self.taa.samples_used()
     }
 
     fn trace_seconds(&self) -> f64 {
-        self.taau.trace_seconds()
+        self.taa.trace_seconds()
     }
 }

@@ -43,9 +43,9 @@ use crate::scene::CameraFrame;
 pub enum TextureFilter {
     /// Bilinear lookup in the full-resolution texture, no footprint (the paper's
     /// setting; aliases on far and grazing surfaces).
-    #[default]
     None,
     /// Trilinear mip-mapped lookup at the level a ray cone's footprint asks for.
+    #[default]
     RayCones,
 }
 

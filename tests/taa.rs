@@ -1,4 +1,4 @@
-//! The temporal upsampler (`taau`) on small hand-built cases: it converges on a still
+//! The temporal upsampler (`taa`) on small hand-built cases: it converges on a still
 //! view and drops its history after a camera cut.
 
 use std::sync::Arc;
@@ -75,7 +75,7 @@ fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
         width: SIZE,
         height: SIZE,
         rates: vec![RATE],
-        methods: vec![MethodKind::Taau],
+        methods: vec![MethodKind::Taa],
         seed: 2,
         ideal_spp: 16,
         warmup: 0.0,
@@ -88,8 +88,8 @@ fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
     }
 }
 
-/// RMS (0–255) of TAAU's displayed image against the ideal at every refresh.
-fn taau_rms(camera_path: Option<CameraPath>, duration: f64) -> Vec<f64> {
+/// RMS (0–255) of TAA's displayed image against the ideal at every refresh.
+fn taa_rms(camera_path: Option<CameraPath>, duration: f64) -> Vec<f64> {
     let out = evaluation::run(Arc::new(scene()), &cfg(camera_path, duration), &Silent).unwrap();
     out.frames.iter().map(|f| f.rms).collect()
 }
@@ -99,8 +99,8 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 #[test]
-fn taau_converges_on_a_still_scene_below_one_sample_per_pixel() {
-    let rms = taau_rms(None, 1.0);
+fn taa_converges_on_a_still_scene_below_one_sample_per_pixel() {
+    let rms = taa_rms(None, 1.0);
     let q = rms.len() / 4;
     // Refresh 0 shows nothing yet (the first frame completes at refresh 1).
     let (first, last) = (mean(&rms[1..=q]), mean(&rms[rms.len() - q..]));
@@ -123,7 +123,7 @@ fn taau_converges_on_a_still_scene_below_one_sample_per_pixel() {
     let ideal = still::render(&tracer, 0.5, 16, 2, &|_| {}).to_rgb8();
     let one = still::render(&tracer, 0.5, 1, 7, &|_| {}).to_rgb8();
     let one_spp = metrics::rms(&ideal, &one);
-    assert!(last < 0.7 * one_spp, "taau {last:.2} vs 1 spp {one_spp:.2}");
+    assert!(last < 0.7 * one_spp, "taa {last:.2} vs 1 spp {one_spp:.2}");
 }
 
 fn view(eye: Vec3, at: Vec3) -> String {
@@ -134,7 +134,7 @@ fn view(eye: Vec3, at: Vec3) -> String {
 }
 
 #[test]
-fn taau_drops_its_history_after_a_camera_cut() {
+fn taa_drops_its_history_after_a_camera_cut() {
     let header = frameless::scene::camera_path::HEADER;
     let a = view(Vec3::new(0.0, 0.0, 1.5), Vec3::ZERO);
     let b = view(Vec3::new(0.5, 0.3, 1.2), Vec3::new(1.0, -0.2, -1.0));
@@ -143,8 +143,8 @@ fn taau_drops_its_history_after_a_camera_cut() {
     let cut = format!("{header}\n0,{a}\n0.5,{a}\n0.501,{b}\n2,{b}\n");
     let fresh = format!("{header}\n0,{b}\n");
     let path = |text: &str| Some(CameraPath::parse("p.csv", text).unwrap());
-    let after_cut = taau_rms(path(&cut), 0.75);
-    let from_start = taau_rms(path(&fresh), 0.25);
+    let after_cut = taa_rms(path(&cut), 0.75);
+    let from_start = taa_rms(path(&fresh), 0.25);
     // k = 2..=8 frames of view B accumulated in both runs; single frames are noisy (the
     // jitter phases differ), so compare means. Ghosts of view A made this 1.7×.
     let cut = mean(&after_cut[33..=39]);
