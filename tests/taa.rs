@@ -13,57 +13,14 @@ use frameless::{
 use glam::Vec3;
 
 mod common;
-use common::quad;
+use common::two_spheres;
 
 const SIZE: u32 = 48;
 /// 1,152 samples per frame: a 33×34 grid under a 48×48 display, ~2× upsampling.
 const RATE: f64 = 69_120.0;
 
-/// A wall with two spheres in front: silhouettes, so antialiasing matters.
 fn scene() -> Scene {
-    Scene {
-        name: "t".into(),
-        materials: vec![
-            Material::matte(Vec3::new(0.8, 0.7, 0.5)),
-            Material::matte(Vec3::new(0.1, 0.3, 0.9)),
-        ],
-        groups: vec![Group {
-            node: None,
-            triangles: quad(-5.0, 5.0, -5.0, 5.0, -1.0, 0),
-            spheres: vec![
-                Sphere {
-                    center: Vec3::new(-0.3, 0.1, -0.5),
-                    radius: 0.35,
-                    material: 1,
-                },
-                Sphere {
-                    center: Vec3::new(0.45, -0.25, -0.3),
-                    radius: 0.2,
-                    material: 1,
-                },
-            ],
-            ..Default::default()
-        }],
-        lights: vec![Light {
-            position: Vec3::new(1.0, 2.0, 4.0),
-            color: Vec3::ONE,
-            track: None,
-            name: None,
-        }],
-        camera: CameraTrack {
-            base: Camera {
-                eye: Vec3::new(0.0, 0.0, 1.5),
-                at: Vec3::ZERO,
-                up: Vec3::Y,
-                fov_y_deg: 90.0,
-                hither: 1e-3,
-            },
-            track: None,
-            resolution: None,
-        },
-        ambient: Vec3::splat(0.3),
-        ..Default::default()
-    }
+    two_spheres()
 }
 
 fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {

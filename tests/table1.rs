@@ -43,7 +43,7 @@ fn tiny_table_has_every_animation_and_the_paper_beside_it() {
             "--ideal-spp",
             "1",
             "--methods",
-            "traditional-frameless,adaptive,full-res-60hz",
+            "traditional-frameless,adaptive-paper,full-res-60hz",
         ])
         .arg("--cache-dir")
         .arg(&cache)

@@ -55,8 +55,9 @@ registry! {
     frameless { TraditionalFrameless => TRADITIONAL_FRAMELESS }
     adaptive {
         Adaptive => ADAPTIVE,
+        AdaptivePaper => ADAPTIVE_PAPER,
         AdaptiveNoReprojection => ADAPTIVE_NO_REPROJECTION,
-        AdaptiveKeepStatic => ADAPTIVE_KEEP_STATIC,
+        AdaptiveNoHistory => ADAPTIVE_NO_HISTORY,
         AdaptiveNoReprojRecon => ADAPTIVE_NO_REPROJ_RECON,
         AdaptiveFixedFilter => ADAPTIVE_FIXED_FILTER,
     }

@@ -92,6 +92,7 @@ impl Reconstructor {
                     }
                 }
                 self.image.pixels[y * w + x] = out.0;
+                self.age[y * w + x] = out.1 as f32;
                 age_sum += out.1;
             }
         }

@@ -75,6 +75,7 @@ pub mod filter;
 pub mod ring;
 
 mod filter_table;
+mod history;
 mod holes;
 mod lanes;
 mod params;
@@ -91,6 +92,8 @@ use glam::Vec3;
 use crate::{image::Image, scene::CameraFrame, tiles::TilingSnapshot, trace::StreamSample};
 pub use filter::{Extents, FilterBounds};
 use filter_table::{Lookup, TileFilter};
+use history::History;
+pub use history::HistoryParams;
 pub use lanes::fast_exp_neg;
 use lanes::LANES;
 pub use params::ReconParams;
@@ -161,8 +164,12 @@ pub struct Reconstructor {
     /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
     image: Image,
+    /// Weight-averaged sample age of each pixel at the last refresh.
+    age: Vec<f32>,
     mean_age: f64,
     holes: usize,
+    /// The still-region history, if the parameters ask for one.
+    history: Option<History>,
 }
 
 impl Reconstructor {
@@ -200,8 +207,10 @@ impl Reconstructor {
             pieces: 0,
             pyramid: Vec::new(),
             image: Image::new(width, height),
+            age: vec![0.0; n],
             mean_age: 0.0,
             holes: n,
+            history: params.history.map(|h| History::new(width, height, h)),
         }
     }
 
@@ -225,13 +234,23 @@ impl Reconstructor {
     /// but the stale part of the ring is skipped only up to the first sample pushed
     /// after a recent one.
     pub fn push(&mut self, s: RingSample) {
+        self.push_marked(s, false);
+    }
+
+    /// [`Reconstructor::push`], saying whether something moving took part in the
+    /// sample beyond its own velocity ([`crate::trace::Sample::dynamic`]): such a
+    /// sample cuts its pixel's still-region history instead of joining it.
+    pub fn push_marked(&mut self, s: RingSample, dynamic: bool) {
+        if let Some(h) = &mut self.history {
+            h.push(&s, dynamic || s.velocity != Vec3::ZERO);
+        }
         self.ring.push(&s);
     }
 
     /// Append the sampler's stream.
     pub fn push_stream(&mut self, stream: &[StreamSample]) {
         for s in stream {
-            self.push(RingSample::from(s));
+            self.push_marked(RingSample::from(s), s.sample.dynamic);
         }
     }
 
@@ -244,6 +263,17 @@ impl Reconstructor {
     /// (holes take the age of the block they were filled from).
     pub fn mean_age(&self) -> f64 {
         self.mean_age
+    }
+
+    /// Samples in each pixel's still-region history (`None` without one).
+    pub fn history_counts(&self) -> Option<&[f32]> {
+        self.history.as_ref().map(|h| h.counts())
+    }
+
+    /// Pixels whose history was cut (a moving sample, or the reconstruction
+    /// disagreed), in all.
+    pub fn history_cuts(&self) -> u64 {
+        self.history.as_ref().map_or(0, |h| h.cuts)
     }
 
     /// Pixels no sample reached at the last refresh (filled from the pyramid).
@@ -271,6 +301,15 @@ impl Reconstructor {
         })
     }
 
+    /// Tell the still-region history that the view has been the one of the next
+    /// refresh since time `t0` (the sampler knows; without it, samples count only if
+    /// the view was also the same at the previous refresh).
+    pub fn set_view_since(&mut self, t0: f64) {
+        if let Some(h) = &mut self.history {
+            h.set_view_since(t0);
+        }
+    }
+
     /// Reconstruct the image at display time `t` seen by `camera`, with filters from
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
@@ -278,6 +317,10 @@ impl Reconstructor {
         self.prepare_splats(t, camera);
         self.splat();
         self.resolve();
+        if let Some(h) = &mut self.history {
+            let age_sum = h.refresh(t, camera, &mut self.image, &self.age);
+            self.mean_age = age_sum / self.age.len().max(1) as f64;
+        }
         &self.image
     }
 }

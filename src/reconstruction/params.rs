@@ -2,7 +2,10 @@
 //! reconstructor and its ablations), apart from the code so that callers configuring a
 //! method need not read the pipeline.
 
-use super::filter::{Extents, FilterBounds};
+use super::{
+    filter::{Extents, FilterBounds},
+    history::HistoryParams,
+};
 
 /// Parameters of the reconstructor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -37,6 +40,10 @@ pub struct ReconParams {
     /// kernel). The lower bound 1 never cuts the kernel inside `spatial_cutoff` sigmas:
     /// growth widens splats to cover sparse regions, shrinking returns them.
     pub scale_bounds: (f32, f32),
+    /// A per-pixel history of still samples blended over the reconstruction, so that
+    /// still regions keep converging (`None`: the paper's reconstructor, whose image
+    /// stops improving once the ring's horizon is reached).
+    pub history: Option<HistoryParams>,
 }
 
 impl ReconParams {
@@ -55,14 +62,24 @@ impl ReconParams {
             grow: 4.0,
             shrink: 0.7,
             scale_bounds: (1.0, 16.0),
+            history: None,
         }
     }
 
-    /// Ablation: samples splat where they were traced.
+    /// Ours: the paper's reconstructor with the still-region history
+    /// ([`HistoryParams::default`]).
+    pub fn converging() -> Self {
+        Self {
+            history: Some(HistoryParams::default()),
+            ..Self::paper()
+        }
+    }
+
+    /// Ablation of [`ReconParams::converging`]: samples splat where they were traced.
     pub fn no_reprojection() -> Self {
         Self {
             reproject: false,
-            ..Self::paper()
+            ..Self::converging()
         }
     }
 
@@ -75,13 +92,13 @@ impl ReconParams {
                 ey: 1.0,
                 et: 0.1,
             }),
-            ..Self::paper()
+            ..Self::converging()
         }
     }
 }
 
 impl Default for ReconParams {
     fn default() -> Self {
-        Self::paper()
+        Self::converging()
     }
 }

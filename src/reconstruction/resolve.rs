@@ -23,14 +23,16 @@ impl Reconstructor {
             .par_chunks_mut(BAND_ROWS * w)
             .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
             .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
+            .zip(self.age.par_chunks_mut(BAND_ROWS * w))
             .zip(self.acc.par_chunks(BAND_ROWS * gpr))
             .zip(self.cov.par_chunks(BAND_ROWS * cstride))
-            .map(|((((px, coverage), scale), acc), cov)| {
+            .map(|(((((px, coverage), scale), ages), acc), cov)| {
                 let (mut holes, mut age) = (0usize, 0f64);
-                for (r, ((px, coverage), scale)) in px
+                for (r, (((px, coverage), scale), ages)) in px
                     .chunks_mut(w)
                     .zip(coverage.chunks_mut(w))
                     .zip(scale.chunks_mut(w))
+                    .zip(ages.chunks_mut(w))
                     .enumerate()
                 {
                     let cells = &acc[r * gpr..(r + 1) * gpr];
@@ -49,6 +51,7 @@ impl Reconstructor {
                         *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
                         if cw >= MIN_WEIGHT {
                             px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
+                            ages[x] = ca / cw;
                             age += (ca / cw) as f64;
                         } else {
                             holes += 1;

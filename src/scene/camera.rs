@@ -60,6 +60,19 @@ pub struct CameraFrame {
     pub hither: f32,
 }
 
+impl CameraFrame {
+    /// Whether `other` sees the scene exactly as this frame does (same eye and the same
+    /// rays through every pixel): what was traced with one is valid for the other.
+    pub fn same_view(&self, other: &CameraFrame) -> bool {
+        self.eye == other.eye
+            && self.corner == other.corner
+            && self.du == other.du
+            && self.dv == other.dv
+            && self.width == other.width
+            && self.height == other.height
+    }
+}
+
 impl Camera {
     /// Orthonormal basis `(forward, right, up)`, robust to degenerate input.
     pub fn basis(&self) -> (Vec3, Vec3, Vec3) {

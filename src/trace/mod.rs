@@ -63,6 +63,12 @@ pub struct Sample {
     pub velocity: Vec3,
     /// Whether the primary ray hit anything.
     pub hit: bool,
+    /// Whether something moving at the sample's time took part in it: its primary hit,
+    /// a surface seen in a reflection or through a refraction, or a shadow caster or
+    /// transmitter. A sample without it would look the same a moment later at the
+    /// same place under the same camera (unless a light moves), so a still region's
+    /// history may keep it.
+    pub dynamic: bool,
 }
 
 /// A traced sample with where and when it was traced: what samplers stream to a
@@ -513,22 +519,27 @@ impl Tracer {
 
     /// Transmission along a shadow ray: 0 when blocked by an opaque surface, the
     /// product of transmissions of transmissive occluders otherwise.
-    fn shadow(&self, state: &SceneState, ray: &Ray) -> f32 {
+    fn shadow(&self, state: &SceneState, ray: &Ray) -> (f32, bool) {
         let mats = &self.scene.materials;
         let tr = |m: MaterialId| mats.get(m as usize).map_or(0.0, |m| m.transmission);
         let mut acc = 1.0f32;
         if self.static_geo.occlusion(ray, &tr, &mut acc) {
-            return 0.0;
+            return (0.0, false);
         }
+        let mut dynamic = false;
         if let Some(top) = &state.top {
             let mut blocked = false;
             top.ray_traverse_miss(*ray, |wr, id| {
                 let inst = &state.instances[top.primitive_indices[id] as usize];
                 let local = inst.local_ray(wr);
-                if self.instance_groups[inst.group as usize]
+                let before = acc;
+                let hit = self.instance_groups[inst.group as usize]
                     .1
-                    .occlusion(&local, &tr, &mut acc)
-                {
+                    .occlusion(&local, &tr, &mut acc);
+                if (hit || acc != before) && inst.velocity != Mat4::ZERO {
+                    dynamic = true;
+                }
+                if hit {
                     blocked = true;
                     0.0
                 } else {
@@ -536,7 +547,7 @@ impl Tracer {
                 }
             });
             if blocked {
-                return 0.0;
+                return (0.0, dynamic);
             }
         }
         if let Some(anim) = &state.anim {
@@ -544,6 +555,7 @@ impl Tracer {
             let blocked = !anim.bvh.ray_traverse_miss(*ray, |wr, id| {
                 let t = anim.tris[id].intersect(wr);
                 if t.is_finite() {
+                    dynamic |= anim.velocities[id] != [Vec3::ZERO; 3];
                     let src = anim.bvh.primitive_indices[id] as usize;
                     let m = tr(scene.animated_triangles[src].material);
                     if m > 0.0 {
@@ -554,10 +566,10 @@ impl Tracer {
                 t
             });
             if blocked {
-                return 0.0;
+                return (0.0, dynamic);
             }
         }
-        acc
+        (acc, dynamic)
     }
 
     fn surface(&self, state: &SceneState, ray: &Ray, hit: &Hit) -> Surface {
@@ -707,6 +719,7 @@ impl Tracer {
                     depth: f32::INFINITY,
                     velocity: Vec3::ZERO,
                     hit: false,
+                    dynamic: false,
                 }
             }
             Some(h) => {
@@ -716,7 +729,7 @@ impl Tracer {
                     TextureFilter::RayCones => Some(RayCone::primary(&state.camera)),
                 };
                 let fp = self.footprint(state, &h, cone);
-                let c = self.shade(state, &ray, &s, fp, 0);
+                let (c, dynamic) = self.shade(state, &ray, &s, fp, 0);
                 Sample {
                     color: c,
                     luminance: luminance(c),
@@ -724,6 +737,7 @@ impl Tracer {
                     depth: h.t,
                     velocity: s.velocity,
                     hit: true,
+                    dynamic,
                 }
             }
         }

@@ -27,7 +27,8 @@ fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
 
 impl Tracer {
     /// Shade a hit; `fp` is the ray cone's footprint there when filtering textures by
-    /// ray cones (`None`: unfiltered lookups).
+    /// ray cones (`None`: unfiltered lookups). Also says whether anything moving took
+    /// part (see [`super::Sample::dynamic`]).
     pub(crate) fn shade(
         &self,
         state: &SceneState,
@@ -35,10 +36,12 @@ impl Tracer {
         s: &Surface,
         fp: Option<Footprint>,
         depth: u32,
-    ) -> Vec3 {
+    ) -> (Vec3, bool) {
         let scene = &self.scene;
+        let mut dynamic = s.velocity != Vec3::ZERO;
         let Some(m) = scene.materials.get(s.material as usize) else {
-            return Vec3::new(1.0, 0.0, 1.0); // unreachable for loaded scenes: loud magenta
+            // Unreachable for loaded scenes: loud magenta.
+            return (Vec3::new(1.0, 0.0, 1.0), dynamic);
         };
         let d = Vec3::from(ray.direction).normalize();
         let entering = s.ng.dot(d) < 0.0;
@@ -74,7 +77,8 @@ impl Tracer {
                 continue;
             }
             let sray = Ray::new(Vec3A::from(p_out), Vec3A::from(l), 0.0, dist * (1.0 - 1e-5));
-            let vis = self.shadow(state, &sray);
+            let (vis, moving_blocker) = self.shadow(state, &sray);
+            dynamic |= moving_blocker;
             if vis <= 0.0 {
                 continue;
             }
@@ -88,7 +92,7 @@ impl Tracer {
             color += lc * vis * c;
         }
         if depth >= self.options.max_depth {
-            return color;
+            return (color, dynamic);
         }
         // Secondary rays carry the cone on from this hit, spread unchanged (flat-mirror
         // approximation; see `cones`).
@@ -105,15 +109,19 @@ impl Tracer {
             match refract(d, n, eta) {
                 Some(t_dir) => {
                     let origin = s.p - ng * eps;
-                    color += m.transmission * self.radiance(state, origin, t_dir, cone, depth + 1);
+                    let (c, d) = self.radiance(state, origin, t_dir, cone, depth + 1);
+                    color += m.transmission * c;
+                    dynamic |= d;
                 }
                 None => mirror_weight += Vec3::splat(m.transmission),
             }
         }
         if mirror_weight.max_element() > 0.0 {
-            color += mirror_weight * self.radiance(state, p_out, refl_dir, cone, depth + 1);
+            let (c, d) = self.radiance(state, p_out, refl_dir, cone, depth + 1);
+            color += mirror_weight * c;
+            dynamic |= d;
         }
-        color
+        (color, dynamic)
     }
 
     fn radiance(
@@ -123,10 +131,10 @@ impl Tracer {
         dir: Vec3,
         cone: Option<RayCone>,
         depth: u32,
-    ) -> Vec3 {
+    ) -> (Vec3, bool) {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, f32::INFINITY);
         match self.closest(state, &ray) {
-            None => self.scene.background,
+            None => (self.scene.background, false),
             Some(h) => {
                 let s = self.surface(state, &ray, &h);
                 let fp = self.footprint(state, &h, cone);

@@ -2,7 +2,7 @@
 //! every helper is used everywhere).
 #![allow(dead_code)]
 
-use frameless::scene::{Material, Triangle};
+use frameless::scene::{Camera, CameraTrack, Group, Light, Material, Scene, Sphere, Triangle};
 use glam::Vec3;
 
 /// A flat-shaded material: ambient only, so luminance is exactly its color.
@@ -37,4 +37,51 @@ pub fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Tr
             material,
         },
     ]
+}
+
+/// A wall with two spheres in front: silhouettes, so antialiasing matters.
+pub fn two_spheres() -> Scene {
+    Scene {
+        name: "t".into(),
+        materials: vec![
+            Material::matte(Vec3::new(0.8, 0.7, 0.5)),
+            Material::matte(Vec3::new(0.1, 0.3, 0.9)),
+        ],
+        groups: vec![Group {
+            node: None,
+            triangles: quad(-5.0, 5.0, -5.0, 5.0, -1.0, 0),
+            spheres: vec![
+                Sphere {
+                    center: Vec3::new(-0.3, 0.1, -0.5),
+                    radius: 0.35,
+                    material: 1,
+                },
+                Sphere {
+                    center: Vec3::new(0.45, -0.25, -0.3),
+                    radius: 0.2,
+                    material: 1,
+                },
+            ],
+            ..Default::default()
+        }],
+        lights: vec![Light {
+            position: Vec3::new(1.0, 2.0, 4.0),
+            color: Vec3::ONE,
+            track: None,
+            name: None,
+        }],
+        camera: CameraTrack {
+            base: Camera {
+                eye: Vec3::new(0.0, 0.0, 1.5),
+                at: Vec3::ZERO,
+                up: Vec3::Y,
+                fov_y_deg: 90.0,
+                hither: 1e-3,
+            },
+            track: None,
+            resolution: None,
+        },
+        ambient: Vec3::splat(0.3),
+        ..Default::default()
+    }
 }

@@ -20,13 +20,28 @@ use crate::{
 pub use params::SamplerParams;
 pub use sampler::Sampler;
 
-/// `adaptive`: the paper's sampler and reconstructor.
+/// `adaptive`: ours, the paper's method that keeps converging where the view is still.
 pub const ADAPTIVE: MethodInfo = MethodInfo {
     name: "adaptive",
-    description: "adaptive frameless: closed-loop sampler over a K-D tiling of a deep buffer",
+    description: "adaptive frameless (ours): closed-loop sampler over a K-D tiling of a deep buffer, space-time reconstruction with a still-region history",
     budget: Budget::Rate,
     check_rate: any_rate,
-    build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::paper())?)),
+    build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::ours())?)),
+};
+
+/// `adaptive-paper`: the paper's sampler and reconstructor, as published.
+pub const ADAPTIVE_PAPER: MethodInfo = MethodInfo {
+    name: "adaptive-paper",
+    description: "adaptive frameless as in the paper: every crosshair reprojected, no history",
+    budget: Budget::Rate,
+    check_rate: any_rate,
+    build: |ctx| {
+        Ok(Box::new(Adaptive::with_reconstructor(
+            ctx,
+            SamplerParams::paper(),
+            ReconParams::paper(),
+        )?))
+    },
 };
 
 /// `adaptive-no-reprojection`: the ablation of paper Fig. 8.
@@ -38,20 +53,18 @@ pub const ADAPTIVE_NO_REPROJECTION: MethodInfo = MethodInfo {
     build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::no_reprojection())?)),
 };
 
-/// `adaptive-keep-static` (not in the paper): no occlusion ray for crosshairs that
-/// cannot have moved.
-pub const ADAPTIVE_KEEP_STATIC: MethodInfo = MethodInfo {
-    name: "adaptive-keep-static",
-    description:
-        "adaptive frameless; the sampler does not reproject crosshairs that cannot have moved",
+/// `adaptive-no-history`: ours without the still-region history.
+pub const ADAPTIVE_NO_HISTORY: MethodInfo = MethodInfo {
+    name: "adaptive-no-history",
+    description: "adaptive frameless without the reconstructor's still-region history",
     budget: Budget::Rate,
     check_rate: any_rate,
     build: |ctx| {
-        let params = SamplerParams {
-            skip_static_reprojection: true,
-            ..SamplerParams::paper()
-        };
-        Ok(Box::new(Adaptive::new(ctx, params)?))
+        Ok(Box::new(Adaptive::with_reconstructor(
+            ctx,
+            SamplerParams::ours(),
+            ReconParams::paper(),
+        )?))
     },
 };
 
@@ -64,7 +77,7 @@ pub const ADAPTIVE_NO_REPROJ_RECON: MethodInfo = MethodInfo {
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
-            SamplerParams::paper(),
+            SamplerParams::ours(),
             ReconParams::no_reprojection(),
         )?))
     },
@@ -79,7 +92,7 @@ pub const ADAPTIVE_FIXED_FILTER: MethodInfo = MethodInfo {
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
-            SamplerParams::paper(),
+            SamplerParams::ours(),
             ReconParams::fixed_filter(),
         )?))
     },
@@ -93,10 +106,10 @@ pub struct Adaptive {
 }
 
 impl Adaptive {
-    /// Create for one run with the given sampler parameters and the paper's
-    /// reconstructor.
+    /// Create for one run with the given sampler parameters and our reconstructor
+    /// ([`ReconParams::converging`]).
     pub fn new(ctx: &MethodContext, params: SamplerParams) -> Result<Self, MethodError> {
-        Self::with_reconstructor(ctx, params, ReconParams::paper())
+        Self::with_reconstructor(ctx, params, ReconParams::converging())
     }
 
     /// Create for one run with the given sampler and reconstructor parameters.
@@ -106,6 +119,13 @@ impl Adaptive {
         recon: ReconParams,
     ) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
+        if let Some(Err((name, why))) = recon.history.map(|h| h.check()) {
+            return Err(MethodError::Parameter {
+                group: "reconstructor",
+                name,
+                why,
+            });
+        }
         Ok(Self {
             sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?,
             recon: Reconstructor::new(w, h, ctx.clock.rate, recon),
@@ -130,6 +150,7 @@ impl Method for Adaptive {
         let stream = self.sampler.drain_stream();
         self.recon.push_stream(&stream);
         let camera = self.tracer.state_at(t).camera;
+        self.recon.set_view_since(self.sampler.camera_since());
         self.recon
             .reconstruct(t, &camera, &self.sampler.tiling().snapshot());
         Displayed {

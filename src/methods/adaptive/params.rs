@@ -50,10 +50,10 @@ pub struct SamplerParams {
     /// camera unchanged since they were traced. Their reprojection is the identity, so
     /// its occlusion ray (one sample of the budget, SPEC §5) is spent only to detect a
     /// moving occluder, which the tile's temporal gradient already draws samples to.
-    /// Not in the paper (which reprojects every crosshair), so off by default: under a
-    /// fixed view it frees about a quarter of the budget for colour samples, but a
-    /// moving occluder in front of static crosshairs then draws fewer samples
-    /// (docs/results/table1). The `adaptive-keep-static` method turns it on.
+    /// Not in the paper (which reprojects every crosshair): under a fixed view it frees
+    /// about a quarter of the budget for colour samples, but a moving occluder in front
+    /// of static crosshairs then draws fewer samples (docs/results/table1). On in
+    /// [`SamplerParams::ours`], off in [`SamplerParams::paper`].
     pub skip_static_reprojection: bool,
     /// Ablation: closed-loop gain control (off: the tile count stays at `fixed_tiles`).
     pub gain_control: bool,
@@ -67,7 +67,7 @@ pub struct SamplerParams {
 
 impl Default for SamplerParams {
     fn default() -> Self {
-        Self::paper()
+        Self::ours()
     }
 }
 
@@ -99,9 +99,17 @@ impl SamplerParams {
         }
     }
 
-    /// The paper's "Adaptive no reprojection" ablation.
-    pub const fn no_reprojection() -> Self {
+    /// Ours (`adaptive`): the paper's, except that crosshairs that cannot have moved
+    /// stay in place ([`SamplerParams::skip_static_reprojection`]).
+    pub const fn ours() -> Self {
         let mut p = Self::paper();
+        p.skip_static_reprojection = true;
+        p
+    }
+
+    /// The "Adaptive no reprojection" ablation (paper Fig. 8) of [`SamplerParams::ours`].
+    pub const fn no_reprojection() -> Self {
+        let mut p = Self::ours();
         p.reprojection = false;
         p
     }

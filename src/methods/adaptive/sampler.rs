@@ -229,6 +229,12 @@ impl Sampler {
         std::mem::take(&mut self.stream)
     }
 
+    /// Time of the last change of view the sampler has seen (the start of its run if
+    /// none): every sample since was traced from the current view.
+    pub fn camera_since(&self) -> f64 {
+        self.camera_since
+    }
+
     /// Per-pixel decayed occlusion weight, relative to an event happening now.
     pub fn occlusion_at(&self, x: u32, y: u32, now: f64) -> f64 {
         self.occl_px[(y * self.width + x) as usize] / self.weight(now)
@@ -319,10 +325,7 @@ impl Sampler {
     fn state(&mut self, t: f64) -> Arc<SceneState> {
         let (s, held) = self.states.at(&self.tracer, t);
         if let Held::New { previous } = held {
-            let same_camera = previous.is_some_and(|old| {
-                let (a, b) = (&old.camera, &s.camera);
-                a.eye == b.eye && a.corner == b.corner && a.du == b.du && a.dv == b.dv
-            });
+            let same_camera = previous.is_some_and(|old| old.camera.same_view(&s.camera));
             if !same_camera {
                 self.camera_since = t;
             }
