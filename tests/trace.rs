@@ -221,6 +221,51 @@ fn moving_instance_has_velocity_and_moves() {
     assert!(tr.sample(&st2, x2, y2).hit);
 }
 
+/// A static floor under a blocker that moves (`speed` ≠ 0) or stands still, seen from
+/// the side: samples of the floor in its shadow are dynamic only when it moves.
+#[test]
+fn samples_shadowed_by_a_moving_blocker_are_dynamic() {
+    for (speed, moving) in [(Vec3::new(0.1, 0.0, 0.0), true), (Vec3::ZERO, false)] {
+        let mut s = base_scene();
+        s.ambient = Vec3::splat(0.1);
+        s.groups.push(Group {
+            node: None,
+            triangles: quad(0.0, 3.0, 0),
+            ..Default::default()
+        });
+        s.tracks.push(linear_track(speed));
+        s.nodes.push(Node {
+            parent: None,
+            kind: NodeKind::Animated {
+                name: "mover".into(),
+                track: Some(0),
+            },
+        });
+        s.groups.push(Group {
+            node: Some(0),
+            triangles: quad(2.0, 0.3, 0),
+            ..Default::default()
+        });
+        s.camera.base.eye = Vec3::new(3.0, 0.0, 5.0);
+        let tr = Tracer::new(Arc::new(s), 64, 64, TraceOptions::default());
+        let state = tr.state_at(0.0);
+        let at = |p: Vec3| {
+            let (x, y, _) = state.camera.project(p).unwrap();
+            tr.sample(&state, x, y)
+        };
+        let (shadowed, lit) = (at(Vec3::ZERO), at(Vec3::new(-2.0, 1.5, 0.0)));
+        assert!(shadowed.hit_point.z.abs() < 1e-3 && shadowed.color.x < 0.2);
+        assert_eq!(shadowed.velocity, Vec3::ZERO);
+        assert_eq!(shadowed.dynamic, moving, "speed {speed:?}");
+        assert!(lit.hit_point.z.abs() < 1e-3 && lit.color.x > 0.5);
+        assert!(!lit.dynamic);
+        // The blocker itself is dynamic when it moves (its velocity says so too).
+        let blocker = at(Vec3::new(0.0, 0.0, 2.0));
+        assert!(blocker.hit_point.z > 1.9);
+        assert_eq!(blocker.dynamic, moving);
+    }
+}
+
 #[test]
 fn visibility_track_hides_subtree() {
     let mut s = base_scene();

@@ -157,10 +157,28 @@ pub struct Table1Args {
     /// Ideal-image cache (default `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`).
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
+    /// Image strips written per animation and rate: the frames at the window's
+    /// quartiles, its middle frame only, or none.
+    #[arg(long, value_enum, default_value = "quartiles")]
+    pub strips: Strips,
+    /// Rates that get image strips, comma-separated (default: every rate).
+    #[arg(long, value_delimiter = ',', value_parser = parse_rate)]
+    pub strip_rates: Option<Vec<f64>>,
     /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
     /// animation.
     #[arg(long, default_value = "table1-out")]
     pub out: PathBuf,
+}
+
+/// Which frames of a window get image strips.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Strips {
+    /// The frames at ¼, ½ and ¾ of the window.
+    Quartiles,
+    /// The middle frame.
+    Middle,
+    /// None.
+    None,
 }
 
 /// Arguments of `frameless view`.

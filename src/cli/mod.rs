@@ -242,6 +242,14 @@ fn table1(a: args::Table1Args) -> Result<()> {
     }
     let animations = parse_list(&a.animations, table1::animation).context("--animations")?;
     let rates = a.rates.clone();
+    for r in a.strip_rates.iter().flatten() {
+        if !rates.contains(r) {
+            bail!(
+                "--strip-rates: {} is not one of --rates",
+                frameless::clock::rate_label(*r)
+            );
+        }
+    }
     let methods = match &a.methods {
         Some(m) => m.clone(),
         None => table1::METHODS.to_vec(),
@@ -277,7 +285,11 @@ fn table1(a: args::Table1Args) -> Result<()> {
             strip_frames: Vec::new(),
             flip_every: a.flip_every as usize,
         };
-        cfg.strip_frames = quartile_frames(cfg.frames());
+        cfg.strip_frames = match a.strips {
+            args::Strips::Quartiles => quartile_frames(cfg.frames()),
+            args::Strips::Middle => vec![cfg.frames() / 2],
+            args::Strips::None => Vec::new(),
+        };
         cfg.validate()
             .with_context(|| format!("animation {}", anim.name))?;
         cfgs.push(cfg);
@@ -292,6 +304,9 @@ fn table1(a: args::Table1Args) -> Result<()> {
         let mut out = evaluation::run(scene.clone(), cfg, &BarProgress(bar.clone()))
             .with_context(|| format!("animation {}", anim.name))?;
         bar.finish_and_clear();
+        if let Some(keep) = &a.strip_rates {
+            out.strips.retain(|s| keep.contains(&s.0));
+        }
         report::write_all(&mut out, &a.out.join(anim.name))?;
         let t = &out.summary.timing;
         let line = format!(

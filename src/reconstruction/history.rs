@@ -380,3 +380,113 @@ impl History {
         rows.iter().map(|r| r.1).sum()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{reconstruction::RingSample, scene::Camera};
+
+    fn camera(x: f32) -> CameraFrame {
+        Camera {
+            eye: Vec3::new(x, 0.0, 1.0),
+            at: Vec3::new(x, 0.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 90.0,
+            hither: 1e-3,
+        }
+        .frame(4, 4)
+    }
+
+    fn sample(x: f32, y: f32, t: f64, c: f32) -> RingSample {
+        RingSample {
+            x,
+            y,
+            t,
+            color: Vec3::splat(c),
+            hit_point: Vec3::ZERO,
+            velocity: Vec3::ZERO,
+        }
+    }
+
+    /// Refresh over a flat reconstruction of colour `recon` (the clamp then allows
+    /// `recon ± tolerance`).
+    fn refresh(h: &mut History, t: f64, cam: &CameraFrame, recon: f32) -> Image {
+        let mut img = Image::new(4, 4);
+        img.pixels.fill(Vec3::splat(recon));
+        h.refresh(t, cam, &mut img, &[0.0; 16]);
+        img
+    }
+
+    #[test]
+    fn still_samples_accumulate_and_a_new_view_clears_them() {
+        let mut h = History::new(4, 4, HistoryParams::default());
+        let cam = camera(0.0);
+        refresh(&mut h, 0.0, &cam, 0.5);
+        for k in 0..9 {
+            h.push(&sample(1.5, 1.5, 0.01 * k as f64, 0.52), false);
+        }
+        let img = refresh(&mut h, 0.1, &cam, 0.5);
+        assert_eq!(h.counts()[5], 9.0);
+        // (0.5 · 1 + 0.52 · 9) / 10
+        assert!(
+            (img.get(1, 1).x - 0.518).abs() < 1e-5,
+            "{:?}",
+            img.get(1, 1)
+        );
+        assert_eq!(img.get(0, 0), Vec3::splat(0.5));
+        refresh(&mut h, 0.2, &camera(0.1), 0.5);
+        assert!(h.counts().iter().all(|&n| n == 0.0));
+    }
+
+    #[test]
+    fn samples_from_before_the_view_settled_are_left_out() {
+        let mut h = History::new(4, 4, HistoryParams::default());
+        let cam = camera(0.0);
+        h.push(&sample(0.5, 0.5, 0.05, 0.5), false);
+        h.push(&sample(0.5, 0.5, 0.15, 0.5), false);
+        // Without being told, the first refresh trusts nothing.
+        refresh(&mut h, 0.2, &cam, 0.5);
+        assert_eq!(h.counts()[0], 0.0);
+        h.push(&sample(0.5, 0.5, 0.05, 0.5), false);
+        h.push(&sample(0.5, 0.5, 0.15, 0.5), false);
+        h.set_view_since(0.1);
+        refresh(&mut h, 0.3, &cam, 0.5);
+        assert_eq!(h.counts()[0], 1.0);
+    }
+
+    #[test]
+    fn moving_samples_and_changes_cut_the_pixel() {
+        let mut h = History::new(4, 4, HistoryParams::default());
+        let cam = camera(0.0);
+        refresh(&mut h, 0.0, &cam, 0.5);
+        for p in [0.5, 2.5] {
+            for k in 0..8 {
+                h.push(&sample(p, 0.5, 0.01 * k as f64, 0.5), false);
+            }
+        }
+        refresh(&mut h, 0.1, &cam, 0.5);
+        assert_eq!((h.counts()[0], h.counts()[2]), (8.0, 8.0));
+        // Something moving covers pixel 0.
+        h.push(&sample(0.5, 0.5, 0.11, 0.5), true);
+        // Pixel 2 turns dark: one sample out of range is held back, two cut.
+        h.push(&sample(2.5, 0.5, 0.12, 0.1), false);
+        refresh(&mut h, 0.13, &cam, 0.5);
+        assert_eq!((h.counts()[0], h.counts()[2]), (0.0, 8.0));
+        h.push(&sample(2.5, 0.5, 0.14, 0.1), false);
+        refresh(&mut h, 0.15, &cam, 0.5);
+        // Cut, then restarted from the two dark samples; the clamp to the (bright)
+        // reconstruction then keeps one sample's worth.
+        assert!(h.counts()[2] <= 2.0, "{}", h.counts()[2]);
+        assert!(h.cuts >= 2);
+    }
+
+    #[test]
+    fn bad_parameters_are_named() {
+        let bad = HistoryParams {
+            range_tolerance: f32::NAN,
+            ..Default::default()
+        };
+        assert!(bad.check().unwrap_err().0.contains("range_tolerance"));
+        assert!(HistoryParams::default().check().is_ok());
+    }
+}
