@@ -34,7 +34,12 @@ impl Rect {
     pub fn area(&self) -> u32 {
         self.width() * self.height()
     }
-    /// Whether pixel `(x, y)` lies inside.
+    /// Whether the continuous point `(x, y)` lies in the rectangle.
+    pub fn contains_point(&self, x: f32, y: f32) -> bool {
+        x >= self.x0 as f32 && y >= self.y0 as f32 && x < self.x1 as f32 && y < self.y1 as f32
+    }
+
+    /// Whether pixel `(x, y)` lies in the rectangle.
     pub fn contains(&self, x: u32, y: u32) -> bool {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
     }

@@ -232,6 +232,8 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
                 y,
                 t: now,
                 lum: sample.luminance,
+                hit_point: sample.hit_point,
+                velocity: sample.velocity,
             }));
             break;
         }

@@ -469,7 +469,21 @@ impl Sampler {
         self.counters.visits += 1;
         let rect = self.tiling.node(leaf).rect;
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
-            let c = self.trace_crosshair(&state, p.x, p.y, now, Some((p.lum, p.t)));
+            let (x, y) = if self.params.follow_surface {
+                // Complete the crosshair where the initiating sample's surface point is
+                // now, so that the temporal gradient compares the same point twice and
+                // measures change, not camera motion (which the reconstructor undoes by
+                // reprojecting samples).
+                state
+                    .camera
+                    .project(p.hit_point + p.velocity * (now - p.t) as f32)
+                    .map(|(x, y, _)| (x, y))
+                    .filter(|&(x, y)| rect.contains_point(x, y))
+                    .unwrap_or((p.x, p.y))
+            } else {
+                (p.x, p.y)
+            };
+            let c = self.trace_crosshair(&state, x, y, now, Some((p.lum, p.t)));
             self.insert_front(c);
             self.since_adjust += 1;
         }
@@ -486,6 +500,8 @@ impl Sampler {
             y,
             t: now,
             lum: s.luminance,
+            hit_point: s.hit_point,
+            velocity: s.velocity,
         });
     }
 

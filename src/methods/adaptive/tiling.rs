@@ -121,6 +121,11 @@ pub struct Pending {
     pub t: f64,
     /// Its luminance.
     pub lum: f32,
+    /// Its hit point (far point for a miss) and the hit's velocity: where the same
+    /// surface point is later.
+    pub hit_point: glam::Vec3,
+    /// See `hit_point`.
+    pub velocity: glam::Vec3,
 }
 
 /// One node of the K-D tree.
