@@ -170,6 +170,15 @@ pub struct Table1Args {
     pub out: PathBuf,
 }
 
+/// A named set of sampler parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SamplerPreset {
+    /// `SamplerParams::ours()`, as `adaptive` uses.
+    Ours,
+    /// `SamplerParams::paper()`, as `adaptive-paper` uses.
+    Paper,
+}
+
 /// Which frames of a window get image strips.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Strips {
@@ -272,6 +281,10 @@ pub struct SamplerArgs {
     /// Seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Sampler parameters: ours (`adaptive`) or the paper's (`adaptive-paper`); the
+    /// ablation flags below apply on top.
+    #[arg(long, value_enum, default_value = "ours")]
+    pub preset: SamplerPreset,
     /// Ablation: no reprojection in the sampler.
     #[arg(long)]
     pub no_reprojection: bool,

@@ -353,7 +353,10 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     if !(a.duration > 0.0 && a.duration <= 3600.0) {
         bail!("--duration {} must be in (0, 3600] seconds", a.duration);
     }
-    let mut params = SamplerParams::paper();
+    let mut params = match a.preset {
+        args::SamplerPreset::Ours => SamplerParams::ours(),
+        args::SamplerPreset::Paper => SamplerParams::paper(),
+    };
     params.reprojection = !a.no_reprojection;
     params.gain_control = !a.no_gain_control;
     params.occlusion_term = !a.no_occlusion_term;
