@@ -7,7 +7,7 @@ use frameless::{
     evaluation::{self, metrics, EvalConfig, Silent},
     methods::MethodKind,
     render::still,
-    scene::{Camera, CameraPath, CameraTrack, Group, Light, Material, Scene, Sphere},
+    scene::{CameraPath, Scene},
     trace::{TraceOptions, Tracer},
 };
 use glam::Vec3;
