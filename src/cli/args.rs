@@ -130,7 +130,7 @@ pub struct Table1Args {
     /// Sampling rates (samples/s), comma-separated; suffixes k and M.
     #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
     pub rates: Vec<f64>,
-    /// Methods, comma-separated (default: the paper's, the adaptive-no-reprojection
+    /// Methods, comma-separated (default: the paper's, ours, the adaptive-no-reprojection
     /// ablation of Fig. 8, point tracking, TAA and the two late warps).
     #[arg(long, value_delimiter = ',', value_parser = trimmed::<MethodKind>())]
     pub methods: Option<Vec<MethodKind>>,
