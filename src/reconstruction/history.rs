@@ -63,6 +63,13 @@ pub struct HistoryParams {
     /// How long a sample of a moving surface keeps cutting the history where it has
     /// moved to, seconds: until newer samples of the surface have landed ahead of it.
     pub moving_memory: f64,
+    /// Keep the history through camera motion: move each pixel's history to where its
+    /// surface point is seen now (nearest pixel, nearest depth wins) with its count
+    /// capped at `reprojected_count`, and place new samples where their hit point is
+    /// now, instead of cutting everything when the view changes.
+    pub reproject: bool,
+    /// Count a pixel's history keeps when it is reprojected.
+    pub reprojected_count: f32,
 }
 
 impl Default for HistoryParams {
@@ -76,6 +83,11 @@ impl Default for HistoryParams {
             min_count_to_test: 4.0,
             range_tolerance: 0.1,
             moving_memory: 0.1,
+            reproject: std::env::var_os("FL_REPROJ").is_some(),
+            reprojected_count: std::env::var("FL_RCOUNT")
+                .ok()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(8.0),
         }
     }
 }
@@ -143,7 +155,9 @@ pub(super) struct History {
     lum_range: Vec<(f32, f32)>,
     /// A still sample outside its pixel's range, held back until the next one says
     /// whether it was a rare part of the pixel (kept) or the start of a change.
-    held: Vec<Option<(Vec3, f64)>>,
+    held: Vec<Option<(Vec3, f64, Vec3)>>,
+    /// The hit point of each pixel's newest sample (for reprojection).
+    point: Vec<Vec3>,
     /// Recent samples of moving surfaces `(hit point, velocity, time)`: at each refresh
     /// they cut the history where they are now, ahead of the samples that will land
     /// there.
@@ -173,6 +187,7 @@ impl History {
             count: vec![0.0; n],
             lum_range: vec![EMPTY_RANGE; n],
             held: vec![None; n],
+            point: vec![Vec3::ZERO; n],
             moving: Default::default(),
             camera: None,
             last_camera: None,
@@ -208,6 +223,47 @@ impl History {
         self.view_since = Some(t0);
     }
 
+    /// Move every pixel's history to where its surface point is seen from `camera`.
+    fn reproject_to(&mut self, camera: &CameraFrame) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let n = w * h;
+        let cap = self.params.reprojected_count;
+        let mut sum = vec![Vec3::ZERO; n];
+        let mut time_sum = vec![0.0; n];
+        let mut count = vec![0.0f32; n];
+        let mut range = vec![EMPTY_RANGE; n];
+        let mut point = vec![Vec3::ZERO; n];
+        let mut depth = vec![f32::INFINITY; n];
+        for q in 0..n {
+            if self.count[q] <= 0.0 {
+                continue;
+            }
+            let Some((x, y, z)) = camera.project(self.point[q]) else {
+                continue;
+            };
+            if !(x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h) {
+                continue;
+            }
+            let d = y as usize * w + x as usize;
+            if z < depth[d] {
+                depth[d] = z;
+                let k = self.count[q].min(cap) / self.count[q];
+                sum[d] = self.sum[q] * k;
+                time_sum[d] = self.time_sum[q] * k as f64;
+                count[d] = self.count[q] * k;
+                range[d] = self.lum_range[q];
+                point[d] = self.point[q];
+            }
+        }
+        self.sum = sum;
+        self.time_sum = time_sum;
+        self.count = count;
+        self.lum_range = range;
+        self.point = point;
+        self.held.fill(None);
+        self.camera = Some(*camera);
+    }
+
     fn cut(&mut self, q: usize) {
         self.cuts += (self.count[q] > 0.0) as u64;
         self.sum[q] = Vec3::ZERO;
@@ -217,7 +273,8 @@ impl History {
         self.held[q] = None;
     }
 
-    fn add(&mut self, q: usize, c: Vec3, t: f64) {
+    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3) {
+        self.point[q] = hit;
         let max = self.params.max_count;
         self.sum[q] += c;
         self.time_sum[q] += t;
@@ -256,6 +313,10 @@ impl History {
             },
         );
         self.last_camera = Some(*camera);
+        let p = self.params;
+        if p.reproject && !self.camera.is_some_and(|c| c.same_view(camera)) {
+            self.reproject_to(camera);
+        }
         if !self.camera.is_some_and(|c| c.same_view(camera)) {
             // A new view: what was gathered belongs elsewhere on screen.
             self.sum.fill(Vec3::ZERO);
@@ -266,15 +327,26 @@ impl History {
             self.moving.clear();
             self.camera = Some(*camera);
         }
-        let p = self.params;
         let (w, h) = (self.width as usize, self.height as usize);
         let mut fresh = std::mem::take(&mut self.fresh);
         for f in fresh.drain(..) {
-            if f.t < since {
-                // Traced from another view.
-                continue;
-            }
-            let q = f.y as usize * w + f.x as usize;
+            let q = if p.reproject {
+                // Where the sample's surface point is seen now.
+                match camera.project(f.hit_point + f.velocity * (t - f.t) as f32) {
+                    Some((x, y, _))
+                        if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h =>
+                    {
+                        y as usize * w + x as usize
+                    }
+                    _ => continue,
+                }
+            } else {
+                if f.t < since {
+                    // Traced from another view.
+                    continue;
+                }
+                f.y as usize * w + f.x as usize
+            };
             if !f.still {
                 // Something moving covers (part of) the pixel now.
                 self.cut(q);
@@ -290,18 +362,18 @@ impl History {
             match (outside, self.held[q].take()) {
                 (false, held) => {
                     // In range: a held sample was a rare part of the pixel after all.
-                    if let Some((c, t)) = held {
-                        self.add(q, c, t);
+                    if let Some((c, t, hit)) = held {
+                        self.add(q, c, t, hit);
                     }
-                    self.add(q, f.color, f.t);
+                    self.add(q, f.color, f.t, f.hit_point);
                 }
-                (true, None) => self.held[q] = Some((f.color, f.t)),
-                (true, Some((c, t))) => {
+                (true, None) => self.held[q] = Some((f.color, f.t, f.hit_point)),
+                (true, Some((c, t, hit))) => {
                     // Two in a row outside what the pixel showed: it changed (a surface
                     // uncovered, a shadow gone); start over from them.
                     self.cut(q);
-                    self.add(q, c, t);
-                    self.add(q, f.color, f.t);
+                    self.add(q, c, t, hit);
+                    self.add(q, f.color, f.t, f.hit_point);
                 }
             }
         }
