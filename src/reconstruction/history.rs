@@ -8,9 +8,13 @@
 //! sub-pixel position decides the pixel, so the mean converges to the same pixel
 //! integral the ideal image estimates), which keeps a sample count and has no horizon.
 //!
+//! When the camera moves the history follows the surfaces (`reproject`, on by
+//! default): each pixel's history moves to where its newest sample's hit point is seen
+//! now (nearest pixel, nearest depth wins) with its count capped, and new samples go
+//! where their hit point is seen now. Without it, a new view drops all of it, and
+//! samples pushed between two refreshes count only if the view was the same at both.
+//!
 //! History is dropped where it can no longer be trusted:
-//! - **the camera moved**: all of it (samples are kept in screen space); samples
-//!   pushed between two refreshes count only if the camera was the same at both;
 //! - **something moving took part in a sample there** (its hit moves, or a moving
 //!   object cast a shadow on it or was seen in its reflection or refraction:
 //!   [`crate::trace::Sample::dynamic`]): that pixel, at once;
