@@ -13,14 +13,14 @@ use frameless::{
     },
     scene::{
         animation::KeyframeTrack, Camera, CameraPath, CameraTrack, Group, Light, Material, Node,
-        NodeKind, Scene, Sphere,
+        NodeKind, Scene,
     },
     trace::{TraceOptions, Tracer},
 };
 use glam::Vec3;
 
 mod common;
-use common::{flat, quad};
+use common::{flat, quad, two_spheres};
 
 fn base(groups: Vec<Group>) -> Scene {
     Scene {
@@ -93,25 +93,7 @@ fn point_tracking_histogram_on_a_one_pixel_pan() {
 
 /// Static scene with edges (sphere silhouettes) so antialiasing matters.
 fn static_scene() -> Scene {
-    let mut s = base(vec![Group {
-        node: None,
-        triangles: quad(-5.0, 5.0, -5.0, 5.0, -1.0, 0),
-        spheres: vec![
-            Sphere {
-                center: Vec3::new(-0.3, 0.1, -0.5),
-                radius: 0.35,
-                material: 1,
-            },
-            Sphere {
-                center: Vec3::new(0.45, -0.25, -0.3),
-                radius: 0.2,
-                material: 1,
-            },
-        ],
-        ..Default::default()
-    }]);
-    s.camera.base.eye = Vec3::new(0.0, 0.0, 1.5);
-    s
+    two_spheres()
 }
 
 fn cfg(methods: &[MethodKind], rate: f64, duration: f64) -> EvalConfig {

@@ -12,14 +12,14 @@ use frameless::{
     render::still,
     scene::{
         animation::{KeyframeTrack, TcbKey, VectorSpline},
-        Node, NodeKind, Scene,
+        Scene,
     },
     trace::{TextureFilter, TraceOptions, Tracer},
 };
 use glam::Vec3;
 
 mod common;
-use common::two_spheres;
+use common::{animate, two_spheres};
 
 const SIZE: u32 = 48;
 /// About 43 samples per pixel per second at 48×48.
@@ -115,20 +115,16 @@ fn starts_moving() -> Scene {
         .into_iter()
         .map(|(t, dx)| TcbKey::catmull_rom(t, Vec3::new(dx, 0.0, 0.0)))
         .collect();
-    scene.tracks.push(KeyframeTrack {
-        name: "big".into(),
-        translation: VectorSpline::new(keys),
-        ..Default::default()
-    });
-    scene.nodes.push(Node {
-        parent: None,
-        kind: NodeKind::Animated {
+    let node = animate(
+        &mut scene,
+        KeyframeTrack {
             name: "big".into(),
-            track: Some(0),
+            translation: VectorSpline::new(keys),
+            ..Default::default()
         },
-    });
+    );
     scene.groups.push(frameless::scene::Group {
-        node: Some(0),
+        node: Some(node),
         spheres: vec![big],
         ..Default::default()
     });

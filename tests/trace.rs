@@ -14,6 +14,9 @@ use frameless::{
 };
 use glam::{Mat4, Vec2, Vec3};
 
+mod common;
+use common::animate;
+
 fn base_scene() -> Scene {
     Scene {
         name: "t".into(),
@@ -233,16 +236,9 @@ fn samples_shadowed_by_a_moving_blocker_are_dynamic() {
             triangles: quad(0.0, 3.0, 0),
             ..Default::default()
         });
-        s.tracks.push(linear_track(speed));
-        s.nodes.push(Node {
-            parent: None,
-            kind: NodeKind::Animated {
-                name: "mover".into(),
-                track: Some(0),
-            },
-        });
+        let node = animate(&mut s, linear_track(speed));
         s.groups.push(Group {
-            node: Some(0),
+            node: Some(node),
             triangles: quad(2.0, 0.3, 0),
             ..Default::default()
         });

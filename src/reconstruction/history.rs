@@ -33,7 +33,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{image::Image, scene::CameraFrame};
+use crate::{image::Image, scene::CameraFrame, trace::luminance};
 
 /// Parameters of the still-region history.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -129,8 +129,55 @@ impl HistoryParams {
 
 const EMPTY_RANGE: (f32, f32) = (f32::INFINITY, f32::NEG_INFINITY);
 
-fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+/// Each pixel's accumulated history, one array per field.
+#[derive(Clone)]
+struct Accum {
+    sum: Vec<Vec3>,
+    /// Sum of the samples' times, for the age of what is shown.
+    time_sum: Vec<f64>,
+    count: Vec<f32>,
+    /// Range of the luminances in each pixel's history (empty: `lo > hi`).
+    lum_range: Vec<(f32, f32)>,
+    /// The hit point of each pixel's newest sample (for reprojection).
+    point: Vec<Vec3>,
+}
+
+impl Accum {
+    fn new(n: usize) -> Self {
+        Self {
+            sum: vec![Vec3::ZERO; n],
+            time_sum: vec![0.0; n],
+            count: vec![0.0; n],
+            lum_range: vec![EMPTY_RANGE; n],
+            point: vec![Vec3::ZERO; n],
+        }
+    }
+
+    /// Every pixel empty.
+    fn reset(&mut self) {
+        self.sum.fill(Vec3::ZERO);
+        self.time_sum.fill(0.0);
+        self.count.fill(0.0);
+        self.lum_range.fill(EMPTY_RANGE);
+    }
+
+    /// Pixel `q` empty.
+    fn clear(&mut self, q: usize) {
+        self.sum[q] = Vec3::ZERO;
+        self.time_sum[q] = 0.0;
+        self.count[q] = 0.0;
+        self.lum_range[q] = EMPTY_RANGE;
+    }
+
+    /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
+    fn take(&mut self, d: usize, from: &Accum, q: usize, cap: f32) {
+        let k = from.count[q].min(cap) / from.count[q];
+        self.sum[d] = from.sum[q] * k;
+        self.time_sum[d] = from.time_sum[q] * k as f64;
+        self.count[d] = from.count[q] * k;
+        self.lum_range[d] = from.lum_range[q];
+        self.point[d] = from.point[q];
+    }
 }
 
 /// A sample waiting to enter the history at the next refresh.
@@ -150,17 +197,14 @@ pub(super) struct History {
     params: HistoryParams,
     width: u32,
     height: u32,
-    sum: Vec<Vec3>,
-    /// Sum of the samples' times, for the age of what is shown.
-    time_sum: Vec<f64>,
-    count: Vec<f32>,
-    /// Range of the luminances in each pixel's history (empty: `lo > hi`).
-    lum_range: Vec<(f32, f32)>,
+    acc: Accum,
+    /// The next `acc` while the history is reprojected (reused), and the depth of
+    /// what landed on each pixel.
+    scratch: Accum,
+    depth: Vec<f32>,
     /// A still sample outside its pixel's range, held back until the next one says
     /// whether it was a rare part of the pixel (kept) or the start of a change.
     held: Vec<Option<(Vec3, f64, Vec3)>>,
-    /// The hit point of each pixel's newest sample (for reprojection).
-    point: Vec<Vec3>,
     /// Recent samples of moving surfaces `(hit point, velocity, time)`: at each refresh
     /// they cut the history where they are now, ahead of the samples that will land
     /// there.
@@ -185,12 +229,10 @@ impl History {
             params,
             width,
             height,
-            sum: vec![Vec3::ZERO; n],
-            time_sum: vec![0.0; n],
-            count: vec![0.0; n],
-            lum_range: vec![EMPTY_RANGE; n],
+            acc: Accum::new(n),
+            scratch: Accum::new(n),
+            depth: vec![f32::INFINITY; n],
             held: vec![None; n],
-            point: vec![Vec3::ZERO; n],
             moving: Default::default(),
             camera: None,
             last_camera: None,
@@ -226,76 +268,61 @@ impl History {
         self.view_since = Some(t0);
     }
 
+    /// The pixel where world point `p` is seen from `camera`, if on screen.
+    fn pixel_at(&self, camera: &CameraFrame, p: Vec3) -> Option<(usize, f32)> {
+        let (x, y, z) = camera.project(p)?;
+        (x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32)
+            .then(|| (y as usize * self.width as usize + x as usize, z))
+    }
+
     /// Move every pixel's history to where its surface point is seen from `camera`.
     fn reproject_to(&mut self, camera: &CameraFrame) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let n = w * h;
         let cap = self.params.reprojected_count;
-        let mut sum = vec![Vec3::ZERO; n];
-        let mut time_sum = vec![0.0; n];
-        let mut count = vec![0.0f32; n];
-        let mut range = vec![EMPTY_RANGE; n];
-        let mut point = vec![Vec3::ZERO; n];
-        let mut depth = vec![f32::INFINITY; n];
-        for q in 0..n {
-            if self.count[q] <= 0.0 {
+        self.scratch.reset();
+        self.depth.fill(f32::INFINITY);
+        for q in 0..self.acc.count.len() {
+            if self.acc.count[q] <= 0.0 {
                 continue;
             }
-            let Some((x, y, z)) = camera.project(self.point[q]) else {
+            let Some((d, z)) = self.pixel_at(camera, self.acc.point[q]) else {
                 continue;
             };
-            if !(x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h) {
-                continue;
-            }
-            let d = y as usize * w + x as usize;
-            if z < depth[d] {
-                depth[d] = z;
-                let k = self.count[q].min(cap) / self.count[q];
-                sum[d] = self.sum[q] * k;
-                time_sum[d] = self.time_sum[q] * k as f64;
-                count[d] = self.count[q] * k;
-                range[d] = self.lum_range[q];
-                point[d] = self.point[q];
+            if z < self.depth[d] {
+                self.depth[d] = z;
+                self.scratch.take(d, &self.acc, q, cap);
             }
         }
-        self.sum = sum;
-        self.time_sum = time_sum;
-        self.count = count;
-        self.lum_range = range;
-        self.point = point;
+        std::mem::swap(&mut self.acc, &mut self.scratch);
         self.held.fill(None);
         self.camera = Some(*camera);
     }
 
     fn cut(&mut self, q: usize) {
-        self.cuts += (self.count[q] > 0.0) as u64;
-        self.sum[q] = Vec3::ZERO;
-        self.time_sum[q] = 0.0;
-        self.count[q] = 0.0;
-        self.lum_range[q] = EMPTY_RANGE;
+        self.cuts += (self.acc.count[q] > 0.0) as u64;
+        self.acc.clear(q);
         self.held[q] = None;
     }
 
     fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3) {
-        self.point[q] = hit;
-        let max = self.params.max_count;
-        self.sum[q] += c;
-        self.time_sum[q] += t;
-        self.count[q] += 1.0;
+        let (a, max) = (&mut self.acc, self.params.max_count);
+        a.point[q] = hit;
+        a.sum[q] += c;
+        a.time_sum[q] += t;
+        a.count[q] += 1.0;
         let l = luminance(c);
-        let r = &mut self.lum_range[q];
+        let r = &mut a.lum_range[q];
         *r = (r.0.min(l), r.1.max(l));
-        if self.count[q] > max {
-            let k = max / self.count[q];
-            self.sum[q] *= k;
-            self.time_sum[q] *= k as f64;
-            self.count[q] = max;
+        if a.count[q] > max {
+            let k = max / a.count[q];
+            a.sum[q] *= k;
+            a.time_sum[q] *= k as f64;
+            a.count[q] = max;
         }
     }
 
     /// Samples in each pixel's history.
     pub(super) fn counts(&self) -> &[f32] {
-        &self.count
+        &self.acc.count
     }
 
     /// Take in the samples pushed since the last refresh and blend the history over
@@ -322,10 +349,7 @@ impl History {
         }
         if !self.camera.is_some_and(|c| c.same_view(camera)) {
             // A new view: what was gathered belongs elsewhere on screen.
-            self.sum.fill(Vec3::ZERO);
-            self.time_sum.fill(0.0);
-            self.count.fill(0.0);
-            self.lum_range.fill(EMPTY_RANGE);
+            self.acc.reset();
             self.held.fill(None);
             self.moving.clear();
             self.camera = Some(*camera);
@@ -335,13 +359,9 @@ impl History {
         for f in fresh.drain(..) {
             let q = if p.reproject {
                 // Where the sample's surface point is seen now.
-                match camera.project(f.hit_point + f.velocity * (t - f.t) as f32) {
-                    Some((x, y, _))
-                        if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h =>
-                    {
-                        y as usize * w + x as usize
-                    }
-                    _ => continue,
+                match self.pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32) {
+                    Some((q, _)) => q,
+                    None => continue,
                 }
             } else {
                 if f.t < since {
@@ -359,8 +379,8 @@ impl History {
                 continue;
             }
             let l = luminance(f.color);
-            let (lo, hi) = self.lum_range[q];
-            let outside = self.count[q] >= p.min_count_to_test
+            let (lo, hi) = self.acc.lum_range[q];
+            let outside = self.acc.count[q] >= p.min_count_to_test
                 && (l < lo - p.range_tolerance || l > hi + p.range_tolerance);
             match (outside, self.held[q].take()) {
                 (false, held) => {
@@ -391,10 +411,8 @@ impl History {
         }
         for k in 0..self.moving.len() {
             let (hit, v, ts) = self.moving[k];
-            if let Some((x, y, _)) = camera.project(hit + v * (t - ts) as f32) {
-                if x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h {
-                    self.cut(y as usize * w + x as usize);
-                }
+            if let Some((q, _)) = self.pixel_at(camera, hit + v * (t - ts) as f32) {
+                self.cut(q);
             }
         }
         self.recon.clear();
@@ -403,10 +421,10 @@ impl History {
         let rows: Vec<(u64, f64)> = image
             .pixels
             .par_chunks_mut(w)
-            .zip(self.sum.par_chunks_mut(w))
-            .zip(self.time_sum.par_chunks_mut(w))
-            .zip(self.count.par_chunks_mut(w))
-            .zip(self.lum_range.par_chunks_mut(w))
+            .zip(self.acc.sum.par_chunks_mut(w))
+            .zip(self.acc.time_sum.par_chunks_mut(w))
+            .zip(self.acc.count.par_chunks_mut(w))
+            .zip(self.acc.lum_range.par_chunks_mut(w))
             .zip(age.par_chunks(w))
             .enumerate()
             .map(|(y, (((((out, sum), time_sum), count), range), age))| {

@@ -2,7 +2,10 @@
 //! every helper is used everywhere).
 #![allow(dead_code)]
 
-use frameless::scene::{Camera, CameraTrack, Group, Light, Material, Scene, Sphere, Triangle};
+use frameless::scene::{
+    animation::KeyframeTrack, Camera, CameraTrack, Group, Light, Material, Node, NodeKind, Scene,
+    Sphere, Triangle,
+};
 use glam::Vec3;
 
 /// A flat-shaded material: ambient only, so luminance is exactly its color.
@@ -84,4 +87,17 @@ pub fn two_spheres() -> Scene {
         ambient: Vec3::splat(0.3),
         ..Default::default()
     }
+}
+
+/// Add `track` to `scene` with a root node it animates; returns the node's index.
+pub fn animate(scene: &mut Scene, track: KeyframeTrack) -> u32 {
+    scene.nodes.push(Node {
+        parent: None,
+        kind: NodeKind::Animated {
+            name: track.name.clone(),
+            track: Some(scene.tracks.len() as u32),
+        },
+    });
+    scene.tracks.push(track);
+    (scene.nodes.len() - 1) as u32
 }
