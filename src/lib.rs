@@ -8,6 +8,7 @@ pub mod bench;
 pub mod clock;
 pub mod evaluation;
 pub mod image;
+pub mod limits;
 pub mod methods;
 pub mod realtime;
 pub mod reconstruction;

@@ -350,9 +350,10 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         Method, MethodContext,
     };
     let rate = a.rate;
-    if !(a.duration > 0.0 && a.duration <= 3600.0) {
-        bail!("--duration {} must be in (0, 3600] seconds", a.duration);
-    }
+    use frameless::limits;
+    limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
+    limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
+    limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
     let mut params = match a.preset {
         args::SamplerPreset::Ours => SamplerParams::ours(),
         args::SamplerPreset::Paper => SamplerParams::paper(),
@@ -459,6 +460,7 @@ fn view(a: args::ViewArgs) -> Result<()> {
         }
     }
     let Size(w, h) = a.size;
+    cfg.check_size(w, h)?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(

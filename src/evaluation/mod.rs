@@ -13,7 +13,8 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    clock::Clock,
+    clock::{rate_label, Clock},
+    limits,
     methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
     render::cache::IdealCache,
     scene::{CameraPath, Scene},
@@ -194,22 +195,25 @@ impl EvalConfig {
 
     /// Check the settings; the error says what is wrong and how to fix it.
     pub fn validate(&self) -> Result<(), EvalError> {
-        let finite_pos = |v: f64| v.is_finite() && v > 0.0;
         let bad = |option, why: String| Err(EvalError::config(option, why));
-        if !self.start.is_finite() {
-            return bad("--start", "must be a finite number".into());
+        let times = [
+            ("--warmup", limits::check_warmup(self.warmup)),
+            ("--duration", limits::check_duration(self.duration)),
+            (
+                "--start",
+                limits::check_start(self.start, self.warmup, self.duration),
+            ),
+        ];
+        for (option, check) in times {
+            if let Err(why) = check {
+                return bad(option, why);
+            }
         }
-        if !finite_pos(self.duration) || self.duration > 3600.0 {
+        if !(self.refresh_hz.is_finite() && (1.0..=1000.0).contains(&self.refresh_hz)) {
             return bad(
-                "--duration",
-                format!("{} must be in (0, 3600] seconds", self.duration),
+                "refresh rate",
+                format!("{} Hz must be in [1, 1000]", self.refresh_hz),
             );
-        }
-        if !(self.warmup.is_finite() && self.warmup >= 0.0) {
-            return bad("--warmup", format!("{} must be ≥ 0", self.warmup));
-        }
-        if !finite_pos(self.refresh_hz) {
-            return bad("refresh rate", "must be positive".into());
         }
         if self.rates.is_empty() {
             return bad("--rates", "lists no rate".into());
@@ -217,25 +221,42 @@ impl EvalConfig {
         if self.methods.is_empty() {
             return bad("--methods", "lists no method".into());
         }
+        // Rows, files and plot series are keyed by method and by rate label: a repeat
+        // would be run twice and overwrite itself.
+        for (i, m) in self.methods.iter().enumerate() {
+            if self.methods[..i].contains(m) {
+                return bad("--methods", format!("lists {m} twice"));
+            }
+        }
+        for (i, &r) in self.rates.iter().enumerate() {
+            if let Some(&q) = self.rates[..i]
+                .iter()
+                .find(|&&q| rate_label(q) == rate_label(r))
+            {
+                let why = if q == r {
+                    format!("lists {} twice", rate_label(r))
+                } else {
+                    format!(
+                        "{q} and {r} would both be labelled {} (rates must differ in their first three digits)",
+                        rate_label(r)
+                    )
+                };
+                return bad("--rates", why);
+            }
+        }
         if self.flip_every == 0 {
             return bad("--flip-every", "must be at least 1".into());
         }
         if self.ideal_spp == 0 {
             return bad("--ideal-spp", "must be at least 1".into());
         }
+        if let Err(why) = limits::check_display(self.width, self.height) {
+            return bad("--size", why);
+        }
         let shape = self.shape();
         for &r in &self.rates {
-            if !finite_pos(r) {
-                return bad(
-                    "--rates",
-                    format!("{r} must be a positive number of samples per second"),
-                );
-            }
-            if r > 1e10 {
-                return bad(
-                    "--rates",
-                    format!("{r} is absurd (more than 1e10 samples/s)"),
-                );
+            if let Err(why) = limits::check_rate(r, shape.seconds) {
+                return bad("--rates", why);
             }
             for m in &self.methods {
                 (m.info().check_rate)(&shape, r)?;

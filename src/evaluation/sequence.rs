@@ -91,17 +91,11 @@ impl SequenceConfig {
     /// method (e.g. a rate too low for a framed method to finish one frame).
     pub fn validate(&self) -> Result<(), EvalError> {
         let bad = |option, why: String| Err(EvalError::Config { option, why });
-        if !(self.duration > 0.0 && self.duration <= 3600.0) {
-            return bad(
-                "--duration",
-                format!("{} must be in (0, 3600] seconds", self.duration),
-            );
+        if let Err(why) = crate::limits::check_duration(self.duration) {
+            return bad("--duration", why);
         }
-        if !(self.warmup >= 0.0 && self.warmup <= 3600.0) {
-            return bad(
-                "--warmup",
-                format!("{} must be in [0, 3600] seconds", self.warmup),
-            );
+        if let Err(why) = crate::limits::check_warmup(self.warmup) {
+            return bad("--warmup", why);
         }
         if !(self.fps > 0.0 && self.fps <= 1000.0) {
             return bad("--fps", format!("{} must be in (0, 1000]", self.fps));

@@ -160,6 +160,9 @@ pub enum MethodError {
         /// The valid range.
         why: &'static str,
     },
+    /// A buffer or size over its budget ([`crate::limits`]).
+    #[error("{0}")]
+    Budget(String),
     /// A consistency check of a method's data failed (a bug).
     #[error("inconsistent {what}: {why}")]
     Inconsistent {

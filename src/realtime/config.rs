@@ -71,6 +71,27 @@ pub struct RtConfig {
 }
 
 impl RtConfig {
+    /// Check that a `width × height` display fits the run budgets ([`crate::limits`])
+    /// with this method's buffers, before any thread allocates them.
+    pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
+        crate::limits::check_display(width, height).map_err(RealtimeError::Config)?;
+        if self.method == RtMethod::Adaptive {
+            crate::limits::check_buffer(
+                "adaptive sampler's deep buffer",
+                crate::methods::adaptive::deep_buffer::DeepBuffer::bytes(
+                    width,
+                    height,
+                    self.sampler.depth,
+                ),
+                &format!("{width}x{height} pixels × {} crosshairs", self.sampler.depth),
+            )
+            .map_err(RealtimeError::Config)?;
+            crate::reconstruction::Reconstructor::check_budget(width, height, &self.recon)
+                .map_err(RealtimeError::Config)?;
+        }
+        Ok(())
+    }
+
     /// Check ranges.
     pub fn validate(&self) -> Result<(), RealtimeError> {
         if !(1..=256).contains(&self.sampling_threads) {

@@ -81,6 +81,8 @@ impl Pipeline {
     /// Start the threads; scene time `config.start` is now.
     pub fn start(tracer: Arc<Tracer>, config: RtConfig) -> Result<Self, RealtimeError> {
         config.validate()?;
+        let (w, h) = tracer.size();
+        config.check_size(w, h)?;
         let shared = Arc::new(Shared::new(tracer, config));
         let mut handles = Vec::new();
         let mut spawner = Spawner::new(&shared, &mut handles);

@@ -173,8 +173,23 @@ pub struct Reconstructor {
 }
 
 impl Reconstructor {
+    /// Check that a reconstructor for a `width × height` display with `params` fits the
+    /// run budgets ([`crate::limits`]) before any of it is allocated.
+    pub fn check_budget(width: u32, height: u32, params: &ReconParams) -> Result<(), String> {
+        crate::limits::check_display(width, height)?;
+        let n = width as u64 * height as u64;
+        let capacity = (params.ring_factor * n as f64).round().max(1.0);
+        let per_sample = (ring::field::COUNT * 4 + 8) as f64;
+        crate::limits::check_buffer(
+            "reconstructor's sample ring",
+            (capacity * per_sample).min(u64::MAX as f64) as u64,
+            &format!("ring factor {} × {width}x{height} pixels", params.ring_factor),
+        )
+    }
+
     /// A reconstructor for a `width × height` display fed by a sampler spending `rate`
-    /// samples per second (the `R` of the local rate `R_l`).
+    /// samples per second (the `R` of the local rate `R_l`). Callers check
+    /// [`Reconstructor::check_budget`] first where the size comes from a user.
     pub fn new(width: u32, height: u32, rate: f64, params: ReconParams) -> Self {
         let n = (width * height) as usize;
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);

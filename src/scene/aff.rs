@@ -63,7 +63,7 @@ use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
 use super::animation::{KeyframeTrack, RotationSpline, TcbKey, VectorSpline, MIN_SPLINE_KEYS};
 use super::camera::{Camera, CameraTrack};
 use super::{
-    AnimatedTriangle, AnimationRange, Cone, Group, Light, Material, MaterialId, Node, NodeId,
+    limits, AnimatedTriangle, AnimationRange, Cone, Group, Light, Material, MaterialId, Node, NodeId,
     NodeKind, Scene, SceneError, Sphere, Texture, TextureId, TrackId, Triangle,
 };
 
@@ -80,7 +80,7 @@ const MAX_RESOLUTION: i64 = 1 << 16;
 
 /// Load an AFF scene from its main file.
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+    let bytes = crate::scene::limits::read_bounded(path).map_err(|e| SceneError::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
@@ -89,6 +89,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let mut scene = parse_root(&display, &bytes, dir, identity_of(path))?;
     scene.name = stem(path);
     scene.source = Some(path.to_path_buf());
+    limits::check(&scene)?;
     Ok(scene)
 }
 
@@ -98,6 +99,7 @@ pub fn parse_str(name: &str, text: &[u8], base_dir: &Path) -> Result<Scene, Scen
     let path = base_dir.join(name);
     let mut scene = parse_root(name, text, base_dir, identity_of(&path))?;
     scene.name = stem(Path::new(name));
+    limits::check(&scene)?;
     Ok(scene)
 }
 
@@ -514,6 +516,10 @@ struct Parser {
     /// Files being parsed, outermost first: (identity, displayed name).
     includes: Vec<(PathBuf, String)>,
     files_parsed: usize,
+    /// Triangles made so far (static and animated), against the budget.
+    triangles: usize,
+    /// Spheres and cones made so far, against the budget.
+    analytic: usize,
     /// Last `k` block of each name.
     tracks_by_name: HashMap<String, TrackId>,
 }
@@ -544,6 +550,8 @@ impl Parser {
             frames: Vec::new(),
             includes: Vec::new(),
             files_parsed: 1,
+            triangles: 0,
+            analytic: 0,
             tracks_by_name: HashMap::new(),
         }
     }
@@ -685,6 +693,20 @@ impl Parser {
         lx.keyword("{", what).map(|_| ())
     }
 
+    fn analytic_count(&mut self, lx: &Lexer, t: Tok) -> Res<()> {
+        self.analytic += 1;
+        if self.analytic > limits::MAX_ANALYTIC {
+            return Err(lx.err(
+                t,
+                format!(
+                    "the scene expands to more than {} spheres and cones",
+                    limits::MAX_ANALYTIC
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Bakes a triangle into the current group's space and stores it.
     fn emit_triangle(
         &mut self,
@@ -695,8 +717,19 @@ impl Parser {
         tri: Triangle,
     ) -> Res<()> {
         let tri = bake_triangle(xf, tri);
-        if !tri.p.iter().all(|p| p.is_finite()) {
-            return Err(lx.err(t, "coordinates overflow after transformation".into()));
+        if let Some(&p) = tri.p.iter().find(|&&p| !limits::coordinate_ok(p)) {
+            return Err(lx.err(t, limits::coordinate_message("vertex (after transformation)", p)));
+        }
+        // Counted as they are made, so an include fan-out stops before it exhausts memory.
+        self.triangles += 1;
+        if self.triangles > limits::MAX_TRIANGLES {
+            return Err(lx.err(
+                t,
+                format!(
+                    "the scene expands to more than {} triangles",
+                    limits::MAX_TRIANGLES
+                ),
+            ));
         }
         if let Some(g) = self.scene.groups.get_mut(group) {
             g.triangles.push(tri);
@@ -771,10 +804,10 @@ impl Parser {
         if !animated {
             if let Some(f) = self.frames.last() {
                 position = f.statics.transform_point3(position);
-                if !position.is_finite() {
-                    return Err(lx.err(t, "light position overflows after transformation".into()));
-                }
             }
+        }
+        if !limits::coordinate_ok(position) {
+            return Err(lx.err(t, limits::coordinate_message("light position", position)));
         }
         self.scene.lights.push(Light {
             position,
@@ -836,13 +869,14 @@ impl Parser {
             apex_radius: apex_radius * xf.radius_scale,
             material: self.material_id(lx, t, None)?,
         };
-        if !(cone.base.is_finite()
-            && cone.apex.is_finite()
-            && cone.base_radius.is_finite()
-            && cone.apex_radius.is_finite())
+        let radii = Vec3::new(cone.base_radius, cone.apex_radius, 0.0);
+        if let Some(p) = [cone.base, cone.apex, radii]
+            .into_iter()
+            .find(|&p| !limits::coordinate_ok(p))
         {
-            return Err(lx.err(t, "cone overflows after transformation".into()));
+            return Err(lx.err(t, limits::coordinate_message("cone base, apex or radii", p)));
         }
+        self.analytic_count(lx, t)?;
         let g = self.group_index();
         self.scene.groups[g].cones.push(cone);
         Ok(())
@@ -857,9 +891,11 @@ impl Parser {
             radius: radius * xf.radius_scale,
             material: self.material_id(lx, t, None)?,
         };
-        if !(sphere.center.is_finite() && sphere.radius.is_finite()) {
-            return Err(lx.err(t, "sphere overflows after transformation".into()));
+        let extent = sphere.center.abs() + Vec3::splat(sphere.radius.abs());
+        if !limits::coordinate_ok(extent) {
+            return Err(lx.err(t, limits::coordinate_message("sphere center ± radius", extent)));
         }
+        self.analytic_count(lx, t)?;
         let g = self.group_index();
         self.scene.groups[g].spheres.push(sphere);
         Ok(())
@@ -936,6 +972,9 @@ impl Parser {
             let mut n = [Vec3::ZERO; 3];
             for j in 0..3 {
                 p[j] = lx.vec3("a vertex coordinate")?;
+                if !limits::coordinate_ok(p[j]) {
+                    return Err(lx.err(t, limits::coordinate_message("vertex", p[j])));
+                }
                 n[j] = lx.vec3("a vertex normal component")?;
             }
             let face = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(Vec3::Y);
@@ -948,6 +987,16 @@ impl Parser {
             normals.push(n);
         }
         let material = self.material_id(lx, t, None)?;
+        self.triangles += 1;
+        if self.triangles > limits::MAX_TRIANGLES {
+            return Err(lx.err(
+                t,
+                format!(
+                    "the scene expands to more than {} triangles",
+                    limits::MAX_TRIANGLES
+                ),
+            ));
+        }
         self.scene.animated_triangles.push(AnimatedTriangle {
             times,
             positions,
@@ -965,8 +1014,8 @@ impl Parser {
         let mut verts = Vec::with_capacity(nv.min(PREALLOC_CAP));
         for _ in 0..nv {
             let v = xf.point(lx.vec3("a vertex coordinate")?);
-            if !v.is_finite() {
-                return Err(lx.err(t, "mesh vertex overflows after transformation".into()));
+            if !limits::coordinate_ok(v) {
+                return Err(lx.err(t, limits::coordinate_message("mesh vertex", v)));
             }
             verts.push(v);
         }
@@ -1087,7 +1136,7 @@ impl Parser {
                 format!("more than {MAX_FILES} files included in one scene"),
             ));
         }
-        let bytes = std::fs::read(&path)
+        let bytes = crate::scene::limits::read_bounded(&path)
             .map_err(|e| lx.err(t, format!("cannot read included file {display}: {e}")))?;
         let dir = path.parent().unwrap_or(Path::new("."));
         self.includes.push((identity, display.clone()));

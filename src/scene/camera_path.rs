@@ -31,7 +31,7 @@ fn err(path: &str, line: usize, column: usize, message: impl Into<String>) -> Sc
 impl CameraPath {
     /// Read a camera path file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read(path).map_err(|e| SceneError::Io {
+        let text = crate::scene::limits::read_bounded(path).map_err(|e| SceneError::Io {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;
@@ -99,6 +99,32 @@ impl CameraPath {
             }
             if (cam.at - cam.eye).length_squared() == 0.0 {
                 return Err(err(name, ln + 1, 1, "eye and at coincide"));
+            }
+            if let Some(&p) = [cam.eye, cam.at]
+                .iter()
+                .find(|&&p| !super::limits::coordinate_ok(p))
+            {
+                return Err(err(
+                    name,
+                    ln + 1,
+                    1,
+                    super::limits::coordinate_message("eye or at", p),
+                ));
+            }
+            // The view's frame is built from the up vector: a zero one, or one along the
+            // view direction, leaves the image's horizontal axis undefined.
+            let up_col = fields[..7].iter().map(|f| f.len() + 1).sum::<usize>() + 1;
+            let dir = (cam.at - cam.eye).normalize();
+            if cam.up.length_squared() == 0.0 || !cam.up.is_finite() {
+                return Err(err(name, ln + 1, up_col, "the up vector is zero"));
+            }
+            if dir.cross(cam.up.normalize()).length() < 1e-4 {
+                return Err(err(
+                    name,
+                    ln + 1,
+                    up_col,
+                    "the up vector is parallel to the view direction (at − eye)",
+                ));
             }
             if let Some((pt, _)) = keys.last() {
                 if vals[0] <= *pt {

@@ -11,8 +11,7 @@ use super::{error::ImageError, texture::MAX_TEXTURE_SIDE, Camera, Light, Scene, 
 /// Background color of scenes from formats that do not declare one.
 pub(crate) const BACKGROUND: Vec3 = Vec3::new(0.2, 0.22, 0.25);
 
-/// Largest number of triangles a scene may expand to (meshes are copied per node).
-pub(crate) const MAX_TRIANGLES: usize = 1 << 26;
+pub(crate) use super::limits::MAX_TRIANGLES;
 
 /// The scene a loader fills in for the file at `path`: named after the file, with the
 /// default background and white ambient light.

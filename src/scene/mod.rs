@@ -12,6 +12,7 @@ pub mod camera;
 pub mod camera_path;
 pub mod error;
 pub mod gltf;
+pub mod limits;
 mod loader;
 pub mod material;
 pub mod obj;
@@ -360,7 +361,8 @@ impl Scene {
     }
 }
 
-/// Load a scene from a built-in name or a file path (`.aff`; glTF and OBJ to come).
+/// Load a scene from a built-in name or a file path (`.aff`, `.gltf`/`.glb`, `.obj`),
+/// checked against the [`limits`].
 pub fn load(arg: &str) -> Result<Scene, SceneError> {
     if let Some(s) = builtin::load(arg) {
         return Ok(s);
@@ -370,7 +372,8 @@ pub fn load(arg: &str) -> Result<Scene, SceneError> {
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    match ext.as_str() {
+    // Every loader checks its scene against the `limits` before returning it.
+    let scene = match ext.as_str() {
         "aff" => aff::load(path),
         "gltf" | "glb" => gltf::load(path),
         "obj" => obj::load(path),
@@ -378,5 +381,6 @@ pub fn load(arg: &str) -> Result<Scene, SceneError> {
             path: path.to_path_buf(),
             builtins: builtin::NAMES.join(", "),
         }),
-    }
+    }?;
+    Ok(scene)
 }

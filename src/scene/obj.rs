@@ -46,6 +46,7 @@ use super::{
     loader::{
         decode_image, default_camera, default_light, empty_scene, world_bounds, MAX_TRIANGLES,
     },
+    limits::MAX_COORDINATE,
     CameraTrack, Group, Material, MaterialId, Scene, SceneError, TextureId, Triangle,
 };
 
@@ -237,7 +238,14 @@ fn prescan(file: &str, bytes: &[u8]) -> Result<Vec<FaceInfo>, SceneError> {
         let mut count = 0;
         for (col, tok) in w {
             match tok.parse::<f32>() {
-                Ok(v) if v.is_finite() => count += 1,
+                Ok(v) if v.abs() <= MAX_COORDINATE => count += 1,
+                Ok(v) if v.is_finite() => {
+                    return Err(err(
+                        ln,
+                        col,
+                        format!("`{tok}` exceeds the coordinate limit of ±{MAX_COORDINATE:e}"),
+                    ))
+                }
                 Ok(_) => return Err(err(ln, col, format!("`{tok}` is not a finite number"))),
                 Err(_) => return Err(err(ln, col, format!("`{tok}` is not a number"))),
             }
@@ -336,7 +344,7 @@ fn map_file_name(value: &str) -> &str {
 /// Load an OBJ scene (and its MTL libraries).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+    let bytes = crate::scene::limits::read_bounded(path).map_err(|e| SceneError::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
@@ -362,8 +370,18 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let mut reader = LineReader::new(&bytes);
     let result = tobj::load_obj_buf(&mut reader, &options, |name| {
         let mtl = dir.join(name);
-        let data = match std::fs::read(&mtl) {
+        let data = match crate::scene::limits::read_bounded(&mtl) {
             Ok(d) => d,
+            // A library that is missing is common in downloaded models and only costs
+            // materials; one that exists but is no regular file or is too large is a
+            // broken input.
+            Err(e) if mtl.exists() => {
+                mtl_error.borrow_mut().get_or_insert(SceneError::Io {
+                    path: mtl.clone(),
+                    message: format!("{e} (material library of {file})"),
+                });
+                return Err(tobj::LoadError::OpenFileFailed);
+            }
             Err(e) => {
                 eprintln!(
                     "warning: {file}: material library {} cannot be read ({e}); its materials fall back to the default",
@@ -504,6 +522,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         track: None,
         resolution: None,
     };
+    crate::scene::limits::check(&scene)?;
     Ok(scene)
 }
 
@@ -613,7 +632,7 @@ impl Build<'_> {
             return Ok(id);
         }
         let context = format!("map_Kd of material `{material}` in {}", lib.display());
-        let bytes = std::fs::read(&path).map_err(|e| SceneError::Io {
+        let bytes = crate::scene::limits::read_bounded(&path).map_err(|e| SceneError::Io {
             path: path.clone(),
             message: format!("{e} ({context})"),
         })?;

@@ -102,7 +102,7 @@ impl Texture {
 
     /// Read a binary PPM (P6, maxval ≤ 255 or ≤ 65535, `#` comments in the header).
     pub fn load_ppm(path: &Path) -> Result<Self, SceneError> {
-        let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+        let bytes = crate::scene::limits::read_bounded(path).map_err(|e| SceneError::Io {
             path: path.to_path_buf(),
             message: e.to_string(),
         })?;

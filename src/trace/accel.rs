@@ -2,20 +2,18 @@
 //! big group), a small top level over the animated instances, and a refit Bvh2 for
 //! animated triangles.
 
-use std::time::Duration;
-
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec3A};
 use obvhs::{
     aabb::Aabb,
-    bvh2::{builder::build_bvh2, Bvh2},
-    cwbvh::{builder::build_cwbvh_from_tris, CwBvh},
+    bvh2::Bvh2,
+    cwbvh::CwBvh,
     ray::{Ray, RayHit},
     rt_triangle::RtTriangle,
     triangle::Triangle as ObTriangle,
-    Boundable, BvhBuildParams,
+    Boundable,
 };
 
-use super::intersect;
+use super::{build, intersect};
 use crate::scene::{Cone, MaterialId, Sphere, Triangle};
 
 /// Shading attributes of one triangle, in its group's space.
@@ -79,8 +77,6 @@ pub enum PrimRef {
 /// Analytic sets up to this size are intersected one by one.
 const ANALYTIC_BRUTE_FORCE: usize = 4;
 
-/// The build quality used for rigid groups: built once, traced millions of times.
-pub const GROUP_BUILD: BvhBuildParams = BvhBuildParams::medium_build();
 
 /// A rigid set of primitives with its own BVH, in its own space.
 pub struct GroupAccel {
@@ -95,18 +91,80 @@ pub struct GroupAccel {
     analytic_bvh: Option<Bvh2>,
     /// Bounds of everything in the group.
     pub aabb: Aabb,
+    /// Triangles left out of the build: degenerate, exact copies, or beyond the build
+    /// limit.
+    pub dropped: usize,
+}
+
+/// Largest coordinate magnitude the builders are given. Loaders keep scenes within
+/// [`crate::scene::limits::MAX_COORDINATE`]; this is the last guard for what a transform
+/// or a programmatic scene produces: the builders' surface areas overflow f32 beyond
+/// about 1e19, and then obvhs indexes out of bounds.
+const BUILD_COORDINATE_LIMIT: f32 = 1e18;
+
+/// Whether a triangle can be built and hit: finite, inside the build limit and with a
+/// non-zero area (a degenerate triangle is never hit, and thousands of them at one point
+/// make identical boxes, below).
+fn buildable(t: &Triangle) -> bool {
+    let ok = |p: Vec3| p.is_finite() && p.abs().max_element() <= BUILD_COORDINATE_LIMIT;
+    t.p.iter().all(|&p| ok(p)) && (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]) != Vec3::ZERO
+}
+
+/// The triangles worth building: [`buildable`] ones, each exact copy of an earlier one
+/// dropped (the same vertices in any rotation: a copy hits at the same distance, so it
+/// can never show, only slow the build).
+fn distinct_buildable(triangles: &[Triangle]) -> Vec<usize> {
+    let mut seen = std::collections::HashSet::with_capacity(triangles.len());
+    let key = |t: &Triangle| {
+        let bits = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+        let mut v = t.p.map(bits);
+        // Rotations keep the winding, so the front face and normal are the same.
+        let first = (0..3).min_by_key(|&i| v[i]).unwrap_or(0);
+        v.rotate_left(first);
+        (v, t.material)
+    };
+    (0..triangles.len())
+        .filter(|&i| buildable(&triangles[i]) && seen.insert(key(&triangles[i])))
+        .collect()
+}
+
+/// A box clamped to the build limit (non-finite bounds become the whole range), for the
+/// top level, whose boxes come from animated transforms no loader can bound.
+pub fn finite_aabb(b: Aabb) -> Aabb {
+    let lim = Vec3A::splat(BUILD_COORDINATE_LIMIT);
+    let fix = |v: Vec3A, fallback: Vec3A| {
+        Vec3A::select(v.cmpeq(v), v, fallback).clamp(-lim, lim)
+    };
+    Aabb {
+        min: fix(b.min, -lim),
+        max: fix(b.max, lim),
+    }
 }
 
 impl GroupAccel {
-    /// Build from triangles (already in the group's space, optionally transformed by
-    /// `xform`) and analytic shapes.
+    /// Build from triangles (already in the group's space) and analytic shapes. Triangles
+    /// that cannot be hit (degenerate, exact copies) or built (beyond the build limit) are
+    /// left out; see [`GroupAccel::dropped`].
     pub fn build(triangles: &[Triangle], analytic: Vec<Analytic>) -> Self {
-        let obtris: Vec<ObTriangle> = triangles
+        let keep = distinct_buildable(triangles);
+        let dropped = triangles.len() - keep.len();
+        let obtris: Vec<ObTriangle> = keep
             .iter()
-            .map(|t| ObTriangle {
-                v0: t.p[0].into(),
-                v1: t.p[1].into(),
-                v2: t.p[2].into(),
+            .map(|&i| {
+                let t = &triangles[i];
+                ObTriangle {
+                    v0: t.p[0].into(),
+                    v1: t.p[1].into(),
+                    v2: t.p[2].into(),
+                }
+            })
+            .collect();
+        let analytic: Vec<Analytic> = analytic
+            .into_iter()
+            .filter(|a| {
+                let b = a.aabb();
+                (b.min.is_finite() && b.max.is_finite())
+                    && b.min.abs().max(b.max.abs()).max_element() <= BUILD_COORDINATE_LIMIT
             })
             .collect();
         let mut aabb = Aabb::empty();
@@ -119,11 +177,12 @@ impl GroupAccel {
         let (bvh, tris, attrs) = if obtris.is_empty() {
             (None, Vec::new(), Vec::new())
         } else {
-            let bvh = build_cwbvh_from_tris(&obtris, GROUP_BUILD, &mut Duration::ZERO.clone());
+            let boxes: Vec<Aabb> = obtris.iter().map(|t| t.aabb()).collect();
+            let bvh = build::build_cwbvh(&boxes);
             let mut tris = Vec::with_capacity(bvh.primitive_indices.len());
             let mut attrs = Vec::with_capacity(bvh.primitive_indices.len());
             for &i in &bvh.primitive_indices {
-                let t = &triangles[i as usize];
+                let t = &triangles[keep[i as usize]];
                 tris.push(RtTriangle::from(&obtris[i as usize]));
                 let ng = (t.p[1] - t.p[0])
                     .cross(t.p[2] - t.p[0])
@@ -137,12 +196,8 @@ impl GroupAccel {
             (Some(bvh), tris, attrs)
         };
         let (analytic, analytic_bvh) = if analytic.len() > ANALYTIC_BRUTE_FORCE {
-            let boxes: Vec<BoxPrim> = analytic.iter().map(|a| BoxPrim(a.aabb())).collect();
-            let bvh = build_bvh2(
-                &boxes,
-                BvhBuildParams::medium_build(),
-                &mut Duration::ZERO.clone(),
-            );
+            let boxes: Vec<Aabb> = analytic.iter().map(|a| a.aabb()).collect();
+            let bvh = build::build_bvh2(&boxes);
             let ordered = bvh
                 .primitive_indices
                 .iter()
@@ -159,6 +214,7 @@ impl GroupAccel {
             analytic,
             analytic_bvh,
             aabb,
+            dropped,
         }
     }
 
@@ -308,19 +364,6 @@ pub fn build_top_level<T: Boundable>(items: &[T]) -> Option<Bvh2> {
     if items.is_empty() {
         return None;
     }
-    Some(build_bvh2(
-        items,
-        BvhBuildParams::fastest_build(),
-        &mut Duration::ZERO.clone(),
-    ))
-}
-
-/// Boxes with an index, for building BVHs over arbitrary bounds.
-#[derive(Clone, Copy)]
-pub struct BoxPrim(pub Aabb);
-
-impl Boundable for BoxPrim {
-    fn aabb(&self) -> Aabb {
-        self.0
-    }
+    let boxes: Vec<Aabb> = items.iter().map(|i| finite_aabb(i.aabb())).collect();
+    Some(build::build_bvh2(&boxes))
 }

@@ -37,6 +37,12 @@ pub struct DeepBuffer {
 }
 
 impl DeepBuffer {
+    /// Bytes a `width × height` buffer of `depth` crosshairs per pixel takes.
+    pub fn bytes(width: u32, height: u32, depth: usize) -> u64 {
+        let n = width as u64 * height as u64;
+        n * depth as u64 * std::mem::size_of::<Crosshair>() as u64 + 2 * n
+    }
+
     /// An empty buffer for a `width × height` image, `depth` crosshairs per pixel.
     pub fn new(width: u32, height: u32, depth: usize) -> Self {
         let n = (width * height) as usize;

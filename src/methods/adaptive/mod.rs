@@ -12,7 +12,7 @@ pub mod vis;
 
 use std::sync::Arc;
 
-use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodError, MethodInfo};
+use super::{Budget, RunShape, Displayed, Method, MethodContext, MethodError, MethodInfo};
 use crate::{
     reconstruction::{ReconParams, Reconstructor},
     trace::Tracer,
@@ -20,12 +20,26 @@ use crate::{
 pub use params::SamplerParams;
 pub use sampler::Sampler;
 
+/// Whether the sampler's deep buffer and the reconstructor's ring fit the run budgets at
+/// this display size: checked when an evaluation's settings are, before any work.
+fn fits(shape: &RunShape, sampler: SamplerParams, recon: ReconParams) -> Result<(), MethodError> {
+    let (w, h) = (shape.width, shape.height);
+    crate::limits::check_display(w, h).map_err(MethodError::Budget)?;
+    crate::limits::check_buffer(
+        "adaptive sampler's deep buffer",
+        deep_buffer::DeepBuffer::bytes(w, h, sampler.depth),
+        &format!("{w}x{h} pixels × {} crosshairs", sampler.depth),
+    )
+    .map_err(MethodError::Budget)?;
+    Reconstructor::check_budget(w, h, &recon).map_err(MethodError::Budget)
+}
+
 /// `adaptive`: ours, the paper's method that keeps converging where the view is still.
 pub const ADAPTIVE: MethodInfo = MethodInfo {
     name: "adaptive",
     description: "adaptive frameless (ours): closed-loop sampler over a K-D tiling of a deep buffer, space-time reconstruction with a still-region history",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::converging()),
     build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::ours())?)),
 };
 
@@ -34,7 +48,7 @@ pub const ADAPTIVE_PAPER: MethodInfo = MethodInfo {
     name: "adaptive-paper",
     description: "adaptive frameless as in the paper: every crosshair reprojected, no history",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::paper(), ReconParams::paper()),
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
@@ -49,7 +63,7 @@ pub const ADAPTIVE_NO_REPROJECTION: MethodInfo = MethodInfo {
     name: "adaptive-no-reprojection",
     description: "adaptive frameless without reprojection in the sampler",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::no_reprojection(), ReconParams::converging()),
     build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::no_reprojection())?)),
 };
 
@@ -58,7 +72,7 @@ pub const ADAPTIVE_NO_HISTORY: MethodInfo = MethodInfo {
     name: "adaptive-no-history",
     description: "adaptive frameless without the reconstructor's still-region history",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::paper()),
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
@@ -73,7 +87,7 @@ pub const ADAPTIVE_NO_REPROJ_RECON: MethodInfo = MethodInfo {
     name: "adaptive-no-reproj-recon",
     description: "adaptive frameless without reprojection in the reconstructor",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::no_reprojection()),
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
@@ -88,7 +102,7 @@ pub const ADAPTIVE_FIXED_FILTER: MethodInfo = MethodInfo {
     name: "adaptive-fixed-filter",
     description: "adaptive frameless with a fixed reconstruction filter (1 px, 0.1 s)",
     budget: Budget::Rate,
-    check_rate: any_rate,
+    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::fixed_filter()),
     build: |ctx| {
         Ok(Box::new(Adaptive::with_reconstructor(
             ctx,
@@ -119,6 +133,7 @@ impl Adaptive {
         recon: ReconParams,
     ) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
+        Reconstructor::check_budget(w, h, &recon).map_err(MethodError::Budget)?;
         if let Some(Err((name, why))) = recon.history.map(|h| h.check()) {
             return Err(MethodError::Parameter {
                 group: "reconstructor",

@@ -156,6 +156,13 @@ impl Sampler {
     ) -> Result<Self, MethodError> {
         params.validate()?;
         let (width, height) = tracer.size();
+        crate::limits::check_display(width, height).map_err(MethodError::Budget)?;
+        crate::limits::check_buffer(
+            "adaptive sampler's deep buffer",
+            DeepBuffer::bytes(width, height, params.depth),
+            &format!("{width}x{height} pixels × {} crosshairs", params.depth),
+        )
+        .map_err(MethodError::Budget)?;
         let mut s = Self {
             params,
             tracer,
@@ -636,7 +643,10 @@ impl Sampler {
     fn gain_target(&self, now: f64) -> f64 {
         let (gs, gt, age) = self.gain_inputs(now);
         let pixels = self.width as f64 * self.height as f64;
-        let (lo, hi) = (self.params.min_tiles as f64, self.max_tiles() as f64);
+        let hi = self.max_tiles() as f64;
+        // A display smaller than `min_tiles` tiles of the finest size holds fewer tiles
+        // than the floor asks for; the ceiling (what the pixels can hold) wins.
+        let lo = (self.params.min_tiles as f64).min(hi);
         if gs <= 1e-9 {
             return lo; // a flat image needs no adaptation
         }

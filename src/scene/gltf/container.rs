@@ -224,7 +224,7 @@ impl Doc {
         } else {
             self.dir.join(percent_decode(uri).map_err(bad_uri)?)
         };
-        std::fs::read(&path).map_err(|e| SceneError::Io {
+        crate::scene::limits::read_bounded(&path).map_err(|e| SceneError::Io {
             path: path.clone(),
             message: format!("{e} ({what} of {})", self.file),
         })

@@ -39,6 +39,16 @@ impl Build<'_> {
             let pos_index = attr(Semantic::Positions)
                 .ok_or_else(|| doc.invalid(format!("{ctx}: no POSITION attribute")))?;
             let positions = doc.vec3s(pos_index, &format!("{ctx} POSITION"))?;
+            if let Some((i, &p)) = positions
+                .iter()
+                .enumerate()
+                .find(|(_, &p)| !crate::scene::limits::coordinate_ok(p))
+            {
+                return Err(doc.invalid(crate::scene::limits::coordinate_message(
+                    &format!("{ctx} POSITION accessor {pos_index} element {i}"),
+                    p,
+                )));
+            }
             let nv = positions.len();
             let normals = match attr(Semantic::Normals) {
                 Some(i) => {

@@ -145,7 +145,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 /// not exist, or an orthographic one, is an error.
 pub fn load_with_camera(path: &Path, camera_name: Option<&str>) -> Result<Scene, SceneError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| SceneError::Io {
+    let bytes = crate::scene::limits::read_bounded(path).map_err(|e| SceneError::Io {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
@@ -163,5 +163,6 @@ pub fn load_with_camera(path: &Path, camera_name: Option<&str>) -> Result<Scene,
     doc.load_buffers(blob)?;
     let mut b = Build::new(&doc, path);
     b.run(camera_name)?;
+    crate::scene::limits::check(&b.scene)?;
     Ok(b.scene)
 }

@@ -1,0 +1,151 @@
+//! The run budgets: how large, long and fast a run may be. Each is checked when the
+//! settings are validated, before anything is allocated or traced, and the error names
+//! the limit. Scene budgets (coordinates, triangles, textures, file sizes) are in
+//! [`crate::scene::limits`]. The README's "Input limits" table lists them all.
+
+/// Largest sample rate, samples per second of scene time: two orders of magnitude
+/// beyond what a CPU traces, so only a typing slip reaches it.
+pub const MAX_RATE: f64 = 1e8;
+
+/// Most samples one method may trace in one run (rate × (warm-up + duration)): about
+/// two hours of tracing on a small machine.
+pub const MAX_SAMPLES_PER_RUN: f64 = 2e9;
+
+/// Longest warm-up, seconds of scene time.
+pub const MAX_WARMUP_S: f64 = 600.0;
+
+/// Longest evaluated or rendered window, seconds of scene time.
+pub const MAX_DURATION_S: f64 = 3600.0;
+
+/// Largest scene time a run may start at or reach, seconds. Scene time is evaluated in
+/// f32; at 1e4 s its resolution is about 1 ms, already a sixteenth of a 60 Hz refresh.
+pub const MAX_SCENE_TIME_S: f64 = 1e4;
+
+/// Most display pixels (4096 × 4096) for the methods that keep per-pixel state.
+pub const MAX_DISPLAY_PIXELS: u64 = 1 << 24;
+
+/// Largest single per-run buffer (the adaptive sampler's deep buffer, a
+/// reconstructor's sample ring), bytes.
+pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
+
+/// Check a buffer's size against [`MAX_BUFFER_BYTES`] before it is allocated; the error
+/// names the buffer, its size and what makes it that large.
+pub fn check_buffer(what: &str, bytes: u64, because: &str) -> Result<(), String> {
+    if bytes > MAX_BUFFER_BYTES {
+        return Err(format!(
+            "the {what} would take {:.1} GiB ({because}), over the {} GiB limit per buffer",
+            bytes as f64 / (1u64 << 30) as f64,
+            MAX_BUFFER_BYTES >> 30
+        ));
+    }
+    Ok(())
+}
+
+/// Check a display size against [`MAX_DISPLAY_PIXELS`].
+pub fn check_display(width: u32, height: u32) -> Result<(), String> {
+    let pixels = width as u64 * height as u64;
+    if pixels > MAX_DISPLAY_PIXELS {
+        return Err(format!(
+            "display {width}x{height} has {pixels} pixels, over the limit of {MAX_DISPLAY_PIXELS} (4096x4096)"
+        ));
+    }
+    Ok(())
+}
+
+/// A number as people read it: plain in the usual range, in exponent form beyond
+/// (`1e300`, not three hundred digits).
+pub fn num(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e7).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+/// Check a sample rate against [`MAX_RATE`] and, with the seconds a run traces, against
+/// [`MAX_SAMPLES_PER_RUN`].
+pub fn check_rate(rate: f64, seconds: f64) -> Result<(), String> {
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(format!(
+            "{} must be a positive number of samples per second",
+            num(rate)
+        ));
+    }
+    if rate > MAX_RATE {
+        return Err(format!(
+            "{} samples/s is over the limit of {}",
+            num(rate),
+            num(MAX_RATE)
+        ));
+    }
+    let samples = rate * seconds;
+    if samples > MAX_SAMPLES_PER_RUN {
+        return Err(format!(
+            "{} samples/s for {} s (warm-up included) is {} samples, over the limit of {} per run",
+            num(rate),
+            num(seconds),
+            num(samples),
+            num(MAX_SAMPLES_PER_RUN)
+        ));
+    }
+    Ok(())
+}
+
+/// Check a warm-up against [`MAX_WARMUP_S`].
+pub fn check_warmup(warmup: f64) -> Result<(), String> {
+    if !(warmup.is_finite() && (0.0..=MAX_WARMUP_S).contains(&warmup)) {
+        return Err(format!("{} s must be in [0, {MAX_WARMUP_S}]", num(warmup)));
+    }
+    Ok(())
+}
+
+/// Check a window's length against [`MAX_DURATION_S`].
+pub fn check_duration(duration: f64) -> Result<(), String> {
+    if !(duration.is_finite() && duration > 0.0 && duration <= MAX_DURATION_S) {
+        return Err(format!("{} s must be in (0, {MAX_DURATION_S}]", num(duration)));
+    }
+    Ok(())
+}
+
+/// Check that a run from `start − warmup` to `start + duration` stays within
+/// ±[`MAX_SCENE_TIME_S`].
+pub fn check_start(start: f64, warmup: f64, duration: f64) -> Result<(), String> {
+    let (first, last) = (start - warmup, start + duration);
+    if !(start.is_finite() && first.abs() <= MAX_SCENE_TIME_S && last.abs() <= MAX_SCENE_TIME_S)
+    {
+        return Err(format!(
+            "{} s: the run would span scene times {} to {} s, outside ±{} s",
+            num(start),
+            num(first),
+            num(last),
+            num(MAX_SCENE_TIME_S)
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_budget_rejects_just_past_its_limit_and_accepts_at_it() {
+        assert!(check_rate(MAX_RATE, 1.0).is_ok());
+        assert!(check_rate(MAX_RATE * 1.01, 1.0).is_err());
+        assert!(check_rate(1e30, 1.0).unwrap_err().contains("limit"));
+        assert!(check_rate(400e3, 1e4).unwrap_err().contains("per run"));
+        assert!(check_warmup(MAX_WARMUP_S).is_ok());
+        assert!(check_warmup(1e4).is_err());
+        assert!(check_start(0.0, 1.0, 1.0).is_ok());
+        assert!(check_start(1e300, 1.0, 1.0).unwrap_err().contains("1e300"));
+        assert!(check_start(MAX_SCENE_TIME_S, 0.0, 1.0).is_err());
+        assert!(check_duration(MAX_DURATION_S).is_ok());
+        assert!(check_duration(0.0).is_err());
+        assert!(check_display(4096, 4096).is_ok());
+        assert!(check_display(4097, 4096).is_err());
+        assert!(check_buffer("ring", MAX_BUFFER_BYTES, "x").is_ok());
+        assert!(check_buffer("ring", MAX_BUFFER_BYTES + 1, "x")
+            .unwrap_err()
+            .contains("ring"));
+    }
+}

@@ -1,0 +1,203 @@
+//! The input budgets every loader enforces, in one place so that they are documented
+//! once (README, "Input limits") and a scene that passes them can always be built and
+//! traced: no overflow in the BVH builder's surface areas, no allocation the machine
+//! cannot make.
+//!
+//! Loaders check what they can where they read it, so that errors name the line; [`check`]
+//! runs on every loaded scene as a last net for what only shows after transformation
+//! (a node that scales, a mesh copied to many nodes).
+
+use glam::Vec3;
+
+use super::{Scene, SceneError};
+
+/// Largest coordinate magnitude accepted, in scene units, before and after static
+/// transforms. f32 BVH builders square extents (surface areas) and sum them over many
+/// nodes; at 1e12 the largest such sum stays about six orders of magnitude below
+/// `f32::MAX`, while the precision f32 keeps at that distance (about 1e5 units) is already
+/// far coarser than any scene that would need it.
+pub const MAX_COORDINATE: f32 = 1e12;
+
+/// Most triangles a scene may expand to, after meshes are copied per node and includes
+/// are expanded: about 1.3 GB of triangles and attributes plus its BVH.
+pub const MAX_TRIANGLES: usize = 1 << 23;
+
+/// Most spheres and cones together.
+pub const MAX_ANALYTIC: usize = 1 << 22;
+
+pub use super::texture::MAX_TEXTURE_SIDE;
+
+/// Largest file any loader reads (scene, include, buffer, material library, texture,
+/// camera path).
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Read a whole input file, refusing what is not a regular file (`/dev/zero`, a FIFO, a
+/// directory) or is larger than [`MAX_FILE_BYTES`], before reading it: a device would
+/// otherwise be read until memory runs out.
+pub fn read_bounded(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    let too_big = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("larger than the file size limit of {MAX_FILE_BYTES} bytes"),
+        )
+    };
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(too_big());
+    }
+    // The length may change under us; never read past the limit either way.
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_FILE_BYTES {
+        return Err(too_big());
+    }
+    Ok(bytes)
+}
+
+/// Whether a point is finite and inside the coordinate budget.
+#[inline]
+pub fn coordinate_ok(v: Vec3) -> bool {
+    v.is_finite() && v.abs().max_element() <= MAX_COORDINATE
+}
+
+/// The error text for a point outside the budget.
+pub fn coordinate_message(what: &str, v: Vec3) -> String {
+    // Debug keeps huge values short (`2e38`, not 39 digits).
+    let v = format!("({:?}, {:?}, {:?})", v.x, v.y, v.z);
+    format!("{what} {v} is outside the coordinate limit of ±{MAX_COORDINATE:e} (or not finite)")
+}
+
+/// Check a loaded scene against every budget, naming the first element that breaks one.
+pub fn check(scene: &Scene) -> Result<(), SceneError> {
+    let bad = |message: String| SceneError::Invalid {
+        name: scene
+            .source
+            .as_ref()
+            .map_or_else(|| scene.name.clone(), |p| p.display().to_string()),
+        message,
+    };
+    let triangles: usize = scene.groups.iter().map(|g| g.triangles.len()).sum::<usize>()
+        + scene.animated_triangles.len();
+    if triangles > MAX_TRIANGLES {
+        return Err(bad(format!(
+            "{triangles} triangles exceed the limit of {MAX_TRIANGLES}"
+        )));
+    }
+    let analytic: usize = scene
+        .groups
+        .iter()
+        .map(|g| g.spheres.len() + g.cones.len())
+        .sum();
+    if analytic > MAX_ANALYTIC {
+        return Err(bad(format!(
+            "{analytic} spheres and cones exceed the limit of {MAX_ANALYTIC}"
+        )));
+    }
+    for (gi, g) in scene.groups.iter().enumerate() {
+        for (ti, t) in g.triangles.iter().enumerate() {
+            if let Some(&p) = t.p.iter().find(|&&p| !coordinate_ok(p)) {
+                return Err(bad(coordinate_message(
+                    &format!("group {gi} triangle {ti}: vertex"),
+                    p,
+                )));
+            }
+        }
+        for (si, s) in g.spheres.iter().enumerate() {
+            let extent = Vec3::splat(s.radius.abs());
+            if !coordinate_ok(s.center) || !coordinate_ok(extent) {
+                return Err(bad(coordinate_message(
+                    &format!("group {gi} sphere {si} (radius {}): center", s.radius),
+                    s.center,
+                )));
+            }
+        }
+        for (ci, c) in g.cones.iter().enumerate() {
+            let radii = Vec3::new(c.base_radius.abs(), c.apex_radius.abs(), 0.0);
+            for p in [c.base, c.apex, radii] {
+                if !coordinate_ok(p) {
+                    return Err(bad(coordinate_message(
+                        &format!("group {gi} cone {ci}: base, apex or radius"),
+                        p,
+                    )));
+                }
+            }
+        }
+    }
+    for (ai, a) in scene.animated_triangles.iter().enumerate() {
+        for ps in &a.positions {
+            if let Some(&p) = ps.iter().find(|&&p| !coordinate_ok(p)) {
+                return Err(bad(coordinate_message(
+                    &format!("animated triangle {ai}: key vertex"),
+                    p,
+                )));
+            }
+        }
+    }
+    for (li, l) in scene.lights.iter().enumerate() {
+        if !coordinate_ok(l.position) {
+            return Err(bad(coordinate_message(
+                &format!("light {li}: position"),
+                l.position,
+            )));
+        }
+    }
+    let cam = &scene.camera.base;
+    for (what, p) in [("camera eye", cam.eye), ("camera target", cam.at)] {
+        if !coordinate_ok(p) {
+            return Err(bad(coordinate_message(what, p)));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{builtin, Group, Triangle};
+
+    #[test]
+    fn devices_and_directories_are_refused_before_reading() {
+        for p in ["/dev/zero", "."] {
+            let p = std::path::Path::new(p);
+            if p.exists() {
+                let e = read_bounded(p).unwrap_err();
+                assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{}", p.display());
+            }
+        }
+    }
+
+    #[test]
+    fn builtin_scenes_are_within_budget() {
+        for name in builtin::NAMES {
+            let scene = builtin::load(name).expect("built-in");
+            check(&scene).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+    }
+
+    #[test]
+    fn a_huge_finite_vertex_is_named() {
+        let mut scene = builtin::load("toycar").expect("built-in");
+        scene.groups.push(Group {
+            node: None,
+            triangles: vec![Triangle {
+                p: [Vec3::new(2e38, -1.0, 0.0), Vec3::X, Vec3::Y],
+                n: None,
+                uv: None,
+                material: 0,
+            }],
+            spheres: Vec::new(),
+            cones: Vec::new(),
+        });
+        let e = check(&scene).unwrap_err().to_string();
+        assert!(e.contains("outside the coordinate limit") && e.contains("2e38"), "{e}");
+        assert!(e.contains("triangle 0"), "{e}");
+    }
+}
