@@ -9,6 +9,7 @@ pub mod clock;
 pub mod evaluation;
 pub mod image;
 pub mod methods;
+pub mod output;
 pub mod realtime;
 pub mod reconstruction;
 pub mod render;

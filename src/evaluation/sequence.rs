@@ -8,8 +8,9 @@ use serde::Serialize;
 
 use super::{EvalConfig, EvalError, Progress};
 use crate::{
-    image::{write_atomic, write_png_rgb8_fast},
+    image::write_png_rgb8_fast,
     methods::{MethodContext, MethodKind},
+    output::write_atomic,
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
 };

@@ -392,7 +392,7 @@ pub fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), Ev
     std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
     let write = |name: &str, text: &str| -> Result<(), EvalError> {
         let p = dir.join(name);
-        crate::image::write_atomic(&p, text.as_bytes()).map_err(|e| io(&p, e))
+        crate::output::write_atomic(&p, text.as_bytes()).map_err(|e| io(&p, e))
     };
     let mut md = markdown(t);
     md.push_str("### Targets\n\n");
