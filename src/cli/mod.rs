@@ -182,9 +182,10 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     print!("{}", report::markdown(&out.summary));
     let t = &out.summary.timing;
     println!(
-        "cost: ideal {:.1} s ({} cached), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s; overhead {:.1}% of the methods' evaluation",
+        "cost: ideal {:.1} s ({} cached, {} rejected), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s; overhead {:.1}% of the methods' evaluation",
         t.ideal_s,
         t.ideal_cache_hits,
+        t.ideal_cache_rejected,
         t.methods_s,
         t.trace_s,
         t.metrics_s,
@@ -310,12 +311,13 @@ fn table1(a: args::Table1Args) -> Result<()> {
         report::write_all(&mut out, &a.out.join(anim.name))?;
         let t = &out.summary.timing;
         let line = format!(
-            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache; methods {:.0} s)",
+            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache, {} rejected; methods {:.0} s)",
             anim.name,
             ta.elapsed().as_secs_f64(),
             t.ideal_s,
             t.ideal_cache_hits,
             cfg.frames(),
+            t.ideal_cache_rejected,
             t.methods_s
         );
         eprintln!("{line}");

@@ -274,11 +274,12 @@ fn html(
     let t = &s.timing;
     let _ = write!(
         h,
-        "<h2>Cost</h2><p>ideal images {:.1} s ({} of {} from cache), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s.</p>\
+        "<h2>Cost</h2><p>ideal images {:.1} s ({} of {} from cache, {} cache entries rejected and re-rendered), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s.</p>\
          <p>Per-frame data: <a href=\"frames.csv\">frames.csv</a>; summary: <a href=\"summary.json\">summary.json</a>.</p></body></html>",
         t.ideal_s,
         t.ideal_cache_hits,
         (s.duration * s.refresh_hz).floor(),
+        t.ideal_cache_rejected,
         t.methods_s,
         t.trace_s,
         t.metrics_s,
