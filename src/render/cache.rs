@@ -595,7 +595,8 @@ mod tests {
             "where it came from is not content"
         );
         // One changed float anywhere changes the fingerprint; -0.0 is not 0.0 to it.
-        let edits: Vec<(&str, Box<dyn Fn(&mut Scene)>)> = vec![
+        type Edit = Box<dyn Fn(&mut Scene)>;
+        let edits: Vec<(&str, Edit)> = vec![
             ("ambient", Box::new(|s| s.ambient.x += 1e-6)),
             (
                 "background",
