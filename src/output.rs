@@ -24,18 +24,28 @@ const PARTIAL: &str = ".partial-";
 const OLD: &str = ".old-";
 /// Marks the entry a writability check creates and removes.
 const PROBE: &str = ".probe-";
+/// A file in every committed output folder: replacing a folder deletes what was in it,
+/// so only folders that say they are outputs are replaced.
+pub const MARKER: &str = ".frameless-output";
+/// Files that mark output folders written before [`MARKER`] existed.
+const EARLIER_MARKERS: [&str; 2] = ["summary.json", "stats.json"];
+/// Why a folder is not replaced.
+const NOT_AN_OUTPUT: &str = "exists and is not an output folder (it is not empty and has no \
+                             .frameless-output, summary.json or stats.json); outputs replace \
+                             their folder whole, so name a new or empty folder";
 
 /// Why an output cannot be written where it was asked for.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// The place cannot be written (its folder cannot be created, or nothing can be
     /// created in it).
-    #[error("cannot write {}: {source}", path.display())]
+    #[error("cannot write {}: {reason}", path.display())]
     Unwritable {
         /// The output asked for.
         path: PathBuf,
-        /// What the operating system said.
-        source: io::Error,
+        /// What the operating system said (part of the message, so not also a source,
+        /// which would print it twice in an error chain).
+        reason: io::Error,
     },
     /// The output would replace something of the wrong kind.
     #[error("{}: {why}", path.display())]
@@ -66,7 +76,7 @@ fn sibling(path: &Path, marker: &str) -> io::Result<PathBuf> {
     let Some(name) = path.file_name() else {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
-            "the path names no file or folder",
+            "names no file or folder of its own (such as `.` or `..`)",
         ));
     };
     let mut name = name.to_os_string();
@@ -139,10 +149,24 @@ pub fn require_extension(
     }
 }
 
-/// Check, before any work, that an output folder can be written at `path`: creates its
-/// parent folder if needed, then creates and removes a probe beside it. Nothing is
-/// left at `path` itself.
+/// Check, before any work, that an output folder can be written at `path` and may be
+/// replaced whole (see [`OutputDir`]): what is there is absent, an empty folder or an
+/// earlier output; creates the parent folder if needed, then creates and removes a
+/// probe beside `path`. Nothing is left at `path` itself.
 pub fn check_folder_target(path: &Path) -> Result<(), OutputError> {
+    check_writable_folder(path)?;
+    if !replaceable(path) {
+        return Err(OutputError::WrongKind {
+            path: path.to_path_buf(),
+            why: NOT_AN_OUTPUT,
+        });
+    }
+    Ok(())
+}
+
+/// As [`check_folder_target`], for outputs written into the folder file by file
+/// rather than replacing it: only that the folder can be created and written beside.
+pub fn check_writable_folder(path: &Path) -> Result<(), OutputError> {
     if path.exists() && !path.is_dir() {
         return Err(OutputError::WrongKind {
             path: path.to_path_buf(),
@@ -155,6 +179,18 @@ pub fn check_folder_target(path: &Path) -> Result<(), OutputError> {
     })
 }
 
+/// Whether the folder `path` may be replaced whole: it is absent, empty, or an output
+/// (marked, or holding the summary an earlier version wrote).
+fn replaceable(path: &Path) -> bool {
+    let Ok(mut entries) = fs::read_dir(path) else {
+        return !path.exists();
+    };
+    entries.next().is_none()
+        || std::iter::once(MARKER)
+            .chain(EARLIER_MARKERS)
+            .any(|m| path.join(m).is_file())
+}
+
 /// Check, before any work, that the file `path` can be written as `format` (named
 /// `.extension`): the extension, that `path` is not a folder, and a probe file beside it.
 pub fn check_file_target(
@@ -162,13 +198,13 @@ pub fn check_file_target(
     extension: &'static str,
     format: &'static str,
 ) -> Result<(), OutputError> {
-    require_extension(path, extension, format)?;
     if path.is_dir() {
         return Err(OutputError::WrongKind {
             path: path.to_path_buf(),
             why: "is a folder (a file goes here)",
         });
     }
+    require_extension(path, extension, format)?;
     probe(path, |p| {
         File::create_new(p)?;
         fs::remove_file(p)
@@ -179,9 +215,9 @@ fn probe(
     path: &Path,
     make_and_remove: impl Fn(&Path) -> io::Result<()>,
 ) -> Result<(), OutputError> {
-    let unwritable = |source| OutputError::Unwritable {
+    let unwritable = |reason| OutputError::Unwritable {
         path: path.to_path_buf(),
-        source,
+        reason,
     };
     let parent = parent_of(path);
     fs::create_dir_all(parent).map_err(|e| {
@@ -221,8 +257,16 @@ impl OutputDir {
                 "exists and is not a folder",
             ));
         }
+        if !replaceable(target) {
+            return Err(io::Error::new(io::ErrorKind::AlreadyExists, NOT_AN_OUTPUT));
+        }
         let staging = sibling(target, PARTIAL)?;
         fs::create_dir(&staging)?;
+        fs::write(
+            staging.join(MARKER),
+            "This folder is the output of one frameless run; the next run writing here \
+             replaces it whole.\n",
+        )?;
         Ok(Self {
             target: target.to_path_buf(),
             staging,
@@ -393,19 +437,29 @@ mod tests {
         let target = d.join("out");
         fs::create_dir(&target).unwrap();
         fs::write(target.join("stale.txt"), "previous run").unwrap();
+        fs::write(target.join(MARKER), "").unwrap();
         // Abandoned: the previous run stays as it was, and nothing else is left.
         {
             let o = OutputDir::begin(&target).unwrap();
             fs::write(o.path().join("new.txt"), "new").unwrap();
         }
         assert_eq!(names(&d), ["out"]);
-        assert_eq!(names(&target), ["stale.txt"]);
-        // Committed: only the new run's files.
+        assert_eq!(names(&target), [MARKER, "stale.txt"]);
+        fs::remove_file(target.join(MARKER)).unwrap();
+        // Not an output (no marker): never replaced, since that deletes what is in it.
+        assert!(OutputDir::begin(&target).is_err());
+        assert!(check_folder_target(&target).is_err());
+        fs::write(target.join("summary.json"), "{}").unwrap();
+        // Committed: only the new run's files, marked as an output.
         let o = OutputDir::begin(&target).unwrap();
         fs::write(o.path().join("new.txt"), "new").unwrap();
         assert_eq!(o.commit().unwrap(), target);
         assert_eq!(names(&d), ["out"]);
-        assert_eq!(names(&target), ["new.txt"]);
+        assert_eq!(names(&target), [MARKER, "new.txt"]);
+        // Marked, it is replaced again.
+        let o = OutputDir::begin(&target).unwrap();
+        o.commit().unwrap();
+        assert_eq!(names(&target), [MARKER]);
         let _ = fs::remove_dir_all(&d);
     }
 
@@ -451,8 +505,12 @@ mod tests {
             .to_string();
         assert!(e.contains(".JPG") && e.contains(".png"), "{e}");
         assert!(check_file_target(&d.join("x.PNG"), "png", "PNG").is_ok());
-        let e = check_file_target(&d, "png", "PNG").unwrap_err().to_string();
+        let e = check_file_target(&d.join("x"), "png", "PNG")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no extension"), "{e}");
+        let e = check_file_target(&d, "png", "PNG").unwrap_err().to_string();
+        assert!(e.contains("is a folder"), "{e}");
         fs::create_dir(d.join("dir.png")).unwrap();
         let e = check_file_target(&d.join("dir.png"), "png", "PNG")
             .unwrap_err()
