@@ -409,7 +409,8 @@ impl Table1Output {
     /// the sub-folder `name`.
     pub fn write_animation(&self, name: &str, out: &mut EvalOutput) -> Result<(), EvalError> {
         let dir = self.staging.path().join(name);
-        std::fs::create_dir(&dir).map_err(|e| EvalError::io(&dir, e))?;
+        // An animation named twice overwrites its first folder, as it always has.
+        std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
         super::report::write_into(out, &dir)
     }
 
