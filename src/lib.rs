@@ -10,6 +10,7 @@ pub mod evaluation;
 pub mod image;
 pub mod limits;
 pub mod methods;
+pub mod output;
 pub mod realtime;
 pub mod reconstruction;
 pub mod render;

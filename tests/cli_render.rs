@@ -11,6 +11,10 @@ fn tmp(name: &str) -> std::path::PathBuf {
 #[test]
 fn writes_one_png_per_refresh_and_stats() {
     let out = tmp("ok");
+    // A longer earlier run: the folder must hold this run alone afterwards.
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("frame_00007.png"), "an earlier run's frame").unwrap();
+    std::fs::write(out.join("stats.json"), "{}").unwrap();
     let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
         .args([
             "render",
@@ -42,6 +46,10 @@ fn writes_one_png_per_refresh_and_stats() {
         assert!(out.join(format!("frame_{k:05}.png")).is_file(), "frame {k}");
     }
     assert!(!out.join("frame_00003.png").exists());
+    assert!(
+        !out.join("frame_00007.png").exists(),
+        "a frame of another run"
+    );
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("stats.json")).unwrap()).unwrap();
     assert_eq!(v["frames"], 3);

@@ -268,6 +268,8 @@ fn ideal_cache_round_trips_and_recovers_from_corruption() {
     }
     let third = evaluation::run(Arc::new(static_scene()), &cfg, &Silent).unwrap();
     assert_eq!(first.frames, third.frames);
+    assert_eq!(third.summary.timing.ideal_cache_hits, 0);
+    assert_eq!(third.summary.timing.ideal_cache_rejected, 3);
     // A different scene gets different entries.
     let mut other = static_scene();
     other.ambient = Vec3::splat(0.6);

@@ -80,6 +80,63 @@ fn tiny_table_has_every_animation_and_the_paper_beside_it() {
     let _ = std::fs::remove_dir_all(&cache);
 }
 
+/// The output folder holds one run: a second run with other animations replaces the
+/// first run's folders instead of adding to them.
+#[test]
+fn a_second_run_replaces_the_first_whole() {
+    let Some(bart) = bart_dir() else { return };
+    let out = tmp("replace");
+    let cache = tmp("replace-cache");
+    let run = |animations: &str| {
+        let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .args(["table1", "--bart"])
+            .arg(&bart)
+            .args(["--size", "16x16", "--duration", "0.05", "--rates", "100k"])
+            .args(["--ideal-spp", "1", "--methods", "traditional-frameless"])
+            .args(["--animations", animations])
+            .arg("--cache-dir")
+            .arg(&cache)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        let mut names: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    };
+    let files = [
+        ".frameless-output",
+        "report.html",
+        "summary.json",
+        "table.md",
+    ];
+    assert_eq!(
+        run("interactive,bart"),
+        [
+            files[0],
+            "bart",
+            "interactive",
+            files[1],
+            files[2],
+            files[3]
+        ]
+    );
+    assert_eq!(
+        run("still"),
+        [files[0], files[1], "still", files[2], files[3]]
+    );
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&cache);
+}
+
 #[test]
 fn bad_arguments_fail_before_work() {
     let out = tmp("bad");

@@ -13,6 +13,7 @@ pub use args::{Cli, Command, Size};
 use frameless::{
     bench,
     evaluation::{self, report, EvalConfig},
+    output,
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
@@ -46,6 +47,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Still(a) => {
+            output::check_file_target(&a.out, "png", "PNG")?;
             let scene = load_scene(&a.scene)?;
             let path = load_camera_path(a.camera_path.as_deref())?;
             let Size(w, h) = a.size;
@@ -147,6 +149,7 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
+    output::check_folder_target(&a.out)?;
     let Size(w, h) = a.size;
     let cache_dir = if a.no_cache {
         None
@@ -182,9 +185,10 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     print!("{}", report::markdown(&out.summary));
     let t = &out.summary.timing;
     println!(
-        "cost: ideal {:.1} s ({} cached), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s; overhead {:.1}% of the methods' evaluation",
+        "cost: ideal {:.1} s ({} cached, {} rejected), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s; overhead {:.1}% of the methods' evaluation",
         t.ideal_s,
         t.ideal_cache_hits,
+        t.ideal_cache_rejected,
         t.methods_s,
         t.trace_s,
         t.metrics_s,
@@ -197,6 +201,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 
 fn render(a: args::RenderArgs) -> Result<()> {
     use frameless::evaluation::sequence::{render_sequence, SequenceConfig};
+    output::check_folder_target(&a.out)?;
     let Size(w, h) = a.size;
     let cfg = SequenceConfig {
         scene_name: a.scene.clone(),
@@ -229,6 +234,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
 
 fn table1(a: args::Table1Args) -> Result<()> {
     use evaluation::table1::{self, AnimationResult, TableSummary};
+    output::check_folder_target(&a.out)?;
     let bart = match a.bart.clone().or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)) {
         Some(b) => b,
         None => bail!("--bart is required (the BART folder holding kitchen/kitchen.aff), or set FRAMELESS_BART_DIR"),
@@ -295,6 +301,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
         cfgs.push(cfg);
     }
     let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
+    let outputs = table1::Table1Output::begin(&a.out)?;
     let t0 = Instant::now();
     let mut results = Vec::new();
     let mut cost = Vec::new();
@@ -307,15 +314,16 @@ fn table1(a: args::Table1Args) -> Result<()> {
         if let Some(keep) = &a.strip_rates {
             out.strips.retain(|s| keep.contains(&s.0));
         }
-        report::write_all(&mut out, &a.out.join(anim.name))?;
+        outputs.write_animation(anim.name, &mut out)?;
         let t = &out.summary.timing;
         let line = format!(
-            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache; methods {:.0} s)",
+            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache, {} rejected; methods {:.0} s)",
             anim.name,
             ta.elapsed().as_secs_f64(),
             t.ideal_s,
             t.ideal_cache_hits,
             cfg.frames(),
+            t.ideal_cache_rejected,
             t.methods_s
         );
         eprintln!("{line}");
@@ -336,11 +344,11 @@ fn table1(a: args::Table1Args) -> Result<()> {
     let table = TableSummary {
         animations: results,
     };
-    table1::write_combined(&table, &a.out, &cost)?;
+    let report = outputs.finish(&table, &cost)?;
     print!("{}", table1::markdown(&table));
     print!("{}", table1::targets(&table));
     println!("cost: {cost}");
-    println!("report: {}", a.out.join("report.html").display());
+    println!("report: {}", report.display());
     Ok(())
 }
 
@@ -349,6 +357,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         adaptive::{vis, Adaptive, SamplerParams},
         Method, MethodContext,
     };
+    output::check_folder_target(&a.out)?;
     let rate = a.rate;
     use frameless::limits;
     limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
@@ -393,10 +402,11 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     bar.finish_and_clear();
     let wall = t0.elapsed().as_secs_f64();
     let end = a.start + frames as f64 / 60.0;
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let staging = output::OutputDir::begin(&a.out)
+        .with_context(|| format!("creating {}", a.out.display()))?;
     let s = m.sampler();
     let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
-        let p = a.out.join(name);
+        let p = staging.path().join(name);
         img.save_png(&p)
             .with_context(|| format!("writing {}", p.display()))
     };
@@ -419,9 +429,12 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         "control_overhead": if total_s > 0.0 { (total_s - trace_s) / total_s } else { 0.0 },
         "wall_s": wall,
     });
-    let p = a.out.join("stats.json");
+    let p = staging.path().join("stats.json");
     std::fs::write(&p, serde_json::to_string_pretty(&stats)?)
         .with_context(|| format!("writing {}", p.display()))?;
+    staging
+        .commit()
+        .with_context(|| format!("replacing {}", a.out.display()))?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     println!("images: {}", a.out.display());
     Ok(())
@@ -429,6 +442,12 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
 
 fn view(a: args::ViewArgs) -> Result<()> {
     use frameless::realtime::{self, RtConfig};
+    if a.headless {
+        output::check_writable_folder(&a.out)?;
+    }
+    if let Some(p) = &a.screenshot {
+        output::check_file_target(p, "png", "PNG")?;
+    }
     let method = a.method;
     let mut cfg = RtConfig::new(method);
     if let Some(n) = a.sampling_threads {

@@ -16,7 +16,7 @@ use crate::{
     clock::{rate_label, Clock},
     limits,
     methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
-    render::cache::IdealCache,
+    render::cache::{IdealCache, Lookup},
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
 };
@@ -335,8 +335,12 @@ pub struct Timing {
     pub metrics_s: f64,
     /// Writing reports, plots and strips.
     pub output_s: f64,
-    /// Ideal images found in the cache.
+    /// Ideal images served from the cache (entries that passed every check).
     pub ideal_cache_hits: usize,
+    /// Cache entries found but not served (wrong key, checksum, size or format), whose
+    /// images were rendered again and the entries rewritten.
+    #[serde(default)]
+    pub ideal_cache_rejected: usize,
 }
 
 /// `summary.json`.
@@ -494,14 +498,20 @@ fn ideal_images(
     let ideal = (0..cfg.frames())
         .map(|k| {
             let t = cfg.refresh(k);
-            if ctx
-                .ideal_cache
-                .as_ref()
-                .is_some_and(|c| c.contains(t, cfg.ideal_spp, cfg.seed))
-            {
-                timing.ideal_cache_hits += 1;
+            let image = match &ctx.ideal_cache {
+                Some(cache) => {
+                    let (image, lookup) =
+                        cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed);
+                    match lookup {
+                        Lookup::Hit => timing.ideal_cache_hits += 1,
+                        Lookup::Rejected(_) => timing.ideal_cache_rejected += 1,
+                        Lookup::Miss => {}
+                    }
+                    image
+                }
+                None => ideal_image(ctx, t),
             }
-            let image = ideal_image(ctx, t).to_rgb8();
+            .to_rgb8();
             progress.step("ideal images");
             image
         })
@@ -634,6 +644,58 @@ mod tests {
         methods::MethodKind,
         scene::builtin,
     };
+
+    /// A cache hit is an entry served, not a file present: files that fail their checks
+    /// are counted as rejected, and the results do not change.
+    #[test]
+    fn cache_hits_count_only_entries_served() {
+        let dir = std::env::temp_dir().join(format!("frameless-eval-hits-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let cfg = EvalConfig {
+            scene_name: "toycar".into(),
+            camera_path: None,
+            start: 0.2,
+            duration: 0.1,
+            width: 16,
+            height: 12,
+            rates: vec![100_000.0],
+            methods: vec![MethodKind::TraditionalFrameless],
+            seed: 5,
+            ideal_spp: 2,
+            warmup: 0.0,
+            refresh_hz: 60.0,
+            max_depth: 3,
+            texture_filter: crate::trace::TextureFilter::None,
+            cache_dir: Some(dir.clone()),
+            strip_frames: Vec::new(),
+            flip_every: 1,
+        };
+        let n = cfg.frames();
+        let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
+        let run = || evaluation::run(scene.clone(), &cfg, &Silent).expect("evaluation runs");
+        let timing = |o: &evaluation::EvalOutput| {
+            let t = &o.summary.timing;
+            (t.ideal_cache_hits, t.ideal_cache_rejected)
+        };
+        let first = run();
+        assert_eq!(timing(&first), (0, 0));
+        assert_eq!(timing(&run()), (n, 0));
+        let mut entries: Vec<_> = std::fs::read_dir(&dir)
+            .expect("cache folder")
+            .map(|e| e.expect("entry").path())
+            .collect();
+        entries.sort();
+        assert_eq!(entries.len(), n);
+        let damaged = entries.len() / 2;
+        for p in &entries[..damaged] {
+            std::fs::write(p, b"present but not an image").expect("writable");
+        }
+        let third = run();
+        assert_eq!(timing(&third), (n - damaged, damaged));
+        assert_eq!(third.frames, first.frames);
+        assert_eq!(timing(&run()), (n, 0), "rejected entries were rewritten");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     /// The registered test method runs through the whole evaluation by name and
     /// description alone: it is parsed, held to its own budget in every rate column, and

@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 use super::{EvalError, EvalOutput, Summary};
 pub use crate::clock::{parse_rate, rate_label};
-use crate::{image::write_png_rgb8, methods::MethodKind};
+use crate::{image::write_png_rgb8, methods::MethodKind, output::OutputDir};
 
 /// A table of one metric: title, the value of a row, decimals.
 type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize);
@@ -274,11 +274,12 @@ fn html(
     let t = &s.timing;
     let _ = write!(
         h,
-        "<h2>Cost</h2><p>ideal images {:.1} s ({} of {} from cache), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s.</p>\
+        "<h2>Cost</h2><p>ideal images {:.1} s ({} of {} from cache, {} cache entries rejected and re-rendered), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s.</p>\
          <p>Per-frame data: <a href=\"frames.csv\">frames.csv</a>; summary: <a href=\"summary.json\">summary.json</a>.</p></body></html>",
         t.ideal_s,
         t.ideal_cache_hits,
         (s.duration * s.refresh_hz).floor(),
+        t.ideal_cache_rejected,
         t.methods_s,
         t.trace_s,
         t.metrics_s,
@@ -287,11 +288,20 @@ fn html(
     h
 }
 
-/// Write every output into `dir`; returns the report's path.
+/// Write every output as the folder `dir`, replacing what was there only once all are
+/// written (see [`OutputDir`]): `dir` holds this run or the previous one, never a mix.
+/// Returns the report's path.
 pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf, EvalError> {
+    let staging = OutputDir::begin(dir).map_err(|e| EvalError::io(dir, e))?;
+    write_into(out, staging.path())?;
+    staging.commit().map_err(|e| EvalError::io(dir, e))?;
+    Ok(dir.join("report.html"))
+}
+
+/// Write every output into the existing, private folder `dir`.
+pub(crate) fn write_into(out: &mut EvalOutput, dir: &Path) -> Result<(), EvalError> {
     let t0 = std::time::Instant::now();
     let io = EvalError::io;
-    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
     let write = |name: &str, text: &str| -> Result<(), EvalError> {
         let p = dir.join(name);
         std::fs::write(&p, text).map_err(|e| io(&p, e))
@@ -321,7 +331,7 @@ pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf,
         // A summary of numbers and strings always serialises.
         &serde_json::to_string_pretty(&out.summary).expect("summary serialises"),
     )?;
-    Ok(dir.join("report.html"))
+    Ok(())
 }
 
 #[cfg(test)]

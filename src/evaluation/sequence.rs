@@ -8,8 +8,9 @@ use serde::Serialize;
 
 use super::{EvalConfig, EvalError, Progress};
 use crate::{
-    image::{write_atomic, write_png_rgb8_fast},
+    image::write_png_rgb8_fast,
     methods::{MethodContext, MethodKind},
+    output::OutputDir,
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
 };
@@ -130,8 +131,9 @@ impl SequenceConfig {
     }
 }
 
-/// Render the sequence into `out` (`frame_NNNNN.png`, then `stats.json`, written last
-/// and atomically so that its presence means the sequence is complete).
+/// Render the sequence as the folder `out` (`frame_NNNNN.png` and `stats.json`). The
+/// files are written into a temporary sibling folder that replaces `out` only when the
+/// sequence is complete (see [`OutputDir`]), so `out` never mixes frames of two runs.
 pub fn render_sequence(
     scene: Arc<Scene>,
     cfg: &SequenceConfig,
@@ -165,7 +167,7 @@ pub fn render_sequence(
         ideal_cache: None,
     };
     let mut m = cfg.method.build(&ctx)?;
-    std::fs::create_dir_all(out).map_err(|e| EvalError::io(out, e))?;
+    let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;
     let frames = cfg.frames();
     progress.total(frames);
     let t0 = Instant::now();
@@ -174,7 +176,7 @@ pub fn render_sequence(
         let t = cfg.start + k as f64 / cfg.fps;
         let shown = m.display(t);
         ages += shown.mean_age;
-        let p = out.join(format!("frame_{k:05}.png"));
+        let p = staging.path().join(format!("frame_{k:05}.png"));
         write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()).map_err(|e| EvalError::io(&p, e))?;
         progress.step("rendering");
     }
@@ -195,9 +197,10 @@ pub fn render_sequence(
         wall_s: t0.elapsed().as_secs_f64(),
         extra: m.extra_stats(),
     };
-    let p = out.join("stats.json");
+    let p = staging.path().join("stats.json");
     // Numbers and strings always serialise.
     let json = serde_json::to_string_pretty(&stats).expect("stats serialise");
-    write_atomic(&p, json.as_bytes()).map_err(|e| EvalError::io(&p, e))?;
+    std::fs::write(&p, json).map_err(|e| EvalError::io(&p, e))?;
+    staging.commit().map_err(|e| EvalError::io(out, e))?;
     Ok(stats)
 }

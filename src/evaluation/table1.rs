@@ -6,12 +6,15 @@
 //! either the scene's own camera or a committed camera-path file (compiled in, so the
 //! command needs only the user's BART folder).
 
-use std::{fmt::Write as _, path::Path};
+use std::{
+    fmt::Write as _,
+    path::{Path, PathBuf},
+};
 
 use serde::{Deserialize, Serialize};
 
-use super::{report::rate_label, EvalError, Summary};
-use crate::methods::MethodKind;
+use super::{report::rate_label, EvalError, EvalOutput, Summary};
+use crate::{methods::MethodKind, output::OutputDir};
 
 /// One of the paper's animations, as evaluated here.
 #[derive(Clone, Copy, Debug)]
@@ -385,14 +388,49 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Write the combined outputs into `dir` (the per-animation folders are written by
-/// the evaluation itself).
-pub fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), EvalError> {
+/// Table 1's output folder under construction: each animation's evaluation outputs
+/// in a sub-folder as it finishes, then the combined files. Everything is written into a
+/// temporary sibling of the target, which replaces the target only in
+/// [`Table1Output::finish`], so the target holds one whole run (this one or the
+/// previous) and never a mix of animations from two runs.
+pub struct Table1Output {
+    staging: OutputDir,
+}
+
+impl Table1Output {
+    /// Start the outputs that will replace the folder `dir`.
+    pub fn begin(dir: &Path) -> Result<Self, EvalError> {
+        Ok(Self {
+            staging: OutputDir::begin(dir).map_err(|e| EvalError::io(dir, e))?,
+        })
+    }
+
+    /// Write one animation's evaluation outputs (see [`super::report::write_all`]) into
+    /// the sub-folder `name`.
+    pub fn write_animation(&self, name: &str, out: &mut EvalOutput) -> Result<(), EvalError> {
+        let dir = self.staging.path().join(name);
+        // An animation named twice overwrites its first folder, as it always has.
+        std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
+        super::report::write_into(out, &dir)
+    }
+
+    /// Write the combined outputs and put the whole folder in place; returns the
+    /// combined report's path.
+    pub fn finish(self, t: &TableSummary, cost: &str) -> Result<PathBuf, EvalError> {
+        write_combined(t, self.staging.path(), cost)?;
+        let dir = self.staging.target().to_path_buf();
+        self.staging.commit().map_err(|e| EvalError::io(&dir, e))?;
+        Ok(dir.join("report.html"))
+    }
+}
+
+/// Write the combined outputs into the existing folder `dir` (beside the
+/// per-animation folders).
+fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), EvalError> {
     let io = EvalError::io;
-    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
     let write = |name: &str, text: &str| -> Result<(), EvalError> {
         let p = dir.join(name);
-        crate::image::write_atomic(&p, text.as_bytes()).map_err(|e| io(&p, e))
+        std::fs::write(&p, text).map_err(|e| io(&p, e))
     };
     let mut md = markdown(t);
     md.push_str("### Targets\n\n");

@@ -37,7 +37,7 @@ impl Ideal {
 /// Render (or fetch from the cache) the ideal image at time `t`.
 pub fn ideal_image(ctx: &MethodContext, t: f64) -> Image {
     match &ctx.ideal_cache {
-        Some(cache) => cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed),
+        Some(cache) => cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed).0,
         None => still::render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed, &|_| {}),
     }
 }

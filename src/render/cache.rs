@@ -1,57 +1,415 @@
 //! On-disk cache of ideal images.
 //!
-//! Ideal images dominate an evaluation's cost, so they are kept across runs and methods,
-//! keyed by everything that determines them: the scene's full content (a hash of its
-//! model, so editing a file or texture changes the key), the camera path, image size,
-//! the tracer's options (depth limit, texture filter), the tracer's
-//! [`RENDERER_VERSION`], samples per pixel, seed, exact time and [`CACHE_VERSION`].
-//! Entries are
-//! written to a temporary file and renamed into place, and a file that does not decode
-//! to the right size is re-rendered, so an interrupted run never poisons the cache.
+//! Ideal images dominate an evaluation's cost, so they are kept across runs and methods.
+//! An entry is found by a hash of its key, but a file name proves nothing (files get
+//! copied, swapped, re-encoded), so every entry carries its proof and is checked on
+//! every read:
+//!
+//! - its full key, as explicit text ([`IdealCache::entry_key`]): [`CACHE_VERSION`], the
+//!   tracer's [`RENDERER_VERSION`], a fingerprint of the scene's whole content
+//!   ([`scene_fingerprint`]), the camera path as CSV, the image size, every tracer
+//!   option, the time's exact bits, samples per pixel and seed;
+//! - a checksum of its pixels;
+//! - the exact format it was written in: 8-bit RGB PNG of the cache's size.
+//!
+//! Key and checksum live in tEXt chunks of the PNG itself, so an entry is one file,
+//! written atomically (see [`crate::output`]). An entry that fails any check is
+//! re-rendered and overwritten, and [`get_or_render`](IdealCache::get_or_render) says
+//! so, for the caller to count.
 
 use std::{
-    fmt::Write as _,
+    fmt::{Debug, Write as _},
     path::{Path, PathBuf},
 };
 
+use glam::{Mat4, Quat, Vec2, Vec3};
+
 use crate::{
-    image::{read_png_rgb8, write_png_rgb8_fast, Image},
+    image::{read_png, write_png_rgb8_tagged, Image},
     render::still,
     sampling::rng::mix64,
-    scene::{CameraPath, Scene},
-    trace::{Tracer, RENDERER_VERSION},
+    scene::{
+        gltf::NodeAnimation, Camera, CameraPath, CameraTrack, KeyframeTrack, Material, NodeKind,
+        Scene, Texture,
+    },
+    trace::{TextureFilter, TraceOptions, Tracer, RENDERER_VERSION},
 };
 
 /// Bump when the still renderer's sampling or the stored format changes what an entry
 /// holds. Changes to the tracer itself bump [`RENDERER_VERSION`] instead.
-pub const CACHE_VERSION: u64 = 1;
+pub const CACHE_VERSION: u64 = 2;
 
-/// A streaming 64-bit hash that accepts formatted text.
-struct Hasher(u64);
+/// tEXt keyword of an entry's key.
+const KEY_CHUNK: &str = "frameless-cache-key";
+/// tEXt keyword of an entry's pixel checksum.
+const CHECKSUM_CHUNK: &str = "frameless-cache-checksum";
 
-impl std::fmt::Write for Hasher {
-    fn write_str(&mut self, s: &str) -> std::fmt::Result {
-        for chunk in s.as_bytes().chunks(8) {
+/// What a lookup found on disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lookup {
+    /// A valid entry was served.
+    Hit,
+    /// There was no entry; the image was rendered and stored.
+    Miss,
+    /// An entry was there but failed a check; the image was rendered and the entry
+    /// overwritten.
+    Rejected(Mismatch),
+}
+
+/// Why an entry on disk was not served.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mismatch {
+    /// It does not decode as PNG.
+    Unreadable,
+    /// It is not 8-bit RGB (e.g. RGBA, grey, 16-bit).
+    Format,
+    /// Its size is not the cache's.
+    Size,
+    /// It carries no key, or another entry's key.
+    Key,
+    /// Its pixels do not match its checksum.
+    Checksum,
+}
+
+/// A 64-bit streaming hash (SplitMix64 finaliser per word), for fingerprints, file
+/// names and checksums. Fixed here, not `std`'s hasher, whose output may change between
+/// Rust releases and would silently empty every cache.
+struct Words(u64);
+
+impl Words {
+    fn new(seed: u64) -> Self {
+        Self(mix64(seed))
+    }
+    fn u64(&mut self, w: u64) {
+        self.0 = mix64(self.0 ^ w.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+    }
+    fn u32(&mut self, w: u32) {
+        self.u64(w as u64);
+    }
+    /// Lengths and variant tags keep neighbouring fields from running into each other.
+    fn tag(&mut self, n: usize) {
+        self.u64(n as u64 ^ 0xa5a5_0000_0000_0000);
+    }
+    fn bool(&mut self, b: bool) {
+        self.u64(b as u64);
+    }
+    fn f32(&mut self, v: f32) {
+        self.u32(v.to_bits());
+    }
+    fn f32s(&mut self, v: &[f32]) {
+        self.tag(v.len());
+        // Two values per word: textures and meshes are most of a scene's bytes.
+        for pair in v.chunks(2) {
+            let hi = pair.get(1).map_or(0, |x| x.to_bits());
+            self.u64(pair[0].to_bits() as u64 | (hi as u64) << 32);
+        }
+    }
+    fn vec2(&mut self, v: Vec2) {
+        self.f32s(&v.to_array());
+    }
+    fn vec3(&mut self, v: Vec3) {
+        self.f32s(&v.to_array());
+    }
+    fn vec3s(&mut self, v: &[Vec3]) {
+        self.tag(v.len());
+        for x in v {
+            self.vec3(*x);
+        }
+    }
+    fn quat(&mut self, q: Quat) {
+        self.f32s(&q.to_array());
+    }
+    fn mat4(&mut self, m: &Mat4) {
+        self.f32s(&m.to_cols_array());
+    }
+    fn bytes(&mut self, b: &[u8]) {
+        self.tag(b.len());
+        for chunk in b.chunks(8) {
             let mut w = [0u8; 8];
             w[..chunk.len()].copy_from_slice(chunk);
-            self.0 = mix64(self.0 ^ u64::from_le_bytes(w)).wrapping_add(chunk.len() as u64);
+            self.u64(u64::from_le_bytes(w));
         }
-        Ok(())
+    }
+    fn str(&mut self, s: &str) {
+        self.bytes(s.as_bytes());
+    }
+    fn opt<T>(&mut self, v: Option<T>, f: impl FnOnce(&mut Self, T)) {
+        match v {
+            None => self.tag(0),
+            Some(x) => {
+                self.tag(1);
+                f(self, x);
+            }
+        }
+    }
+    /// For the few values whose fields the scene module keeps private (keyframes of a
+    /// rotation spline, values of a glTF sampler): derived `Debug` prints every field and
+    /// floats exactly. Should that text ever change, entries stop matching (a re-render),
+    /// never match the wrong scene.
+    fn debug(&mut self, v: &impl Debug) {
+        self.str(&format!("{v:?}"));
     }
 }
 
-/// A hash of a scene's entire content (its model as loaded).
+/// A hash of everything in a scene that can change its images.
+///
+/// Fields are walked one by one, each float by its bits. The structs are destructured
+/// without `..` where their fields are public, so a field added to the scene model does
+/// not compile here until it is hashed or deliberately skipped.
 pub fn scene_fingerprint(scene: &Scene) -> u64 {
-    let mut h = Hasher(0x5ce7e);
-    // Debug output is exact for floats (round-trip formatting) and covers every field.
-    let _ = write!(h, "{scene:?}");
+    let Scene {
+        name,
+        // Where the scene was loaded from is not what it shows; the same content copied
+        // elsewhere keeps its entries.
+        source: _,
+        nodes,
+        tracks,
+        groups,
+        animated_triangles,
+        materials,
+        textures,
+        lights,
+        camera,
+        background,
+        ambient,
+        animation,
+    } = scene;
+    let mut h = Words::new(0x5ce7e);
+    h.str(name);
+    h.tag(nodes.len());
+    for n in nodes {
+        let crate::scene::Node { parent, kind } = n;
+        h.opt(*parent, Words::u32);
+        match kind {
+            NodeKind::Static(m) => {
+                h.tag(0);
+                h.mat4(m);
+            }
+            NodeKind::Animated { name, track } => {
+                h.tag(1);
+                h.str(name);
+                h.opt(*track, Words::u32);
+            }
+            NodeKind::Sampled(a) => {
+                h.tag(2);
+                node_animation(&mut h, a);
+            }
+        }
+    }
+    h.tag(tracks.len());
+    for t in tracks {
+        keyframe_track(&mut h, t);
+    }
+    h.tag(groups.len());
+    for g in groups {
+        let crate::scene::Group {
+            node,
+            triangles,
+            spheres,
+            cones,
+        } = g;
+        h.opt(*node, Words::u32);
+        h.tag(triangles.len());
+        for t in triangles {
+            let crate::scene::Triangle { p, n, uv, material } = t;
+            h.vec3s(p);
+            h.opt(n.as_ref(), |h, n| h.vec3s(n));
+            h.opt(uv.as_ref(), |h, uv| uv.iter().for_each(|v| h.vec2(*v)));
+            h.u32(*material);
+        }
+        h.tag(spheres.len());
+        for s in spheres {
+            let crate::scene::Sphere {
+                center,
+                radius,
+                material,
+            } = s;
+            h.vec3(*center);
+            h.f32(*radius);
+            h.u32(*material);
+        }
+        h.tag(cones.len());
+        for c in cones {
+            let crate::scene::Cone {
+                base,
+                base_radius,
+                apex,
+                apex_radius,
+                material,
+            } = c;
+            h.vec3(*base);
+            h.f32(*base_radius);
+            h.vec3(*apex);
+            h.f32(*apex_radius);
+            h.u32(*material);
+        }
+    }
+    h.tag(animated_triangles.len());
+    for a in animated_triangles {
+        let crate::scene::AnimatedTriangle {
+            times,
+            positions,
+            normals,
+            material,
+            node,
+        } = a;
+        h.f32s(times);
+        h.tag(positions.len());
+        positions.iter().for_each(|p| h.vec3s(p));
+        h.tag(normals.len());
+        normals.iter().for_each(|n| h.vec3s(n));
+        h.u32(*material);
+        h.opt(*node, Words::u32);
+    }
+    h.tag(materials.len());
+    for m in materials {
+        material(&mut h, m);
+    }
+    h.tag(textures.len());
+    for t in textures {
+        texture(&mut h, t);
+    }
+    h.tag(lights.len());
+    for l in lights {
+        let crate::scene::Light {
+            position,
+            color,
+            track,
+            name,
+        } = l;
+        h.vec3(*position);
+        h.vec3(*color);
+        h.opt(*track, Words::u32);
+        h.opt(name.as_deref(), Words::str);
+    }
+    camera_track(&mut h, camera);
+    h.vec3(*background);
+    h.vec3(*ambient);
+    h.opt(animation.as_ref(), |h, a| {
+        let crate::scene::AnimationRange { start, end, frames } = a;
+        h.f32(*start);
+        h.f32(*end);
+        h.u32(*frames);
+    });
+    h.0
+}
+
+fn node_animation(h: &mut Words, a: &NodeAnimation) {
+    let NodeAnimation {
+        name,
+        translation,
+        rotation,
+        scale,
+        translation_sampler,
+        rotation_sampler,
+        scale_sampler,
+    } = a;
+    h.str(name);
+    h.vec3(*translation);
+    h.quat(*rotation);
+    h.vec3(*scale);
+    for s in [translation_sampler, rotation_sampler, scale_sampler] {
+        h.opt(s.as_ref(), |h, s| h.debug(s));
+    }
+}
+
+fn keyframe_track(h: &mut Words, t: &KeyframeTrack) {
+    let KeyframeTrack {
+        name,
+        translation,
+        rotation,
+        scale,
+        visibility,
+    } = t;
+    h.str(name);
+    for spline in [translation, scale] {
+        h.opt(spline.as_ref(), |h, s| {
+            h.tag(s.keys().len());
+            for k in s.keys() {
+                h.f32(k.time);
+                h.vec3(k.value);
+                h.f32s(&[k.tension, k.continuity, k.bias]);
+            }
+        });
+    }
+    h.opt(rotation.as_ref(), |h, r| h.debug(r));
+    h.tag(visibility.len());
+    for (t, v) in visibility {
+        h.f32(*t);
+        h.bool(*v);
+    }
+}
+
+fn material(h: &mut Words, m: &Material) {
+    let Material {
+        ambient,
+        diffuse,
+        specular,
+        shininess,
+        transmission,
+        ior,
+        texture,
+    } = m;
+    h.vec3(*ambient);
+    h.vec3(*diffuse);
+    h.vec3(*specular);
+    h.f32s(&[*shininess, *transmission, *ior]);
+    h.opt(*texture, Words::u32);
+}
+
+fn texture(h: &mut Words, t: &Texture) {
+    h.str(&t.name);
+    // Every level of the pyramid, not only level 0: filtered lookups read them.
+    h.tag(t.levels());
+    for (w, ht, texels) in (0..t.levels()).filter_map(|i| t.level(i)) {
+        h.u32(w);
+        h.u32(ht);
+        h.tag(texels.len());
+        for x in texels {
+            h.vec3(*x);
+        }
+    }
+}
+
+fn camera_track(h: &mut Words, c: &CameraTrack) {
+    let CameraTrack {
+        base,
+        track,
+        resolution,
+    } = c;
+    let Camera {
+        eye,
+        at,
+        up,
+        fov_y_deg,
+        hither,
+    } = base;
+    h.vec3(*eye);
+    h.vec3(*at);
+    h.vec3(*up);
+    h.f32(*fov_y_deg);
+    h.f32(*hither);
+    h.opt(*track, Words::u32);
+    h.opt(*resolution, |h, (w, ht)| {
+        h.u32(w);
+        h.u32(ht);
+    });
+}
+
+/// A checksum of an entry's pixels and size.
+fn pixel_checksum(width: u32, height: u32, rgb: &[u8]) -> u64 {
+    let mut h = Words::new(0xc4ec_c5a0);
+    h.u32(width);
+    h.u32(height);
+    h.bytes(rgb);
     h.0
 }
 
 /// The cache for one scene, camera and image size.
 pub struct IdealCache {
     dir: PathBuf,
-    base_key: u64,
+    /// The key lines shared by every entry of this cache.
+    base_key: String,
     size: (u32, u32),
 }
 
@@ -63,50 +421,116 @@ impl IdealCache {
         camera_path: Option<&CameraPath>,
     ) -> std::io::Result<Self> {
         std::fs::create_dir_all(dir)?;
-        let mut h = Hasher(CACHE_VERSION);
-        let _ = write!(
-            h,
-            "{:x}|{}|{:?}|{:?}|renderer {}",
-            scene_fingerprint(tracer.scene()),
-            camera_path.map(|p| p.to_csv()).unwrap_or_default(),
-            tracer.size(),
-            // Every option, the texture filter included: entries made under one
-            // setting are never served under another.
-            tracer.options(),
-            RENDERER_VERSION
-        );
+        let (width, height) = tracer.size();
+        // Every option, the texture filter included, so that entries made under one
+        // setting are never served under another; destructured so that a new option
+        // does not compile here until it is part of the key.
+        let TraceOptions {
+            max_depth,
+            texture_filter,
+        } = tracer.options();
+        let texture_filter = match texture_filter {
+            TextureFilter::None => "none",
+            TextureFilter::RayCones => "ray-cones",
+        };
+        let mut key = String::new();
+        let _ = writeln!(key, "frameless ideal image");
+        let _ = writeln!(key, "cache_version {CACHE_VERSION}");
+        let _ = writeln!(key, "renderer_version {RENDERER_VERSION}");
+        let _ = writeln!(key, "scene {:016x}", scene_fingerprint(tracer.scene()));
+        let _ = writeln!(key, "width {width}");
+        let _ = writeln!(key, "height {height}");
+        let _ = writeln!(key, "max_depth {max_depth}");
+        let _ = writeln!(key, "texture_filter {texture_filter}");
+        match camera_path {
+            None => {
+                let _ = writeln!(key, "camera_path none");
+            }
+            Some(p) => {
+                let csv = p.to_csv();
+                let _ = writeln!(key, "camera_path {} lines", csv.lines().count());
+                for line in csv.lines() {
+                    let _ = writeln!(key, "  {line}");
+                }
+            }
+        }
         Ok(Self {
             dir: dir.to_path_buf(),
-            base_key: h.0,
-            size: tracer.size(),
+            base_key: key,
+            size: (width, height),
         })
     }
 
-    fn path(&self, t: f64, spp: u32, seed: u64) -> PathBuf {
-        let key = mix64(mix64(self.base_key ^ t.to_bits()) ^ ((spp as u64) << 32) ^ mix64(seed));
-        self.dir.join(format!("{key:016x}.png"))
+    /// The full key of the entry at time `t`: the text an entry must carry to be served.
+    pub fn entry_key(&self, t: f64, spp: u32, seed: u64) -> String {
+        format!(
+            "{}time_bits {:016x} ({t})\nspp {spp}\nseed {seed}\n",
+            self.base_key,
+            t.to_bits()
+        )
     }
 
-    /// The ideal image at time `t`, from disk when present and valid, else rendered and
-    /// stored. Returns the displayed (8-bit) values as an image.
-    pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> Image {
-        let path = self.path(t, spp, seed);
-        if let Ok((w, h, rgb)) = read_png_rgb8(&path) {
-            if (w, h) == self.size && rgb.len() == (w * h * 3) as usize {
-                return from_rgb8(w, h, &rgb);
-            }
-        }
-        let img = still::render(tracer, t, spp, seed, &|_| {});
+    /// Where the entry at time `t` is stored (whether or not it is there).
+    pub fn entry_path(&self, t: f64, spp: u32, seed: u64) -> PathBuf {
+        let mut h = Words::new(0x6e61_6d65);
+        h.str(&self.entry_key(t, spp, seed));
+        self.dir.join(format!("{:016x}.png", h.0))
+    }
+
+    /// The ideal image at time `t` as displayed (8-bit values), from disk when a valid
+    /// entry is there, else rendered and stored; and what the lookup found.
+    pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> (Image, Lookup) {
+        let key = self.entry_key(t, spp, seed);
+        let path = self.entry_path(t, spp, seed);
         let (w, h) = self.size;
+        let lookup = match self.read(&path, &key) {
+            Ok(rgb) => return (from_rgb8(w, h, &rgb), Lookup::Hit),
+            Err(lookup) => lookup,
+        };
+        let img = still::render(tracer, t, spp, seed, &|_| {});
         let rgb = img.to_rgb8();
+        let checksum = format!("{:016x}", pixel_checksum(w, h, &rgb));
         // A failed write only costs a re-render next time.
-        let _ = write_png_rgb8_fast(&path, w, h, &rgb);
-        from_rgb8(w, h, &rgb)
+        let _ = write_png_rgb8_tagged(
+            &path,
+            w,
+            h,
+            &rgb,
+            &[(KEY_CHUNK, &key), (CHECKSUM_CHUNK, &checksum)],
+        );
+        (from_rgb8(w, h, &rgb), lookup)
     }
 
-    /// Whether the entry for time `t` exists (it may still be invalid).
-    pub fn contains(&self, t: f64, spp: u32, seed: u64) -> bool {
-        self.path(t, spp, seed).exists()
+    /// The entry's pixels if it proves to be the entry for `key`; else why not.
+    fn read(&self, path: &Path, key: &str) -> Result<Vec<u8>, Lookup> {
+        if !path.exists() {
+            return Err(Lookup::Miss);
+        }
+        let reject = |m| Err(Lookup::Rejected(m));
+        let Ok(png) = read_png(path) else {
+            return reject(Mismatch::Unreadable);
+        };
+        if png.color != png::ColorType::Rgb || png.depth != png::BitDepth::Eight {
+            return reject(Mismatch::Format);
+        }
+        let (w, h) = self.size;
+        if (png.width, png.height) != (w, h) || png.data.len() != (w * h * 3) as usize {
+            return reject(Mismatch::Size);
+        }
+        let text = |keyword: &str| {
+            png.text
+                .iter()
+                .find(|(k, _)| k == keyword)
+                .map(|(_, v)| v.as_str())
+        };
+        if text(KEY_CHUNK) != Some(key) {
+            return reject(Mismatch::Key);
+        }
+        let checksum = format!("{:016x}", pixel_checksum(w, h, &png.data));
+        if text(CHECKSUM_CHUNK) != Some(checksum.as_str()) {
+            return reject(Mismatch::Checksum);
+        }
+        Ok(png.data)
     }
 }
 
@@ -128,13 +552,19 @@ mod tests {
 
     use super::*;
     use crate::{
+        image::{write_png_rgb8_fast, write_png_rgb8_tagged},
         scene::builtin,
-        trace::{TextureFilter, TraceOptions},
     };
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("frameless-cache-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
 
     #[test]
     fn key_covers_the_texture_filter() {
-        let dir = std::env::temp_dir().join(format!("frameless-cache-key-{}", std::process::id()));
+        let dir = scratch("key");
         let scene = Arc::new(builtin::toycar());
         let key = |texture_filter| {
             let options = TraceOptions {
@@ -142,11 +572,129 @@ mod tests {
                 ..TraceOptions::default()
             };
             let tracer = Tracer::new(scene.clone(), 8, 8, options);
-            IdealCache::new(&dir, &tracer, None).unwrap().base_key
+            IdealCache::new(&dir, &tracer, None)
+                .unwrap()
+                .entry_key(0.5, 4, 1)
         };
         let none = key(TextureFilter::None);
         assert_eq!(none, key(TextureFilter::None));
         assert_ne!(none, key(TextureFilter::RayCones));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_fingerprint_sees_every_part_of_the_scene() {
+        let base = builtin::toycar();
+        let fp = scene_fingerprint(&base);
+        assert_eq!(fp, scene_fingerprint(&base.clone()), "deterministic");
+        let mut moved = base.clone();
+        moved.source = Some("/elsewhere/toycar.aff".into());
+        assert_eq!(
+            fp,
+            scene_fingerprint(&moved),
+            "where it came from is not content"
+        );
+        // One changed float anywhere changes the fingerprint; -0.0 is not 0.0 to it.
+        type Edit = Box<dyn Fn(&mut Scene)>;
+        let edits: Vec<(&str, Edit)> = vec![
+            ("ambient", Box::new(|s| s.ambient.x += 1e-6)),
+            (
+                "background",
+                Box::new(|s| s.background.z = -s.background.z - 0.5),
+            ),
+            ("camera", Box::new(|s| s.camera.base.fov_y_deg += 0.001)),
+            ("material", Box::new(|s| s.materials[0].shininess += 1.0)),
+            ("light", Box::new(|s| s.lights[0].color.y *= 0.5)),
+            (
+                "triangle",
+                Box::new(|s| {
+                    let g = s
+                        .groups
+                        .iter_mut()
+                        .find(|g| !g.triangles.is_empty())
+                        .unwrap();
+                    g.triangles[0].p[1].y += 1e-3;
+                }),
+            ),
+            ("node", Box::new(|s| s.nodes.push(s.nodes[0].clone()))),
+            (
+                "track",
+                Box::new(|s| s.tracks[0].visibility.push((1.0, false))),
+            ),
+            (
+                "texture",
+                Box::new(|s| {
+                    let t = &s.textures[0];
+                    let mut texels = t.texels.clone();
+                    texels[0].x += 0.25;
+                    s.textures[0] = Texture::new(&t.name, t.width, t.height, texels);
+                }),
+            ),
+        ];
+        for (what, edit) in edits {
+            let mut s = base.clone();
+            edit(&mut s);
+            assert_ne!(fp, scene_fingerprint(&s), "{what}");
+        }
+    }
+
+    #[test]
+    fn an_entry_is_served_only_with_its_key_checksum_and_format() {
+        let dir = scratch("lookup");
+        let scene = Arc::new(builtin::toycar());
+        let tracer = Tracer::new(scene, 12, 8, TraceOptions::default());
+        let cache = IdealCache::new(&dir, &tracer, None).unwrap();
+        let (t, u) = (0.5, 0.75);
+        let (a, l) = cache.get_or_render(&tracer, t, 2, 1);
+        assert_eq!(l, Lookup::Miss);
+        let (a2, l) = cache.get_or_render(&tracer, t, 2, 1);
+        assert_eq!((l, &a2), (Lookup::Hit, &a));
+        let (b, _) = cache.get_or_render(&tracer, u, 2, 1);
+        assert_ne!(a, b, "the two instants differ, so a swap would be visible");
+        let (pa, pb) = (cache.entry_path(t, 2, 1), cache.entry_path(u, 2, 1));
+        let bytes_b = std::fs::read(&pb).unwrap();
+        // Each case damages entry `t`, which is then rejected, re-rendered and rewritten.
+        let rgb = a.to_rgb8();
+        let damage: Vec<(Mismatch, Box<dyn Fn()>)> = vec![
+            (
+                Mismatch::Key,
+                Box::new(|| std::fs::write(&pa, &bytes_b).unwrap()),
+            ),
+            (
+                Mismatch::Key,
+                Box::new(|| write_png_rgb8_fast(&pa, 12, 8, &rgb).unwrap()),
+            ),
+            (
+                Mismatch::Checksum,
+                Box::new(|| {
+                    let key = cache.entry_key(t, 2, 1);
+                    let mut wrong = rgb.clone();
+                    wrong[5] ^= 1;
+                    let sum = format!("{:016x}", pixel_checksum(12, 8, &rgb));
+                    let chunks = [(KEY_CHUNK, key.as_str()), (CHECKSUM_CHUNK, sum.as_str())];
+                    write_png_rgb8_tagged(&pa, 12, 8, &wrong, &chunks).unwrap();
+                }),
+            ),
+            (
+                Mismatch::Size,
+                Box::new(|| write_png_rgb8_fast(&pa, 4, 4, &[0; 48]).unwrap()),
+            ),
+            (
+                Mismatch::Unreadable,
+                Box::new(|| std::fs::write(&pa, b"not a png").unwrap()),
+            ),
+        ];
+        for (why, damage) in damage {
+            damage();
+            let (img, l) = cache.get_or_render(&tracer, t, 2, 1);
+            assert_eq!(l, Lookup::Rejected(why));
+            assert_eq!(img, a, "{why:?}: the right image all the same");
+            assert_eq!(
+                cache.get_or_render(&tracer, t, 2, 1).1,
+                Lookup::Hit,
+                "{why:?}"
+            );
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
