@@ -10,7 +10,7 @@ use std::{
 
 /// Layers from the bottom up; must match `docs/ARCHITECTURE.md`.
 const LAYERS: &[&[&str]] = &[
-    &["image", "output", "sampling", "clock", "tiles"],
+    &["image", "output", "limits", "sampling", "clock", "tiles"],
     &["scene"],
     &["trace"],
     &["render"],

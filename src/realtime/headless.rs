@@ -79,7 +79,7 @@ fn load_average() -> Option<f64> {
 }
 
 /// Run the pipeline for `opts.seconds`, then write images and `stats.json` to
-/// `opts.out`.
+/// `opts.out` (replaced whole, as every command's output folder).
 pub fn run_headless(
     tracer: Arc<Tracer>,
     config: RtConfig,
@@ -91,9 +91,13 @@ pub fn run_headless(
             opts.seconds
         )));
     }
-    std::fs::create_dir_all(&opts.out).map_err(|source| RealtimeError::Io {
-        path: opts.out.clone(),
-        source,
+    // The folder is built beside `out` and swapped in whole at the end: `out` holds
+    // this run or the previous one, never files of both.
+    let staging = crate::output::OutputDir::begin(&opts.out).map_err(|source| {
+        RealtimeError::Io {
+            path: opts.out.clone(),
+            source,
+        }
     })?;
     let (w, h) = tracer.size();
     let load_average_before = load_average();
@@ -133,7 +137,7 @@ pub fn run_headless(
     let mut images = Vec::new();
     for (i, f) in kept.iter().enumerate() {
         let name = format!("display_{i}_t{:.2}.png", f.time);
-        let p = opts.out.join(&name);
+        let p = staging.path().join(&name);
         f.image
             .save_png(&p)
             .map_err(|source| RealtimeError::Io { path: p, source })?;
@@ -155,8 +159,12 @@ pub fn run_headless(
         machine_share,
         load_average_before,
     };
-    let p = opts.out.join("stats.json");
+    let p = staging.path().join("stats.json");
     let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");
     std::fs::write(&p, text).map_err(|source| RealtimeError::Io { path: p, source })?;
+    staging.commit().map_err(|source| RealtimeError::Io {
+        path: opts.out.clone(),
+        source,
+    })?;
     Ok(stats)
 }

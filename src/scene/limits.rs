@@ -22,6 +22,11 @@ pub const MAX_COORDINATE: f32 = 1e12;
 /// are expanded: about 1.3 GB of triangles and attributes plus its BVH.
 pub const MAX_TRIANGLES: usize = 1 << 23;
 
+/// Largest colour component (material reflectances, light intensities, background,
+/// ambient light, texels): far above any physical reflectance or practical light, low
+/// enough that a path of products and sums over many lights stays finite in f32.
+pub const MAX_COLOR: f32 = 1e6;
+
 /// Most spheres and cones together.
 pub const MAX_ANALYTIC: usize = 1 << 22;
 
@@ -147,6 +152,43 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
                 &format!("light {li}: position"),
                 l.position,
             )));
+        }
+    }
+    let color_ok = |c: Vec3| c.is_finite() && c.abs().max_element() <= MAX_COLOR;
+    let color_message = |what: String, c: Vec3| {
+        format!(
+            "{what} ({:?}, {:?}, {:?}) is outside the colour limit of ±{MAX_COLOR:e} (or not finite)",
+            c.x, c.y, c.z
+        )
+    };
+    for (mi, m) in scene.materials.iter().enumerate() {
+        for (what, c) in [
+            ("ambient", m.ambient),
+            ("diffuse", m.diffuse),
+            ("specular", m.specular),
+            (
+                "shininess, transmission or index of refraction",
+                Vec3::new(m.shininess, m.transmission, m.ior),
+            ),
+        ] {
+            if !color_ok(c) {
+                return Err(bad(color_message(format!("material {mi}: {what}"), c)));
+            }
+        }
+    }
+    for (li, l) in scene.lights.iter().enumerate() {
+        if !color_ok(l.color) {
+            return Err(bad(color_message(format!("light {li}: colour"), l.color)));
+        }
+    }
+    for (what, c) in [("background", scene.background), ("ambient light", scene.ambient)] {
+        if !color_ok(c) {
+            return Err(bad(color_message(what.into(), c)));
+        }
+    }
+    for t in &scene.textures {
+        if let Some(&c) = t.texels.iter().find(|&&c| !color_ok(c)) {
+            return Err(bad(color_message(format!("texture {}: a texel", t.name), c)));
         }
     }
     let cam = &scene.camera.base;

@@ -359,6 +359,12 @@ impl Tracer {
         &self.scene
     }
 
+    /// Triangles left out of the BVHs because they can never show: degenerate (zero
+    /// area), exact copies of another, or beyond the build's coordinate limit.
+    pub fn dropped_triangles(&self) -> usize {
+        self.static_geo.dropped + self.instance_groups.iter().map(|(_, g)| g.dropped).sum::<usize>()
+    }
+
     /// Image size `(width, height)`.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
@@ -727,6 +733,9 @@ impl Tracer {
                 };
                 let fp = self.footprint(state, &h, cone);
                 let (c, dynamic) = self.shade(state, &ray, &s, fp, 0);
+                // Loaders bound every colour (`scene::limits`); a scene made in code is not,
+                // and one non-finite sample would spread NaN through every filter.
+                let c = if c.is_finite() { c } else { Vec3::ZERO };
                 Sample {
                     color: c,
                     luminance: luminance(c),
