@@ -168,7 +168,7 @@ fn obj_copies_and_a_100k_vertex_face_build() {
         let a = k as f32 / n as f32 * std::f32::consts::TAU;
         obj.push_str(&format!("v {} {} 0\n", a.cos(), a.sin()));
     }
-    obj.push_str("f");
+    obj.push('f');
     for k in 1..=n {
         obj.push_str(&format!(" {k}"));
     }
