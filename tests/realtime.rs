@@ -181,6 +181,7 @@ fn headless_runs_stop_on_time_and_write_stats() {
             out: dir.clone(),
             images: 2,
             scene: "toycar".into(),
+            camera_step_s: None,
         };
         let t0 = Instant::now();
         let st = run_headless(tracer, cfg, &opts).unwrap();
@@ -200,6 +201,48 @@ fn headless_runs_stop_on_time_and_write_stats() {
         for img in st.images {
             assert!(dir.join(img).exists());
         }
+    }
+}
+
+#[test]
+fn headless_runs_report_latency_and_show_a_camera_step_within_a_second() {
+    for method in RtMethod::ALL {
+        let tracer = toycar(48, 32);
+        let mut cfg = RtConfig::new(method);
+        cfg.sampling_threads = 1;
+        let dir = tmp_dir(&format!("step-{}", method.name()));
+        let opts = HeadlessOptions {
+            seconds: 2.0,
+            out: dir.clone(),
+            images: 1,
+            scene: "toycar".into(),
+            camera_step_s: Some(0.8),
+        };
+        let st = run_headless(tracer, cfg, &opts).unwrap();
+        let name = method.name();
+        let p = &st.pipeline;
+        assert!(
+            p.age_p50_s > 0.0 && p.age_p50_s <= p.age_p95_s && p.age_p95_s <= p.age_p99_s,
+            "{name}: age percentiles {} {} {}",
+            p.age_p50_s,
+            p.age_p95_s,
+            p.age_p99_s
+        );
+        let step = st.camera_step.expect("a step was asked for");
+        assert!(step.at_s >= 0.8, "{name}: stepped at {}", step.at_s);
+        let first = step.first_image_ms.expect("an image after the step");
+        let half = step.half_new_ms.unwrap_or_else(|| panic!("{name}: the step never showed"));
+        assert!(first <= half, "{name}: {first} ms > {half} ms");
+        // A functional bound, not a speed target: a frameless display of 1,536 pixels
+        // that took a second to show a turn of the camera would be broken.
+        assert!(half < 1000.0, "{name}: half the pixels new only after {half} ms");
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap())
+                .unwrap();
+        for key in ["age_p50_s", "age_p95_s", "age_p99_s"] {
+            assert!(json["pipeline"][key].is_number(), "{name}: {key} missing");
+        }
+        assert!(json["camera_step"]["half_new_ms"].is_number(), "{name}");
     }
 }
 

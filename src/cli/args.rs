@@ -223,6 +223,10 @@ pub struct ViewArgs {
     /// No window: run the pipeline, write images and stats.json to --out.
     #[arg(long)]
     pub headless: bool,
+    /// With --headless: turn the camera 20° this many seconds into the run and report
+    /// how long the display takes to show it (`camera_step` in stats.json).
+    #[arg(long, value_parser = finite_f64, requires = "headless")]
+    pub camera_step: Option<f64>,
     /// Output directory of --headless.
     #[arg(long, default_value = "view-out")]
     pub out: PathBuf,

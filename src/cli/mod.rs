@@ -497,15 +497,21 @@ fn view(a: args::ViewArgs) -> Result<()> {
         let Some(seconds) = a.seconds else {
             bail!("--headless needs --seconds N");
         };
+        if let Some(at) = a.camera_step {
+            if !(at >= 0.0 && at < seconds) {
+                bail!("--camera-step {at} must be within the run: [0, --seconds {seconds})");
+            }
+        }
         let opts = realtime::HeadlessOptions {
             seconds,
             out: a.out.clone(),
             images: a.images as usize,
             scene: a.scene.clone(),
+            camera_step_s: a.camera_step,
         };
         let st = realtime::run_headless(tracer, cfg, &opts)?;
         println!(
-            "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, mean age {:.0} ms, {} sampling threads",
+            "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
             cfg.method.name(),
             st.samples_per_s,
             st.display_fps,
@@ -513,8 +519,22 @@ fn view(a: args::ViewArgs) -> Result<()> {
             st.display.late_refreshes,
             st.pipeline.reconstruct_ms_mean,
             st.pipeline.mean_age_s * 1e3,
-            st.pipeline.sampling_threads
+            st.pipeline.age_p50_s * 1e3,
+            st.pipeline.age_p95_s * 1e3,
+            st.pipeline.age_p99_s * 1e3,
+            st.pipeline.sampling_threads,
+            if st.pipeline.sampling_threads == 1 { "" } else { "s" }
         );
+        if let Some(c) = &st.camera_step {
+            let ms = |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
+            println!(
+                "camera step of {}° at {:.2} s: first image after it {}, half the pixels new {}",
+                c.yaw_deg,
+                c.at_s,
+                ms(c.first_image_ms),
+                ms(c.half_new_ms)
+            );
+        }
         if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {
             println!(
                 "this run got {:.0}% of the machine's {} cores (load average before: {load:.1})",

@@ -148,6 +148,11 @@ impl NewestSamples {
         self.info_time[p as usize] = t;
     }
 
+    /// When pixel `p`'s information was traced (NaN before its first sample).
+    pub fn info_time(&self, p: usize) -> f64 {
+        self.info_time.get(p).copied().unwrap_or(f64::NAN)
+    }
+
     /// Mean age at time `t` of the information of the pixels that have some (NaN when
     /// none has), summed in pixel order.
     pub fn mean_age(&self, t: f64) -> f64 {

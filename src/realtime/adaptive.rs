@@ -390,10 +390,12 @@ impl ImageBuilder for Builder {
         let camera = s.tracer.state_at(t).camera;
         let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
         lock(&s.image_stats).ring_capacity = r.capacity();
+        let ages = r.pixel_ages();
         Some(Built {
             image,
             mean_age: r.mean_age(),
             tiling: Some(tiling),
+            ages: super::shared::sampled_ages(ages.len(), |i| ages[i]),
         })
     }
 }

@@ -135,6 +135,6 @@ pub fn realtime_recon() -> ReconParams {
     ReconParams {
         ring_factor: 2.0,
         max_radius: 8.0,
-        ..ReconParams::paper()
+        ..ReconParams::converging()
     }
 }

@@ -159,10 +159,13 @@ impl ImageBuilder for Builder {
                 building.retain(|f| f.0 > id);
             }
         }
+        let n = self.front.pixels.len();
+        let age = (t - self.front_time.1) as f32;
         Some(Built {
             image: self.front.clone(),
             mean_age: t - self.front_time.1,
             tiling: None,
+            ages: super::shared::sampled_ages(n, |_| age),
         })
     }
 }

@@ -100,10 +100,12 @@ impl ImageBuilder for Builder {
                 self.newest.set(p, c, ts);
             }
         }
+        let n = self.newest.image.pixels.len();
         Some(Built {
             image: self.newest.image.clone(),
             mean_age: self.newest.mean_age(t),
             tiling: None,
+            ages: super::shared::sampled_ages(n, |i| (t - self.newest.info_time(i)) as f32),
         })
     }
 }

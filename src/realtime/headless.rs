@@ -22,6 +22,39 @@ pub struct HeadlessOptions {
     pub images: usize,
     /// Scene name (recorded in the statistics).
     pub scene: String,
+    /// Turn the camera by [`STEP_YAW_DEG`] this many seconds into the run, to measure
+    /// how long the display takes to show it ([`CameraStep`]).
+    pub camera_step_s: Option<f64>,
+}
+
+/// How far the scripted camera step turns the view, degrees about its up vector.
+pub const STEP_YAW_DEG: f32 = 20.0;
+
+/// The latency of a scripted camera step: from the moment the camera turned (wall
+/// clock) to the display showing it.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct CameraStep {
+    /// Seconds into the run when the camera turned.
+    pub at_s: f64,
+    /// How far it turned, degrees.
+    pub yaw_deg: f32,
+    /// Until the first displayed image built after the step, ms: the pipeline's delay
+    /// (`null`: none within the run).
+    pub first_image_ms: Option<f64>,
+    /// Until the first displayed image in which at least half the pixels show
+    /// information traced after the step, ms: when the change is what the viewer sees
+    /// (`null`: not within the run).
+    pub half_new_ms: Option<f64>,
+}
+
+/// The camera `cam` turned by `deg` about its up vector.
+fn yawed(cam: crate::scene::Camera, deg: f32) -> crate::scene::Camera {
+    let axis = cam.up.normalize_or(glam::Vec3::Y);
+    let turn = glam::Quat::from_axis_angle(axis, deg.to_radians());
+    crate::scene::Camera {
+        at: cam.eye + turn * (cam.at - cam.eye),
+        ..cam
+    }
 }
 
 /// What `stats.json` holds.
@@ -56,6 +89,8 @@ pub struct HeadlessStats {
     pub machine_share: Option<f64>,
     /// The 1-minute load average before the run (Linux), for judging contention.
     pub load_average_before: Option<f64>,
+    /// The scripted camera step's latency, when one was asked for.
+    pub camera_step: Option<CameraStep>,
 }
 
 /// User + system CPU seconds of this process, from `/proc/self/stat` (Linux).
@@ -110,8 +145,24 @@ pub fn run_headless(
     let mut kept: Vec<Arc<Frame>> = Vec::new();
     let mut rgb = Vec::new();
     let mut last_seq = 0;
+    // (wall seconds into the run, scene time) of the step once taken, and its figures.
+    let mut step: Option<(f64, f64, CameraStep)> = None;
     while clock.elapsed() < opts.seconds {
         pacer.wait();
+        if let (Some(at), None) = (opts.camera_step_s, &step) {
+            if clock.elapsed() >= at {
+                let tracer = pipeline.tracer();
+                let now = clock.now();
+                tracer.set_live_camera(Some(yawed(tracer.camera_at(now), STEP_YAW_DEG)));
+                let figures = CameraStep {
+                    at_s: clock.elapsed(),
+                    yaw_deg: STEP_YAW_DEG,
+                    first_image_ms: None,
+                    half_new_ms: None,
+                };
+                step = Some((clock.elapsed(), now, figures));
+            }
+        }
         let frame = pipeline.latest();
         let seq = frame.as_ref().map_or(0, |f| f.seq);
         if let Some(f) = &frame {
@@ -126,6 +177,22 @@ pub fn run_headless(
             }
         }
         pacer.present(seq);
+        if let (Some((wall, scene_t, figures)), Some(f)) = (&mut step, &frame) {
+            let shown_ms = (clock.elapsed() - *wall) * 1e3;
+            if f.time >= *scene_t && figures.first_image_ms.is_none() {
+                figures.first_image_ms = Some(shown_ms);
+            }
+            if figures.half_new_ms.is_none() && f.time >= *scene_t {
+                let informed = f.ages.iter().filter(|a| a.is_finite());
+                let new = informed
+                    .clone()
+                    .filter(|&&a| (a as f64) <= f.time - *scene_t)
+                    .count();
+                if new * 2 >= informed.count().max(1) {
+                    figures.half_new_ms = Some(shown_ms);
+                }
+            }
+        }
     }
     let _ = rgb;
     let seconds = clock.elapsed();
@@ -158,6 +225,7 @@ pub fn run_headless(
         process_cpu_s,
         machine_share,
         load_average_before,
+        camera_step: step.map(|s| s.2),
     };
     let p = staging.path().join("stats.json");
     let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");

@@ -169,6 +169,21 @@ impl Visualisation {
             })
     }
 
+    /// The name with its colour key, for the title bar (the window has no room for a
+    /// drawn legend that would not hide the image).
+    pub fn key(self) -> &'static str {
+        match self {
+            Visualisation::Image => "image",
+            Visualisation::Tiling => "tiling: tile borders in yellow",
+            Visualisation::Gradients => {
+                "gradients per tile: red Gx, green Gy, blue Gt (each scaled to its 95th percentile)"
+            }
+            Visualisation::Density => {
+                "density: local sample rate (∝ 1/tile area), log scale, dark sparse to bright dense"
+            }
+        }
+    }
+
     /// Name for the title bar.
     pub fn name(self) -> &'static str {
         match self {
@@ -203,7 +218,7 @@ impl RtConfig {
             refresh_hz: 60.0,
             start: 0.0,
             seed: 1,
-            sampler: SamplerParams::paper(),
+            sampler: SamplerParams::ours(),
             recon: realtime_recon(),
         }
     }

@@ -58,6 +58,14 @@ pub struct PipelineStats {
     pub sampling_busy_share: f64,
     /// Mean over images of their mean information age, seconds.
     pub mean_age_s: f64,
+    /// Percentiles of the age of the information on screen, seconds: pixel ages of
+    /// every image built, pooled (a subset of pixels per image, read from a histogram
+    /// with 6% bins).
+    pub age_p50_s: f64,
+    /// 95th percentile, as `age_p50_s`.
+    pub age_p95_s: f64,
+    /// 99th percentile, as `age_p50_s`.
+    pub age_p99_s: f64,
     /// Attempts to take a pixel that another thread held.
     pub pixel_conflicts: u64,
     /// Adaptive: tiles now.
@@ -162,6 +170,9 @@ impl Pipeline {
             },
             sampling_busy_share: busy / (seconds * cfg.sampling_threads as f64),
             mean_age_s: mean(&img.ages),
+            age_p50_s: img.age_hist.quantile(0.5),
+            age_p95_s: img.age_hist.quantile(0.95),
+            age_p99_s: img.age_hist.quantile(0.99),
             pixel_conflicts: s.locks.conflicts(),
             tiles: s.tiles.load(Ordering::Relaxed),
             reprojected_share: if rv + sv > 0 {
@@ -234,16 +245,19 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         seq += 1;
         let mean_age = built.mean_age;
+        let ages = Arc::new(built.ages);
         *lock(&s.latest) = Some(Arc::new(Frame {
             seq,
             image: built.image,
             time: t,
             mean_age,
             tiling: built.tiling,
+            ages: ages.clone(),
         }));
         let mut st = lock(&s.image_stats);
         st.images += 1;
         st.build_ms.push(ms);
+        st.age_hist.add(&ages);
         if mean_age.is_finite() {
             st.ages.push(mean_age);
         }

@@ -40,6 +40,81 @@ pub struct Frame {
     pub mean_age: f64,
     /// The tiling it was reconstructed with (adaptive only; for visualisations).
     pub tiling: Option<Arc<Tiling>>,
+    /// Ages of the information in an evenly spaced subset of its pixels, seconds (NaN:
+    /// none yet), for latency percentiles and for telling when a change shows.
+    pub ages: Arc<Vec<f32>>,
+}
+
+/// Most pixels whose ages an image reports: enough for percentiles to a fraction of a
+/// percent, few enough to copy at every refresh of a large display.
+pub(crate) const AGE_SAMPLES: usize = 4096;
+
+/// The ages of an evenly spaced subset of `n` pixels (at most [`AGE_SAMPLES`]).
+pub(crate) fn sampled_ages(n: usize, age: impl Fn(usize) -> f32) -> Vec<f32> {
+    let stride = n.div_ceil(AGE_SAMPLES).max(1);
+    (0..n).step_by(stride).map(age).collect()
+}
+
+/// A histogram of information ages on log-spaced bins (0.1 ms to 100 s, 40 bins per
+/// decade, so a percentile read from it is within 6% of the exact one): a run of any
+/// length keeps every displayed pixel age in fixed memory.
+#[derive(Clone, Debug)]
+pub(crate) struct AgeHistogram {
+    bins: Vec<u64>,
+}
+
+impl AgeHistogram {
+    const LO: f64 = 1e-4;
+    const PER_DECADE: f64 = 40.0;
+    const BINS: usize = 240;
+
+    fn bin(age: f64) -> usize {
+        let b = ((age.max(Self::LO) / Self::LO).log10() * Self::PER_DECADE) as usize;
+        b.min(Self::BINS - 1)
+    }
+
+    /// Count the finite ages.
+    pub fn add(&mut self, ages: &[f32]) {
+        for &a in ages.iter().filter(|a| a.is_finite()) {
+            self.bins[Self::bin(a as f64)] += 1;
+        }
+    }
+
+    /// The `q`-quantile (0–1), seconds, at its bin's geometric centre; 0 when empty.
+    pub fn quantile(&self, q: f64) -> f64 {
+        let total: u64 = self.bins.iter().sum();
+        if total == 0 {
+            return 0.0;
+        }
+        let want = (q.clamp(0.0, 1.0) * total as f64).ceil().max(1.0) as u64;
+        let mut seen = 0;
+        for (b, &c) in self.bins.iter().enumerate() {
+            seen += c;
+            if seen >= want {
+                return Self::LO * 10f64.powf((b as f64 + 0.5) / Self::PER_DECADE);
+            }
+        }
+        Self::LO * 10f64.powf(Self::BINS as f64 / Self::PER_DECADE)
+    }
+}
+
+impl Default for AgeHistogram {
+    fn default() -> Self {
+        Self {
+            bins: vec![0; Self::BINS],
+        }
+    }
+}
+
+/// The `q`-quantile of the finite values (exact; for one image's few thousand ages).
+pub(crate) fn quantile_of(values: &[f32], q: f64) -> f64 {
+    let mut v: Vec<f32> = values.iter().copied().filter(|a| a.is_finite()).collect();
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let k = ((v.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    let (_, x, _) = v.select_nth_unstable_by(k, f32::total_cmp);
+    *x as f64
 }
 
 /// A lock that survives a panicking holder: the data are plain values, always valid.
@@ -103,6 +178,8 @@ pub(crate) struct ImageThreadStats {
     pub images: u64,
     pub build_ms: Vec<f64>,
     pub ages: Vec<f64>,
+    /// Pixel ages of every image built, pooled.
+    pub age_hist: AgeHistogram,
     /// Adaptive: the sample rate the reconstructor's filters assume, and its ring's
     /// capacity (the builder reports them; the pipeline only passes them on).
     pub recon_rate: f64,
@@ -118,6 +195,8 @@ pub(crate) struct Built {
     pub mean_age: f64,
     /// The tiling it was reconstructed with, for the visualisations.
     pub tiling: Option<Arc<Tiling>>,
+    /// Ages of a subset of its pixels ([`sampled_ages`]).
+    pub ages: Vec<f32>,
 }
 
 /// A method's side of the image thread: it drains what the method's threads sent and

@@ -5,8 +5,8 @@
 //! speed, left mouse drag looks around; the digit keys switch methods in
 //! [`RtMethod::ALL`] order (1 adaptive, 2 traditional frameless, 3 framed); V cycles
 //! the visualisation (image, tiling, gradients, density); P writes a screenshot; Esc
-//! quits. The title bar shows samples/s, display FPS and the mean age of the
-//! information on screen. Neither X11 nor Wayland libraries are linked: winit and
+//! quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
+//! of the information on screen, and the visualisation with its colour key. Neither X11 nor Wayland libraries are linked: winit and
 //! softbuffer load them at run time.
 
 use std::{
@@ -281,14 +281,20 @@ impl App {
             self.title_images = shown;
             self.title_at = Instant::now();
             let age = frame.as_ref().map_or(f64::NAN, |f| f.mean_age);
+            let p95 = frame
+                .as_ref()
+                .map_or(f64::NAN, |f| super::shared::quantile_of(&f.ages, 0.95));
+            let threads = self.config.sampling_threads;
             window.set_title(&format!(
-                "frameless · {} · {:.2} M samples/s · {:.0} fps · age {:.0} ms · {} · {} threads{}",
+                "frameless · {} · {:.2} M samples/s · {:.0} fps · age {:.0} ms (p95 {:.0}) · {} · {} thread{}{}",
                 self.config.method.name(),
                 sps / 1e6,
                 fps,
                 age * 1e3,
-                self.opts.visualisation.name(),
-                self.config.sampling_threads,
+                p95 * 1e3,
+                self.opts.visualisation.key(),
+                threads,
+                if threads == 1 { "" } else { "s" },
                 if self.opts.record.is_some() {
                     " · REC"
                 } else {

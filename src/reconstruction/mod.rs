@@ -274,8 +274,13 @@ impl Reconstructor {
         &self.image
     }
 
-    /// Pixel mean of the weight-averaged sample age at the last refresh, seconds
-    /// (holes take the age of the block they were filled from).
+    /// Each pixel's weight-averaged sample age at the last refresh, seconds (holes
+    /// take the age of the block they were filled from).
+    pub fn pixel_ages(&self) -> &[f32] {
+        &self.age
+    }
+
+    /// Pixel mean of [`Reconstructor::pixel_ages`], seconds.
     pub fn mean_age(&self) -> f64 {
         self.mean_age
     }
