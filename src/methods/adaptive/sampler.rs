@@ -71,6 +71,10 @@ pub struct Sampler {
     occl_px: Vec<f64>,
     t_ref: f64,
     rng: Rng,
+    /// Stratified positions: the seed of the per-pixel sequences, and how many centres
+    /// each pixel has had (empty when off).
+    seed: u64,
+    pixel_draws: Vec<u32>,
     target_tiles: f64,
     since_adjust: usize,
     next_sample: u64,
@@ -174,6 +178,12 @@ impl Sampler {
             occl_px: vec![0.0; (width * height) as usize],
             t_ref: clock.start,
             rng: Rng::new(&[seed, 0xada9]),
+            seed,
+            pixel_draws: if params.stratified_positions {
+                vec![0; (width * height) as usize]
+            } else {
+                Vec::new()
+            },
             target_tiles: params.fixed_tiles as f64,
             since_adjust: 0,
             next_sample: 0,
@@ -498,7 +508,7 @@ impl Sampler {
             self.reproject_in(&state, leaf, now);
         }
         // The tiling may not have changed during the visit; the leaf is still a tile.
-        let (x, y) = rect.random_point(&mut self.rng);
+        let (x, y) = self.initiating_point(rect);
         let s = self.trace(&state, x, y, now);
         self.counters.initiating_samples += 1;
         let leaf_now = self.tiling.leaf_at(x as u32, y as u32);
@@ -510,6 +520,31 @@ impl Sampler {
             hit_point: s.hit_point,
             velocity: s.velocity,
         });
+    }
+
+    /// Where a new crosshair starts in `rect`: uniformly at random, or with
+    /// [`SamplerParams::stratified_positions`] a uniformly random pixel and the next
+    /// point of that pixel's own R2 sequence (a pure function of seed, pixel and count).
+    fn initiating_point(&mut self, rect: Rect) -> (f32, f32) {
+        if self.pixel_draws.is_empty() {
+            return rect.random_point(&mut self.rng);
+        }
+        let px = rect.x0 + self.rng.below(rect.width());
+        let py = rect.y0 + self.rng.below(rect.height());
+        let p = (py * self.width + px) as usize;
+        let k = self.pixel_draws[p];
+        self.pixel_draws[p] = k.wrapping_add(1);
+        // R2 (Roberts 2018): the plastic number's inverse powers; its points fill the
+        // square evenly from any start, and the start is the pixel's own.
+        const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
+        let mut start = Rng::new(&[self.seed, 0x57a7, p as u64]);
+        let (u0, v0) = (start.uniform() as f64, start.uniform() as f64);
+        let u = (u0 + k as f64 * A.0).fract() as f32;
+        let v = (v0 + k as f64 * A.1).fract() as f32;
+        (
+            (px as f32 + u).min(px as f32 + 0.999),
+            (py as f32 + v).min(py as f32 + 0.999),
+        )
     }
 
     /// The initial spatially gridded, co-temporal crosshairs (resumable: the budget may
