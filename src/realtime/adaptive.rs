@@ -396,6 +396,8 @@ impl ImageBuilder for Builder {
             mean_age: r.mean_age(),
             tiling: Some(tiling),
             ages: super::shared::sampled_ages(ages.len(), |i| ages[i]),
+            // Samples are reprojected to the camera of `t`.
+            view_time: t,
         })
     }
 }

@@ -46,6 +46,8 @@ pub enum RtMethod {
     TraditionalFrameless,
     /// Double-buffered framed rendering at full resolution, as fast as it goes.
     Framed,
+    /// Framed, with the newest frame reprojected to the camera at every refresh.
+    LateWarp,
 }
 
 /// Settings of one pipeline run.

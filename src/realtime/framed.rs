@@ -4,6 +4,11 @@
 //! [`Framed`](crate::methods::framed::Framed) does); the thread that finds the rows
 //! exhausted starts the next frame at the current time. The image thread assembles the
 //! rows and shows the newest complete frame.
+//!
+//! `late-warp` is the same frames, each also keeping what every pixel hit, and the
+//! newest complete one reprojected at every refresh to the camera and time shown (the
+//! evaluation's [`Warp`]: depth and object motion, display-side, no rays): the
+//! practitioners' low-latency answer, live beside frameless.
 
 use std::{
     sync::{
@@ -22,7 +27,11 @@ use super::{
 };
 use crate::{
     image::Image,
-    methods::framed::trace_row,
+    methods::{
+        framed::{trace_row_samples, GBuffer, GSample},
+        late_warp::Warp,
+    },
+    scene::CameraFrame,
     trace::{SceneState, Tracer},
 };
 
@@ -33,7 +42,16 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,
     extra_threads: 0,
-    start,
+    start: |sp| start_with(sp, false),
+};
+
+/// The late-warp method's description.
+pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
+    name: "late-warp",
+    about: "framed, the newest frame reprojected to the camera at every refresh (depth + object motion, no rays)",
+    default_sampling_threads: |cores| cores,
+    extra_threads: 0,
+    start: |sp| start_with(sp, true),
 };
 
 /// One frame being traced: the scene state at its start, rows handed out in order.
@@ -61,11 +79,17 @@ impl FrameJob {
 struct Row {
     frame: u64,
     time: f64,
+    camera: CameraFrame,
     y: u32,
     pixels: Vec<Vec3>,
+    /// What each pixel hit (late warp only).
+    hits: Vec<GSample>,
 }
 
-fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+/// A frame being assembled: id, scene time, camera, image, hits, rows received.
+type Building = (u64, f64, CameraFrame, Image, Vec<GSample>, u32);
+
+fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     let job = Arc::new(Mutex::new(Arc::new(FrameJob::new(
         0,
@@ -76,19 +100,22 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     // growing memory; ~100 ms of rows.
     let (tx, rx) = bounded(1024);
     let s1 = s.clone();
-    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx))?;
+    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx, warp))?;
     let (w, h) = s.tracer.size();
     Ok(Box::new(Builder {
+        s: s.clone(),
         size: (w, h),
         rx,
         building: Vec::new(),
         front: Image::new(w, h),
         front_time: (0, f64::NAN),
+        front_g: None,
+        warp: warp.then(|| Warp::new(w, h)),
     }))
 }
 
 /// A sampling thread: rows of the current frame until stopped.
-fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>) {
+fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, warp: bool) {
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     while !s.stopped() {
@@ -102,7 +129,18 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>) {
             continue;
         }
         let t0 = Instant::now();
-        let pixels: Vec<Vec3> = trace_row(tracer, &cur.state, (w, h), y).collect();
+        let (pixels, hits): (Vec<Vec3>, Vec<GSample>) = if warp {
+            trace_row_samples(tracer, &cur.state, (w, h), y)
+                .map(|s| (s.color, GSample::from(&s)))
+                .unzip()
+        } else {
+            (
+                trace_row_samples(tracer, &cur.state, (w, h), y)
+                    .map(|s| s.color)
+                    .collect(),
+                Vec::new(),
+            )
+        };
         s.busy_ns
             .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
         s.samples.fetch_add(w as u64, Ordering::Relaxed);
@@ -111,8 +149,10 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>) {
             .send(Row {
                 frame: cur.id,
                 time: cur.time,
+                camera: cur.state.camera,
                 y,
                 pixels,
+                hits,
             })
             .is_err()
         {
@@ -124,13 +164,17 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>) {
 /// The image thread's side: frames assembled from their rows, the newest complete one
 /// shown (the front buffer).
 struct Builder {
+    s: Arc<Shared>,
     size: (u32, u32),
     rx: Receiver<Row>,
-    /// Frames being assembled: id, scene time, image, rows received.
-    building: Vec<(u64, f64, Image, u32)>,
+    /// Frames being assembled.
+    building: Vec<Building>,
     front: Image,
     /// Id and scene time of the frame shown (NaN: none yet).
     front_time: (u64, f64),
+    /// Late warp: the front frame's hits and camera, and the warp's buffers.
+    front_g: Option<GBuffer>,
+    warp: Option<Warp>,
 }
 
 impl ImageBuilder for Builder {
@@ -138,22 +182,39 @@ impl ImageBuilder for Builder {
         let (w, h) = self.size;
         for row in self.rx.try_iter() {
             let building = &mut self.building;
+            let warp = self.warp.is_some();
             let i = match building.iter().position(|f| f.0 == row.frame) {
                 Some(i) => i,
                 None => {
-                    building.push((row.frame, row.time, Image::new(w, h), 0));
+                    let hits = if warp {
+                        vec![GSample::from(&crate::trace::Sample::default()); (w * h) as usize]
+                    } else {
+                        Vec::new()
+                    };
+                    building.push((row.frame, row.time, row.camera, Image::new(w, h), hits, 0));
                     building.len() - 1
                 }
             };
             let f = &mut building[i];
             let y = row.y as usize * w as usize;
-            f.2.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
-            f.3 += 1;
-            if f.3 == h {
-                let (id, ft, img, _) = building.swap_remove(i);
+            f.3.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
+            if warp {
+                f.4[y..y + w as usize].copy_from_slice(&row.hits);
+            }
+            f.5 += 1;
+            if f.5 == h {
+                let (id, ft, camera, img, hits, _) = building.swap_remove(i);
                 if id >= self.front_time.0 || self.front_time.1.is_nan() {
                     self.front = img;
                     self.front_time = (id, ft);
+                    if warp {
+                        self.front_g = Some(GBuffer {
+                            grid: (w, h),
+                            samples: hits,
+                            time: ft,
+                            camera,
+                        });
+                    }
                 }
                 // Older unfinished frames can never be shown any more.
                 building.retain(|f| f.0 > id);
@@ -161,11 +222,21 @@ impl ImageBuilder for Builder {
         }
         let n = self.front.pixels.len();
         let age = (t - self.front_time.1) as f32;
+        // The warp moves what the frame saw to where it is now; it adds no new
+        // information, so the age stays the frame's.
+        let (image, view_time) = match (&mut self.warp, &self.front_g) {
+            (Some(warp), Some(g)) => {
+                let camera = self.s.tracer.state_at(t).camera;
+                (warp.apply(&self.front, g, t, &camera).clone(), t)
+            }
+            _ => (self.front.clone(), self.front_time.1),
+        };
         Some(Built {
-            image: self.front.clone(),
+            image,
             mean_age: t - self.front_time.1,
             tiling: None,
             ages: super::shared::sampled_ages(n, |_| age),
+            view_time,
         })
     }
 }

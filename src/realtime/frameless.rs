@@ -106,6 +106,8 @@ impl ImageBuilder for Builder {
             mean_age: self.newest.mean_age(t),
             tiling: None,
             ages: super::shared::sampled_ages(n, |i| (t - self.newest.info_time(i)) as f32),
+            // Each pixel is seen from the camera of its own sample.
+            view_time: f64::NAN,
         })
     }
 }

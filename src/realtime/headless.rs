@@ -41,6 +41,10 @@ pub struct CameraStep {
     /// Until the first displayed image built after the step, ms: the pipeline's delay
     /// (`null`: none within the run).
     pub first_image_ms: Option<f64>,
+    /// Until the first displayed image seen from the turned camera, ms (`null`: none
+    /// within the run, or a method whose pixels each keep their own sample's camera,
+    /// as traditional frameless).
+    pub view_ms: Option<f64>,
     /// Until the first displayed image in which at least half the pixels show
     /// information traced after the step, ms: when the change is what the viewer sees
     /// (`null`: not within the run).
@@ -158,6 +162,7 @@ pub fn run_headless(
                     at_s: clock.elapsed(),
                     yaw_deg: STEP_YAW_DEG,
                     first_image_ms: None,
+                    view_ms: None,
                     half_new_ms: None,
                 };
                 step = Some((clock.elapsed(), now, figures));
@@ -181,6 +186,9 @@ pub fn run_headless(
             let shown_ms = (clock.elapsed() - *wall) * 1e3;
             if f.time >= *scene_t && figures.first_image_ms.is_none() {
                 figures.first_image_ms = Some(shown_ms);
+            }
+            if f.view_time >= *scene_t && figures.view_ms.is_none() {
+                figures.view_ms = Some(shown_ms);
             }
             if figures.half_new_ms.is_none() && f.time >= *scene_t {
                 let informed = f.ages.iter().filter(|a| a.is_finite());

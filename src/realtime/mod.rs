@@ -55,6 +55,7 @@ const REGISTRY: &[(RtMethod, &MethodInfo)] = &[
     (RtMethod::Adaptive, &adaptive::METHOD),
     (RtMethod::TraditionalFrameless, &frameless::METHOD),
     (RtMethod::Framed, &framed::METHOD),
+    (RtMethod::LateWarp, &framed::LATE_WARP),
 ];
 
 impl RtMethod {
@@ -233,7 +234,7 @@ mod tests {
     #[test]
     fn method_names_parse_back_and_are_clap_values() {
         let names: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
-        assert_eq!(names, ["adaptive", "traditional-frameless", "framed"]);
+        assert_eq!(names, ["adaptive", "traditional-frameless", "framed", "late-warp"]);
         for m in RtMethod::ALL {
             assert_eq!(RtMethod::parse(m.name()).unwrap(), m);
             assert_eq!(RtMethod::from_str(m.name(), false).unwrap(), m);
@@ -243,7 +244,7 @@ mod tests {
         let err = RtMethod::parse("bogus").unwrap_err().to_string();
         assert!(
             err.contains(
-                "unknown method `bogus` (expected adaptive, traditional-frameless or framed)"
+                "unknown method `bogus` (expected adaptive, traditional-frameless, framed or late-warp)"
             ),
             "{err}"
         );
@@ -268,6 +269,7 @@ mod tests {
         assert_eq!(threads(RtMethod::Adaptive), cores.saturating_sub(1).max(1));
         assert_eq!(threads(RtMethod::TraditionalFrameless), cores);
         assert_eq!(threads(RtMethod::Framed), cores);
+        assert_eq!(threads(RtMethod::LateWarp), cores);
         assert_eq!(RtMethod::Adaptive.info().extra_threads, 1);
     }
 }

@@ -253,6 +253,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             mean_age,
             tiling: built.tiling,
             ages: ages.clone(),
+            view_time: built.view_time,
         }));
         let mut st = lock(&s.image_stats);
         st.images += 1;

@@ -43,6 +43,8 @@ pub struct Frame {
     /// Ages of the information in an evenly spaced subset of its pixels, seconds (NaN:
     /// none yet), for latency percentiles and for telling when a change shows.
     pub ages: Arc<Vec<f32>>,
+    /// Scene time of the camera it shows the scene from (NaN: no single camera).
+    pub view_time: f64,
 }
 
 /// Most pixels whose ages an image reports: enough for percentiles to a fraction of a
@@ -197,6 +199,9 @@ pub(crate) struct Built {
     pub tiling: Option<Arc<Tiling>>,
     /// Ages of a subset of its pixels ([`sampled_ages`]).
     pub ages: Vec<f32>,
+    /// Scene time of the camera it shows the scene from (NaN: each pixel from the
+    /// camera of its own sample, as traditional frameless shows it).
+    pub view_time: f64,
 }
 
 /// A method's side of the image thread: it drains what the method's threads sent and
