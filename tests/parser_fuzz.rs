@@ -1,4 +1,4 @@
-//! Property tests of every parser (AFF, PPM, glTF, OBJ/MTL, camera CSV) against hostile
+//! Property tests of every parser (AFF, PPM, glTF and GLB, OBJ/MTL, camera CSV) against hostile
 //! numbers (huge but finite, at and past the coordinate limit, denormal, non-finite) and
 //! duplicate geometry (thousands of copies of one triangle, long fans). A scene that
 //! loads must build its BVHs and trace an image with finite pixels; one that does not
@@ -185,6 +185,29 @@ fn b64(bytes: &[u8]) -> String {
     out
 }
 
+/// A binary glTF container: the JSON chunk, then the BIN chunk (both padded to 4 bytes).
+fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let pad = |v: &[u8], with: u8| {
+        let mut v = v.to_vec();
+        while v.len() % 4 != 0 {
+            v.push(with);
+        }
+        v
+    };
+    let (j, b) = (pad(json, b' '), pad(bin, 0));
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((12 + 8 + j.len() + 8 + b.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}
+
 fn f32_of(s: &str) -> f32 {
     s.parse().unwrap_or(f32::NAN)
 }
@@ -203,6 +226,7 @@ proptest! {
         zero_count in select(&[0u64, 3, 300, 30000, 1 << 20, 1 << 24, 1 << 25, u32::MAX as u64][..]),
         nodes in 1usize..5,
         scale in num(),
+        binary in any::<bool>(),
     ) {
         let vals: Vec<f32> = positions.iter().map(|s| f32_of(s)).collect();
         let n = vals.len() / 3;
@@ -226,7 +250,7 @@ proptest! {
             .collect();
         let json = format!(
             r#"{{"asset":{{"version":"2.0"}},
-"buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{b}"}}],
+"buffers":[{{"byteLength":{len}{uri}}}],
 "bufferViews":[{{"buffer":0,"byteLength":{len}}}],
 "accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3"}},
              {{"componentType":5126,"count":{zero_count},"type":"VEC3"}}],
@@ -235,13 +259,22 @@ proptest! {
 "nodes":[{nodes}],
 "scenes":[{{"nodes":[{ids}]}}]}}"#,
             len = data.len(),
-            b = b64(&data),
+            // A .glb carries the buffer in its BIN chunk, a .gltf as a data URI.
+            uri = if binary {
+                String::new()
+            } else {
+                format!(r#","uri":"data:application/octet-stream;base64,{}""#, b64(&data))
+            },
             nodes = node_list.join(","),
             ids = (0..nodes).map(|k| k.to_string()).collect::<Vec<_>>().join(","),
         );
         let dir = case_dir("gltf");
-        let path = dir.join("fuzz.gltf");
-        std::fs::write(&path, json).unwrap();
+        let path = dir.join(if binary { "fuzz.glb" } else { "fuzz.gltf" });
+        if binary {
+            std::fs::write(&path, glb(json.as_bytes(), &data)).unwrap();
+        } else {
+            std::fs::write(&path, json).unwrap();
+        }
         exercise(scene::gltf::load(&path), &path)?;
         let _ = std::fs::remove_dir_all(&dir);
     }
