@@ -5,6 +5,7 @@
 pub mod metrics;
 pub mod report;
 pub mod sequence;
+pub mod sweep;
 pub mod table1;
 
 use std::{path::PathBuf, sync::Arc, time::Instant};
