@@ -421,3 +421,110 @@ fn a_shard_run_again_keeps_its_finished_jobs() {
             .collect::<Vec<_>>()
     );
 }
+
+/// `assets/sweeps/table1.toml`, made tiny (32x32, 0.05 s windows, one rate, three
+/// methods, 1 spp ideals) and run as two shards, merges to what `frameless table1`
+/// writes with the same settings: Table 1 runs through a sweep.
+#[test]
+fn the_table1_sweep_merges_to_what_table1_writes() {
+    let Some(bart) = std::env::var_os("FRAMELESS_BART_DIR").map(PathBuf::from) else {
+        eprintln!("note: FRAMELESS_BART_DIR is unset; skipping the Table 1 sweep test");
+        return;
+    };
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+    let text = std::fs::read_to_string(assets.join("sweeps/table1.toml")).expect("table1.toml");
+    let methods = "traditional-frameless,adaptive-paper,full-res-60hz";
+    let quoted: Vec<String> = methods.split(',').map(|m| format!("\"{m}\"")).collect();
+    let start = text.find("methods = [").expect("methods");
+    let end = start + text[start..].find(']').expect("list ends") + 1;
+    let tiny = format!(
+        "{}methods = [{}]{}",
+        &text[..start],
+        quoted.join(", "),
+        &text[end..]
+    );
+    let replacements = [
+        ("sizes = [\"256x256\"]", "sizes = [\"32x32\"]".to_string()),
+        (
+            "rates = [\"100k\", \"400k\", \"800k\"]",
+            "rates = [\"100k\"]".into(),
+        ),
+        ("ideal_spp = 16", "ideal_spp = 1".into()),
+        ("duration = 3.0", "duration = 0.05".into()),
+        (
+            "\"../camera_paths/",
+            format!("\"{}/camera_paths/", assets.display()),
+        ),
+    ];
+    let mut tiny = tiny;
+    for (from, to) in replacements {
+        assert!(tiny.contains(from), "{from}");
+        tiny = tiny.replace(from, &to);
+    }
+    let dir = tmp("table1-sweep");
+    std::fs::create_dir_all(&dir).expect("folder");
+    let sweep = dir.join("table1-tiny.toml");
+    std::fs::write(&sweep, tiny).expect("written");
+    let cache = tmp("table1-cache");
+    let results = dir.join("results");
+    let children: Vec<_> = ["0/2", "1/2"]
+        .iter()
+        .map(|shard| {
+            frameless(&[
+                &"sweep",
+                &sweep,
+                &"--shard",
+                shard,
+                &"--out",
+                &results,
+                &"--bart",
+                &bart,
+                &"--cache-dir",
+                &cache,
+            ])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("frameless starts")
+        })
+        .collect();
+    for c in children {
+        ok(c.wait_with_output().expect("shard runs"), "a Table 1 shard");
+    }
+    let merged = tmp("table1-merged");
+    ok(
+        frameless(&[&"merge", &results, &"--out", &merged])
+            .output()
+            .expect("runs"),
+        "the Table 1 merge",
+    );
+    let direct = tmp("table1-direct");
+    ok(
+        frameless(&[
+            &"table1",
+            &"--bart",
+            &bart,
+            &"--size",
+            &"32x32",
+            &"--duration",
+            &"0.05",
+            &"--rates",
+            &"100k",
+            &"--ideal-spp",
+            &"1",
+            &"--methods",
+            &methods,
+            &"--cache-dir",
+            &cache,
+            &"--out",
+            &direct,
+        ])
+        .output()
+        .expect("runs"),
+        "frameless table1",
+    );
+    assert_same_outputs(&merged, &direct);
+    assert!(std::fs::read_to_string(merged.join("table.md"))
+        .expect("table.md")
+        .contains("(34.4)"));
+}

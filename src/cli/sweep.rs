@@ -123,3 +123,36 @@ pub fn merge(a: MergeArgs) -> Result<()> {
     println!("report: {}", report.display());
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+    use frameless::evaluation::sweep::{StripFrames, Sweep, SweepReport};
+
+    use super::super::args::{Cli, Command, Size, Strips};
+
+    /// `assets/sweeps/table1.toml` runs what `frameless table1` runs by default: the
+    /// same rates, size, seed, ideal samples, FLIP frequency, texture filter and strips
+    /// (its animations and methods are checked against the library's table in
+    /// `evaluation::sweep`).
+    #[test]
+    fn the_table1_sweep_has_the_table1_command_defaults() {
+        let text = include_str!("../../assets/sweeps/table1.toml");
+        let s = Sweep::parse(text, "table1.toml").expect("parses");
+        let Command::Table1(a) = Cli::parse_from(["frameless", "table1"]).command else {
+            panic!("table1 expected")
+        };
+        assert_eq!(s.report, SweepReport::Table1);
+        assert_eq!(s.rates, a.rates);
+        let Size(w, h) = a.size;
+        assert_eq!(s.sizes, vec![(w, h)]);
+        assert_eq!(s.seeds, vec![a.seed]);
+        assert_eq!(s.ideal_spp, a.ideal_spp);
+        assert_eq!(s.flip_every, a.flip_every);
+        assert_eq!(s.texture_filter, a.texture_filter);
+        assert_eq!(a.strips, Strips::Quartiles);
+        assert_eq!(s.strips, StripFrames::Quartiles);
+        assert!(a.methods.is_none() && a.duration.is_none() && a.strip_rates.is_none());
+        assert_eq!(a.animations, "interactive,bart,toycar,still");
+    }
+}
