@@ -324,10 +324,15 @@ pub fn run_shard(
             file.camera_paths[inst.evaluation].clone(),
             opts.cache_dir.clone(),
         );
+        // Shards that reach this evaluation together render different refreshes'
+        // ideal images first, and read the others' from a shared cache.
+        let first_ideal = shard.index as usize * cfg.frames() / shard.count as usize;
         let out_job =
-            evaluation::run(scene.clone(), &cfg, progress).map_err(|source| SweepError::Job {
-                job: job.id(),
-                source: Box::new(source),
+            evaluation::run_from(scene.clone(), &cfg, progress, first_ideal).map_err(|source| {
+                SweepError::Job {
+                    job: job.id(),
+                    source: Box::new(source),
+                }
             })?;
         let (w, h) = (cfg.width, cfg.height);
         let strips = out_job
