@@ -7,9 +7,9 @@
 //!
 //! A job's shard is a hash of its identity modulo the shard count ([`JobKey::shard`]),
 //! so the shards of any count partition the same jobs and no shard needs to hear from
-//! the others. Each job writes one self-describing result file ([`run`]); [`merge`]
-//! checks that every job is there exactly once, from the same sweep and renderer, and
-//! writes the outputs a single run writes.
+//! the others. Each job writes one self-describing result file ([`run_shard`]);
+//! [`merge()`] checks that every job is there exactly once, from the same sweep and
+//! renderer, and [`write_merged`] writes the outputs a single run writes.
 
 pub mod merge;
 pub mod run;

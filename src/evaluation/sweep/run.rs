@@ -186,7 +186,7 @@ fn decode_png(b64: &str, w: u32, h: u32) -> Result<Vec<u8>, String> {
             info.width, info.height, info.bit_depth, info.color_type
         ));
     }
-    let mut buf = vec![0; (w * h * 3) as usize];
+    let mut buf = vec![0; w as usize * h as usize * 3];
     reader
         .next_frame(&mut buf)
         .map_err(|e| format!("PNG data: {e}"))?;
