@@ -108,18 +108,28 @@ pub fn write_with(
             "is a folder, not a file",
         ));
     }
-    let tmp = sibling(path, PARTIAL)?;
-    let result = File::create_new(&tmp)
-        .and_then(|file| {
-            let mut w = BufWriter::new(file);
-            write(&mut w)?;
-            // Flushing here, not on drop, is what surfaces a full disk as an error.
-            w.into_inner().map_err(io::IntoInnerError::into_error)?;
-            Ok(())
-        })
-        .and_then(|()| fs::rename(&tmp, path));
+    write_through(&sibling(path, PARTIAL)?, path, write)
+}
+
+/// [`write_with`] through the temporary file `tmp`, which must not exist.
+fn write_through(
+    tmp: &Path,
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+) -> io::Result<()> {
+    // A name that exists is another writer's: process ids repeat across machines that
+    // share a folder (every container's first process may be pid 1), so it is left
+    // alone, and only this write fails.
+    let file = File::create_new(tmp)?;
+    let result = (|| {
+        let mut w = BufWriter::new(file);
+        write(&mut w)?;
+        // Flushing here, not on drop, is what surfaces a full disk as an error.
+        w.into_inner().map_err(io::IntoInnerError::into_error)?;
+        fs::rename(tmp, path)
+    })();
     if result.is_err() {
-        let _ = fs::remove_file(&tmp);
+        let _ = fs::remove_file(tmp);
     }
     result
 }
@@ -400,6 +410,23 @@ mod tests {
             .collect();
         v.sort();
         v
+    }
+
+    /// Writers on two machines sharing a folder may draw the same temporary name: the
+    /// second fails and leaves the first's temporary, and its write, alone.
+    #[test]
+    fn a_temporary_name_in_use_is_not_taken_over() {
+        let d = scratch("taken");
+        let (p, tmp) = (d.join("entry.png"), d.join("entry.png.partial-1-0"));
+        fs::write(&tmp, b"another writer's half").expect("writes");
+        let e = write_through(&tmp, &p, |w| w.write_all(b"mine")).expect_err("name in use");
+        assert_eq!(e.kind(), io::ErrorKind::AlreadyExists);
+        assert_eq!(fs::read(&tmp).expect("still there"), b"another writer's half");
+        assert!(!p.exists());
+        fs::rename(&tmp, &p).expect("the other writer finishes");
+        write_through(&tmp, &p, |w| w.write_all(b"mine")).expect("the name is free again");
+        assert_eq!(fs::read(&p).expect("written"), b"mine");
+        assert_eq!(names(&d), ["entry.png"]);
     }
 
     #[test]

@@ -73,6 +73,12 @@ pub enum Command {
     /// The real-time pipeline: an interactive window, or `--headless` for a number of
     /// seconds writing images and statistics.
     View(ViewArgs),
+    /// Run one shard (`--shard i/N`) of a sweep file's evaluation jobs, writing one
+    /// result file per job; `frameless merge` combines them.
+    Sweep(super::sweep::SweepArgs),
+    /// Merge the job results of a sweep's shards into the outputs of one run
+    /// (summary.json, summary.md, plots, strips, report.html).
+    Merge(super::sweep::MergeArgs),
 }
 
 /// Arguments of `frameless render`.

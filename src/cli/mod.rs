@@ -1,6 +1,7 @@
 //! The command line: raw arguments become validated settings, then built objects.
 
 mod args;
+mod sweep;
 
 use std::{path::Path, sync::Arc, time::Instant};
 
@@ -89,6 +90,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Table1(a) => table1(a),
         Command::Render(a) => render(a),
         Command::View(a) => view(a),
+        Command::Sweep(a) => sweep::sweep(a),
+        Command::Merge(a) => sweep::merge(a),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;

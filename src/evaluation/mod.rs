@@ -5,6 +5,7 @@
 pub mod metrics;
 pub mod report;
 pub mod sequence;
+pub mod sweep;
 pub mod table1;
 
 use std::{path::PathBuf, sync::Arc, time::Instant};
@@ -416,6 +417,19 @@ pub fn run(
     cfg: &EvalConfig,
     progress: &dyn Progress,
 ) -> Result<EvalOutput, EvalError> {
+    run_from(scene, cfg, progress, 0)
+}
+
+/// [`run`], making the ideal images from refresh `first_ideal` on (then wrapping
+/// around). Runs of one evaluation that share a cold cache at the same time (a sweep's
+/// shards) start at different refreshes, so each renders its part and reads the rest
+/// from the cache instead of all rendering all; the results do not depend on the order.
+pub fn run_from(
+    scene: Arc<Scene>,
+    cfg: &EvalConfig,
+    progress: &dyn Progress,
+    first_ideal: usize,
+) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = Arc::new(
         Tracer::new(
@@ -447,7 +461,13 @@ pub fn run(
         ideal_spp: cfg.ideal_spp,
         ideal_cache: cache.clone(),
     };
-    let ideal = ideal_images(cfg, &ctx_for(cfg.rates[0]), &mut timing, progress);
+    let ideal = ideal_images(
+        cfg,
+        &ctx_for(cfg.rates[0]),
+        first_ideal,
+        &mut timing,
+        progress,
+    );
     let mut strips: Vec<Strip> = Vec::new();
     for rate in &cfg.rates {
         for &k in cfg.strip_frames.iter().filter(|&&k| k < n) {
@@ -487,35 +507,36 @@ pub fn run(
     })
 }
 
-/// The ideal image of every refresh of the window, as displayed (8-bit RGB).
+/// The ideal image of every refresh of the window, as displayed (8-bit RGB), made
+/// from refresh `first` on.
 fn ideal_images(
     cfg: &EvalConfig,
     ctx: &MethodContext,
+    first: usize,
     timing: &mut Timing,
     progress: &dyn Progress,
 ) -> Vec<Vec<u8>> {
     let t0 = Instant::now();
-    let ideal = (0..cfg.frames())
-        .map(|k| {
-            let t = cfg.refresh(k);
-            let image = match &ctx.ideal_cache {
-                Some(cache) => {
-                    let (image, lookup) =
-                        cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed);
-                    match lookup {
-                        Lookup::Hit => timing.ideal_cache_hits += 1,
-                        Lookup::Rejected(_) => timing.ideal_cache_rejected += 1,
-                        Lookup::Miss => {}
-                    }
-                    image
+    let n = cfg.frames();
+    let first = first % n.max(1);
+    let mut ideal = vec![Vec::new(); n];
+    for k in (first..n).chain(0..first) {
+        let t = cfg.refresh(k);
+        ideal[k] = match &ctx.ideal_cache {
+            Some(cache) => {
+                let (image, lookup) = cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed);
+                match lookup {
+                    Lookup::Hit => timing.ideal_cache_hits += 1,
+                    Lookup::Rejected(_) => timing.ideal_cache_rejected += 1,
+                    Lookup::Miss => {}
                 }
-                None => ideal_image(ctx, t),
+                image
             }
-            .to_rgb8();
-            progress.step("ideal images");
-            image
-        })
-        .collect();
+            None => ideal_image(ctx, t),
+        }
+        .to_rgb8();
+        progress.step("ideal images");
+    }
     timing.ideal_s = t0.elapsed().as_secs_f64();
     ideal
 }

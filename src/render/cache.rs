@@ -16,6 +16,16 @@
 //! written atomically (see [`crate::output`]). An entry that fails any check is
 //! re-rendered and overwritten, and [`get_or_render`](IdealCache::get_or_render) says
 //! so, for the caller to count.
+//!
+//! One cache folder may be shared by any number of runs at once: threads, processes,
+//! and the shards of a sweep on several machines over a shared file system. Nothing is
+//! locked. Two writers of one entry render the same pixels (rendering is
+//! deterministic) and each renames its own temporary file into place, so either rename
+//! leaves a whole, valid entry; a writer whose temporary name is taken (process ids
+//! repeat across machines) does not store the entry, which the other does. A file
+//! system that breaks these guarantees (a rename that is not atomic, a torn read) can
+//! at worst show an entry that fails its checks: it is re-rendered, never served. The
+//! cost of sharing is only work done twice while two writers race for a new entry.
 
 use std::{
     fmt::{Debug, Write as _},
