@@ -32,7 +32,7 @@
 use std::{
     collections::VecDeque,
     sync::{
-        atomic::{AtomicU64, Ordering},
+        atomic::{AtomicU32, AtomicU64, Ordering},
         Arc, Mutex,
     },
     time::{Duration, Instant},
@@ -48,7 +48,7 @@ use crate::{
     clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::crosshair_with,
+        sampler::{crosshair_with, stratified_point},
         tiling::{Pending, Rect, Tiling},
         Sampler,
     },
@@ -80,6 +80,11 @@ struct Published {
     /// A copy of the tiling for the reconstructor's filters; `None` until the
     /// controller has a sampler.
     tiling: Mutex<Option<Arc<Tiling>>>,
+    /// Crosshair centres each pixel has had, for
+    /// [`crate::methods::adaptive::SamplerParams::stratified_positions`]
+    /// (empty when off); relaxed counters: two threads drawing the same index at once
+    /// only repeat one position.
+    pixel_draws: Vec<AtomicU32>,
 }
 
 fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
@@ -89,6 +94,11 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
         snapshot_seq: AtomicU64::new(0),
         tiling: Mutex::new(None),
+        pixel_draws: if s.config.sampler.stratified_positions {
+            (0..w as usize * h as usize).map(|_| AtomicU32::new(0)).collect()
+        } else {
+            Vec::new()
+        },
     });
     // Channels are bounded so that a slow consumer slows its producers instead of
     // growing memory without limit; the capacities hold ~100 ms of batches.
@@ -215,7 +225,14 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             });
         }
         for _ in 0..4 {
-            let (x, y) = rect.random_point(&mut rng);
+            let (x, y) = if published.pixel_draws.is_empty() {
+                rect.random_point(&mut rng)
+            } else {
+                let px = rect.x0 + rng.below(rect.width());
+                let py = rect.y0 + rng.below(rect.height());
+                let k = published.pixel_draws[(py * w + px) as usize].fetch_add(1, Ordering::Relaxed);
+                stratified_point(s.config.seed, w, px, py, k)
+            };
             let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
                 continue;
             };

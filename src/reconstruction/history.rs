@@ -327,13 +327,14 @@ impl History {
 
     /// Take in the samples pushed since the last refresh and blend the history over
     /// `image` (the reconstruction at `t` seen by `camera`, whose per-pixel age is
-    /// `age`); returns the sum over pixels of the shown age.
+    /// `age`, replaced by the age of what is shown); returns the sum over pixels of the
+    /// shown age.
     pub(super) fn refresh(
         &mut self,
         t: f64,
         camera: &CameraFrame,
         image: &mut Image,
-        age: &[f32],
+        age: &mut [f32],
     ) -> f64 {
         let since = self.view_since.take().unwrap_or(
             if self.last_camera.is_some_and(|c| c.same_view(camera)) {
@@ -425,7 +426,7 @@ impl History {
             .zip(self.acc.time_sum.par_chunks_mut(w))
             .zip(self.acc.count.par_chunks_mut(w))
             .zip(self.acc.lum_range.par_chunks_mut(w))
-            .zip(age.par_chunks(w))
+            .zip(age.par_chunks_mut(w))
             .enumerate()
             .map(|(y, (((((out, sum), time_sum), count), range), age))| {
                 let (mut cuts, mut age_sum) = (0u64, 0f64);
@@ -464,6 +465,7 @@ impl History {
                     } else {
                         age[x] as f64
                     };
+                    age[x] = shown_age as f32;
                     age_sum += shown_age;
                 }
                 (cuts, age_sum)
@@ -515,7 +517,7 @@ mod tests {
     fn refresh(h: &mut History, t: f64, cam: &CameraFrame, recon: f32) -> Image {
         let mut img = Image::new(4, 4);
         img.pixels.fill(Vec3::splat(recon));
-        h.refresh(t, cam, &mut img, &[0.0; 16]);
+        h.refresh(t, cam, &mut img, &mut [0.0; 16]);
         img
     }
 

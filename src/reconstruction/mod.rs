@@ -338,7 +338,7 @@ impl Reconstructor {
         self.splat();
         self.resolve();
         if let Some(h) = &mut self.history {
-            let age_sum = h.refresh(t, camera, &mut self.image, &self.age);
+            let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
         &self.image

@@ -104,6 +104,23 @@ const MIN_GRADIENT_DT: f64 = 1e-3;
 /// Seconds after which weights are rebased so that `exp` never overflows.
 const REBASE_AFTER_S: f64 = 20.0;
 
+/// The `k`-th position in pixel `(px, py)` of a `width`-wide image: the pixel's own R2
+/// sequence (Roberts 2018: steps of the plastic number's inverse powers, whose points
+/// fill the square evenly from any start) from a start drawn from `(seed, pixel)`. A
+/// pure function, shared by the sequential sampler and the real-time sampling threads.
+pub fn stratified_point(seed: u64, width: u32, px: u32, py: u32, k: u32) -> (f32, f32) {
+    const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
+    let p = py as u64 * width as u64 + px as u64;
+    let mut start = Rng::new(&[seed, 0x57a7, p]);
+    let (u0, v0) = (start.uniform() as f64, start.uniform() as f64);
+    let u = (u0 + k as f64 * A.0).fract() as f32;
+    let v = (v0 + k as f64 * A.1).fract() as f32;
+    (
+        (px as f32 + u).min(px as f32 + 0.999),
+        (py as f32 + v).min(py as f32 + 0.999),
+    )
+}
+
 /// A crosshair at `(x, y, t)`: the center and its on-screen neighbours one pixel away
 /// in ±x and ±y, traced by `trace` (center first, then +x, −x, +y, −y), with gradients;
 /// `old` is the earlier sample at the same location `(luminance, time)` for the temporal
@@ -534,17 +551,7 @@ impl Sampler {
         let p = (py * self.width + px) as usize;
         let k = self.pixel_draws[p];
         self.pixel_draws[p] = k.wrapping_add(1);
-        // R2 (Roberts 2018): the plastic number's inverse powers; its points fill the
-        // square evenly from any start, and the start is the pixel's own.
-        const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
-        let mut start = Rng::new(&[self.seed, 0x57a7, p as u64]);
-        let (u0, v0) = (start.uniform() as f64, start.uniform() as f64);
-        let u = (u0 + k as f64 * A.0).fract() as f32;
-        let v = (v0 + k as f64 * A.1).fract() as f32;
-        (
-            (px as f32 + u).min(px as f32 + 0.999),
-            (py as f32 + v).min(py as f32 + 0.999),
-        )
+        stratified_point(self.seed, self.width, px, py, k)
     }
 
     /// The initial spatially gridded, co-temporal crosshairs (resumable: the budget may
