@@ -34,7 +34,7 @@ pub fn psnr(rms: f64) -> f64 {
 /// Temporal instability between two refreshes: mean over channels of
 /// `|(shown − shown_prev) − (ideal − ideal_prev)|`, in 0–255 units. Zero when the display
 /// changes exactly as the ideal does (including not at all on a still scene).
-pub fn flicker(shown_prev: &[u8], shown: &[u8], ideal_prev: &[u8], ideal: &[u8]) -> f64 {
+pub fn instability(shown_prev: &[u8], shown: &[u8], ideal_prev: &[u8], ideal: &[u8]) -> f64 {
     let n = shown.len();
     assert!(shown_prev.len() == n && ideal_prev.len() == n && ideal.len() == n);
     if n == 0 {
@@ -63,6 +63,22 @@ pub fn flip_mean(reference: &[u8], test: &[u8], w: u32, h: u32) -> f64 {
     }
 }
 
+/// The FLIP error map between a reference and a test image of `w × h` 8-bit RGB
+/// pixels, coloured with FLIP's magma scale (black: no perceived difference, yellow:
+/// the largest), as 8-bit RGB; `None` if the images are not `w × h`.
+pub fn flip_map(reference: &[u8], test: &[u8], w: u32, h: u32) -> Option<Vec<u8>> {
+    let r = RgbImage::new(w as usize, h as usize, reference.to_vec()).ok()?;
+    let t = RgbImage::new(w as usize, h as usize, test.to_vec()).ok()?;
+    let colours = ldr_flip(&r, &t, DEFAULT_PPD).ok()?.colorize().ok()?;
+    Some(
+        colours
+            .pixels()
+            .iter()
+            .map(|&v| crate::image::quantize(v))
+            .collect(),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -85,15 +101,37 @@ mod tests {
     }
 
     #[test]
-    fn flicker_counts_only_change_the_ideal_does_not_have() {
+    fn flip_map_is_black_where_images_agree() {
+        let (w, h) = (16, 8);
+        let a: Vec<u8> = (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let same = flip_map(&a, &a, w, h).expect("a map");
+        assert_eq!(same.len(), a.len());
+        assert!(same.iter().all(|&v| v < 8), "magma starts near black");
+        let mut b = a.clone();
+        for v in &mut b[..w as usize * 3 * 4] {
+            *v = 255 - *v;
+        }
+        let diff = flip_map(&a, &b, w, h).expect("a map");
+        let bright = |m: &[u8], rows: std::ops::Range<usize>| -> u64 {
+            m[rows.start * w as usize * 3..rows.end * w as usize * 3]
+                .iter()
+                .map(|&v| v as u64)
+                .sum()
+        };
+        assert!(bright(&diff, 0..4) > 10 * bright(&same, 0..4).max(1));
+        assert!(flip_map(&a, &b, w + 1, h).is_none());
+    }
+
+    #[test]
+    fn instability_counts_only_change_the_ideal_does_not_have() {
         let a = vec![10u8, 20, 30];
         let b = vec![12u8, 20, 27];
         // The display changes exactly as the ideal: no flicker.
-        assert_eq!(flicker(&a, &b, &a, &b), 0.0);
+        assert_eq!(instability(&a, &b, &a, &b), 0.0);
         // The ideal is still, the display changes by 2 and 3: mean 5/3.
-        assert!((flicker(&a, &b, &a, &a) - 5.0 / 3.0).abs() < 1e-12);
+        assert!((instability(&a, &b, &a, &a) - 5.0 / 3.0).abs() < 1e-12);
         // The display is still while the ideal changes: lag counts too.
-        assert!((flicker(&a, &a, &a, &b) - 5.0 / 3.0).abs() < 1e-12);
+        assert!((instability(&a, &a, &a, &b) - 5.0 / 3.0).abs() < 1e-12);
     }
 
     #[test]
