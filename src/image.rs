@@ -172,6 +172,29 @@ pub fn write_png_rgb8_tagged(
     write_png(path, width, height, rgb, png::Compression::Fast, text)
 }
 
+/// Write a palette PNG: one byte a pixel indexing `palette` (RGB triples, at most 256),
+/// atomically (see [`crate::output`]).
+pub fn write_png_indexed(
+    path: &Path,
+    width: u32,
+    height: u32,
+    indices: &[u8],
+    palette: &[u8],
+) -> std::io::Result<()> {
+    output::require_extension(path, "png", "PNG")
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))?;
+    output::write_with(path, |file| {
+        let mut enc = png::Encoder::new(file, width, height);
+        enc.set_color(png::ColorType::Indexed);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_palette(palette.to_vec());
+        enc.set_compression(png::Compression::Balanced);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(indices).map_err(std::io::Error::other)?;
+        w.finish().map_err(std::io::Error::other)
+    })
+}
+
 fn write_png(
     path: &Path,
     width: u32,

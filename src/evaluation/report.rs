@@ -14,7 +14,7 @@ use plotters::prelude::*;
 use super::{metrics, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{
-    image::{read_png_rgb8, write_png_rgb8},
+    image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
     methods::MethodKind,
     output::{self, OutputDir},
 };
@@ -264,19 +264,24 @@ pub fn plot_rms(
 /// Side-by-side strip of images (8-bit RGB, all `w × h`) with [`STRIP_GAP`]-pixel
 /// white gaps.
 pub fn strip(images: &[Vec<u8>], w: u32, h: u32) -> (u32, u32, Vec<u8>) {
+    strip_of(images, w, h, 3, 255)
+}
+
+/// [`strip`] of images of `channels` bytes a pixel, gaps filled with `fill`.
+fn strip_of(images: &[Vec<u8>], w: u32, h: u32, channels: u32, fill: u8) -> (u32, u32, Vec<u8>) {
     let gap = STRIP_GAP;
     let n = images.len() as u32;
     let sw = n * w + n.saturating_sub(1) * gap;
-    let mut rgb = vec![255u8; (sw * h * 3) as usize];
+    let mut out = vec![fill; (sw * h * channels) as usize];
     for (i, img) in images.iter().enumerate() {
         let x0 = i as u32 * (w + gap);
         for y in 0..h {
-            let src = &img[(y * w * 3) as usize..((y + 1) * w * 3) as usize];
-            let dst = ((y * sw + x0) * 3) as usize;
-            rgb[dst..dst + src.len()].copy_from_slice(src);
+            let src = &img[(y * w * channels) as usize..((y + 1) * w * channels) as usize];
+            let dst = ((y * sw + x0) * channels) as usize;
+            out[dst..dst + src.len()].copy_from_slice(src);
         }
     }
-    (sw, h, rgb)
+    (sw, h, out)
 }
 
 /// White pixels between the panels of a strip.
@@ -347,12 +352,13 @@ fn write_strip(
         .iter()
         .map(|(_, rgb)| {
             // Images of the strip's own size always compare.
-            metrics::flip_map(ideal, rgb, w, h).unwrap_or_else(|| vec![0; rgb.len()])
+            metrics::flip_map(ideal, rgb, w, h).unwrap_or_else(|| vec![0; rgb.len() / 3])
         })
         .collect();
-    let (sw, sh, rgb) = strip(&maps, w, h);
+    let (sw, sh, indices) = strip_of(&maps, w, h, 1, metrics::FLIP_STEPS + 1);
     let p = dir.join(&flip);
-    write_png_rgb8(&p, sw, sh, &rgb).map_err(|e| EvalError::io(&p, e))?;
+    write_png_indexed(&p, sw, sh, &indices, &metrics::flip_palette())
+        .map_err(|e| EvalError::io(&p, e))?;
     Ok(StripFiles {
         rate,
         frame,
