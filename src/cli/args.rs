@@ -687,6 +687,29 @@ mod tests {
     }
 
     #[test]
+    fn eval_defaults_are_the_librarys() {
+        let Command::Eval(a) = Cli::try_parse_from(["frameless", "eval"]).unwrap().command else {
+            panic!("eval expected")
+        };
+        let cfg = frameless::evaluation::EvalConfig::new("toycar");
+        assert_eq!(a.methods, cfg.methods);
+        assert_eq!(a.rates, cfg.rates);
+        let Size(w, h) = a.size;
+        assert_eq!(
+            (w, h, a.seed, a.ideal_spp),
+            (cfg.width, cfg.height, cfg.seed, cfg.ideal_spp)
+        );
+        assert_eq!(
+            (a.start, a.duration, a.warmup, a.refresh_hz),
+            (cfg.start, cfg.duration, cfg.warmup, cfg.refresh_hz)
+        );
+        assert_eq!(
+            (a.max_depth, a.texture_filter),
+            (cfg.max_depth, cfg.texture_filter)
+        );
+    }
+
+    #[test]
     fn sizes() {
         assert_eq!("256x128".parse::<Size>().unwrap(), Size(256, 128));
         assert!("0x10".parse::<Size>().is_err());

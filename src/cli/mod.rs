@@ -175,7 +175,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
     };
-    cfg.strip_frames = quartile_frames(cfg.frames());
+    cfg.strip_frames = cfg.quartile_frames();
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = Meter::new("evaluating", "rays");
@@ -299,7 +299,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             flip_every: a.flip_every as usize,
         };
         cfg.strip_frames = match a.strips {
-            args::Strips::Quartiles => quartile_frames(cfg.frames()),
+            args::Strips::Quartiles => cfg.quartile_frames(),
             args::Strips::Middle => vec![cfg.frames() / 2],
             args::Strips::None => Vec::new(),
         };
@@ -629,12 +629,4 @@ fn parse_list<T, E: std::fmt::Display>(
     list.split(',')
         .map(|item| parse(item.trim()).map_err(|e| anyhow::anyhow!("{e}")))
         .collect()
-}
-
-/// The strip frames of an evaluation of `n` frames: at a quarter, half and three
-/// quarters.
-fn quartile_frames(n: usize) -> Vec<usize> {
-    let mut f = vec![n / 4, n / 2, (3 * n) / 4];
-    f.dedup();
-    f
 }

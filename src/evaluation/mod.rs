@@ -138,7 +138,59 @@ pub struct EvalConfig {
     pub flip_every: usize,
 }
 
+/// The methods `frameless eval` runs when none are named: the baselines, today's
+/// practice and ours, without the ablations and the paper's own adaptive method.
+pub const DEFAULT_METHODS: [MethodKind; 9] = [
+    MethodKind::Framed60Hz,
+    MethodKind::FramedFull,
+    MethodKind::FullRes60Hz,
+    MethodKind::TraditionalFrameless,
+    MethodKind::PointTracking,
+    MethodKind::Taa,
+    MethodKind::LateWarp,
+    MethodKind::TaaWarp,
+    MethodKind::Adaptive,
+];
+
 impl EvalConfig {
+    /// The settings `frameless eval --scene <scene_name>` runs with: 256×256 at 60 Hz,
+    /// 1 s from t = 0 after a 1 s warm-up, 100K, 400K and 800K samples/s,
+    /// [`DEFAULT_METHODS`], seed 1, 16-spp ideal images, ray-cone texture filtering,
+    /// strips at the window's quartiles, FLIP on every frame; no ideal-image cache.
+    /// Change the fields for anything else.
+    pub fn new(scene_name: &str) -> Self {
+        let mut cfg = Self {
+            scene_name: scene_name.to_string(),
+            camera_path: None,
+            start: 0.0,
+            duration: 1.0,
+            width: 256,
+            height: 256,
+            rates: vec![100_000.0, 400_000.0, 800_000.0],
+            methods: DEFAULT_METHODS.to_vec(),
+            seed: 1,
+            ideal_spp: 16,
+            warmup: 1.0,
+            refresh_hz: 60.0,
+            max_depth: 5,
+            texture_filter: TextureFilter::RayCones,
+            cache_dir: None,
+            strip_frames: Vec::new(),
+            flip_every: 1,
+        };
+        cfg.strip_frames = cfg.quartile_frames();
+        cfg
+    }
+
+    /// The frames at a quarter, half and three quarters of the window (the strips
+    /// `frameless eval` writes).
+    pub fn quartile_frames(&self) -> Vec<usize> {
+        let n = self.frames();
+        let mut f = vec![n / 4, n / 2, (3 * n) / 4];
+        f.dedup();
+        f
+    }
+
     /// Number of evaluated refreshes.
     pub fn frames(&self) -> usize {
         ((self.duration * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
