@@ -1,4 +1,5 @@
-//! Linear RGB images and their display form (clamped to [0, 1], quantized to 8 bits).
+//! Linear RGB images and their display form (clamped to [0, 1], quantized to 8 bits),
+//! written as PNG (the display form) or OpenEXR (the linear values, unclamped: HDR).
 
 use std::{fs::File, path::Path};
 
@@ -59,6 +60,89 @@ impl Image {
     pub fn save_png(&self, path: &Path) -> std::io::Result<()> {
         write_png_rgb8(path, self.width, self.height, &self.to_rgb8())
     }
+
+    /// Write the linear values as OpenEXR (32-bit float RGB, nothing clamped or
+    /// quantized), atomically (see [`crate::output`]).
+    pub fn save_exr(&self, path: &Path) -> std::io::Result<()> {
+        use exr::prelude::{Image as ExrImage, SpecificChannels, Vec2, WritableImage};
+        // An EXR under another format's name would mislead every program that opens it.
+        output::require_extension(path, "exr", "OpenEXR")
+            .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))?;
+        let w = self.width as usize;
+        let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
+            let p = self.pixels[y * w + x];
+            (p.x, p.y, p.z)
+        });
+        let image = ExrImage::from_channels((w, self.height as usize), channels);
+        output::write_seekable(path, |file| image.write().to_buffered(file).map_err(exr_io))
+    }
+
+    /// Write the image in `format`: PNG as displayed, OpenEXR linear.
+    pub fn save(&self, path: &Path, format: ImageFormat) -> std::io::Result<()> {
+        match format {
+            ImageFormat::Png => self.save_png(path),
+            ImageFormat::Exr => self.save_exr(path),
+        }
+    }
+}
+
+/// The file formats images are written in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// 8-bit RGB PNG of the displayed image: clamped to [0, 1] and quantized.
+    Png,
+    /// 32-bit float RGB OpenEXR of the linear values (high dynamic range).
+    Exr,
+}
+
+impl ImageFormat {
+    /// Every format: extension (lowercase, no dot) and name.
+    pub const ALL: [(ImageFormat, &'static str, &'static str); 2] = [
+        (ImageFormat::Png, "png", "PNG, display-quantised 8-bit"),
+        (ImageFormat::Exr, "exr", "OpenEXR, linear HDR"),
+    ];
+
+    /// The file name extension, lowercase, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFormat::Png => "png",
+            ImageFormat::Exr => "exr",
+        }
+    }
+
+    /// Check, before any work, that an image can be written at `path` (see
+    /// [`output::check_file_target`]) and choose its format by the extension: `.png` or
+    /// `.exr` (any case); anything else is an error naming both.
+    pub fn for_output(path: &Path) -> Result<Self, output::OutputError> {
+        let formats = Self::ALL.map(|(_, x, name)| (x, name));
+        let x = output::check_file_target_of(path, &formats)?;
+        Ok(Self::ALL
+            .iter()
+            .find(|(_, e, _)| *e == x)
+            .map(|(f, _, _)| *f)
+            .expect("a listed extension"))
+    }
+}
+
+fn exr_io(e: exr::error::Error) -> std::io::Error {
+    match e {
+        exr::error::Error::Io(e) => e,
+        other => std::io::Error::other(other.to_string()),
+    }
+}
+
+/// Read the first RGB(A) layer of an OpenEXR file as a linear image (alpha dropped).
+pub fn read_exr(path: &Path) -> std::io::Result<Image> {
+    let read = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| Image::new(size.0 as u32, size.1 as u32),
+        |img: &mut Image, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+            let w = img.width as usize;
+            img.pixels[pos.1 * w + pos.0] = Vec3::new(r, g, b);
+        },
+    )
+    .map_err(exr_io)?;
+    Ok(read.layer_data.channel_data.pixels)
 }
 
 /// Write 8-bit RGB data as a PNG file, atomically (see [`crate::output`]), with
@@ -86,6 +170,29 @@ pub fn write_png_rgb8_tagged(
     text: &[(&str, &str)],
 ) -> std::io::Result<()> {
     write_png(path, width, height, rgb, png::Compression::Fast, text)
+}
+
+/// Write a palette PNG: one byte a pixel indexing `palette` (RGB triples, at most 256),
+/// atomically (see [`crate::output`]).
+pub fn write_png_indexed(
+    path: &Path,
+    width: u32,
+    height: u32,
+    indices: &[u8],
+    palette: &[u8],
+) -> std::io::Result<()> {
+    output::require_extension(path, "png", "PNG")
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))?;
+    output::write_with(path, |file| {
+        let mut enc = png::Encoder::new(file, width, height);
+        enc.set_color(png::ColorType::Indexed);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_palette(palette.to_vec());
+        enc.set_compression(png::Compression::Balanced);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(indices).map_err(std::io::Error::other)?;
+        w.finish().map_err(std::io::Error::other)
+    })
 }
 
 fn write_png(
@@ -199,6 +306,34 @@ mod tests {
         let e = img.save_png(&dir.join("a.jpg")).unwrap_err().to_string();
         assert!(e.contains(".jpg"), "{e}");
         assert!(!dir.join("a.jpg").exists());
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn exr_keeps_linear_values_png_the_display() {
+        let dir = std::env::temp_dir().join(format!("frameless-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut img = Image::new(5, 3);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            // Values past [0, 1] and between 8-bit steps: what PNG cannot hold.
+            *p = Vec3::new(i as f32 * 0.37, 1.0 / (i as f32 + 3.0), 12.5 - i as f32);
+        }
+        let p = dir.join("a.EXR");
+        assert_eq!(ImageFormat::for_output(&p).unwrap(), ImageFormat::Exr);
+        img.save(&p, ImageFormat::Exr).unwrap();
+        assert_eq!(read_exr(&p).unwrap(), img);
+        let png = dir.join("a.png");
+        assert_eq!(ImageFormat::for_output(&png).unwrap(), ImageFormat::Png);
+        img.save(&png, ImageFormat::Png).unwrap();
+        assert_eq!(read_png_rgb8(&png).unwrap().2, img.to_rgb8());
+        let e = ImageFormat::for_output(&dir.join("a.jpg"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(".jpg") && e.contains(".png") && e.contains(".exr"),
+            "{e}"
+        );
+        assert!(img.save_exr(&dir.join("b.png")).is_err());
         std::fs::remove_dir_all(&dir).ok();
     }
 }

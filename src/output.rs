@@ -67,6 +67,16 @@ pub enum OutputError {
         /// The extension required, lowercase, without the dot.
         extension: &'static str,
     },
+    /// A file's name ends in none of the extensions of the formats it can be written as.
+    #[error("{}: {found}; the format is chosen by the name, which must end in {choices}", path.display())]
+    Extensions {
+        /// The output asked for.
+        path: PathBuf,
+        /// The extension found, described (`extension .jpg`, `no extension`).
+        found: String,
+        /// The extensions accepted and their formats, in words.
+        choices: String,
+    },
 }
 
 /// `<path><marker><pid>-<n>`: the process id and a process-wide counter keep the name
@@ -102,6 +112,15 @@ pub fn write_with(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
 ) -> io::Result<()> {
+    write_seekable(path, |w| write(w))
+}
+
+/// As [`write_with`], for writers that also seek (formats whose offset tables are
+/// filled in after the data, such as OpenEXR).
+pub fn write_seekable(
+    path: &Path,
+    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
+) -> io::Result<()> {
     if path.is_dir() {
         return Err(io::Error::new(
             io::ErrorKind::IsADirectory,
@@ -115,7 +134,7 @@ pub fn write_with(
 fn write_through(
     tmp: &Path,
     path: &Path,
-    write: impl FnOnce(&mut dyn Write) -> io::Result<()>,
+    write: impl FnOnce(&mut BufWriter<File>) -> io::Result<()>,
 ) -> io::Result<()> {
     // A name that exists is another writer's: process ids repeat across machines that
     // share a folder (every container's first process may be pid 1), so it is left
@@ -147,15 +166,46 @@ pub fn require_extension(
 ) -> Result<(), OutputError> {
     match path.extension() {
         Some(e) if e.eq_ignore_ascii_case(extension) => Ok(()),
-        found => Err(OutputError::Extension {
+        _ => Err(OutputError::Extension {
             path: path.to_path_buf(),
-            found: match found {
-                Some(e) => format!("extension .{}", e.to_string_lossy()),
-                None => "no extension".into(),
-            },
+            found: describe_extension(path),
             expected: format,
             extension,
         }),
+    }
+}
+
+/// Check, before any work, that the file `path` can be written in one of `formats`
+/// (`(extension, format)` pairs), chosen by its extension (any case); returns the
+/// extension chosen.
+pub fn check_file_target_of(
+    path: &Path,
+    formats: &[(&'static str, &'static str)],
+) -> Result<&'static str, OutputError> {
+    let chosen = path.extension().and_then(|e| {
+        formats
+            .iter()
+            .find(|(x, _)| e.eq_ignore_ascii_case(x))
+            .map(|(x, f)| (*x, *f))
+    });
+    match chosen {
+        Some((extension, format)) => check_file_target(path, extension, format).map(|()| extension),
+        None => Err(OutputError::Extensions {
+            path: path.to_path_buf(),
+            found: describe_extension(path),
+            choices: formats
+                .iter()
+                .map(|(x, f)| format!(".{x} ({f})"))
+                .collect::<Vec<_>>()
+                .join(" or "),
+        }),
+    }
+}
+
+fn describe_extension(path: &Path) -> String {
+    match path.extension() {
+        Some(e) => format!("extension .{}", e.to_string_lossy()),
+        None => "no extension".into(),
     }
 }
 

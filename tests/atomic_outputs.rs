@@ -94,7 +94,7 @@ fn is_run(dir: &Path, reference: &BTreeMap<String, Vec<u8>>, seed: u64) -> bool 
     let summary: serde_json::Value =
         serde_json::from_slice(&got["summary.json"]).unwrap_or_default();
     let html = String::from_utf8_lossy(&got["report.html"]);
-    deterministic && summary["seed"] == seed && html.contains(&format!("seed {seed},"))
+    deterministic && summary["seed"] == seed && html.contains(&format!("seed {seed};"))
 }
 
 /// Everything beside `out` in its folder.

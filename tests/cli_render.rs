@@ -1,4 +1,5 @@
-//! `frameless render`: one PNG per refresh plus statistics; bad arguments fail cleanly.
+//! `frameless render`: one PNG (or OpenEXR) file per refresh plus statistics; bad
+//! arguments fail cleanly.
 
 use std::process::Command;
 
@@ -28,7 +29,7 @@ fn writes_one_png_per_refresh_and_stats() {
             "32x24",
             "--duration",
             "0.1",
-            "--fps",
+            "--refresh-hz",
             "30",
             "--warmup",
             "0.2",
@@ -66,7 +67,10 @@ fn bad_arguments_fail_without_output() {
         &["--method", "nope"][..],
         &["--rate", "fast"],
         &["--duration", "0"],
-        &["--fps", "-1"],
+        &["--refresh-hz", "-1"],
+        &["--fps", "0"],
+        &["--format", "jpg"],
+        &["--method", "framed"],
         &["--method", "framed-full", "--rate", "1k"],
         &["--scene", "/nonexistent.aff"],
     ] {
@@ -84,4 +88,57 @@ fn bad_arguments_fail_without_output() {
         );
         assert!(!out.exists(), "{args:?} wrote output");
     }
+}
+
+#[test]
+fn exr_frames_hold_the_linear_values_the_png_frames_quantize() {
+    let run = |format: &str| {
+        let out = tmp(&format!("fmt-{format}"));
+        let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .args([
+                "render",
+                "--scene",
+                "toycar",
+                "--method",
+                "adaptive",
+                "--rate",
+                "50k",
+                "--size",
+                "24x16",
+                "--duration",
+                "0.05",
+                "--warmup",
+                "0.2",
+                "--format",
+                format,
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        out
+    };
+    let (png, exr) = (run("png"), run("exr"));
+    let mut frames = 0;
+    for k in 0.. {
+        let p = exr.join(format!("frame_{k:05}.exr"));
+        if !p.is_file() {
+            break;
+        }
+        let linear = frameless::image::read_exr(&p).expect("an OpenEXR frame");
+        let (_, _, rgb) =
+            frameless::image::read_png_rgb8(&png.join(format!("frame_{k:05}.png"))).unwrap();
+        // The same run: the PNG is the EXR as displayed.
+        assert_eq!(linear.to_rgb8(), rgb, "frame {k}");
+        frames += 1;
+    }
+    assert_eq!(frames, 3);
+    assert!(!exr.join("frame_00000.png").exists());
+    let _ = std::fs::remove_dir_all(&png);
+    let _ = std::fs::remove_dir_all(&exr);
 }

@@ -95,7 +95,7 @@ fn a_still_view_converges_below_a_four_spp_still_without_flicker() {
             .iter()
             .find(|r| r.method == m)
             .unwrap()
-            .flicker_mean
+            .instability_mean
     };
     let (ours, paper) = (
         instability(MethodKind::Adaptive),

@@ -190,17 +190,19 @@ fn framed_full_reaches_its_floor_once_a_frame_completes_and_frameless_converges(
     );
     // Temporal instability: a static scene shown steadily does not flicker at all; the
     // frameless display changes as it fills while the ideal does not.
-    let flicker: Vec<f64> = out
+    let instability: Vec<f64> = out
         .frames
         .iter()
         .filter(|f| f.method == MethodKind::FramedFull)
-        .filter_map(|f| f.flicker)
+        .filter_map(|f| f.instability)
         .collect();
-    assert!(flicker[5..].iter().all(|f| *f == 0.0), "{flicker:?}");
-    assert!(out
-        .frames
-        .iter()
-        .any(|f| f.method == MethodKind::TraditionalFrameless && f.flicker.unwrap_or(0.0) > 0.0));
+    assert!(
+        instability[5..].iter().all(|f| *f == 0.0),
+        "{instability:?}"
+    );
+    assert!(out.frames.iter().any(
+        |f| f.method == MethodKind::TraditionalFrameless && f.instability.unwrap_or(0.0) > 0.0
+    ));
     // The floor is the aliasing of 1 sample per pixel: small but not zero.
     assert!(floor > 0.0 && floor < 20.0, "{floor}");
 }

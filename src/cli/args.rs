@@ -42,7 +42,7 @@ impl FromStr for Size {
 #[command(name = "frameless", version, about, long_about = None)]
 pub struct Cli {
     /// Worker threads (default: all cores).
-    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=1024))]
+    #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=1024), allow_negative_numbers = true)]
     pub threads: Option<u16>,
     /// What to do.
     #[command(subcommand)]
@@ -68,7 +68,7 @@ pub enum Command {
     /// ours.
     Table1(Table1Args),
     /// Render a sequence of displayed images of one method under the simulated clock
-    /// (one PNG per refresh).
+    /// (one PNG or OpenEXR file per refresh).
     Render(RenderArgs),
     /// The real-time pipeline: an interactive window, or `--headless` for a number of
     /// seconds writing images and statistics.
@@ -79,6 +79,17 @@ pub enum Command {
     /// Merge the job results of a sweep's shards into the outputs of one run
     /// (summary.json, summary.md, plots, strips, report.html).
     Merge(super::sweep::MergeArgs),
+    /// Make the plots, FLIP maps and report.html of an `eval` or `table1` output folder
+    /// again with this version, from its summary.json, frames.csv and image strips.
+    Report(ReportArgs),
+}
+
+/// Arguments of `frameless report`.
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// The output folder of `frameless eval` (or of `frameless table1`: each
+    /// animation's folder is redone).
+    pub dir: PathBuf,
 }
 
 /// Arguments of `frameless render`.
@@ -90,38 +101,51 @@ pub struct RenderArgs {
     /// Camera path CSV overriding the scene's camera.
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
-    /// The method.
-    #[arg(long, default_value = "adaptive")]
+    /// The method (any of `frameless eval --help`'s).
+    #[arg(long, default_value = "adaptive", value_parser = method_parser())]
     pub method: MethodKind,
-    /// Sampling rate (samples per second of scene time); suffixes k and M.
-    #[arg(long, default_value = "400k", value_parser = parse_rate)]
+    /// Sample budget, samples per second of scene time; suffixes k and M.
+    #[arg(long, default_value = "400k", value_parser = parse_rate, allow_negative_numbers = true)]
     pub rate: f64,
     /// First displayed refresh (seconds).
-    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Length of the sequence (seconds).
-    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sampling before the first refresh (seconds).
-    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    /// Display refresh rate (Hz).
-    #[arg(long, default_value = "60", value_parser = finite_f64)]
-    pub fps: f64,
+    /// Display refresh rate, Hz.
+    #[arg(long, alias = "fps", default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub refresh_hz: f64,
     /// Display size.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
     /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
     /// lookups, the paper's setting).
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
-    /// Output folder for `frame_NNNNN.png` and `stats.json`.
+    /// File format of the frames: png (as displayed: clamped, 8-bit) or exr (OpenEXR,
+    /// linear HDR, 32-bit float).
+    #[arg(long, value_enum, default_value = "png")]
+    pub format: FrameFormat,
+    /// Output folder for `frame_NNNNN.png` (or `.exr`) and `stats.json`.
     #[arg(long, default_value = "render-out")]
     pub out: PathBuf,
+}
+
+/// File format of `frameless render`'s frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum FrameFormat {
+    /// PNG, as displayed: clamped to [0, 1], 8 bits.
+    Png,
+    /// OpenEXR: the linear values, 32-bit float, unclamped.
+    Exr,
 }
 
 /// Arguments of `frameless table1`.
@@ -133,21 +157,21 @@ pub struct Table1Args {
     /// Animations to run, comma-separated (interactive, bart, toycar, still).
     #[arg(long, default_value = "interactive,bart,toycar,still")]
     pub animations: String,
-    /// Sampling rates (samples/s), comma-separated; suffixes k and M.
-    #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
+    /// Sample budgets, samples per second, comma-separated; suffixes k and M.
+    #[arg(long = "rate", alias = "rates", value_name = "RATE", default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub rates: Vec<f64>,
     /// Methods, comma-separated (default: the paper's, ours, the adaptive-no-reprojection
     /// ablation of Fig. 8, point tracking, TAA and the two late warps).
-    #[arg(long, value_delimiter = ',', value_parser = trimmed::<MethodKind>())]
+    #[arg(long = "method", alias = "methods", value_name = "METHOD", value_delimiter = ',', value_parser = method_parser())]
     pub methods: Option<Vec<MethodKind>>,
     /// Override every animation's window length (seconds), e.g. for a quick trial.
-    #[arg(long, value_parser = finite_f64)]
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Display size.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
     /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
@@ -155,10 +179,10 @@ pub struct Table1Args {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
     pub ideal_spp: u32,
     /// Compute FLIP on every n-th refresh (1: every one).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
     /// Ideal-image cache (default `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`).
     #[arg(long)]
@@ -168,7 +192,7 @@ pub struct Table1Args {
     #[arg(long, value_enum, default_value = "quartiles")]
     pub strips: Strips,
     /// Rates that get image strips, comma-separated (default: every rate).
-    #[arg(long, value_delimiter = ',', value_parser = parse_rate)]
+    #[arg(long = "strip-rate", alias = "strip-rates", value_name = "RATE", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub strip_rates: Option<Vec<f64>>,
     /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
     /// animation.
@@ -209,22 +233,22 @@ pub struct ViewArgs {
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// The real-time method.
-    #[arg(long, default_value = "adaptive")]
+    #[arg(long, default_value = "adaptive", value_parser = RtMethodParser)]
     pub method: RtMethod,
     /// Sampling threads [default: adaptive cores − 1 (at least 1), others all cores].
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub sampling_threads: Option<u16>,
     /// Threads of the reconstructor [default: half the cores, at least 1].
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
     /// Display refresh rate, Hz.
-    #[arg(long, default_value = "60", value_parser = finite_f64)]
+    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Scene time at start, seconds.
-    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Run this many wall-clock seconds, then stop (required with --headless).
-    #[arg(long, value_parser = finite_f64)]
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     /// No window: run the pipeline, write images and stats.json to --out.
     #[arg(long)]
@@ -237,7 +261,7 @@ pub struct ViewArgs {
     #[arg(long, default_value = "view-out")]
     pub out: PathBuf,
     /// Displayed images --headless writes, evenly spaced.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100))]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100), allow_negative_numbers = true)]
     pub images: u32,
     /// Record the camera path to this CSV file (replay with `eval --camera-path`).
     #[arg(long)]
@@ -249,16 +273,16 @@ pub struct ViewArgs {
     #[arg(long, default_value = "image")]
     pub vis: Visualisation,
     /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
-    #[arg(long, value_parser = finite_f64)]
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub ring_factor: Option<f64>,
     /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
-    #[arg(long, value_parser = finite_f64)]
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub max_radius: Option<f64>,
     /// No reprojection in the sampler's controller.
     #[arg(long)]
     pub no_reprojection: bool,
     /// Seed of the threads' random choices.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
     /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
@@ -277,19 +301,22 @@ pub struct SamplerArgs {
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// Time the sampler starts, seconds.
-    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// How long it runs, seconds; the images show the state at the end.
-    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
-    /// Sample budget, samples per second.
-    #[arg(long, default_value = "400k", value_parser = parse_rate)]
+    /// Sample budget, samples per second of scene time; suffixes k and M.
+    #[arg(long, default_value = "400k", value_parser = parse_rate, allow_negative_numbers = true)]
     pub rate: f64,
+    /// Display refresh rate, Hz: the sampler is run up to each refresh in turn.
+    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub refresh_hz: f64,
     /// Image size WxH.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// Seed.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Sampler parameters: ours (`adaptive`) or the paper's (`adaptive-paper`); the
     /// ablation flags below apply on top.
@@ -322,27 +349,33 @@ pub struct EvalArgs {
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// First evaluated refresh, seconds of scene time.
-    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Length of the evaluated window, seconds.
-    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Display size WxH.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
-    /// Sample budgets, samples per second (e.g. 100k,400k,800k).
-    #[arg(long, default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate)]
+    /// Sample budgets, samples per second of scene time, comma-separated; suffixes k and
+    /// M (e.g. 100k,400k,800k).
+    #[arg(long = "rate", alias = "rates", value_name = "RATE", default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub rates: Vec<f64>,
+    /// Display refresh rate, Hz: every method is asked what it shows at each refresh.
+    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub refresh_hz: f64,
     /// Methods to evaluate, comma-separated.
     #[arg(
-        long,
+        long = "method",
+        alias = "methods",
+        value_name = "METHOD",
         value_delimiter = ',',
-        value_parser = trimmed::<MethodKind>(),
+        value_parser = method_parser(),
         default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,point-tracking,taa,late-warp,taa-warp,adaptive"
     )]
     pub methods: Vec<MethodKind>,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
     /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
@@ -350,25 +383,30 @@ pub struct EvalArgs {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
     pub ideal_spp: u32,
     /// Seconds every method runs before the first evaluated refresh.
-    #[arg(long, default_value = "1", value_parser = finite_f64)]
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
     pub max_depth: u32,
-    /// Ideal-image cache directory [default: $FRAMELESS_CACHE or ~/.cache/frameless].
+    /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
+    /// ~/.cache/frameless/ideal].
     #[arg(long)]
     pub cache_dir: Option<PathBuf>,
     /// Compute FLIP on every n-th frame only (1: every frame; RMS, PSNR and temporal
     /// instability are always computed on every frame).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
     /// Do not read or write the ideal-image cache.
     #[arg(long)]
     pub no_cache: bool,
-    /// Output directory.
+    /// Also write the strip frames as OpenEXR (linear HDR, before the display clamps
+    /// and quantizes) under `exr/`: the ideal image and every method's.
+    #[arg(long)]
+    pub exr: bool,
+    /// Output folder.
     #[arg(long, default_value = "eval-out")]
     pub out: PathBuf,
 }
@@ -391,16 +429,16 @@ pub struct StillArgs {
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// Scene time in seconds.
-    #[arg(long, default_value = "0", value_parser = finite_f64)]
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub time: f64,
     /// Image size WxH.
     #[arg(long, default_value = "512x384")]
     pub size: Size,
     /// Samples per pixel (stratified).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536), allow_negative_numbers = true)]
     pub spp: u32,
     /// Seed of the sample positions.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
     /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
@@ -408,9 +446,10 @@ pub struct StillArgs {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64))]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
     pub max_depth: u32,
-    /// Output PNG file.
+    /// Output file: `.png` (as displayed: clamped, 8-bit) or `.exr` (OpenEXR, linear
+    /// HDR, 32-bit float).
     #[arg(long, default_value = "still.png")]
     pub out: PathBuf,
 }
@@ -422,13 +461,13 @@ pub struct BenchArgs {
     #[arg(long, default_value = "toycar")]
     pub scene: String,
     /// Scene time (default: the start of its animation).
-    #[arg(long, value_parser = finite_f64)]
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// View size WxH.
     #[arg(long, default_value = "256x256")]
     pub size: Size,
     /// Rays per timed repetition.
-    #[arg(long, default_value_t = 1 << 19, value_parser = parse_rays)]
+    #[arg(long, default_value_t = 1 << 19, value_parser = parse_rays, allow_negative_numbers = true)]
     pub rays: usize,
     /// Print one JSON object instead of a table.
     #[arg(long)]
@@ -445,31 +484,41 @@ fn parse_rays(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
-/// A clap enum parser that ignores blanks around the value, so that a list written
-/// `adaptive, taa` parses; possible values are still listed in `--help`.
-fn trimmed<E: clap::ValueEnum + Clone + Send + Sync + 'static>() -> Trimmed<E> {
-    Trimmed(clap::builder::EnumValueParser::new())
+/// The parser of `--method` in the commands that run methods under the simulated
+/// clock: blanks around a name are ignored (so that a list written `adaptive, taa`
+/// parses), every method is listed in `--help`, and the real-time pipeline's `framed`
+/// is answered with the names it may mean.
+fn method_parser() -> MethodParser {
+    MethodParser(clap::builder::EnumValueParser::new())
 }
 
 #[derive(Clone)]
-struct Trimmed<E: clap::ValueEnum + Clone + Send + Sync + 'static>(
-    clap::builder::EnumValueParser<E>,
-);
+struct MethodParser(clap::builder::EnumValueParser<MethodKind>);
 
-impl<E: clap::ValueEnum + Clone + Send + Sync + 'static> clap::builder::TypedValueParser
-    for Trimmed<E>
-{
-    type Value = E;
+impl clap::builder::TypedValueParser for MethodParser {
+    type Value = MethodKind;
 
     fn parse_ref(
         &self,
         cmd: &clap::Command,
         arg: Option<&clap::Arg>,
         value: &std::ffi::OsStr,
-    ) -> Result<E, clap::Error> {
+    ) -> Result<MethodKind, clap::Error> {
         let text = value.to_string_lossy();
-        self.0
-            .parse_ref(cmd, arg, std::ffi::OsStr::new(text.trim()))
+        let name = text.trim();
+        if MethodKind::parse(name).is_err() && RtMethod::parse(name).is_ok() {
+            return Err(invalid(
+                cmd,
+                arg,
+                name,
+                format!(
+                    "`{name}` is a method of the real-time pipeline (`frameless view`); under \
+                     the simulated clock the framed methods are {}",
+                    framed_names().join(", ")
+                ),
+            ));
+        }
+        self.0.parse_ref(cmd, arg, std::ffi::OsStr::new(name))
     }
 
     fn possible_values(
@@ -477,6 +526,68 @@ impl<E: clap::ValueEnum + Clone + Send + Sync + 'static> clap::builder::TypedVal
     ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
         self.0.possible_values()
     }
+}
+
+/// The simulated clock's framed methods, by name.
+fn framed_names() -> Vec<&'static str> {
+    MethodKind::ALL
+        .iter()
+        .map(|m| m.name())
+        .filter(|n| n.contains("framed") || n.starts_with("full-res"))
+        .collect()
+}
+
+/// `--method` of `frameless view`: a real-time method, or a clear word on why an
+/// evaluation method is not one.
+#[derive(Clone)]
+struct RtMethodParser;
+
+impl clap::builder::TypedValueParser for RtMethodParser {
+    type Value = RtMethod;
+
+    fn parse_ref(
+        &self,
+        cmd: &clap::Command,
+        arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<RtMethod, clap::Error> {
+        let text = value.to_string_lossy();
+        let name = text.trim();
+        if let Ok(m) = RtMethod::parse(name) {
+            return Ok(m);
+        }
+        let real_time: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
+        let why = if MethodKind::parse(name).is_ok() {
+            format!(
+                "`{name}` runs only under the simulated clock (`frameless eval`, `frameless \
+                 render`); the real-time pipeline runs {}",
+                real_time.join(", ")
+            )
+        } else {
+            format!("real-time methods are {}", real_time.join(", "))
+        };
+        Err(invalid(cmd, arg, name, why))
+    }
+
+    fn possible_values(
+        &self,
+    ) -> Option<Box<dyn Iterator<Item = clap::builder::PossibleValue> + '_>> {
+        Some(Box::new(RtMethod::ALL.into_iter().map(|m| {
+            clap::builder::PossibleValue::new(m.name()).help(m.about())
+        })))
+    }
+}
+
+/// clap's "invalid value" error with our reason.
+fn invalid(cmd: &clap::Command, arg: Option<&clap::Arg>, value: &str, why: String) -> clap::Error {
+    let arg = arg
+        .and_then(|a| a.get_long())
+        .map_or_else(|| "--method".to_string(), |l| format!("--{l}"));
+    clap::Error::raw(
+        clap::error::ErrorKind::InvalidValue,
+        format!("invalid value '{value}' for '{arg}': {why}\n"),
+    )
+    .with_cmd(cmd)
 }
 
 #[cfg(test)]
@@ -513,6 +624,99 @@ mod tests {
         assert_eq!(a.rates, vec![100_000.0, 1_500_000.0]);
         assert!(Cli::try_parse_from(["frameless", "eval", "--methods", "adaptive-magic"]).is_err());
         assert!(Cli::try_parse_from(["frameless", "eval", "--rates", "fast"]).is_err());
+    }
+
+    #[test]
+    fn one_vocabulary_across_commands() {
+        let parse = |args: &[&str]| Cli::try_parse_from(args.iter().copied());
+        // One rate flag (lists where a command runs several), the old spelling kept.
+        for args in [
+            &["frameless", "eval", "--rate", "100k,400k"][..],
+            &["frameless", "eval", "--rates", "100k,400k"],
+            &["frameless", "table1", "--rate", "100k,400k"],
+            &["frameless", "render", "--rate", "400k"],
+            &["frameless", "sampler", "--rate", "400k"],
+        ] {
+            assert!(parse(args).is_ok(), "{args:?}");
+        }
+        // One refresh flag.
+        for cmd in ["eval", "render", "sampler", "view"] {
+            assert!(
+                parse(&["frameless", cmd, "--refresh-hz", "30"]).is_ok(),
+                "{cmd}"
+            );
+        }
+        let Command::Render(r) = parse(&["frameless", "render", "--fps", "30"])
+            .unwrap()
+            .command
+        else {
+            panic!("render expected")
+        };
+        assert_eq!(r.refresh_hz, 30.0);
+    }
+
+    #[test]
+    fn negative_numbers_are_values_not_flags() {
+        for args in [
+            &["frameless", "eval", "--duration", "-1"][..],
+            &["frameless", "eval", "--start", "-2.5"],
+            &["frameless", "render", "--warmup", "-1"],
+            &["frameless", "still", "--time", "-3"],
+            &["frameless", "view", "--start", "-1"],
+        ] {
+            // Parsed (the range is checked later, with a message naming the option).
+            assert!(
+                Cli::try_parse_from(args.iter().copied()).is_ok(),
+                "{args:?}"
+            );
+        }
+        let e = Cli::try_parse_from(["frameless", "eval", "--rate", "-1k"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("must be positive"), "{e}");
+    }
+
+    #[test]
+    fn methods_of_the_other_clock_get_a_reason() {
+        let e = Cli::try_parse_from(["frameless", "render", "--method", "framed"])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("real-time") && e.contains("framed-60hz"), "{e}");
+        let e = Cli::try_parse_from(["frameless", "view", "--method", "taa"])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("simulated clock") && e.contains("adaptive"),
+            "{e}"
+        );
+        assert!(Cli::try_parse_from(["frameless", "view", "--method", "framed"]).is_ok());
+        for m in MethodKind::ALL {
+            let ok = Cli::try_parse_from(["frameless", "render", "--method", m.name()]);
+            assert!(ok.is_ok(), "{}", m.name());
+        }
+    }
+
+    #[test]
+    fn eval_defaults_are_the_librarys() {
+        let Command::Eval(a) = Cli::try_parse_from(["frameless", "eval"]).unwrap().command else {
+            panic!("eval expected")
+        };
+        let cfg = frameless::evaluation::EvalConfig::new("toycar");
+        assert_eq!(a.methods, cfg.methods);
+        assert_eq!(a.rates, cfg.rates);
+        let Size(w, h) = a.size;
+        assert_eq!(
+            (w, h, a.seed, a.ideal_spp),
+            (cfg.width, cfg.height, cfg.seed, cfg.ideal_spp)
+        );
+        assert_eq!(
+            (a.start, a.duration, a.warmup, a.refresh_hz),
+            (cfg.start, cfg.duration, cfg.warmup, cfg.refresh_hz)
+        );
+        assert_eq!(
+            (a.max_depth, a.texture_filter),
+            (cfg.max_depth, cfg.texture_filter)
+        );
     }
 
     #[test]

@@ -3,18 +3,20 @@
 mod args;
 mod sweep;
 
+mod progress;
+
 use std::{path::Path, sync::Arc, time::Instant};
 
 use anyhow::{bail, Context, Result};
 use clap::Parser;
-use indicatif::{ProgressBar, ProgressStyle};
 
 pub use args::{Cli, Command, Size};
+use progress::Meter;
 
 use frameless::{
     bench,
     evaluation::{self, report, EvalConfig},
-    output,
+    image::ImageFormat,
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
@@ -48,7 +50,7 @@ pub fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Still(a) => {
-            output::check_file_target(&a.out, "png", "PNG")?;
+            let format = ImageFormat::for_output(&a.out)?;
             let scene = load_scene(&a.scene)?;
             let path = load_camera_path(a.camera_path.as_deref())?;
             let Size(w, h) = a.size;
@@ -62,17 +64,14 @@ pub fn run(cli: Cli) -> Result<()> {
                 },
             )
             .with_camera_path(path);
-            let bar = progress_bar(h as u64, "rendering");
+            let bar = Meter::new("rendering", "rows");
+            bar.set_total(h as u64);
             let t0 = Instant::now();
             let img = still::render(&tracer, a.time, a.spp, a.seed, &|rows| {
                 bar.set_position(rows as u64)
             });
-            bar.finish_and_clear();
-            if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
-            }
-            img.save_png(&a.out)
+            bar.finish();
+            img.save(&a.out, format)
                 .with_context(|| format!("writing {}", a.out.display()))?;
             eprintln!(
                 "wrote {} ({}x{}, {} spp, t = {} s) in {:.2} s",
@@ -92,6 +91,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::View(a) => view(a),
         Command::Sweep(a) => sweep::sweep(a),
         Command::Merge(a) => sweep::merge(a),
+        Command::Report(a) => rewrite_report(&a.dir),
         Command::Bench(a) => {
             let t0 = Instant::now();
             let scene = load_scene(&a.scene)?;
@@ -152,7 +152,7 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
-    output::check_folder_target(&a.out)?;
+    frameless::output::check_folder_target(&a.out)?;
     let Size(w, h) = a.size;
     let cache_dir = if a.no_cache {
         None
@@ -171,19 +171,23 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         seed: a.seed,
         ideal_spp: a.ideal_spp,
         warmup: a.warmup,
-        refresh_hz: 60.0,
+        refresh_hz: a.refresh_hz,
         max_depth: a.max_depth,
         texture_filter: a.texture_filter,
         cache_dir,
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
     };
-    cfg.strip_frames = quartile_frames(cfg.frames());
+    cfg.strip_frames = cfg.quartile_frames();
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
-    let bar = progress_bar(0, "evaluating");
-    let mut out = evaluation::run(scene, &cfg, &BarProgress(bar.clone()))?;
-    bar.finish_and_clear();
+    let bar = Meter::new("evaluating", "rays");
+    let options = evaluation::RunOptions {
+        linear_strips: a.exr,
+        ..evaluation::RunOptions::default()
+    };
+    let mut out = evaluation::run_with(scene, &cfg, &bar, options)?;
+    bar.finish();
     let report = report::write_all(&mut out, &a.out)?;
     print!("{}", report::markdown(&out.summary));
     let t = &out.summary.timing;
@@ -204,7 +208,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 
 fn render(a: args::RenderArgs) -> Result<()> {
     use frameless::evaluation::sequence::{render_sequence, SequenceConfig};
-    output::check_folder_target(&a.out)?;
+    frameless::output::check_folder_target(&a.out)?;
     let Size(w, h) = a.size;
     let cfg = SequenceConfig {
         scene_name: a.scene.clone(),
@@ -214,17 +218,21 @@ fn render(a: args::RenderArgs) -> Result<()> {
         start: a.start,
         duration: a.duration,
         warmup: a.warmup,
-        fps: a.fps,
+        refresh_hz: a.refresh_hz,
         width: w,
         height: h,
         seed: a.seed,
         texture_filter: a.texture_filter,
+        format: match a.format {
+            args::FrameFormat::Png => ImageFormat::Png,
+            args::FrameFormat::Exr => ImageFormat::Exr,
+        },
     };
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
-    let bar = progress_bar(0, "rendering");
-    let stats = render_sequence(scene, &cfg, &a.out, &BarProgress(bar.clone()))?;
-    bar.finish_and_clear();
+    let bar = Meter::new("rendering", "rays");
+    let stats = render_sequence(scene, &cfg, &a.out, &bar)?;
+    bar.finish();
     println!(
         "wrote {} frames of {} to {} ({:.1} s)",
         stats.frames,
@@ -237,7 +245,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
 
 fn table1(a: args::Table1Args) -> Result<()> {
     use evaluation::table1::{self, AnimationResult, TableSummary};
-    output::check_folder_target(&a.out)?;
+    frameless::output::check_folder_target(&a.out)?;
     let bart = match a.bart.clone().or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)) {
         Some(b) => b,
         None => bail!("--bart is required (the BART folder holding kitchen/kitchen.aff), or set FRAMELESS_BART_DIR"),
@@ -254,7 +262,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
     for r in a.strip_rates.iter().flatten() {
         if !rates.contains(r) {
             bail!(
-                "--strip-rates: {} is not one of --rates",
+                "--strip-rate: {} is not one of --rate",
                 frameless::clock::rate_label(*r)
             );
         }
@@ -295,7 +303,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             flip_every: a.flip_every as usize,
         };
         cfg.strip_frames = match a.strips {
-            args::Strips::Quartiles => quartile_frames(cfg.frames()),
+            args::Strips::Quartiles => cfg.quartile_frames(),
             args::Strips::Middle => vec![cfg.frames() / 2],
             args::Strips::None => Vec::new(),
         };
@@ -309,11 +317,11 @@ fn table1(a: args::Table1Args) -> Result<()> {
     let mut results = Vec::new();
     let mut cost = Vec::new();
     for (anim, cfg) in animations.iter().zip(&cfgs) {
-        let bar = progress_bar(0, anim.name);
+        let bar = Meter::new(anim.name, "rays");
         let ta = Instant::now();
-        let mut out = evaluation::run(scene.clone(), cfg, &BarProgress(bar.clone()))
+        let mut out = evaluation::run(scene.clone(), cfg, &bar)
             .with_context(|| format!("animation {}", anim.name))?;
-        bar.finish_and_clear();
+        bar.finish();
         if let Some(keep) = &a.strip_rates {
             out.strips.retain(|s| keep.contains(&s.0));
         }
@@ -360,12 +368,15 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         adaptive::{vis, Adaptive, SamplerParams},
         Method, MethodContext,
     };
-    output::check_folder_target(&a.out)?;
+    frameless::output::check_folder_target(&a.out)?;
     let rate = a.rate;
     use frameless::limits;
     limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
+    if !(a.refresh_hz.is_finite() && (1.0..=1000.0).contains(&a.refresh_hz)) {
+        bail!("--refresh-hz {} must be in [1, 1000]", a.refresh_hz);
+    }
     let mut params = match a.preset {
         args::SamplerPreset::Ours => SamplerParams::ours(),
         args::SamplerPreset::Paper => SamplerParams::paper(),
@@ -384,7 +395,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         start: a.start,
         rate,
         first_refresh: a.start,
-        refresh_hz: 60.0,
+        refresh_hz: a.refresh_hz,
     };
     let ctx = MethodContext {
         tracer,
@@ -394,18 +405,19 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         ideal_cache: None,
     };
     let mut m = Adaptive::new(&ctx, params)?;
-    let frames = (a.duration * 60.0).ceil() as u64;
-    let bar = progress_bar(frames, "sampling");
+    let frames = (a.duration * a.refresh_hz).ceil() as u64;
+    let bar = Meter::new("sampling", "refreshes");
+    bar.set_total(frames);
     let t0 = Instant::now();
     let mut display = frameless::image::Image::new(w, h);
     for k in 1..=frames {
-        display = m.display(a.start + k as f64 / 60.0).image.clone();
+        display = m.display(a.start + k as f64 / a.refresh_hz).image.clone();
         bar.inc(1);
     }
-    bar.finish_and_clear();
+    bar.finish();
     let wall = t0.elapsed().as_secs_f64();
-    let end = a.start + frames as f64 / 60.0;
-    let staging = output::OutputDir::begin(&a.out)
+    let end = a.start + frames as f64 / a.refresh_hz;
+    let staging = frameless::output::OutputDir::begin(&a.out)
         .with_context(|| format!("creating {}", a.out.display()))?;
     let s = m.sampler();
     let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
@@ -446,10 +458,10 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
 fn view(a: args::ViewArgs) -> Result<()> {
     use frameless::realtime::{self, RtConfig};
     if a.headless {
-        output::check_writable_folder(&a.out)?;
+        frameless::output::check_writable_folder(&a.out)?;
     }
     if let Some(p) = &a.screenshot {
-        output::check_file_target(p, "png", "PNG")?;
+        frameless::output::check_file_target(p, "png", "PNG")?;
     }
     let method = a.method;
     let mut cfg = RtConfig::new(method);
@@ -574,34 +586,64 @@ fn default_cache_dir() -> std::path::PathBuf {
 pub fn load_scene(arg: &str) -> Result<Scene> {
     let looks_like_path = arg.contains('/') || arg.contains('.') || Path::new(arg).exists();
     if !looks_like_path && builtin::load(arg).is_none() {
+        let close = builtin::NAMES
+            .iter()
+            .find(|n| edit_distance(n, arg) <= 2)
+            .map(|n| format!(" (did you mean `{n}`?)"))
+            .unwrap_or_default();
         bail!(
-            "unknown scene `{arg}`: built-in scenes are {} (or give a .aff file path)",
+            "unknown scene `{arg}`{close}: built-in scenes are {}; or give a scene file \
+             (.aff, .gltf, .glb, .obj)",
             builtin::NAMES.join(", ")
         );
     }
-    let bar = ProgressBar::new_spinner().with_message(format!("loading {arg}"));
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    let spinner = Meter::spinner(&format!("loading {arg}"));
     let s = scene::load(arg);
-    bar.finish_and_clear();
+    spinner.finish();
     Ok(s?)
+}
+
+/// Levenshtein distance, for suggesting the name a typo meant.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let here = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(here + 1);
+            prev = here;
+        }
+    }
+    row[b.len()]
+}
+
+/// `frameless report DIR`: an evaluation folder's report made again, or each of a
+/// Table 1 folder's.
+fn rewrite_report(dir: &Path) -> Result<()> {
+    let summary = dir.join("summary.json");
+    let text = std::fs::read_to_string(&summary).with_context(|| {
+        format!(
+            "{}: not an output folder of `frameless eval` or `frameless table1`",
+            summary.display()
+        )
+    })?;
+    let dirs: Vec<std::path::PathBuf> =
+        match serde_json::from_str::<evaluation::table1::TableSummary>(&text) {
+            Ok(t) => t.animations.iter().map(|a| dir.join(&a.name)).collect(),
+            Err(_) => vec![dir.to_path_buf()],
+        };
+    for d in dirs {
+        let p = report::rewrite(&d)?;
+        println!("report: {}", p.display());
+    }
+    Ok(())
 }
 
 fn load_camera_path(p: Option<&Path>) -> Result<Option<CameraPath>> {
     p.map(|p| CameraPath::load(p).map_err(anyhow::Error::from))
         .transpose()
-}
-
-/// An evaluation's progress on a progress bar.
-struct BarProgress(ProgressBar);
-
-impl evaluation::Progress for BarProgress {
-    fn total(&self, n: u64) {
-        self.0.set_length(n);
-    }
-    fn step(&self, msg: &str) {
-        self.0.set_message(msg.to_string());
-        self.0.inc(1);
-    }
 }
 
 /// The items of a comma-separated option, each parsed by `parse` (trimmed).
@@ -612,23 +654,4 @@ fn parse_list<T, E: std::fmt::Display>(
     list.split(',')
         .map(|item| parse(item.trim()).map_err(|e| anyhow::anyhow!("{e}")))
         .collect()
-}
-
-/// The strip frames of an evaluation of `n` frames: at a quarter, half and three
-/// quarters.
-fn quartile_frames(n: usize) -> Vec<usize> {
-    let mut f = vec![n / 4, n / 2, (3 * n) / 4];
-    f.dedup();
-    f
-}
-
-fn progress_bar(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
-            .expect("static template")
-            .progress_chars("=> "),
-    );
-    bar.set_message(what.to_string());
-    bar
 }

@@ -10,7 +10,7 @@ use frameless::evaluation::{
     table1,
 };
 
-use super::{default_cache_dir, progress_bar, BarProgress};
+use super::{default_cache_dir, progress::Meter};
 
 /// Arguments of `frameless sweep`.
 #[derive(Args, Debug)]
@@ -69,28 +69,18 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
         cache_dir: (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir)),
     };
     let t0 = std::time::Instant::now();
-    let bar = progress_bar(0, "");
+    // One meter for the shard; each job's evaluation sets its total and counts up.
+    let bar = Meter::new("sweep job", "rays");
     let mut events = |e: JobEvent| match e {
         JobEvent::Start { job, index, total } => {
-            bar.reset();
-            bar.set_message(format!("[{}/{total}] {}", index + 1, job.id()));
+            bar.set_position(0);
+            eprintln!("[{}/{total}] {}", index + 1, job.id());
         }
-        JobEvent::Done { job, seconds } => {
-            bar.suspend(|| eprintln!("{}: {seconds:.1} s", job.id()));
-        }
-        JobEvent::Kept { job } => {
-            bar.suspend(|| eprintln!("{}: kept (already done)", job.id()));
-        }
+        JobEvent::Done { job, seconds } => eprintln!("{}: {seconds:.1} s", job.id()),
+        JobEvent::Kept { job } => eprintln!("{}: kept (already done)", job.id()),
     };
-    let run = sweep::run_shard(
-        &file,
-        a.shard,
-        &a.out,
-        &opts,
-        &mut events,
-        &BarProgress(bar.clone()),
-    )?;
-    bar.finish_and_clear();
+    let run = sweep::run_shard(&file, a.shard, &a.out, &opts, &mut events, &bar)?;
+    bar.finish();
     println!(
         "shard {} of sweep {}: {} jobs, {} run, {} kept, {:.1} s; results in {}",
         a.shard,

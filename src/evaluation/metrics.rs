@@ -34,7 +34,7 @@ pub fn psnr(rms: f64) -> f64 {
 /// Temporal instability between two refreshes: mean over channels of
 /// `|(shown − shown_prev) − (ideal − ideal_prev)|`, in 0–255 units. Zero when the display
 /// changes exactly as the ideal does (including not at all on a still scene).
-pub fn flicker(shown_prev: &[u8], shown: &[u8], ideal_prev: &[u8], ideal: &[u8]) -> f64 {
+pub fn instability(shown_prev: &[u8], shown: &[u8], ideal_prev: &[u8], ideal: &[u8]) -> f64 {
     let n = shown.len();
     assert!(shown_prev.len() == n && ideal_prev.len() == n && ideal.len() == n);
     if n == 0 {
@@ -63,6 +63,42 @@ pub fn flip_mean(reference: &[u8], test: &[u8], w: u32, h: u32) -> f64 {
     }
 }
 
+/// The FLIP error map between a reference and a test image of `w × h` 8-bit RGB
+/// pixels, one byte a pixel: the error in [0, 1] on the steps 0–[`FLIP_STEPS`], to be
+/// shown with [`flip_palette`]; `None` if the images are not `w × h`. (Indices into a
+/// palette, not colours: a third of the size, and FLIP's colour scale has 256 entries.)
+pub fn flip_map(reference: &[u8], test: &[u8], w: u32, h: u32) -> Option<Vec<u8>> {
+    let r = RgbImage::new(w as usize, h as usize, reference.to_vec()).ok()?;
+    let t = RgbImage::new(w as usize, h as usize, test.to_vec()).ok()?;
+    let map = ldr_flip(&r, &t, DEFAULT_PPD).ok()?;
+    Some(
+        map.pixels()
+            .iter()
+            .map(|&v| {
+                let v = if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) };
+                (v * FLIP_STEPS as f32 + 0.5) as u8
+            })
+            .collect(),
+    )
+}
+
+/// The largest value of [`flip_map`]; the value above it is white (a strip's gaps).
+pub const FLIP_STEPS: u8 = 254;
+
+/// The colours of [`flip_map`]'s values as 256 RGB triples: FLIP's magma scale (black
+/// for no perceived difference, through purple and red, to pale yellow for the
+/// largest), and white for 255.
+pub fn flip_palette() -> Vec<u8> {
+    let mut p: Vec<u8> = (0..=FLIP_STEPS as usize)
+        .flat_map(|i| {
+            let c = flip_rs::MAGMA[(i * 255 + FLIP_STEPS as usize / 2) / FLIP_STEPS as usize];
+            c.map(crate::image::quantize)
+        })
+        .collect();
+    p.extend([255, 255, 255]);
+    p
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -85,15 +121,37 @@ mod tests {
     }
 
     #[test]
-    fn flicker_counts_only_change_the_ideal_does_not_have() {
+    fn flip_map_is_zero_where_images_agree() {
+        let (w, h) = (16, 8);
+        let a: Vec<u8> = (0..w * h * 3).map(|i| (i * 7 % 251) as u8).collect();
+        let same = flip_map(&a, &a, w, h).expect("a map");
+        assert_eq!(same.len(), (w * h) as usize);
+        assert!(same.iter().all(|&v| v == 0), "{same:?}");
+        let mut b = a.clone();
+        for v in &mut b[..w as usize * 3 * 4] {
+            *v = 255 - *v;
+        }
+        let diff = flip_map(&a, &b, w, h).expect("a map");
+        let top: u64 = diff[..w as usize * 4].iter().map(|&v| v as u64).sum();
+        assert!(top > 10 * w as u64 * 4, "inverted rows show: {diff:?}");
+        assert!(diff.iter().all(|&v| v <= FLIP_STEPS));
+        assert!(flip_map(&a, &b, w + 1, h).is_none());
+        let palette = flip_palette();
+        assert_eq!(palette.len(), 256 * 3);
+        assert_eq!(&palette[..3], &[0, 0, 4], "magma starts near black");
+        assert_eq!(&palette[255 * 3..], &[255, 255, 255]);
+    }
+
+    #[test]
+    fn instability_counts_only_change_the_ideal_does_not_have() {
         let a = vec![10u8, 20, 30];
         let b = vec![12u8, 20, 27];
         // The display changes exactly as the ideal: no flicker.
-        assert_eq!(flicker(&a, &b, &a, &b), 0.0);
+        assert_eq!(instability(&a, &b, &a, &b), 0.0);
         // The ideal is still, the display changes by 2 and 3: mean 5/3.
-        assert!((flicker(&a, &b, &a, &a) - 5.0 / 3.0).abs() < 1e-12);
+        assert!((instability(&a, &b, &a, &a) - 5.0 / 3.0).abs() < 1e-12);
         // The display is still while the ideal changes: lag counts too.
-        assert!((flicker(&a, &a, &a, &b) - 5.0 / 3.0).abs() < 1e-12);
+        assert!((instability(&a, &a, &a, &b) - 5.0 / 3.0).abs() < 1e-12);
     }
 
     #[test]

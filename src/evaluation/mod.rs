@@ -44,6 +44,14 @@ pub enum EvalError {
         /// Why.
         source: std::io::Error,
     },
+    /// A data file (`frames.csv`, `summary.json`) could not be read or written.
+    #[error("{}: {why}", path.display())]
+    Data {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, with the line where the format says it.
+        why: String,
+    },
     /// A plot could not be drawn.
     #[error("plot {}: {why}", path.display())]
     Plot {
@@ -131,7 +139,59 @@ pub struct EvalConfig {
     pub flip_every: usize,
 }
 
+/// The methods `frameless eval` runs when none are named: the baselines, today's
+/// practice and ours, without the ablations and the paper's own adaptive method.
+pub const DEFAULT_METHODS: [MethodKind; 9] = [
+    MethodKind::Framed60Hz,
+    MethodKind::FramedFull,
+    MethodKind::FullRes60Hz,
+    MethodKind::TraditionalFrameless,
+    MethodKind::PointTracking,
+    MethodKind::Taa,
+    MethodKind::LateWarp,
+    MethodKind::TaaWarp,
+    MethodKind::Adaptive,
+];
+
 impl EvalConfig {
+    /// The settings `frameless eval --scene <scene_name>` runs with: 256×256 at 60 Hz,
+    /// 1 s from t = 0 after a 1 s warm-up, 100K, 400K and 800K samples/s,
+    /// [`DEFAULT_METHODS`], seed 1, 16-spp ideal images, ray-cone texture filtering,
+    /// strips at the window's quartiles, FLIP on every frame; no ideal-image cache.
+    /// Change the fields for anything else.
+    pub fn new(scene_name: &str) -> Self {
+        let mut cfg = Self {
+            scene_name: scene_name.to_string(),
+            camera_path: None,
+            start: 0.0,
+            duration: 1.0,
+            width: 256,
+            height: 256,
+            rates: vec![100_000.0, 400_000.0, 800_000.0],
+            methods: DEFAULT_METHODS.to_vec(),
+            seed: 1,
+            ideal_spp: 16,
+            warmup: 1.0,
+            refresh_hz: 60.0,
+            max_depth: 5,
+            texture_filter: TextureFilter::RayCones,
+            cache_dir: None,
+            strip_frames: Vec::new(),
+            flip_every: 1,
+        };
+        cfg.strip_frames = cfg.quartile_frames();
+        cfg
+    }
+
+    /// The frames at a quarter, half and three quarters of the window (the strips
+    /// `frameless eval` writes).
+    pub fn quartile_frames(&self) -> Vec<usize> {
+        let n = self.frames();
+        let mut f = vec![n / 4, n / 2, (3 * n) / 4];
+        f.dedup();
+        f
+    }
+
     /// Number of evaluated refreshes.
     pub fn frames(&self) -> usize {
         ((self.duration * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
@@ -287,8 +347,9 @@ pub struct FrameRow {
     /// Temporal instability: mean absolute difference, in 0–255 units, between the
     /// displayed image's change since the previous refresh and the ideal image's own
     /// change (`None` on the first frame). Scintillation raises it; faithfully following
-    /// real change does not.
-    pub flicker: Option<f64>,
+    /// real change does not. (Read from files written as `flicker` too.)
+    #[serde(alias = "flicker")]
+    pub instability: Option<f64>,
     /// Mean age of the displayed information, seconds.
     pub age_s: f64,
 }
@@ -312,8 +373,10 @@ pub struct ResultRow {
     pub flip_mean: f64,
     /// Frames whose FLIP was computed.
     pub flip_frames: usize,
-    /// Mean temporal instability (see [`FrameRow::flicker`]).
-    pub flicker_mean: f64,
+    /// Mean temporal instability (see [`FrameRow::instability`]). (Read from files
+    /// written as `flicker_mean` too.)
+    #[serde(alias = "flicker_mean")]
+    pub instability_mean: f64,
     /// Mean information age, seconds.
     pub age_mean_s: f64,
     /// Samples traced over warm-up and window.
@@ -381,21 +444,54 @@ pub struct EvalOutput {
     pub frames: Vec<FrameRow>,
     /// Strip images: `(rate, frame, [(label, 8-bit RGB)])`, the ideal image first.
     pub strips: Vec<Strip>,
+    /// The strip frames' linear images, when asked for ([`RunOptions::linear_strips`]).
+    pub linear: Vec<LinearImage>,
 }
 
-/// Progress reporting hooks.
+/// Progress reporting hooks. Work is counted in units whose cost is about even (an
+/// evaluation counts rays: a refresh of a method costs the samples it traced, which
+/// is the whole warm-up for the first one, and an ideal image its pixels × spp), so
+/// that done/total is a fair share of the time.
 pub trait Progress: Sync {
-    /// Set the total number of steps.
+    /// Set the total number of units.
     fn total(&self, n: u64);
-    /// One step done, with a message.
-    fn step(&self, msg: &str);
+    /// `n` units done, with a message saying what is being worked on.
+    fn advance(&self, msg: &str, n: u64);
+    /// One unit done.
+    fn step(&self, msg: &str) {
+        self.advance(msg, 1);
+    }
 }
 
 /// No progress reporting.
 pub struct Silent;
 impl Progress for Silent {
     fn total(&self, _: u64) {}
-    fn step(&self, _: &str) {}
+    fn advance(&self, _: &str, _: u64) {}
+}
+
+/// Options of [`run_with`] that change what is kept, not what is measured.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunOptions {
+    /// Keep the linear (unclamped, unquantized) images of the strip frames, the ideal's
+    /// and every method's, for HDR output ([`EvalOutput::linear`]). The ideal images of
+    /// those frames are rendered again, since the cache holds them as displayed.
+    pub linear_strips: bool,
+    /// Make the ideal images from this refresh on, then wrap around ([`run_from`]).
+    pub first_ideal: usize,
+}
+
+/// A strip frame's image before display quantization.
+#[derive(Clone, Debug)]
+pub struct LinearImage {
+    /// `ideal` or the method's name.
+    pub label: String,
+    /// The rate column (`None` for the ideal image, which has none).
+    pub rate: Option<f64>,
+    /// Frame index in the window.
+    pub frame: usize,
+    /// The linear image.
+    pub image: crate::image::Image,
 }
 
 /// Strip images at one rate and frame: `(rate, frame, [(label, 8-bit RGB)])`, the
@@ -406,9 +502,13 @@ pub type Strip = (f64, usize, Vec<(String, Vec<u8>)>);
 struct Shown {
     /// Per refresh: the displayed image (8-bit RGB) and its mean information age.
     frames: Vec<(Vec<u8>, f64)>,
+    /// The linear images of the frames asked for, by frame index.
+    linear: Vec<(usize, crate::image::Image)>,
     samples: u64,
     extra: Option<serde_json::Value>,
     effective_rate: f64,
+    /// Progress units reported while showing.
+    counted: u64,
 }
 
 /// Run an evaluation (no files written; see [`report::write_all`]).
@@ -417,7 +517,7 @@ pub fn run(
     cfg: &EvalConfig,
     progress: &dyn Progress,
 ) -> Result<EvalOutput, EvalError> {
-    run_from(scene, cfg, progress, 0)
+    run_with(scene, cfg, progress, RunOptions::default())
 }
 
 /// [`run`], making the ideal images from refresh `first_ideal` on (then wrapping
@@ -429,6 +529,24 @@ pub fn run_from(
     cfg: &EvalConfig,
     progress: &dyn Progress,
     first_ideal: usize,
+) -> Result<EvalOutput, EvalError> {
+    run_with(
+        scene,
+        cfg,
+        progress,
+        RunOptions {
+            first_ideal,
+            ..RunOptions::default()
+        },
+    )
+}
+
+/// [`run`], keeping what `options` asks for besides the measurements.
+pub fn run_with(
+    scene: Arc<Scene>,
+    cfg: &EvalConfig,
+    progress: &dyn Progress,
+    options: RunOptions,
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = Arc::new(
@@ -452,7 +570,29 @@ pub fn run_from(
     };
     let n = cfg.frames();
     let runs = cfg.runs();
-    progress.total((n * (1 + runs.len())) as u64);
+    let shape = cfg.shape();
+    // Progress in rays. A cached ideal image costs a read, counted as one sample per
+    // pixel; whether it is cached is known (up to a rare rejected entry) from its file.
+    let pixels = cfg.width as u64 * cfg.height as u64;
+    let ideal_units = |k: usize| match &cache {
+        Some(c)
+            if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
+                .is_file() =>
+        {
+            pixels
+        }
+        _ => pixels * cfg.ideal_spp as u64,
+    };
+    // A method's refresh costs its samples and, besides, work over every pixel (its
+    // image, the metrics); on a 2-core machine that work was worth about one ray a pixel.
+    let run_units = |kind: MethodKind, rate: f64| {
+        let rate = kind.info().budget.effective_rate(&shape, rate);
+        (rate * shape.seconds) as u64 + n as u64 * pixels
+    };
+    progress.total(
+        (0..n).map(ideal_units).sum::<u64>()
+            + runs.iter().map(|&(k, r)| run_units(k, r)).sum::<u64>(),
+    );
     let mut timing = Timing::default();
     let ctx_for = |rate: f64| MethodContext {
         tracer: tracer.clone(),
@@ -464,22 +604,53 @@ pub fn run_from(
     let ideal = ideal_images(
         cfg,
         &ctx_for(cfg.rates[0]),
-        first_ideal,
+        options.first_ideal,
         &mut timing,
+        &ideal_units,
         progress,
     );
     let mut strips: Vec<Strip> = Vec::new();
+    let strip_frames: Vec<usize> = cfg
+        .strip_frames
+        .iter()
+        .copied()
+        .filter(|&k| k < n)
+        .collect();
     for rate in &cfg.rates {
-        for &k in cfg.strip_frames.iter().filter(|&&k| k < n) {
+        for &k in &strip_frames {
             strips.push((*rate, k, vec![("ideal".to_string(), ideal[k].clone())]));
         }
+    }
+    let mut linear = Vec::new();
+    let keep_linear: &[usize] = if options.linear_strips {
+        &strip_frames
+    } else {
+        &[]
+    };
+    if !keep_linear.is_empty() {
+        let ctx = ctx_for(cfg.rates[0]);
+        let t0 = Instant::now();
+        for &k in keep_linear {
+            linear.push(LinearImage {
+                label: "ideal".into(),
+                rate: None,
+                frame: k,
+                image: ideal_image(&ctx, cfg.refresh(k)),
+            });
+        }
+        timing.ideal_s += t0.elapsed().as_secs_f64();
     }
     let mut frames = Vec::new();
     let mut results = Vec::new();
     for (kind, rate) in runs {
         let mut method = kind.build(&ctx_for(rate))?;
         let tm = Instant::now();
-        let shown = show(cfg, kind, rate, method.as_mut(), progress)?;
+        let mut shown = show(cfg, kind, rate, method.as_mut(), keep_linear, progress)?;
+        // Methods may trace less than their budget; the total counted the budget.
+        progress.advance(
+            kind.name(),
+            run_units(kind, rate).saturating_sub(shown.counted),
+        );
         timing.methods_s += tm.elapsed().as_secs_f64();
         timing.trace_s += method.trace_seconds();
         let tq = Instant::now();
@@ -491,6 +662,17 @@ pub fn run_from(
         } else {
             vec![rate]
         };
+        for r in &columns {
+            for (k, image) in &shown.linear {
+                linear.push(LinearImage {
+                    label: kind.name().into(),
+                    rate: Some(*r),
+                    frame: *k,
+                    image: image.clone(),
+                });
+            }
+        }
+        shown.linear.clear();
         for r in columns {
             let rows = frame_rows(cfg, kind, r, &shown, &metrics);
             results.push(aggregate(kind, r, &rows, &shown));
@@ -504,6 +686,7 @@ pub fn run_from(
         summary: cfg.summary(results, timing),
         frames,
         strips,
+        linear,
     })
 }
 
@@ -514,6 +697,7 @@ fn ideal_images(
     ctx: &MethodContext,
     first: usize,
     timing: &mut Timing,
+    units: &dyn Fn(usize) -> u64,
     progress: &dyn Progress,
 ) -> Vec<Vec<u8>> {
     let t0 = Instant::now();
@@ -522,6 +706,7 @@ fn ideal_images(
     let mut ideal = vec![Vec::new(); n];
     for k in (first..n).chain(0..first) {
         let t = cfg.refresh(k);
+        let cost = units(k);
         ideal[k] = match &ctx.ideal_cache {
             Some(cache) => {
                 let (image, lookup) = cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed);
@@ -535,7 +720,7 @@ fn ideal_images(
             None => ideal_image(ctx, t),
         }
         .to_rgb8();
-        progress.step("ideal images");
+        progress.advance("ideal images", cost);
     }
     timing.ideal_s = t0.elapsed().as_secs_f64();
     ideal
@@ -554,7 +739,7 @@ fn frame_rows(
         .iter()
         .zip(metrics)
         .enumerate()
-        .map(|(k, ((_, age), (rms, flip, flicker)))| FrameRow {
+        .map(|(k, ((_, age), (rms, flip, instability)))| FrameRow {
             method: kind,
             rate,
             frame: k,
@@ -562,7 +747,7 @@ fn frame_rows(
             rms: *rms,
             psnr: metrics::psnr(*rms),
             flip: *flip,
-            flicker: *flicker,
+            instability: *instability,
             age_s: *age,
         })
         .collect()
@@ -575,6 +760,7 @@ fn show(
     kind: MethodKind,
     rate: f64,
     method: &mut dyn Method,
+    keep_linear: &[usize],
     progress: &dyn Progress,
 ) -> Result<Shown, EvalError> {
     let n = cfg.frames();
@@ -582,10 +768,17 @@ fn show(
     let effective_rate = budget.effective_rate(&cfg.shape(), rate);
     let budget_clock = cfg.clock(effective_rate);
     let mut frames: Vec<(Vec<u8>, f64)> = Vec::with_capacity(n);
+    let pixels = cfg.width as u64 * cfg.height as u64;
+    let mut linear = Vec::new();
+    let mut counted = 0;
+    let mut used = 0;
     for k in 0..n {
         let t = cfg.refresh(k);
         let d = method.display(t);
         frames.push((d.image.to_rgb8(), d.mean_age));
+        if keep_linear.contains(&k) {
+            linear.push((k, d.image.clone()));
+        }
         if budget.enforced() && method.samples_used() > budget_clock.samples_until(t) {
             return Err(EvalError::OverBudget {
                 method: kind,
@@ -594,10 +787,16 @@ fn show(
                 budget: budget_clock.samples_until(t),
             });
         }
-        progress.step(kind.name());
+        let now = method.samples_used();
+        let units = now.saturating_sub(used) + pixels;
+        used = now;
+        counted += units;
+        progress.advance(kind.name(), units);
     }
     Ok(Shown {
         frames,
+        linear,
+        counted,
         samples: method.samples_used(),
         extra: method.extra_stats(),
         effective_rate,
@@ -618,9 +817,9 @@ fn measure(
         .enumerate()
         .map(|(k, ((rgb, _), id))| {
             let flip = (k % cfg.flip_every == 0).then(|| metrics::flip_mean(id, rgb, w, h));
-            let flicker =
-                (k > 0).then(|| metrics::flicker(&shown[k - 1].0, rgb, &ideal[k - 1], id));
-            (metrics::rms(id, rgb), flip, flicker)
+            let instability =
+                (k > 0).then(|| metrics::instability(&shown[k - 1].0, rgb, &ideal[k - 1], id));
+            (metrics::rms(id, rgb), flip, instability)
         })
         .collect()
 }
@@ -629,7 +828,7 @@ fn measure(
 fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> ResultRow {
     let mean = |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
     let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
-    let flickers: Vec<f64> = rows.iter().filter_map(|r| r.flicker).collect();
+    let instabilities: Vec<f64> = rows.iter().filter_map(|r| r.instability).collect();
     ResultRow {
         method: kind,
         rate,
@@ -639,7 +838,7 @@ fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> R
         psnr_mean: mean(|r| r.psnr),
         flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
         flip_frames: flips.len(),
-        flicker_mean: flickers.iter().sum::<f64>() / flickers.len().max(1) as f64,
+        instability_mean: instabilities.iter().sum::<f64>() / instabilities.len().max(1) as f64,
         age_mean_s: mean(|r| r.age_s),
         samples: shown.samples,
         extra: shown.extra.clone(),

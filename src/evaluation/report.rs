@@ -1,13 +1,23 @@
 //! Evaluation outputs: `frames.csv`, `summary.json`, `summary.md` (paper Table 1
-//! shape), RMS-over-time plots (paper Fig. 8), image strips and `report.html`.
+//! shape), RMS-over-time plots (paper Fig. 8), image strips with FLIP error maps,
+//! optional linear OpenEXR images of the strip frames, and `report.html`, which opens
+//! from disk and links only files that are there. [`rewrite`] makes the plots, maps
+//! and report again from an output folder's `summary.json`, `frames.csv` and strips.
 
-use std::{fmt::Write as _, path::Path};
+use std::{
+    fmt::Write as _,
+    path::{Path, PathBuf},
+};
 
 use plotters::prelude::*;
 
-use super::{EvalError, EvalOutput, Summary};
+use super::{metrics, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
-use crate::{image::write_png_rgb8, methods::MethodKind, output::OutputDir};
+use crate::{
+    image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
+    methods::MethodKind,
+    output::{self, OutputDir},
+};
 
 /// A table of one metric: title, the value of a row, decimals.
 type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize);
@@ -49,7 +59,7 @@ pub fn markdown(s: &Summary) -> String {
         ("Mean FLIP (lower is better)", |r| r.flip_mean, 4),
         (
             "Temporal instability (0–255, change not in the ideal; lower is better)",
-            |r| r.flicker_mean,
+            |r| r.instability_mean,
             2,
         ),
         ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1),
@@ -82,21 +92,55 @@ pub fn markdown(s: &Summary) -> String {
     out
 }
 
-fn csv(out: &EvalOutput) -> String {
-    let mut s = String::from("method,rate,frame,time,rms,psnr,flip,flicker,age_s\n");
-    for f in &out.frames {
-        let flip = f.flip.map(|v| format!("{v:.6}")).unwrap_or_default();
-        let flicker = f.flicker.map(|v| format!("{v:.4}")).unwrap_or_default();
-        let _ = writeln!(
-            s,
-            "{},{},{},{:.6},{:.4},{:.4},{flip},{flicker},{:.6}",
-            f.method, f.rate, f.frame, f.time, f.rms, f.psnr, f.age_s
-        );
+/// `frames.csv`: one row per method, rate column and frame, the columns named as
+/// [`FrameRow`]'s fields; values are rounded to what the measurements resolve, and a
+/// metric not computed on a frame is an empty field.
+pub fn frames_csv(frames: &[FrameRow]) -> Result<Vec<u8>, csv::Error> {
+    let round = |v: f64, decimals: i32| {
+        let scale = 10f64.powi(decimals);
+        (v * scale).round() / scale
+    };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    for f in frames {
+        w.serialize(FrameRow {
+            time: round(f.time, 6),
+            rms: round(f.rms, 4),
+            psnr: round(f.psnr, 4),
+            flip: f.flip.map(|v| round(v, 6)),
+            instability: f.instability.map(|v| round(v, 4)),
+            age_s: round(f.age_s, 6),
+            ..f.clone()
+        })?;
     }
-    s
+    w.into_inner().map_err(|e| csv::Error::from(e.into_error()))
 }
 
-const PALETTE: [RGBColor; 8] = [
+/// Read a `frames.csv` (also one written before `flicker` was renamed `instability`).
+pub fn read_frames_csv(path: &Path) -> Result<Vec<FrameRow>, EvalError> {
+    let bad = |why: String| EvalError::Data {
+        path: path.to_path_buf(),
+        why,
+    };
+    let mut reader = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
+    reader
+        .deserialize()
+        .map(|row| row.map_err(|e| bad(e.to_string())))
+        .collect()
+}
+
+/// Read an evaluation's `summary.json` (also one written by earlier versions).
+pub fn read_summary(path: &Path) -> Result<Summary, EvalError> {
+    let bad = |why: String| EvalError::Data {
+        path: path.to_path_buf(),
+        why,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| EvalError::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| bad(e.to_string()))
+}
+
+/// Line colours: Tableau 10, chosen to be told apart, also by most colour-blind readers
+/// when combined with [`DASHES`].
+const PALETTE: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(255, 127, 14),
     RGBColor(44, 160, 44),
@@ -104,21 +148,38 @@ const PALETTE: [RGBColor; 8] = [
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
     RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
     RGBColor(23, 190, 207),
 ];
 
-/// RMS over time at one rate, one line per method (paper Fig. 8), as SVG.
-pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), EvalError> {
-    let s = &out.summary;
+/// Line patterns, `(dash, gap)` in pixels, `(0, 0)` solid. Their count is prime to the
+/// palette's, so no two of the first 30 series share both colour and pattern, and
+/// neighbours in the legend always differ in both.
+const DASHES: [(u32, u32); 3] = [(0, 0), (9, 5), (2, 4)];
+
+/// The colour and pattern of series `i`.
+fn series_style(i: usize) -> (RGBColor, (u32, u32)) {
+    (PALETTE[i % PALETTE.len()], DASHES[i % DASHES.len()])
+}
+
+/// RMS over time at one rate, one line per method (paper Fig. 8), as SVG: frames on
+/// the x axis (whole numbers), the legend beside the plot, never over the curves.
+pub fn plot_rms(
+    summary: &Summary,
+    frames: &[FrameRow],
+    rate: f64,
+    path: &Path,
+) -> Result<(), EvalError> {
+    let s = summary;
     let methods = methods_in_order(s);
-    let series: Vec<(String, Vec<(f64, f64)>)> = methods
+    let series: Vec<(String, Vec<(i32, f64)>)> = methods
         .iter()
         .map(|m| {
-            let pts = out
-                .frames
+            let pts = frames
                 .iter()
                 .filter(|f| &f.method == m && f.rate == rate)
-                .map(|f| (f.frame as f64, f.rms))
+                .map(|f| (f.frame as i32, f.rms))
                 .collect();
             (m.name().to_string(), pts)
         })
@@ -126,95 +187,231 @@ pub fn plot_rms(out: &EvalOutput, rate: f64, path: &Path) -> Result<(), EvalErro
     let ymax = series
         .iter()
         .flat_map(|(_, p)| p.iter().map(|(_, y)| *y))
+        .filter(|y| y.is_finite())
         .fold(1.0f64, f64::max)
         * 1.05;
-    let xmax = (s.duration * s.refresh_hz).max(1.0);
-    let root = SVGBackend::new(path, (800, 450)).into_drawing_area();
+    let xmax = ((s.duration * s.refresh_hz).round() as i32 - 1).max(1);
     let e = |e: Box<dyn std::error::Error>| EvalError::Plot {
         path: path.to_path_buf(),
         why: e.to_string(),
     };
+    let legend_width = 230;
+    let root = SVGBackend::new(path, (720 + legend_width, 450)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(Box::new(x)))?;
-    let mut chart = ChartBuilder::on(&root)
+    let (plot_area, legend_area) = root.split_horizontally(720);
+    let mut chart = ChartBuilder::on(&plot_area)
         .caption(
             format!(
                 "RMS error vs. ideal, {} at {} samples/s",
                 s.scene,
                 rate_label(rate)
             ),
-            ("sans-serif", 20),
+            ("sans-serif", 18),
         )
         .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..xmax, 0.0..ymax)
+        .x_label_area_size(46)
+        .y_label_area_size(56)
+        .build_cartesian_2d(0..xmax, 0.0..ymax)
         .map_err(|x| e(Box::new(x)))?;
     chart
         .configure_mesh()
-        .x_desc(format!("frame ({} Hz)", s.refresh_hz))
+        .x_desc(format!("refresh ({} Hz)", s.refresh_hz))
         .y_desc("RMS (0-255)")
+        .label_style(("sans-serif", 14))
+        .axis_desc_style(("sans-serif", 15))
+        .x_label_formatter(&|x| format!("{x}"))
         .draw()
         .map_err(|x| e(Box::new(x)))?;
-    for (i, (name, pts)) in series.iter().enumerate() {
+    for (i, (_, pts)) in series.iter().enumerate() {
         if pts.is_empty() {
             continue;
         }
-        let color = PALETTE[i % PALETTE.len()];
-        chart
-            .draw_series(LineSeries::new(pts.iter().copied(), color.stroke_width(2)))
-            .map_err(|x| e(Box::new(x)))?
-            .label(name.as_str())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
-            });
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
+        let (color, (dash, gap)) = series_style(i);
+        let style = color.stroke_width(2);
+        if dash == 0 {
+            chart.draw_series(LineSeries::new(pts.iter().copied(), style))
+        } else {
+            chart.draw_series(DashedLineSeries::new(pts.iter().copied(), dash, gap, style))
+        }
         .map_err(|x| e(Box::new(x)))?;
+    }
+    // The legend: a sample of each line and its method, top to bottom in series order.
+    for (i, (name, _)) in series.iter().enumerate() {
+        let y = 40 + 22 * i as i32;
+        let (color, (dash, gap)) = series_style(i);
+        let style = color.stroke_width(2);
+        let line = vec![(8, y), (48, y)];
+        if dash == 0 {
+            legend_area.draw(&PathElement::new(line, style))
+        } else {
+            legend_area.draw(&plotters::element::DashedPathElement::new(
+                line, dash, gap, style,
+            ))
+        }
+        .map_err(|x| e(Box::new(x)))?;
+        legend_area
+            .draw(&Text::new(
+                name.clone(),
+                (56, y - 8),
+                ("sans-serif", 14).into_font(),
+            ))
+            .map_err(|x| e(Box::new(x)))?;
+    }
     root.present().map_err(|x| e(Box::new(x)))?;
     Ok(())
 }
 
-/// Side-by-side strip of images (8-bit RGB, all `w × h`) with 4-pixel white gaps.
+/// Side-by-side strip of images (8-bit RGB, all `w × h`) with [`STRIP_GAP`]-pixel
+/// white gaps.
 pub fn strip(images: &[Vec<u8>], w: u32, h: u32) -> (u32, u32, Vec<u8>) {
-    let gap = 4u32;
+    strip_of(images, w, h, 3, 255)
+}
+
+/// [`strip`] of images of `channels` bytes a pixel, gaps filled with `fill`.
+fn strip_of(images: &[Vec<u8>], w: u32, h: u32, channels: u32, fill: u8) -> (u32, u32, Vec<u8>) {
+    let gap = STRIP_GAP;
     let n = images.len() as u32;
     let sw = n * w + n.saturating_sub(1) * gap;
-    let mut rgb = vec![255u8; (sw * h * 3) as usize];
+    let mut out = vec![fill; (sw * h * channels) as usize];
     for (i, img) in images.iter().enumerate() {
         let x0 = i as u32 * (w + gap);
         for y in 0..h {
-            let src = &img[(y * w * 3) as usize..((y + 1) * w * 3) as usize];
-            let dst = ((y * sw + x0) * 3) as usize;
-            rgb[dst..dst + src.len()].copy_from_slice(src);
+            let src = &img[(y * w * channels) as usize..((y + 1) * w * channels) as usize];
+            let dst = ((y * sw + x0) * channels) as usize;
+            out[dst..dst + src.len()].copy_from_slice(src);
         }
     }
-    (sw, h, rgb)
+    (sw, h, out)
 }
 
+/// White pixels between the panels of a strip.
+pub const STRIP_GAP: u32 = 4;
+
+/// The panels of a strip made by [`strip`], if it holds exactly `n` of `w × h`.
+fn split_strip(sw: u32, sh: u32, rgb: &[u8], w: u32, n: usize) -> Option<Vec<Vec<u8>>> {
+    let n32 = n as u32;
+    if n == 0 || sw != n32 * w + (n32 - 1) * STRIP_GAP || rgb.len() != (sw * sh * 3) as usize {
+        return None;
+    }
+    Some(
+        (0..n32)
+            .map(|i| {
+                let x0 = (i * (w + STRIP_GAP)) as usize;
+                (0..sh as usize)
+                    .flat_map(|y| {
+                        let row = y * sw as usize;
+                        rgb[(row + x0) * 3..(row + x0 + w as usize) * 3]
+                            .iter()
+                            .copied()
+                    })
+                    .collect()
+            })
+            .collect(),
+    )
+}
+
+/// One strip as written: its images and what they show.
+#[derive(Clone, Debug)]
+pub struct StripFiles {
+    /// The rate column.
+    pub rate: f64,
+    /// Frame index in the window.
+    pub frame: usize,
+    /// The strip of displayed images.
+    pub image: String,
+    /// The strip of FLIP error maps against the first panel, the ideal image.
+    pub flip: String,
+    /// The panels' labels, left to right: `ideal`, then the methods.
+    pub labels: Vec<String>,
+}
+
+/// File names of the strip at `rate` and `frame`: images and FLIP maps.
+fn strip_names(rate: f64, frame: usize) -> (String, String) {
+    let tag = format!("{}_{frame:04}", rate_label(rate));
+    (format!("strip_{tag}.png"), format!("flip_{tag}.png"))
+}
+
+/// Write a strip's images and the FLIP map of each panel against the first (the
+/// ideal image) into `dir`.
+fn write_strip(
+    dir: &Path,
+    (rate, frame): (f64, usize),
+    panels: &[(String, Vec<u8>)],
+    (w, h): (u32, u32),
+    write_images: bool,
+) -> Result<StripFiles, EvalError> {
+    let (image, flip) = strip_names(rate, frame);
+    let p = dir.join(&image);
+    if write_images {
+        let images: Vec<Vec<u8>> = panels.iter().map(|(_, rgb)| rgb.clone()).collect();
+        let (sw, sh, rgb) = strip(&images, w, h);
+        write_png_rgb8(&p, sw, sh, &rgb).map_err(|e| EvalError::io(&p, e))?;
+    }
+    let ideal = &panels[0].1;
+    let maps: Vec<Vec<u8>> = panels
+        .iter()
+        .map(|(_, rgb)| {
+            // Images of the strip's own size always compare.
+            metrics::flip_map(ideal, rgb, w, h).unwrap_or_else(|| vec![0; rgb.len() / 3])
+        })
+        .collect();
+    let (sw, sh, indices) = strip_of(&maps, w, h, 1, metrics::FLIP_STEPS + 1);
+    let p = dir.join(&flip);
+    write_png_indexed(&p, sw, sh, &indices, &metrics::flip_palette())
+        .map_err(|e| EvalError::io(&p, e))?;
+    Ok(StripFiles {
+        rate,
+        frame,
+        image,
+        flip,
+        labels: panels.iter().map(|(l, _)| l.clone()).collect(),
+    })
+}
+
+/// `&`, `<`, `>` and `"` as HTML entities.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+const STYLE: &str = "body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;\
+padding:0 1.5em;color:#222;line-height:1.45}\
+h2{margin-top:1.6em;border-bottom:1px solid #ddd}\
+table{border-collapse:collapse;margin:.4em 0 1.2em}\
+td,th{border:1px solid #ccc;padding:3px 9px;text-align:right}\
+th:first-child,td:first-child{text-align:left}td.best{font-weight:bold;background:#e8f4e8}\
+img.plot{max-width:100%;height:auto}\
+.panels{display:flex;flex-wrap:wrap;gap:12px 10px;margin:.5em 0 1.5em}\
+.panel{margin:0}.panel img{display:block;max-width:none;margin-bottom:3px}\
+.panel figcaption{font-size:.85em;color:#444;margin-bottom:3px}.panel figcaption b{color:#111}\
+p.note{color:#555;font-size:.9em}";
+
+/// The report: tables, plots, strips with their labels and FLIP maps, and links to
+/// the data, each only if its file is in `dir`.
 fn html(
-    out: &EvalOutput,
+    s: &Summary,
+    frames: &[FrameRow],
     plots: &[(f64, String)],
-    strips: &[(f64, usize, String, Vec<String>)],
+    strips: &[StripFiles],
+    dir: &Path,
 ) -> String {
-    let s = &out.summary;
+    let present = |file: &str| dir.join(file).is_file();
     let mut h = String::new();
     let _ = write!(
         h,
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>frameless evaluation: {}</title>\
-         <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;color:#222}}\
-         table{{border-collapse:collapse;margin:1em 0}}td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}\
-         th:first-child,td:first-child{{text-align:left}}img{{max-width:100%}}figcaption{{color:#555}}</style></head><body>",
-        s.scene
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">\
+         <meta name=\"viewport\" content=\"width=device-width,initial-scale=1\">\
+         <title>frameless evaluation: {}</title><style>{STYLE}</style></head><body>",
+        escape(&s.scene)
     );
     let _ = write!(
         h,
-        "<h1>Evaluation: {}</h1><p>{}×{} at {} Hz, window {} s from t = {} s, warm-up {} s, seed {}, ideal {} spp{}.</p>",
-        s.scene,
+        "<h1>Evaluation: {}</h1><p>{}×{} pixels, display refreshed at {} Hz; {} s window \
+         from t = {} s after {} s of warm-up; seed {}; ideal images with {} samples per \
+         pixel{}.</p>",
+        escape(&s.scene),
         s.width,
         s.height,
         s.refresh_hz,
@@ -223,28 +420,63 @@ fn html(
         s.warmup,
         s.seed,
         s.ideal_spp,
-        if s.camera_path { ", camera path" } else { "" }
+        if s.camera_path { "; camera path" } else { "" }
     );
     let methods = methods_in_order(s);
     let rates = rates_in_order(s);
-    let tables: [Metric; 4] = [
-        ("Mean RMS error (0–255)", |r| r.rms_mean, 1),
-        ("Mean FLIP", |r| r.flip_mean, 4),
-        ("Temporal instability (0–255)", |r| r.flicker_mean, 2),
-        ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1),
+    // Title, value, decimals, whether higher is better.
+    type Column = (&'static str, fn(&super::ResultRow) -> f64, usize, bool);
+    let tables: [Column; 5] = [
+        ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 2, false),
+        ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2, true),
+        ("Mean FLIP (0–1, lower is better)", |r| r.flip_mean, 4, false),
+        (
+            "Temporal instability (0–255: change on screen that the ideal does not have; lower is better)",
+            |r| r.instability_mean,
+            2,
+            false,
+        ),
+        ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1, false),
     ];
-    for (title, f, prec) in tables {
+    h.push_str(
+        "<p class=\"note\">Columns are sample budgets (samples/s). Bold: the best of the \
+         methods that ran at that budget (methods with a budget of their own, such as \
+         <code>full-res-60hz</code>, are not ranked).</p>",
+    );
+    let cell = |m: &MethodKind, r: f64| s.results.iter().find(|x| &x.method == m && x.rate == r);
+    for (i, (title, f, prec, higher)) in tables.into_iter().enumerate() {
+        // Information age is a property, not a score: nothing is ranked.
+        let ranked = i < 4;
         let _ = write!(h, "<h2>{title}</h2><table><tr><th>method</th>");
         for r in &rates {
             let _ = write!(h, "<th>{}</th>", rate_label(*r));
         }
         h.push_str("</tr>");
+        let best: Vec<Option<f64>> = rates
+            .iter()
+            .map(|&r| {
+                let vals = s
+                    .results
+                    .iter()
+                    .filter(|x| x.rate == r && x.effective_rate == r)
+                    .map(f)
+                    .filter(|v| v.is_finite());
+                if higher {
+                    vals.reduce(f64::max)
+                } else {
+                    vals.reduce(f64::min)
+                }
+            })
+            .collect();
         for m in &methods {
             let _ = write!(h, "<tr><td>{m}</td>");
-            for r in &rates {
-                match s.results.iter().find(|x| &x.method == m && x.rate == *r) {
+            for (r, b) in rates.iter().zip(&best) {
+                match cell(m, *r) {
                     Some(x) => {
-                        let _ = write!(h, "<td>{:.*}</td>", prec, f(x));
+                        let v = f(x);
+                        let is_best = ranked && x.effective_rate == *r && Some(v) == *b;
+                        let class = if is_best { " class=\"best\"" } else { "" };
+                        let _ = write!(h, "<td{class}>{v:.prec$}</td>");
                     }
                     None => h.push_str("<td>–</td>"),
                 }
@@ -253,29 +485,80 @@ fn html(
         }
         h.push_str("</table>");
     }
-    h.push_str("<h2>RMS error over time</h2>");
-    for (r, file) in plots {
-        let _ = write!(
-            h,
-            "<figure><img src=\"{file}\" alt=\"RMS plot at {}\"></figure>",
-            rate_label(*r)
+    let plots: Vec<&(f64, String)> = plots.iter().filter(|(_, f)| present(f)).collect();
+    if !plots.is_empty() {
+        h.push_str("<h2>RMS error over time</h2>");
+        for (r, file) in plots {
+            let _ = write!(
+                h,
+                "<figure><img class=\"plot\" src=\"{}\" alt=\"RMS error of every method over the window at {} samples/s\"></figure>",
+                escape(file),
+                rate_label(*r)
+            );
+        }
+    }
+    let strips: Vec<&StripFiles> = strips.iter().filter(|st| present(&st.image)).collect();
+    if !strips.is_empty() {
+        h.push_str(
+            "<h2>Images</h2><p class=\"note\">What each method displays at a few refreshes, \
+             beside the ideal image, and below each its FLIP error map against the ideal \
+             (black: no visible difference, through red, to yellow: the largest). Per \
+             panel: that frame's RMS error and FLIP.</p>",
         );
     }
-    h.push_str("<h2>Image strips</h2>");
-    for (r, k, file, names) in strips {
+    for st in strips {
+        let flip = present(&st.flip);
         let _ = write!(
             h,
-            "<figure><img src=\"{file}\"><figcaption>{} samples/s, frame {k} (t = {:.3} s), left to right: {}</figcaption></figure>",
-            rate_label(*r),
-            s.start + *k as f64 / s.refresh_hz,
-            names.join(", ")
+            "<h3>{} samples/s, refresh {} (t = {:.3} s)</h3><div class=\"panels\">",
+            rate_label(st.rate),
+            st.frame,
+            s.start + st.frame as f64 / s.refresh_hz
         );
+        for (i, label) in st.labels.iter().enumerate() {
+            let x0 = i as u32 * (s.width + STRIP_GAP);
+            let crop = |file: &str, what: &str| {
+                format!(
+                    "<img src=\"{}\" width=\"{w}\" height=\"{hh}\" style=\"object-fit:none;object-position:-{x0}px 0\" alt=\"{what}, {}\">",
+                    escape(file),
+                    escape(label),
+                    w = s.width,
+                    hh = s.height,
+                )
+            };
+            let _ = write!(
+                h,
+                "<figure class=\"panel\"><figcaption><b>{}</b>",
+                escape(label)
+            );
+            let row = MethodKind::parse(label).ok().and_then(|m| {
+                frames
+                    .iter()
+                    .find(|f| f.method == m && f.rate == st.rate && f.frame == st.frame)
+            });
+            if let Some(f) = row {
+                let _ = write!(h, "<br>RMS {:.2}", f.rms);
+                if let Some(v) = f.flip {
+                    let _ = write!(h, " · FLIP {v:.3}");
+                }
+            } else if i == 0 {
+                h.push_str("<br>reference");
+            }
+            h.push_str("</figcaption>");
+            h.push_str(&crop(&st.image, "image"));
+            if flip && i > 0 {
+                h.push_str(&crop(&st.flip, "FLIP error map"));
+            }
+            h.push_str("</figure>");
+        }
+        h.push_str("</div>");
     }
     let t = &s.timing;
     let _ = write!(
         h,
-        "<h2>Cost</h2><p>ideal images {:.1} s ({} of {} from cache, {} cache entries rejected and re-rendered), methods {:.1} s (tracing {:.1} s), metrics {:.1} s, output {:.1} s.</p>\
-         <p>Per-frame data: <a href=\"frames.csv\">frames.csv</a>; summary: <a href=\"summary.json\">summary.json</a>.</p></body></html>",
+        "<h2>Cost</h2><p>Ideal images {:.1} s ({} of {} from the cache, {} cache entries \
+         rejected and rendered again); methods {:.1} s, of which tracing rays {:.1} s; \
+         metrics {:.1} s; output {:.1} s.</p>",
         t.ideal_s,
         t.ideal_cache_hits,
         (s.duration * s.refresh_hz).floor(),
@@ -285,13 +568,26 @@ fn html(
         t.metrics_s,
         t.output_s
     );
+    let data: Vec<String> = [
+        ("frames.csv", "every frame's measurements"),
+        ("summary.json", "the means above"),
+        ("summary.md", "the tables as Markdown"),
+    ]
+    .iter()
+    .filter(|(f, _)| present(f))
+    .map(|(f, what)| format!("<a href=\"{f}\">{f}</a> ({what})"))
+    .collect();
+    if !data.is_empty() {
+        let _ = write!(h, "<h2>Data</h2><p>{}.</p>", data.join("; "));
+    }
+    h.push_str("</body></html>\n");
     h
 }
 
 /// Write every output as the folder `dir`, replacing what was there only once all are
 /// written (see [`OutputDir`]): `dir` holds this run or the previous one, never a mix.
 /// Returns the report's path.
-pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf, EvalError> {
+pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<PathBuf, EvalError> {
     let staging = OutputDir::begin(dir).map_err(|e| EvalError::io(dir, e))?;
     write_into(out, staging.path())?;
     staging.commit().map_err(|e| EvalError::io(dir, e))?;
@@ -302,36 +598,104 @@ pub fn write_all(out: &mut EvalOutput, dir: &Path) -> Result<std::path::PathBuf,
 pub(crate) fn write_into(out: &mut EvalOutput, dir: &Path) -> Result<(), EvalError> {
     let t0 = std::time::Instant::now();
     let io = EvalError::io;
-    let write = |name: &str, text: &str| -> Result<(), EvalError> {
+    let write = |name: &str, bytes: &[u8]| -> Result<(), EvalError> {
         let p = dir.join(name);
-        std::fs::write(&p, text).map_err(|e| io(&p, e))
+        output::write_atomic(&p, bytes).map_err(|e| io(&p, e))
     };
-    write("frames.csv", &csv(out))?;
-    write("summary.md", &markdown(&out.summary))?;
-    let mut plots = Vec::new();
-    for r in rates_in_order(&out.summary) {
-        let name = format!("rms_{}.svg", rate_label(r));
-        plot_rms(out, r, &dir.join(&name))?;
-        plots.push((r, name));
-    }
+    let csv = frames_csv(&out.frames).map_err(|e| EvalError::Data {
+        path: dir.join("frames.csv"),
+        why: e.to_string(),
+    })?;
+    write("frames.csv", &csv)?;
+    write("summary.md", markdown(&out.summary).as_bytes())?;
+    let plots = write_plots(&out.summary, &out.frames, dir)?;
     let (w, h) = (out.summary.width, out.summary.height);
-    let mut strip_files = Vec::new();
+    let mut strips = Vec::new();
     for (r, k, list) in &out.strips {
-        let name = format!("strip_{}_{:04}.png", rate_label(*r), k);
-        let images: Vec<Vec<u8>> = list.iter().map(|(_, rgb)| rgb.clone()).collect();
-        let (sw, sh, rgb) = strip(&images, w, h);
-        let p = dir.join(&name);
-        write_png_rgb8(&p, sw, sh, &rgb).map_err(|e| io(&p, e))?;
-        strip_files.push((*r, *k, name, list.iter().map(|(m, _)| m.clone()).collect()));
+        strips.push(write_strip(dir, (*r, *k), list, (w, h), true)?);
+    }
+    if !out.linear.is_empty() {
+        let exr = dir.join("exr");
+        std::fs::create_dir_all(&exr).map_err(|e| io(&exr, e))?;
+        for l in &out.linear {
+            let name = match l.rate {
+                Some(r) => format!("{}_{}_{:04}.exr", l.label, rate_label(r), l.frame),
+                None => format!("{}_{:04}.exr", l.label, l.frame),
+            };
+            let p = exr.join(name);
+            l.image.save_exr(&p).map_err(|e| io(&p, e))?;
+        }
     }
     out.summary.timing.output_s = t0.elapsed().as_secs_f64();
-    write("report.html", &html(out, &plots, &strip_files))?;
     write(
         "summary.json",
         // A summary of numbers and strings always serialises.
-        &serde_json::to_string_pretty(&out.summary).expect("summary serialises"),
+        serde_json::to_string_pretty(&out.summary)
+            .expect("summary serialises")
+            .as_bytes(),
+    )?;
+    write(
+        "report.html",
+        html(&out.summary, &out.frames, &plots, &strips, dir).as_bytes(),
     )?;
     Ok(())
+}
+
+fn write_plots(
+    s: &Summary,
+    frames: &[FrameRow],
+    dir: &Path,
+) -> Result<Vec<(f64, String)>, EvalError> {
+    let mut plots = Vec::new();
+    for r in rates_in_order(s) {
+        let name = format!("rms_{}.svg", rate_label(r));
+        plot_rms(s, frames, r, &dir.join(&name))?;
+        plots.push((r, name));
+    }
+    Ok(plots)
+}
+
+/// Make the plots, FLIP maps and `report.html` of the evaluation output folder `dir`
+/// again, with this version's report, from its `summary.json`, `frames.csv` and the
+/// image strips it holds (strips deleted since are left out; the data files are not
+/// changed). Each file is replaced atomically. Returns the report's path.
+pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
+    let summary = read_summary(&dir.join("summary.json"))?;
+    let frames = read_frames_csv(&dir.join("frames.csv"))?;
+    let plots = write_plots(&summary, &frames, dir)?;
+    let mut labels = vec!["ideal".to_string()];
+    labels.extend(
+        methods_in_order(&summary)
+            .iter()
+            .map(|m| m.name().to_string()),
+    );
+    let (w, h) = (summary.width, summary.height);
+    let mut strips = Vec::new();
+    for r in rates_in_order(&summary) {
+        let prefix = format!("strip_{}_", rate_label(r));
+        let mut found: Vec<usize> = std::fs::read_dir(dir)
+            .map_err(|e| EvalError::io(dir, e))?
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter_map(|n| n.strip_prefix(&prefix)?.strip_suffix(".png")?.parse().ok())
+            .collect();
+        found.sort_unstable();
+        for k in found {
+            let p = dir.join(strip_names(r, k).0);
+            let (sw, sh, rgb) = read_png_rgb8(&p).map_err(|e| EvalError::io(&p, e))?;
+            // A strip whose panels are not this summary's methods is not labelled wrongly:
+            // it is left out of the report.
+            let Some(panels) = split_strip(sw, sh, &rgb, w, labels.len()).filter(|_| sh == h)
+            else {
+                continue;
+            };
+            let panels: Vec<(String, Vec<u8>)> = labels.iter().cloned().zip(panels).collect();
+            strips.push(write_strip(dir, (r, k), &panels, (w, h), false)?);
+        }
+    }
+    let p = dir.join("report.html");
+    output::write_atomic(&p, html(&summary, &frames, &plots, &strips, dir).as_bytes())
+        .map_err(|e| EvalError::io(&p, e))?;
+    Ok(p)
 }
 
 #[cfg(test)]

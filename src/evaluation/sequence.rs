@@ -1,5 +1,6 @@
 //! One method rendered as an image sequence (`frameless render`): what the display
-//! shows at every refresh, as PNG files, with the run's statistics. The method is held
+//! shows at every refresh, as PNG files (as displayed) or OpenEXR files (linear, before
+//! the display clamps and quantizes), with the run's statistics. The method is held
 //! to the same rules as in an evaluation, but nothing is compared.
 
 use std::{path::Path, sync::Arc, time::Instant};
@@ -8,7 +9,7 @@ use serde::Serialize;
 
 use super::{EvalConfig, EvalError, Progress};
 use crate::{
-    image::write_png_rgb8_fast,
+    image::{write_png_rgb8_fast, ImageFormat},
     methods::{MethodContext, MethodKind},
     output::OutputDir,
     scene::{CameraPath, Scene},
@@ -36,7 +37,7 @@ pub struct SequenceConfig {
     /// Sampling before the first refresh, seconds.
     pub warmup: f64,
     /// Display refresh rate, Hz.
-    pub fps: f64,
+    pub refresh_hz: f64,
     /// Display width.
     pub width: u32,
     /// Display height.
@@ -45,6 +46,8 @@ pub struct SequenceConfig {
     pub seed: u64,
     /// Texture filtering.
     pub texture_filter: TextureFilter,
+    /// File format of the frames.
+    pub format: ImageFormat,
 }
 
 /// `stats.json` of a sequence.
@@ -66,8 +69,8 @@ pub struct SequenceStats {
     pub duration: f64,
     /// Warm-up, seconds.
     pub warmup: f64,
-    /// Refresh rate.
-    pub fps: f64,
+    /// Refresh rate, Hz.
+    pub refresh_hz: f64,
     /// Frames written.
     pub frames: u64,
     /// Samples traced.
@@ -85,7 +88,7 @@ pub struct SequenceStats {
 impl SequenceConfig {
     /// Number of frames.
     pub fn frames(&self) -> u64 {
-        (self.duration * self.fps + 1e-9).floor().max(1.0) as u64
+        (self.duration * self.refresh_hz + 1e-9).floor().max(1.0) as u64
     }
 
     /// Check the settings: the ranges, and the same checks as an evaluation of this
@@ -98,14 +101,17 @@ impl SequenceConfig {
         if let Err(why) = crate::limits::check_warmup(self.warmup) {
             return bad("--warmup", why);
         }
-        if !(self.fps > 0.0 && self.fps <= 1000.0) {
-            return bad("--fps", format!("{} must be in (0, 1000]", self.fps));
+        if !(self.refresh_hz > 0.0 && self.refresh_hz <= 1000.0) {
+            return bad(
+                "--refresh-hz",
+                format!("{} must be in (0, 1000]", self.refresh_hz),
+            );
         }
         let frames = self.frames();
         if frames > MAX_FRAMES {
             return bad(
                 "--duration",
-                format!("gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower --fps"),
+                format!("gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower --refresh-hz"),
             );
         }
         EvalConfig {
@@ -120,7 +126,7 @@ impl SequenceConfig {
             seed: self.seed,
             ideal_spp: 1,
             warmup: self.warmup,
-            refresh_hz: self.fps,
+            refresh_hz: self.refresh_hz,
             max_depth: 5,
             texture_filter: self.texture_filter,
             cache_dir: None,
@@ -131,7 +137,8 @@ impl SequenceConfig {
     }
 }
 
-/// Render the sequence as the folder `out` (`frame_NNNNN.png` and `stats.json`). The
+/// Render the sequence as the folder `out` (`frame_NNNNN.png` or `.exr`, and
+/// `stats.json`). The
 /// files are written into a temporary sibling folder that replaces `out` only when the
 /// sequence is complete (see [`OutputDir`]), so `out` never mixes frames of two runs.
 pub fn render_sequence(
@@ -160,7 +167,7 @@ pub fn render_sequence(
             start: cfg.start - cfg.warmup,
             rate: cfg.rate,
             first_refresh: cfg.start,
-            refresh_hz: cfg.fps,
+            refresh_hz: cfg.refresh_hz,
         },
         seed: cfg.seed,
         ideal_spp: 16,
@@ -169,17 +176,32 @@ pub fn render_sequence(
     let mut m = cfg.method.build(&ctx)?;
     let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;
     let frames = cfg.frames();
-    progress.total(frames);
+    // Progress in samples (the first refresh traces the whole warm-up), at least one a
+    // refresh.
+    let budget = (cfg.rate * (cfg.warmup + cfg.duration)) as u64;
+    progress.total(budget.max(frames));
     let t0 = Instant::now();
     let mut ages = 0.0;
+    let (mut used, mut counted) = (0, 0);
     for k in 0..frames {
-        let t = cfg.start + k as f64 / cfg.fps;
+        let t = cfg.start + k as f64 / cfg.refresh_hz;
         let shown = m.display(t);
         ages += shown.mean_age;
-        let p = staging.path().join(format!("frame_{k:05}.png"));
-        write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()).map_err(|e| EvalError::io(&p, e))?;
-        progress.step("rendering");
+        let p = staging
+            .path()
+            .join(format!("frame_{k:05}.{}", cfg.format.extension()));
+        match cfg.format {
+            ImageFormat::Png => write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()),
+            ImageFormat::Exr => shown.image.save_exr(&p),
+        }
+        .map_err(|e| EvalError::io(&p, e))?;
+        let now = m.samples_used();
+        let units = now.saturating_sub(used).max(1);
+        used = now;
+        counted += units;
+        progress.advance("rendering", units);
     }
+    progress.advance("rendering", budget.saturating_sub(counted));
     let stats = SequenceStats {
         scene: cfg.scene_name.clone(),
         method: cfg.method,
@@ -189,7 +211,7 @@ pub fn render_sequence(
         start: cfg.start,
         duration: cfg.duration,
         warmup: cfg.warmup,
-        fps: cfg.fps,
+        refresh_hz: cfg.refresh_hz,
         frames,
         samples: m.samples_used(),
         trace_s: m.trace_seconds(),

@@ -244,7 +244,12 @@ pub fn markdown(t: &TableSummary) -> String {
             3,
             false,
         ),
-        ("Temporal instability, 0–255", |r| r.flicker_mean, 2, false),
+        (
+            "Temporal instability, 0–255",
+            |r| r.instability_mean,
+            2,
+            false,
+        ),
     ];
     for (title, f, prec, with_paper) in metrics {
         let _ = writeln!(out, "### {title}\n");

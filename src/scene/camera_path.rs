@@ -1,9 +1,9 @@
-//! Camera path files (SPEC §8): CSV with header
+//! Camera path files: CSV with header
 //! `t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg`, rows sorted by `t` in
 //! seconds, linear interpolation between rows, clamped outside; one row is a fixed camera.
 //! A path overrides the scene's camera.
 
-use std::{fmt::Write as _, path::Path};
+use std::path::Path;
 
 use glam::Vec3;
 
@@ -41,45 +41,73 @@ impl CameraPath {
 
     /// Parse camera path text; `name` is used in error messages.
     pub fn parse(name: &str, text: &str) -> Result<Self, SceneError> {
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
-        let Some((hl, header)) = lines.next() else {
+        // Fields are read raw (untrimmed, no header handling) so that every error can
+        // name the column where the offending field starts.
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(false)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let mut records = reader.records().filter(|r| {
+            // A line of blanks is a one-field record; it is skipped like an empty line.
+            !matches!(r, Ok(rec) if rec.len() == 1 && rec[0].trim().is_empty())
+        });
+        let line_of = |rec: &csv::StringRecord| rec.position().map_or(1, |p| p.line() as usize);
+        let csv_err = |e: csv::Error| {
+            let line = e.position().map_or(1, |p| p.line() as usize);
+            err(name, line, 1, format!("not CSV: {e}"))
+        };
+        let Some(header) = records.next() else {
             return Err(err(name, 1, 1, "empty camera path (expected header line)"));
         };
-        let header: String = header.chars().filter(|c| !c.is_whitespace()).collect();
-        if header != HEADER {
-            return Err(err(name, hl + 1, 1, format!("header must be `{HEADER}`")));
+        let header = header.map_err(csv_err)?;
+        let joined: String = header
+            .iter()
+            .collect::<Vec<_>>()
+            .join(",")
+            .chars()
+            .filter(|c| !c.is_whitespace())
+            .collect();
+        let hl = line_of(&header);
+        if joined != HEADER {
+            return Err(err(name, hl, 1, format!("header must be `{HEADER}`")));
         }
         let mut keys: Vec<(f32, Camera)> = Vec::new();
-        for (ln, line) in lines {
-            let mut vals = [0f32; 11];
-            let fields: Vec<&str> = line.split(',').collect();
+        for rec in records {
+            let rec = rec.map_err(csv_err)?;
+            let ln = line_of(&rec);
+            let fields: Vec<&str> = rec.iter().collect();
             if fields.len() != 11 {
                 return Err(err(
                     name,
-                    ln + 1,
+                    ln,
                     1,
                     format!("expected 11 comma-separated values, found {}", fields.len()),
                 ));
             }
-            let mut col = 1;
-            for (i, f) in fields.iter().enumerate() {
-                vals[i] = f
-                    .trim()
-                    .parse::<f32>()
-                    .ok()
-                    .filter(|v| v.is_finite())
-                    .ok_or_else(|| {
-                        err(
-                            name,
-                            ln + 1,
-                            col,
-                            format!("`{}` is not a finite number", f.trim()),
-                        )
-                    })?;
-                col += f.len() + 1;
+            // 1-based column where field `i` starts.
+            let column = |i: usize| fields[..i].iter().map(|f| f.len() + 1).sum::<usize>() + 1;
+            let trimmed: csv::StringRecord = fields.iter().map(|f| f.trim()).collect();
+            let row: PathRow = trimmed.deserialize(None).map_err(|e| {
+                let i = match e.kind() {
+                    csv::ErrorKind::Deserialize { err, .. } => err.field().unwrap_or(0) as usize,
+                    _ => 0,
+                }
+                .min(10);
+                err(
+                    name,
+                    ln,
+                    column(i),
+                    format!("`{}` is not a finite number", fields[i].trim()),
+                )
+            })?;
+            let vals = row.values();
+            if let Some(i) = vals.iter().position(|v| !v.is_finite()) {
+                return Err(err(
+                    name,
+                    ln,
+                    column(i),
+                    format!("`{}` is not a finite number", fields[i].trim()),
+                ));
             }
             let v = |i: usize| Vec3::new(vals[i], vals[i + 1], vals[i + 2]);
             let cam = Camera {
@@ -90,15 +118,10 @@ impl CameraPath {
                 hither: 1e-3,
             };
             if !(vals[10] > 0.0 && vals[10] < 180.0) {
-                return Err(err(
-                    name,
-                    ln + 1,
-                    col - fields[10].len() - 1,
-                    "fov_y_deg must be in (0, 180)",
-                ));
+                return Err(err(name, ln, column(10), "fov_y_deg must be in (0, 180)"));
             }
             if (cam.at - cam.eye).length_squared() == 0.0 {
-                return Err(err(name, ln + 1, 1, "eye and at coincide"));
+                return Err(err(name, ln, 1, "eye and at coincide"));
             }
             if let Some(&p) = [cam.eye, cam.at]
                 .iter()
@@ -106,22 +129,22 @@ impl CameraPath {
             {
                 return Err(err(
                     name,
-                    ln + 1,
+                    ln,
                     1,
                     super::limits::coordinate_message("eye or at", p),
                 ));
             }
             // The view's frame is built from the up vector: a zero one, or one along the
             // view direction, leaves the image's horizontal axis undefined.
-            let up_col = fields[..7].iter().map(|f| f.len() + 1).sum::<usize>() + 1;
+            let up_col = column(7);
             let dir = (cam.at - cam.eye).normalize();
             if cam.up.length_squared() == 0.0 || !cam.up.is_finite() {
-                return Err(err(name, ln + 1, up_col, "the up vector is zero"));
+                return Err(err(name, ln, up_col, "the up vector is zero"));
             }
             if dir.cross(cam.up.normalize()).length() < 1e-4 {
                 return Err(err(
                     name,
-                    ln + 1,
+                    ln,
                     up_col,
                     "the up vector is parallel to the view direction (at − eye)",
                 ));
@@ -130,7 +153,7 @@ impl CameraPath {
                 if vals[0] <= *pt {
                     return Err(err(
                         name,
-                        ln + 1,
+                        ln,
                         1,
                         format!("time {} does not increase (previous {pt})", vals[0]),
                     ));
@@ -139,7 +162,7 @@ impl CameraPath {
             keys.push((vals[0], cam));
         }
         if keys.is_empty() {
-            return Err(err(name, hl + 1, 1, "camera path has a header but no rows"));
+            return Err(err(name, hl, 1, "camera path has a header but no rows"));
         }
         Ok(Self { keys })
     }
@@ -159,28 +182,114 @@ impl CameraPath {
         a.lerp(&b, (t - t0) / (t1 - t0))
     }
 
-    /// Serialise in the file format (what the viewer records).
+    /// Serialise in the file format (what the viewer records). Numbers are written in
+    /// Rust's shortest form that reads back exactly; the ideal-image cache keys on this
+    /// text, so it must not change for the same path.
     pub fn to_csv(&self) -> String {
-        let mut s = String::from(HEADER);
-        s.push('\n');
+        let mut w = csv::WriterBuilder::new()
+            .has_headers(true)
+            .terminator(csv::Terminator::Any(b'\n'))
+            .from_writer(Vec::new());
         for (t, c) in &self.keys {
-            let _ = writeln!(
-                s,
-                "{t},{},{},{},{},{},{},{},{},{},{}",
-                c.eye.x,
-                c.eye.y,
-                c.eye.z,
-                c.at.x,
-                c.at.y,
-                c.at.z,
-                c.up.x,
-                c.up.y,
-                c.up.z,
-                c.fov_y_deg
-            );
+            let row = PathRow {
+                t: *t,
+                eye_x: c.eye.x,
+                eye_y: c.eye.y,
+                eye_z: c.eye.z,
+                at_x: c.at.x,
+                at_y: c.at.y,
+                at_z: c.at.z,
+                up_x: c.up.x,
+                up_y: c.up.y,
+                up_z: c.up.z,
+                fov_y_deg: c.fov_y_deg,
+            };
+            // Writing numbers into memory cannot fail.
+            w.serialize(row.shortest()).expect("in-memory CSV");
+        }
+        let bytes = w.into_inner().expect("in-memory CSV");
+        let mut s = String::from_utf8(bytes).expect("CSV of numbers is UTF-8");
+        if self.keys.is_empty() {
+            s = format!("{HEADER}\n");
         }
         s
     }
+}
+
+/// One row of a camera path file; the field names are the header's.
+#[derive(Clone, Copy, Debug, serde::Deserialize, serde::Serialize)]
+struct PathRow {
+    t: f32,
+    eye_x: f32,
+    eye_y: f32,
+    eye_z: f32,
+    at_x: f32,
+    at_y: f32,
+    at_z: f32,
+    up_x: f32,
+    up_y: f32,
+    up_z: f32,
+    fov_y_deg: f32,
+}
+
+impl PathRow {
+    fn values(&self) -> [f32; 11] {
+        [
+            self.t,
+            self.eye_x,
+            self.eye_y,
+            self.eye_z,
+            self.at_x,
+            self.at_y,
+            self.at_z,
+            self.up_x,
+            self.up_y,
+            self.up_z,
+            self.fov_y_deg,
+        ]
+    }
+
+    /// The row with every number as Rust displays it (`1`, not `1.0`; no exponents).
+    fn shortest(&self) -> ShortestRow {
+        ShortestRow {
+            t: Shortest(self.t),
+            eye_x: Shortest(self.eye_x),
+            eye_y: Shortest(self.eye_y),
+            eye_z: Shortest(self.eye_z),
+            at_x: Shortest(self.at_x),
+            at_y: Shortest(self.at_y),
+            at_z: Shortest(self.at_z),
+            up_x: Shortest(self.up_x),
+            up_y: Shortest(self.up_y),
+            up_z: Shortest(self.up_z),
+            fov_y_deg: Shortest(self.fov_y_deg),
+        }
+    }
+}
+
+/// A number written as `Display` writes it: the form the file has always had.
+#[derive(Clone, Copy, Debug)]
+struct Shortest(f32);
+
+impl serde::Serialize for Shortest {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(&self.0)
+    }
+}
+
+#[derive(serde::Serialize)]
+struct ShortestRow {
+    t: Shortest,
+    eye_x: Shortest,
+    eye_y: Shortest,
+    eye_z: Shortest,
+    at_x: Shortest,
+    at_y: Shortest,
+    at_z: Shortest,
+    up_x: Shortest,
+    up_y: Shortest,
+    up_z: Shortest,
+    fov_y_deg: Shortest,
 }
 
 #[cfg(test)]
@@ -201,6 +310,8 @@ mod tests {
         assert_eq!(p.at(5.0), p.keys[1].1);
         let again = CameraPath::parse("p.csv", &p.to_csv()).unwrap();
         assert_eq!(again, p);
+        // The ideal-image cache keys on this text: same path, same bytes as always.
+        assert_eq!(p.to_csv(), GOOD);
     }
 
     #[test]
@@ -217,5 +328,19 @@ mod tests {
         assert!(CameraPath::parse("p.csv", "").is_err());
         assert!(CameraPath::parse("p.csv", &GOOD.replace(",40", ",40,1")).is_err());
         assert!(CameraPath::parse("p.csv", &GOOD.replace(",40", ",0")).is_err());
+        let e = CameraPath::parse("p.csv", &GOOD.replace(",60", ",inf"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p.csv:3:") && e.contains("`inf`"), "{e}");
+        // Blank lines and CRLF line ends are read; lines keep their numbers.
+        let spaced = GOOD.replace('\n', "\r\n\n   \n");
+        assert_eq!(
+            CameraPath::parse("p.csv", &spaced).unwrap(),
+            CameraPath::parse("p.csv", GOOD).unwrap()
+        );
+        let e = CameraPath::parse("p.csv", &spaced.replace("2,2,0,0", "2,2,zz,0"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("p.csv:7:5"), "{e}");
     }
 }

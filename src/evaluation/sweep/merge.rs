@@ -302,6 +302,8 @@ fn assemble(
         summary,
         frames,
         strips,
+        // Sweeps keep display-quantized strips only (no HDR strips in job results).
+        linear: Vec::new(),
     })
 }
 

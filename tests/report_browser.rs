@@ -1,0 +1,223 @@
+//! The evaluation report as a reader gets it: every file it names is there, each strip
+//! panel says which method it shows, and, where Chromium is installed, a headless
+//! browser opens the report and every image in it loads.
+
+use std::{
+    path::{Path, PathBuf},
+    process::{Command, Stdio},
+    sync::Arc,
+    time::{Duration, Instant},
+};
+
+use frameless::{
+    evaluation::{self, report, EvalConfig, Silent},
+    methods::MethodKind,
+    scene::builtin,
+    trace::TextureFilter,
+};
+
+const METHODS: [MethodKind; 2] = [MethodKind::TraditionalFrameless, MethodKind::Adaptive];
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("frameless-report-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// A small evaluation written as a report folder at `dir`.
+fn write_report(dir: &Path) {
+    let cfg = EvalConfig {
+        scene_name: "toycar <small>".into(),
+        camera_path: None,
+        start: 0.5,
+        duration: 0.1,
+        width: 40,
+        height: 30,
+        rates: vec![100_000.0, 200_000.0],
+        methods: METHODS.to_vec(),
+        seed: 1,
+        ideal_spp: 2,
+        warmup: 0.2,
+        refresh_hz: 60.0,
+        max_depth: 3,
+        texture_filter: TextureFilter::None,
+        cache_dir: None,
+        strip_frames: vec![1, 4],
+        flip_every: 1,
+    };
+    let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
+    let mut out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");
+    report::write_all(&mut out, dir).expect("outputs written");
+}
+
+/// Every `src="…"` and `href="…"` of an HTML text.
+fn references(html: &str) -> Vec<String> {
+    let mut refs = Vec::new();
+    for attr in ["src=\"", "href=\""] {
+        for (i, _) in html.match_indices(attr) {
+            let rest = &html[i + attr.len()..];
+            refs.push(rest[..rest.find('"').expect("closed attribute")].to_string());
+        }
+    }
+    refs
+}
+
+#[test]
+fn every_file_the_report_names_is_there_and_every_panel_is_labelled() {
+    let dir = scratch("links");
+    write_report(&dir);
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    let refs = references(&html);
+    assert!(refs.len() > 10, "{refs:?}");
+    for r in &refs {
+        assert!(
+            dir.join(r).is_file(),
+            "report.html names {r}, which is not there"
+        );
+    }
+    for table in [
+        "Mean RMS error",
+        "Mean PSNR",
+        "Mean FLIP",
+        "Temporal instability",
+    ] {
+        assert!(html.contains(&format!("<h2>{table}")), "no {table} table");
+    }
+    // Two rates × two strip frames, each with its FLIP maps beside the images.
+    for rate in ["100K", "200K"] {
+        for frame in ["0001", "0004"] {
+            for kind in ["strip", "flip"] {
+                let f = format!("{kind}_{rate}_{frame}.png");
+                assert!(refs.contains(&f), "{f} not in the report");
+            }
+        }
+    }
+    // Each panel names its method: ideal and every method once per strip.
+    for label in ["ideal", "traditional-frameless", "adaptive"] {
+        let n = html.matches(&format!("<figcaption><b>{label}</b>")).count();
+        assert_eq!(n, 4, "{label} labels {n} panels");
+    }
+    // The scene name is text, not markup.
+    assert!(html.contains("toycar &lt;small&gt;") && !html.contains("<small>"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_report_made_again_leaves_out_what_was_deleted() {
+    let dir = scratch("rewrite");
+    write_report(&dir);
+    let gone = "strip_200K_0004.png";
+    std::fs::remove_file(dir.join(gone)).unwrap();
+    std::fs::remove_file(dir.join("summary.md")).unwrap();
+    // Older outputs named the instability column `flicker`: they are still read.
+    let csv = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+    std::fs::write(
+        dir.join("frames.csv"),
+        csv.replacen("instability", "flicker", 1),
+    )
+    .unwrap();
+    let p = report::rewrite(&dir).expect("report made again");
+    let html = std::fs::read_to_string(p).unwrap();
+    let refs = references(&html);
+    for r in &refs {
+        assert!(
+            dir.join(r).is_file(),
+            "report.html names {r}, which is not there"
+        );
+    }
+    assert!(!refs.iter().any(|r| r == gone || r == "summary.md"));
+    assert!(refs.iter().any(|r| r == "strip_200K_0001.png"));
+    assert!(html.contains("RMS "), "per-panel values from frames.csv");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Chromium, where installed: `$FRAMELESS_CHROMIUM`, else the usual names on the PATH.
+fn chromium() -> Option<PathBuf> {
+    if let Some(p) = std::env::var_os("FRAMELESS_CHROMIUM") {
+        return Some(p.into());
+    }
+    let path = std::env::var_os("PATH")?;
+    std::env::split_paths(&path).find_map(|d| {
+        [
+            "chromium",
+            "chromium-browser",
+            "google-chrome",
+            "google-chrome-stable",
+        ]
+        .iter()
+        .map(|n| d.join(n))
+        .find(|p| p.is_file())
+    })
+}
+
+/// A copy of the report beside it that, once loaded, appends a line saying how many
+/// of its images there are and which did not load.
+const CHECK: &str = "<script>window.addEventListener('load',()=>{const imgs=[...document.images];\
+const bad=imgs.filter(i=>!(i.complete&&i.naturalWidth>0)).map(i=>i.getAttribute('src'));\
+const p=document.createElement('pre');p.id='frameless-check';\
+p.textContent='images '+imgs.length+' broken '+bad.length+': '+bad.join(' ');\
+document.body.appendChild(p);});</script></body>";
+
+/// Open `page` in headless Chromium and return the check line the page wrote.
+fn images_loaded(browser: &Path, page: &Path) -> String {
+    let profile = page.with_extension("profile");
+    let mut child = Command::new(browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--virtual-time-budget=10000",
+            "--dump-dom",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg(format!("file://{}", page.display()))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("chromium starts");
+    let t0 = Instant::now();
+    while child.try_wait().expect("waitable").is_none() {
+        if t0.elapsed() > Duration::from_secs(120) {
+            let _ = child.kill();
+            panic!("chromium did not finish in 120 s");
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let dom = child.wait_with_output().expect("output").stdout;
+    let dom = String::from_utf8_lossy(&dom);
+    let start = dom
+        .find("<pre id=\"frameless-check\">")
+        .unwrap_or_else(|| panic!("no check line in the page: {dom:.2000}"));
+    let line = &dom[start + "<pre id=\"frameless-check\">".len()..];
+    line[..line.find('<').unwrap_or(line.len())].to_string()
+}
+
+#[test]
+fn chromium_loads_every_image_of_the_report() {
+    let Some(browser) = chromium() else {
+        eprintln!(
+            "note: chromium not found (install it, or set FRAMELESS_CHROMIUM); \
+             the report was not opened in a browser"
+        );
+        return;
+    };
+    let dir = scratch("chromium");
+    write_report(&dir);
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    let images = html.matches("<img ").count();
+    let check = dir.join("check.html");
+    std::fs::write(&check, html.replace("</body>", CHECK)).unwrap();
+    let line = images_loaded(&browser, &check);
+    assert_eq!(line.trim(), format!("images {images} broken 0:"), "{line}");
+    // The check sees a missing image: it can fail.
+    let broken = dir.join("broken.html");
+    std::fs::write(
+        &broken,
+        html.replacen("strip_100K_0001.png", "missing.png", 1)
+            .replace("</body>", CHECK),
+    )
+    .unwrap();
+    let line = images_loaded(&browser, &broken);
+    assert!(line.contains("broken 1: missing.png"), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
