@@ -335,7 +335,7 @@ pub fn targets(t: &TableSummary) -> String {
 pub fn html(t: &TableSummary, cost: &str) -> String {
     let mut h = String::from(
         "<!doctype html><html><head><meta charset=\"utf-8\"><title>frameless: Table 1 on the BART kitchen</title>\
-         <style>body{font-family:sans-serif;max-width:1400px;margin:auto}table{border-collapse:collapse}\
+         <style>body{font-family:system-ui,sans-serif;max-width:1400px;margin:2em auto;padding:0 1.5em}table{border-collapse:collapse}\
          td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}img{max-width:100%}</style></head><body>\
          <h1>Paper Table 1 and Fig. 8 on the BART kitchen</h1>",
     );
