@@ -102,7 +102,10 @@ pub fn check_warmup(warmup: f64) -> Result<(), String> {
 /// Check a window's length against [`MAX_DURATION_S`].
 pub fn check_duration(duration: f64) -> Result<(), String> {
     if !(duration.is_finite() && duration > 0.0 && duration <= MAX_DURATION_S) {
-        return Err(format!("{} s must be in (0, {MAX_DURATION_S}]", num(duration)));
+        return Err(format!(
+            "{} s must be in (0, {MAX_DURATION_S}]",
+            num(duration)
+        ));
     }
     Ok(())
 }
@@ -111,8 +114,7 @@ pub fn check_duration(duration: f64) -> Result<(), String> {
 /// ±[`MAX_SCENE_TIME_S`].
 pub fn check_start(start: f64, warmup: f64, duration: f64) -> Result<(), String> {
     let (first, last) = (start - warmup, start + duration);
-    if !(start.is_finite() && first.abs() <= MAX_SCENE_TIME_S && last.abs() <= MAX_SCENE_TIME_S)
-    {
+    if !(start.is_finite() && first.abs() <= MAX_SCENE_TIME_S && last.abs() <= MAX_SCENE_TIME_S) {
         return Err(format!(
             "{} s: the run would span scene times {} to {} s, outside ±{} s",
             num(start),

@@ -471,7 +471,10 @@ mod tests {
         fs::write(&tmp, b"another writer's half").expect("writes");
         let e = write_through(&tmp, &p, |w| w.write_all(b"mine")).expect_err("name in use");
         assert_eq!(e.kind(), io::ErrorKind::AlreadyExists);
-        assert_eq!(fs::read(&tmp).expect("still there"), b"another writer's half");
+        assert_eq!(
+            fs::read(&tmp).expect("still there"),
+            b"another writer's half"
+        );
         assert!(!p.exists());
         fs::rename(&tmp, &p).expect("the other writer finishes");
         write_through(&tmp, &p, |w| w.write_all(b"mine")).expect("the name is free again");

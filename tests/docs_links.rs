@@ -68,8 +68,15 @@ fn documents_link_only_committed_files() {
         checked += targets.len();
         bad.extend(missing(d, targets));
     }
-    assert!(checked > 50, "only {checked} links found: is the parser broken?");
-    assert!(bad.is_empty(), "links to files that are not there:\n{}", bad.join("\n"));
+    assert!(
+        checked > 50,
+        "only {checked} links found: is the parser broken?"
+    );
+    assert!(
+        bad.is_empty(),
+        "links to files that are not there:\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]
@@ -83,18 +90,30 @@ fn committed_reports_load_only_committed_files() {
         assert!(!targets.is_empty(), "{} names no file", r.display());
         bad.extend(missing(r, targets));
     }
-    assert!(bad.is_empty(), "reports name files that are not there:\n{}", bad.join("\n"));
+    assert!(
+        bad.is_empty(),
+        "reports name files that are not there:\n{}",
+        bad.join("\n")
+    );
 }
 
 #[test]
 fn the_checks_see_a_missing_file() {
     let doc = root().join("README.md");
     assert_eq!(
-        missing(&doc, markdown_targets("see [x](docs/nope.md) and [y](LICENSE-MIT)")).len(),
+        missing(
+            &doc,
+            markdown_targets("see [x](docs/nope.md) and [y](LICENSE-MIT)")
+        )
+        .len(),
         1
     );
     assert_eq!(
-        missing(&doc, html_targets("<img src=\"nope.png\"><a href=\"https://x\">")).len(),
+        missing(
+            &doc,
+            html_targets("<img src=\"nope.png\"><a href=\"https://x\">")
+        )
+        .len(),
         1
     );
 }

@@ -57,26 +57,66 @@ fn displays_under_1024_pixels_run_every_adaptive_path() {
     let d = dir("tiny");
     let out = |n: &str| d.join(n).display().to_string();
     for size in ["16x16", "1x1", "31x3"] {
-        let (code, err) = run(&["sampler", "--size", size, "--duration", "0.2", "--out", &out(&format!("s{size}"))]);
+        let (code, err) = run(&[
+            "sampler",
+            "--size",
+            size,
+            "--duration",
+            "0.2",
+            "--out",
+            &out(&format!("s{size}")),
+        ]);
         assert_eq!(code, 0, "sampler {size}: {err}");
     }
     let (code, err) = run(&[
-        "eval", "--size", "16x16", "--methods", "adaptive,adaptive-paper", "--rates", "100k",
-        "--duration", "0.1", "--warmup", "0.2", "--no-cache", "--out", &out("eval"),
+        "eval",
+        "--size",
+        "16x16",
+        "--methods",
+        "adaptive,adaptive-paper",
+        "--rates",
+        "100k",
+        "--duration",
+        "0.1",
+        "--warmup",
+        "0.2",
+        "--no-cache",
+        "--out",
+        &out("eval"),
     ]);
     assert_eq!(code, 0, "eval: {err}");
     let (code, err) = run(&[
-        "render", "--size", "16x16", "--method", "adaptive", "--duration", "0.1", "--out", &out("render"),
+        "render",
+        "--size",
+        "16x16",
+        "--method",
+        "adaptive",
+        "--duration",
+        "0.1",
+        "--out",
+        &out("render"),
     ]);
     assert_eq!(code, 0, "render: {err}");
     let (code, err) = run(&[
-        "view", "--headless", "--seconds", "1", "--size", "16x16", "--method", "adaptive", "--out", &out("view"),
+        "view",
+        "--headless",
+        "--seconds",
+        "1",
+        "--size",
+        "16x16",
+        "--method",
+        "adaptive",
+        "--out",
+        &out("view"),
     ]);
     assert_eq!(code, 0, "view: {err}");
     // The controller thread used to die here: samples must have been traced and shown.
     let stats: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("view/stats.json")).unwrap()).unwrap();
-    assert!(stats["pipeline"]["samples"].as_f64().unwrap() > 1000.0, "{stats}");
+    assert!(
+        stats["pipeline"]["samples"].as_f64().unwrap() > 1000.0,
+        "{stats}"
+    );
     assert!(stats["display_fps"].as_f64().unwrap() > 0.0, "{stats}");
 }
 
@@ -88,12 +128,24 @@ fn huge_finite_coordinates_are_errors_naming_the_place() {
     let e = scene::aff::parse_str("huge.aff", aff.as_bytes(), std::path::Path::new("."))
         .unwrap_err()
         .to_string();
-    assert!(e.starts_with("huge.aff:11:") && e.contains("coordinate limit"), "{e}");
+    assert!(
+        e.starts_with("huge.aff:11:") && e.contains("coordinate limit"),
+        "{e}"
+    );
 
     let d = dir("huge");
-    std::fs::write(d.join("huge.obj"), "v 2e38 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-    let e = scene::obj::load(&d.join("huge.obj")).unwrap_err().to_string();
-    assert!(e.contains("huge.obj:1:3") && e.contains("coordinate limit"), "{e}");
+    std::fs::write(
+        d.join("huge.obj"),
+        "v 2e38 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let e = scene::obj::load(&d.join("huge.obj"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("huge.obj:1:3") && e.contains("coordinate limit"),
+        "{e}"
+    );
 
     let pos: Vec<u8> = [3e38f32, -1.0, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0, 0.0]
         .iter()
@@ -108,8 +160,13 @@ fn huge_finite_coordinates_are_errors_naming_the_place() {
 "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],"nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]}"#,
     )
     .unwrap();
-    let e = scene::gltf::load(&d.join("huge.gltf")).unwrap_err().to_string();
-    assert!(e.contains("huge.gltf") && e.contains("POSITION") && e.contains("3e38"), "{e}");
+    let e = scene::gltf::load(&d.join("huge.gltf"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("huge.gltf") && e.contains("POSITION") && e.contains("3e38"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -137,7 +194,11 @@ fn copies_of_one_triangle_build_and_are_left_out() {
     let aff = format!("{AFF_HEAD}{}", "p 3 -1 -1 0 1 -1 0 0 1 0\n".repeat(16384));
     let s = scene::aff::parse_str("copies.aff", aff.as_bytes(), std::path::Path::new(".")).unwrap();
     let t = traces(s);
-    assert_eq!(t.dropped_triangles(), 16383, "all but one copy are left out");
+    assert_eq!(
+        t.dropped_triangles(),
+        16383,
+        "all but one copy are left out"
+    );
 }
 
 #[test]
@@ -150,14 +211,22 @@ fn a_zero_filled_gltf_accessor_of_300k_vertices_builds() {
     )
     .unwrap();
     let t = traces(scene::gltf::load(&p).unwrap());
-    assert_eq!(t.dropped_triangles(), 100_000, "every triangle is degenerate");
+    assert_eq!(
+        t.dropped_triangles(),
+        100_000,
+        "every triangle is degenerate"
+    );
 }
 
 #[test]
 fn obj_copies_and_a_100k_vertex_face_build() {
     let d = dir("objhang");
     let p = d.join("dup.obj");
-    std::fs::write(&p, format!("v 0 0 0\nv 1 0 0\nv 0 1 0\n{}", "f 1 2 3\n".repeat(20_000))).unwrap();
+    std::fs::write(
+        &p,
+        format!("v 0 0 0\nv 1 0 0\nv 0 1 0\n{}", "f 1 2 3\n".repeat(20_000)),
+    )
+    .unwrap();
     let t = traces(scene::obj::load(&p).unwrap());
     assert_eq!(t.dropped_triangles(), 19_999);
 
@@ -176,7 +245,10 @@ fn obj_copies_and_a_100k_vertex_face_build() {
     let p = d.join("fan.obj");
     std::fs::write(&p, obj).unwrap();
     let s = scene::obj::load(&p).unwrap();
-    assert_eq!(s.groups.iter().map(|g| g.triangles.len()).sum::<usize>(), n - 2);
+    assert_eq!(
+        s.groups.iter().map(|g| g.triangles.len()).sum::<usize>(),
+        n - 2
+    );
     traces(s);
 }
 
@@ -185,13 +257,23 @@ fn an_aff_include_fan_out_of_identical_triangles_builds() {
     let d = dir("fanout");
     std::fs::write(
         d.join("leaf.aff"),
-        format!("f 1 1 1 1 0 0 0 0\n{}", "p 3 -1 -1 0 1 -1 0 0 1 0\n".repeat(2000)),
+        format!(
+            "f 1 1 1 1 0 0 0 0\n{}",
+            "p 3 -1 -1 0 1 -1 0 0 1 0\n".repeat(2000)
+        ),
     )
     .unwrap();
     std::fs::write(d.join("mid.aff"), "i 0 leaf.aff\n".repeat(9)).unwrap();
-    std::fs::write(d.join("top.aff"), format!("{AFF_HEAD}{}", "i 0 mid.aff\n".repeat(9))).unwrap();
+    std::fs::write(
+        d.join("top.aff"),
+        format!("{AFF_HEAD}{}", "i 0 mid.aff\n".repeat(9)),
+    )
+    .unwrap();
     let s = scene::aff::load(&d.join("top.aff")).unwrap();
-    assert_eq!(s.groups.iter().map(|g| g.triangles.len()).sum::<usize>(), 2000 * 81);
+    assert_eq!(
+        s.groups.iter().map(|g| g.triangles.len()).sum::<usize>(),
+        2000 * 81
+    );
     let t = traces(s);
     assert_eq!(t.dropped_triangles(), 2000 * 81 - 1);
 }
@@ -202,14 +284,44 @@ fn an_aff_include_fan_out_of_identical_triangles_builds() {
 fn unbounded_arguments_are_refused_naming_the_limit() {
     let d = dir("args");
     let out = d.join("o").display().to_string();
-    fails_with(&["eval", "--warmup", "1e4", "--out", &out], &["--warmup", "600"]);
-    fails_with(&["sampler", "--rate", "1e20", "--out", &out], &["--rate", "limit"]);
     fails_with(
-        &["view", "--headless", "--seconds", "1", "--size", "4096x4096", "--method", "adaptive", "--out", &out],
+        &["eval", "--warmup", "1e4", "--out", &out],
+        &["--warmup", "600"],
+    );
+    fails_with(
+        &["sampler", "--rate", "1e20", "--out", &out],
+        &["--rate", "limit"],
+    );
+    fails_with(
+        &[
+            "view",
+            "--headless",
+            "--seconds",
+            "1",
+            "--size",
+            "4096x4096",
+            "--method",
+            "adaptive",
+            "--out",
+            &out,
+        ],
         &["deep buffer", "GiB"],
     );
     fails_with(
-        &["view", "--headless", "--seconds", "1", "--size", "1024x1024", "--ring-factor", "64", "--method", "adaptive", "--out", &out],
+        &[
+            "view",
+            "--headless",
+            "--seconds",
+            "1",
+            "--size",
+            "1024x1024",
+            "--ring-factor",
+            "64",
+            "--method",
+            "adaptive",
+            "--out",
+            &out,
+        ],
         &["ring", "GiB"],
     );
 }
@@ -233,26 +345,57 @@ fn a_gltf_strip_expanding_past_the_triangle_budget_is_refused_before_allocating(
 fn runs_that_would_measure_nothing_or_collide_are_refused() {
     let d = dir("wrong");
     let out = d.join("o").display().to_string();
-    fails_with(&["eval", "--start", "1e300", "--out", &out], &["--start", "1e300"]);
+    fails_with(
+        &["eval", "--start", "1e300", "--out", &out],
+        &["--start", "1e300"],
+    );
     fails_with(&["sampler", "--rate", "1e30", "--out", &out], &["--rate"]);
-    fails_with(&["eval", "--rates", "100k,100.001k", "--out", &out], &["--rates", "100K"]);
+    fails_with(
+        &["eval", "--rates", "100k,100.001k", "--out", &out],
+        &["--rates", "100K"],
+    );
     fails_with(&["eval", "--rates", "400k,400k", "--out", &out], &["twice"]);
-    fails_with(&["eval", "--methods", "taa,adaptive,taa", "--out", &out], &["taa twice"]);
-    let (code, err) = run(&["view", "--headless", "--seconds", "1", "--vis", "bogus", "--out", &out]);
+    fails_with(
+        &["eval", "--methods", "taa,adaptive,taa", "--out", &out],
+        &["taa twice"],
+    );
+    let (code, err) = run(&[
+        "view",
+        "--headless",
+        "--seconds",
+        "1",
+        "--vis",
+        "bogus",
+        "--out",
+        &out,
+    ]);
     assert_eq!(code, 2, "clap's usage error: {err}");
     assert!(err.contains("bogus"), "{err}");
-    assert!(!std::path::Path::new(&out).exists(), "nothing written by refused runs");
+    assert!(
+        !std::path::Path::new(&out).exists(),
+        "nothing written by refused runs"
+    );
 }
 
 #[test]
 fn camera_paths_with_a_zero_or_parallel_up_vector_are_errors() {
     let head = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n";
     let zero = format!("{head}0,0,0,-5,0,0,0,0,0,0,45\n");
-    let e = CameraPath::parse("zero.csv", &zero).unwrap_err().to_string();
-    assert!(e.starts_with("zero.csv:2:") && e.contains("up vector is zero"), "{e}");
-    let parallel = format!("{head}0,0,0,-5,0,0,0,0,0,0,45\n1,0,0,-5,0,0,0,0,0,3,45\n")
-        .replacen(",0,0,0,45\n", ",0,1,0,45\n", 1);
-    let e = CameraPath::parse("par.csv", &parallel).unwrap_err().to_string();
+    let e = CameraPath::parse("zero.csv", &zero)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.starts_with("zero.csv:2:") && e.contains("up vector is zero"),
+        "{e}"
+    );
+    let parallel = format!("{head}0,0,0,-5,0,0,0,0,0,0,45\n1,0,0,-5,0,0,0,0,0,3,45\n").replacen(
+        ",0,0,0,45\n",
+        ",0,1,0,45\n",
+        1,
+    );
+    let e = CameraPath::parse("par.csv", &parallel)
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("par.csv:3:") && e.contains("parallel"), "{e}");
 }
 
@@ -265,5 +408,8 @@ fn a_material_library_that_is_a_device_is_an_error_not_a_read_until_memory_runs_
     let p = d.join("m.obj");
     std::fs::write(&p, "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let e = scene::obj::load(&p).unwrap_err().to_string();
-    assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+    assert!(
+        e.contains("/dev/zero") && e.contains("not a regular file"),
+        "{e}"
+    );
 }

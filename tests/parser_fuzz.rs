@@ -28,8 +28,27 @@ const SEED: u64 = 0x5eed_f022;
 /// Numbers a hostile file writes: ordinary ones, values at and beyond the coordinate
 /// limit, the largest f32, overflow, denormals and non-finite spellings.
 const NUMBERS: &[&str] = &[
-    "0", "1", "-1", "0.5", "2", "-3", "7", "1e12", "-1e12", "1.0000001e12", "1e18", "2e38",
-    "-2e38", "3.4028235e38", "1e39", "1e-38", "1e-45", "-0", "nan", "inf", "-inf",
+    "0",
+    "1",
+    "-1",
+    "0.5",
+    "2",
+    "-3",
+    "7",
+    "1e12",
+    "-1e12",
+    "1.0000001e12",
+    "1e18",
+    "2e38",
+    "-2e38",
+    "3.4028235e38",
+    "1e39",
+    "1e-38",
+    "1e-45",
+    "-0",
+    "nan",
+    "inf",
+    "-inf",
 ];
 
 fn num() -> impl Strategy<Value = &'static str> {
@@ -47,7 +66,8 @@ fn coord() -> impl Strategy<Value = &'static str> {
 fn case_dir(kind: &str) -> PathBuf {
     static N: AtomicUsize = AtomicUsize::new(0);
     let n = N.fetch_add(1, Ordering::Relaxed);
-    let dir = std::env::temp_dir().join(format!("frameless-fuzz-{kind}-{}-{n}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("frameless-fuzz-{kind}-{}-{n}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
@@ -173,7 +193,9 @@ fn b64(bytes: &[u8]) -> String {
     const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::new();
     for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        let n = (c[0] as u32) << 16
+            | (*c.get(1).unwrap_or(&0) as u32) << 8
+            | *c.get(2).unwrap_or(&0) as u32;
         for k in 0..4 {
             if k <= c.len() {
                 out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);

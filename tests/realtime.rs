@@ -231,19 +231,29 @@ fn headless_runs_report_latency_and_show_a_camera_step_within_a_second() {
         let step = st.camera_step.expect("a step was asked for");
         assert!(step.at_s >= 0.8, "{name}: stepped at {}", step.at_s);
         let first = step.first_image_ms.expect("an image after the step");
-        let half = step.half_new_ms.unwrap_or_else(|| panic!("{name}: the step never showed"));
+        let half = step
+            .half_new_ms
+            .unwrap_or_else(|| panic!("{name}: the step never showed"));
         assert!(first <= half, "{name}: {first} ms > {half} ms");
         match method {
             // Each pixel keeps the camera of its own sample: no single view.
             RtMethod::TraditionalFrameless => assert!(step.view_ms.is_none(), "{name}"),
             _ => {
-                let view = step.view_ms.unwrap_or_else(|| panic!("{name}: never the turned view"));
-                assert!(first <= view && view < 1000.0, "{name}: view after {view} ms");
+                let view = step
+                    .view_ms
+                    .unwrap_or_else(|| panic!("{name}: never the turned view"));
+                assert!(
+                    first <= view && view < 1000.0,
+                    "{name}: view after {view} ms"
+                );
             }
         }
         // A functional bound, not a speed target: a frameless display of 1,536 pixels
         // that took a second to show a turn of the camera would be broken.
-        assert!(half < 1000.0, "{name}: half the pixels new only after {half} ms");
+        assert!(
+            half < 1000.0,
+            "{name}: half the pixels new only after {half} ms"
+        );
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap())
                 .unwrap();

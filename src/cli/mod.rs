@@ -541,7 +541,8 @@ fn view(a: args::ViewArgs) -> Result<()> {
             if st.pipeline.sampling_threads == 1 { "" } else { "s" }
         );
         if let Some(c) = &st.camera_step {
-            let ms = |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
+            let ms =
+                |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
             println!(
                 "camera step of {}° at {:.2} s: first image after it {}, first from the turned camera {}, half the pixels new {}",
                 c.yaw_deg,

@@ -95,7 +95,9 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         snapshot_seq: AtomicU64::new(0),
         tiling: Mutex::new(None),
         pixel_draws: if s.config.sampler.stratified_positions {
-            (0..w as usize * h as usize).map(|_| AtomicU32::new(0)).collect()
+            (0..w as usize * h as usize)
+                .map(|_| AtomicU32::new(0))
+                .collect()
         } else {
             Vec::new()
         },
@@ -230,7 +232,8 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             } else {
                 let px = rect.x0 + rng.below(rect.width());
                 let py = rect.y0 + rng.below(rect.height());
-                let k = published.pixel_draws[(py * w + px) as usize].fetch_add(1, Ordering::Relaxed);
+                let k =
+                    published.pixel_draws[(py * w + px) as usize].fetch_add(1, Ordering::Relaxed);
                 stratified_point(s.config.seed, w, px, py, k)
             };
             let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {

@@ -85,7 +85,10 @@ impl RtConfig {
                     height,
                     self.sampler.depth,
                 ),
-                &format!("{width}x{height} pixels × {} crosshairs", self.sampler.depth),
+                &format!(
+                    "{width}x{height} pixels × {} crosshairs",
+                    self.sampler.depth
+                ),
             )
             .map_err(RealtimeError::Config)?;
             crate::reconstruction::Reconstructor::check_budget(width, height, &self.recon)

@@ -132,12 +132,11 @@ pub fn run_headless(
     }
     // The folder is built beside `out` and swapped in whole at the end: `out` holds
     // this run or the previous one, never files of both.
-    let staging = crate::output::OutputDir::begin(&opts.out).map_err(|source| {
-        RealtimeError::Io {
+    let staging =
+        crate::output::OutputDir::begin(&opts.out).map_err(|source| RealtimeError::Io {
             path: opts.out.clone(),
             source,
-        }
-    })?;
+        })?;
     let (w, h) = tracer.size();
     let load_average_before = load_average();
     let cpu0 = process_cpu_seconds();

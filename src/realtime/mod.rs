@@ -234,7 +234,10 @@ mod tests {
     #[test]
     fn method_names_parse_back_and_are_clap_values() {
         let names: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
-        assert_eq!(names, ["adaptive", "traditional-frameless", "framed", "late-warp"]);
+        assert_eq!(
+            names,
+            ["adaptive", "traditional-frameless", "framed", "late-warp"]
+        );
         for m in RtMethod::ALL {
             assert_eq!(RtMethod::parse(m.name()).unwrap(), m);
             assert_eq!(RtMethod::from_str(m.name(), false).unwrap(), m);

@@ -183,7 +183,10 @@ impl Reconstructor {
         crate::limits::check_buffer(
             "reconstructor's sample ring",
             (capacity * per_sample).min(u64::MAX as f64) as u64,
-            &format!("ring factor {} × {width}x{height} pixels", params.ring_factor),
+            &format!(
+                "ring factor {} × {width}x{height} pixels",
+                params.ring_factor
+            ),
         )
     }
 

@@ -63,8 +63,8 @@ use glam::{Mat3, Mat4, Quat, Vec2, Vec3};
 use super::animation::{KeyframeTrack, RotationSpline, TcbKey, VectorSpline, MIN_SPLINE_KEYS};
 use super::camera::{Camera, CameraTrack};
 use super::{
-    limits, AnimatedTriangle, AnimationRange, Cone, Group, Light, Material, MaterialId, Node, NodeId,
-    NodeKind, Scene, SceneError, Sphere, Texture, TextureId, TrackId, Triangle,
+    limits, AnimatedTriangle, AnimationRange, Cone, Group, Light, Material, MaterialId, Node,
+    NodeId, NodeKind, Scene, SceneError, Sphere, Texture, TextureId, TrackId, Triangle,
 };
 
 /// Largest element count (vertices, triangles, polygon vertices, keys) accepted in a file.
@@ -718,7 +718,10 @@ impl Parser {
     ) -> Res<()> {
         let tri = bake_triangle(xf, tri);
         if let Some(&p) = tri.p.iter().find(|&&p| !limits::coordinate_ok(p)) {
-            return Err(lx.err(t, limits::coordinate_message("vertex (after transformation)", p)));
+            return Err(lx.err(
+                t,
+                limits::coordinate_message("vertex (after transformation)", p),
+            ));
         }
         // Counted as they are made, so an include fan-out stops before it exhausts memory.
         self.triangles += 1;
@@ -893,7 +896,10 @@ impl Parser {
         };
         let extent = sphere.center.abs() + Vec3::splat(sphere.radius.abs());
         if !limits::coordinate_ok(extent) {
-            return Err(lx.err(t, limits::coordinate_message("sphere center ± radius", extent)));
+            return Err(lx.err(
+                t,
+                limits::coordinate_message("sphere center ± radius", extent),
+            ));
         }
         self.analytic_count(lx, t)?;
         let g = self.group_index();

@@ -89,7 +89,11 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             .map_or_else(|| scene.name.clone(), |p| p.display().to_string()),
         message,
     };
-    let triangles: usize = scene.groups.iter().map(|g| g.triangles.len()).sum::<usize>()
+    let triangles: usize = scene
+        .groups
+        .iter()
+        .map(|g| g.triangles.len())
+        .sum::<usize>()
         + scene.animated_triangles.len();
     if triangles > MAX_TRIANGLES {
         return Err(bad(format!(
@@ -181,14 +185,20 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             return Err(bad(color_message(format!("light {li}: colour"), l.color)));
         }
     }
-    for (what, c) in [("background", scene.background), ("ambient light", scene.ambient)] {
+    for (what, c) in [
+        ("background", scene.background),
+        ("ambient light", scene.ambient),
+    ] {
         if !color_ok(c) {
             return Err(bad(color_message(what.into(), c)));
         }
     }
     for t in &scene.textures {
         if let Some(&c) = t.texels.iter().find(|&&c| !color_ok(c)) {
-            return Err(bad(color_message(format!("texture {}: a texel", t.name), c)));
+            return Err(bad(color_message(
+                format!("texture {}: a texel", t.name),
+                c,
+            )));
         }
     }
     let cam = &scene.camera.base;
@@ -211,7 +221,12 @@ mod tests {
             let p = std::path::Path::new(p);
             if p.exists() {
                 let e = read_bounded(p).unwrap_err();
-                assert_eq!(e.kind(), std::io::ErrorKind::InvalidInput, "{}", p.display());
+                assert_eq!(
+                    e.kind(),
+                    std::io::ErrorKind::InvalidInput,
+                    "{}",
+                    p.display()
+                );
             }
         }
     }
@@ -239,7 +254,10 @@ mod tests {
             cones: Vec::new(),
         });
         let e = check(&scene).unwrap_err().to_string();
-        assert!(e.contains("outside the coordinate limit") && e.contains("2e38"), "{e}");
+        assert!(
+            e.contains("outside the coordinate limit") && e.contains("2e38"),
+            "{e}"
+        );
         assert!(e.contains("triangle 0"), "{e}");
     }
 }

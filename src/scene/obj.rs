@@ -43,10 +43,10 @@ use std::path::{Path, PathBuf};
 use glam::{Vec2, Vec3};
 
 use super::{
+    limits::MAX_COORDINATE,
     loader::{
         decode_image, default_camera, default_light, empty_scene, world_bounds, MAX_TRIANGLES,
     },
-    limits::MAX_COORDINATE,
     CameraTrack, Group, Material, MaterialId, Scene, SceneError, TextureId, Triangle,
 };
 

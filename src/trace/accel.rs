@@ -77,7 +77,6 @@ pub enum PrimRef {
 /// Analytic sets up to this size are intersected one by one.
 const ANALYTIC_BRUTE_FORCE: usize = 4;
 
-
 /// A rigid set of primitives with its own BVH, in its own space.
 pub struct GroupAccel {
     bvh: Option<CwBvh>,
@@ -132,9 +131,7 @@ fn distinct_buildable(triangles: &[Triangle]) -> Vec<usize> {
 /// top level, whose boxes come from animated transforms no loader can bound.
 pub fn finite_aabb(b: Aabb) -> Aabb {
     let lim = Vec3A::splat(BUILD_COORDINATE_LIMIT);
-    let fix = |v: Vec3A, fallback: Vec3A| {
-        Vec3A::select(v.cmpeq(v), v, fallback).clamp(-lim, lim)
-    };
+    let fix = |v: Vec3A, fallback: Vec3A| Vec3A::select(v.cmpeq(v), v, fallback).clamp(-lim, lim);
     Aabb {
         min: fix(b.min, -lim),
         max: fix(b.max, lim),

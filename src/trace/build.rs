@@ -184,7 +184,11 @@ mod tests {
         let mut stack = vec![(0usize, 0usize)];
         let mut deepest = 0;
         while let Some((k, depth)) = stack.pop() {
-            assert!(depth < bvh.max_depth, "depth {depth} beyond {}", bvh.max_depth);
+            assert!(
+                depth < bvh.max_depth,
+                "depth {depth} beyond {}",
+                bvh.max_depth
+            );
             deepest = deepest.max(depth);
             let node = &bvh.nodes[k];
             if node.prim_count > 0 {
@@ -210,7 +214,12 @@ mod tests {
     #[test]
     fn scattered_identical_and_nested_boxes_build_valid_shallow_trees() {
         let scattered: Vec<Aabb> = (0..1000)
-            .map(|i| unit_box(Vec3A::new((i * 37 % 101) as f32, (i * 53 % 89) as f32, 0.0), 0.3))
+            .map(|i| {
+                unit_box(
+                    Vec3A::new((i * 37 % 101) as f32, (i * 53 % 89) as f32, 0.0),
+                    0.3,
+                )
+            })
             .collect();
         let identical = vec![unit_box(Vec3A::ZERO, 1.0); 5000];
         // A fan: every box contains the previous one.

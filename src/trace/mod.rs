@@ -26,13 +26,10 @@ use obvhs::{
     ray::{Ray, RayHit},
     rt_triangle::RtTriangle,
     triangle::Triangle as ObTriangle,
-
 };
 
 use crate::scene::{Camera, CameraFrame, CameraPath, MaterialId, Scene, Triangle};
-use accel::{
-    build_top_level, transform_aabb, Analytic, GroupAccel, InstanceState, PrimRef,
-};
+use accel::{build_top_level, transform_aabb, Analytic, GroupAccel, InstanceState, PrimRef};
 use cones::{Footprint, RayCone};
 
 /// Version of what the tracer returns for given options. Bump whenever a change makes
@@ -362,7 +359,12 @@ impl Tracer {
     /// Triangles left out of the BVHs because they can never show: degenerate (zero
     /// area), exact copies of another, or beyond the build's coordinate limit.
     pub fn dropped_triangles(&self) -> usize {
-        self.static_geo.dropped + self.instance_groups.iter().map(|(_, g)| g.dropped).sum::<usize>()
+        self.static_geo.dropped
+            + self
+                .instance_groups
+                .iter()
+                .map(|(_, g)| g.dropped)
+                .sum::<usize>()
     }
 
     /// Image size `(width, height)`.
