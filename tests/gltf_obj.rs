@@ -16,6 +16,8 @@ use glam::{Quat, Vec2, Vec3};
 use proptest::prelude::*;
 use serde_json::{json, Value};
 
+mod common;
+
 fn tmpdir(tag: &str) -> PathBuf {
     static N: AtomicUsize = AtomicUsize::new(0);
     let d = std::env::temp_dir().join(format!(
@@ -147,32 +149,8 @@ impl Bin {
 
     fn glb(&mut self, doc: Value) -> Vec<u8> {
         let doc = self.attach(doc, None);
-        glb(&serde_json::to_vec(&doc).unwrap(), &self.data)
+        common::glb(&serde_json::to_vec(&doc).unwrap(), &self.data)
     }
-}
-
-/// A binary glTF container around a JSON and a BIN chunk (padded as required).
-fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
-    let mut j = json.to_vec();
-    while j.len() % 4 != 0 {
-        j.push(b' ');
-    }
-    let mut b = bin.to_vec();
-    while b.len() % 4 != 0 {
-        b.push(0);
-    }
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
 }
 
 /// A unit quad in the XY plane with UVs, as a mesh primitive of material 0.
@@ -682,7 +660,7 @@ fn obj_errors_have_lines() {
 /// A small valid .glb exercising most of the loader: animation, texture, camera, light.
 fn rich_glb() -> Vec<u8> {
     let (json, bin) = rich_glb_parts();
-    glb(&json, &bin)
+    common::glb(&json, &bin)
 }
 
 /// The JSON and BIN chunks of [`rich_glb`].
@@ -876,19 +854,19 @@ proptest! {
         let (json, bin) = BASE.get_or_init(rich_glb_parts).clone();
         let bytes = match target {
             0 => {
-                let mut b = glb(&json, &bin);
+                let mut b = common::glb(&json, &bin);
                 mutate(&mut b, muts);
                 b
             }
             1 => {
                 let mut j = json;
                 mutate(&mut j, muts);
-                glb(&j, &bin)
+                common::glb(&j, &bin)
             }
             _ => {
                 let mut b = bin;
                 mutate(&mut b, muts);
-                glb(&json, &b)
+                common::glb(&json, &b)
             }
         };
         let dir = tmpdir("fuzz");

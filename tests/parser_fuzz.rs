@@ -14,12 +14,15 @@ use std::{
     },
 };
 
+use base64::Engine as _;
 use frameless::{
     render::still,
     scene::{self, CameraPath, Scene, SceneError, Texture},
     trace::{TraceOptions, Tracer},
 };
 use proptest::{prelude::*, sample::select, test_runner::RngSeed};
+
+mod common;
 
 /// Cases are drawn from a fixed seed, so that CI sees the same inputs every run
 /// (`PROPTEST_RNG_SEED` does not override a fixed seed; change it here to explore).
@@ -189,47 +192,6 @@ proptest! {
 
 // --- glTF -----------------------------------------------------------------------------
 
-fn b64(bytes: &[u8]) -> String {
-    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for c in bytes.chunks(3) {
-        let n = (c[0] as u32) << 16
-            | (*c.get(1).unwrap_or(&0) as u32) << 8
-            | *c.get(2).unwrap_or(&0) as u32;
-        for k in 0..4 {
-            if k <= c.len() {
-                out.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
-
-/// A binary glTF container: the JSON chunk, then the BIN chunk (both padded to 4 bytes).
-fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
-    let pad = |v: &[u8], with: u8| {
-        let mut v = v.to_vec();
-        while v.len() % 4 != 0 {
-            v.push(with);
-        }
-        v
-    };
-    let (j, b) = (pad(json, b' '), pad(bin, 0));
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&((12 + 8 + j.len() + 8 + b.len()) as u32).to_le_bytes());
-    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&j);
-    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&b);
-    out
-}
-
 fn f32_of(s: &str) -> f32 {
     s.parse().unwrap_or(f32::NAN)
 }
@@ -285,7 +247,7 @@ proptest! {
             uri = if binary {
                 String::new()
             } else {
-                format!(r#","uri":"data:application/octet-stream;base64,{}""#, b64(&data))
+                format!(r#","uri":"data:application/octet-stream;base64,{}""#, base64::engine::general_purpose::STANDARD.encode(&data))
             },
             nodes = node_list.join(","),
             ids = (0..nodes).map(|k| k.to_string()).collect::<Vec<_>>().join(","),
@@ -293,7 +255,7 @@ proptest! {
         let dir = case_dir("gltf");
         let path = dir.join(if binary { "fuzz.glb" } else { "fuzz.gltf" });
         if binary {
-            std::fs::write(&path, glb(json.as_bytes(), &data)).unwrap();
+            std::fs::write(&path, common::glb(json.as_bytes(), &data)).unwrap();
         } else {
             std::fs::write(&path, json).unwrap();
         }

@@ -29,7 +29,7 @@ use crate::{
 };
 
 /// What one grid sample of a frame hit: enough to move it to another time and camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GSample {
     /// World hit point at the frame's time (on a miss, a far point along the ray).
     pub hit_point: glam::Vec3,

@@ -48,7 +48,7 @@ use crate::{
     clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::{crosshair_with, stratified_point},
+        sampler::{crosshair_with, stratified_in},
         tiling::{Pending, Rect, Tiling},
         Sampler,
     },
@@ -227,14 +227,13 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             });
         }
         for _ in 0..4 {
-            let (x, y) = if published.pixel_draws.is_empty() {
+            let draws = &published.pixel_draws;
+            let (x, y) = if draws.is_empty() {
                 rect.random_point(&mut rng)
             } else {
-                let px = rect.x0 + rng.below(rect.width());
-                let py = rect.y0 + rng.below(rect.height());
-                let k =
-                    published.pixel_draws[(py * w + px) as usize].fetch_add(1, Ordering::Relaxed);
-                stratified_point(s.config.seed, w, px, py, k)
+                stratified_in(rect, &mut rng, s.config.seed, w, |p| {
+                    draws[p].fetch_add(1, Ordering::Relaxed)
+                })
             };
             let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
                 continue;

@@ -76,25 +76,13 @@ impl RtConfig {
     /// Check that a `width × height` display fits the run budgets ([`crate::limits`])
     /// with this method's buffers, before any thread allocates them.
     pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
-        crate::limits::check_display(width, height).map_err(RealtimeError::Config)?;
+        // The adaptive method's buffers include the display check.
         if self.method == RtMethod::Adaptive {
-            crate::limits::check_buffer(
-                "adaptive sampler's deep buffer",
-                crate::methods::adaptive::deep_buffer::DeepBuffer::bytes(
-                    width,
-                    height,
-                    self.sampler.depth,
-                ),
-                &format!(
-                    "{width}x{height} pixels × {} crosshairs",
-                    self.sampler.depth
-                ),
-            )
-            .map_err(RealtimeError::Config)?;
-            crate::reconstruction::Reconstructor::check_budget(width, height, &self.recon)
-                .map_err(RealtimeError::Config)?;
+            crate::methods::adaptive::check_budget(width, height, &self.sampler, &self.recon)
+        } else {
+            crate::limits::check_display(width, height)
         }
-        Ok(())
+        .map_err(RealtimeError::Config)
     }
 
     /// Check ranges.

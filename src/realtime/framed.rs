@@ -187,7 +187,7 @@ impl ImageBuilder for Builder {
                 Some(i) => i,
                 None => {
                     let hits = if warp {
-                        vec![GSample::from(&crate::trace::Sample::default()); (w * h) as usize]
+                        vec![GSample::default(); (w * h) as usize]
                     } else {
                         Vec::new()
                     };

@@ -190,12 +190,15 @@ pub fn run_headless(
                 figures.view_ms = Some(shown_ms);
             }
             if figures.half_new_ms.is_none() && f.time >= *scene_t {
-                let informed = f.ages.iter().filter(|a| a.is_finite());
-                let new = informed
-                    .clone()
-                    .filter(|&&a| (a as f64) <= f.time - *scene_t)
-                    .count();
-                if new * 2 >= informed.count().max(1) {
+                let since = f.time - *scene_t;
+                let (informed, new) = f
+                    .ages
+                    .iter()
+                    .filter(|a| a.is_finite())
+                    .fold((0, 0), |(i, n), &a| {
+                        (i + 1, n + (a as f64 <= since) as usize)
+                    });
+                if new * 2 >= informed.max(1) {
                     figures.half_new_ms = Some(shown_ms);
                 }
             }

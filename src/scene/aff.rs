@@ -693,16 +693,22 @@ impl Parser {
         lx.keyword("{", what).map(|_| ())
     }
 
-    fn analytic_count(&mut self, lx: &Lexer, t: Tok) -> Res<()> {
-        self.analytic += 1;
-        if self.analytic > limits::MAX_ANALYTIC {
-            return Err(lx.err(
-                t,
-                format!(
-                    "the scene expands to more than {} spheres and cones",
-                    limits::MAX_ANALYTIC
-                ),
-            ));
+    /// Count one more primitive made against its budget (`triangle`: a triangle, else a
+    /// sphere or cone). Counted as they are made, so an include fan-out stops before it
+    /// exhausts memory.
+    fn count_made(&mut self, lx: &Lexer, t: Tok, triangle: bool) -> Res<()> {
+        let (made, limit, what) = if triangle {
+            (&mut self.triangles, limits::MAX_TRIANGLES, "triangles")
+        } else {
+            (
+                &mut self.analytic,
+                limits::MAX_ANALYTIC,
+                "spheres and cones",
+            )
+        };
+        *made += 1;
+        if *made > limit {
+            return Err(lx.err(t, format!("the scene expands to more than {limit} {what}")));
         }
         Ok(())
     }
@@ -723,17 +729,7 @@ impl Parser {
                 limits::coordinate_message("vertex (after transformation)", p),
             ));
         }
-        // Counted as they are made, so an include fan-out stops before it exhausts memory.
-        self.triangles += 1;
-        if self.triangles > limits::MAX_TRIANGLES {
-            return Err(lx.err(
-                t,
-                format!(
-                    "the scene expands to more than {} triangles",
-                    limits::MAX_TRIANGLES
-                ),
-            ));
-        }
+        self.count_made(lx, t, true)?;
         if let Some(g) = self.scene.groups.get_mut(group) {
             g.triangles.push(tri);
         }
@@ -879,7 +875,7 @@ impl Parser {
         {
             return Err(lx.err(t, limits::coordinate_message("cone base, apex or radii", p)));
         }
-        self.analytic_count(lx, t)?;
+        self.count_made(lx, t, false)?;
         let g = self.group_index();
         self.scene.groups[g].cones.push(cone);
         Ok(())
@@ -901,7 +897,7 @@ impl Parser {
                 limits::coordinate_message("sphere center ± radius", extent),
             ));
         }
-        self.analytic_count(lx, t)?;
+        self.count_made(lx, t, false)?;
         let g = self.group_index();
         self.scene.groups[g].spheres.push(sphere);
         Ok(())
@@ -993,16 +989,7 @@ impl Parser {
             normals.push(n);
         }
         let material = self.material_id(lx, t, None)?;
-        self.triangles += 1;
-        if self.triangles > limits::MAX_TRIANGLES {
-            return Err(lx.err(
-                t,
-                format!(
-                    "the scene expands to more than {} triangles",
-                    limits::MAX_TRIANGLES
-                ),
-            ));
-        }
+        self.count_made(lx, t, true)?;
         self.scene.animated_triangles.push(AnimatedTriangle {
             times,
             positions,

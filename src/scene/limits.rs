@@ -81,6 +81,8 @@ pub fn coordinate_message(what: &str, v: Vec3) -> String {
 }
 
 /// Check a loaded scene against every budget, naming the first element that breaks one.
+/// Every loader calls it; a scene built in code should too, since the tracer relies on
+/// these bounds (finite colours and coordinates) rather than testing every sample.
 pub fn check(scene: &Scene) -> Result<(), SceneError> {
     let bad = |message: String| SceneError::Invalid {
         name: scene

@@ -101,12 +101,16 @@ pub struct GroupAccel {
 /// about 1e19, and then obvhs indexes out of bounds.
 const BUILD_COORDINATE_LIMIT: f32 = 1e18;
 
-/// Whether a triangle can be built and hit: finite, inside the build limit and with a
-/// non-zero area (a degenerate triangle is never hit, and thousands of them at one point
-/// make identical boxes, below).
+/// Whether a point is finite and inside the build limit.
+fn within_build_limit(p: Vec3A) -> bool {
+    p.is_finite() && p.abs().max_element() <= BUILD_COORDINATE_LIMIT
+}
+
+/// Whether a triangle can be built and hit: inside the build limit and with a non-zero
+/// area (a degenerate triangle is never hit; it would only cost the build).
 fn buildable(t: &Triangle) -> bool {
-    let ok = |p: Vec3| p.is_finite() && p.abs().max_element() <= BUILD_COORDINATE_LIMIT;
-    t.p.iter().all(|&p| ok(p)) && (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]) != Vec3::ZERO
+    t.p.iter().all(|&p| within_build_limit(p.into()))
+        && (t.p[1] - t.p[0]).cross(t.p[2] - t.p[0]) != Vec3::ZERO
 }
 
 /// The triangles worth building: [`buildable`] ones, each exact copy of an earlier one
@@ -131,7 +135,8 @@ fn distinct_buildable(triangles: &[Triangle]) -> Vec<usize> {
 /// top level, whose boxes come from animated transforms no loader can bound.
 pub fn finite_aabb(b: Aabb) -> Aabb {
     let lim = Vec3A::splat(BUILD_COORDINATE_LIMIT);
-    let fix = |v: Vec3A, fallback: Vec3A| Vec3A::select(v.cmpeq(v), v, fallback).clamp(-lim, lim);
+    let fix =
+        |v: Vec3A, fallback: Vec3A| Vec3A::select(v.is_nan_mask(), fallback, v).clamp(-lim, lim);
     Aabb {
         min: fix(b.min, -lim),
         max: fix(b.max, lim),
@@ -160,8 +165,7 @@ impl GroupAccel {
             .into_iter()
             .filter(|a| {
                 let b = a.aabb();
-                (b.min.is_finite() && b.max.is_finite())
-                    && b.min.abs().max(b.max.abs()).max_element() <= BUILD_COORDINATE_LIMIT
+                within_build_limit(b.min) && within_build_limit(b.max)
             })
             .collect();
         let mut aabb = Aabb::empty();

@@ -735,9 +735,6 @@ impl Tracer {
                 };
                 let fp = self.footprint(state, &h, cone);
                 let (c, dynamic) = self.shade(state, &ray, &s, fp, 0);
-                // Loaders bound every colour (`scene::limits`); a scene made in code is not,
-                // and one non-finite sample would spread NaN through every filter.
-                let c = if c.is_finite() { c } else { Vec3::ZERO };
                 Sample {
                     color: c,
                     luminance: luminance(c),

@@ -101,3 +101,27 @@ pub fn animate(scene: &mut Scene, track: KeyframeTrack) -> u32 {
     scene.tracks.push(track);
     (scene.nodes.len() - 1) as u32
 }
+
+/// A binary glTF container around a JSON and a BIN chunk (padded as required).
+pub fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let mut j = json.to_vec();
+    while j.len() % 4 != 0 {
+        j.push(b' ');
+    }
+    let mut b = bin.to_vec();
+    while b.len() % 4 != 0 {
+        b.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = Vec::new();
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(b.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&b);
+    out
+}

@@ -43,6 +43,17 @@ impl DeepBuffer {
         n * depth as u64 * std::mem::size_of::<Crosshair>() as u64 + 2 * n
     }
 
+    /// Check that a buffer for a `width × height` display of `depth` crosshairs per pixel
+    /// fits the run budgets ([`crate::limits`]) before it is allocated.
+    pub fn check_budget(width: u32, height: u32, depth: usize) -> Result<(), String> {
+        crate::limits::check_display(width, height)?;
+        crate::limits::check_buffer(
+            "adaptive sampler's deep buffer",
+            Self::bytes(width, height, depth),
+            &format!("{width}x{height} pixels × {depth} crosshairs"),
+        )
+    }
+
     /// An empty buffer for a `width × height` image, `depth` crosshairs per pixel.
     pub fn new(width: u32, height: u32, depth: usize) -> Self {
         let n = (width * height) as usize;

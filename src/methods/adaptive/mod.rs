@@ -20,18 +20,22 @@ use crate::{
 pub use params::SamplerParams;
 pub use sampler::Sampler;
 
-/// Whether the sampler's deep buffer and the reconstructor's ring fit the run budgets at
-/// this display size: checked when an evaluation's settings are, before any work.
+/// Whether the sampler's deep buffer and the reconstructor's ring fit the run budgets
+/// ([`crate::limits`]) on a `width × height` display, before either is allocated.
+pub fn check_budget(
+    width: u32,
+    height: u32,
+    sampler: &SamplerParams,
+    recon: &ReconParams,
+) -> Result<(), String> {
+    deep_buffer::DeepBuffer::check_budget(width, height, sampler.depth)?;
+    Reconstructor::check_budget(width, height, recon)
+}
+
+/// [`check_budget`] at a run's display size: checked when an evaluation's settings
+/// are, before any work.
 fn fits(shape: &RunShape, sampler: SamplerParams, recon: ReconParams) -> Result<(), MethodError> {
-    let (w, h) = (shape.width, shape.height);
-    crate::limits::check_display(w, h).map_err(MethodError::Budget)?;
-    crate::limits::check_buffer(
-        "adaptive sampler's deep buffer",
-        deep_buffer::DeepBuffer::bytes(w, h, sampler.depth),
-        &format!("{w}x{h} pixels × {} crosshairs", sampler.depth),
-    )
-    .map_err(MethodError::Budget)?;
-    Reconstructor::check_budget(w, h, &recon).map_err(MethodError::Budget)
+    check_budget(shape.width, shape.height, &sampler, &recon).map_err(MethodError::Budget)
 }
 
 /// `adaptive`: ours, the paper's method that keeps converging where the view is still.

@@ -104,13 +104,25 @@ const MIN_GRADIENT_DT: f64 = 1e-3;
 /// Seconds after which weights are rebased so that `exp` never overflows.
 const REBASE_AFTER_S: f64 = 20.0;
 
-/// The `k`-th position in pixel `(px, py)` of a `width`-wide image: the pixel's own R2
-/// sequence (Roberts 2018: steps of the plastic number's inverse powers, whose points
-/// fill the square evenly from any start) from a start drawn from `(seed, pixel)`. A
-/// pure function, shared by the sequential sampler and the real-time sampling threads.
-pub fn stratified_point(seed: u64, width: u32, px: u32, py: u32, k: u32) -> (f32, f32) {
+/// A crosshair centre in `rect` for [`SamplerParams::stratified_positions`]: a uniformly
+/// random pixel, and in it the next point of that pixel's own R2 sequence (Roberts 2018:
+/// steps of the plastic number's inverse powers, whose points fill the square evenly from
+/// any start) from a start drawn from `(seed, pixel)`; `next_draw(pixel index)` returns
+/// how many centres that pixel had before and counts this one. The position is a pure
+/// function of seed, pixel and count; shared by the sequential sampler and the
+/// real-time sampling threads.
+pub fn stratified_in(
+    rect: Rect,
+    rng: &mut Rng,
+    seed: u64,
+    width: u32,
+    next_draw: impl FnOnce(usize) -> u32,
+) -> (f32, f32) {
     const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
+    let px = rect.x0 + rng.below(rect.width());
+    let py = rect.y0 + rng.below(rect.height());
     let p = py as u64 * width as u64 + px as u64;
+    let k = next_draw(p as usize);
     let mut start = Rng::new(&[seed, 0x57a7, p]);
     let (u0, v0) = (start.uniform() as f64, start.uniform() as f64);
     let u = (u0 + k as f64 * A.0).fract() as f32;
@@ -177,13 +189,7 @@ impl Sampler {
     ) -> Result<Self, MethodError> {
         params.validate()?;
         let (width, height) = tracer.size();
-        crate::limits::check_display(width, height).map_err(MethodError::Budget)?;
-        crate::limits::check_buffer(
-            "adaptive sampler's deep buffer",
-            DeepBuffer::bytes(width, height, params.depth),
-            &format!("{width}x{height} pixels × {} crosshairs", params.depth),
-        )
-        .map_err(MethodError::Budget)?;
+        DeepBuffer::check_budget(width, height, params.depth).map_err(MethodError::Budget)?;
         let mut s = Self {
             params,
             tracer,
@@ -546,12 +552,12 @@ impl Sampler {
         if self.pixel_draws.is_empty() {
             return rect.random_point(&mut self.rng);
         }
-        let px = rect.x0 + self.rng.below(rect.width());
-        let py = rect.y0 + self.rng.below(rect.height());
-        let p = (py * self.width + px) as usize;
-        let k = self.pixel_draws[p];
-        self.pixel_draws[p] = k.wrapping_add(1);
-        stratified_point(self.seed, self.width, px, py, k)
+        let draws = &mut self.pixel_draws;
+        stratified_in(rect, &mut self.rng, self.seed, self.width, |p| {
+            let k = draws[p];
+            draws[p] = k.wrapping_add(1);
+            k
+        })
     }
 
     /// The initial spatially gridded, co-temporal crosshairs (resumable: the budget may
