@@ -11,7 +11,8 @@
 //! ```
 //!
 //! A sampling thread visits a tile of the published snapshot chosen uniformly at
-//! random; it completes the crosshair the tile's pending sample initiated (taking its
+//! random; it completes the crosshair the tile's pending sample initiated, where its
+//! surface point is now ([`completion_point`], as the sequential sampler; taking its
 //! five pixels) and initiates the next one at a random location in the tile (taking that
 //! pixel). A taken pixel means another thread is there: it picks another tile or
 //! location.
@@ -48,7 +49,7 @@ use crate::{
     clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::{crosshair_with, stratified_in},
+        sampler::{completion_point, crosshair_with, stratified_in},
         tiling::{Pending, Rect, Tiling},
         Sampler,
     },
@@ -195,7 +196,8 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         let rect = snap.rects[k];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
-            let (cx, cy) = (p.x.floor() as i64, p.y.floor() as i64);
+            let (px, py) = completion_point(&s.config.sampler, &state.camera, &p, rect, now, w, h);
+            let (cx, cy) = (px.floor() as i64, py.floor() as i64);
             let cross = [
                 (cx, cy),
                 (cx + 1, cy),
@@ -208,7 +210,7 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             };
             let mut rays = 0;
             let stream = &mut batch.stream;
-            let c = crosshair_with(w, h, p.x, p.y, now, Some((p.lum, p.t)), |x, y| {
+            let c = crosshair_with(w, h, px, py, now, Some((p.lum, p.t)), |x, y| {
                 rays += 1;
                 let sample = tracer.sample(&state, x, y);
                 stream.push(StreamSample {

@@ -56,13 +56,23 @@ pub struct SamplerParams {
     /// [`SamplerParams::ours`], off in [`SamplerParams::paper`].
     pub skip_static_reprojection: bool,
     /// Complete a tile's pending crosshair where the initiating sample's surface point
-    /// has moved to (camera and object motion) instead of at the same pixel position,
-    /// when that is still inside the tile: the temporal gradient then measures change
-    /// on the surface rather than camera motion, which the reconstructor undoes by
-    /// reprojecting samples, so filters stay longer and sharper while the camera moves.
-    /// Not in the paper. Kitchen, 400K, first second of Interactive: RMS 12.0 → 11.1,
-    /// FLIP 0.102 → 0.091; Bart t = 6–7 s: 18.4 → 17.0.
+    /// has moved to (camera and object motion) instead of at the same pixel position
+    /// ([`super::sampler::completion_point`]): a still point wherever on screen it is
+    /// now, a moving one if it is still inside the tile. The temporal gradient then
+    /// measures change on the surface rather than camera motion, which the
+    /// reconstructor undoes by reprojecting samples, so filters stay longer and sharper
+    /// while the camera moves. Not in the paper. Kitchen, 400K, Interactive t =
+    /// 6.3–6.9 s (after a 125° turn): FLIP 0.175 with every point kept inside its tile
+    /// → 0.138 with still points followed anywhere (`adaptive-paper`: 0.229).
     pub follow_surface: bool,
+    /// Give a reprojected crosshair a new temporal gradient only from the newest
+    /// crosshair at its destination that saw the same surface point (both moved to
+    /// now: within a pixel on screen and 5% in depth). The paper compares with that
+    /// crosshair whatever it saw, which under a moving camera is usually another
+    /// surface, so the gradient measured the camera's motion and kept temporal filters
+    /// short in a still scene. Not in the paper. Interactive t = 6.3–6.9 s, 400K, with
+    /// `follow_surface`: FLIP 0.138 → 0.122, RMS 15.5 → 14.9.
+    pub same_surface_gradients: bool,
     /// Place each new crosshair's centre in its pixel by a per-pixel low-discrepancy
     /// sequence (the R2 sequence from a per-pixel random start, indexed by how many the
     /// pixel has had) instead of uniformly at random: the pixel stays a uniform choice
@@ -110,6 +120,7 @@ impl SamplerParams {
             reprojection: true,
             skip_static_reprojection: false,
             follow_surface: false,
+            same_surface_gradients: false,
             stratified_positions: false,
             gain_control: true,
             occlusion_term: true,
@@ -119,12 +130,16 @@ impl SamplerParams {
     }
 
     /// Ours (`adaptive`): the paper's, except that crosshairs that cannot have moved
-    /// stay in place ([`SamplerParams::skip_static_reprojection`]) and pending
-    /// crosshairs follow their surface ([`SamplerParams::follow_surface`]).
+    /// stay in place ([`SamplerParams::skip_static_reprojection`]), pending crosshairs
+    /// follow their surface ([`SamplerParams::follow_surface`]), reprojected ones
+    /// measure change only against the same surface
+    /// ([`SamplerParams::same_surface_gradients`]) and crosshair centres are stratified
+    /// per pixel ([`SamplerParams::stratified_positions`]).
     pub const fn ours() -> Self {
         let mut p = Self::paper();
         p.skip_static_reprojection = true;
         p.follow_surface = true;
+        p.same_surface_gradients = true;
         p.stratified_positions = true;
         p
     }

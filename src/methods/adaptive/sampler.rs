@@ -20,6 +20,7 @@ use super::{
 use crate::{
     clock::Clock,
     methods::MethodError,
+    scene::CameraFrame,
     sampling::Rng,
     trace::{Held, Sample, SceneState, StateCache, StreamSample, Tracer},
 };
@@ -177,6 +178,41 @@ pub fn crosshair_with(
         gy,
         gt,
     }
+}
+
+/// Where the crosshair `p` initiated in the tile `rect` is completed at time `now`.
+///
+/// With [`SamplerParams::follow_surface`], where the initiating sample's surface point
+/// is seen now, so that the temporal gradient compares the same point twice and
+/// measures change on the surface, not camera motion (which the reconstructor undoes
+/// by reprojecting samples): a still point wherever it is on screen (the crosshair
+/// joins the tile it lands in), a moving one only within `rect`. Where a moving object
+/// has left the tile, completing at the same position measures the change it left
+/// behind, and spends the visit where that change is. Otherwise (and without the
+/// option) where it was initiated. Shared by the sequential sampler and the real-time
+/// sampling threads.
+pub fn completion_point(
+    params: &SamplerParams,
+    camera: &CameraFrame,
+    p: &Pending,
+    rect: Rect,
+    now: f64,
+    width: u32,
+    height: u32,
+) -> (f32, f32) {
+    if !params.follow_surface {
+        return (p.x, p.y);
+    }
+    camera
+        .project(p.hit_point + p.velocity * (now - p.t) as f32)
+        .filter(|&(x, y, _)| {
+            if p.velocity == Vec3::ZERO {
+                x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32
+            } else {
+                rect.contains_point(x, y)
+            }
+        })
+        .map_or((p.x, p.y), |(x, y, _)| (x, y))
 }
 
 impl Sampler {
@@ -460,9 +496,22 @@ impl Sampler {
         // divides by that sample's age; we divide by the time between the two samples,
         // over which the difference arose: a very recent newest sample otherwise
         // inflates the gradient without bound.
+        // With `same_surface_gradients`, only where that crosshair saw the same surface
+        // point (within a pixel and 5% in depth, both moved to now): a crosshair traced
+        // there under an earlier camera saw another surface, and their difference
+        // measures camera motion, which the reconstructor undoes by reprojecting.
         if let Some(n) = self.buffer.newest(px, py) {
-            let dt = (n.t - c.t).abs().max(MIN_GRADIENT_DT);
-            c.gt = ((c.lum[0] - n.lum[0]).abs() as f64 / dt) as f32;
+            let same = !self.params.same_surface_gradients || {
+                let z = (moved[0] - cam.eye).dot(cam.forward);
+                cam.project(n.p[0] + n.velocity * (now - n.t) as f32)
+                    .is_some_and(|(nx, ny, nz)| {
+                        (nx - x).abs() <= 1.0 && (ny - y).abs() <= 1.0 && (nz - z).abs() <= 0.05 * z
+                    })
+            };
+            if same {
+                let dt = (n.t - c.t).abs().max(MIN_GRADIENT_DT);
+                c.gt = ((c.lum[0] - n.lum[0]).abs() as f64 / dt) as f32;
+            }
         }
         c.x = x;
         c.y = y;
@@ -509,20 +558,7 @@ impl Sampler {
         self.counters.visits += 1;
         let rect = self.tiling.node(leaf).rect;
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
-            let (x, y) = if self.params.follow_surface {
-                // Complete the crosshair where the initiating sample's surface point is
-                // now, so that the temporal gradient compares the same point twice and
-                // measures change, not camera motion (which the reconstructor undoes by
-                // reprojecting samples).
-                state
-                    .camera
-                    .project(p.hit_point + p.velocity * (now - p.t) as f32)
-                    .map(|(x, y, _)| (x, y))
-                    .filter(|&(x, y)| rect.contains_point(x, y))
-                    .unwrap_or((p.x, p.y))
-            } else {
-                (p.x, p.y)
-            };
+            let (x, y) = completion_point(&self.params, &state.camera, &p, rect, now, self.width, self.height);
             let c = self.trace_crosshair(&state, x, y, now, Some((p.lum, p.t)));
             self.insert_front(c);
             self.since_adjust += 1;
