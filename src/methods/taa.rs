@@ -738,6 +738,44 @@ mod tests {
     }
 
     #[test]
+    fn history_takes_frames_whose_grid_changes() {
+        // A real-time run resizes its frames; the disocclusion test must read the
+        // previous frame on its own grid. A still view keeps its history throughout.
+        use std::sync::Arc;
+        let scene = Arc::new(crate::scene::builtin::load("toycar").expect("built-in scene"));
+        let tracer = Tracer::new(scene, 32, 24, crate::trace::TraceOptions::default());
+        let params = TaaParams::default();
+        let state = tracer.state_at(0.5);
+        let mut h = TaaHistory::new((32, 24), params, 0.5).unwrap();
+        assert!(h.mean_age(0.5).is_none() && h.shown_gbuffer().is_none());
+        let grids = [(16, 12), (32, 24), (24, 18), (32, 24), (16, 12), (20, 15)];
+        for (j, &grid) in grids.iter().enumerate() {
+            let jitter = frame_jitter(j as u64, jitter_period(&params, (32, 24), grid));
+            let samples: Vec<Sample> = (0..grid.1)
+                .flat_map(|y| trace_jittered_row(&tracer, &state, grid, jitter, y))
+                .collect();
+            h.accumulate(JitteredFrame {
+                samples: &samples,
+                grid,
+                jitter,
+                time: 0.5,
+                camera: state.camera,
+                dt: 1.0 / 60.0,
+            });
+            assert_eq!(h.shown_gbuffer().map(|g| g.grid), Some(grid));
+        }
+        assert_eq!(h.cuts(), 0);
+        let pixels = 32 * 24 * (grids.len() as u64 - 1);
+        assert!(
+            h.rejections() * 20 < pixels,
+            "{} of {pixels} rejected",
+            h.rejections()
+        );
+        assert!(h.output().pixels.iter().all(|p| p.is_finite()));
+        assert!(h.mean_age(0.5).is_some_and(|a| a.abs() < 1e-6));
+    }
+
+    #[test]
     fn catmull_rom_reproduces_linear_ramps() {
         let img = Image {
             width: 8,

@@ -309,3 +309,68 @@ impl ImageBuilder for Builder {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::{
+        realtime::{RtConfig, RtMethod},
+        scene::builtin,
+        trace::TraceOptions,
+    };
+
+    fn shared(refresh_hz: f64) -> Shared {
+        let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
+        let tracer = Arc::new(Tracer::new(scene, 64, 48, TraceOptions::default()));
+        let mut config = RtConfig::new(RtMethod::Taa);
+        config.refresh_hz = refresh_hz;
+        Shared::new(tracer, config)
+    }
+
+    /// A frame of `grid` whose rows ran out `ago` after it started.
+    fn done(s: &Shared, grid: (u32, u32), ago: Duration) -> FrameJob {
+        FrameJob {
+            id: 3,
+            time: 0.0,
+            state: s.tracer.state_at(0.0),
+            grid,
+            jitter: (0.5, 0.5),
+            started: Instant::now() - ago,
+            next_row: AtomicU32::new(grid.1),
+        }
+    }
+
+    /// The grid of the frame after `d`, for a fresh run whose folds take `fold_s`.
+    fn next_grid(s: &Shared, d: &FrameJob, fold_s: f64) -> (u32, u32) {
+        let mut frames = Frames {
+            current: Arc::new(done(s, d.grid, Duration::ZERO)),
+            rate: None,
+            fold_s: Arc::new(AtomicU64::new(fold_s.to_bits())),
+        };
+        let next = frames.next(d, s, &TaaParams::default());
+        assert_eq!(next.id, d.id + 1);
+        next.grid
+    }
+
+    #[test]
+    fn frames_last_a_refresh_or_a_fold_whichever_is_longer() {
+        // Long frames, so that scheduling delays of the test are small beside them.
+        let s = shared(10.0);
+        let count = |g: (u32, u32)| g.0 * g.1;
+        // 192 samples in 0.4 s: 480 samples/s, 48 per 0.1 s refresh.
+        let slow = done(&s, (16, 12), Duration::from_millis(400));
+        let g = next_grid(&s, &slow, 0.0);
+        assert!((40..=48).contains(&count(g)), "{g:?}");
+        // The same throughput, but a fold takes 0.4 s: frames of 0.5 s.
+        let g = next_grid(&s, &slow, 0.4);
+        assert!((200..=240).contains(&count(g)), "{g:?}");
+        // Within the band the grid stays: 192 samples in about one refresh.
+        let steady = done(&s, (16, 12), Duration::from_millis(100));
+        assert_eq!(next_grid(&s, &steady, 0.0), (16, 12));
+        // Fast threads: never beyond one sample per display pixel.
+        let fast = done(&s, (64, 48), Duration::from_millis(1));
+        assert_eq!(next_grid(&s, &fast, 0.0), (64, 48));
+    }
+}
