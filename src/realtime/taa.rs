@@ -56,8 +56,9 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
 };
 
 /// Share of the frame budget by which the measured throughput must move before the
-/// frame's resolution follows: a resized grid restarts the jitter sequence's coverage
-/// of the pixel, so throughput noise must not resize it every frame.
+/// frame's resolution follows: a resized grid changes the jitter sequence's period and
+/// so breaks its even coverage of the pixel, so throughput noise must not resize it
+/// every frame.
 const RESIZE_BAND: f64 = 0.2;
 
 /// Weight of the newest measurement in the smoothed throughput and fold time.
@@ -105,7 +106,8 @@ impl Frames {
         // One frame per refresh, as the evaluation's `taa`, unless the image thread
         // cannot fold them that fast: every fold costs the same whatever the frame's
         // size, so then fewer, larger frames carry the same samples. (On this
-        // project's 2-core machine a fold of 256×256 takes about one refresh.)
+        // project's loaded 2-core machine a fold of 256×256 took 35–50 ms, two to
+        // three refreshes.)
         let fold_s = f64::from_bits(self.fold_s.load(Ordering::Relaxed));
         let period = (1.0 / s.config.refresh_hz).max(FOLD_HEADROOM * fold_s);
         let want = rate * period;
