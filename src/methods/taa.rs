@@ -15,6 +15,10 @@
 //! lowered where things move or the clamp had to pull it far. Pixels that no sample of
 //! this frame reaches keep their reprojected history; where there is too little of
 //! either, the display mixes in the bilinearly upsampled current frame.
+//!
+//! All of that display side is [`TaaHistory`], which the real-time `taa`
+//! (`realtime::taa`) folds its frames into too; [`Taa`] adds the simulated clock's
+//! frames and budget.
 
 use glam::Vec3;
 use rayon::prelude::*;
