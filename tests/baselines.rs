@@ -198,10 +198,10 @@ fn taa_rejects_history_at_a_disocclusion() {
     for k in 0..=31 {
         m.display(k as f64 / 60.0);
         if k == 30 {
-            before = m.rejections;
+            before = m.rejections();
         }
     }
-    let rejected = m.rejections - before;
+    let rejected = m.rejections() - before;
     // Every pixel deep inside the blocker's old footprint must reject: there no previous
     // sample nearby saw the wall. (Within a low-resolution cell or two of its edge,
     // previous samples of the wall legitimately vouch for the history.)

@@ -15,6 +15,10 @@
 //! lowered where things move or the clamp had to pull it far. Pixels that no sample of
 //! this frame reaches keep their reprojected history; where there is too little of
 //! either, the display mixes in the bilinearly upsampled current frame.
+//!
+//! All of that display side is [`TaaHistory`], which the real-time `taa`
+//! (`realtime::taa`) folds its frames into too; [`Taa`] adds the simulated clock's
+//! frames and budget.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -24,7 +28,12 @@ use super::{
     sixty_per_second,
     Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
 };
-use crate::{clock::TIME_EPS, image::Image, scene::CameraFrame, trace::Sample};
+use crate::{
+    clock::TIME_EPS,
+    image::Image,
+    scene::CameraFrame,
+    trace::{Sample, SceneState, Tracer},
+};
 
 /// `taa`.
 pub const TAA: MethodInfo = MethodInfo {
@@ -200,23 +209,85 @@ impl TaaParams {
     }
 }
 
+/// The Halton sequence's period for `grid` samples per frame on a `size` display:
+/// [`TaaParams::jitter_phases_per_pixel`] distinct positions per display pixel.
+pub fn jitter_period(params: &TaaParams, size: (u32, u32), grid: (u32, u32)) -> u64 {
+    let ratio = (size.0 as f64 * size.1 as f64) / (grid.0 as f64 * grid.1 as f64);
+    (params.jitter_phases_per_pixel as f64 * ratio).ceil() as u64
+}
+
+/// The jitter of frame `j` within a low-resolution cell, in cells: Halton(2, 3).
+pub fn frame_jitter(j: u64, period: u64) -> (f32, f32) {
+    // Index 0 of Halton is (0, 0) for every base, which would put the first frame on
+    // the cell corners; start at 1.
+    let k = j % period + 1;
+    (halton(k, 2), halton(k, 3))
+}
+
+/// Display coordinates of sample `(i, j)` of a `grid` frame jittered by `jitter`.
+pub fn jittered_position(
+    size: (u32, u32),
+    grid: (u32, u32),
+    jitter: (f32, f32),
+    i: u32,
+    j: u32,
+) -> (f32, f32) {
+    let (sx, sy) = (size.0 as f32 / grid.0 as f32, size.1 as f32 / grid.1 as f32);
+    ((i as f32 + jitter.0) * sx, (j as f32 + jitter.1) * sy)
+}
+
+/// Row `y` of a jittered low-resolution frame, as the real-time threads trace it (the
+/// evaluation traces the same positions in parallel over the whole frame).
+pub fn trace_jittered_row<'a>(
+    tracer: &'a Tracer,
+    state: &'a SceneState,
+    grid: (u32, u32),
+    jitter: (f32, f32),
+    y: u32,
+) -> impl Iterator<Item = Sample> + 'a {
+    let size = tracer.size();
+    (0..grid.0).map(move |x| {
+        let (px, py) = jittered_position(size, grid, jitter, x, y);
+        tracer.sample(state, px, py)
+    })
+}
+
+/// One traced low-resolution frame, as the history takes it.
+pub struct JitteredFrame<'a> {
+    /// Row-major, `grid.0 × grid.1`, sample `(i, j)` traced at
+    /// [`jittered_position`]`(size, grid, jitter, i, j)`.
+    pub samples: &'a [Sample],
+    /// Samples across and down.
+    pub grid: (u32, u32),
+    /// The frame's jitter, in cells.
+    pub jitter: (f32, f32),
+    /// Scene time every sample was traced at.
+    pub time: f64,
+    /// The camera they were traced with.
+    pub camera: CameraFrame,
+    /// Scene time since the previous frame (unused for the first): how far back along
+    /// its velocity a moving point was when the previous frame saw it.
+    pub dt: f32,
+}
+
 /// One traced frame, kept for the next frame's disocclusion test.
 struct LowFrame {
     camera: CameraFrame,
     jitter: (f32, f32),
     /// View depth (along the camera axis) of each low-resolution sample; ∞ on a miss.
     depth: Vec<f32>,
-    /// Where each low-resolution sample was and how it moved, for a display-side warp.
+    /// Where each low-resolution sample was and how it moved, for a display-side warp
+    /// (its grid is this frame's, which a real-time run may change between frames).
     gbuffer: GBuffer,
 }
 
-/// The temporal upsampler.
-pub struct Taa {
-    ctx: MethodContext,
+/// The upsampler's display side: the full-resolution history that jittered
+/// low-resolution frames are folded into, and the image it shows. The evaluation's
+/// [`Taa`] and the real-time pipeline's `taa` both accumulate through it; they differ
+/// only in who traces the frames and when.
+pub struct TaaHistory {
     params: TaaParams,
-    grid: (u32, u32),
-    jitter_period: u64,
-    next_frame: u64,
+    size: (u32, u32),
     /// Accumulated mean colour per display pixel (where the weight is 0: the upsampled
     /// current frame, so that filtered fetches next to it stay sensible).
     history: Image,
@@ -226,72 +297,81 @@ pub struct Taa {
     output: Image,
     output_time: Vec<f64>,
     prev: Option<LowFrame>,
-    samples: u64,
-    trace_s: f64,
-    /// Pixels whose history was rejected (off screen or disoccluded), for tests.
-    pub rejections: u64,
-    /// Frames taken for camera cuts (all history dropped).
-    pub cuts: u64,
+    rejections: u64,
+    cuts: u64,
 }
 
-impl Taa {
-    /// Create for one run.
-    pub fn new(ctx: &MethodContext, params: TaaParams) -> Result<Self, MethodError> {
+impl TaaHistory {
+    /// An empty history for a `size` display whose information dates from `start`.
+    pub fn new(size: (u32, u32), params: TaaParams, start: f64) -> Result<Self, MethodError> {
         params.check()?;
-        let (w, h) = ctx.tracer.size();
-        sixty_per_second("taa", ctx.clock.rate)?;
-        let per_frame = (ctx.clock.rate / 60.0).floor();
-        let grid = reduced_grid(w, h, per_frame as u64);
-        let ratio = (w as f64 * h as f64) / (grid.0 as f64 * grid.1 as f64);
+        let (w, h) = size;
         let n = (w * h) as usize;
         Ok(Self {
-            ctx: ctx.clone(),
             params,
-            grid,
-            jitter_period: (params.jitter_phases_per_pixel as f64 * ratio).ceil() as u64,
-            next_frame: 0,
+            size,
             history: Image::new(w, h),
             weight: vec![0.0; n],
-            info_time: vec![ctx.clock.start; n],
+            info_time: vec![start; n],
             output: Image::new(w, h),
-            output_time: vec![ctx.clock.start; n],
+            output_time: vec![start; n],
             prev: None,
-            samples: 0,
-            trace_s: 0.0,
             rejections: 0,
             cuts: 0,
         })
     }
 
-    fn frame_start(&self, j: u64) -> f64 {
-        self.ctx.clock.start + j as f64 / 60.0
+    /// The image shown after the last frame folded in.
+    pub fn output(&self) -> &Image {
+        &self.output
     }
 
-    /// Trace frame `j` at time `t` and fold it into the history.
-    fn render_frame(&mut self, j: u64, t: f64) {
+    /// Scene time of the information in each displayed pixel (weighted by what it
+    /// holds).
+    pub fn output_times(&self) -> &[f64] {
+        &self.output_time
+    }
+
+    /// Mean age at display time `t` of what is shown; `None` before the first frame.
+    pub fn mean_age(&self, t: f64) -> Option<f64> {
+        self.prev.as_ref().map(|_| {
+            self.output_time.iter().map(|s| t - s).sum::<f64>() / self.output_time.len() as f64
+        })
+    }
+
+    /// Where the samples of the newest frame were (none before the first frame).
+    pub fn shown_gbuffer(&self) -> Option<&GBuffer> {
+        self.prev.as_ref().map(|f| &f.gbuffer)
+    }
+
+    /// Scene time of the newest frame folded in.
+    pub fn newest_time(&self) -> Option<f64> {
+        self.prev.as_ref().map(|f| f.gbuffer.time)
+    }
+
+    /// Pixels whose history was rejected (off screen or disoccluded) so far.
+    pub fn rejections(&self) -> u64 {
+        self.rejections
+    }
+
+    /// Frames taken for camera cuts (all history dropped) so far.
+    pub fn cuts(&self) -> u64 {
+        self.cuts
+    }
+
+    /// Fold one traced frame into the history and make the image shown after it.
+    pub fn accumulate(&mut self, frame: JitteredFrame<'_>) {
         let p = self.params;
-        let tracer = self.ctx.tracer.clone();
-        let (w, h) = tracer.size();
-        let (gw, gh) = self.grid;
-        let state = tracer.state_at(t);
-        let cam = state.camera;
-        // Index 0 of Halton is (0, 0) for every base; start at 1 as `taa` does.
-        let k = j % self.jitter_period + 1;
-        let (jx, jy) = (halton(k, 2), halton(k, 3));
+        let (w, h) = self.size;
+        let JitteredFrame {
+            samples: low,
+            grid: (gw, gh),
+            jitter: (jx, jy),
+            time: t,
+            camera: cam,
+            dt,
+        } = frame;
         let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
-        let t0 = std::time::Instant::now();
-        let low: Vec<Sample> = (0..gw * gh)
-            .into_par_iter()
-            .map(|q| {
-                tracer.sample(
-                    &state,
-                    ((q % gw) as f32 + jx) * sx,
-                    ((q / gw) as f32 + jy) * sy,
-                )
-            })
-            .collect();
-        self.trace_s += t0.elapsed().as_secs_f64();
-        self.samples += (gw * gh) as u64;
         let low_depth: Vec<f32> = low
             .iter()
             .map(|s| {
@@ -302,12 +382,12 @@ impl Taa {
                 }
             })
             .collect();
-        let cell = |i: i64, j: i64| -> usize {
+        let cell_in = |(gw, gh): (u32, u32), i: i64, j: i64| -> usize {
             (j.clamp(0, gh as i64 - 1) * gw as i64 + i.clamp(0, gw as i64 - 1)) as usize
         };
+        let cell = |i: i64, j: i64| cell_in((gw, gh), i, j);
         let cut_motion = p.cut_motion * w.max(h) as f32;
         let inv_2s2 = 1.0 / (2.0 * p.kernel_sigma * p.kernel_sigma);
-        let dt = (1.0 / 60.0) as f32;
         let history = &self.history;
         let hist_weight = &self.weight;
         let hist_time = &self.info_time;
@@ -379,15 +459,18 @@ impl Taa {
                     // it (any of 3×3: at an edge the nearest one may lie across it, and a
                     // still view must not reject; only 2×2 rejected sphere rims every few
                     // frames). What slips through at a cut is caught by the cut test below.
+                    // The previous frame's own grid: a real-time run resizes it.
+                    let pgrid = pf.gbuffer.grid;
+                    let (psx, psy) = (w as f32 / pgrid.0 as f32, h as f32 / pgrid.1 as f32);
                     let (pu, pv) = (
-                        (ox / sx - pf.jitter.0).round() as i64,
-                        (oy / sy - pf.jitter.1).round() as i64,
+                        (ox / psx - pf.jitter.0).round() as i64,
+                        (oy / psy - pf.jitter.1).round() as i64,
                     );
                     let pd = if near.hit { pd } else { f32::INFINITY };
                     let (mut lo_d, mut hi_d, mut seen) = (f32::INFINITY, 0.0f32, false);
                     for dj in -1..=1 {
                         for di in -1..=1 {
-                            let d = pf.depth[cell(pu + di, pv + dj)];
+                            let d = pf.depth[cell_in(pgrid, pu + di, pv + dj)];
                             seen |= if pd.is_finite() {
                                 (d - pd).abs() <= p.depth_tolerance * pd.max(1e-6)
                             } else {
@@ -503,7 +586,7 @@ impl Taa {
             jitter: (jx, jy),
             depth: low_depth,
             gbuffer: GBuffer {
-                grid: self.grid,
+                grid: (gw, gh),
                 samples: low.iter().map(GSample::from).collect(),
                 time: t,
                 camera: cam,
@@ -512,16 +595,88 @@ impl Taa {
     }
 }
 
+/// The temporal upsampler under the simulated clock: a frame every 1/60 s at the
+/// resolution the rate allows.
+pub struct Taa {
+    ctx: MethodContext,
+    grid: (u32, u32),
+    jitter_period: u64,
+    next_frame: u64,
+    history: TaaHistory,
+    samples: u64,
+    trace_s: f64,
+}
+
+impl Taa {
+    /// Create for one run.
+    pub fn new(ctx: &MethodContext, params: TaaParams) -> Result<Self, MethodError> {
+        let size = ctx.tracer.size();
+        let history = TaaHistory::new(size, params, ctx.clock.start)?;
+        sixty_per_second("taa", ctx.clock.rate)?;
+        let per_frame = (ctx.clock.rate / 60.0).floor();
+        let grid = reduced_grid(size.0, size.1, per_frame as u64);
+        Ok(Self {
+            ctx: ctx.clone(),
+            grid,
+            jitter_period: jitter_period(&params, size, grid),
+            next_frame: 0,
+            history,
+            samples: 0,
+            trace_s: 0.0,
+        })
+    }
+
+    fn frame_start(&self, j: u64) -> f64 {
+        self.ctx.clock.start + j as f64 / 60.0
+    }
+
+    /// Trace frame `j` at time `t` and fold it into the history.
+    fn render_frame(&mut self, j: u64, t: f64) {
+        let tracer = self.ctx.tracer.clone();
+        let size = tracer.size();
+        let (gw, gh) = self.grid;
+        let state = tracer.state_at(t);
+        let jitter = frame_jitter(j, self.jitter_period);
+        let t0 = std::time::Instant::now();
+        let low: Vec<Sample> = (0..gw * gh)
+            .into_par_iter()
+            .map(|q| {
+                let (x, y) = jittered_position(size, self.grid, jitter, q % gw, q / gw);
+                tracer.sample(&state, x, y)
+            })
+            .collect();
+        self.trace_s += t0.elapsed().as_secs_f64();
+        self.samples += (gw * gh) as u64;
+        self.history.accumulate(JitteredFrame {
+            samples: &low,
+            grid: self.grid,
+            jitter,
+            time: t,
+            camera: state.camera,
+            dt: (1.0 / 60.0) as f32,
+        });
+    }
+
+    /// Pixels whose history was rejected (off screen or disoccluded), for tests.
+    pub fn rejections(&self) -> u64 {
+        self.history.rejections()
+    }
+
+    /// Frames taken for camera cuts (all history dropped).
+    pub fn cuts(&self) -> u64 {
+        self.history.cuts()
+    }
+}
+
 impl Method for Taa {
     fn display(&mut self, t: f64) -> Displayed<'_> {
         self.advance(t);
-        let age = if self.prev.is_some() {
-            self.output_time.iter().map(|s| t - s).sum::<f64>() / self.output_time.len() as f64
-        } else {
-            t - self.ctx.clock.start
-        };
+        let age = self
+            .history
+            .mean_age(t)
+            .unwrap_or(t - self.ctx.clock.start);
         Displayed {
-            image: &self.output,
+            image: self.history.output(),
             mean_age: age,
         }
     }
@@ -538,13 +693,13 @@ impl Method for Taa {
 impl Taa {
     /// The image shown now (after the last `display`).
     pub fn output(&self) -> &Image {
-        &self.output
+        self.history.output()
     }
 
     /// Where the samples of the newest frame, the one shown, were (none before the
     /// first frame completes).
     pub fn shown_gbuffer(&self) -> Option<&GBuffer> {
-        self.prev.as_ref().map(|f| &f.gbuffer)
+        self.history.shown_gbuffer()
     }
 
     /// Render every frame that completes by display time `t`.
@@ -584,6 +739,44 @@ mod tests {
         assert!((halton(1, 3) - 1.0 / 3.0).abs() < 1e-7);
         let c = Vec3::new(0.2, 0.5, 0.9);
         assert!((from_ycocg(to_ycocg(c)) - c).length() < 1e-6);
+    }
+
+    #[test]
+    fn history_takes_frames_whose_grid_changes() {
+        // A real-time run resizes its frames; the disocclusion test must read the
+        // previous frame on its own grid. A still view keeps its history throughout.
+        use std::sync::Arc;
+        let scene = Arc::new(crate::scene::builtin::load("toycar").expect("built-in scene"));
+        let tracer = Tracer::new(scene, 32, 24, crate::trace::TraceOptions::default());
+        let params = TaaParams::default();
+        let state = tracer.state_at(0.5);
+        let mut h = TaaHistory::new((32, 24), params, 0.5).unwrap();
+        assert!(h.mean_age(0.5).is_none() && h.shown_gbuffer().is_none());
+        let grids = [(16, 12), (32, 24), (24, 18), (32, 24), (16, 12), (20, 15)];
+        for (j, &grid) in grids.iter().enumerate() {
+            let jitter = frame_jitter(j as u64, jitter_period(&params, (32, 24), grid));
+            let samples: Vec<Sample> = (0..grid.1)
+                .flat_map(|y| trace_jittered_row(&tracer, &state, grid, jitter, y))
+                .collect();
+            h.accumulate(JitteredFrame {
+                samples: &samples,
+                grid,
+                jitter,
+                time: 0.5,
+                camera: state.camera,
+                dt: 1.0 / 60.0,
+            });
+            assert_eq!(h.shown_gbuffer().map(|g| g.grid), Some(grid));
+        }
+        assert_eq!(h.cuts(), 0);
+        let pixels = 32 * 24 * (grids.len() as u64 - 1);
+        assert!(
+            h.rejections() * 20 < pixels,
+            "{} of {pixels} rejected",
+            h.rejections()
+        );
+        assert!(h.output().pixels.iter().all(|p| p.is_finite()));
+        assert!(h.mean_age(0.5).is_some_and(|a| a.abs() < 1e-6));
     }
 
     #[test]

@@ -48,6 +48,11 @@ pub enum RtMethod {
     Framed,
     /// Framed, with the newest frame reprojected to the camera at every refresh.
     LateWarp,
+    /// Temporal upsampler: jittered low-resolution frames accumulated into a
+    /// full-resolution history.
+    Taa,
+    /// The temporal upsampler, its image reprojected to the camera at every refresh.
+    TaaWarp,
 }
 
 /// Settings of one pipeline run.

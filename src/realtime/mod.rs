@@ -11,7 +11,8 @@
 //! Each real-time method is one file: [`adaptive`] (the adaptive sampler, whose tiling
 //! and deep buffer live on one controller thread owning the ordinary
 //! [`Sampler`](crate::methods::adaptive::Sampler), and the adaptive reconstructor),
-//! [`frameless`] (traditional frameless) and [`framed`] (double-buffered frames). Each
+//! [`frameless`] (traditional frameless), [`framed`] (double-buffered frames, and
+//! their late warp) and [`taa`] (the temporal upsampler, and its late warp). Each
 //! describes itself in one constant (name, default threads, how it starts) that the
 //! registry below maps its [`RtMethod`] variant to; the pipeline only calls that
 //! description. Adding a method is a new file, a variant and a line in `REGISTRY`.
@@ -34,6 +35,7 @@ pub mod pacing;
 pub mod pipeline;
 pub mod pixel_locks;
 mod shared;
+pub mod taa;
 pub mod viewer;
 
 pub use camera::{CameraRecorder, FlyCamera};
@@ -56,6 +58,8 @@ const REGISTRY: &[(RtMethod, &MethodInfo)] = &[
     (RtMethod::TraditionalFrameless, &frameless::METHOD),
     (RtMethod::Framed, &framed::METHOD),
     (RtMethod::LateWarp, &framed::LATE_WARP),
+    (RtMethod::Taa, &taa::METHOD),
+    (RtMethod::TaaWarp, &taa::TAA_WARP),
 ];
 
 impl RtMethod {
@@ -236,7 +240,14 @@ mod tests {
         let names: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
         assert_eq!(
             names,
-            ["adaptive", "traditional-frameless", "framed", "late-warp"]
+            [
+                "adaptive",
+                "traditional-frameless",
+                "framed",
+                "late-warp",
+                "taa",
+                "taa-warp"
+            ]
         );
         for m in RtMethod::ALL {
             assert_eq!(RtMethod::parse(m.name()).unwrap(), m);
@@ -247,7 +258,7 @@ mod tests {
         let err = RtMethod::parse("bogus").unwrap_err().to_string();
         assert!(
             err.contains(
-                "unknown method `bogus` (expected adaptive, traditional-frameless, framed or late-warp)"
+                "unknown method `bogus` (expected adaptive, traditional-frameless, framed, late-warp, taa or taa-warp)"
             ),
             "{err}"
         );
@@ -273,6 +284,8 @@ mod tests {
         assert_eq!(threads(RtMethod::TraditionalFrameless), cores);
         assert_eq!(threads(RtMethod::Framed), cores);
         assert_eq!(threads(RtMethod::LateWarp), cores);
+        assert_eq!(threads(RtMethod::Taa), cores);
+        assert_eq!(threads(RtMethod::TaaWarp), cores);
         assert_eq!(RtMethod::Adaptive.info().extra_threads, 1);
     }
 }

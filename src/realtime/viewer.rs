@@ -4,9 +4,8 @@
 //! Keys: W/S or ↑/↓ move forward/back, A/D strafe, ←/→ turn, Q/E down/up, Shift ×4
 //! speed, left mouse drag looks around; the digit keys switch methods in
 //! [`RtMethod::ALL`] order (1 adaptive, 2 traditional frameless, 3 framed, 4 late
-//! warp); V cycles
-//! the visualisation (image, tiling, gradients, density); P writes a screenshot; Esc
-//! quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
+//! warp, 5 taa, 6 taa-warp); V cycles the visualisation (image, tiling, gradients,
+//! density); P writes a screenshot; Esc quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
 //! of the information on screen, and the visualisation with its colour key. Neither X11 nor Wayland libraries are linked: winit and
 //! softbuffer load them at run time.
 
