@@ -39,8 +39,9 @@ use crate::{
 pub(crate) const METHOD: MethodInfo = MethodInfo {
     name: "taa",
     about: "temporal upsampler (FSR 2-like): jittered low-res frames sized to the display rate, accumulated into a full-res history",
-    // The image thread's accumulation is a few ms per frame; the sampling threads fill
-    // the cores and the OS shares them.
+    // The image thread folds one frame per period (the period grows with the fold
+    // time, see `FOLD_HEADROOM`); the sampling threads fill the cores and the OS
+    // shares them.
     default_sampling_threads: |cores| cores,
     extra_threads: 0,
     start: |sp| start_with(sp, false),
