@@ -18,12 +18,14 @@ for n in 1 2 4 8; do
   "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
     --sampling-threads "$n" --images 2 --out "$OUT/kitchen_t$n"
 done
-# Throughput targets: kitchen 256x256 at 60 Hz, toycar 640x480 at 30 Hz, each method.
-for m in adaptive traditional-frameless framed; do
+# Throughput targets: kitchen 256x256 at 60 Hz, toycar 640x480 at 30 Hz, each method,
+# with the camera turned 20 degrees half way (--camera-step) to time the latency.
+for m in adaptive traditional-frameless framed late-warp taa taa-warp; do
   "$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
-    --method "$m" --images 1 --out "$OUT/kitchen_$m"
+    --method "$m" --images 1 --camera-step "$(awk "BEGIN { print $SECS / 2 }")" --out "$OUT/kitchen_$m"
   "$BIN" view --headless --seconds "$SECS" --scene toycar --size 640x480 --start 1 \
-    --refresh-hz 30 --method "$m" --images 1 --out "$OUT/toycar640_$m"
+    --refresh-hz 30 --method "$m" --images 1 --camera-step "$(awk "BEGIN { print $SECS / 2 }")" \
+    --out "$OUT/toycar640_$m"
 done
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/load.txt"
 python3 "$HERE/table.py" "$OUT"
