@@ -246,10 +246,18 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         seq += 1;
         let mean_age = built.mean_age;
         let ages = Arc::new(built.ages);
+        // The build drains what the threads traced until it runs, so an image can show
+        // a view from after `t` (a small frame started and finished meanwhile): its
+        // time is then that view's, never earlier than what it shows.
+        let time = if built.view_time > t {
+            built.view_time
+        } else {
+            t
+        };
         *lock(&s.latest) = Some(Arc::new(Frame {
             seq,
             image: built.image,
-            time: t,
+            time,
             mean_age,
             tiling: built.tiling,
             ages: ages.clone(),
