@@ -20,28 +20,10 @@ pub(super) struct TileFilter {
     /// Footprint radii at splat scale 1: `spatial_cutoff · e_x`, `· e_y`.
     pub(super) cx: f32,
     pub(super) cy: f32,
-    /// Splats of this tile go to the half-resolution level.
-    pub(super) coarse: bool,
-    /// `½/σ²` of the coarse level's kernel, in coarse pixels (see [`coarse_a`]).
-    pub(super) cax: f32,
-    pub(super) cay: f32,
-}
-
-/// `½/σ_c²` of the half-resolution kernel standing for a full-resolution sigma `e`:
-/// bilinear upsampling spreads a coarse value over fine pixels 0.5 and 1.5 px from the
-/// coarse pixel's center with weights ¾ and ¼, which adds 0.75 px² to the kernel's
-/// variance, so the coarse kernel has variance `e² − 0.75` (fine px²), i.e.
-/// `(e² − 0.75)/4` in coarse pixels.
-pub(super) fn coarse_a(e: f32) -> f32 {
-    2.0 / (e * e - 0.75)
 }
 
 impl TileFilter {
-    /// The filter of extents `e`, cut at `spatial_cutoff` sigmas; it splats on the
-    /// half-resolution level if both spatial sigmas reach `coarse_sigma` (at least 1 px,
-    /// where [`coarse_a`] is defined).
-    pub(super) fn new(e: [f32; 3], spatial_cutoff: f32, coarse_sigma: Option<f32>) -> Self {
-        let coarse = coarse_sigma.is_some_and(|c| e[0].min(e[1]) >= c.max(1.0));
+    pub(super) fn new(e: [f32; 3], spatial_cutoff: f32) -> Self {
         Self {
             e,
             inv_et: 1.0 / e[2],
@@ -49,9 +31,6 @@ impl TileFilter {
             ay: 0.5 / (e[1] * e[1]),
             cx: spatial_cutoff * e[0],
             cy: spatial_cutoff * e[1],
-            coarse,
-            cax: if coarse { coarse_a(e[0]) } else { 0.0 },
-            cay: if coarse { coarse_a(e[1]) } else { 0.0 },
         }
     }
 }
@@ -69,14 +48,13 @@ pub(super) struct Lookup {
 impl Reconstructor {
     /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
     pub(super) fn update_filters(&mut self, tiling: &TilingSnapshot) {
-        let (cut, coarse) = (self.params.spatial_cutoff, self.params.coarse_sigma);
+        let cut = self.params.spatial_cutoff;
         self.filters = OnceLock::new();
         self.tiles.clear();
         if let Some(e) = self.params.fixed_filter {
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
-                coarse,
             ));
             self.lookup.iter_mut().for_each(|l| l.tile = 0);
         } else {
@@ -90,7 +68,7 @@ impl Reconstructor {
     /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
     fn tile_filters(&mut self, tiling: &TilingSnapshot) {
         let w = self.width as usize;
-        let (cut, coarse) = (self.params.spatial_cutoff, self.params.coarse_sigma);
+        let cut = self.params.spatial_cutoff;
         let tiles = tiling.tiles.len();
         for tile in &tiling.tiles {
             let r = tile.rect;
@@ -101,7 +79,6 @@ impl Reconstructor {
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
-                coarse,
             ));
             let x1 = (r.x1 as usize).min(w);
             for y in r.y0 as usize..(r.y1 as usize).min(self.height as usize) {

@@ -58,24 +58,11 @@
 //!   reused; a few holes read memoised block sums around them instead of a whole
 //!   pyramid (the same sums added in the same order, so the same image).
 //!
-//! Optionally ([`ReconParams::coarse_sigma`], used by no preset), splats whose kernel
-//! sigma reaches a threshold along both axes are accumulated on a half-resolution
-//! level with a kernel narrowed so that, after bilinear upsampling, it has the full
-//! kernel's second moments; the level is upsampled and added to the sums before step
-//! 4. Images then differ from the above within the tolerance
-//! `tests::coarse_level_approximates_full_resolution` states, and
-//! `tests::fast_path_matches_direct_evaluation` checks the fast path against a direct
-//! evaluation of that rule. Coverage still counts each splat's full-resolution
-//! footprint, but a coarse splat's weight fades over a pixel around it instead of
-//! stopping at it, so a pixel just outside may get weight (and not be a hole) with a
-//! coverage of 0.
-//!
 //! Splatting runs in parallel over horizontal bands of rows (16 rows with several
 //! threads, 64 on one); each band visits the samples touching it in ring order and
-//! writes only its own pixels (and the coarse level's rows under them), and every
-//! weight is computed from offsets to the splat's own first row and column, so every
-//! pixel's sums are formed from the same terms in the same order whatever the thread
-//! count (bit-identical images).
+//! writes only its own pixels, and every weight is computed from offsets to the
+//! splat's own first row and column, so every pixel's sums are formed from the same
+//! terms in the same order whatever the thread count (bit-identical images).
 //!
 //! This file holds the [`Reconstructor`] and the order of a refresh's steps; each step
 //! lives in its own file: `filter_table.rs` (the per-tile filters and per-pixel lookup
@@ -167,13 +154,6 @@ pub struct Reconstructor {
     gpr: usize,
     /// Per-row coverage differences, rows of `width + 1`.
     cov: Vec<i32>,
-    /// Accumulators of the half-resolution level (`ReconParams::coarse_sigma`),
-    /// `coarse_gpr` cells per row, `⌈height/2⌉` rows (one cell per row without a
-    /// coarse level, never written).
-    coarse_acc: Vec<Cell>,
-    coarse_gpr: usize,
-    /// Splats binned to the coarse level at the last refresh.
-    coarse_splats: usize,
     /// Rows per band of the splat at the last refresh.
     band_rows: usize,
     /// Splats of the last refresh: per piece of the ring (in ring order), per band.
@@ -218,11 +198,6 @@ impl Reconstructor {
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);
         let gpr = (width as usize).div_ceil(LANES);
         let scale0 = params.scale_bounds.0.max(1e-3);
-        let coarse_gpr = if params.coarse_sigma.is_some() {
-            (width as usize).div_ceil(2).div_ceil(LANES)
-        } else {
-            1
-        };
         Self {
             params,
             width,
@@ -231,11 +206,7 @@ impl Reconstructor {
             capacity,
             ring: Ring::new(capacity),
             skip_stale: true,
-            tiles: vec![TileFilter::new(
-                [1.0; 3],
-                params.spatial_cutoff,
-                params.coarse_sigma,
-            )],
+            tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
             lookup: vec![
                 Lookup {
                     tile: 0,
@@ -249,9 +220,6 @@ impl Reconstructor {
             acc: vec![[[0.0; LANES]; CHANNELS]; height as usize * gpr],
             gpr,
             cov: vec![0; height as usize * (width as usize + 1)],
-            coarse_acc: vec![[[0.0; LANES]; CHANNELS]; (height as usize).div_ceil(2) * coarse_gpr],
-            coarse_gpr,
-            coarse_splats: 0,
             band_rows: BAND_ROWS,
             binned: Vec::new(),
             pieces: 0,

@@ -40,23 +40,6 @@ pub struct ReconParams {
     /// kernel). The lower bound 1 never cuts the kernel inside `spatial_cutoff` sigmas:
     /// growth widens splats to cover sparse regions, shrinking returns them.
     pub scale_bounds: (f32, f32),
-    /// Splats whose kernel sigma is at least this many pixels along both axes are
-    /// accumulated on a half-resolution level, which is upsampled bilinearly into the
-    /// full-resolution sums before the resolve (`None`: every splat at full
-    /// resolution, the paper's reconstructor exactly). A coarse splat costs a quarter
-    /// of the pixel updates; its kernel is narrowed so that, with the bilinear
-    /// upsampling, its second moments are those of the full-resolution kernel, and its
-    /// edges are soft over a pixel instead of a box cut (the coverage map still counts
-    /// the box). Values below 1 px count as 1 (below it the narrowed kernel is not
-    /// defined); 2 px is the smallest that keeps the image close (the narrowed kernel
-    /// is then 0.9 coarse px wide).
-    ///
-    /// No preset uses it: it does not make a refresh cheaper. A splat's cost is mostly
-    /// per band it touches (its weights, masks, coverage), not per pixel, and the
-    /// level's upsampling pass costs what the fewer pixel updates save (BART kitchen
-    /// with the camera moving, where 68% of the pixel updates are from splats of 2 px
-    /// sigma and wider: 2–4% slower; `docs/performance.md`).
-    pub coarse_sigma: Option<f32>,
     /// A per-pixel history of still samples blended over the reconstruction, so that
     /// still regions keep converging (`None`: the paper's reconstructor, whose image
     /// stops improving once the ring's horizon is reached).
@@ -79,7 +62,6 @@ impl ReconParams {
             grow: 4.0,
             shrink: 0.7,
             scale_bounds: (1.0, 16.0),
-            coarse_sigma: None,
             history: None,
         }
     }

@@ -310,11 +310,7 @@ impl Block {
 }
 
 /// Place the samples at physical indices `piece` of the ring and append their splats
-/// to the lists of the bands they touch, in ring order: `out[b]` holds band `b`'s
-/// full-resolution splats, `out[bands + b]` its coarse ones (half-resolution rows
-/// `by0/2..` of the band: band heights are even, so a coarse splat's rows
-/// `y0/2..=y1/2` lie in the bands of its full-resolution rows `y0..=y1`). Returns the
-/// number of coarse splats.
+/// to the lists of the bands they touch, in ring order.
 ///
 /// A block of samples goes through each stage before the next: reprojection (vector
 /// code over the ring's field arrays), the pixel lookups (independent loads in flight
@@ -328,11 +324,10 @@ fn bin_piece(
     out: &mut Vec<Vec<Splat>>,
     bands: usize,
     band_rows: usize,
-) -> usize {
-    debug_assert!(band_rows.is_power_of_two() && band_rows >= 2);
+) {
+    debug_assert!(band_rows.is_power_of_two());
     let band_shift = band_rows.trailing_zeros();
-    let mut coarse = 0;
-    out.resize_with(2 * bands, Vec::new);
+    out.resize_with(bands, Vec::new);
     out.iter_mut().for_each(Vec::clear);
     let mut b = Block::new();
     let tc = placer.temporal_cutoff;
@@ -378,20 +373,11 @@ fn bin_piece(
             let f = &placer.tiles[b.tile[i] as usize];
             let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
             let wt = b.wt[i];
-            // A coarse splat carries its position and kernel on the half-resolution
-            // level (pixel k's center at full-resolution 2k + 1) and its full-resolution
-            // footprint, which the coverage counts.
-            let (x, y, ax, ay, list) = if f.coarse {
-                (0.5 * b.x[i], 0.5 * b.y[i], f.cax, f.cay, bands)
-            } else {
-                (b.x[i], b.y[i], f.ax, f.ay, 0)
-            };
-            coarse += f.coarse as usize;
             let s = Splat {
-                x,
-                y,
-                ax,
-                ay,
+                x: b.x[i],
+                y: b.y[i],
+                ax: f.ax,
+                ay: f.ay,
                 c: [b.wc[0][i], b.wc[1][i], b.wc[2][i], wt, wt * b.age[i]],
                 x0: x0 as u16,
                 x1: x1 as u16,
@@ -399,13 +385,12 @@ fn bin_piece(
                 y1: y1 as u16,
             };
             let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);
-            for o in &mut out[list + b0..=list + b1] {
+            for o in &mut out[b0..=b1] {
                 o.push(s);
             }
         }
         p0 += n;
     }
-    coarse
 }
 
 impl Reconstructor {
@@ -477,13 +462,12 @@ impl Reconstructor {
         }
         self.pieces = pieces.len();
         let placer = self.placer(t, camera);
-        self.coarse_splats = pieces
+        pieces
             .par_iter()
             .zip(binned.par_iter_mut())
-            .map(|(piece, out)| {
+            .for_each(|(piece, out)| {
                 bin_piece(&placer, &self.ring, piece.clone(), out, bands, band_rows)
-            })
-            .sum();
+            });
         self.binned = binned;
     }
 }

@@ -58,32 +58,6 @@ fn splat_one(
     cstride: usize,
     cov: &mut [i32],
 ) {
-    accumulate(s, by0, by1, gpr, acc);
-    count(s, by0, by1, cstride, cov);
-}
-
-/// Count a splat's footprint (rows `y0..=y1`, columns `x0..=x1`) in the coverage corner
-/// differences `cov` of the band of rows `by0..by1` (made per-row differences in
-/// `splat_band`).
-#[inline(always)]
-fn count(s: &Splat, by0: usize, by1: usize, cstride: usize, cov: &mut [i32]) {
-    let (x0, x1) = (s.x0 as usize, s.x1 as usize);
-    let y0 = (s.y0 as usize).max(by0);
-    let y1 = (s.y1 as usize + 1).min(by1);
-    let r0 = (y0 - by0) * cstride;
-    cov[r0 + x0] += 1;
-    cov[r0 + x1 + 1] -= 1;
-    if y1 < by1 {
-        let r1 = (y1 - by0) * cstride;
-        cov[r1 + x0] -= 1;
-        cov[r1 + x1 + 1] += 1;
-    }
-}
-
-/// Add a splat to the rows `by0..by1` of a band's accumulators (the arithmetic of
-/// [`splat_one`], on either level).
-#[inline(always)]
-fn accumulate(s: &Splat, by0: usize, by1: usize, gpr: usize, acc: &mut [Cell]) {
     let (x0, x1) = (s.x0 as usize, s.x1 as usize);
     let g0 = x0 / LANES;
     let groups = x1 / LANES - g0 + 1;
@@ -112,19 +86,14 @@ fn accumulate(s: &Splat, by0: usize, by1: usize, gpr: usize, acc: &mut [Cell]) {
         4 => cols.add::<4>(rows, y1 - y0, gpr),
         _ => cols.add_any(groups, rows, y1 - y0, gpr),
     }
-}
-
-/// A coarse splat (as binned: position and kernel on the half-resolution level,
-/// footprint at full resolution) with its footprint on the half-resolution level: the
-/// coarse pixels holding its full-resolution pixels.
-#[inline(always)]
-fn on_coarse_level(s: &Splat) -> Splat {
-    Splat {
-        x0: s.x0 / 2,
-        x1: s.x1 / 2,
-        y0: s.y0 / 2,
-        y1: s.y1 / 2,
-        ..*s
+    // Coverage corners within the band (made per-row differences in `splat_band`).
+    let r0 = (y0 - by0) * cstride;
+    cov[r0 + x0] += 1;
+    cov[r0 + x1 + 1] -= 1;
+    if y1 < by1 {
+        let r1 = (y1 - by0) * cstride;
+        cov[r1 + x0] -= 1;
+        cov[r1 + x1 + 1] += 1;
     }
 }
 
@@ -202,12 +171,12 @@ impl Cols<'_> {
                 // and at the image's edges, by
                 // `reconstruction::tests::fast_path_matches_direct_evaluation`.
                 let cells = unsafe { &mut *rows.as_mut_ptr().add(o).cast::<[Cell; G]>() };
-                // One flat loop over the row's `G × CHANNELS × LANES` sums: nested
-                // loops over lanes were kept in vector code in one of the two places
-                // this is inlined (the levels' loops) and not in the other.
-                let (d, g) = (cells.as_flattened_mut(), gxc.as_flattened());
-                for (d, g) in d.as_flattened_mut().iter_mut().zip(g.as_flattened()) {
-                    *d = g.mul_add(gy, *d);
+                for (cell, gxc) in cells.iter_mut().zip(&gxc) {
+                    for (d, gxc) in cell.iter_mut().zip(gxc) {
+                        for l in 0..LANES {
+                            d[l] = gxc[l].mul_add(gy, d[l]);
+                        }
+                    }
                 }
             }
         }
@@ -235,57 +204,8 @@ impl Cols<'_> {
     }
 }
 
-/// The full-resolution splats of band `b` (rows `by0..by1`), in ring order. Each
-/// level's loop is a function of its own: with both inlined into one, the compiler
-/// no longer kept the splat's products in vector registers.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn splat_fine(
-    binned: &[Vec<Vec<Splat>>],
-    b: usize,
-    by0: usize,
-    by1: usize,
-    gpr: usize,
-    acc: &mut [Cell],
-    cstride: usize,
-    cov: &mut [i32],
-) {
-    for s in binned.iter().flat_map(|c| c[b].iter()) {
-        splat_one(s, by0, by1, gpr, acc, cstride, cov);
-    }
-}
-
-/// The coarse splats of list `list` into the coarse rows `cy0..cy1` of a band of
-/// full-resolution rows `by0..by1`, in ring order.
-#[inline(never)]
-fn splat_coarse(
-    binned: &[Vec<Vec<Splat>>],
-    list: usize,
-    (by0, by1): (usize, usize),
-    (cy0, cy1): (usize, usize),
-    c: CoarseBand,
-    cstride: usize,
-    cov: &mut [i32],
-) {
-    for s in binned.iter().flat_map(|p| p[list].iter()) {
-        accumulate(&on_coarse_level(s), cy0, cy1, c.gpr, c.acc);
-        count(s, by0, by1, cstride, cov);
-    }
-}
-
-/// The half-resolution level of one band: its rows of the coarse accumulators.
-struct CoarseBand<'a> {
-    /// Cells per coarse row.
-    gpr: usize,
-    /// Rows of the whole coarse level.
-    h: usize,
-    acc: &'a mut [Cell],
-}
-
 /// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
-/// ring order: full-resolution splats into `acc`, coarse ones into the band's coarse
-/// rows (when there are any: `coarse.acc` is left as it was otherwise), both into
-/// the coverage.
+/// ring order.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn splat_band(
@@ -297,19 +217,13 @@ fn splat_band(
     acc: &mut [Cell],
     cstride: usize,
     cov: &mut [i32],
-    coarse: Option<CoarseBand>,
 ) {
     acc.fill([[0.0; LANES]; CHANNELS]);
     cov.fill(0);
     let by0 = b * band_rows;
     let by1 = (by0 + band_rows).min(h);
-    let bands = binned.first().map_or(0, |c| c.len() / 2);
-    splat_fine(binned, b, by0, by1, gpr, acc, cstride, cov);
-    if let Some(c) = coarse {
-        c.acc.fill([[0.0; LANES]; CHANNELS]);
-        let cy0 = by0 / 2;
-        let cy1 = (cy0 + band_rows / 2).min(c.h);
-        splat_coarse(binned, bands + b, (by0, by1), (cy0, cy1), c, cstride, cov);
+    for s in binned.iter().flat_map(|c| c[b].iter()) {
+        splat_one(s, by0, by1, gpr, acc, cstride, cov);
     }
     // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
     for r in 1..by1 - by0 {
@@ -321,74 +235,16 @@ fn splat_band(
 }
 
 impl Reconstructor {
-    /// Accumulate every band from the splats binned at this refresh, bands in parallel,
-    /// then add the upsampled coarse level (if any splat went there).
+    /// Accumulate every band from the splats binned at this refresh, bands in parallel.
     pub(super) fn splat(&mut self) {
         let h = self.height as usize;
         let (gpr, cstride) = (self.gpr, self.width as usize + 1);
         let binned = &self.binned[..self.pieces];
         let rows = self.band_rows;
-        let (cgpr, ch) = (self.coarse_gpr, h.div_ceil(2));
-        let any_coarse = self.coarse_splats > 0;
-        // The coarse level has `ch` rows of `cgpr` cells (`cgpr` is 1 without a coarse
-        // level: one unused cell per row), so it splits into as many bands of
-        // `rows / 2` as the image into bands of `rows`.
         self.acc
             .par_chunks_mut(rows * gpr)
             .zip(self.cov.par_chunks_mut(rows * cstride))
-            .zip(self.coarse_acc.par_chunks_mut(rows / 2 * cgpr))
             .enumerate()
-            .for_each(|(b, ((acc, cov), cacc))| {
-                let coarse = any_coarse.then_some(CoarseBand {
-                    gpr: cgpr,
-                    h: ch,
-                    acc: cacc,
-                });
-                splat_band(binned, b, rows, h, gpr, acc, cstride, cov, coarse)
-            });
-        if any_coarse {
-            self.add_coarse();
-        }
-    }
-
-    /// Add the coarse level, upsampled bilinearly, to the full-resolution sums: pixel
-    /// `x` reads the coarse pixels around `x/2 − ¼` (`¾` of the nearer, `¼` of the
-    /// other; the image's edge repeats the edge pixel), in rows likewise. Every pixel
-    /// gets the same terms whatever the thread count.
-    fn add_coarse(&mut self) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let (gpr, cgpr) = (self.gpr, self.coarse_gpr);
-        let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-        let coarse = &self.coarse_acc;
-        // Nearer and farther coarse index of fine index `i` on an axis of `n` coarse
-        // pixels.
-        let taps = |i: usize, n: usize| {
-            let k = i / 2;
-            let far = if i % 2 == 0 {
-                k.saturating_sub(1)
-            } else {
-                (k + 1).min(n - 1)
-            };
-            (k, far)
-        };
-        self.acc
-            .par_chunks_mut(BAND_ROWS * gpr)
-            .enumerate()
-            .for_each(|(b, band)| {
-                for (r, row) in band.chunks_mut(gpr).enumerate() {
-                    let (ya, yb) = taps(b * BAND_ROWS + r, ch);
-                    let (ra, rb) = (&coarse[ya * cgpr..], &coarse[yb * cgpr..]);
-                    for x in 0..w {
-                        let (xa, xb) = taps(x, cw);
-                        let at = |row: &[Cell], c: usize, x: usize| row[x / LANES][c][x % LANES];
-                        let cell = &mut row[x / LANES];
-                        for (c, d) in cell.iter_mut().enumerate() {
-                            let near = 0.75 * at(ra, c, xa) + 0.25 * at(ra, c, xb);
-                            let far = 0.75 * at(rb, c, xa) + 0.25 * at(rb, c, xb);
-                            d[x % LANES] += 0.75 * near + 0.25 * far;
-                        }
-                    }
-                }
-            });
+            .for_each(|(b, (acc, cov))| splat_band(binned, b, rows, h, gpr, acc, cstride, cov));
     }
 }

@@ -107,11 +107,7 @@ const GTS: [f64; 4] = [0.0, 0.3, 3.0, 30.0];
 
 /// Sums `[r, g, b, w, w·age]` and coverage per pixel by direct evaluation of the
 /// Gaussian in f64 for every sample of the ring (no stale-prefix cut, no bands), with
-/// the filters and splat scale the next refresh will use. Samples whose tile filter is
-/// coarse ([`ReconParams::coarse_sigma`]) are evaluated at the half-resolution pixels
-/// holding their footprint with the narrowed kernel, and that level is upsampled
-/// bilinearly (edge pixels repeated) into the sums; coverage counts their
-/// full-resolution footprint.
+/// the filters and splat scale the next refresh will use.
 fn direct(
     r: &mut Reconstructor,
     t: f64,
@@ -120,65 +116,23 @@ fn direct(
 ) -> Vec<([f64; 5], u32)> {
     r.update_filters(tiling);
     let placer = r.placer(t, c);
-    let (w, h) = (r.width as usize, r.height as usize);
-    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
-    let mut out = vec![([0f64; 5], 0u32); w * h];
-    let mut coarse = vec![[0f64; 5]; cw * ch];
+    let w = r.width as usize;
+    let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
     for s in r.ring.iter() {
         let Some(q) = placer.place(&s) else { continue };
         let [ex, ey, _] = q.filter.e.map(|e| e as f64);
-        let a = q.a as f64;
-        let col = s.color.as_dvec3();
-        let v = [col.x, col.y, col.z, 1.0, q.age as f64];
         for y in q.y0..=q.y1 {
             for x in q.x0..=q.x1 {
-                let o = &mut out[y as usize * w + x as usize];
-                o.1 += 1;
-                if q.filter.coarse {
-                    continue;
-                }
                 let dx = (x as f64 + 0.5 - q.x as f64) / ex;
                 let dy = (y as f64 + 0.5 - q.y as f64) / ey;
+                let a = q.a as f64;
                 let wgt = (-0.5 * (dx * dx + dy * dy + a * a)).exp();
-                for (o, v) in o.0.iter_mut().zip(v) {
-                    *o += wgt * v;
+                let o = &mut out[y as usize * w + x as usize];
+                let col = s.color.as_dvec3();
+                for (k, v) in [col.x, col.y, col.z, 1.0, q.age as f64].iter().enumerate() {
+                    o.0[k] += wgt * v;
                 }
-            }
-        }
-        if q.filter.coarse {
-            // Variance e² − 0.75 fine px², i.e. (e² − 0.75)/4 coarse px².
-            let (vx, vy) = ((ex * ex - 0.75) / 4.0, (ey * ey - 0.75) / 4.0);
-            for y in q.y0 / 2..=q.y1 / 2 {
-                for x in q.x0 / 2..=q.x1 / 2 {
-                    let dx = x as f64 + 0.5 - q.x as f64 / 2.0;
-                    let dy = y as f64 + 0.5 - q.y as f64 / 2.0;
-                    let wgt = (-0.5 * (dx * dx / vx + dy * dy / vy + a * a)).exp();
-                    for k in 0..5 {
-                        coarse[y as usize * cw + x as usize][k] += wgt * v[k];
-                    }
-                }
-            }
-        }
-    }
-    // Fine pixel i's coarse neighbours: i/2 with weight ¾, and the one on i's side
-    // (clamped to the level) with ¼.
-    let taps = |i: usize, n: usize| {
-        let far = if i % 2 == 0 {
-            (i / 2).saturating_sub(1)
-        } else {
-            (i / 2 + 1).min(n - 1)
-        };
-        [(i / 2, 0.75), (far, 0.25)]
-    };
-    for y in 0..h {
-        for x in 0..w {
-            for (cy, wy) in taps(y, ch) {
-                for (cx, wx) in taps(x, cw) {
-                    let src = coarse[cy * cw + cx];
-                    for (o, v) in out[y * w + x].0.iter_mut().zip(src) {
-                        *o += wy * wx * v;
-                    }
-                }
+                o.1 += 1;
             }
         }
     }
@@ -216,15 +170,6 @@ fn fast_path_matches_direct_evaluation() {
         ReconParams::paper(),
         ReconParams::no_reprojection(),
         ReconParams::fixed_filter(),
-        // Most tiles' splats on the half-resolution level.
-        ReconParams {
-            coarse_sigma: Some(1.0),
-            ..ReconParams::paper()
-        },
-        ReconParams {
-            coarse_sigma: Some(2.0),
-            ..ReconParams::converging()
-        },
     ] {
         for (w, h) in [(40, 30), (67, 41)] {
             let (mut r, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
@@ -340,7 +285,7 @@ fn stale_cut_follows_the_ring_as_it_wraps() {
             ..ReconParams::paper()
         },
     );
-    r.tiles = vec![TileFilter::new([1.0, 1.0, 0.1], 2.5, None)];
+    r.tiles = vec![TileFilter::new([1.0, 1.0, 0.1], 2.5)];
     for i in 0..5000u32 {
         let t = if i % 97 == 0 {
             i as f64 * 1e-3 - 0.2
@@ -398,107 +343,4 @@ fn ring_keeps_the_newest() {
     }
     assert_eq!(r.ring().len(), 4);
     assert_eq!(r.ring().front().unwrap().t, 6.0);
-}
-
-/// A fixture whose splats all go to the half-resolution level: `n` random samples over
-/// the last 0.2 s, a fixed filter of `sigma` px (and 0.1 s).
-fn coarse_setup(
-    n: usize,
-    sigma: f64,
-    coarse_sigma: Option<f32>,
-) -> (Reconstructor, CameraFrame, TilingSnapshot) {
-    let params = ReconParams {
-        fixed_filter: Some(Extents {
-            ex: sigma,
-            ey: sigma,
-            et: 0.1,
-        }),
-        coarse_sigma,
-        ..ReconParams::paper()
-    };
-    random_setup(53, 38, n, 0.2, false, params, GTS)
-}
-
-#[test]
-fn coarse_splats_match_direct_evaluation() {
-    for n in [300, 2000] {
-        let (mut r, c, tiling) = coarse_setup(n, 2.5, Some(2.0));
-        r.update_filters(&tiling);
-        r.prepare_splats(1.0, &c);
-        assert!(r.coarse_splats > 0, "{n} samples: no coarse splat");
-        check_against_direct(&mut r, &c, &tiling);
-    }
-}
-
-/// The approximation the half-resolution level makes: the same samples with every
-/// splat at full resolution and with every splat coarse, random colours in [0, 1]
-/// per sample (the worst case: neighbouring samples disagree completely). Measured
-/// per pixel and channel (max, RMS): 2000 samples at 53×38, sigma 2: 0.037, 0.0036;
-/// sigma 4: 0.0066, 0.0007; 10000 samples, sigma 2: 0.015, 0.0016; 300 samples,
-/// sigma 3: 0.032, 0.0039. With very few samples (40: most pixels lit by one splat's
-/// edge or filled as holes) the soft coarse footprint edge changes which pixels are
-/// holes: max 0.58, RMS 0.034 at sigma 2, not tested. The bounds below are those with
-/// a margin of about 1.5.
-#[test]
-fn coarse_level_approximates_full_resolution() {
-    let mut failed = false;
-    for (n, sigma, max_tol, rms_tol) in [
-        (2000, 2.0, 0.055, 0.0055),
-        (2000, 4.0, 0.01, 0.0011),
-        (300, 3.0, 0.05, 0.006),
-        (10000, 2.0, 0.025, 0.0025),
-    ] {
-        let image = |coarse| {
-            let (mut r, c, tiling) = coarse_setup(n, sigma, coarse);
-            for _ in 0..3 {
-                r.reconstruct(1.0, &c, &tiling);
-            }
-            (r.image().clone(), r.coverage().to_vec())
-        };
-        let (full, cov_full) = image(None);
-        let (coarse, cov_coarse) = image(Some(2.0));
-        assert_eq!(cov_full, cov_coarse, "coverage counts the same footprints");
-        let (mut max, mut sq) = (0f32, 0f64);
-        for (a, b) in full.pixels.iter().zip(&coarse.pixels) {
-            let d = (*a - *b).abs();
-            max = max.max(d.max_element());
-            sq += d.length_squared() as f64 / 3.0;
-        }
-        let rms = (sq / full.pixels.len() as f64).sqrt();
-        println!("{n} samples, sigma {sigma}: max {max:.5}, rms {rms:.5}");
-        failed |= !(max <= max_tol && rms <= rms_tol);
-    }
-    assert!(!failed);
-}
-
-#[test]
-fn coarse_level_is_identical_for_any_thread_count() {
-    let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| {
-                let (mut r, c, tiling) = random_setup(
-                    67,
-                    41,
-                    3000,
-                    1.0,
-                    false,
-                    ReconParams {
-                        coarse_sigma: Some(1.0),
-                        ..ReconParams::converging()
-                    },
-                    GTS,
-                );
-                let mut out = Vec::new();
-                for _ in 0..3 {
-                    r.reconstruct(1.0, &c, &tiling);
-                    assert!(r.coarse_splats > 0);
-                    out.push((r.image().pixels.clone(), r.coverage().to_vec()));
-                }
-                out
-            })
-    };
-    assert_eq!(run(1), run(3));
 }
