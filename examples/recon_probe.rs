@@ -2,7 +2,7 @@
 //! footprints and temporal weights on the synthetic bench fixture or after a real
 //! sampler run, and timings of repeated refreshes.
 //!
-//! `cargo run --release --example recon_probe -- fixture|SCENE [refreshes]`
+//! `cargo run --release --example recon_probe -- fixture[SIZE]|SCENE [refreshes]`
 
 use std::{sync::Arc, time::Instant};
 
@@ -14,6 +14,11 @@ use frameless::{
     trace::{TraceOptions, Tracer},
 };
 
+/// Classes of the kernel's smaller sigma, pixels.
+const SIG_EDGES: [f32; 4] = [1.0, 2.0, 3.0, 4.0];
+/// Sigmas beyond which a footprint's pixels are counted.
+const BEYOND: [f32; 4] = [3.0, 4.0, 6.0, 13.2];
+
 fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     let (w, h) = (r.image().width as usize, r.image().height as usize);
     let p = *r.params();
@@ -23,6 +28,9 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
     let mut hist_w = [0usize; 8];
     let mut old = 0usize;
     let (mut rowgroups, mut bandsplats) = (0f64, 0f64);
+    let mut by_sigma = [(0f64, 0f64, 0f64); SIG_EDGES.len() + 1];
+    let mut beyond = [0f64; BEYOND.len()];
+    let mut by_max = [0f64; SIG_EDGES.len() + 1];
     let mut max_et = 0f32;
     for e in f {
         max_et = max_et.max(e[2]);
@@ -64,6 +72,48 @@ fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
         wide += nw;
         tall += nh;
         hist_w[((nw as usize - 1) / 8).min(7)] += 1;
+        // Pixel updates and cell-row updates by the kernel's smaller sigma, and the
+        // part of the footprint beyond k sigmas along either axis.
+        let sig = ex.min(ey);
+        let class = SIG_EDGES.iter().filter(|&&e| sig >= e).count();
+        let cells = nh * (x1 / 8 - x0 / 8 + 1) as f64;
+        by_sigma[class].0 += 1.0;
+        by_sigma[class].1 += nw * nh;
+        by_sigma[class].2 += cells;
+        let cmax = SIG_EDGES.iter().filter(|&&e| ex.max(ey) >= e).count();
+        by_max[cmax] += nw * nh;
+        for (k, &m) in BEYOND.iter().enumerate() {
+            let within = |c: f32, e: f32, lo: i32, hi: i32| {
+                let a = ((c - 0.5 - m * e).ceil() as i32).max(lo);
+                let b = ((c - 0.5 + m * e).floor() as i32).min(hi);
+                (b - a + 1).max(0) as f64
+            };
+            let inner = within(x, ex, x0, x1) * within(y, ey, y0, y1);
+            beyond[k] += nw * nh - inner;
+        }
+    }
+    let tot: f64 = by_sigma.iter().map(|b| b.1).sum();
+    let totc: f64 = by_sigma.iter().map(|b| b.2).sum();
+    for (k, b) in by_sigma.iter().enumerate() {
+        let lo = if k == 0 { 0.0 } else { SIG_EDGES[k - 1] };
+        println!(
+            "min sigma >= {lo:.1}: {:.0} splats, {:.0} px updates ({:.1}%), {:.0} cell-rows ({:.1}%)",
+            b.0,
+            b.1,
+            100.0 * b.1 / tot,
+            b.2,
+            100.0 * b.2 / totc
+        );
+    }
+    println!(
+        "px updates by larger sigma class (edges {SIG_EDGES:?}): {:?} %",
+        by_max.map(|v| (1000.0 * v / tot).round() / 10.0)
+    );
+    for (k, &m) in BEYOND.iter().enumerate() {
+        println!(
+            "px updates beyond {m} sigma on an axis: {:.1}%",
+            100.0 * beyond[k] / tot
+        );
     }
     let n = r.ring().len();
     let mut ets: Vec<f32> = f.iter().map(|e| e[2]).collect();
@@ -105,8 +155,8 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let what = args.get(1).map(String::as_str).unwrap_or("fixture");
     let reps: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(5);
-    if what == "fixture" || what == "fixture512" {
-        let s = if what == "fixture" { 256 } else { 512 };
+    if let Some(size) = what.strip_prefix("fixture") {
+        let s: usize = size.parse().unwrap_or(256);
         let n = if s == 256 { 400_000 } else { 6 * s * s };
         let (mut r, cam, tiling) = reconstruct_fixture(s as u32, s as u32, n, 1);
         let mut areas: Vec<u32> = tiling.tiles.iter().map(|t| t.rect.area()).collect();
