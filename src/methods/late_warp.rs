@@ -51,8 +51,11 @@ pub struct Warp {
     filled: Vec<bool>,
     /// Each grid sample's screen motion (kept across warps: no allocation per refresh).
     moves: Vec<Option<(f32, f32, f32)>>,
-    /// Unfilled display pixels (kept across warps).
+    /// The holes of the current and the next pass of the hole filling, and which
+    /// holes are in one (kept across warps).
     hole_list: Vec<usize>,
+    next_holes: Vec<usize>,
+    queued: Vec<bool>,
     /// Display pixels that no warped pixel reached in the last warp (filled from
     /// neighbours).
     pub holes: u64,
@@ -85,6 +88,8 @@ impl Warp {
             filled: vec![false; n],
             moves: Vec::new(),
             hole_list: Vec::new(),
+            next_holes: Vec::new(),
+            queued: vec![false; n],
             holes: 0,
         }
     }
@@ -140,42 +145,69 @@ impl Warp {
 
     /// Each hole takes the mean of its valid 8-neighbours, pass after pass, so holes
     /// close from their border inward with the nearest valid colours. Sets `holes`.
+    ///
+    /// Each pass visits only its frontier (the holes next to a pixel valid at the start
+    /// of the pass: those next to the previous pass's fills), so the work is linear in
+    /// the holes: a camera turn that uncovers a band 80 pixels wide took 80 passes over
+    /// every hole (90 ms on a 256² kitchen). Every hole gets the same value as from
+    /// passes over all holes: its neighbours are read as they were when its pass began,
+    /// in the same order.
     fn fill_holes(&mut self) {
         let (w, h) = (self.out.width as i64, self.out.height as i64);
-        let mut holes = std::mem::take(&mut self.hole_list);
-        holes.clear();
-        holes.extend((0..self.filled.len()).filter(|&q| !self.filled[q]));
-        self.holes = holes.len() as u64;
+        let neighbours = move |q: usize| {
+            let (x, y) = (q as i64 % w, q as i64 / w);
+            ((y - 1).max(0)..=(y + 1).min(h - 1)).flat_map(move |ny| {
+                ((x - 1).max(0)..=(x + 1).min(w - 1)).map(move |nx| (ny * w + nx) as usize)
+            })
+        };
+        let mut frontier = std::mem::take(&mut self.hole_list);
+        let mut next = std::mem::take(&mut self.next_holes);
+        frontier.clear();
+        self.queued.clear();
+        self.queued.resize(self.filled.len(), false);
+        let mut holes = 0;
+        for q in 0..self.filled.len() {
+            if !self.filled[q] {
+                holes += 1;
+                if neighbours(q).any(|p| self.filled[p]) {
+                    self.queued[q] = true;
+                    frontier.push(q);
+                }
+            }
+        }
+        self.holes = holes;
         let mut fills: Vec<(usize, Vec3)> = Vec::new();
-        while !holes.is_empty() {
+        // Holes with no valid pixel anywhere around never join a frontier and keep
+        // what the buffer holds.
+        while !frontier.is_empty() {
             fills.clear();
-            holes.retain(|&q| {
-                let (x, y) = (q as i64 % w, q as i64 / w);
+            for &q in &frontier {
                 let (mut sum, mut n) = (Vec3::ZERO, 0u32);
-                for ny in (y - 1).max(0)..=(y + 1).min(h - 1) {
-                    for nx in (x - 1).max(0)..=(x + 1).min(w - 1) {
-                        let p = (ny * w + nx) as usize;
-                        if self.filled[p] {
-                            sum += self.out.pixels[p];
-                            n += 1;
-                        }
+                for p in neighbours(q) {
+                    if self.filled[p] {
+                        sum += self.out.pixels[p];
+                        n += 1;
                     }
                 }
-                if n > 0 {
-                    fills.push((q, sum / n as f32));
-                }
-                n == 0
-            });
-            if fills.is_empty() {
-                // Nothing valid anywhere: keep what the buffer holds.
-                break;
+                fills.push((q, sum / n as f32));
             }
             for &(q, c) in &fills {
                 self.out.pixels[q] = c;
                 self.filled[q] = true;
             }
+            next.clear();
+            for &(q, _) in &fills {
+                for p in neighbours(q) {
+                    if !self.filled[p] && !self.queued[p] {
+                        self.queued[p] = true;
+                        next.push(p);
+                    }
+                }
+            }
+            std::mem::swap(&mut frontier, &mut next);
         }
-        self.hole_list = holes;
+        self.hole_list = frontier;
+        self.next_holes = next;
     }
 }
 
@@ -335,5 +367,62 @@ mod tests {
         assert!(out.get(12, 8).x > 0.99, "near left half covers the right");
         assert!(warp.holes > 0);
         assert!(out.pixels.iter().all(|p| (p.x + p.y - 1.0).abs() < 1e-5));
+    }
+
+    #[test]
+    fn frontier_filling_matches_passes_over_every_hole() {
+        // The passes the frontier replaced: every remaining hole examined in each.
+        fn reference(pixels: &mut [Vec3], filled: &mut [bool], w: i64, h: i64) {
+            let mut holes: Vec<usize> = (0..filled.len()).filter(|&q| !filled[q]).collect();
+            loop {
+                let mut fills = Vec::new();
+                holes.retain(|&q| {
+                    let (x, y) = (q as i64 % w, q as i64 / w);
+                    let (mut sum, mut n) = (Vec3::ZERO, 0u32);
+                    for ny in (y - 1).max(0)..=(y + 1).min(h - 1) {
+                        for nx in (x - 1).max(0)..=(x + 1).min(w - 1) {
+                            let p = (ny * w + nx) as usize;
+                            if filled[p] {
+                                sum += pixels[p];
+                                n += 1;
+                            }
+                        }
+                    }
+                    if n > 0 {
+                        fills.push((q, sum / n as f32));
+                    }
+                    n == 0
+                });
+                if fills.is_empty() {
+                    break;
+                }
+                for (q, c) in fills {
+                    pixels[q] = c;
+                    filled[q] = true;
+                }
+            }
+        }
+        let (w, h) = (37u32, 23u32);
+        let mut rng = crate::sampling::Rng::new(&[7]);
+        for case in 0..20 {
+            let mut warp = Warp::new(w, h);
+            for q in 0..(w * h) as usize {
+                warp.out.pixels[q] = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                // Scattered holes, a wide band (a turned camera) and, in one case,
+                // nothing valid at all.
+                let x = q as u32 % w;
+                warp.filled[q] = case != 0 && rng.uniform() < 0.6 && !(x >= 5 && x < 5 + case);
+            }
+            let (mut pixels, mut filled) = (warp.out.pixels.clone(), warp.filled.clone());
+            reference(&mut pixels, &mut filled, w as i64, h as i64);
+            let before = warp.filled.iter().filter(|f| !**f).count() as u64;
+            warp.fill_holes();
+            assert_eq!(warp.holes, before, "case {case}");
+            assert_eq!(warp.filled, filled, "case {case}");
+            assert!(
+                warp.out.pixels.iter().zip(&pixels).all(|(a, b)| a.to_array() == b.to_array()),
+                "case {case}"
+            );
+        }
     }
 }
