@@ -257,7 +257,7 @@ fn headless_runs_report_latency_and_show_a_camera_step_within_a_second() {
         let json: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap())
                 .unwrap();
-        for key in ["age_p50_s", "age_p95_s", "age_p99_s"] {
+        for key in ["age_p50_s", "age_p95_s", "age_p99_s", "dropped_frames"] {
             assert!(json["pipeline"][key].is_number(), "{name}: {key} missing");
         }
         assert!(json["camera_step"]["half_new_ms"].is_number(), "{name}");

@@ -180,6 +180,9 @@ struct Builder {
 impl ImageBuilder for Builder {
     fn build(&mut self, t: f64) -> Option<Built> {
         let (w, h) = self.size;
+        // Frames completed in this build before a newer one, and unfinished ones left
+        // behind: traced, never shown.
+        let (mut dropped, mut replaced) = (0u64, false);
         for row in self.rx.try_iter() {
             let building = &mut self.building;
             let warp = self.warp.is_some();
@@ -205,6 +208,8 @@ impl ImageBuilder for Builder {
             if f.5 == h {
                 let (id, ft, camera, img, hits, _) = building.swap_remove(i);
                 if id >= self.front_time.0 || self.front_time.1.is_nan() {
+                    dropped += replaced as u64;
+                    replaced = true;
                     self.front = img;
                     self.front_time = (id, ft);
                     if warp {
@@ -215,10 +220,17 @@ impl ImageBuilder for Builder {
                             camera,
                         });
                     }
+                } else {
+                    dropped += 1;
                 }
                 // Older unfinished frames can never be shown any more.
+                let before = building.len();
                 building.retain(|f| f.0 > id);
+                dropped += (before - building.len()) as u64;
             }
+        }
+        if dropped > 0 {
+            lock(&self.s.image_stats).dropped_frames += dropped;
         }
         let n = self.front.pixels.len();
         let age = (t - self.front_time.1) as f32;

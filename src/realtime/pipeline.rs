@@ -77,6 +77,9 @@ pub struct PipelineStats {
     pub recon_rate: f64,
     /// Adaptive: ring capacity.
     pub ring_capacity: usize,
+    /// Framed methods and taa: frames (whole or in part) traced but never shown,
+    /// because a newer frame was complete first; their samples count in `samples`.
+    pub dropped_frames: u64,
 }
 
 /// A running pipeline. Dropping it stops and joins its threads.
@@ -182,6 +185,7 @@ impl Pipeline {
             },
             recon_rate: img.recon_rate,
             ring_capacity: img.ring_capacity,
+            dropped_frames: img.dropped_frames,
         }
     }
 

@@ -187,6 +187,8 @@ pub(crate) struct ImageThreadStats {
     pub recon_rate: f64,
     pub ring_capacity: usize,
     pub rebuilds: u64,
+    /// Frames whose samples were traced but never shown (framed methods and taa).
+    pub dropped_frames: u64,
 }
 
 /// An image a method built for the display.

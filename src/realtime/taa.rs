@@ -259,6 +259,7 @@ impl ImageBuilder for Builder {
         // Collected first: folding borrows the whole builder.
         let rows: Vec<Row> = self.rx.try_iter().collect();
         let mut complete: Option<Building> = None;
+        let mut dropped = 0u64;
         for row in rows {
             let (gw, gh) = row.job.grid;
             let i = match self.building.iter().position(|f| f.0.id == row.job.id) {
@@ -276,9 +277,14 @@ impl ImageBuilder for Builder {
             if f.2 == gh {
                 let done = self.building.swap_remove(i);
                 // Older unfinished frames can never be folded any more.
+                let before = self.building.len();
                 self.building.retain(|f| f.0.id > done.0.id);
+                dropped += (before - self.building.len()) as u64;
                 if complete.as_ref().is_none_or(|c| c.0.id < done.0.id) {
+                    dropped += complete.is_some() as u64;
                     complete = Some(done);
+                } else {
+                    dropped += 1;
                 }
             }
         }
@@ -288,7 +294,12 @@ impl ImageBuilder for Builder {
         if let Some((job, samples, _)) = complete {
             if self.folded.is_none_or(|(id, _)| id < job.id) {
                 self.fold(&job, &samples);
+            } else {
+                dropped += 1;
             }
+        }
+        if dropped > 0 {
+            lock(&self.s.image_stats).dropped_frames += dropped;
         }
         let (_, newest) = self.folded?;
         let times = self.history.output_times();
