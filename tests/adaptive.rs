@@ -433,3 +433,38 @@ fn camera_motion_over_a_still_scene_is_not_measured_as_change() {
         "temporal gradient {ours} with surfaces followed, {paper_way} without"
     );
 }
+
+#[test]
+fn converged_pixels_draw_fewer_samples() {
+    // A still checkerboard whose left half has converged (a long still-region history)
+    // and whose right half has none: with `discount_converged` the right half draws
+    // far more of the samples than without the counts (about two thirds then: the
+    // square in front of the board is right of the centre).
+    let size = 48u32;
+    let right_share = |counts: Option<&[f32]>| {
+        let c = ctx(motion_scene(0.0), size, 200_000.0);
+        let mut s = Sampler::new(c.tracer.clone(), c.clock, SamplerParams::ours(), 1).unwrap();
+        if let Some(k) = counts {
+            s.set_history_counts(k);
+        }
+        let d = density(&mut s, size, 0.5, 1.5);
+        let (mut left, mut right) = (0u64, 0u64);
+        for (i, &n) in d.iter().enumerate() {
+            if (i as u32 % size) < size / 2 {
+                left += n as u64;
+            } else {
+                right += n as u64;
+            }
+        }
+        right as f64 / (left + right) as f64
+    };
+    let counts: Vec<f32> = (0..size * size)
+        .map(|i| if i % size < size / 2 { 1000.0 } else { 0.0 })
+        .collect();
+    let even = right_share(None);
+    let discounted = right_share(Some(&counts));
+    assert!(
+        discounted > even + 0.15,
+        "right half's share of samples: {even} without counts, {discounted} with"
+    );
+}

@@ -172,6 +172,11 @@ impl Method for Adaptive {
         self.recon.set_view_since(self.sampler.camera_since());
         self.recon
             .reconstruct(t, &camera, &self.sampler.tiling().snapshot());
+        if self.sampler.params().discount_converged {
+            if let Some(counts) = self.recon.history_counts() {
+                self.sampler.set_history_counts(counts);
+            }
+        }
         Displayed {
             image: self.recon.image(),
             mean_age: self.recon.mean_age(),

@@ -92,6 +92,9 @@ pub struct Sampler {
     total_s: f64,
     error_sums: (f64, f64, f64),
     error_sums_tiles: usize,
+    /// Summed-area table of each pixel's `1 / (1 + n)`, `n` its samples in the
+    /// reconstructor's still-region history (`(width + 1) × (height + 1)`; empty: none).
+    unconverged: Vec<f64>,
 }
 
 /// Tiles examined per tiling adjustment.
@@ -257,6 +260,7 @@ impl Sampler {
             total_s: 0.0,
             error_sums: (0.0, 0.0, 0.0),
             error_sums_tiles: 1,
+            unconverged: Vec::new(),
         };
         if params.uniform_tiling || !params.gain_control {
             // Start from a balanced grid of the fixed size (uniform tiling keeps it).
@@ -657,12 +661,40 @@ impl Sampler {
         self.t_ref = now;
     }
 
+    /// Tell the sampler how many samples each pixel's still-region history holds, so
+    /// that a tile's variance counts as what its pixels' means still lack
+    /// ([`SamplerParams::discount_converged`]; a count map of the wrong size is
+    /// ignored). Until it is first called every pixel counts as unconverged.
+    pub fn set_history_counts(&mut self, counts: &[f32]) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        if counts.len() != w * h {
+            return;
+        }
+        let stride = w + 1;
+        self.unconverged.clear();
+        self.unconverged.resize(stride * (h + 1), 0.0);
+        for y in 0..h {
+            let mut row = 0.0;
+            for x in 0..w {
+                row += 1.0 / (1.0 + counts[y * w + x] as f64);
+                self.unconverged[(y + 1) * stride + x + 1] = self.unconverged[y * stride + x + 1] + row;
+            }
+        }
+    }
+
     /// The raw terms `(v, u, o)` of one tile's error.
     fn error_terms(&self, leaf: u32, mean_empty: f64, w_now: f64) -> (f64, f64, f64) {
         let b = self.params.depth as f64;
         let n = self.tiling.node(leaf);
         let s = n.rect.area() as f64;
-        let v = n.stats.variance();
+        let mut v = n.stats.variance();
+        if !self.unconverged.is_empty() {
+            let r = n.rect;
+            let stride = self.width as usize + 1;
+            let at = |x: u32, y: u32| self.unconverged[y as usize * stride + x as usize];
+            let sum = at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0);
+            v *= (sum / s).max(0.0);
+        }
         // Undersampling compares empty *fractions* of the tile's and the image's slots.
         // The paper compares counts (empty slots in the tile against the mean per tile);
         // with counts every large tile looks undersampled, so large uniform tiles are
