@@ -56,6 +56,8 @@ pub struct Warp {
     hole_list: Vec<usize>,
     next_holes: Vec<usize>,
     queued: Vec<bool>,
+    /// A pass's fills, applied together at its end (kept across warps).
+    fills: Vec<(usize, Vec3)>,
     /// Display pixels that no warped pixel reached in the last warp (filled from
     /// neighbours).
     pub holes: u64,
@@ -90,6 +92,7 @@ impl Warp {
             hole_list: Vec::new(),
             next_holes: Vec::new(),
             queued: vec![false; n],
+            fills: Vec::new(),
             holes: 0,
         }
     }
@@ -176,7 +179,7 @@ impl Warp {
             }
         }
         self.holes = holes;
-        let mut fills: Vec<(usize, Vec3)> = Vec::new();
+        let mut fills = std::mem::take(&mut self.fills);
         // Holes with no valid pixel anywhere around never join a frontier and keep
         // what the buffer holds.
         while !frontier.is_empty() {
@@ -208,6 +211,7 @@ impl Warp {
         }
         self.hole_list = frontier;
         self.next_holes = next;
+        self.fills = fills;
     }
 }
 

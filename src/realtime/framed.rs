@@ -23,7 +23,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{lock, Built, ImageBuilder, MethodInfo, Shared, Spawner},
+    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Shared, Spawner},
 };
 use crate::{
     image::Image,
@@ -86,8 +86,8 @@ struct Row {
     hits: Vec<GSample>,
 }
 
-/// A frame being assembled: id, scene time, camera, image, hits, rows received.
-type Building = (u64, f64, CameraFrame, Image, Vec<GSample>, u32);
+/// A frame being assembled: scene time, camera, image, hits.
+type Building = (f64, CameraFrame, Image, Vec<GSample>);
 
 fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
@@ -106,7 +106,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
         s: s.clone(),
         size: (w, h),
         rx,
-        building: Vec::new(),
+        building: Assembly::default(),
         front: Image::new(w, h),
         front_time: (0, f64::NAN),
         front_g: None,
@@ -168,7 +168,7 @@ struct Builder {
     size: (u32, u32),
     rx: Receiver<Row>,
     /// Frames being assembled.
-    building: Vec<Building>,
+    building: Assembly<Building>,
     front: Image,
     /// Id and scene time of the frame shown (NaN: none yet).
     front_time: (u64, f64),
@@ -180,55 +180,47 @@ struct Builder {
 impl ImageBuilder for Builder {
     fn build(&mut self, t: f64) -> Option<Built> {
         let (w, h) = self.size;
-        // Frames completed in this build before a newer one, and unfinished ones left
-        // behind: traced, never shown.
+        // Frames completed in this build before a newer one: traced, never shown.
         let (mut dropped, mut replaced) = (0u64, false);
+        let warp = self.warp.is_some();
         for row in self.rx.try_iter() {
-            let building = &mut self.building;
-            let warp = self.warp.is_some();
-            let i = match building.iter().position(|f| f.0 == row.frame) {
-                Some(i) => i,
-                None => {
-                    let hits = if warp {
-                        vec![GSample::default(); (w * h) as usize]
-                    } else {
-                        Vec::new()
-                    };
-                    building.push((row.frame, row.time, row.camera, Image::new(w, h), hits, 0));
-                    building.len() - 1
+            let new = || {
+                let hits = if warp {
+                    vec![GSample::default(); (w * h) as usize]
+                } else {
+                    Vec::new()
+                };
+                (row.time, row.camera, Image::new(w, h), hits)
+            };
+            let put = |f: &mut Building| {
+                let y = row.y as usize * w as usize;
+                f.2.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
+                if warp {
+                    f.3[y..y + w as usize].copy_from_slice(&row.hits);
                 }
             };
-            let f = &mut building[i];
-            let y = row.y as usize * w as usize;
-            f.3.pixels[y..y + w as usize].copy_from_slice(&row.pixels);
-            if warp {
-                f.4[y..y + w as usize].copy_from_slice(&row.hits);
-            }
-            f.5 += 1;
-            if f.5 == h {
-                let (id, ft, camera, img, hits, _) = building.swap_remove(i);
-                if id >= self.front_time.0 || self.front_time.1.is_nan() {
-                    dropped += replaced as u64;
-                    replaced = true;
-                    self.front = img;
-                    self.front_time = (id, ft);
-                    if warp {
-                        self.front_g = Some(GBuffer {
-                            grid: (w, h),
-                            samples: hits,
-                            time: ft,
-                            camera,
-                        });
-                    }
-                } else {
-                    dropped += 1;
+            let Some((ft, camera, img, hits)) = self.building.add(row.frame, h, new, put) else {
+                continue;
+            };
+            let id = row.frame;
+            if id >= self.front_time.0 || self.front_time.1.is_nan() {
+                dropped += replaced as u64;
+                replaced = true;
+                self.front = img;
+                self.front_time = (id, ft);
+                if warp {
+                    self.front_g = Some(GBuffer {
+                        grid: (w, h),
+                        samples: hits,
+                        time: ft,
+                        camera,
+                    });
                 }
-                // Older unfinished frames can never be shown any more.
-                let before = building.len();
-                building.retain(|f| f.0 > id);
-                dropped += (before - building.len()) as u64;
+            } else {
+                dropped += 1;
             }
         }
+        dropped += self.building.take_abandoned();
         if dropped > 0 {
             lock(&self.s.image_stats).dropped_frames += dropped;
         }

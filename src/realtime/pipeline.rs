@@ -253,11 +253,8 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         // The build drains what the threads traced until it runs, so an image can show
         // a view from after `t` (a small frame started and finished meanwhile): its
         // time is then that view's, never earlier than what it shows.
-        let time = if built.view_time > t {
-            built.view_time
-        } else {
-            t
-        };
+        // (`f64::max` keeps `t` where the view time is NaN: no single view.)
+        let time = t.max(built.view_time);
         *lock(&s.latest) = Some(Arc::new(Frame {
             seq,
             image: built.image,

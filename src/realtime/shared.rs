@@ -279,3 +279,60 @@ impl<'a> Spawner<'a> {
         Ok(())
     }
 }
+
+/// Frames assembled on the image thread from rows that several sampling threads traced:
+/// a frame is complete once all its rows arrived, and then every older unfinished
+/// frame is given up (it could never be shown) and counted in `abandoned`. Used by the
+/// framed methods and taa, whose frames differ only in what a row carries.
+pub(crate) struct Assembly<F> {
+    /// Frames being assembled: id, buffer, rows received.
+    building: Vec<(u64, F, u32)>,
+    /// Unfinished frames given up since the last [`Assembly::take_abandoned`].
+    abandoned: u64,
+}
+
+impl<F> Default for Assembly<F> {
+    fn default() -> Self {
+        Self {
+            building: Vec::new(),
+            abandoned: 0,
+        }
+    }
+}
+
+impl<F> Assembly<F> {
+    /// One row of frame `id`, which has `rows` rows: `new` makes the frame's buffer
+    /// when its first row arrives, `put` writes the row into it. Returns the frame when
+    /// this row completes it.
+    pub fn add(
+        &mut self,
+        id: u64,
+        rows: u32,
+        new: impl FnOnce() -> F,
+        put: impl FnOnce(&mut F),
+    ) -> Option<F> {
+        let i = match self.building.iter().position(|f| f.0 == id) {
+            Some(i) => i,
+            None => {
+                self.building.push((id, new(), 0));
+                self.building.len() - 1
+            }
+        };
+        let f = &mut self.building[i];
+        put(&mut f.1);
+        f.2 += 1;
+        if f.2 < rows {
+            return None;
+        }
+        let (_, done, _) = self.building.swap_remove(i);
+        let before = self.building.len();
+        self.building.retain(|f| f.0 > id);
+        self.abandoned += (before - self.building.len()) as u64;
+        Some(done)
+    }
+
+    /// Unfinished frames given up since the last call.
+    pub fn take_abandoned(&mut self) -> u64 {
+        std::mem::take(&mut self.abandoned)
+    }
+}

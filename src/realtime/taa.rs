@@ -22,7 +22,7 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 
 use super::{
     config::RealtimeError,
-    shared::{lock, sampled_ages, Built, ImageBuilder, MethodInfo, Shared, Spawner},
+    shared::{lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Shared, Spawner},
 };
 use crate::{
     methods::{
@@ -170,7 +170,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
     Ok(Box::new(Builder {
         s,
         rx,
-        building: Vec::new(),
+        building: Assembly::default(),
         folded: None,
         fold_s,
         history,
@@ -214,14 +214,14 @@ fn sample(s: &Shared, frames: &Mutex<Frames>, params: &TaaParams, tx: Sender<Row
 }
 
 /// A frame being assembled: its job, its samples, rows received.
-type Building = (Arc<FrameJob>, Vec<Sample>, u32);
+type Building = (Arc<FrameJob>, Vec<Sample>);
 
 /// The image thread's side: frames assembled from their rows and folded into the
 /// history in order.
 struct Builder {
     s: Arc<Shared>,
     rx: Receiver<Row>,
-    building: Vec<Building>,
+    building: Assembly<Building>,
     /// Id and scene time of the newest frame folded in.
     folded: Option<(u64, f64)>,
     /// Shared with the sampling threads, which size frames by it.
@@ -262,36 +262,26 @@ impl ImageBuilder for Builder {
         let mut dropped = 0u64;
         for row in rows {
             let (gw, gh) = row.job.grid;
-            let i = match self.building.iter().position(|f| f.0.id == row.job.id) {
-                Some(i) => i,
-                None => {
-                    let blank = vec![Sample::default(); (gw * gh) as usize];
-                    self.building.push((row.job.clone(), blank, 0));
-                    self.building.len() - 1
-                }
+            let new = || (row.job.clone(), vec![Sample::default(); (gw * gh) as usize]);
+            let put = |f: &mut Building| {
+                let y = row.y as usize * gw as usize;
+                f.1[y..y + gw as usize].copy_from_slice(&row.samples);
             };
-            let f = &mut self.building[i];
-            let y = row.y as usize * gw as usize;
-            f.1[y..y + gw as usize].copy_from_slice(&row.samples);
-            f.2 += 1;
-            if f.2 == gh {
-                let done = self.building.swap_remove(i);
-                // Older unfinished frames can never be folded any more.
-                let before = self.building.len();
-                self.building.retain(|f| f.0.id > done.0.id);
-                dropped += (before - self.building.len()) as u64;
-                if complete.as_ref().is_none_or(|c| c.0.id < done.0.id) {
-                    dropped += complete.is_some() as u64;
-                    complete = Some(done);
-                } else {
-                    dropped += 1;
-                }
+            let Some(done) = self.building.add(row.job.id, gh, new, put) else {
+                continue;
+            };
+            if complete.as_ref().is_none_or(|c| c.0.id < done.0.id) {
+                dropped += complete.is_some() as u64;
+                complete = Some(done);
+            } else {
+                dropped += 1;
             }
         }
+        dropped += self.building.take_abandoned();
         // Only the newest frame completed since the last image is folded: the frames
         // are sized so that this is nearly always the only one, and folding a backlog
         // would put the display further behind.
-        if let Some((job, samples, _)) = complete {
+        if let Some((job, samples)) = complete {
             if self.folded.is_none_or(|(id, _)| id < job.id) {
                 self.fold(&job, &samples);
             } else {

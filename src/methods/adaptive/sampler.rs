@@ -206,15 +206,19 @@ pub fn completion_point(
     if !params.follow_surface {
         return (p.x, p.y);
     }
+    let within = if p.velocity == Vec3::ZERO {
+        Rect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        }
+    } else {
+        rect
+    };
     camera
         .project(p.hit_point + p.velocity * (now - p.t) as f32)
-        .filter(|&(x, y, _)| {
-            if p.velocity == Vec3::ZERO {
-                x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32
-            } else {
-                rect.contains_point(x, y)
-            }
-        })
+        .filter(|&(x, y, _)| within.contains_point(x, y))
         .map_or((p.x, p.y), |(x, y, _)| (x, y))
 }
 
