@@ -22,7 +22,10 @@
 //!    reached (accumulated weight below `MIN_WEIGHT` = 1e-24: holes) are filled from
 //!    the coarsest-necessary level of a 2×2 pull pyramid of the same sums (a wider box
 //!    pass: the weighted mean of the nearest block that has samples), so a hole never
-//!    shows black unless nothing at all was sampled yet;
+//!    shows black unless nothing at all was sampled yet. With
+//!    [`ReconParams::fill_weight`] > 0 (ours) holes and every pixel of lower weight
+//!    are instead completed from a smooth pull-push interpolation (`pullpush.rs`), so
+//!    sparse regions are not a patchwork of flat cells;
 //! 5. updates the splat scale map from the coverage (samples whose footprint covers
 //!    each pixel): fewer than `undersampled` → ×`grow`, more than `oversampled` →
 //!    ×`shrink`, clamped to `scale_bounds`.
@@ -68,7 +71,7 @@
 //! lives in its own file: `filter_table.rs` (the per-tile filters and per-pixel lookup
 //! of step 2), `place.rs` (the stale cut, steps 1–3 up to the temporal cull, binning into
 //! row bands), `splat.rs` (accumulating step 3's splats), `resolve.rs` (steps 4 and 5),
-//! `holes.rs` (step 4's hole filling); `lanes.rs` holds the 8-lane arithmetic they
+//! `holes.rs` and `pullpush.rs` (step 4's hole and low-density filling); `lanes.rs` holds the 8-lane arithmetic they
 //! share, `params.rs` the parameters and presets.
 
 pub mod filter;
@@ -80,6 +83,7 @@ mod holes;
 mod lanes;
 mod params;
 mod place;
+mod pullpush;
 mod resolve;
 mod splat;
 #[cfg(test)]
@@ -163,6 +167,9 @@ pub struct Reconstructor {
     pieces: usize,
     /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
+    /// Pull-push levels of the low-density fill, and spare level buffers, reused.
+    pull: Vec<pullpush::Level>,
+    spare: Vec<Vec<[f32; 5]>>,
     image: Image,
     /// Weight-averaged sample age of each pixel at the last refresh.
     age: Vec<f32>,
@@ -224,6 +231,8 @@ impl Reconstructor {
             binned: Vec::new(),
             pieces: 0,
             pyramid: Vec::new(),
+            pull: Vec::new(),
+            spare: Vec::new(),
             image: Image::new(width, height),
             age: vec![0.0; n],
             mean_age: 0.0,

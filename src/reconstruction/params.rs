@@ -40,6 +40,11 @@ pub struct ReconParams {
     /// kernel). The lower bound 1 never cuts the kernel inside `spatial_cutoff` sigmas:
     /// growth widens splats to cover sparse regions, shrinking returns them.
     pub scale_bounds: (f32, f32),
+    /// Accumulated weight below which a pixel is completed from a smooth (pull-push)
+    /// interpolation of its neighbourhood, holes included (`pullpush.rs`); 0: holes
+    /// only, from the flat mean of the nearest pyramid block that has samples (the
+    /// paper's reconstructor). 1 is one fresh sample at the pixel's centre.
+    pub fill_weight: f32,
     /// A per-pixel history of still samples blended over the reconstruction, so that
     /// still regions keep converging (`None`: the paper's reconstructor, whose image
     /// stops improving once the ring's horizon is reached).
@@ -62,15 +67,17 @@ impl ReconParams {
             grow: 4.0,
             shrink: 0.7,
             scale_bounds: (1.0, 16.0),
+            fill_weight: 0.0,
             history: None,
         }
     }
 
     /// Ours: the paper's reconstructor with the still-region history
-    /// ([`HistoryParams::default`]).
+    /// ([`HistoryParams::default`]) and the pull-push fill of sparsely covered pixels.
     pub fn converging() -> Self {
         Self {
             history: Some(HistoryParams::default()),
+            fill_weight: 1.0,
             ..Self::paper()
         }
     }

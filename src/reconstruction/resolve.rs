@@ -17,7 +17,7 @@ impl Reconstructor {
         let (w, h) = (self.width as usize, self.height as usize);
         let (gpr, cstride) = (self.gpr, w + 1);
         let p = self.params;
-        let per_band: Vec<(usize, f64)> = self
+        let per_band: Vec<(usize, usize, f64)> = self
             .image
             .pixels
             .par_chunks_mut(BAND_ROWS * w)
@@ -27,7 +27,7 @@ impl Reconstructor {
             .zip(self.acc.par_chunks(BAND_ROWS * gpr))
             .zip(self.cov.par_chunks(BAND_ROWS * cstride))
             .map(|(((((px, coverage), scale), ages), acc), cov)| {
-                let (mut holes, mut age) = (0usize, 0f64);
+                let (mut holes, mut thin, mut age) = (0usize, 0usize, 0f64);
                 for (r, (((px, coverage), scale), ages)) in px
                     .chunks_mut(w)
                     .zip(coverage.chunks_mut(w))
@@ -49,6 +49,7 @@ impl Reconstructor {
                             *s *= p.shrink;
                         }
                         *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
+                        thin += (cw < p.fill_weight) as usize;
                         if cw >= MIN_WEIGHT {
                             px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
                             ages[x] = ca / cw;
@@ -58,14 +59,17 @@ impl Reconstructor {
                         }
                     }
                 }
-                (holes, age)
+                (holes, thin, age)
             })
             .collect();
         // Band order, so the sum does not depend on the thread count.
-        let mut age_sum: f64 = per_band.iter().map(|b| b.1).sum();
+        let mut age_sum: f64 = per_band.iter().map(|b| b.2).sum();
         let holes: usize = per_band.iter().map(|b| b.0).sum();
+        let thin: usize = per_band.iter().map(|b| b.1).sum();
         self.holes = holes;
-        if holes > 0 {
+        if thin > 0 {
+            age_sum = self.pull_push(p.fill_weight);
+        } else if holes > 0 {
             age_sum += self.fill_holes(self.holes * 64 > w * h);
         }
         self.mean_age = age_sum / (w * h).max(1) as f64;

@@ -171,6 +171,11 @@ fn fast_path_matches_direct_evaluation() {
         ReconParams::no_reprojection(),
         ReconParams::fixed_filter(),
     ] {
+        // The splats' sums; the pull-push fill of thin pixels is tested on its own.
+        let params = ReconParams {
+            fill_weight: 0.0,
+            ..params
+        };
         for (w, h) in [(40, 30), (67, 41)] {
             let (mut r, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
             check_against_direct(&mut r, &c, &tiling);
@@ -343,4 +348,96 @@ fn ring_keeps_the_newest() {
     }
     assert_eq!(r.ring().len(), 4);
     assert_eq!(r.ring().front().unwrap().t, 6.0);
+}
+
+/// A still ramp sampled once every 6 pixels along x (a region the camera has just
+/// turned to): RMS error of the reconstruction against the ramp, and the image.
+fn sparse_ramp(fill_weight: f32) -> (f64, Vec<Vec3>) {
+    let (w, h) = (48, 24);
+    let c = cam(w, h);
+    let params = ReconParams {
+        fill_weight,
+        history: None,
+        ..ReconParams::paper()
+    };
+    let mut r = Reconstructor::new(w, h, 1e4, params);
+    let ramp = |x: f32| Vec3::splat(x / w as f32);
+    let mut n = 0;
+    for j in 0..h / 6 {
+        for i in 0..w / 6 {
+            // Jittered: the samples do not fall on a grid of cells.
+            let x = i as f32 * 6.0 + 3.0 + ((i * 7 + j * 3) % 5) as f32 * 0.4 - 0.8;
+            let y = j as f32 * 6.0 + 3.0 + ((i * 3 + j * 5) % 5) as f32 * 0.4 - 0.8;
+            r.push(RingSample {
+                x,
+                y,
+                t: 0.99,
+                color: ramp(x),
+                hit_point: c.eye + c.direction(x, y) * 2.0,
+                velocity: Vec3::ZERO,
+            });
+            n += 1;
+        }
+    }
+    assert_eq!(n, 32);
+    let img = r.reconstruct(1.0, &c, &TilingSnapshot::whole(w, h)).clone();
+    let mut se = 0.0;
+    for y in 0..h as usize {
+        for x in 0..w as usize {
+            let d = img.pixels[y * w as usize + x] - ramp(x as f32 + 0.5);
+            se += (d.x as f64).powi(2);
+        }
+    }
+    ((se / (w * h) as f64).sqrt(), img.pixels)
+}
+
+#[test]
+fn sparse_samples_are_interpolated_not_stepped() {
+    let (flat, _) = sparse_ramp(0.0);
+    let (smooth, img) = sparse_ramp(1.0);
+    assert!(
+        smooth < 0.6 * flat,
+        "pull-push error {smooth} against the flat fill's {flat}"
+    );
+    // Along a row the fill rises with the ramp, with no flat run of 6 pixels (a
+    // nearest-sample cell) away from the edges.
+    let row = &img[12 * 48..13 * 48];
+    for x in 3..42 {
+        assert!(
+            row[x + 6].x > row[x].x,
+            "flat run at x = {x}: {} then {}",
+            row[x].x,
+            row[x + 6].x
+        );
+    }
+}
+
+#[test]
+fn well_covered_pixels_are_not_filled() {
+    // Pixels whose weight reaches the fill weight show exactly what the paper's
+    // reconstructor shows; the others are completed.
+    let run = |fill_weight| {
+        let params = ReconParams {
+            fill_weight,
+            ..ReconParams::paper()
+        };
+        let (mut r, c, tiling) = random_setup(40, 30, 150, 1.0, false, params, GTS);
+        let weights: Vec<f64> = direct(&mut r, 1.0, &c, &tiling)
+            .iter()
+            .map(|d| d.0[3])
+            .collect();
+        (weights, r.reconstruct(1.0, &c, &tiling).pixels.clone())
+    };
+    let (weights, flat) = run(0.0);
+    let (_, filled) = run(1.0);
+    let (mut same, mut changed) = (0, 0);
+    for (i, &wt) in weights.iter().enumerate() {
+        if wt >= 1.001 {
+            assert_eq!(flat[i], filled[i], "pixel {i} of weight {wt}");
+            same += 1;
+        } else if wt < 0.999 && flat[i] != filled[i] {
+            changed += 1;
+        }
+    }
+    assert!(same > 100 && changed > 20, "{same} kept, {changed} filled");
 }

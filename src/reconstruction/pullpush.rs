@@ -1,0 +1,163 @@
+//! Low-density fill (pull-push): a pixel whose accumulated weight is below
+//! [`ReconParams::fill_weight`](super::ReconParams::fill_weight) is completed from a
+//! smooth interpolation of its neighbourhood.
+//!
+//! Where samples are sparse (a region the camera has just turned to) the Gaussian of
+//! the nearest sample dominates every pixel around it, so the image is a patchwork of
+//! flat cells, and holes take the flat mean of a pyramid block. Here a pixel with
+//! weight `W < W₀` shows `(Σw·c + (W₀ − W)·ĉ) / W₀`, where `ĉ` is the pull-push
+//! interpolation of its surroundings (Gortler et al. 1996, "The Lumigraph", §3.4):
+//!
+//! - **pull:** each coarser level is the 2×2 box mean of the finer one, weighted by
+//!   coverage `α = min(W/W₀, 1)`, its own coverage the sum of its children's capped
+//!   at 1;
+//! - **push:** from the coarsest level down, each pixel keeps `α` of its own colour
+//!   and takes `1 − α` from the bilinear interpolation of the coarser level.
+//!
+//! Pixels with `W ≥ W₀` are left as they are. `W₀ = 1` is one fresh sample at the
+//! pixel's centre: on Interactive t = 6.3–6.9 s, 100K, RMS went from 25.3 to 23.0
+//! (0.3: 23.5; 3: 22.7 but FLIP worse at 400K; 10: FLIP 10% worse at 400K).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{lanes::LANES, Reconstructor};
+
+/// One pyramid level: width, height, premultiplied `(r, g, b, age)` and coverage `α`.
+pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
+
+impl Reconstructor {
+    /// Complete the pixels whose accumulated weight is below `w0` from the pull-push
+    /// interpolation; returns the sum of all pixels' ages afterwards.
+    pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let gpr = self.gpr;
+        let mut levels = std::mem::take(&mut self.pull);
+        levels.resize_with(1, Default::default);
+        // Level 0 from the resolved image and the accumulated weights.
+        {
+            let l0 = &mut levels[0];
+            *l0 = (w, h, std::mem::take(&mut l0.2));
+            l0.2.resize(w * h, [0.0; 5]);
+            let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
+            l0.2.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+                for (x, o) in row.iter_mut().enumerate() {
+                    let cw = acc[y * gpr + x / LANES][3][x % LANES];
+                    // Holes (below `MIN_WEIGHT`) have no colour: weight 0 here.
+                    let a = if cw >= super::resolve::MIN_WEIGHT {
+                        (cw / w0).min(1.0)
+                    } else {
+                        0.0
+                    };
+                    let (p, g) = (px[y * w + x], age[y * w + x]);
+                    *o = if a > 0.0 {
+                        [p.x * a, p.y * a, p.z * a, g * a, a]
+                    } else {
+                        [0.0; 5]
+                    };
+                }
+            });
+        }
+        // Pull.
+        while let Some(&(lw, lh, _)) = levels.last().filter(|l| l.0 > 1 || l.1 > 1) {
+            let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
+            let mut next = self.spare.pop().unwrap_or_default();
+            next.clear();
+            next.resize(nw * nh, [0.0; 5]);
+            let prev = &levels.last().expect("level 0 exists").2;
+            next.par_chunks_mut(nw).enumerate().for_each(|(by, row)| {
+                for (bx, o) in row.iter_mut().enumerate() {
+                    let mut s = [0f32; 5];
+                    for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (x, y) = (2 * bx + cx, 2 * by + cy);
+                        if x < lw && y < lh {
+                            let v = prev[y * lw + x];
+                            for c in 0..5 {
+                                s[c] += v[c];
+                            }
+                        }
+                    }
+                    // The weighted mean, with coverage capped at 1.
+                    if s[4] > 1.0 {
+                        let k = 1.0 / s[4];
+                        s = s.map(|v| v * k);
+                    }
+                    *o = s;
+                }
+            });
+            levels.push((nw, nh, next));
+        }
+        // Push: each level's colours become complete, coarsest first; level 0 is
+        // written into the image (only where its coverage is below 1).
+        let top = levels.len() - 1;
+        {
+            let v = &mut levels[top].2[0];
+            if v[4] > 0.0 {
+                let k = 1.0 / v[4];
+                *v = v.map(|c| c * k);
+            }
+        }
+        for k in (0..top).rev() {
+            let (coarse, fine) = levels.split_at_mut(k + 1);
+            let (cw, ch, ref cv) = fine[0];
+            let (lw, _, lv) = &mut coarse[k];
+            let lw = *lw;
+            let push = |y: usize, x: usize, v: &[f32; 5]| -> [f32; 4] {
+                let up = bilinear(cv, cw, ch, x, y);
+                let keep = 1.0 - v[4];
+                std::array::from_fn(|c| v[c] + keep * up[c])
+            };
+            if k > 0 {
+                lv.par_chunks_mut(lw).enumerate().for_each(|(y, row)| {
+                    for (x, v) in row.iter_mut().enumerate() {
+                        let o = push(y, x, v);
+                        *v = [o[0], o[1], o[2], o[3], 1.0];
+                    }
+                });
+            } else {
+                let (px, age) = (&mut self.image.pixels, &mut self.age);
+                px.par_chunks_mut(w)
+                    .zip(age.par_chunks_mut(w))
+                    .zip(lv.par_chunks(w))
+                    .enumerate()
+                    .for_each(|(y, ((px, age), lv))| {
+                        for (x, v) in lv.iter().enumerate() {
+                            if v[4] < 1.0 {
+                                let o = push(y, x, v);
+                                px[x] = Vec3::new(o[0], o[1], o[2]);
+                                age[x] = o[3];
+                            }
+                        }
+                    });
+            }
+        }
+        // Keep the buffers for the next refresh.
+        self.spare.extend(levels.drain(1..).map(|l| l.2));
+        self.pull = levels;
+        self.age.iter().map(|&a| a as f64).sum()
+    }
+}
+
+/// Bilinear interpolation of a complete level `(cw × ch)` at the center of pixel
+/// `(x, y)` of the level twice as fine (clamped at the edges).
+#[inline]
+fn bilinear(cv: &[[f32; 5]], cw: usize, ch: usize, x: usize, y: usize) -> [f32; 4] {
+    let coord = |i: usize, n: usize| {
+        let f = ((i as f32 + 0.5) * 0.5 - 0.5).clamp(0.0, (n - 1) as f32);
+        let i0 = f as usize;
+        (i0, (i0 + 1).min(n - 1), f - i0 as f32)
+    };
+    let (x0, x1, tx) = coord(x, cw);
+    let (y0, y1, ty) = coord(y, ch);
+    let (a, b, c, d) = (
+        cv[y0 * cw + x0],
+        cv[y0 * cw + x1],
+        cv[y1 * cw + x0],
+        cv[y1 * cw + x1],
+    );
+    std::array::from_fn(|k| {
+        let top = a[k] + (b[k] - a[k]) * tx;
+        let bottom = c[k] + (d[k] - c[k]) * tx;
+        top + (bottom - top) * ty
+    })
+}
