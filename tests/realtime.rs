@@ -198,6 +198,14 @@ fn headless_runs_stop_on_time_and_write_stats() {
         }
         assert!(json["pipeline"]["sampling_threads"] == 2);
         assert!(json["pipeline"]["reconstruct_ms_mean"].is_number());
+        // The adaptive sampler hears which pixels have converged, as in the evaluation.
+        let maps = json["pipeline"]["history_maps"].as_u64().unwrap();
+        assert_eq!(
+            maps > 0,
+            method == RtMethod::Adaptive,
+            "{}: {maps} history maps",
+            method.name()
+        );
         for img in st.images {
             assert!(dir.join(img).exists());
         }

@@ -81,6 +81,10 @@ struct Published {
     /// A copy of the tiling for the reconstructor's filters; `None` until the
     /// controller has a sampler.
     tiling: Mutex<Option<Arc<Tiling>>>,
+    /// The reconstructor's still-region history counts after its newest image, for
+    /// [`crate::methods::adaptive::SamplerParams::discount_converged`] (the
+    /// evaluation passes them after every refresh too); taken by the controller.
+    history_counts: Mutex<Option<Vec<f32>>>,
     /// Crosshair centres each pixel has had, for
     /// [`crate::methods::adaptive::SamplerParams::stratified_positions`]
     /// (empty when off); relaxed counters: two threads drawing the same index at once
@@ -95,6 +99,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
         snapshot_seq: AtomicU64::new(0),
         tiling: Mutex::new(None),
+        history_counts: Mutex::new(None),
         pixel_draws: if s.config.sampler.stratified_positions {
             (0..w as usize * h as usize)
                 .map(|_| AtomicU32::new(0))
@@ -340,6 +345,10 @@ fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Ve
             snap_at = Instant::now();
         }
         if tiling_at.elapsed() >= tiling_every {
+            if let Some(counts) = lock(&published.history_counts).take() {
+                sampler.set_history_counts(&counts);
+                s.history_maps.fetch_add(1, Ordering::Relaxed);
+            }
             publish_tiling(published, &sampler);
             tiling_at = Instant::now();
         }
@@ -410,6 +419,16 @@ impl ImageBuilder for Builder {
         }
         let camera = s.tracer.state_at(t).camera;
         let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
+        if s.config.sampler.discount_converged {
+            if let Some(counts) = r.history_counts() {
+                // The controller takes the newest; an untaken older map is replaced
+                // (its buffer reused).
+                let mut slot = lock(&self.published.history_counts);
+                let buf = slot.get_or_insert_with(Vec::new);
+                buf.clear();
+                buf.extend_from_slice(counts);
+            }
+        }
         lock(&s.image_stats).ring_capacity = r.capacity();
         let ages = r.pixel_ages();
         Some(Built {

@@ -73,6 +73,10 @@ pub struct PipelineStats {
     /// Adaptive: share of visits whose reprojection step ran (the controller skips it
     /// while it is behind its input).
     pub reprojected_share: f64,
+    /// Adaptive: maps of the reconstructor's still-region history counts the
+    /// controller received, so that converged pixels draw fewer samples
+    /// ([`crate::methods::adaptive::SamplerParams::discount_converged`]).
+    pub history_maps: u64,
     /// Adaptive: the sample rate the reconstructor's filters assume (measured), /s.
     pub recon_rate: f64,
     /// Adaptive: ring capacity.
@@ -186,6 +190,7 @@ impl Pipeline {
             recon_rate: img.recon_rate,
             ring_capacity: img.ring_capacity,
             dropped_frames: img.dropped_frames,
+            history_maps: s.history_maps.load(Ordering::Relaxed),
         }
     }
 

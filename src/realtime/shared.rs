@@ -142,6 +142,8 @@ pub(crate) struct Shared {
     /// for every method (as zeros).
     pub reprojected_visits: AtomicU64,
     pub skipped_reprojections: AtomicU64,
+    /// Adaptive: history count maps the controller passed to its sampler.
+    pub history_maps: AtomicU64,
     /// Adaptive: tiles now (1 for the other methods: the whole image).
     pub tiles: AtomicU64,
     pub latest: Mutex<Option<Arc<Frame>>>,
@@ -163,6 +165,7 @@ impl Shared {
             busy_ns: AtomicU64::new(0),
             reprojected_visits: AtomicU64::new(0),
             skipped_reprojections: AtomicU64::new(0),
+            history_maps: AtomicU64::new(0),
             tiles: AtomicU64::new(1),
             latest: Mutex::new(None),
             image_stats: Mutex::new(ImageThreadStats::default()),
