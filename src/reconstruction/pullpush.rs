@@ -21,7 +21,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{lanes::LANES, Reconstructor};
+use super::{lanes::LANES, resolve::MIN_WEIGHT, Reconstructor};
 
 /// One pyramid level: width, height, premultiplied `(r, g, b, age)` and coverage `α`.
 pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
@@ -29,55 +29,43 @@ pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
 impl Reconstructor {
     /// Complete the pixels whose accumulated weight is below `w0` from the pull-push
     /// interpolation; returns the sum of all pixels' ages afterwards.
+    ///
+    /// The full-resolution level is never copied: its coverage and colours are read
+    /// from the accumulators and the resolved image where the first pull and the last
+    /// push need them.
     pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
         let (w, h) = (self.width as usize, self.height as usize);
         let gpr = self.gpr;
+        let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
+        let weight = |x: usize, y: usize| acc[y * gpr + x / LANES][3][x % LANES];
+        let pixel =
+            |x: usize, y: usize| premultiplied(weight(x, y), w0, px[y * w + x], age[y * w + x]);
+        // Pull: each level the coverage-weighted 2×2 mean of the finer one, its
+        // coverage the children's summed and capped at 1.
         let mut levels = std::mem::take(&mut self.pull);
-        levels.resize_with(1, Default::default);
-        // Level 0 from the resolved image and the accumulated weights.
-        {
-            let l0 = &mut levels[0];
-            *l0 = (w, h, std::mem::take(&mut l0.2));
-            l0.2.resize(w * h, [0.0; 5]);
-            let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
-            l0.2.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-                for (x, o) in row.iter_mut().enumerate() {
-                    let cw = acc[y * gpr + x / LANES][3][x % LANES];
-                    // Holes (below `MIN_WEIGHT`) have no colour: weight 0 here.
-                    let a = if cw >= super::resolve::MIN_WEIGHT {
-                        (cw / w0).min(1.0)
-                    } else {
-                        0.0
-                    };
-                    let (p, g) = (px[y * w + x], age[y * w + x]);
-                    *o = if a > 0.0 {
-                        [p.x * a, p.y * a, p.z * a, g * a, a]
-                    } else {
-                        [0.0; 5]
-                    };
-                }
-            });
-        }
-        // Pull.
-        while let Some(&(lw, lh, _)) = levels.last().filter(|l| l.0 > 1 || l.1 > 1) {
+        levels.clear();
+        let (mut lw, mut lh) = (w, h);
+        while lw > 1 || lh > 1 {
             let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
             let mut next = self.spare.pop().unwrap_or_default();
             next.clear();
             next.resize(nw * nh, [0.0; 5]);
-            let prev = &levels.last().expect("level 0 exists").2;
+            let prev = levels.last().map(|l: &Level| &l.2);
             next.par_chunks_mut(nw).enumerate().for_each(|(by, row)| {
                 for (bx, o) in row.iter_mut().enumerate() {
                     let mut s = [0f32; 5];
                     for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                         let (x, y) = (2 * bx + cx, 2 * by + cy);
                         if x < lw && y < lh {
-                            let v = prev[y * lw + x];
+                            let v = match prev {
+                                Some(prev) => prev[y * lw + x],
+                                None => pixel(x, y),
+                            };
                             for c in 0..5 {
                                 s[c] += v[c];
                             }
                         }
                     }
-                    // The weighted mean, with coverage capped at 1.
                     if s[4] > 1.0 {
                         let k = 1.0 / s[4];
                         s = s.map(|v| v * k);
@@ -86,56 +74,69 @@ impl Reconstructor {
                 }
             });
             levels.push((nw, nh, next));
+            (lw, lh) = (nw, nh);
         }
-        // Push: each level's colours become complete, coarsest first; level 0 is
-        // written into the image (only where its coverage is below 1).
-        let top = levels.len() - 1;
-        {
-            let v = &mut levels[top].2[0];
+        // Push, coarsest first: each level keeps `α` of its own colour and takes
+        // `1 − α` from the bilinear interpolation of the (complete) coarser one.
+        if let Some(top) = levels.last_mut() {
+            let v = &mut top.2[0];
             if v[4] > 0.0 {
                 let k = 1.0 / v[4];
                 *v = v.map(|c| c * k);
             }
         }
-        for k in (0..top).rev() {
-            let (coarse, fine) = levels.split_at_mut(k + 1);
-            let (cw, ch, ref cv) = fine[0];
-            let (lw, _, lv) = &mut coarse[k];
-            let lw = *lw;
-            let push = |y: usize, x: usize, v: &[f32; 5]| -> [f32; 4] {
-                let up = bilinear(cv, cw, ch, x, y);
-                let keep = 1.0 - v[4];
-                std::array::from_fn(|c| v[c] + keep * up[c])
-            };
-            if k > 0 {
-                lv.par_chunks_mut(lw).enumerate().for_each(|(y, row)| {
-                    for (x, v) in row.iter_mut().enumerate() {
-                        let o = push(y, x, v);
-                        *v = [o[0], o[1], o[2], o[3], 1.0];
+        let push = |v: &[f32; 5], up: [f32; 4]| -> [f32; 4] {
+            std::array::from_fn(|c| v[c] + (1.0 - v[4]) * up[c])
+        };
+        for k in (1..levels.len()).rev() {
+            let (finer, coarser) = levels.split_at_mut(k);
+            let (cw, ch, ref cv) = coarser[0];
+            let (fw, _, fv) = &mut finer[k - 1];
+            fv.par_chunks_mut(*fw).enumerate().for_each(|(y, row)| {
+                for (x, v) in row.iter_mut().enumerate() {
+                    let o = push(v, bilinear(cv, cw, ch, x, y));
+                    *v = [o[0], o[1], o[2], o[3], 1.0];
+                }
+            });
+        }
+        // The full-resolution level: only pixels below full coverage change.
+        let mut image = std::mem::take(&mut self.image.pixels);
+        let mut ages = std::mem::take(&mut self.age);
+        if let Some((cw, ch, cv)) = levels.first() {
+            image
+                .par_chunks_mut(w)
+                .zip(ages.par_chunks_mut(w))
+                .enumerate()
+                .for_each(|(y, (px, age))| {
+                    for x in 0..w {
+                        let v = premultiplied(weight(x, y), w0, px[x], age[x]);
+                        if v[4] < 1.0 {
+                            let o = push(&v, bilinear(cv, *cw, *ch, x, y));
+                            px[x] = Vec3::new(o[0], o[1], o[2]);
+                            age[x] = o[3];
+                        }
                     }
                 });
-            } else {
-                let (px, age) = (&mut self.image.pixels, &mut self.age);
-                px.par_chunks_mut(w)
-                    .zip(age.par_chunks_mut(w))
-                    .zip(lv.par_chunks(w))
-                    .enumerate()
-                    .for_each(|(y, ((px, age), lv))| {
-                        for (x, v) in lv.iter().enumerate() {
-                            if v[4] < 1.0 {
-                                let o = push(y, x, v);
-                                px[x] = Vec3::new(o[0], o[1], o[2]);
-                                age[x] = o[3];
-                            }
-                        }
-                    });
-            }
         }
+        self.image.pixels = image;
+        self.age = ages;
         // Keep the buffers for the next refresh.
-        self.spare.extend(levels.drain(1..).map(|l| l.2));
+        self.spare.extend(levels.drain(..).map(|l| l.2));
         self.pull = levels;
         self.age.iter().map(|&a| a as f64).sum()
     }
+}
+
+/// Premultiplied `(r, g, b, age, α)` of a pixel of accumulated weight `cw`, colour `p`
+/// and age `g`, with coverage `α = min(cw / w0, 1)`; a hole (below `MIN_WEIGHT`) has
+/// no colour, so no coverage.
+#[inline]
+fn premultiplied(cw: f32, w0: f32, p: Vec3, g: f32) -> [f32; 5] {
+    if cw < MIN_WEIGHT {
+        return [0.0; 5];
+    }
+    let a = (cw / w0).min(1.0);
+    [p.x * a, p.y * a, p.z * a, g * a, a]
 }
 
 /// Bilinear interpolation of a complete level `(cw × ch)` at the center of pixel
