@@ -468,39 +468,3 @@ fn converged_pixels_draw_fewer_samples() {
         "right half's share of samples: {even} without counts, {discounted} with"
     );
 }
-
-#[test]
-fn neglected_tiles_are_undersampled_while_the_buffer_fills() {
-    // A sharp edge between two flat halves at a low rate: most of the deep buffer's
-    // slots are still empty. The paper's rule (a tile's empty slots over m times the
-    // mean) cannot fire once more than 1/m of the image's slots are empty, so the flat
-    // tiles, whose variance is zero, get nothing; measured by fill, a tile holding
-    // less than 1/m of the mean fill is undersampled and draws samples.
-    let size = 64;
-    let far_share = |p: SamplerParams| {
-        // 16K slots (64² × depth 4) filled by about 1,500 crosshairs a second at 10K
-        // samples/s: a tenth full after the first second, as a 256² buffer is at 100K
-        // after about 1.6 s.
-        let c = ctx(edge_scene(), size, 10_000.0);
-        let mut s = Sampler::new(c.tracer.clone(), c.clock, p, 1).unwrap();
-        let d = density(&mut s, size, 0.5, 1.0);
-        let far: u64 = d
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| {
-                let x = *i as u32 % size;
-                !(16..48).contains(&x)
-            })
-            .map(|(_, &n)| n as u64)
-            .sum();
-        far as f64 / d.iter().map(|&n| n as u64).sum::<u64>() as f64
-    };
-    let by_fill = far_share(SamplerParams::ours());
-    let mut p = SamplerParams::ours();
-    p.undersampling_filled = false;
-    let by_emptiness = far_share(p);
-    assert!(
-        by_fill > 1.4 * by_emptiness,
-        "flat regions' share of samples: {by_fill} by fill, {by_emptiness} by emptiness"
-    );
-}

@@ -22,9 +22,7 @@ pub struct SamplerParams {
     /// of the error multiplies it again). The occlusion term gets `1 − κ − λ`.
     pub lambda: f64,
     /// Undersampling threshold `m`: a tile's empty slots must exceed `m` times the mean
-    /// to count (paper: unspecified; ours 4), or with
-    /// [`SamplerParams::undersampling_filled`] its filled slots fall below `1/m` of the
-    /// mean.
+    /// to count (paper: unspecified; ours 4).
     pub undersampling_m: f64,
     /// Gain constant `i` weighing temporal against spatial change in gain control
     /// (paper: unspecified; ours 0.25, chosen so that the BART kitchen with its camera
@@ -94,21 +92,6 @@ pub struct SamplerParams {
     /// 4.67 → 8.33 / 4.81 / 3.39; still `room` 400K FLIP 0.0119 → 0.0112; Interactive
     /// t = 6.3–6.9 s at 400K RMS 14.9 → 14.7.
     pub discount_converged: bool,
-    /// Count a tile as undersampled by its *filled* share of slots: the undersampling
-    /// term is `1 − min(m · filled / mean filled, 1)`, positive where a tile holds less
-    /// than `1/m` of the image's mean fill. The paper's rule (a tile's empty slots over
-    /// `m` times the mean; here as fractions, `1 − min(m · mean empty / empty, 1)`)
-    /// can never fire once more than `1/m` of the image's slots are empty. At 100K and
-    /// 400K that is the usual state: a slot holds a crosshair, 100K samples/s trace
-    /// about 15K crosshairs, and a 256² buffer of depth 4 has 262K slots (18 s to fill
-    /// at 100K, 4.5 s at 400K, if nothing left the view). Tiles
-    /// that variance neglects (flat regions, regions just revealed, whose few samples
-    /// show no variance yet) then draw nothing from the undersampling term. Not in the
-    /// paper; chosen on this argument with the paper's `m`, then measured: Interactive
-    /// t = 6.3–6.9 s at 100K RMS 23.0 → 22.3; `kitchen_glance.csv` t = 1–3.5 s RMS
-    /// 12.7 / 7.2 → 11.2 / 6.6 at 100K / 400K and museum5 t = 4–5 s 11.9 / 7.4 → 11.3 /
-    /// 7.6 (neither tuned on); still views within 0.03 of RMS.
-    pub undersampling_filled: bool,
     /// Ablation: closed-loop gain control (off: the tile count stays at `fixed_tiles`).
     pub gain_control: bool,
     /// Ablation: include the occlusion term (off: its weight goes to variance).
@@ -150,7 +133,6 @@ impl SamplerParams {
             same_surface_gradients: false,
             stratified_positions: false,
             discount_converged: false,
-            undersampling_filled: false,
             gain_control: true,
             occlusion_term: true,
             uniform_tiling: false,
@@ -163,9 +145,8 @@ impl SamplerParams {
     /// follow their surface ([`SamplerParams::follow_surface`]), reprojected ones
     /// measure change only against the same surface
     /// ([`SamplerParams::same_surface_gradients`]), crosshair centres are stratified
-    /// per pixel ([`SamplerParams::stratified_positions`]), converged pixels draw
-    /// fewer samples ([`SamplerParams::discount_converged`]) and undersampling is
-    /// measured by fill ([`SamplerParams::undersampling_filled`]).
+    /// per pixel ([`SamplerParams::stratified_positions`]) and converged pixels draw
+    /// fewer samples ([`SamplerParams::discount_converged`]).
     pub const fn ours() -> Self {
         let mut p = Self::paper();
         p.skip_static_reprojection = true;
@@ -173,7 +154,6 @@ impl SamplerParams {
         p.same_surface_gradients = true;
         p.stratified_positions = true;
         p.discount_converged = true;
-        p.undersampling_filled = true;
         p
     }
 

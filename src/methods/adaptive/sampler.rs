@@ -705,18 +705,8 @@ impl Sampler {
         // split as soon as they are merged and the tiling cannot coarsen where the image
         // is flat.
         let empty = (s * b - n.stats.count).max(0.0) / (s * b);
-        let m = self.params.undersampling_m;
-        let u = if self.params.undersampling_filled {
-            // Fill, not emptiness: the fractions rule below cannot fire once more than
-            // 1/m of the image's slots are empty, as after a fast turn.
-            let mean_filled = 1.0 - mean_empty;
-            if mean_filled > 0.0 {
-                1.0 - (m * (1.0 - empty) / mean_filled).min(1.0)
-            } else {
-                0.0
-            }
-        } else if empty > 0.0 {
-            1.0 - (m * mean_empty / empty).min(1.0)
+        let u = if empty > 0.0 {
+            1.0 - (self.params.undersampling_m * mean_empty / empty).min(1.0)
         } else {
             0.0
         };
