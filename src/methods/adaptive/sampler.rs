@@ -92,6 +92,9 @@ pub struct Sampler {
     total_s: f64,
     error_sums: (f64, f64, f64),
     error_sums_tiles: usize,
+    /// Floor of every tile's variance term while the view is new
+    /// ([`SamplerParams::new_view_prior_s`]), set with the error sums.
+    v_prior: f64,
     /// Summed-area table of each pixel's `1 / (1 + n)`, `n` its samples in the
     /// reconstructor's still-region history (`(width + 1) × (height + 1)`; empty: none).
     unconverged: Vec<f64>,
@@ -264,6 +267,7 @@ impl Sampler {
             total_s: 0.0,
             error_sums: (0.0, 0.0, 0.0),
             error_sums_tiles: 1,
+            v_prior: 0.0,
             unconverged: Vec::new(),
         };
         if params.uniform_tiling || !params.gain_control {
@@ -691,7 +695,7 @@ impl Sampler {
         let b = self.params.depth as f64;
         let n = self.tiling.node(leaf);
         let s = n.rect.area() as f64;
-        let mut v = n.stats.variance();
+        let mut v = n.stats.variance().max(self.v_prior);
         if !self.unconverged.is_empty() {
             let r = n.rect;
             let stride = self.width as usize + 1;
@@ -725,6 +729,20 @@ impl Sampler {
     fn refresh_error_sums(&mut self, now: f64) {
         let (me, w) = self.error_context(now);
         let mut sums = (0.0, 0.0, 0.0);
+        let tau = self.params.new_view_prior_s;
+        if tau > 0.0 {
+            // Until a tile's own samples say otherwise, assume the image's mean variance
+            // there, fading as the view stays put (a still view concentrates samples
+            // where the variance is known to be).
+            let leaves = self.tiling.leaves();
+            let mean: f64 = leaves
+                .iter()
+                .map(|&l| self.tiling.node(l).stats.variance())
+                .sum::<f64>()
+                / leaves.len().max(1) as f64;
+            let still = (now - self.camera_since).max(0.0);
+            self.v_prior = mean * (-still / tau).exp();
+        }
         for &l in self.tiling.leaves() {
             let (v, u, o) = self.error_terms(l, me, w);
             sums.0 += v;
