@@ -134,6 +134,17 @@ fn samples_concentrate_at_a_sharp_edge() {
     );
 }
 
+/// Share of the samples in `d` (a `size`-wide density map) that fell in its right half.
+fn right_half_share(d: &[u32], size: u32) -> f64 {
+    let right: u64 = d
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i as u32 % size >= size / 2)
+        .map(|(_, &n)| n as u64)
+        .sum();
+    right as f64 / d.iter().map(|&n| n as u64).sum::<u64>() as f64
+}
+
 /// A checkerboard of two greys (edges everywhere) with a small bright square; the
 /// square slides right at `speed` units per second, passing x = 0.2..0.4 at t = 0.7.
 fn motion_scene(speed: f32) -> Scene {
@@ -455,15 +466,7 @@ fn converged_pixels_draw_fewer_samples() {
             s.set_history_counts(k);
         }
         let d = density(&mut s, size, 0.5, 1.5);
-        let (mut left, mut right) = (0u64, 0u64);
-        for (i, &n) in d.iter().enumerate() {
-            if (i as u32 % size) < size / 2 {
-                left += n as u64;
-            } else {
-                right += n as u64;
-            }
-        }
-        right as f64 / (left + right) as f64
+        right_half_share(&d, size)
     };
     let counts: Vec<f32> = (0..size * size)
         .map(|i| if i % size < size / 2 { 1000.0 } else { 0.0 })
@@ -497,15 +500,7 @@ fn a_region_revealed_by_a_turn_draws_samples_at_once() {
         .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
         let mut s = Sampler::new(Arc::new(tracer), c.clock, p, 1).unwrap();
         let d = density(&mut s, size, 1.05, 1.15);
-        let (mut left, mut right) = (0u64, 0u64);
-        for (i, &n) in d.iter().enumerate() {
-            if (i as u32 % size) < size / 2 {
-                left += n as u64;
-            } else {
-                right += n as u64;
-            }
-        }
-        right as f64 / (left + right) as f64
+        right_half_share(&d, size)
     };
     let with_prior = right_share(SamplerParams::ours());
     let mut p = SamplerParams::ours();
