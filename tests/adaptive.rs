@@ -536,3 +536,20 @@ fn bad_sampler_parameters_are_refused() {
     }
     assert!(Sampler::new(c.tracer.clone(), c.clock, SamplerParams::ours(), 1).is_ok());
 }
+
+#[test]
+fn the_new_view_prior_leaves_a_still_view_alone() {
+    // The prior acts only after a change of view: a run whose camera never moves
+    // samples exactly as without it.
+    let size = 48u32;
+    let run = |p: SamplerParams| {
+        let c = ctx(motion_scene(0.0), size, 100_000.0);
+        let mut s = Sampler::new(c.tracer.clone(), c.clock, p, 1).unwrap();
+        density(&mut s, size, 0.0, 1.0)
+    };
+    let without = SamplerParams {
+        new_view_prior_s: 0.0,
+        ..SamplerParams::ours()
+    };
+    assert_eq!(run(SamplerParams::ours()), run(without));
+}

@@ -86,6 +86,9 @@ pub struct Sampler {
     /// Time of the first state seen with the current camera: crosshairs traced at or
     /// after it were traced from the camera the display has now.
     camera_since: f64,
+    /// Time of the last change of view after the run's first view (−∞ while the view
+    /// has not changed): when [`SamplerParams::new_view_prior_s`] starts to fade.
+    view_changed_at: f64,
     stream: Vec<StreamSample>,
     counters: SamplerCounters,
     trace_s: f64,
@@ -261,6 +264,7 @@ impl Sampler {
             initialized: false,
             states: StateCache::new(),
             camera_since: f64::NEG_INFINITY,
+            view_changed_at: f64::NEG_INFINITY,
             stream: Vec::new(),
             counters: SamplerCounters::default(),
             trace_s: 0.0,
@@ -413,9 +417,13 @@ impl Sampler {
     fn state(&mut self, t: f64) -> Arc<SceneState> {
         let (s, held) = self.states.at(&self.tracer, t);
         if let Held::New { previous } = held {
+            let first = previous.is_none();
             let same_camera = previous.is_some_and(|old| old.camera.same_view(&s.camera));
             if !same_camera {
                 self.camera_since = t;
+                if !first {
+                    self.view_changed_at = t;
+                }
             }
         }
         s
@@ -740,7 +748,9 @@ impl Sampler {
                 .map(|&l| self.tiling.node(l).stats.variance())
                 .sum::<f64>()
                 / leaves.len().max(1) as f64;
-            let still = (now - self.camera_since).max(0.0);
+            // Only a change of view: a run that starts still concentrates its samples
+            // from the start, as before.
+            let still = (now - self.view_changed_at).max(0.0);
             self.v_prior = mean * (-still / tau).exp();
         }
         for &l in self.tiling.leaves() {
