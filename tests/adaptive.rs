@@ -70,16 +70,34 @@ fn ctx(scene: Scene, size: u32, rate: f64) -> MethodContext {
     ));
     MethodContext {
         tracer,
-        clock: Clock {
-            start: 0.0,
-            rate,
-            first_refresh: 0.0,
-            refresh_hz: 60.0,
-        },
+        clock: clock(rate),
         seed: 9,
         ideal_spp: 1,
         ideal_cache: None,
     }
+}
+
+/// A 60 Hz display from t = 0 with a budget of `rate` samples per second.
+fn clock(rate: f64) -> Clock {
+    Clock {
+        start: 0.0,
+        rate,
+        first_refresh: 0.0,
+        refresh_hz: 60.0,
+    }
+}
+
+/// The still checkerboard of [`motion_scene`] at `size × size`, seen from the camera
+/// path `csv`.
+fn board_on_path(size: u32, csv: &str) -> Arc<Tracer> {
+    let tracer = Tracer::new(
+        Arc::new(motion_scene(0.0)),
+        size,
+        size,
+        TraceOptions::default(),
+    )
+    .with_camera_path(Some(CameraPath::parse("p.csv", csv).unwrap()));
+    Arc::new(tracer)
 }
 
 /// Samples traced per pixel between `from` and `to` (seconds).
@@ -229,20 +247,13 @@ fn gain_control_follows_scene_dynamics() {
     let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
                 1,0,0,1,0,0,0,0,1,0,90\n\
                 2,6,0,1,6,0,0,0,1,0,90\n";
-    let tracer = Tracer::new(
-        Arc::new(motion_scene(0.0)),
-        128,
-        128,
-        TraceOptions::default(),
+    let mut s = Sampler::new(
+        board_on_path(128, text),
+        clock(200_000.0),
+        SamplerParams::paper(),
+        3,
     )
-    .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
-    let clock = Clock {
-        start: 0.0,
-        rate: 200_000.0,
-        first_refresh: 0.0,
-        refresh_hz: 60.0,
-    };
-    let mut s = Sampler::new(Arc::new(tracer), clock, SamplerParams::paper(), 3).unwrap();
+    .unwrap();
     s.run_until(1.0);
     let still = s.tiling().len();
     s.run_until(1.9);
@@ -341,9 +352,7 @@ fn keep_static_spends_no_occlusion_rays_on_a_still_view_only() {
     let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
                 0.5,0,0,1,0,0,0,0,1,0,90\n\
                 1.5,1,0,1,1,0,0,0,1,0,90\n";
-    let tracer = Tracer::new(Arc::new(motion_scene(0.0)), 48, 48, TraceOptions::default())
-        .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
-    let mut s = Sampler::new(Arc::new(tracer), c.clock, p, 1).unwrap();
+    let mut s = Sampler::new(board_on_path(48, text), c.clock, p, 1).unwrap();
     s.run_until(0.5);
     let still = s.counters().occlusion_rays;
     s.run_until(1.0);
@@ -429,11 +438,8 @@ fn camera_motion_over_a_still_scene_is_not_measured_as_change() {
     let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
                 0.0,0,0,1,0,0,0,0,1,0,90\n\
                 2.0,2,0,1,2,0,0,0,1,0,90\n";
-    let c = ctx(motion_scene(0.0), 48, 200_000.0);
     let gt = |p: SamplerParams| {
-        let tracer = Tracer::new(Arc::new(motion_scene(0.0)), 48, 48, TraceOptions::default())
-            .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
-        let mut s = Sampler::new(Arc::new(tracer), c.clock, p, 1).unwrap();
+        let mut s = Sampler::new(board_on_path(48, text), clock(200_000.0), p, 1).unwrap();
         s.run_until(1.0);
         s.tiling().node(0).stats.gradients().2
     };
@@ -490,15 +496,7 @@ fn a_region_revealed_by_a_turn_draws_samples_at_once() {
                 1.05,1.5,0,1,1.5,0,0,0,1,0,90\n";
     let size = 64u32;
     let right_share = |p: SamplerParams| {
-        let c = ctx(motion_scene(0.0), size, 100_000.0);
-        let tracer = Tracer::new(
-            Arc::new(motion_scene(0.0)),
-            size,
-            size,
-            TraceOptions::default(),
-        )
-        .with_camera_path(Some(CameraPath::parse("p.csv", text).unwrap()));
-        let mut s = Sampler::new(Arc::new(tracer), c.clock, p, 1).unwrap();
+        let mut s = Sampler::new(board_on_path(size, text), clock(100_000.0), p, 1).unwrap();
         let d = density(&mut s, size, 1.05, 1.15);
         right_half_share(&d, size)
     };

@@ -167,9 +167,8 @@ pub struct Reconstructor {
     pieces: usize,
     /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
-    /// Pull-push levels of the low-density fill, and spare level buffers, reused.
+    /// Pull-push levels of the low-density fill (level 1 and up), reused.
     pull: Vec<pullpush::Level>,
-    spare: Vec<Vec<[f32; 5]>>,
     image: Image,
     /// Weight-averaged sample age of each pixel at the last refresh.
     age: Vec<f32>,
@@ -232,7 +231,6 @@ impl Reconstructor {
             pieces: 0,
             pyramid: Vec::new(),
             pull: Vec::new(),
-            spare: Vec::new(),
             image: Image::new(width, height),
             age: vec![0.0; n],
             mean_age: 0.0,

@@ -43,15 +43,22 @@ impl Reconstructor {
         // Pull: each level the coverage-weighted 2×2 mean of the finer one, its
         // coverage the children's summed and capped at 1.
         let mut levels = std::mem::take(&mut self.pull);
-        levels.clear();
-        let (mut lw, mut lh) = (w, h);
-        while lw > 1 || lh > 1 {
-            let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
-            let mut next = self.spare.pop().unwrap_or_default();
-            next.clear();
-            next.resize(nw * nh, [0.0; 5]);
-            let prev = levels.last().map(|l: &Level| &l.2);
-            next.par_chunks_mut(nw).enumerate().for_each(|(by, row)| {
+        if levels.is_empty() {
+            // The display's size fixes the levels; every value is rewritten below.
+            let (mut lw, mut lh) = (w, h);
+            while lw > 1 || lh > 1 {
+                (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
+                levels.push((lw, lh, vec![[0.0; 5]; lw * lh]));
+            }
+        }
+        for k in 0..levels.len() {
+            let (finer, rest) = levels.split_at_mut(k);
+            let (nw, _, next) = &mut rest[0];
+            let (lw, lh, prev) = match finer.last() {
+                Some((lw, lh, v)) => (*lw, *lh, Some(v)),
+                None => (w, h, None),
+            };
+            next.par_chunks_mut(*nw).enumerate().for_each(|(by, row)| {
                 for (bx, o) in row.iter_mut().enumerate() {
                     let mut s = [0f32; 5];
                     for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
@@ -73,8 +80,6 @@ impl Reconstructor {
                     *o = s;
                 }
             });
-            levels.push((nw, nh, next));
-            (lw, lh) = (nw, nh);
         }
         // Push, coarsest first: each level keeps `α` of its own colour and takes
         // `1 − α` from the bilinear interpolation of the (complete) coarser one.
@@ -120,8 +125,6 @@ impl Reconstructor {
         }
         self.image.pixels = image;
         self.age = ages;
-        // Keep the buffers for the next refresh.
-        self.spare.extend(levels.drain(..).map(|l| l.2));
         self.pull = levels;
         self.age.iter().map(|&a| a as f64).sum()
     }
