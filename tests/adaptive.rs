@@ -100,6 +100,15 @@ fn board_on_path(size: u32, csv: &str) -> Arc<Tracer> {
     Arc::new(tracer)
 }
 
+/// A camera path looking down −z at the checkerboard from z = 1, still at x = 0
+/// until `t0`, then panning along x to `x1` at `t1` (and still there after).
+fn pan(t0: f64, t1: f64, x1: f32) -> String {
+    format!(
+        "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+         {t0},0,0,1,0,0,0,0,1,0,90\n{t1},{x1},0,1,{x1},0,0,0,1,0,90\n"
+    )
+}
+
 /// Samples traced per pixel between `from` and `to` (seconds).
 fn density(s: &mut Sampler, size: u32, from: f64, to: f64) -> Vec<u32> {
     let mut counts = vec![0u32; (size * size) as usize];
@@ -244,11 +253,9 @@ fn a_moving_object_draws_samples() {
 fn gain_control_follows_scene_dynamics() {
     // Camera still until t = 1, panning fast (6 units/s, ~380 px/s) until t = 2, still
     // again afterwards; the checkerboard gives spatial detail everywhere.
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                1,0,0,1,0,0,0,0,1,0,90\n\
-                2,6,0,1,6,0,0,0,1,0,90\n";
+    let text = pan(1.0, 2.0, 6.0);
     let mut s = Sampler::new(
-        board_on_path(128, text),
+        board_on_path(128, &text),
         clock(200_000.0),
         SamplerParams::paper(),
         3,
@@ -349,10 +356,8 @@ fn keep_static_spends_no_occlusion_rays_on_a_still_view_only() {
     );
     assert_eq!(paper.counters().static_kept, 0);
 
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                0.5,0,0,1,0,0,0,0,1,0,90\n\
-                1.5,1,0,1,1,0,0,0,1,0,90\n";
-    let mut s = Sampler::new(board_on_path(48, text), c.clock, p, 1).unwrap();
+    let text = pan(0.5, 1.5, 1.0);
+    let mut s = Sampler::new(board_on_path(48, &text), c.clock, p, 1).unwrap();
     s.run_until(0.5);
     let still = s.counters().occlusion_rays;
     s.run_until(1.0);
@@ -435,11 +440,9 @@ fn camera_motion_over_a_still_scene_is_not_measured_as_change() {
     // new view's prior is off in both: it moves samples, not what they measure, and
     // on a camera that never stops it spreads them evenly, where the two ways differ
     // less: 0.49 against 0.84.)
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                0.0,0,0,1,0,0,0,0,1,0,90\n\
-                2.0,2,0,1,2,0,0,0,1,0,90\n";
+    let text = pan(0.0, 2.0, 2.0);
     let gt = |p: SamplerParams| {
-        let mut s = Sampler::new(board_on_path(48, text), clock(200_000.0), p, 1).unwrap();
+        let mut s = Sampler::new(board_on_path(48, &text), clock(200_000.0), p, 1).unwrap();
         s.run_until(1.0);
         s.tiling().node(0).stats.gradients().2
     };
@@ -491,12 +494,10 @@ fn a_region_revealed_by_a_turn_draws_samples_at_once() {
     // right half shows what no sample has seen. Its tiles hold no samples and show no
     // variance, so without a prior the tiling neither splits them nor sends them more
     // than chance; with the new view's prior they count as average tiles at once.
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                1.0,0,0,1,0,0,0,0,1,0,90\n\
-                1.05,1.5,0,1,1.5,0,0,0,1,0,90\n";
+    let text = pan(1.0, 1.05, 1.5);
     let size = 64u32;
     let right_share = |p: SamplerParams| {
-        let mut s = Sampler::new(board_on_path(size, text), clock(100_000.0), p, 1).unwrap();
+        let mut s = Sampler::new(board_on_path(size, &text), clock(100_000.0), p, 1).unwrap();
         let d = density(&mut s, size, 1.05, 1.15);
         right_half_share(&d, size)
     };
