@@ -6,16 +6,14 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
-use super::{lanes::LANES, resolve::MIN_WEIGHT, splat::CHANNELS, Reconstructor};
+use super::{resolve::MIN_WEIGHT, splat::CHANNELS, Reconstructor};
 
 impl Reconstructor {
     /// Accumulated sums of pixel `(x, y)` (zero for a hole).
     #[inline]
     fn sums(&self, x: usize, y: usize) -> [f64; CHANNELS] {
-        let cell = &self.acc[y * self.gpr + x / LANES];
-        let l = x % LANES;
-        if cell[3][l] >= MIN_WEIGHT {
-            std::array::from_fn(|c| cell[c][l] as f64)
+        if self.sum_at(x, y, 3) >= MIN_WEIGHT {
+            std::array::from_fn(|c| self.sum_at(x, y, c) as f64)
         } else {
             [0.0; CHANNELS]
         }
@@ -68,7 +66,7 @@ impl Reconstructor {
         let mut age_sum = 0.0;
         for y in 0..h {
             for x in 0..w {
-                if self.acc[y * self.gpr + x / LANES][3][x % LANES] >= MIN_WEIGHT {
+                if self.sum_at(x, y, 3) >= MIN_WEIGHT {
                     continue;
                 }
                 let mut out = (Vec3::ZERO, 0.0);

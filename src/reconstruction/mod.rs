@@ -99,10 +99,9 @@ use filter_table::{Lookup, TileFilter};
 use history::History;
 pub use history::HistoryParams;
 pub use lanes::fast_exp_neg;
-use lanes::LANES;
 pub use params::ReconParams;
 pub use ring::Ring;
-use splat::{Cell, Splat, BAND_ROWS, CHANNELS};
+use splat::{Splat, BAND_ROWS, CHANNELS};
 
 /// One sample of the reconstructor's deep buffer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -153,9 +152,10 @@ pub struct Reconstructor {
     filters: OnceLock<Vec<[f32; 3]>>,
     scale: Vec<f32>,
     coverage: Vec<u32>,
-    /// Accumulators, `gpr` cells per row.
-    acc: Vec<Cell>,
-    gpr: usize,
+    /// Accumulators: per row, [`CHANNELS`] runs of `cs` floats (see
+    /// [`splat::channel_stride`]).
+    acc: Vec<f32>,
+    cs: usize,
     /// Per-row coverage differences, rows of `width + 1`.
     cov: Vec<i32>,
     /// Rows per band of the splat at the last refresh.
@@ -202,7 +202,7 @@ impl Reconstructor {
     pub fn new(width: u32, height: u32, rate: f64, params: ReconParams) -> Self {
         let n = (width * height) as usize;
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);
-        let gpr = (width as usize).div_ceil(LANES);
+        let cs = splat::channel_stride(width as usize);
         let scale0 = params.scale_bounds.0.max(1e-3);
         Self {
             params,
@@ -223,8 +223,8 @@ impl Reconstructor {
             filters: OnceLock::new(),
             scale: vec![scale0; n],
             coverage: vec![0; n],
-            acc: vec![[[0.0; LANES]; CHANNELS]; height as usize * gpr],
-            gpr,
+            acc: vec![0.0; height as usize * CHANNELS * cs],
+            cs,
             cov: vec![0; height as usize * (width as usize + 1)],
             band_rows: BAND_ROWS,
             binned: Vec::new(),

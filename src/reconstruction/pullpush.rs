@@ -21,7 +21,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{lanes::LANES, resolve::MIN_WEIGHT, Reconstructor};
+use super::{resolve::MIN_WEIGHT, splat::CHANNELS, Reconstructor};
 
 /// One pyramid level: width, height, premultiplied `(r, g, b, age)` and coverage `α`.
 pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
@@ -35,9 +35,9 @@ impl Reconstructor {
     /// push need them.
     pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
         let (w, h) = (self.width as usize, self.height as usize);
-        let gpr = self.gpr;
+        let cs = self.cs;
         let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
-        let weight = |x: usize, y: usize| acc[y * gpr + x / LANES][3][x % LANES];
+        let weight = |x: usize, y: usize| acc[(y * CHANNELS + 3) * cs + x];
         let pixel =
             |x: usize, y: usize| premultiplied(weight(x, y), w0, px[y * w + x], age[y * w + x]);
         // Pull: each level the coverage-weighted 2×2 mean of the finer one, its

@@ -5,7 +5,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{lanes::LANES, splat::BAND_ROWS, Reconstructor};
+use super::{
+    splat::{BAND_ROWS, CHANNELS},
+    Reconstructor,
+};
 
 /// Accumulated weight below which a pixel counts as a hole: far splat tails reach
 /// f32's denormal range, where `Σw·c / Σw` loses all precision.
@@ -15,7 +18,7 @@ impl Reconstructor {
     /// Quotients, coverage, splat scale adaptation, hole filling, mean age.
     pub(super) fn resolve(&mut self) {
         let (w, h) = (self.width as usize, self.height as usize);
-        let (gpr, cstride) = (self.gpr, w + 1);
+        let (rs, cs, cstride) = (CHANNELS * self.cs, self.cs, w + 1);
         let p = self.params;
         let per_band: Vec<(usize, usize, f64)> = self
             .image
@@ -24,7 +27,7 @@ impl Reconstructor {
             .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
             .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
             .zip(self.age.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.acc.par_chunks(BAND_ROWS * gpr))
+            .zip(self.acc.par_chunks(BAND_ROWS * rs))
             .zip(self.cov.par_chunks(BAND_ROWS * cstride))
             .map(|(((((px, coverage), scale), ages), acc), cov)| {
                 let (mut holes, mut thin, mut age) = (0usize, 0usize, 0f64);
@@ -35,11 +38,13 @@ impl Reconstructor {
                     .zip(ages.chunks_mut(w))
                     .enumerate()
                 {
-                    let cells = &acc[r * gpr..(r + 1) * gpr];
+                    let sums = &acc[r * rs..(r + 1) * rs];
+                    let ch = |c: usize| &sums[c * cs..c * cs + w];
+                    let (sr, sg, sb, sw, sa) = (ch(0), ch(1), ch(2), ch(3), ch(4));
                     let cov = &cov[r * cstride..(r + 1) * cstride];
                     let mut count = 0i32;
                     for x in 0..w {
-                        let [cr, cg, cb, cw, ca] = cells[x / LANES].map(|c| c[x % LANES]);
+                        let (cr, cg, cb, cw, ca) = (sr[x], sg[x], sb[x], sw[x], sa[x]);
                         count += cov[x];
                         coverage[x] = count as u32;
                         let s = &mut scale[x];
