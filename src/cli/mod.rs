@@ -472,6 +472,7 @@ fn view(a: args::ViewArgs) -> Result<()> {
         cfg.recon_threads = n as usize;
     }
     cfg.refresh_hz = a.refresh_hz;
+    cfg.image_budget = a.image_budget;
     cfg.start = a.start;
     cfg.seed = a.seed;
     cfg.sampler.reprojection = !a.no_reprojection;

@@ -124,6 +124,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         recon_rate: 0.0,
         rate_window: VecDeque::new(),
         last_rebuild: 0.0,
+        live_limit: None,
     }))
 }
 
@@ -371,10 +372,41 @@ struct Builder {
     /// Ray counts at recent images, to measure the rate the filters assume.
     rate_window: VecDeque<(f64, u64)>,
     last_rebuild: f64,
+    /// Newest samples the reconstructor places ([`next_live_limit`]).
+    live_limit: Option<usize>,
+}
+
+/// The live limit for the next image, after one that placed `placed` samples under
+/// `limit` and took `ms` to build, against a budget of `budget_ms` (0: no limit).
+///
+/// The build's cost is nearly linear in the samples placed, so the limit moves by the
+/// square root of budget / time (half the step in the logarithm, against overshoot
+/// from one slow image), at most halving or growing by a quarter per image; it is
+/// lifted once it would reach `capacity`, and never goes below `floor`.
+fn next_live_limit(
+    limit: Option<usize>,
+    placed: usize,
+    ms: f64,
+    budget_ms: f64,
+    floor: usize,
+    capacity: usize,
+) -> Option<usize> {
+    if budget_ms.is_nan() || budget_ms <= 0.0 {
+        return None;
+    }
+    let step = (budget_ms / ms.max(1e-3)).sqrt().clamp(0.5, 1.25);
+    let from = match limit {
+        None if ms <= budget_ms => return None,
+        None => placed,
+        Some(k) => k,
+    };
+    let next = (from as f64 * step) as usize;
+    (next < capacity).then_some(next.max(floor))
 }
 
 impl ImageBuilder for Builder {
     fn build(&mut self, t: f64) -> Option<Built> {
+        let t0 = Instant::now();
         let s = &*self.s;
         let (w, h) = s.tracer.size();
         let tiling = lock(&self.published.tiling).clone()?;
@@ -418,6 +450,7 @@ impl ImageBuilder for Builder {
             r.push_stream(batch);
         }
         let camera = s.tracer.state_at(t).camera;
+        r.set_live_limit(self.live_limit);
         let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
         if s.config.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
@@ -429,8 +462,27 @@ impl ImageBuilder for Builder {
                 buf.extend_from_slice(counts);
             }
         }
-        lock(&s.image_stats).ring_capacity = r.capacity();
         let ages = r.pixel_ages();
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let budget_ms = s.config.image_budget * 1e3 / s.config.refresh_hz;
+        // A floor of half a sample per pixel keeps an image where the build's
+        // per-pixel work alone exceeds the budget.
+        let floor = (w as usize * h as usize / 2).max(1);
+        let limited = self.live_limit.is_some();
+        self.live_limit = next_live_limit(
+            self.live_limit,
+            r.placed(),
+            ms,
+            budget_ms,
+            floor,
+            r.capacity(),
+        );
+        {
+            let mut st = lock(&s.image_stats);
+            st.ring_capacity = r.capacity();
+            st.limited_images += limited as u64;
+            st.placed_sum += r.placed() as f64;
+        }
         Some(Built {
             image,
             mean_age: r.mean_age(),
@@ -439,5 +491,50 @@ impl ImageBuilder for Builder {
             // Samples are reprojected to the camera of `t`.
             view_time: t,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::next_live_limit;
+
+    #[test]
+    fn the_live_limit_follows_the_build_time_budget() {
+        let (floor, cap) = (1000, 100_000);
+        // Within budget and unlimited: stays unlimited; no budget: never limited.
+        assert_eq!(next_live_limit(None, 50_000, 10.0, 13.0, floor, cap), None);
+        assert_eq!(
+            next_live_limit(Some(5000), 5000, 90.0, 0.0, floor, cap),
+            None
+        );
+        // Over budget: a limit below what was placed, by at most half.
+        let k = next_live_limit(None, 80_000, 26.0, 13.0, floor, cap).unwrap();
+        assert!((40_000..80_000).contains(&k), "{k}");
+        assert_eq!(
+            next_live_limit(None, 80_000, 1e6, 13.0, floor, cap),
+            Some(40_000)
+        );
+        // Never below the floor.
+        assert_eq!(
+            next_live_limit(Some(1500), 1500, 1e3, 13.0, floor, cap),
+            Some(floor)
+        );
+        // A cost linear in the samples settles near the budget: 2 ms fixed plus
+        // 0.2 µs per sample, budget 13 ms (55K samples).
+        let mut limit = None;
+        let mut placed = cap;
+        for _ in 0..60 {
+            let ms = 2.0 + placed as f64 * 2e-4;
+            limit = next_live_limit(limit, placed, ms, 13.0, floor, cap);
+            placed = limit.unwrap_or(cap).min(cap);
+        }
+        let ms = 2.0 + placed as f64 * 2e-4;
+        assert!((12.0..=13.5).contains(&ms), "{ms} ms with {placed}");
+        // Time to spare grows it back until the limit is lifted.
+        for _ in 0..60 {
+            limit = next_live_limit(limit, placed, 5.0, 13.0, floor, cap);
+            placed = limit.unwrap_or(cap).min(cap);
+        }
+        assert_eq!(limit, None);
     }
 }

@@ -75,6 +75,11 @@ pub struct RtConfig {
     pub sampler: SamplerParams,
     /// The reconstructor's parameters.
     pub recon: ReconParams,
+    /// Adaptive: the share of a refresh period an image's build aims to take. When a
+    /// build takes longer, the next places only the newest samples of the ring, as
+    /// many as fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the
+    /// whole ring always.
+    pub image_budget: f64,
 }
 
 impl RtConfig {
@@ -112,6 +117,12 @@ impl RtConfig {
         }
         if !self.start.is_finite() {
             return Err(RealtimeError::Config("start time must be finite".into()));
+        }
+        if !(self.image_budget.is_finite() && (0.0..=1.0).contains(&self.image_budget)) {
+            return Err(RealtimeError::Config(format!(
+                "image budget {} out of range 0..=1 (a share of the refresh period)",
+                self.image_budget
+            )));
         }
         if !(self.recon.ring_factor.is_finite() && self.recon.ring_factor > 0.0) {
             return Err(RealtimeError::Config("ring factor must be positive".into()));

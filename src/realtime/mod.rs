@@ -213,7 +213,8 @@ impl clap::ValueEnum for Visualisation {
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
     /// machine, reconstruction on half the cores, the paper's sampler, and the
-    /// real-time reconstructor ([`realtime_recon`]).
+    /// real-time reconstructor ([`realtime_recon`]), builds within 0.8 of a refresh
+    /// period.
     pub fn new(method: RtMethod) -> Self {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         Self {
@@ -225,6 +226,7 @@ impl RtConfig {
             seed: 1,
             sampler: SamplerParams::ours(),
             recon: realtime_recon(),
+            image_budget: 0.8,
         }
     }
 }

@@ -81,6 +81,12 @@ pub struct PipelineStats {
     pub recon_rate: f64,
     /// Adaptive: ring capacity.
     pub ring_capacity: usize,
+    /// Adaptive: samples the reconstructor placed per image, mean (the ring within the
+    /// temporal cutoff, at most the live limit of the image budget).
+    pub placed_mean: f64,
+    /// Adaptive: share of images built under a live limit, because the previous one
+    /// took longer than the image budget ([`RtConfig::image_budget`]).
+    pub limited_share: f64,
     /// Framed methods and taa: frames (whole or in part) traced but never shown,
     /// because a newer frame was complete first; their samples count in `samples`.
     pub dropped_frames: u64,
@@ -189,6 +195,8 @@ impl Pipeline {
             },
             recon_rate: img.recon_rate,
             ring_capacity: img.ring_capacity,
+            placed_mean: img.placed_sum / img.images.max(1) as f64,
+            limited_share: img.limited_images as f64 / img.images.max(1) as f64,
             dropped_frames: img.dropped_frames,
             history_maps: s.history_maps.load(Ordering::Relaxed),
         }

@@ -190,6 +190,10 @@ pub(crate) struct ImageThreadStats {
     pub recon_rate: f64,
     pub ring_capacity: usize,
     pub rebuilds: u64,
+    /// Adaptive: images built under a live limit, and the samples placed, summed over
+    /// images.
+    pub limited_images: u64,
+    pub placed_sum: f64,
     /// Frames whose samples were traced but never shown (framed methods and taa).
     pub dropped_frames: u64,
 }

@@ -216,8 +216,10 @@ pub(super) struct History {
     /// Time since which the caller knows the view to have been the current one.
     view_since: Option<f64>,
     fresh: Vec<Fresh>,
-    /// The reconstruction's image before blending (reused).
-    recon: Vec<Vec3>,
+    /// Per pixel, the lowest and highest colour of the reconstruction before blending
+    /// over the pixel and its two neighbours in the row (reused).
+    row_lo: Vec<Vec3>,
+    row_hi: Vec<Vec3>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -238,7 +240,8 @@ impl History {
             last_camera: None,
             view_since: None,
             fresh: Vec::new(),
-            recon: Vec::new(),
+            row_lo: Vec::new(),
+            row_hi: Vec::new(),
             cuts: 0,
         }
     }
@@ -416,9 +419,23 @@ impl History {
                 self.cut(q);
             }
         }
-        self.recon.clear();
-        self.recon.extend_from_slice(&image.pixels);
-        let recon = &self.recon;
+        // The 3×3 neighbourhood's range, separably: each pixel's range over its row
+        // neighbours here, over the rows' ranges below (the same minima and maxima).
+        self.row_lo.resize(w * h, Vec3::ZERO);
+        self.row_hi.resize(w * h, Vec3::ZERO);
+        image
+            .pixels
+            .par_chunks(w)
+            .zip(self.row_lo.par_chunks_mut(w))
+            .zip(self.row_hi.par_chunks_mut(w))
+            .for_each(|((px, lo), hi)| {
+                for x in 0..w {
+                    let (a, b) = (px[x.saturating_sub(1)], px[(x + 1).min(w - 1)]);
+                    lo[x] = px[x].min(a).min(b);
+                    hi[x] = px[x].max(a).max(b);
+                }
+            });
+        let (row_lo, row_hi) = (&self.row_lo, &self.row_hi);
         let rows: Vec<(u64, f64)> = image
             .pixels
             .par_chunks_mut(w)
@@ -429,17 +446,22 @@ impl History {
             .zip(age.par_chunks_mut(w))
             .enumerate()
             .map(|(y, (((((out, sum), time_sum), count), range), age))| {
+                let (above, below) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
+                let (lo_a, lo_m, lo_b) = (
+                    &row_lo[above..above + w],
+                    &row_lo[y * w..(y + 1) * w],
+                    &row_lo[below..below + w],
+                );
+                let (hi_a, hi_m, hi_b) = (
+                    &row_hi[above..above + w],
+                    &row_hi[y * w..(y + 1) * w],
+                    &row_hi[below..below + w],
+                );
                 let (mut cuts, mut age_sum) = (0u64, 0f64);
                 for x in 0..w {
                     let shown_age = if count[x] > 0.0 {
-                        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-                        for yy in y.saturating_sub(1)..(y + 2).min(h) {
-                            for xx in x.saturating_sub(1)..(x + 2).min(w) {
-                                let c = recon[yy * w + xx];
-                                lo = lo.min(c);
-                                hi = hi.max(c);
-                            }
-                        }
+                        let lo = lo_a[x].min(lo_m[x]).min(lo_b[x]);
+                        let hi = hi_a[x].max(hi_m[x]).max(hi_b[x]);
                         let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
                         let slack = half + Vec3::splat(p.tolerance);
                         let mean = sum[x] / count[x];

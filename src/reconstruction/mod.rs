@@ -143,6 +143,10 @@ pub struct Reconstructor {
     ring: Ring,
     /// Cut the ring's stale prefix before placing samples (off only to test the cut).
     skip_stale: bool,
+    /// Place at most this many of the newest samples (a real-time time budget).
+    live_limit: Option<usize>,
+    /// Samples placed at the last refresh (the ring past its stale part and limit).
+    placed: usize,
     /// Filter per tile at the last refresh.
     tiles: Vec<TileFilter>,
     /// Each pixel's tile and splat scale (the scale also in `scale`, the public map),
@@ -212,6 +216,8 @@ impl Reconstructor {
             capacity,
             ring: Ring::new(capacity),
             skip_stale: true,
+            live_limit: None,
+            placed: 0,
             tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
             lookup: vec![
                 Lookup {
@@ -242,6 +248,20 @@ impl Reconstructor {
     /// The parameters.
     pub fn params(&self) -> &ReconParams {
         &self.params
+    }
+
+    /// Place at most the `limit` newest samples of the ring at each refresh (`None`:
+    /// all within the temporal cutoff), so that a display that must have an image at
+    /// every refresh can bound the reconstruction's cost. Older samples are left out
+    /// as if the ring were that short: the image is that of a shorter ring.
+    pub fn set_live_limit(&mut self, limit: Option<usize>) {
+        self.live_limit = limit;
+    }
+
+    /// Samples placed at the last refresh: the ring from its first sample within the
+    /// temporal cutoff of some tile, at most the live limit.
+    pub fn placed(&self) -> usize {
+        self.placed
     }
 
     /// Ring capacity `N`.

@@ -425,9 +425,15 @@ impl Reconstructor {
     }
 
     /// Place the live part of the ring and bin its splats by band, pieces of the ring
-    /// in parallel.
+    /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
+    /// of it.
     pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
-        let start = self.live_start(t);
+        let stale = self.live_start(t);
+        let start = match self.live_limit {
+            Some(k) => stale.max(self.ring.len().saturating_sub(k)),
+            None => stale,
+        };
+        self.placed = self.ring.len() - start.min(self.ring.len());
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.

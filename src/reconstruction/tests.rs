@@ -441,3 +441,33 @@ fn well_covered_pixels_are_not_filled() {
     }
     assert!(same > 100 && changed > 20, "{same} kept, {changed} filled");
 }
+
+#[test]
+fn a_live_limit_reconstructs_the_newest_samples_only() {
+    // 3000 samples in a ring that holds them all (ring factor 4 × 1200 pixels).
+    let params = ReconParams {
+        ring_factor: 4.0,
+        ..ReconParams::paper()
+    };
+    let (mut all, c, tiling) = random_setup(40, 30, 3000, 1.0, false, params, GTS);
+    let newest: Vec<RingSample> = all.ring().iter().skip(2000).collect();
+    all.set_live_limit(Some(1000));
+    let limited = all.reconstruct(1.0, &c, &tiling).clone();
+    assert_eq!(all.placed(), 1000);
+    // The same image as a reconstructor that only ever saw the newest 1000.
+    let mut short = Reconstructor::new(40, 30, all.rate, params);
+    for s in newest {
+        short.push(s);
+    }
+    let want = short.reconstruct(1.0, &c, &tiling);
+    assert!(limited
+        .pixels
+        .iter()
+        .zip(&want.pixels)
+        .all(|(a, b)| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits)));
+    // Lifted, every sample within the cutoff counts again, and the image changes.
+    all.set_live_limit(None);
+    let unlimited = all.reconstruct(1.0, &c, &tiling).clone();
+    assert!(all.placed() > 2000, "{}", all.placed());
+    assert_ne!(unlimited.pixels, limited.pixels);
+}
