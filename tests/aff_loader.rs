@@ -692,6 +692,40 @@ fn syntax_errors_have_locations() {
 }
 
 #[test]
+fn colours_past_the_limit_have_locations() {
+    // Finite f32 numbers past the colour limit (found by `aff_props`): the error names
+    // the place, not only the scene.
+    let e = parse_err(
+        "s 0 0 0 1
+b 49999999 0.5 1
+",
+    );
+    assert_parse_error(&e, "main.aff", 2, 3, "background");
+    let e = parse_err(
+        "am 1 1e7 1
+",
+    );
+    assert_parse_error(&e, "main.aff", 1, 4, "ambient light");
+    let e = parse_err(
+        "l 0 0 0 1 1 -2e6
+",
+    );
+    assert_parse_error(&e, "main.aff", 1, 9, "light colour");
+    let e = parse_err(
+        "f 1 1 1 2e6 0 1 0 1
+",
+    );
+    assert_parse_error(&e, "main.aff", 1, 1, "diffuse");
+    let e = parse_err(
+        "fm 0 0 0 1 1 1 0 0 0 1 5e6 1
+",
+    );
+    assert_parse_error(&e, "main.aff", 1, 1, "transmission");
+    let e = parse_err("v\nfrom 0 0 1e30\nat 0 0 0\nup 0 1 0\nangle 45\nhither 1\nresolution 8 8\n");
+    assert_parse_error(&e, "main.aff", 1, 1, "camera eye");
+}
+
+#[test]
 fn blocks_may_span_include_boundaries() {
     let dir = temp_dir("span");
     write(&dir, "open.aff", "x a {\n");

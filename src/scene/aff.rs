@@ -343,6 +343,17 @@ impl<'a> Lexer<'a> {
         })
     }
 
+    /// Three numbers that form a colour within [`limits::MAX_COLOR`] (`name` in the
+    /// error), the error at the first of them.
+    fn color(&mut self, what: &str, name: &str) -> Res<Vec3> {
+        let first = self.peek();
+        let c = self.vec3(what)?;
+        match first {
+            Some(t) if !limits::color_ok(c) => Err(self.err(t, limits::color_message(name, c))),
+            _ => Ok(c),
+        }
+    }
+
     fn vec3(&mut self, what: &str) -> Res<Vec3> {
         Ok(Vec3::new(
             self.number(what)?,
@@ -486,6 +497,25 @@ struct Frame {
 /// Material identity for sharing: the bit patterns of every field.
 type MaterialKey = ([u32; 12], Option<TextureId>);
 
+/// A material's colours and coefficients within [`limits::MAX_COLOR`] (the whole-scene
+/// check's rule, here with the material directive's place).
+fn check_material(lx: &Lexer, t: Tok, m: &Material) -> Res<()> {
+    for (what, c) in [
+        ("material ambient colour", m.ambient),
+        ("material diffuse colour", m.diffuse),
+        ("material specular colour", m.specular),
+        (
+            "material shininess, transmission or index of refraction",
+            Vec3::new(m.shininess, m.transmission, m.ior),
+        ),
+    ] {
+        if !limits::color_ok(c) {
+            return Err(lx.err(t, limits::color_message(what, c)));
+        }
+    }
+    Ok(())
+}
+
 fn material_key(m: &Material) -> MaterialKey {
     let f = [
         m.ambient.x,
@@ -565,19 +595,19 @@ impl Parser {
 
     fn directive(&mut self, lx: &mut Lexer, t: Tok) -> Res<()> {
         match lx.text(t) {
-            b"v" => self.viewpoint(lx),
+            b"v" => self.viewpoint(lx, t),
             b"b" => {
-                self.scene.background = lx.vec3("a background color component")?;
+                self.scene.background = lx.color("a background color component", "background")?;
                 Ok(())
             }
             b"am" => {
-                self.scene.ambient = lx.vec3("an ambient light component")?;
+                self.scene.ambient = lx.color("an ambient light component", "ambient light")?;
                 Ok(())
             }
             b"l" => self.light(lx, t, false),
             b"la" => self.light(lx, t, true),
-            b"f" => self.nff_material(lx),
-            b"fm" => self.extended_material(lx),
+            b"f" => self.nff_material(lx, t),
+            b"fm" => self.extended_material(lx, t),
             b"c" => self.cone(lx, t),
             b"s" => self.sphere(lx, t),
             b"p" => self.polygon(lx, t, false),
@@ -738,7 +768,7 @@ impl Parser {
 
     // --- directives ----------------------------------------------------------------
 
-    fn viewpoint(&mut self, lx: &mut Lexer) -> Res<()> {
+    fn viewpoint(&mut self, lx: &mut Lexer, v: Tok) -> Res<()> {
         const FIELDS: &str = "a viewpoint field (from, at, up, angle, hither or resolution)";
         let mut cam = Camera::default();
         let mut resolution = (0u32, 0u32);
@@ -783,6 +813,11 @@ impl Parser {
                 }
             }
         }
+        for (what, p) in [("camera eye", cam.eye), ("camera target", cam.at)] {
+            if !limits::coordinate_ok(p) {
+                return Err(lx.err(v, limits::coordinate_message(what, p)));
+            }
+        }
         self.scene.camera.base = cam;
         self.scene.camera.resolution = Some(resolution);
         Ok(())
@@ -796,7 +831,7 @@ impl Parser {
         };
         let mut position = lx.vec3("a light position coordinate")?;
         let color = if lx.peek_is_number() {
-            lx.vec3("a light color component")?
+            lx.color("a light color component", "light colour")?
         } else {
             Vec3::ONE
         };
@@ -817,7 +852,7 @@ impl Parser {
         Ok(())
     }
 
-    fn nff_material(&mut self, lx: &mut Lexer) -> Res<()> {
+    fn nff_material(&mut self, lx: &mut Lexer, t: Tok) -> Res<()> {
         let color = lx.vec3("a material color component")?;
         let kd = lx.number("the diffuse coefficient Kd")?;
         let ks = lx.number("the specular coefficient Ks")?;
@@ -833,10 +868,10 @@ impl Parser {
             ior,
             texture: None,
         };
-        Ok(())
+        check_material(lx, t, &self.material)
     }
 
-    fn extended_material(&mut self, lx: &mut Lexer) -> Res<()> {
+    fn extended_material(&mut self, lx: &mut Lexer, t: Tok) -> Res<()> {
         let ambient = lx.vec3("an ambient color component")?;
         let diffuse = lx.vec3("a diffuse color component")?;
         let specular = lx.vec3("a specular color component")?;
@@ -852,7 +887,7 @@ impl Parser {
             ior,
             texture: None,
         };
-        Ok(())
+        check_material(lx, t, &self.material)
     }
 
     fn cone(&mut self, lx: &mut Lexer, t: Tok) -> Res<()> {

@@ -67,6 +67,20 @@ pub fn read_bounded(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Whether a colour is finite and within [`MAX_COLOR`].
+#[inline]
+pub fn color_ok(c: Vec3) -> bool {
+    c.is_finite() && c.abs().max_element() <= MAX_COLOR
+}
+
+/// The error message for a colour `c` of `what` outside [`MAX_COLOR`].
+pub fn color_message(what: &str, c: Vec3) -> String {
+    format!(
+        "{what} ({:?}, {:?}, {:?}) is outside the colour limit of ±{MAX_COLOR:e} (or not finite)",
+        c.x, c.y, c.z
+    )
+}
+
 /// Whether a point is finite and inside the coordinate budget.
 #[inline]
 pub fn coordinate_ok(v: Vec3) -> bool {
@@ -160,13 +174,6 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             )));
         }
     }
-    let color_ok = |c: Vec3| c.is_finite() && c.abs().max_element() <= MAX_COLOR;
-    let color_message = |what: String, c: Vec3| {
-        format!(
-            "{what} ({:?}, {:?}, {:?}) is outside the colour limit of ±{MAX_COLOR:e} (or not finite)",
-            c.x, c.y, c.z
-        )
-    };
     for (mi, m) in scene.materials.iter().enumerate() {
         for (what, c) in [
             ("ambient", m.ambient),
@@ -178,13 +185,13 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             ),
         ] {
             if !color_ok(c) {
-                return Err(bad(color_message(format!("material {mi}: {what}"), c)));
+                return Err(bad(color_message(&format!("material {mi}: {what}"), c)));
             }
         }
     }
     for (li, l) in scene.lights.iter().enumerate() {
         if !color_ok(l.color) {
-            return Err(bad(color_message(format!("light {li}: colour"), l.color)));
+            return Err(bad(color_message(&format!("light {li}: colour"), l.color)));
         }
     }
     for (what, c) in [
@@ -192,13 +199,13 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
         ("ambient light", scene.ambient),
     ] {
         if !color_ok(c) {
-            return Err(bad(color_message(what.into(), c)));
+            return Err(bad(color_message(what, c)));
         }
     }
     for t in &scene.textures {
         if let Some(&c) = t.texels.iter().find(|&&c| !color_ok(c)) {
             return Err(bad(color_message(
-                format!("texture {}: a texel", t.name),
+                &format!("texture {}: a texel", t.name),
                 c,
             )));
         }
