@@ -27,5 +27,11 @@ for m in adaptive traditional-frameless framed late-warp taa taa-warp; do
     --refresh-hz 30 --method "$m" --images 1 --camera-step "$(awk "BEGIN { print $SECS / 2 }")" \
     --out "$OUT/toycar640_$m"
 done
+# The adaptive image budget off (--image-budget 0): every image reconstructs the whole
+# ring, as before session 10.
+"$BIN" view --headless --seconds "$SECS" --scene "$KITCHEN" --size 256x256 \
+  --method adaptive --image-budget 0 --images 1 --out "$OUT/kitchen_adaptive-nobudget"
+"$BIN" view --headless --seconds "$SECS" --scene toycar --size 640x480 --start 1 \
+  --refresh-hz 30 --method adaptive --image-budget 0 --images 1 --out "$OUT/toycar640_adaptive-nobudget"
 echo "load after: $(cut -d' ' -f1-3 /proc/loadavg)" | tee -a "$OUT/load.txt"
 python3 "$HERE/table.py" "$OUT"
