@@ -220,6 +220,8 @@ pub(super) struct History {
     /// over the pixel and its two neighbours in the row (reused).
     row_lo: Vec<Vec3>,
     row_hi: Vec<Vec3>,
+    /// The fresh samples' pixels and indices, sorted by pixel (reused).
+    order: Vec<(u32, u32)>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -242,6 +244,7 @@ impl History {
             fresh: Vec::new(),
             row_lo: Vec::new(),
             row_hi: Vec::new(),
+            order: Vec::new(),
             cuts: 0,
         }
     }
@@ -360,7 +363,13 @@ impl History {
         }
         let (w, h) = (self.width as usize, self.height as usize);
         let mut fresh = std::mem::take(&mut self.fresh);
-        for f in fresh.drain(..) {
+        // Each sample's pixel first, then the samples in pixel order (stable, so each
+        // pixel sees its samples in the order they came): what a sample does touches
+        // only its own pixel, so the outcome is the same as in arrival order, and the
+        // history's arrays are read in address order instead of at random.
+        let mut order = std::mem::take(&mut self.order);
+        order.clear();
+        for (i, f) in fresh.iter().enumerate() {
             let q = if p.reproject {
                 // Where the sample's surface point is seen now.
                 match self.pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32) {
@@ -374,12 +383,18 @@ impl History {
                 }
                 f.y as usize * w + f.x as usize
             };
+            if !f.still && f.velocity != Vec3::ZERO {
+                // In arrival order: `moving` is kept oldest first.
+                self.moving.push_back((f.hit_point, f.velocity, f.t));
+            }
+            order.push((q as u32, i as u32));
+        }
+        order.sort_by_key(|&(q, _)| q);
+        for &(q, i) in &order {
+            let (q, f) = (q as usize, &fresh[i as usize]);
             if !f.still {
                 // Something moving covers (part of) the pixel now.
                 self.cut(q);
-                if f.velocity != Vec3::ZERO {
-                    self.moving.push_back((f.hit_point, f.velocity, f.t));
-                }
                 continue;
             }
             let l = luminance(f.color);
@@ -404,7 +419,9 @@ impl History {
                 }
             }
         }
+        fresh.clear();
         self.fresh = fresh;
+        self.order = order;
         // Moving surfaces cut the history where they are now.
         while self
             .moving

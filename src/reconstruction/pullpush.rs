@@ -97,9 +97,11 @@ impl Reconstructor {
             let (finer, coarser) = levels.split_at_mut(k);
             let (cw, ch, ref cv) = coarser[0];
             let (fw, _, fv) = &mut finer[k - 1];
+            let xt = taps(*fw, cw);
             fv.par_chunks_mut(*fw).enumerate().for_each(|(y, row)| {
-                for (x, v) in row.iter_mut().enumerate() {
-                    let o = push(v, bilinear(cv, cw, ch, x, y));
+                let yt = tap(y, ch);
+                for (v, &xt) in row.iter_mut().zip(&xt) {
+                    let o = push(v, bilinear(cv, cw, xt, yt));
                     *v = [o[0], o[1], o[2], o[3], 1.0];
                 }
             });
@@ -108,15 +110,17 @@ impl Reconstructor {
         let mut image = std::mem::take(&mut self.image.pixels);
         let mut ages = std::mem::take(&mut self.age);
         if let Some((cw, ch, cv)) = levels.first() {
+            let xt = taps(w, *cw);
             image
                 .par_chunks_mut(w)
                 .zip(ages.par_chunks_mut(w))
                 .enumerate()
                 .for_each(|(y, (px, age))| {
+                    let yt = tap(y, *ch);
                     for x in 0..w {
                         let v = premultiplied(weight(x, y), w0, px[x], age[x]);
                         if v[4] < 1.0 {
-                            let o = push(&v, bilinear(cv, *cw, *ch, x, y));
+                            let o = push(&v, bilinear(cv, *cw, xt[x], yt));
                             px[x] = Vec3::new(o[0], o[1], o[2]);
                             age[x] = o[3];
                         }
@@ -142,17 +146,31 @@ fn premultiplied(cw: f32, w0: f32, p: Vec3, g: f32) -> [f32; 5] {
     [p.x * a, p.y * a, p.z * a, g * a, a]
 }
 
-/// Bilinear interpolation of a complete level `(cw × ch)` at the center of pixel
-/// `(x, y)` of the level twice as fine (clamped at the edges).
+/// The bilinear taps of pixel `i` of a level twice as fine as one of `n` pixels (along
+/// one axis): the two coarse pixels around its centre (clamped at the edges) and the
+/// weight of the second.
 #[inline]
-fn bilinear(cv: &[[f32; 5]], cw: usize, ch: usize, x: usize, y: usize) -> [f32; 4] {
-    let coord = |i: usize, n: usize| {
-        let f = ((i as f32 + 0.5) * 0.5 - 0.5).clamp(0.0, (n - 1) as f32);
-        let i0 = f as usize;
-        (i0, (i0 + 1).min(n - 1), f - i0 as f32)
-    };
-    let (x0, x1, tx) = coord(x, cw);
-    let (y0, y1, ty) = coord(y, ch);
+fn tap(i: usize, n: usize) -> (usize, usize, f32) {
+    let f = ((i as f32 + 0.5) * 0.5 - 0.5).clamp(0.0, (n - 1) as f32);
+    let i0 = f as usize;
+    (i0, (i0 + 1).min(n - 1), f - i0 as f32)
+}
+
+/// [`tap`] of every pixel of a row (or column) of `fine` pixels: computed once per
+/// level, not once per pixel.
+fn taps(fine: usize, n: usize) -> Vec<(usize, usize, f32)> {
+    (0..fine).map(|i| tap(i, n)).collect()
+}
+
+/// Bilinear interpolation of a complete level `(cw × _)` at the taps `(x0, x1, tx)`
+/// and `(y0, y1, ty)` of a pixel of the level twice as fine.
+#[inline]
+fn bilinear(
+    cv: &[[f32; 5]],
+    cw: usize,
+    (x0, x1, tx): (usize, usize, f32),
+    (y0, y1, ty): (usize, usize, f32),
+) -> [f32; 4] {
     let (a, b, c, d) = (
         cv[y0 * cw + x0],
         cv[y0 * cw + x1],
