@@ -213,6 +213,38 @@ fn headless_runs_stop_on_time_and_write_stats() {
 }
 
 #[test]
+fn an_image_budget_limits_the_samples_an_image_places() {
+    // A budget far below any build's time (0.1% of a 60 Hz refresh, 17 µs) against
+    // none: the limit falls to its floor of half a sample per pixel and stays there.
+    let run = |budget: f64| {
+        let mut cfg = RtConfig::new(RtMethod::Adaptive);
+        cfg.sampling_threads = 1;
+        cfg.image_budget = budget;
+        let opts = HeadlessOptions {
+            seconds: 1.0,
+            out: tmp_dir(&format!("budget-{budget}")),
+            images: 1,
+            scene: "toycar".into(),
+            camera_step_s: None,
+        };
+        run_headless(toycar(48, 32), cfg, &opts).unwrap().pipeline
+    };
+    let (tight, none) = (run(0.001), run(0.0));
+    assert_eq!(none.limited_share, 0.0);
+    assert!(tight.limited_share > 0.5, "{}", tight.limited_share);
+    let floor = (48 * 32 / 2) as f64;
+    assert!(
+        tight.placed_mean < 2.0 * floor && tight.placed_mean < none.placed_mean,
+        "{} placed under the budget, {} without",
+        tight.placed_mean,
+        none.placed_mean
+    );
+    let mut cfg = RtConfig::new(RtMethod::Adaptive);
+    cfg.image_budget = 1.5;
+    assert!(cfg.validate().is_err(), "a budget over one period");
+}
+
+#[test]
 fn headless_runs_report_latency_and_show_a_camera_step_within_a_second() {
     for method in RtMethod::ALL {
         let tracer = toycar(48, 32);
