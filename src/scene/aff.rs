@@ -500,20 +500,10 @@ type MaterialKey = ([u32; 12], Option<TextureId>);
 /// A material's colours and coefficients within [`limits::MAX_COLOR`] (the whole-scene
 /// check's rule, here with the material directive's place).
 fn check_material(lx: &Lexer, t: Tok, m: &Material) -> Res<()> {
-    for (what, c) in [
-        ("material ambient colour", m.ambient),
-        ("material diffuse colour", m.diffuse),
-        ("material specular colour", m.specular),
-        (
-            "material shininess, transmission or index of refraction",
-            Vec3::new(m.shininess, m.transmission, m.ior),
-        ),
-    ] {
-        if !limits::color_ok(c) {
-            return Err(lx.err(t, limits::color_message(what, c)));
-        }
+    match limits::material_out_of_limit(m) {
+        Some((what, c)) => Err(lx.err(t, limits::color_message(&format!("material {what}"), c))),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 fn material_key(m: &Material) -> MaterialKey {

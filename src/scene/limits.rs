@@ -73,6 +73,21 @@ pub fn color_ok(c: Vec3) -> bool {
     c.is_finite() && c.abs().max_element() <= MAX_COLOR
 }
 
+/// The first of a material's colours and coefficients (named) outside [`MAX_COLOR`].
+pub fn material_out_of_limit(m: &super::Material) -> Option<(&'static str, Vec3)> {
+    [
+        ("ambient", m.ambient),
+        ("diffuse", m.diffuse),
+        ("specular", m.specular),
+        (
+            "shininess, transmission or index of refraction",
+            Vec3::new(m.shininess, m.transmission, m.ior),
+        ),
+    ]
+    .into_iter()
+    .find(|&(_, c)| !color_ok(c))
+}
+
 /// The error message for a colour `c` of `what` outside [`MAX_COLOR`].
 pub fn color_message(what: &str, c: Vec3) -> String {
     format!(
@@ -175,18 +190,8 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
         }
     }
     for (mi, m) in scene.materials.iter().enumerate() {
-        for (what, c) in [
-            ("ambient", m.ambient),
-            ("diffuse", m.diffuse),
-            ("specular", m.specular),
-            (
-                "shininess, transmission or index of refraction",
-                Vec3::new(m.shininess, m.transmission, m.ior),
-            ),
-        ] {
-            if !color_ok(c) {
-                return Err(bad(color_message(&format!("material {mi}: {what}"), c)));
-            }
+        if let Some((what, c)) = material_out_of_limit(m) {
+            return Err(bad(color_message(&format!("material {mi}: {what}"), c)));
         }
     }
     for (li, l) in scene.lights.iter().enumerate() {
