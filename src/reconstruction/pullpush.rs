@@ -21,7 +21,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{resolve::MIN_WEIGHT, splat::CHANNELS, Reconstructor};
+use super::{resolve::MIN_WEIGHT, splat::sum_at, Reconstructor};
 
 /// One pyramid level: width, height, premultiplied `(r, g, b, age)` and coverage `α`.
 pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
@@ -37,7 +37,7 @@ impl Reconstructor {
         let (w, h) = (self.width as usize, self.height as usize);
         let cs = self.cs;
         let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
-        let weight = |x: usize, y: usize| acc[(y * CHANNELS + 3) * cs + x];
+        let weight = |x: usize, y: usize| sum_at(acc, cs, x, y, 3);
         let pixel =
             |x: usize, y: usize| premultiplied(weight(x, y), w0, px[y * w + x], age[y * w + x]);
         // Pull: each level the coverage-weighted 2×2 mean of the finer one, its

@@ -246,6 +246,13 @@ impl Reconstructor {
     /// Channel `ch` of the accumulated sums of pixel `(x, y)`.
     #[inline(always)]
     pub(super) fn sum_at(&self, x: usize, y: usize, ch: usize) -> f32 {
-        self.acc[(y * CHANNELS + ch) * self.cs + x]
+        sum_at(&self.acc, self.cs, x, y, ch)
     }
+}
+
+/// Channel `ch` of the sums of pixel `(x, y)` in accumulators of channel stride `cs`
+/// (for callers that hold other fields of the reconstructor mutably).
+#[inline(always)]
+pub(super) fn sum_at(acc: &[f32], cs: usize, x: usize, y: usize, ch: usize) -> f32 {
+    acc[(y * CHANNELS + ch) * cs + x]
 }

@@ -803,10 +803,8 @@ impl Parser {
                 }
             }
         }
-        for (what, p) in [("camera eye", cam.eye), ("camera target", cam.at)] {
-            if !limits::coordinate_ok(p) {
-                return Err(lx.err(v, limits::coordinate_message(what, p)));
-            }
+        if let Some((what, p)) = limits::camera_out_of_limit(&cam) {
+            return Err(lx.err(v, limits::coordinate_message(what, p)));
         }
         self.scene.camera.base = cam;
         self.scene.camera.resolution = Some(resolution);

@@ -88,6 +88,13 @@ pub fn material_out_of_limit(m: &super::Material) -> Option<(&'static str, Vec3)
     .find(|&(_, c)| !color_ok(c))
 }
 
+/// The camera's eye or target (named) if it lies outside the coordinate budget.
+pub fn camera_out_of_limit(cam: &super::Camera) -> Option<(&'static str, Vec3)> {
+    [("camera eye", cam.eye), ("camera target", cam.at)]
+        .into_iter()
+        .find(|&(_, p)| !coordinate_ok(p))
+}
+
 /// The error message for a colour `c` of `what` outside [`MAX_COLOR`].
 pub fn color_message(what: &str, c: Vec3) -> String {
     format!(
@@ -215,11 +222,8 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             )));
         }
     }
-    let cam = &scene.camera.base;
-    for (what, p) in [("camera eye", cam.eye), ("camera target", cam.at)] {
-        if !coordinate_ok(p) {
-            return Err(bad(coordinate_message(what, p)));
-        }
+    if let Some((what, p)) = camera_out_of_limit(&scene.camera.base) {
+        return Err(bad(coordinate_message(what, p)));
     }
     Ok(())
 }
