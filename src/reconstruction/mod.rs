@@ -172,7 +172,7 @@ pub struct Reconstructor {
     /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
     /// Pull-push levels of the low-density fill (level 1 and up), reused.
-    pull: Vec<pullpush::Level>,
+    pull: pullpush::Pyramid,
     image: Image,
     /// Weight-averaged sample age of each pixel at the last refresh.
     age: Vec<f32>,
@@ -236,7 +236,7 @@ impl Reconstructor {
             binned: Vec::new(),
             pieces: 0,
             pyramid: Vec::new(),
-            pull: Vec::new(),
+            pull: pullpush::Pyramid::default(),
             image: Image::new(width, height),
             age: vec![0.0; n],
             mean_age: 0.0,

@@ -21,129 +21,265 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{resolve::MIN_WEIGHT, splat::sum_at, Reconstructor};
+use super::{resolve::MIN_WEIGHT, splat::channel_row, Reconstructor};
 
-/// One pyramid level: width, height, premultiplied `(r, g, b, age)` and coverage `α`.
-pub(super) type Level = (usize, usize, Vec<[f32; 5]>);
+/// Channels of a pyramid level: premultiplied red, green, blue, age, and coverage `α`.
+const CH: usize = 5;
+/// Index of the coverage channel.
+const ALPHA: usize = 4;
+
+/// One pyramid level, one run of `w` floats per channel in each row (as the
+/// accumulators), so that every pass below is a loop over contiguous floats.
+#[derive(Debug, Default)]
+pub(super) struct Level {
+    w: usize,
+    h: usize,
+    v: Vec<f32>,
+}
+
+/// The pyramid's levels, finest first, and scratch space for the push: each coarse
+/// row interpolated along x at the finer level's columns, computed once for the (up
+/// to four) fine rows that read it.
+#[derive(Debug, Default)]
+pub(super) struct Pyramid {
+    levels: Vec<Level>,
+    up: Vec<f32>,
+}
+
+impl Level {
+    fn new(w: usize, h: usize) -> Self {
+        Self {
+            w,
+            h,
+            v: vec![0.0; CH * w * h],
+        }
+    }
+
+    fn row(&self, y: usize) -> &[f32] {
+        &self.v[y * CH * self.w..(y + 1) * CH * self.w]
+    }
+}
 
 impl Reconstructor {
     /// Complete the pixels whose accumulated weight is below `w0` from the pull-push
     /// interpolation; returns the sum of all pixels' ages afterwards.
     ///
-    /// The full-resolution level is never copied: its coverage and colours are read
-    /// from the accumulators and the resolved image where the first pull and the last
-    /// push need them.
+    /// The full-resolution level is never stored: its coverage and colours are
+    /// recomputed a row at a time from the accumulators and the resolved image where
+    /// the first pull and the last push need them.
     pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
         let (w, h) = (self.width as usize, self.height as usize);
         let cs = self.cs;
         let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
-        let weight = |x: usize, y: usize| sum_at(acc, cs, x, y, 3);
-        let pixel =
-            |x: usize, y: usize| premultiplied(weight(x, y), w0, px[y * w + x], age[y * w + x]);
-        // Pull: each level the coverage-weighted 2×2 mean of the finer one, its
-        // coverage the children's summed and capped at 1.
-        let mut levels = std::mem::take(&mut self.pull);
+        // Accumulated weights (channel 3) of row `y`.
+        let weights = |acc, y| &channel_row(acc, cs, y, 3)[..w];
+        // Row `y` of the full-resolution level, premultiplied, into `out` (`CH · w`).
+        let full_row = |y: usize, out: &mut [f32]| {
+            let weight = weights(acc, y);
+            premultiplied_row(
+                weight,
+                w0,
+                &px[y * w..(y + 1) * w],
+                &age[y * w..(y + 1) * w],
+                out,
+            )
+        };
+        let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
         if levels.is_empty() {
             // The display's size fixes the levels; every value is rewritten below.
             let (mut lw, mut lh) = (w, h);
             while lw > 1 || lh > 1 {
                 (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
-                levels.push((lw, lh, vec![[0.0; 5]; lw * lh]));
+                levels.push(Level::new(lw, lh));
             }
         }
-        for k in 0..levels.len() {
+        // Pull: each level the coverage-weighted 2×2 mean of the finer one, its
+        // coverage the children's summed and capped at 1.
+        if let Some(first) = levels.first_mut() {
+            let nw = first.w;
+            first.v.par_chunks_mut(CH * nw).enumerate().for_each_init(
+                || vec![0f32; 2 * CH * w],
+                |rows, (by, out)| {
+                    let (r0, r1) = rows.split_at_mut(CH * w);
+                    full_row(2 * by, r0);
+                    if 2 * by + 1 < h {
+                        full_row(2 * by + 1, r1);
+                    } else {
+                        r1.fill(0.0);
+                    }
+                    pull_row(r0, r1, w, out, nw);
+                },
+            );
+        }
+        for k in 1..levels.len() {
             let (finer, rest) = levels.split_at_mut(k);
-            let (nw, _, next) = &mut rest[0];
-            let (lw, lh, prev) = match finer.last() {
-                Some((lw, lh, v)) => (*lw, *lh, Some(v)),
-                None => (w, h, None),
-            };
-            next.par_chunks_mut(*nw).enumerate().for_each(|(by, row)| {
-                for (bx, o) in row.iter_mut().enumerate() {
-                    let mut s = [0f32; 5];
-                    for (cx, cy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                        let (x, y) = (2 * bx + cx, 2 * by + cy);
-                        if x < lw && y < lh {
-                            let v = match prev {
-                                Some(prev) => prev[y * lw + x],
-                                None => pixel(x, y),
-                            };
-                            for c in 0..5 {
-                                s[c] += v[c];
-                            }
-                        }
-                    }
-                    if s[4] > 1.0 {
-                        let k = 1.0 / s[4];
-                        s = s.map(|v| v * k);
-                    }
-                    *o = s;
-                }
-            });
+            let (prev, next) = (&finer[k - 1], &mut rest[0]);
+            let nw = next.w;
+            let zeros = vec![0f32; CH * prev.w];
+            next.v
+                .par_chunks_mut(CH * nw)
+                .enumerate()
+                .for_each(|(by, out)| {
+                    let r1 = if 2 * by + 1 < prev.h {
+                        prev.row(2 * by + 1)
+                    } else {
+                        &zeros
+                    };
+                    pull_row(prev.row(2 * by), r1, prev.w, out, nw);
+                });
         }
         // Push, coarsest first: each level keeps `α` of its own colour and takes
         // `1 − α` from the bilinear interpolation of the (complete) coarser one.
         if let Some(top) = levels.last_mut() {
-            let v = &mut top.2[0];
-            if v[4] > 0.0 {
-                let k = 1.0 / v[4];
-                *v = v.map(|c| c * k);
+            let a = top.v[ALPHA];
+            if a > 0.0 {
+                let k = 1.0 / a;
+                for c in 0..CH {
+                    top.v[c] *= k;
+                }
             }
         }
-        let push = |v: &[f32; 5], up: [f32; 4]| -> [f32; 4] {
-            std::array::from_fn(|c| v[c] + (1.0 - v[4]) * up[c])
-        };
         for k in (1..levels.len()).rev() {
             let (finer, coarser) = levels.split_at_mut(k);
-            let (cw, ch, ref cv) = coarser[0];
-            let (fw, _, fv) = &mut finer[k - 1];
-            let xt = taps(*fw, cw);
-            fv.par_chunks_mut(*fw).enumerate().for_each(|(y, row)| {
-                let yt = tap(y, ch);
-                for (v, &xt) in row.iter_mut().zip(&xt) {
-                    let o = push(v, bilinear(cv, cw, xt, yt));
-                    *v = [o[0], o[1], o[2], o[3], 1.0];
-                }
-            });
+            let (coarse, fine) = (&coarser[0], &mut finer[k - 1]);
+            let fw = fine.w;
+            let up = upsampled(coarse, fw, &mut up);
+            fine.v
+                .par_chunks_mut(CH * fw)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    let (y0, y1, ty) = tap(y, coarse.h);
+                    let (vals, alpha) = row.split_at_mut(4 * fw);
+                    push_row(vals, alpha, up_row(up, y0, fw), up_row(up, y1, fw), ty, fw);
+                    alpha.fill(1.0);
+                });
         }
         // The full-resolution level: only pixels below full coverage change.
         let mut image = std::mem::take(&mut self.image.pixels);
         let mut ages = std::mem::take(&mut self.age);
-        if let Some((cw, ch, cv)) = levels.first() {
-            let xt = taps(w, *cw);
+        if let Some(coarse) = levels.first() {
+            let acc = &self.acc;
+            let up = upsampled(coarse, w, &mut up);
             image
                 .par_chunks_mut(w)
                 .zip(ages.par_chunks_mut(w))
                 .enumerate()
-                .for_each(|(y, (px, age))| {
-                    let yt = tap(y, *ch);
-                    for x in 0..w {
-                        let v = premultiplied(weight(x, y), w0, px[x], age[x]);
-                        if v[4] < 1.0 {
-                            let o = push(&v, bilinear(cv, *cw, xt[x], yt));
-                            px[x] = Vec3::new(o[0], o[1], o[2]);
-                            age[x] = o[3];
+                .for_each_init(
+                    || vec![0f32; CH * w],
+                    |v, (y, (px, age))| {
+                        premultiplied_row(weights(acc, y), w0, px, age, v);
+                        let (y0, y1, ty) = tap(y, coarse.h);
+                        let (vals, alpha) = v.split_at_mut(4 * w);
+                        push_row(vals, alpha, up_row(up, y0, w), up_row(up, y1, w), ty, w);
+                        // Pixels at full coverage stay as they are.
+                        for x in 0..w {
+                            if alpha[x] < 1.0 {
+                                px[x] = Vec3::new(vals[x], vals[w + x], vals[2 * w + x]);
+                                age[x] = vals[3 * w + x];
+                            }
                         }
-                    }
-                });
+                    },
+                );
         }
         self.image.pixels = image;
         self.age = ages;
-        self.pull = levels;
+        self.pull = Pyramid { levels, up };
         self.age.iter().map(|&a| a as f64).sum()
     }
 }
 
-/// Premultiplied `(r, g, b, age, α)` of a pixel of accumulated weight `cw`, colour `p`
-/// and age `g`, with coverage `α = min(cw / w0, 1)`; a hole (below `MIN_WEIGHT`) has
-/// no colour, so no coverage.
-#[inline]
-fn premultiplied(cw: f32, w0: f32, p: Vec3, g: f32) -> [f32; 5] {
-    if cw < MIN_WEIGHT {
-        return [0.0; 5];
+/// Premultiplied `(r, g, b, age, α)` of a row of pixels of accumulated weights
+/// `weight`, colours `px` and ages `age`, with coverage `α = min(cw / w0, 1)`, into
+/// `out` (one run per channel); a hole (below `MIN_WEIGHT`) has no colour, so no
+/// coverage.
+fn premultiplied_row(weight: &[f32], w0: f32, px: &[Vec3], age: &[f32], out: &mut [f32]) {
+    let w = weight.len();
+    // Every slice exactly `w` long, so that the loop has no bounds checks and compiles
+    // to vector code.
+    let (px, age) = (&px[..w], &age[..w]);
+    let (r, rest) = out.split_at_mut(w);
+    let (g, rest) = rest.split_at_mut(w);
+    let (b, rest) = rest.split_at_mut(w);
+    let (ag, al) = rest.split_at_mut(w);
+    let al = &mut al[..w];
+    for x in 0..w {
+        let cw = weight[x];
+        // A hole's colour is whatever an earlier refresh left there: zeroed, not
+        // multiplied by `α = 0`.
+        // Computed for every pixel, then selected: a division under a branch keeps
+        // the loop from becoming vector code.
+        let hole = cw < MIN_WEIGHT;
+        let q = (cw / w0).min(1.0);
+        let p = px[x];
+        let sel = |v: f32| if hole { 0.0 } else { v };
+        r[x] = sel(p.x * q);
+        g[x] = sel(p.y * q);
+        b[x] = sel(p.z * q);
+        ag[x] = sel(age[x] * q);
+        al[x] = sel(q);
     }
-    let a = (cw / w0).min(1.0);
-    [p.x * a, p.y * a, p.z * a, g * a, a]
+}
+
+/// One row of a coarser level (`nw` wide, `out` one run per channel) from two rows of
+/// the finer one (`fw` wide; `r1` zeros below the last row): the children summed in
+/// the order (0, 0), (1, 0), (0, 1), (1, 1) from zero (a missing child adds `+0`,
+/// which changes no sum that starts at `+0`), scaled to coverage 1 where it exceeds 1.
+fn pull_row(r0: &[f32], r1: &[f32], fw: usize, out: &mut [f32], nw: usize) {
+    for (c, o) in out.chunks_exact_mut(nw).enumerate() {
+        let (a, b) = (&r0[c * fw..(c + 1) * fw], &r1[c * fw..(c + 1) * fw]);
+        for ((o, a), b) in o.iter_mut().zip(a.chunks_exact(2)).zip(b.chunks_exact(2)) {
+            *o = 0.0 + a[0] + a[1] + b[0] + b[1];
+        }
+        if fw % 2 == 1 {
+            // The last coarse pixel of an odd row has one column of children.
+            o[nw - 1] = 0.0 + a[fw - 1] + b[fw - 1];
+        }
+    }
+    let (vals, alpha) = out.split_at_mut(4 * nw);
+    for (bx, s) in alpha.iter_mut().enumerate() {
+        let k = if *s > 1.0 { 1.0 / *s } else { 1.0 };
+        for c in 0..4 {
+            vals[c * nw + bx] *= k;
+        }
+        *s *= k;
+    }
+}
+
+/// Every row of `coarse` interpolated along x at the columns of a level `fw` wide
+/// (`a + (b − a)·tx` at each column's taps), four channels of `fw` floats per row, in
+/// `up` (resized as needed).
+fn upsampled<'a>(coarse: &Level, fw: usize, up: &'a mut Vec<f32>) -> &'a [f32] {
+    let xt = taps(fw, coarse.w);
+    up.resize(coarse.h * 4 * fw, 0.0);
+    up.par_chunks_mut(4 * fw).enumerate().for_each(|(y, out)| {
+        let row = coarse.row(y);
+        for (c, out) in out.chunks_exact_mut(fw).enumerate() {
+            let cv = &row[c * coarse.w..(c + 1) * coarse.w];
+            for (o, &(x0, x1, tx)) in out.iter_mut().zip(&xt) {
+                let (a, b) = (cv[x0], cv[x1]);
+                *o = a + (b - a) * tx;
+            }
+        }
+    });
+    &up[..coarse.h * 4 * fw]
+}
+
+/// Row `y` of [`upsampled`]'s output for a fine level `fw` wide.
+fn up_row(up: &[f32], y: usize, fw: usize) -> &[f32] {
+    &up[y * 4 * fw..(y + 1) * 4 * fw]
+}
+
+/// Push into one fine row: each of its four channels keeps its own value plus `1 − α`
+/// of the bilinear interpolation `top + (bottom − top)·ty` of the coarser level.
+fn push_row(vals: &mut [f32], alpha: &[f32], top: &[f32], bottom: &[f32], ty: f32, fw: usize) {
+    for c in 0..4 {
+        let v = &mut vals[c * fw..(c + 1) * fw];
+        let (t, b) = (&top[c * fw..(c + 1) * fw], &bottom[c * fw..(c + 1) * fw]);
+        for x in 0..fw {
+            let up = t[x] + (b[x] - t[x]) * ty;
+            v[x] += (1.0 - alpha[x]) * up;
+        }
+    }
 }
 
 /// The bilinear taps of pixel `i` of a level twice as fine as one of `n` pixels (along
@@ -160,26 +296,4 @@ fn tap(i: usize, n: usize) -> (usize, usize, f32) {
 /// level, not once per pixel.
 fn taps(fine: usize, n: usize) -> Vec<(usize, usize, f32)> {
     (0..fine).map(|i| tap(i, n)).collect()
-}
-
-/// Bilinear interpolation of a complete level `(cw × _)` at the taps `(x0, x1, tx)`
-/// and `(y0, y1, ty)` of a pixel of the level twice as fine.
-#[inline]
-fn bilinear(
-    cv: &[[f32; 5]],
-    cw: usize,
-    (x0, x1, tx): (usize, usize, f32),
-    (y0, y1, ty): (usize, usize, f32),
-) -> [f32; 4] {
-    let (a, b, c, d) = (
-        cv[y0 * cw + x0],
-        cv[y0 * cw + x1],
-        cv[y1 * cw + x0],
-        cv[y1 * cw + x1],
-    );
-    std::array::from_fn(|k| {
-        let top = a[k] + (b[k] - a[k]) * tx;
-        let bottom = c[k] + (d[k] - c[k]) * tx;
-        top + (bottom - top) * ty
-    })
 }

@@ -254,5 +254,11 @@ impl Reconstructor {
 /// (for callers that hold other fields of the reconstructor mutably).
 #[inline(always)]
 pub(super) fn sum_at(acc: &[f32], cs: usize, x: usize, y: usize, ch: usize) -> f32 {
-    acc[(y * CHANNELS + ch) * cs + x]
+    channel_row(acc, cs, y, ch)[x]
+}
+
+/// Channel `ch` of the sums of row `y` (`cs` floats: the row's pixels, then padding).
+#[inline(always)]
+pub(super) fn channel_row(acc: &[f32], cs: usize, y: usize, ch: usize) -> &[f32] {
+    &acc[(y * CHANNELS + ch) * cs..][..cs]
 }
