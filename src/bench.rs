@@ -70,6 +70,9 @@ pub struct BenchReport {
     pub reconstruct_ms_512_all: f64,
     /// One reconstructor refresh, 6 × 1024² samples at 1024×1024, all threads, ms.
     pub reconstruct_ms_1024_all: f64,
+    /// One refresh of the real-time reconstructor (history and fill) at 640×480 with
+    /// half a sample per pixel, one thread, ms ([`reconstruct_realtime_ms`]).
+    pub reconstruct_realtime_640_ms_1t: f64,
     /// Milliseconds of one reconstructor refresh on this scene after the adaptive sampler
     /// has run 1 s at 400K samples/s (ring of 400K real samples and the real tiling),
     /// one thread.
@@ -99,6 +102,28 @@ pub fn reconstruct_fixture(
     crate::scene::CameraFrame,
     crate::tiles::TilingSnapshot,
 ) {
+    reconstruct_fixture_with(
+        width,
+        height,
+        n,
+        seed,
+        crate::reconstruction::ReconParams::paper(),
+    )
+}
+
+/// [`reconstruct_fixture`] with other reconstructor parameters (its ring still holds
+/// exactly the `n` samples).
+pub fn reconstruct_fixture_with(
+    width: u32,
+    height: u32,
+    n: usize,
+    seed: u64,
+    params: crate::reconstruction::ReconParams,
+) -> (
+    crate::reconstruction::Reconstructor,
+    crate::scene::CameraFrame,
+    crate::tiles::TilingSnapshot,
+) {
     use crate::{
         methods::adaptive::tiling::{TileStats, Tiling},
         reconstruction::{ReconParams, Reconstructor, RingSample},
@@ -121,7 +146,7 @@ pub fn reconstruct_fixture(
         rate,
         ReconParams {
             ring_factor: n as f64 / (width as f64 * height as f64),
-            ..ReconParams::paper()
+            ..params
         },
     );
     for i in 0..n {
@@ -176,6 +201,33 @@ pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats:
     let (mut r, camera, tiling) = reconstruct_fixture(width, height, n, 1);
     let t = 1.0;
     for _ in 0..warmup {
+        r.reconstruct(t, &camera, &tiling);
+    }
+    let mut best = f64::INFINITY;
+    for _ in 0..repeats.max(1) {
+        let t0 = Instant::now();
+        std::hint::black_box(r.reconstruct(t, &camera, &tiling));
+        best = best.min(t0.elapsed().as_secs_f64());
+    }
+    best * 1e3
+}
+
+/// Milliseconds of one refresh of the real-time reconstructor's parameters (the
+/// still-region history and the pull-push fill, [`ReconParams::realtime`]) on the
+/// [`reconstruct_fixture`] at `width × height` with half a sample per pixel, the
+/// fewest an image budget lets the real-time image builder place: the work that does
+/// not shrink with the samples (resolve, fill, history blend) at its largest share.
+/// The history gathers the fixture's samples at the first refresh (best of `repeats`
+/// after `warmup`).
+///
+/// [`ReconParams::realtime`]: crate::reconstruction::ReconParams::realtime
+pub fn reconstruct_realtime_ms(width: u32, height: u32, warmup: usize, repeats: usize) -> f64 {
+    let n = (width as usize * height as usize).div_ceil(2);
+    let params = crate::reconstruction::ReconParams::realtime();
+    let (mut r, camera, tiling) = reconstruct_fixture_with(width, height, n, 1, params);
+    r.set_view_since(0.0);
+    let t = 1.0;
+    for _ in 0..warmup.max(1) {
         r.reconstruct(t, &camera, &tiling);
     }
     let mut best = f64::INFINITY;
@@ -316,6 +368,7 @@ pub fn run(
     let rca = reconstruct_ms(256, 256, 400_000, 2, rr);
     let rc512 = reconstruct_ms(512, 512, 6 * 512 * 512, 1, 2);
     let rc1024 = reconstruct_ms(1024, 1024, 6 * 1024 * 1024, 1, 1);
+    let rcv = one.install(|| reconstruct_realtime_ms(640, 480, 2, rr));
     let rs1 = one.install(|| reconstruct_scene_ms(tracer, time, rr));
     let rsa = reconstruct_scene_ms(tracer, time, rr);
     BenchReport {
@@ -335,6 +388,7 @@ pub fn run(
         reconstruct_ms_all: rca,
         reconstruct_ms_512_all: rc512,
         reconstruct_ms_1024_all: rc1024,
+        reconstruct_realtime_640_ms_1t: rcv,
         reconstruct_scene_ms_1t: rs1,
         reconstruct_scene_ms_all: rsa,
     }

@@ -142,6 +142,10 @@ pub fn run(cli: Cli) -> Result<()> {
                     report.reconstruct_ms_512_all, report.reconstruct_ms_1024_all
                 );
                 println!(
+                    "reconstruct rt   {:.1} ms 1 thread (history and fill, 640x480, 0.5 per pixel)",
+                    report.reconstruct_realtime_640_ms_1t
+                );
+                println!(
                     "reconstruct scene {:.1} ms 1 thread, {:.1} ms all (sampler ran 1 s at 400K)",
                     report.reconstruct_scene_ms_1t, report.reconstruct_scene_ms_all
                 );

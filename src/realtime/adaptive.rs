@@ -121,9 +121,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         published,
         rx: img_rx,
         recon: None,
-        recon_rate: 0.0,
         rate_window: VecDeque::new(),
-        last_rebuild: 0.0,
         live_limit: None,
     }))
 }
@@ -367,11 +365,8 @@ struct Builder {
     published: Arc<Published>,
     rx: Receiver<Vec<StreamSample>>,
     recon: Option<Box<Reconstructor>>,
-    /// The sample rate `recon`'s filters were built for, /s.
-    recon_rate: f64,
     /// Ray counts at recent images, to measure the rate the filters assume.
     rate_window: VecDeque<(f64, u64)>,
-    last_rebuild: f64,
     /// Newest samples the reconstructor places ([`next_live_limit`]).
     live_limit: Option<usize>,
 }
@@ -411,9 +406,9 @@ impl ImageBuilder for Builder {
         let (w, h) = s.tracer.size();
         let tiling = lock(&self.published.tiling).clone()?;
         let batches: Vec<Vec<StreamSample>> = self.rx.try_iter().collect();
-        // The filters need the sample rate R; it is measured over the last second and
-        // the reconstructor is rebuilt (keeping its ring) when the rate drifts by more
-        // than 25%, at most once a second.
+        // The filters need the sample rate R, measured over the last second; a new
+        // rate takes effect at the next refresh, keeping the ring, the splat scale and
+        // the still-region history.
         let rays = s.rays.load(Ordering::Relaxed);
         let el = s.clock.elapsed();
         let window = &mut self.rate_window;
@@ -428,23 +423,11 @@ impl ImageBuilder for Builder {
             rays as f64 / el.max(1e-3)
         }
         .max(1.0);
-        let stale = match self.recon {
-            None => true,
-            Some(_) => (rate / self.recon_rate - 1.0).abs() > 0.25 && el - self.last_rebuild > 1.0,
-        };
-        if stale {
-            let mut fresh = Reconstructor::new(w, h, rate, s.config.recon);
-            if let Some(old) = self.recon.take() {
-                for r in old.ring().iter() {
-                    fresh.push(r);
-                }
-                lock(&s.image_stats).rebuilds += 1;
-            }
-            self.recon = Some(Box::new(fresh));
-            self.last_rebuild = el;
-            self.recon_rate = rate;
-            lock(&s.image_stats).recon_rate = rate;
+        match &mut self.recon {
+            Some(r) => r.set_rate(rate),
+            None => self.recon = Some(Box::new(Reconstructor::new(w, h, rate, s.config.recon))),
         }
+        lock(&s.image_stats).recon_rate = rate;
         let r = self.recon.as_mut()?;
         for batch in &batches {
             r.push_stream(batch);

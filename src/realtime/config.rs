@@ -133,17 +133,7 @@ impl RtConfig {
     }
 }
 
-/// The real-time reconstructor: the paper's, with a ring of 2 × pixels samples. The
-/// reconstructor's cost is linear in the ring; at the 6 × pixels of the paper (sized for
-/// 400K samples/s) one refresh costs 20–35 ms on this project's 2-core machine, more
-/// than a 60 Hz refresh, while at the 0.1–0.25 M samples/s reached here 2 × pixels
-/// still holds the last 0.5–1.5 s of samples at 256×256. Splats are at most 8 px in
-/// radius (paper reconstructor: 24): sparse early samples otherwise grow huge
-/// footprints through the coverage-driven splat size.
+/// The real-time reconstructor ([`ReconParams::realtime`]).
 pub fn realtime_recon() -> ReconParams {
-    ReconParams {
-        ring_factor: 2.0,
-        max_radius: 8.0,
-        ..ReconParams::converging()
-    }
+    ReconParams::realtime()
 }

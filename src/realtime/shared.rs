@@ -189,7 +189,6 @@ pub(crate) struct ImageThreadStats {
     /// capacity (the builder reports them; the pipeline only passes them on).
     pub recon_rate: f64,
     pub ring_capacity: usize,
-    pub rebuilds: u64,
     /// Adaptive: images built under a live limit, and the samples placed, summed over
     /// images.
     pub limited_images: u64,

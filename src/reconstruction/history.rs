@@ -220,8 +220,11 @@ pub(super) struct History {
     /// over the pixel and its two neighbours in the row (reused).
     row_lo: Vec<Vec3>,
     row_hi: Vec<Vec3>,
-    /// The fresh samples' pixels and indices, sorted by pixel (reused).
+    /// The fresh samples' pixels and indices, sorted by pixel (reused), and the
+    /// counting sort's buckets and output for large batches.
     order: Vec<(u32, u32)>,
+    buckets: Vec<u32>,
+    sorted: Vec<(u32, u32)>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -245,6 +248,8 @@ impl History {
             row_lo: Vec::new(),
             row_hi: Vec::new(),
             order: Vec::new(),
+            buckets: Vec::new(),
+            sorted: Vec::new(),
             cuts: 0,
         }
     }
@@ -389,7 +394,7 @@ impl History {
             }
             order.push((q as u32, i as u32));
         }
-        order.sort_by_key(|&(q, _)| q);
+        sort_by_pixel(&mut order, w * h, &mut self.buckets, &mut self.sorted);
         for &(q, i) in &order {
             let (q, f) = (q as usize, &fresh[i as usize]);
             if !f.still {
@@ -515,6 +520,40 @@ impl History {
     }
 }
 
+/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel: stably,
+/// so each pixel keeps its samples' order. A batch of more than 1/16 as many as the
+/// `pixels` (a burst, up to a whole ring) goes through a counting sort, in time linear
+/// in both, with `buckets` and `out` as scratch; a smaller one through a comparison
+/// sort of `(pixel, index)` keys, whose indices are distinct and increasing, so it is
+/// stable without a stable sort.
+fn sort_by_pixel(
+    order: &mut Vec<(u32, u32)>,
+    pixels: usize,
+    buckets: &mut Vec<u32>,
+    out: &mut Vec<(u32, u32)>,
+) {
+    if order.len() * 16 <= pixels {
+        order.sort_unstable();
+        return;
+    }
+    buckets.clear();
+    buckets.resize(pixels + 1, 0);
+    for &(q, _) in order.iter() {
+        buckets[q as usize + 1] += 1;
+    }
+    for k in 1..buckets.len() {
+        buckets[k] += buckets[k - 1];
+    }
+    out.clear();
+    out.resize(order.len(), (0, 0));
+    for &(q, i) in order.iter() {
+        let slot = &mut buckets[q as usize];
+        out[*slot as usize] = (q, i);
+        *slot += 1;
+    }
+    std::mem::swap(order, out);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -558,6 +597,21 @@ mod tests {
         img.pixels.fill(Vec3::splat(recon));
         h.refresh(t, cam, &mut img, &mut [0.0; 16]);
         img
+    }
+
+    #[test]
+    fn sorting_by_pixel_is_stable_for_small_and_large_batches() {
+        let mut rng = crate::sampling::Rng::new(&[5]);
+        for (n, pixels) in [(10, 1000), (5000, 1000), (3, 3), (0, 7)] {
+            let input: Vec<(u32, u32)> = (0..n)
+                .map(|i| ((rng.uniform() * pixels as f32) as u32 % pixels as u32, i))
+                .collect();
+            let mut want = input.clone();
+            want.sort_by_key(|&(q, _)| q);
+            let (mut got, mut buckets, mut out) = (input, Vec::new(), Vec::new());
+            sort_by_pixel(&mut got, pixels, &mut buckets, &mut out);
+            assert_eq!(got, want, "{n} samples over {pixels} pixels");
+        }
     }
 
     #[test]

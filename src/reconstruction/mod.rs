@@ -245,6 +245,15 @@ impl Reconstructor {
         }
     }
 
+    /// The sampler's rate `R` (samples per second) that the filters scale with, from
+    /// the next refresh on; the ring, splat scale and history stay. A rate that is not
+    /// finite and positive is ignored.
+    pub fn set_rate(&mut self, rate: f64) {
+        if rate.is_finite() && rate > 0.0 {
+            self.rate = rate;
+        }
+    }
+
     /// The parameters.
     pub fn params(&self) -> &ReconParams {
         &self.params

@@ -591,3 +591,29 @@ fn pull_push_matches_direct_evaluation() {
         }
     }
 }
+
+#[test]
+fn a_new_rate_gives_the_filters_of_a_reconstructor_built_for_it() {
+    let params = ReconParams::converging();
+    let (r, c, tiling) = random_setup(40, 30, 1500, 1.0, false, params, GTS);
+    let samples: Vec<RingSample> = r.ring().iter().collect();
+    let image = |rate: f64, set: &[f64]| {
+        let mut r = Reconstructor::new(40, 30, rate, params);
+        for &s in &samples {
+            r.push(s);
+        }
+        for &v in set {
+            r.set_rate(v);
+        }
+        r.reconstruct(1.0, &c, &tiling).pixels.clone()
+    };
+    let rate = r.rate;
+    let at_rate = image(rate, &[]);
+    assert!(
+        image(4.0 * rate, &[]) != at_rate,
+        "the rate changes nothing"
+    );
+    assert!(image(rate, &[4.0 * rate]) == image(4.0 * rate, &[]));
+    // Not finite or not positive: ignored.
+    assert!(image(rate, &[f64::NAN, 0.0, -1.0, f64::INFINITY]) == at_rate);
+}
