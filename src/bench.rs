@@ -199,14 +199,26 @@ pub fn reconstruct_fixture_with(
 /// `repeats`, after `warmup` refreshes that settle the splat scale map).
 pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats: usize) -> f64 {
     let (mut r, camera, tiling) = reconstruct_fixture(width, height, n, 1);
+    best_refresh_ms(&mut r, &camera, &tiling, warmup, repeats)
+}
+
+/// Milliseconds of one refresh of a [`reconstruct_fixture`] at time 1 (best of
+/// `repeats`, after `warmup` refreshes).
+fn best_refresh_ms(
+    r: &mut crate::reconstruction::Reconstructor,
+    camera: &crate::scene::CameraFrame,
+    tiling: &crate::tiles::TilingSnapshot,
+    warmup: usize,
+    repeats: usize,
+) -> f64 {
     let t = 1.0;
     for _ in 0..warmup {
-        r.reconstruct(t, &camera, &tiling);
+        r.reconstruct(t, camera, tiling);
     }
     let mut best = f64::INFINITY;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
-        std::hint::black_box(r.reconstruct(t, &camera, &tiling));
+        std::hint::black_box(r.reconstruct(t, camera, tiling));
         best = best.min(t0.elapsed().as_secs_f64());
     }
     best * 1e3
@@ -226,17 +238,7 @@ pub fn reconstruct_realtime_ms(width: u32, height: u32, warmup: usize, repeats: 
     let params = crate::reconstruction::ReconParams::realtime();
     let (mut r, camera, tiling) = reconstruct_fixture_with(width, height, n, 1, params);
     r.set_view_since(0.0);
-    let t = 1.0;
-    for _ in 0..warmup.max(1) {
-        r.reconstruct(t, &camera, &tiling);
-    }
-    let mut best = f64::INFINITY;
-    for _ in 0..repeats.max(1) {
-        let t0 = Instant::now();
-        std::hint::black_box(r.reconstruct(t, &camera, &tiling));
-        best = best.min(t0.elapsed().as_secs_f64());
-    }
-    best * 1e3
+    best_refresh_ms(&mut r, &camera, &tiling, warmup.max(1), repeats)
 }
 
 /// Milliseconds of one refresh of the `adaptive` method's reconstructor on `tracer`'s
