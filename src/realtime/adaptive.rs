@@ -427,7 +427,6 @@ impl ImageBuilder for Builder {
             Some(r) => r.set_rate(rate),
             None => self.recon = Some(Box::new(Reconstructor::new(w, h, rate, s.config.recon))),
         }
-        lock(&s.image_stats).recon_rate = rate;
         let r = self.recon.as_mut()?;
         for batch in &batches {
             r.push_stream(batch);
@@ -462,6 +461,7 @@ impl ImageBuilder for Builder {
         );
         {
             let mut st = lock(&s.image_stats);
+            st.recon_rate = rate;
             st.ring_capacity = r.capacity();
             st.limited_images += limited as u64;
             st.placed_sum += r.placed() as f64;

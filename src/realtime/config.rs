@@ -132,8 +132,3 @@ impl RtConfig {
             .map_err(|e| RealtimeError::Config(e.to_string()))
     }
 }
-
-/// The real-time reconstructor ([`ReconParams::realtime`]).
-pub fn realtime_recon() -> ReconParams {
-    ReconParams::realtime()
-}

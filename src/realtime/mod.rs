@@ -40,7 +40,7 @@ pub mod viewer;
 
 pub use camera::{CameraRecorder, FlyCamera};
 pub use clock::WallClock;
-pub use config::{realtime_recon, RealtimeError, RtConfig, RtMethod};
+pub use config::{RealtimeError, RtConfig, RtMethod};
 pub use headless::{run_headless, HeadlessOptions, HeadlessStats};
 pub use pipeline::{Frame, Pipeline, PipelineStats};
 pub use pixel_locks::{PixelGuard, PixelLocks};
@@ -48,7 +48,7 @@ pub use viewer::{run_viewer, ViewerOptions};
 
 use clap::builder::PossibleValue;
 
-use crate::methods::adaptive::SamplerParams;
+use crate::{methods::adaptive::SamplerParams, reconstruction::ReconParams};
 use shared::MethodInfo;
 
 /// The registry: every real-time method and its description, in the viewer's key
@@ -213,7 +213,7 @@ impl clap::ValueEnum for Visualisation {
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
     /// machine, reconstruction on half the cores, the paper's sampler, and the
-    /// real-time reconstructor ([`realtime_recon`]), builds within 0.8 of a refresh
+    /// real-time reconstructor ([`ReconParams::realtime`]), builds within 0.8 of a refresh
     /// period.
     pub fn new(method: RtMethod) -> Self {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
@@ -225,7 +225,7 @@ impl RtConfig {
             start: 0.0,
             seed: 1,
             sampler: SamplerParams::ours(),
-            recon: realtime_recon(),
+            recon: ReconParams::realtime(),
             image_budget: 0.8,
         }
     }

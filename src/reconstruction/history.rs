@@ -469,16 +469,8 @@ impl History {
             .enumerate()
             .map(|(y, (((((out, sum), time_sum), count), range), age))| {
                 let (above, below) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
-                let (lo_a, lo_m, lo_b) = (
-                    &row_lo[above..above + w],
-                    &row_lo[y * w..(y + 1) * w],
-                    &row_lo[below..below + w],
-                );
-                let (hi_a, hi_m, hi_b) = (
-                    &row_hi[above..above + w],
-                    &row_hi[y * w..(y + 1) * w],
-                    &row_hi[below..below + w],
-                );
+                let [lo_a, lo_m, lo_b] = [above, y * w, below].map(|k| &row_lo[k..k + w]);
+                let [hi_a, hi_m, hi_b] = [above, y * w, below].map(|k| &row_hi[k..k + w]);
                 let (mut cuts, mut age_sum) = (0u64, 0f64);
                 for x in 0..w {
                     let shown_age = if count[x] > 0.0 {

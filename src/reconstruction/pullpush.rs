@@ -75,9 +75,8 @@ impl Reconstructor {
         let weights = |acc, y| &channel_row(acc, cs, y, 3)[..w];
         // Row `y` of the full-resolution level, premultiplied, into `out` (`CH · w`).
         let full_row = |y: usize, out: &mut [f32]| {
-            let weight = weights(acc, y);
             premultiplied_row(
-                weight,
+                weights(acc, y),
                 w0,
                 &px[y * w..(y + 1) * w],
                 &age[y * w..(y + 1) * w],
@@ -158,7 +157,6 @@ impl Reconstructor {
         let mut image = std::mem::take(&mut self.image.pixels);
         let mut ages = std::mem::take(&mut self.age);
         if let Some(coarse) = levels.first() {
-            let acc = &self.acc;
             let up = upsampled(coarse, w, &mut up);
             image
                 .par_chunks_mut(w)

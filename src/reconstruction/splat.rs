@@ -246,18 +246,13 @@ impl Reconstructor {
     /// Channel `ch` of the accumulated sums of pixel `(x, y)`.
     #[inline(always)]
     pub(super) fn sum_at(&self, x: usize, y: usize, ch: usize) -> f32 {
-        sum_at(&self.acc, self.cs, x, y, ch)
+        channel_row(&self.acc, self.cs, y, ch)[x]
     }
 }
 
-/// Channel `ch` of the sums of pixel `(x, y)` in accumulators of channel stride `cs`
-/// (for callers that hold other fields of the reconstructor mutably).
-#[inline(always)]
-pub(super) fn sum_at(acc: &[f32], cs: usize, x: usize, y: usize, ch: usize) -> f32 {
-    channel_row(acc, cs, y, ch)[x]
-}
-
-/// Channel `ch` of the sums of row `y` (`cs` floats: the row's pixels, then padding).
+/// Channel `ch` of the sums of row `y` (`cs` floats: the row's pixels, then padding),
+/// in accumulators of channel stride `cs` (a free function, for callers that hold
+/// other fields of the reconstructor mutably).
 #[inline(always)]
 pub(super) fn channel_row(acc: &[f32], cs: usize, y: usize, ch: usize) -> &[f32] {
     &acc[(y * CHANNELS + ch) * cs..][..cs]
