@@ -73,6 +73,9 @@ pub enum Command {
     /// The real-time pipeline: an interactive window, or `--headless` for a number of
     /// seconds writing images and statistics.
     View(ViewArgs),
+    /// Live evaluation: real-time methods one after another on this machine, every
+    /// displayed refresh scored against the ideal image at its scan-out time.
+    Live(LiveArgs),
     /// Run one shard (`--shard i/N`) of a sweep file's evaluation jobs, writing one
     /// result file per job; `frameless merge` combines them.
     Sweep(super::sweep::SweepArgs),
@@ -413,6 +416,62 @@ pub struct EvalArgs {
     pub exr: bool,
     /// Output folder.
     #[arg(long, default_value = "eval-out")]
+    pub out: PathBuf,
+}
+
+/// Arguments of `frameless live`.
+#[derive(Args, Debug)]
+pub struct LiveArgs {
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
+    #[arg(long, default_value = "toycar")]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+    /// Scene time of the first recorded refresh, seconds (the warm-up runs before it).
+    #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub start: f64,
+    /// Wall seconds recorded per run; scene time runs with the wall clock.
+    #[arg(long, default_value = "3", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub seconds: f64,
+    /// Wall seconds each run goes before its recorded window (whole refreshes).
+    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub warmup: f64,
+    /// Display size WxH.
+    #[arg(long, default_value = "256x256")]
+    pub size: Size,
+    /// Display refresh rate, Hz.
+    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    pub refresh_hz: f64,
+    /// Real-time methods to run, comma-separated [default: all of them].
+    #[arg(long = "method", alias = "methods", value_name = "METHOD", value_delimiter = ',', value_parser = RtMethodParser)]
+    pub methods: Option<Vec<RtMethod>>,
+    /// Runs of each method, in alternation (A B C A B C …); tables show the median and
+    /// the range.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
+    pub repeat: u32,
+    /// Seed of the methods' random choices and of the ideal images.
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Samples per pixel of the ideal images.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
+    pub ideal_spp: u32,
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint) or
+    /// none (full-resolution bilinear lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
+    pub texture_filter: TextureFilter,
+    /// Reflection/refraction depth limit.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
+    pub max_depth: u32,
+    /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
+    /// ~/.cache/frameless/ideal].
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Do not read or write the ideal-image cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Output folder.
+    #[arg(long, default_value = "live-out")]
     pub out: PathBuf,
 }
 

@@ -89,6 +89,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Table1(a) => table1(a),
         Command::Render(a) => render(a),
         Command::View(a) => view(a),
+        Command::Live(a) => live(a, cli.threads),
         Command::Sweep(a) => sweep::sweep(a),
         Command::Merge(a) => sweep::merge(a),
         Command::Report(a) => rewrite_report(&a.dir),
@@ -574,6 +575,40 @@ fn view(a: args::ViewArgs) -> Result<()> {
         visualisation: a.vis,
     };
     realtime::run_viewer(tracer, cfg, opts)?;
+    Ok(())
+}
+
+fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
+    use evaluation::live::{self, LiveConfig};
+    frameless::output::check_folder_target(&a.out)?;
+    let Size(w, h) = a.size;
+    let mut cfg = LiveConfig::new(&a.scene);
+    cfg.camera_path = load_camera_path(a.camera_path.as_deref())?;
+    cfg.start = a.start;
+    cfg.seconds = a.seconds;
+    cfg.warmup = a.warmup;
+    (cfg.width, cfg.height) = (w, h);
+    cfg.refresh_hz = a.refresh_hz;
+    if let Some(m) = a.methods {
+        cfg.methods = m;
+    }
+    cfg.repeat = a.repeat as usize;
+    if let Some(n) = threads {
+        cfg.cores = n as usize;
+    }
+    cfg.seed = a.seed;
+    cfg.ideal_spp = a.ideal_spp;
+    cfg.max_depth = a.max_depth;
+    cfg.texture_filter = a.texture_filter;
+    cfg.cache_dir = (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir));
+    cfg.validate()?;
+    let scene = Arc::new(load_scene(&a.scene)?);
+    let bar = Meter::new("live", "refreshes");
+    let mut out = live::run(scene, &cfg, &bar)?;
+    bar.finish();
+    let report = live::write_all(&mut out, &a.out)?;
+    print!("{}", live::markdown(&out.summary));
+    println!("report: {}", report.display());
     Ok(())
 }
 

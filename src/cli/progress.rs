@@ -180,6 +180,12 @@ impl frameless::evaluation::Progress for Meter {
     fn advance(&self, msg: &str, n: u64) {
         Meter::advance(self, msg, n);
     }
+    fn warn(&self, msg: &str) {
+        match &self.bar {
+            Some(bar) => bar.suspend(|| eprintln!("warning: {msg}")),
+            None => eprintln!("warning: {msg}"),
+        }
+    }
 }
 
 /// A spinner that [`Spinner::finish`] removes.

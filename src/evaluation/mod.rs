@@ -2,6 +2,7 @@
 //! display and sample budget under a simulated clock; at every refresh its displayed
 //! image is compared with the ideal image of that instant.
 
+pub mod live;
 pub mod metrics;
 pub mod report;
 pub mod sequence;
@@ -461,6 +462,9 @@ pub trait Progress: Sync {
     fn step(&self, msg: &str) {
         self.advance(msg, 1);
     }
+    /// Something the user should know while the work goes on (a run measured on a
+    /// busy machine); it is also in the results. Ignored unless implemented.
+    fn warn(&self, _msg: &str) {}
 }
 
 /// No progress reporting.

@@ -184,13 +184,36 @@ pub fn plot_rms(
             (m.name().to_string(), pts)
         })
         .collect();
+    let xmax = ((s.duration * s.refresh_hz).round() as i32 - 1).max(1);
+    let caption = format!(
+        "RMS error vs. ideal, {} at {} samples/s",
+        s.scene,
+        rate_label(rate)
+    );
+    plot_lines(
+        path,
+        &caption,
+        &format!("refresh ({} Hz)", s.refresh_hz),
+        xmax,
+        &series,
+    )
+}
+
+/// Lines of RMS error over refreshes `0..=xmax`, one per series, as SVG, the legend
+/// beside the plot.
+pub(crate) fn plot_lines(
+    path: &Path,
+    caption: &str,
+    x_desc: &str,
+    xmax: i32,
+    series: &[(String, Vec<(i32, f64)>)],
+) -> Result<(), EvalError> {
     let ymax = series
         .iter()
         .flat_map(|(_, p)| p.iter().map(|(_, y)| *y))
         .filter(|y| y.is_finite())
         .fold(1.0f64, f64::max)
         * 1.05;
-    let xmax = ((s.duration * s.refresh_hz).round() as i32 - 1).max(1);
     let e = |e: Box<dyn std::error::Error>| EvalError::Plot {
         path: path.to_path_buf(),
         why: e.to_string(),
@@ -200,14 +223,7 @@ pub fn plot_rms(
     root.fill(&WHITE).map_err(|x| e(Box::new(x)))?;
     let (plot_area, legend_area) = root.split_horizontally(720);
     let mut chart = ChartBuilder::on(&plot_area)
-        .caption(
-            format!(
-                "RMS error vs. ideal, {} at {} samples/s",
-                s.scene,
-                rate_label(rate)
-            ),
-            ("sans-serif", 18),
-        )
+        .caption(caption, ("sans-serif", 18))
         .margin(12)
         .x_label_area_size(46)
         .y_label_area_size(56)
@@ -215,7 +231,7 @@ pub fn plot_rms(
         .map_err(|x| e(Box::new(x)))?;
     chart
         .configure_mesh()
-        .x_desc(format!("refresh ({} Hz)", s.refresh_hz))
+        .x_desc(x_desc)
         .y_desc("RMS (0-255)")
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 15))
@@ -327,7 +343,12 @@ pub struct StripFiles {
 
 /// File names of the strip at `rate` and `frame`: images and FLIP maps.
 fn strip_names(rate: f64, frame: usize) -> (String, String) {
-    let tag = format!("{}_{frame:04}", rate_label(rate));
+    tagged_strip_names(&rate_label(rate), frame)
+}
+
+/// File names of the strip `tag` at `frame`: images and FLIP maps.
+pub(crate) fn tagged_strip_names(tag: &str, frame: usize) -> (String, String) {
+    let tag = format!("{tag}_{frame:04}");
     (format!("strip_{tag}.png"), format!("flip_{tag}.png"))
 }
 
@@ -340,8 +361,28 @@ fn write_strip(
     (w, h): (u32, u32),
     write_images: bool,
 ) -> Result<StripFiles, EvalError> {
-    let (image, flip) = strip_names(rate, frame);
-    let p = dir.join(&image);
+    let names = strip_names(rate, frame);
+    write_strip_files(dir, &names, panels, (w, h), write_images)?;
+    let (image, flip) = names;
+    Ok(StripFiles {
+        rate,
+        frame,
+        image,
+        flip,
+        labels: panels.iter().map(|(l, _)| l.clone()).collect(),
+    })
+}
+
+/// Write a strip's images (when asked) as `names.0` and the FLIP map of each panel
+/// against the first (the ideal image) as `names.1`, in `dir`.
+pub(crate) fn write_strip_files(
+    dir: &Path,
+    (image, flip): &(String, String),
+    panels: &[(String, Vec<u8>)],
+    (w, h): (u32, u32),
+    write_images: bool,
+) -> Result<(), EvalError> {
+    let p = dir.join(image);
     if write_images {
         let images: Vec<Vec<u8>> = panels.iter().map(|(_, rgb)| rgb.clone()).collect();
         let (sw, sh, rgb) = strip(&images, w, h);
@@ -356,27 +397,21 @@ fn write_strip(
         })
         .collect();
     let (sw, sh, indices) = strip_of(&maps, w, h, 1, metrics::FLIP_STEPS + 1);
-    let p = dir.join(&flip);
+    let p = dir.join(flip);
     write_png_indexed(&p, sw, sh, &indices, &metrics::flip_palette())
-        .map_err(|e| EvalError::io(&p, e))?;
-    Ok(StripFiles {
-        rate,
-        frame,
-        image,
-        flip,
-        labels: panels.iter().map(|(l, _)| l.clone()).collect(),
-    })
+        .map_err(|e| EvalError::io(&p, e))
 }
 
 /// `&`, `<`, `>` and `"` as HTML entities.
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
 
-const STYLE: &str = "body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;\
+pub(crate) const STYLE: &str =
+    "body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;\
 padding:0 1.5em;color:#222;line-height:1.45}\
 h2{margin-top:1.6em;border-bottom:1px solid #ddd}\
 table{border-collapse:collapse;margin:.4em 0 1.2em}\

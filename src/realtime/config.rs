@@ -37,7 +37,7 @@ pub enum RealtimeError {
 /// What the pipeline renders. Each variant is described (name, threads, how it starts)
 /// in its own file and registered once in the parent module's registry, whose order is
 /// [`RtMethod::ALL`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum RtMethod {
     /// Adaptive sampler + adaptive space-time reconstructor.

@@ -6,6 +6,7 @@
 use std::{path::PathBuf, sync::Arc, time::Instant};
 
 use super::{
+    machine::{load_average, process_cpu_seconds},
     pacing::{DisplayStats, Pacer},
     Frame, Pipeline, PipelineStats, RealtimeError, RtConfig,
 };
@@ -95,26 +96,6 @@ pub struct HeadlessStats {
     pub load_average_before: Option<f64>,
     /// The scripted camera step's latency, when one was asked for.
     pub camera_step: Option<CameraStep>,
-}
-
-/// User + system CPU seconds of this process, from `/proc/self/stat` (Linux).
-fn process_cpu_seconds() -> Option<f64> {
-    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // Fields after the parenthesised command name; utime and stime are the 14th and
-    // 15th fields of the line, in clock ticks (100 per second on Linux).
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
-    Some(ticks / 100.0)
-}
-
-fn load_average() -> Option<f64> {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()?
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
 }
 
 /// Run the pipeline for `opts.seconds`, then write images and `stats.json` to

@@ -31,9 +31,11 @@ pub mod config;
 pub mod framed;
 pub mod frameless;
 pub mod headless;
+pub mod machine;
 pub mod pacing;
 pub mod pipeline;
 pub mod pixel_locks;
+pub mod record;
 mod shared;
 pub mod taa;
 pub mod viewer;
@@ -216,7 +218,12 @@ impl RtConfig {
     /// real-time reconstructor ([`ReconParams::realtime`]), builds within 0.8 of a refresh
     /// period.
     pub fn new(method: RtMethod) -> Self {
-        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        Self::for_cores(method, machine::cores())
+    }
+
+    /// [`RtConfig::new`] with threads sized for `cores` cores instead of the machine's.
+    pub fn for_cores(method: RtMethod, cores: usize) -> Self {
+        let cores = cores.max(1);
         Self {
             method,
             sampling_threads: (method.info().default_sampling_threads)(cores),

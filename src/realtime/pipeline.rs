@@ -225,10 +225,49 @@ impl Drop for Pipeline {
     }
 }
 
-/// Build an image at every display refresh with the method's builder, concurrently
-/// with sampling. When building an image takes longer than a refresh period the thread
-/// starts the next one at once: images then come at a lower rate, while the display
-/// keeps refreshing on time with the newest one.
+/// When the image thread starts a build: as late before a refresh as recent builds
+/// allow, so that the image is ready when the refresh scans out and shows what was
+/// traced until just before it. Starting at the refresh instant itself would put every
+/// image on screen a whole period after it was built.
+struct Lead {
+    /// The last few builds' wall times, seconds.
+    recent: [f64; 16],
+    next: usize,
+    period: f64,
+}
+
+impl Lead {
+    /// Slack on top of the slowest recent build, seconds: scheduling jitter.
+    const MARGIN_S: f64 = 1.5e-3;
+    /// The largest lead, as a share of the period: a build slower than that starts at
+    /// once after the previous one anyway.
+    const MOST: f64 = 0.75;
+
+    fn new(period: f64) -> Self {
+        Self {
+            recent: [0.0; 16],
+            next: 0,
+            period,
+        }
+    }
+
+    /// Seconds before a refresh that a build starts.
+    fn seconds(&self) -> f64 {
+        let slowest = self.recent.iter().copied().fold(0.0, f64::max);
+        (slowest + Self::MARGIN_S).min(Self::MOST * self.period)
+    }
+
+    fn record(&mut self, build_s: f64) {
+        self.recent[self.next] = build_s;
+        self.next = (self.next + 1) % self.recent.len();
+    }
+}
+
+/// Build an image for every display refresh with the method's builder, concurrently
+/// with sampling, each started [`Lead`] seconds before its refresh. When building an
+/// image takes longer than a refresh period the thread starts the next one at once:
+/// images then come at a lower rate, while the display keeps refreshing on time with
+/// the newest one.
 fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
     // The reconstructor splats in parallel with rayon; its own pool bounds how many
     // cores that takes. Without a pool it runs on the calling thread.
@@ -238,18 +277,21 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         .build()
         .ok();
     let period = 1.0 / s.config.refresh_hz;
+    let mut lead = Lead::new(period);
     let mut k: u64 = 1;
     let mut seq = 0;
     while !s.stopped() {
-        let due = s.clock.instant_at(k as f64 * period);
+        let ahead = lead.seconds();
+        let due = s.clock.instant_at(k as f64 * period - ahead);
         let now = Instant::now();
         if due > now {
             // Sleep in short steps so that a stop request is seen promptly.
             std::thread::sleep((due - now).min(Duration::from_millis(5)));
             continue;
         }
-        // Next refresh after now (skipping those we were too late for).
-        k = (s.clock.elapsed() / period).floor() as u64 + 1;
+        // This build is for refresh k, or for a later one when the thread woke over half
+        // a period late; the next build is for the refresh after.
+        k = ((s.clock.elapsed() + ahead) / period).round().max(k as f64) as u64 + 1;
         let t0 = Instant::now();
         let t = s.clock.now();
         let built = match &pool {
@@ -260,6 +302,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             continue;
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        lead.record(ms * 1e-3);
         seq += 1;
         let mean_age = built.mean_age;
         let ages = Arc::new(built.ages);
@@ -276,6 +319,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             tiling: built.tiling,
             ages: ages.clone(),
             view_time: built.view_time,
+            published_s: s.clock.elapsed(),
         }));
         let mut st = lock(&s.image_stats);
         st.images += 1;

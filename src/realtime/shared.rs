@@ -45,6 +45,9 @@ pub struct Frame {
     pub ages: Arc<Vec<f32>>,
     /// Scene time of the camera it shows the scene from (NaN: no single camera).
     pub view_time: f64,
+    /// Wall-clock seconds since the pipeline started when it became the newest image:
+    /// a display refresh due before then still showed the previous one.
+    pub published_s: f64,
 }
 
 /// Most pixels whose ages an image reports: enough for percentiles to a fraction of a

@@ -1,0 +1,673 @@
+//! The live evaluation (`frameless live`): which method shows the best images on this
+//! machine, in real time, at equal wall-clock time. Each real-time method runs through
+//! the same pipeline as `frameless view --headless`, paying for its own control,
+//! reconstruction and warping out of the same cores; every refresh of a window is
+//! recorded as displayed with its scan-out time ([`crate::realtime::record`]) and then
+//! scored against the ideal image of that instant, like `frameless eval`.
+//!
+//! The window is on `eval`'s refresh grid: refresh `j` is scanned out at scene time
+//! `start + j / refresh_hz`, after a warm-up of whole refreshes from `start − warmup`,
+//! so the ideal images are the ones `eval` caches for the same window. Ideal images are
+//! made before the first run and scoring happens between runs, so neither competes with
+//! a method for the cores. Runs repeat in alternation (A B C A B C …) and each metric is
+//! reported as the median over the repeats with its range.
+
+mod report;
+
+pub use report::{markdown, write_all};
+
+use std::{path::PathBuf, sync::Arc, time::Instant};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{metrics, EvalError, Progress};
+use crate::{
+    limits,
+    realtime::{
+        machine,
+        record::{self, LiveFigures, Recording, Window},
+        RtConfig, RtMethod,
+    },
+    render::{cache::IdealCache, cache::Lookup, still},
+    scene::{CameraPath, Scene},
+    trace::{TextureFilter, TraceOptions, Tracer},
+};
+
+/// Most repeats of each method.
+pub const MAX_REPEAT: usize = 100;
+
+/// Settings of a live evaluation.
+#[derive(Clone, Debug)]
+pub struct LiveConfig {
+    /// How the user named the scene (for reports).
+    pub scene_name: String,
+    /// Camera path overriding the scene camera.
+    pub camera_path: Option<CameraPath>,
+    /// Scene time of the first recorded refresh.
+    pub start: f64,
+    /// Wall seconds recorded per run.
+    pub seconds: f64,
+    /// Wall seconds each run goes before its window (rounded up to whole refreshes, at
+    /// least one).
+    pub warmup: f64,
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// Display refresh rate, Hz.
+    pub refresh_hz: f64,
+    /// The real-time methods, run in this order.
+    pub methods: Vec<RtMethod>,
+    /// Runs of each method, in alternation.
+    pub repeat: usize,
+    /// Cores the methods size their threads for (default: the machine's).
+    pub cores: usize,
+    /// Seed of the methods' random choices and of the ideal images.
+    pub seed: u64,
+    /// Samples per pixel of the ideal images.
+    pub ideal_spp: u32,
+    /// Reflection/refraction depth limit.
+    pub max_depth: u32,
+    /// Texture filtering of every image traced, ideal images included.
+    pub texture_filter: TextureFilter,
+    /// Ideal-image cache directory (`None`: no cache).
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl LiveConfig {
+    /// The settings `frameless live --scene <scene_name>` runs with: 256×256 at 60 Hz,
+    /// 3 s from t = 0 after 1 s of warm-up, every real-time method once, threads for
+    /// this machine's cores, seed 1, 16-spp ideal images, ray-cone texture filtering,
+    /// no ideal-image cache.
+    pub fn new(scene_name: &str) -> Self {
+        Self {
+            scene_name: scene_name.to_string(),
+            camera_path: None,
+            start: 0.0,
+            seconds: 3.0,
+            warmup: 1.0,
+            width: 256,
+            height: 256,
+            refresh_hz: 60.0,
+            methods: RtMethod::ALL.to_vec(),
+            repeat: 1,
+            cores: machine::cores(),
+            seed: 1,
+            ideal_spp: 16,
+            max_depth: 5,
+            texture_filter: TextureFilter::RayCones,
+            cache_dir: None,
+        }
+    }
+
+    /// Refreshes recorded per run.
+    pub fn frames(&self) -> usize {
+        ((self.seconds * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
+    }
+
+    /// Refreshes of warm-up before the window.
+    pub fn warmup_refreshes(&self) -> u64 {
+        ((self.warmup * self.refresh_hz) - 1e-9).ceil().max(1.0) as u64
+    }
+
+    /// Scan-out time of recorded refresh `j`, scene seconds.
+    pub fn refresh(&self, j: usize) -> f64 {
+        self.start + j as f64 / self.refresh_hz
+    }
+
+    /// The pipeline settings of `method`.
+    pub fn rt_config(&self, method: RtMethod) -> RtConfig {
+        let mut c = RtConfig::for_cores(method, self.cores);
+        c.refresh_hz = self.refresh_hz;
+        c.seed = self.seed;
+        c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
+        c
+    }
+
+    /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
+    /// images of the window, 8-bit RGB each.
+    pub fn run_bytes(&self) -> u64 {
+        2 * self.frames() as u64 * self.width as u64 * self.height as u64 * 3
+    }
+
+    /// Check the settings before any work; the error names the option.
+    pub fn validate(&self) -> Result<(), EvalError> {
+        let bad = |option, why: String| Err(EvalError::Config { option, why });
+        let checks = [
+            ("--warmup", limits::check_warmup(self.warmup)),
+            ("--seconds", limits::check_duration(self.seconds)),
+            (
+                "--start",
+                limits::check_start(self.start, self.warmup, self.seconds),
+            ),
+            ("--size", limits::check_display(self.width, self.height)),
+        ];
+        for (option, check) in checks {
+            if let Err(why) = check {
+                return bad(option, why);
+            }
+        }
+        if self.methods.is_empty() {
+            return bad("--method", "lists no method".into());
+        }
+        for (i, m) in self.methods.iter().enumerate() {
+            if self.methods[..i].contains(m) {
+                return bad("--method", format!("lists {} twice", m.name()));
+            }
+        }
+        if !(1..=MAX_REPEAT).contains(&self.repeat) {
+            return bad(
+                "--repeat",
+                format!("{} must be in 1..={MAX_REPEAT}", self.repeat),
+            );
+        }
+        if self.ideal_spp == 0 {
+            return bad("--ideal-spp", "must be at least 1".into());
+        }
+        for &m in &self.methods {
+            let c = self.rt_config(m);
+            let check = c
+                .validate()
+                .and_then(|()| c.check_size(self.width, self.height));
+            if let Err(e) = check {
+                return bad("--method", format!("{}: {e}", m.name()));
+            }
+        }
+        let why = "a run holds the images it shows and the ideal images of its window; \
+                   shorten --seconds or lower --refresh-hz or --size";
+        if let Err(e) = limits::check_buffer("live recording", self.run_bytes(), why) {
+            return bad("--seconds", e);
+        }
+        Ok(())
+    }
+}
+
+/// One recorded refresh's measurements.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LiveFrameRow {
+    /// The method.
+    pub method: RtMethod,
+    /// Which run of the method (1, 2, …).
+    pub repeat: usize,
+    /// Refresh index in the window.
+    pub frame: usize,
+    /// Scan-out time: the scene time of the refresh that showed the image.
+    pub time: f64,
+    /// Scene time the image shows (`None`: nothing on screen yet).
+    pub shown_time: Option<f64>,
+    /// Whether this refresh showed a new image.
+    pub new_image: bool,
+    /// RMS error against the ideal image at `time`, 0–255 units.
+    pub rms: f64,
+    /// PSNR, dB.
+    pub psnr: f64,
+    /// Mean FLIP error.
+    pub flip: f64,
+    /// Temporal instability, as `eval`'s (`None` on the first refresh).
+    pub instability: Option<f64>,
+    /// Mean age of the information on screen at scan-out, seconds: the image's age when
+    /// built plus the time from its build to this refresh (`None`: no information).
+    pub age_s: Option<f64>,
+}
+
+/// A run's or a method's figures: image quality against the ideal, and what the run
+/// got of the machine.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Scores {
+    /// Mean RMS error, 0–255.
+    pub rms: f64,
+    /// Mean PSNR, dB.
+    pub psnr: f64,
+    /// Mean FLIP.
+    pub flip: f64,
+    /// Mean temporal instability, 0–255.
+    pub instability: f64,
+    /// Mean information age at scan-out, seconds (`None`: no information shown).
+    pub age_s: Option<f64>,
+    /// The run's live figures.
+    #[serde(flatten)]
+    pub live: LiveFigures,
+}
+
+const SCORE_FIELDS: usize = 11;
+
+impl Scores {
+    fn fields(&self) -> [Option<f64>; SCORE_FIELDS] {
+        let l = &self.live;
+        [
+            Some(self.rms),
+            Some(self.psnr),
+            Some(self.flip),
+            Some(self.instability),
+            self.age_s,
+            Some(l.samples_per_s),
+            Some(l.images_per_s),
+            Some(l.late_refreshes as f64),
+            l.machine_share,
+            l.others_share,
+            l.load_average_before,
+        ]
+    }
+
+    fn from_fields(f: [Option<f64>; SCORE_FIELDS]) -> Self {
+        let v = |i: usize| f[i].unwrap_or(f64::NAN);
+        Scores {
+            rms: v(0),
+            psnr: v(1),
+            flip: v(2),
+            instability: v(3),
+            age_s: f[4],
+            live: LiveFigures {
+                samples_per_s: v(5),
+                images_per_s: v(6),
+                late_refreshes: f[7].map_or(0, |x| x.round() as u64),
+                machine_share: f[8],
+                others_share: f[9],
+                load_average_before: f[10],
+            },
+        }
+    }
+
+    /// Field by field over `runs`: the median (the mean of the middle two for an even
+    /// count), the least and the largest.
+    fn spread(runs: &[Scores]) -> (Scores, Scores, Scores) {
+        let mut med = [None; SCORE_FIELDS];
+        let mut lo = [None; SCORE_FIELDS];
+        let mut hi = [None; SCORE_FIELDS];
+        for i in 0..SCORE_FIELDS {
+            let mut v: Vec<f64> = runs.iter().filter_map(|r| r.fields()[i]).collect();
+            if v.is_empty() {
+                continue;
+            }
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            med[i] = Some(0.5 * (v[(n - 1) / 2] + v[n / 2]));
+            lo[i] = Some(v[0]);
+            hi[i] = Some(v[n - 1]);
+        }
+        (
+            Scores::from_fields(med),
+            Scores::from_fields(lo),
+            Scores::from_fields(hi),
+        )
+    }
+}
+
+/// One run of one method.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LiveRun {
+    /// The method.
+    pub method: RtMethod,
+    /// Which run of the method (1, 2, …).
+    pub repeat: usize,
+    /// Its scores and figures.
+    pub scores: Scores,
+    /// Sampling threads the method ran.
+    pub sampling_threads: usize,
+    /// Set when the machine was busy before the run: the figures may be low.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
+}
+
+/// One method over its runs.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LiveRow {
+    /// The method.
+    pub method: RtMethod,
+    /// Runs measured.
+    pub runs: usize,
+    /// The median of each figure over the runs.
+    pub median: Scores,
+    /// The least of each figure.
+    pub min: Scores,
+    /// The largest of each figure.
+    pub max: Scores,
+    /// Runs that carry a warning.
+    pub warnings: usize,
+}
+
+/// Where the time of a live evaluation went.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct LiveTiming {
+    /// Rendering or loading ideal images.
+    pub ideal_s: f64,
+    /// Ideal images served from the cache.
+    pub ideal_cache_hits: usize,
+    /// Running the methods (warm-ups and windows).
+    pub live_s: f64,
+    /// Scoring the recorded refreshes.
+    pub metrics_s: f64,
+    /// Writing reports, plots and strips.
+    pub output_s: f64,
+}
+
+/// `summary.json` of a live evaluation.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LiveSummary {
+    /// Scene as named by the user.
+    pub scene: String,
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// Refresh rate, Hz.
+    pub refresh_hz: f64,
+    /// Scene time of the first recorded refresh.
+    pub start: f64,
+    /// Wall seconds recorded per run.
+    pub seconds: f64,
+    /// Warm-up per run, seconds (whole refreshes).
+    pub warmup: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Ideal samples per pixel.
+    pub ideal_spp: u32,
+    /// A camera path file was used (true) or the scene camera (false).
+    pub camera_path: bool,
+    /// Runs of each method.
+    pub repeat: usize,
+    /// Cores of the machine.
+    pub machine_cores: usize,
+    /// Cores the methods sized their threads for.
+    pub cores: usize,
+    /// Per method: medians and ranges, in the order run.
+    pub results: Vec<LiveRow>,
+    /// Every run, in the order run.
+    pub runs: Vec<LiveRun>,
+    /// Cost of the evaluation.
+    pub timing: LiveTiming,
+}
+
+/// Strip images at one refresh: the ideal image first, then each method's as its
+/// median run (by mean RMS) showed it.
+pub struct LiveStrip {
+    /// Refresh index in the window.
+    pub frame: usize,
+    /// `(label, 8-bit RGB)`.
+    pub panels: Vec<(String, Vec<u8>)>,
+}
+
+/// Everything a live evaluation produced.
+pub struct LiveOutput {
+    /// The summary.
+    pub summary: LiveSummary,
+    /// Every recorded refresh's measurements.
+    pub frames: Vec<LiveFrameRow>,
+    /// Image strips at the window's quartiles.
+    pub strips: Vec<LiveStrip>,
+}
+
+/// What one scored run keeps besides its rows: the images of the strip frames.
+struct Scored {
+    run: LiveRun,
+    rows: Vec<LiveFrameRow>,
+    strip_images: Vec<Vec<u8>>,
+}
+
+/// Run the live evaluation (no files written; see [`write_all`]).
+pub fn run(
+    scene: Arc<Scene>,
+    cfg: &LiveConfig,
+    progress: &dyn Progress,
+) -> Result<LiveOutput, EvalError> {
+    cfg.validate()?;
+    let n = cfg.frames();
+    let runs = cfg.methods.len() * cfg.repeat;
+    // Progress in refreshes: each ideal image, each refresh a run goes through
+    // (warm-up included) and each one scored.
+    let per_run = cfg.warmup_refreshes() + 2 * n as u64;
+    progress.total(n as u64 + runs as u64 * per_run);
+    let mut timing = LiveTiming::default();
+    let ideal = ideal_images(&scene, cfg, &mut timing, progress)?;
+    let strip_frames = quartiles(n);
+    let mut scored: Vec<Scored> = Vec::with_capacity(runs);
+    for repeat in 1..=cfg.repeat {
+        for &method in &cfg.methods {
+            let msg = format!("{} (run {repeat} of {})", method.name(), cfg.repeat);
+            let t0 = Instant::now();
+            let (rec, warning) = record_run(&scene, cfg, method, progress)?;
+            timing.live_s += t0.elapsed().as_secs_f64();
+            progress.advance(&msg, cfg.warmup_refreshes() + n as u64);
+            let t1 = Instant::now();
+            let rows = score(cfg, method, repeat, &rec, &ideal);
+            timing.metrics_s += t1.elapsed().as_secs_f64();
+            progress.advance(&msg, n as u64);
+            scored.push(Scored {
+                run: LiveRun {
+                    method,
+                    repeat,
+                    scores: scores_of(&rows, rec.figures),
+                    sampling_threads: rec.pipeline.sampling_threads,
+                    warning,
+                },
+                strip_images: strip_frames
+                    .iter()
+                    .map(|&j| displayed(&rec, j, cfg).to_vec())
+                    .collect(),
+                rows,
+            });
+        }
+    }
+    Ok(assemble(cfg, scored, &ideal, &strip_frames, timing))
+}
+
+/// The refreshes at a quarter, half and three quarters of the window.
+fn quartiles(n: usize) -> Vec<usize> {
+    let mut f = vec![n / 4, n / 2, (3 * n) / 4];
+    f.dedup();
+    f
+}
+
+/// The tracer every run and the ideal images use, new for each so that no run finds
+/// scene states another left in its cache.
+fn tracer(scene: &Arc<Scene>, cfg: &LiveConfig) -> Arc<Tracer> {
+    let options = TraceOptions {
+        max_depth: cfg.max_depth,
+        texture_filter: cfg.texture_filter,
+    };
+    Arc::new(
+        Tracer::new(scene.clone(), cfg.width, cfg.height, options)
+            .with_camera_path(cfg.camera_path.clone()),
+    )
+}
+
+/// The ideal image of every refresh of the window, as displayed.
+fn ideal_images(
+    scene: &Arc<Scene>,
+    cfg: &LiveConfig,
+    timing: &mut LiveTiming,
+    progress: &dyn Progress,
+) -> Result<Vec<Vec<u8>>, EvalError> {
+    let t0 = Instant::now();
+    let tracer = tracer(scene, cfg);
+    let cache = match &cfg.cache_dir {
+        Some(dir) => Some(
+            IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
+                .map_err(|e| EvalError::io(dir, e))?,
+        ),
+        None => None,
+    };
+    let mut ideal = Vec::with_capacity(cfg.frames());
+    for j in 0..cfg.frames() {
+        let t = cfg.refresh(j);
+        let image = match &cache {
+            Some(c) => {
+                let (image, lookup) = c.get_or_render(&tracer, t, cfg.ideal_spp, cfg.seed);
+                timing.ideal_cache_hits += usize::from(matches!(lookup, Lookup::Hit));
+                image
+            }
+            None => still::render(&tracer, t, cfg.ideal_spp, cfg.seed, &|_| {}),
+        };
+        ideal.push(image.to_rgb8());
+        progress.step("ideal images");
+    }
+    timing.ideal_s = t0.elapsed().as_secs_f64();
+    Ok(ideal)
+}
+
+/// Record one run of `method`, with a warning when the machine was busy before it.
+fn record_run(
+    scene: &Arc<Scene>,
+    cfg: &LiveConfig,
+    method: RtMethod,
+    progress: &dyn Progress,
+) -> Result<(Recording, Option<String>), EvalError> {
+    let window = Window {
+        warmup: cfg.warmup_refreshes(),
+        refreshes: cfg.frames(),
+    };
+    let rec = record::record(tracer(scene, cfg), cfg.rt_config(method), window).map_err(|e| {
+        EvalError::Config {
+            option: "--method",
+            why: format!("{}: {e}", method.name()),
+        }
+    })?;
+    let cores = machine::cores() as f64;
+    let warning = rec
+        .figures
+        .load_average_before
+        .filter(|&l| l > cores)
+        .map(|l| {
+            format!(
+                "load average {l:.2} before the run exceeds the {cores} cores: other work may have slowed it"
+            )
+        });
+    if let Some(w) = &warning {
+        progress.warn(&format!("{}: {w}", method.name()));
+    }
+    Ok((rec, warning))
+}
+
+/// What refresh `j` of `rec` displayed (black before the first image).
+fn displayed<'a>(rec: &'a Recording, j: usize, cfg: &LiveConfig) -> std::borrow::Cow<'a, [u8]> {
+    match rec.shown[j] {
+        Some(i) => std::borrow::Cow::Borrowed(&rec.images[i as usize].rgb[..]),
+        None => std::borrow::Cow::Owned(vec![0; cfg.width as usize * cfg.height as usize * 3]),
+    }
+}
+
+/// Every recorded refresh scored against the ideal image of its scan-out time.
+fn score(
+    cfg: &LiveConfig,
+    method: RtMethod,
+    repeat: usize,
+    rec: &Recording,
+    ideal: &[Vec<u8>],
+) -> Vec<LiveFrameRow> {
+    let (w, h) = (cfg.width, cfg.height);
+    (0..cfg.frames())
+        .into_par_iter()
+        .map(|j| {
+            let t = cfg.refresh(j);
+            let shown = displayed(rec, j, cfg);
+            let rms = metrics::rms(&ideal[j], &shown);
+            let image = rec.shown[j].map(|i| &rec.images[i as usize]);
+            let age = image
+                .map(|im| im.mean_age + (t - im.time))
+                .filter(|a| a.is_finite());
+            LiveFrameRow {
+                method,
+                repeat,
+                frame: j,
+                time: t,
+                shown_time: image.map(|im| im.time),
+                new_image: j > 0 && rec.shown[j] != rec.shown[j - 1] || j == 0,
+                rms,
+                psnr: metrics::psnr(rms),
+                flip: metrics::flip_mean(&ideal[j], &shown, w, h),
+                instability: (j > 0).then(|| {
+                    let prev = displayed(rec, j - 1, cfg);
+                    metrics::instability(&prev, &shown, &ideal[j - 1], &ideal[j])
+                }),
+                age_s: age,
+            }
+        })
+        .collect()
+}
+
+/// A run's means over its refreshes, with its live figures.
+fn scores_of(rows: &[LiveFrameRow], live: LiveFigures) -> Scores {
+    let mean = |v: Vec<f64>| {
+        if v.is_empty() {
+            None
+        } else {
+            Some(v.iter().sum::<f64>() / v.len() as f64)
+        }
+    };
+    let all = |f: fn(&LiveFrameRow) -> Option<f64>| mean(rows.iter().filter_map(f).collect());
+    Scores {
+        rms: all(|r| Some(r.rms)).unwrap_or(f64::NAN),
+        psnr: all(|r| Some(r.psnr)).unwrap_or(f64::NAN),
+        flip: all(|r| Some(r.flip)).unwrap_or(f64::NAN),
+        instability: all(|r| r.instability).unwrap_or(0.0),
+        age_s: all(|r| r.age_s),
+        live,
+    }
+}
+
+/// The summary, rows and strips from every scored run.
+fn assemble(
+    cfg: &LiveConfig,
+    scored: Vec<Scored>,
+    ideal: &[Vec<u8>],
+    strip_frames: &[usize],
+    timing: LiveTiming,
+) -> LiveOutput {
+    let mut results = Vec::new();
+    let mut strips: Vec<LiveStrip> = strip_frames
+        .iter()
+        .map(|&j| LiveStrip {
+            frame: j,
+            panels: vec![("ideal".into(), ideal[j].clone())],
+        })
+        .collect();
+    for &m in &cfg.methods {
+        let of_m: Vec<&Scored> = scored.iter().filter(|s| s.run.method == m).collect();
+        let scores: Vec<Scores> = of_m.iter().map(|s| s.run.scores).collect();
+        let (median, min, max) = Scores::spread(&scores);
+        results.push(LiveRow {
+            method: m,
+            runs: of_m.len(),
+            median,
+            min,
+            max,
+            warnings: of_m.iter().filter(|s| s.run.warning.is_some()).count(),
+        });
+        // The run whose mean RMS is the median's (the lower middle one of an even count).
+        let mut by_rms = of_m.clone();
+        by_rms.sort_by(|a, b| a.run.scores.rms.total_cmp(&b.run.scores.rms));
+        let typical = by_rms[(by_rms.len() - 1) / 2];
+        for (strip, image) in strips.iter_mut().zip(&typical.strip_images) {
+            strip.panels.push((m.name().to_string(), image.clone()));
+        }
+    }
+    let mut runs = Vec::new();
+    let mut frames = Vec::new();
+    for s in scored {
+        runs.push(s.run);
+        frames.extend(s.rows);
+    }
+    LiveOutput {
+        summary: LiveSummary {
+            scene: cfg.scene_name.clone(),
+            width: cfg.width,
+            height: cfg.height,
+            refresh_hz: cfg.refresh_hz,
+            start: cfg.start,
+            seconds: cfg.seconds,
+            warmup: cfg.warmup_refreshes() as f64 / cfg.refresh_hz,
+            seed: cfg.seed,
+            ideal_spp: cfg.ideal_spp,
+            camera_path: cfg.camera_path.is_some(),
+            repeat: cfg.repeat,
+            machine_cores: machine::cores(),
+            cores: cfg.cores,
+            results,
+            runs,
+            timing,
+        },
+        frames,
+        strips,
+    }
+}

@@ -1,0 +1,227 @@
+//! The live evaluation: a method whose live image is exact scores near zero, recorded
+//! refreshes are aligned with their scan-out time, runs alternate, and bad input is
+//! refused before any work.
+
+mod common;
+
+use std::{
+    process::Command,
+    sync::{Arc, Mutex},
+    time::Instant,
+};
+
+use common::{animate, flat, quad, two_spheres};
+use frameless::{
+    evaluation::{
+        live::{self, LiveConfig},
+        metrics, Silent,
+    },
+    realtime::{
+        record::{record, Window},
+        RtConfig, RtMethod,
+    },
+    render::still,
+    scene::{
+        animation::{KeyframeTrack, TcbKey, VectorSpline},
+        Group, Scene,
+    },
+    trace::{TraceOptions, Tracer},
+};
+use glam::Vec3;
+
+/// Live runs measure time: one at a time, so that they do not slow each other.
+static MACHINE: Mutex<()> = Mutex::new(());
+
+/// A lit matte wall filling the view: a smooth image with no edge, still.
+fn still_wall() -> Scene {
+    let mut s = two_spheres();
+    s.groups[0].spheres.clear();
+    s
+}
+
+/// A white bar, 0.4 wide and taller than the view, sliding right at `SPEED` units a
+/// second over black: x = -1.4 at t = 0.3 s (about 21 pixels a unit at 64×48).
+fn sliding_bar() -> Scene {
+    let mut s = Scene {
+        name: "bar".into(),
+        materials: vec![flat(1.0)],
+        ..two_spheres()
+    };
+    s.groups.clear();
+    s.lights.clear();
+    s.background = Vec3::ZERO;
+    let keys = (-1..=4)
+        .map(|i| {
+            let t = i as f32;
+            TcbKey::catmull_rom(t, Vec3::new(-1.4 + SPEED * (t - 0.3), 0.0, 0.0))
+        })
+        .collect();
+    let node = animate(
+        &mut s,
+        KeyframeTrack {
+            name: "bar".into(),
+            translation: VectorSpline::new(keys),
+            ..Default::default()
+        },
+    );
+    s.groups.push(Group {
+        node: Some(node),
+        triangles: quad(-0.2, 0.2, -5.0, 5.0, 0.0, 0),
+        ..Default::default()
+    });
+    s
+}
+
+const SPEED: f32 = 5.0;
+
+#[test]
+fn an_exact_method_on_a_still_scene_scores_near_zero() {
+    let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+    let mut cfg = LiveConfig::new("wall");
+    cfg.width = 48;
+    cfg.height = 32;
+    cfg.seconds = 0.4;
+    cfg.warmup = 0.2;
+    cfg.ideal_spp = 4;
+    cfg.methods = vec![RtMethod::Framed, RtMethod::TraditionalFrameless];
+    cfg.repeat = 2;
+    let out = live::run(Arc::new(still_wall()), &cfg, &Silent).expect("live evaluation runs");
+    let s = &out.summary;
+    // Runs alternate: A B A B.
+    let order: Vec<(RtMethod, usize)> = s.runs.iter().map(|r| (r.method, r.repeat)).collect();
+    assert_eq!(
+        order,
+        [
+            (RtMethod::Framed, 1),
+            (RtMethod::TraditionalFrameless, 1),
+            (RtMethod::Framed, 2),
+            (RtMethod::TraditionalFrameless, 2)
+        ]
+    );
+    let framed = &s.results[0];
+    assert_eq!((framed.method, framed.runs), (RtMethod::Framed, 2));
+    // Framed traces every pixel's centre; on a smooth wall that is the ideal's mean
+    // to within a level of quantization.
+    assert!(framed.max.rms < 0.6, "framed RMS {}", framed.max.rms);
+    assert!(framed.max.flip < 0.01, "framed FLIP {}", framed.max.flip);
+    assert!(framed.min.rms <= framed.median.rms && framed.median.rms <= framed.max.rms);
+    assert!(framed.median.live.samples_per_s > 0.0);
+    // Every refresh of every run showed an image.
+    assert_eq!(out.frames.len(), 4 * cfg.frames());
+    assert!(out.frames.iter().all(|f| f.shown_time.is_some()));
+    // The same instrument sees a method's error: a black screen scores far from zero.
+    let black = vec![0u8; 48 * 32 * 3];
+    let tracer = Tracer::new(Arc::new(still_wall()), 48, 32, TraceOptions::default());
+    let ideal = still::render(&tracer, cfg.start, 4, cfg.seed, &|_| {}).to_rgb8();
+    assert!(metrics::rms(&ideal, &black) > 20.0);
+}
+
+/// Mean RMS of the recorded images against the ideal images `shift` refreshes from
+/// their scan-out times.
+fn error_shifted(tracer: &Tracer, images: &[(f64, Vec<u8>)], period: f64, shift: i32) -> f64 {
+    let sum: f64 = images
+        .iter()
+        .map(|(t, rgb)| {
+            let ideal = still::render(tracer, t + shift as f64 * period, 4, 1, &|_| {}).to_rgb8();
+            metrics::rms(&ideal, rgb)
+        })
+        .sum();
+    sum / images.len() as f64
+}
+
+#[test]
+fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
+    let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+    let (w, h) = (64, 48);
+    let tracer = Arc::new(Tracer::new(
+        Arc::new(sliding_bar()),
+        w,
+        h,
+        TraceOptions::default(),
+    ));
+    let mut config = RtConfig::new(RtMethod::Framed);
+    config.refresh_hz = 60.0;
+    config.start = 0.0;
+    let window = Window {
+        warmup: 18,
+        refreshes: 30,
+    };
+    let rec = record(tracer.clone(), config, window).expect("records");
+    assert_eq!(rec.shown.len(), 30);
+    let period = 1.0 / config.refresh_hz;
+    let images: Vec<(f64, Vec<u8>)> = rec
+        .shown
+        .iter()
+        .enumerate()
+        .map(|(j, i)| {
+            let i = i.expect("an image on screen at every refresh") as usize;
+            let scan_out = (window.warmup as f64 + j as f64) * period;
+            // What a refresh shows was made no later than its scan-out.
+            assert!(rec.images[i].time <= scan_out + 1e-3);
+            (scan_out, rec.images[i].rgb.to_vec())
+        })
+        .collect();
+    let [early, on_time, late] =
+        [-2, 0, 2].map(|shift| error_shifted(&tracer, &images, period, shift));
+    eprintln!("RMS against the ideal 2 refreshes early {early:.2}, on time {on_time:.2}, 2 late {late:.2}");
+    assert!(
+        on_time < early,
+        "on time {on_time} vs 2 refreshes early {early}"
+    );
+    assert!(
+        on_time < late,
+        "on time {on_time} vs 2 refreshes late {late}"
+    );
+}
+
+#[test]
+fn bad_input_is_refused_before_any_work() {
+    let dir = std::env::temp_dir().join(format!("frameless-live-bad-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, "not a folder").unwrap();
+    let out_dir = dir.join("out");
+    let run = |args: &[&str]| {
+        let t0 = Instant::now();
+        let out = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .arg("live")
+            .args(["--no-cache", "--out"])
+            .arg(&out_dir)
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?} was accepted");
+        // Refused before any ideal image or run: at once, and nothing written.
+        assert!(t0.elapsed().as_secs_f64() < 5.0, "{args:?} did work first");
+        assert!(!out_dir.exists(), "{args:?} left an output folder");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let err = run(&["--method", "adaptive,bogus"]);
+    assert!(err.contains("invalid value 'bogus'"), "{err}");
+    assert!(
+        err.contains("taa-warp"),
+        "the error lists the methods: {err}"
+    );
+    let err = run(&["--seconds", "0"]);
+    assert!(
+        err.contains("--seconds") && err.contains("must be in (0,"),
+        "{err}"
+    );
+    let err = run(&["--repeat", "0"]);
+    assert!(err.contains("--repeat"), "{err}");
+    let err = run(&["--method", "framed,framed"]);
+    assert!(err.contains("lists framed twice"), "{err}");
+    let err = run(&["--size", "640x480", "--seconds", "3000"]);
+    assert!(err.contains("live recording"), "{err}");
+    let unwritable = file.join("out");
+    let out = Command::new(env!("CARGO_BIN_EXE_frameless"))
+        .args(["live", "--no-cache", "--out"])
+        .arg(&unwritable)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&unwritable.display().to_string()), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
