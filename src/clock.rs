@@ -1,4 +1,4 @@
-//! The simulated clock (SPEC §5, §6): the time base every method and the evaluation share.
+//! The simulated clock: the time base every method and the evaluation share.
 //!
 //! A method with budget `R` samples per second traces sample `i` at `start + i/R`; the
 //! display refreshes at `refresh_hz`. `start` is the evaluated window's first refresh

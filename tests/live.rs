@@ -225,3 +225,68 @@ fn bad_input_is_refused_before_any_work() {
     assert!(err.contains(&unwritable.display().to_string()), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_command_writes_every_output_and_report_remakes_them() {
+    let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = std::env::temp_dir().join(format!("frameless-live-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let bin = env!("CARGO_BIN_EXE_frameless");
+    let out = Command::new(bin)
+        .args([
+            "live",
+            "--scene",
+            "toycar",
+            "--size",
+            "40x30",
+            "--seconds",
+            "0.3",
+        ])
+        .args([
+            "--warmup",
+            "0.2",
+            "--ideal-spp",
+            "2",
+            "--no-cache",
+            "--start",
+            "0.5",
+        ])
+        .args(["--method", "framed,late-warp", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("| late-warp |"), "{stdout}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["results"].as_array().unwrap().len(), 2);
+    assert_eq!(summary["runs"][1]["method"], "late-warp");
+    assert!(summary["runs"][0]["pipeline"]["samples_per_s"].is_number());
+    let rows = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+    // A header and 18 refreshes (0.3 s at 60 Hz) of each method.
+    assert_eq!(rows.lines().count(), 1 + 2 * 18);
+    let strips: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with("strip_live_") || n.starts_with("flip_live_"))
+        .collect();
+    assert_eq!(strips.len(), 6, "{strips:?}");
+    for f in ["report.html", "rms.svg", "flip_live_0009.png"] {
+        std::fs::remove_file(dir.join(f)).unwrap();
+    }
+    let out = Command::new(bin).arg("report").arg(&dir).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(html.contains("Live evaluation: toycar") && html.contains("strip_live_0009.png"));
+    assert!(dir.join("rms.svg").is_file() && dir.join("flip_live_0009.png").is_file());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -82,16 +82,17 @@ pub enum Command {
     /// Merge the job results of a sweep's shards into the outputs of one run
     /// (summary.json, summary.md, plots, strips, report.html).
     Merge(super::sweep::MergeArgs),
-    /// Make the plots, FLIP maps and report.html of an `eval` or `table1` output folder
-    /// again with this version, from its summary.json, frames.csv and image strips.
+    /// Make the plots, FLIP maps and report.html of an `eval`, `table1` or `live` output
+    /// folder again with this version, from its summary.json, frames.csv and image
+    /// strips.
     Report(ReportArgs),
 }
 
 /// Arguments of `frameless report`.
 #[derive(Args, Debug)]
 pub struct ReportArgs {
-    /// The output folder of `frameless eval` (or of `frameless table1`: each
-    /// animation's folder is redone).
+    /// The output folder of `frameless eval` or `frameless live` (or of `frameless
+    /// table1`: each animation's folder is redone).
     pub dir: PathBuf,
 }
 

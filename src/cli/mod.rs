@@ -666,10 +666,15 @@ fn rewrite_report(dir: &Path) -> Result<()> {
     let summary = dir.join("summary.json");
     let text = std::fs::read_to_string(&summary).with_context(|| {
         format!(
-            "{}: not an output folder of `frameless eval` or `frameless table1`",
+            "{}: not an output folder of `frameless eval`, `frameless table1` or `frameless live`",
             summary.display()
         )
     })?;
+    if serde_json::from_str::<evaluation::live::LiveSummary>(&text).is_ok() {
+        let p = evaluation::live::rewrite(dir)?;
+        println!("report: {}", p.display());
+        return Ok(());
+    }
     let dirs: Vec<std::path::PathBuf> =
         match serde_json::from_str::<evaluation::table1::TableSummary>(&text) {
             Ok(t) => t.animations.iter().map(|a| dir.join(&a.name)).collect(),

@@ -1,4 +1,4 @@
-//! Gold-standard evaluation (paper §7, SPEC §6): every method runs on the same scene,
+//! Gold-standard evaluation (paper §7): every method runs on the same scene,
 //! display and sample budget under a simulated clock; at every refresh its displayed
 //! image is compared with the ideal image of that instant.
 

@@ -304,7 +304,7 @@ fn strip_of(images: &[Vec<u8>], w: u32, h: u32, channels: u32, fill: u8) -> (u32
 pub const STRIP_GAP: u32 = 4;
 
 /// The panels of a strip made by [`strip`], if it holds exactly `n` of `w × h`.
-fn split_strip(sw: u32, sh: u32, rgb: &[u8], w: u32, n: usize) -> Option<Vec<Vec<u8>>> {
+pub(crate) fn split_strip(sw: u32, sh: u32, rgb: &[u8], w: u32, n: usize) -> Option<Vec<Vec<u8>>> {
     let n32 = n as u32;
     if n == 0 || sw != n32 * w + (n32 - 1) * STRIP_GAP || rgb.len() != (sw * sh * 3) as usize {
         return None;

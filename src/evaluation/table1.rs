@@ -1,4 +1,4 @@
-//! Paper Table 1 and Figure 8 on the BART kitchen (SPEC §6): the three animations, the
+//! Paper Table 1 and Figure 8 on the BART kitchen: the three animations, the
 //! paper's numbers for comparison, and the combined outputs (one `summary.json` with an
 //! evaluation summary per animation, a Markdown table beside the paper's, an HTML index).
 //!
@@ -94,7 +94,7 @@ pub fn animation(name: &str) -> Result<&'static Animation, EvalError> {
     })
 }
 
-/// The methods of the table (SPEC §5), the Fig. 8 ablation and today's practice (TAA
+/// The methods of the table, the Fig. 8 ablation and today's practice (TAA
 /// and the late warps), in display order.
 pub const METHODS: [MethodKind; 11] = [
     MethodKind::Framed60Hz,

@@ -1,4 +1,4 @@
-//! Framed, double-buffered rendering (SPEC §5).
+//! Framed, double-buffered rendering.
 //!
 //! Frame `j` starts at `start + j·D`, sees the scene as it is at its start, completes at
 //! `start + (j+1)·D` and is shown from the first refresh at or after completion until

@@ -1,4 +1,4 @@
-//! Interactive camera control and camera-path recording (SPEC §8 format).
+//! Interactive camera control and camera-path recording (in the camera-path CSV format).
 
 use glam::{Quat, Vec3};
 
@@ -118,7 +118,7 @@ impl CameraRecorder {
         })
     }
 
-    /// The CSV text (SPEC §8) `frameless eval --camera-path` replays.
+    /// The camera-path CSV text `frameless eval --camera-path` replays.
     pub fn to_csv(&self) -> Option<String> {
         self.path().map(|p| p.to_csv())
     }

@@ -86,6 +86,55 @@ impl CpuMark {
     }
 }
 
+/// Tasks of other processes running or waiting for a core now: the kernel's count of
+/// runnable tasks (`/proc/loadavg`) less this process's.
+pub fn others_running() -> Option<f64> {
+    let loadavg = std::fs::read_to_string("/proc/loadavg").ok()?;
+    others_from(&loadavg, own_running_threads()?)
+}
+
+/// `/proc/loadavg`'s runnable tasks (its fourth field, `running/total`) less `own`.
+fn others_from(loadavg: &str, own: usize) -> Option<f64> {
+    let running: f64 = loadavg
+        .split_whitespace()
+        .nth(3)?
+        .split('/')
+        .next()?
+        .parse()
+        .ok()?;
+    Some((running - own as f64).max(0.0))
+}
+
+/// This process's threads running or waiting for a core (state `R`), the caller included.
+fn own_running_threads() -> Option<usize> {
+    let tasks = std::fs::read_dir("/proc/self/task").ok()?;
+    Some(
+        tasks
+            .filter_map(|e| std::fs::read_to_string(e.ok()?.path().join("stat")).ok())
+            .filter(|stat| {
+                // The state is the first field after the parenthesised command name.
+                stat.rfind(')')
+                    .and_then(|i| stat[i + 1..].split_whitespace().next())
+                    .is_some_and(|state| state == "R")
+            })
+            .count(),
+    )
+}
+
+/// The load of other processes just before a run: [`others_running`] averaged over
+/// `samples` readings `gap` apart, while this process waits. Unlike the 1-minute load
+/// average it does not carry this process's own work of the last minute.
+pub fn others_load(samples: usize, gap: std::time::Duration) -> Option<f64> {
+    let mut sum = 0.0;
+    for i in 0..samples.max(1) {
+        if i > 0 {
+            std::thread::sleep(gap);
+        }
+        sum += others_running()?;
+    }
+    Some(sum / samples.max(1) as f64)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,5 +154,38 @@ mod tests {
         let own = s.process.unwrap() * cores() as f64;
         assert!(own > 0.5, "one busy thread for 0.3 s used {own} cores");
         assert!(s.others.unwrap() >= 0.0);
+    }
+
+    /// Spinning threads of this process are its own running tasks, and are taken
+    /// off the kernel's count.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn own_threads_are_not_others_load() {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let spinners: Vec<_> = (0..2)
+            .map(|_| {
+                let stop = stop.clone();
+                std::thread::spawn(move || {
+                    let mut x = 1u64;
+                    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    }
+                    x
+                })
+            })
+            .collect();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        // Running or waiting for a core, a spinning thread is always in state R, and so
+        // is the reading thread.
+        let own = own_running_threads().unwrap();
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        for s in spinners {
+            std::hint::black_box(s.join().unwrap());
+        }
+        assert!(own >= 3, "{own} running threads");
+        assert_eq!(others_from("0.52 0.58 0.59 5/301 4182", 3), Some(2.0));
+        assert_eq!(others_from("0.52 0.58 0.59 2/301 4182", 3), Some(0.0));
+        assert_eq!(others_from("0.52 0.58", 3), None);
+        assert!(others_load(3, std::time::Duration::from_millis(1)).unwrap() >= 0.0);
     }
 }

@@ -1,4 +1,4 @@
-//! The real-time parallel pipeline (SPEC §7, afr-optix), the interactive viewer and
+//! The real-time parallel pipeline (as the afr-optix system runs it), the interactive viewer and
 //! its headless mode.
 //!
 //! Scene time follows the wall clock ([`clock`]). Several sampling threads trace samples
@@ -17,9 +17,11 @@
 //! registry below maps its [`RtMethod`] variant to; the pipeline only calls that
 //! description. Adding a method is a new file, a variant and a line in `REGISTRY`.
 //!
-//! Files depend downwards only: `config` (settings, errors) and `clock`,
-//! `pixel_locks` ← `shared` (what all threads of a pipeline share; the interface of a
-//! method) ← the method files ← this registry ← `pipeline` ← `headless`, `viewer`.
+//! Files depend downwards only: `config` (settings, errors), `clock`, `machine` (CPU
+//! time and load of the machine) and `pixel_locks` ← `shared` (what all threads of a
+//! pipeline share; the interface of a method) ← the method files ← this registry ←
+//! `pipeline` ← `headless`, `viewer`, `record` (every refresh of a window kept with its
+//! scan-out time, for the live evaluation).
 //!
 //! Unlike the evaluation, nothing here is deterministic: the sample count depends on
 //! the machine and on scheduling.

@@ -12,7 +12,7 @@
 use std::sync::Arc;
 
 use super::{
-    machine::{load_average, CpuMark, CpuShares},
+    machine::{load_average, others_load, CpuMark, CpuShares},
     pacing::Pacer,
     Frame, Pipeline, PipelineStats, RealtimeError, RtConfig,
 };
@@ -54,9 +54,18 @@ pub struct LiveFigures {
     pub machine_share: Option<f64>,
     /// Share of the machine's cores every other process used meanwhile.
     pub others_share: Option<f64>,
-    /// The 1-minute load average just before the pipeline started.
+    /// The 1-minute load average just before the pipeline started. It carries the last
+    /// minute's work of this process too, such as a run before this one.
     pub load_average_before: Option<f64>,
+    /// Tasks of other processes running or waiting for a core just before the pipeline
+    /// started (averaged over [`BEFORE_SAMPLES`] readings).
+    pub others_load_before: Option<f64>,
 }
+
+/// Readings of other processes' load before a run, [`BEFORE_GAP`] apart.
+pub const BEFORE_SAMPLES: usize = 25;
+/// The gap between those readings.
+pub const BEFORE_GAP: std::time::Duration = std::time::Duration::from_millis(10);
 
 /// What one recorded run showed and cost.
 pub struct Recording {
@@ -100,6 +109,7 @@ pub fn record(
         ));
     }
     let load_average_before = load_average();
+    let others_load_before = others_load(BEFORE_SAMPLES, BEFORE_GAP);
     let pipeline = Pipeline::start(tracer, config)?;
     let clock = pipeline.clock();
     let period = 1.0 / config.refresh_hz;
@@ -134,7 +144,11 @@ pub fn record(
     let start = mark.expect("the loop ran past the first recorded refresh");
     let end = mark_now(&pipeline, &pacer, &clock);
     rec.pipeline = pipeline.stop()?;
-    rec.figures = figures(&rec, &start, &end, window, period, load_average_before);
+    rec.figures = LiveFigures {
+        load_average_before,
+        others_load_before,
+        ..figures(&rec, &start, &end, window, period)
+    };
     Ok(rec)
 }
 
@@ -185,14 +199,7 @@ fn mark_now(pipeline: &Pipeline, pacer: &Pacer, clock: &super::WallClock) -> Mar
     }
 }
 
-fn figures(
-    rec: &Recording,
-    start: &Mark,
-    end: &Mark,
-    window: Window,
-    period: f64,
-    load_average_before: Option<f64>,
-) -> LiveFigures {
+fn figures(rec: &Recording, start: &Mark, end: &Mark, window: Window, period: f64) -> LiveFigures {
     let seconds = (end.seconds - start.seconds).max(1e-9);
     let CpuShares { process, others } = start.cpu.shares_until(&end.cpu);
     LiveFigures {
@@ -201,6 +208,7 @@ fn figures(
         late_refreshes: end.late.saturating_sub(start.late),
         machine_share: process,
         others_share: others,
-        load_average_before,
+        load_average_before: None,
+        others_load_before: None,
     }
 }

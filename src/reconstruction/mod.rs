@@ -1,4 +1,4 @@
-//! The adaptive space-time reconstructor (paper §5, §6.2; SPEC §4).
+//! The adaptive space-time reconstructor (paper §5, §6.2).
 //!
 //! The reconstructor keeps its own deep buffer: a ring of the `N` most recent samples
 //! the sampler traced, in the order they were pushed. At each display refresh (time

@@ -1,4 +1,4 @@
-//! Built-in procedural scenes, so every command runs with no files (SPEC §2):
+//! Built-in procedural scenes, so every command runs with no files:
 //!
 //! - `toycar` (default): static camera, a toy car driving over a textured, reflective
 //!   floor among a mirror ball and a glass ball — the paper's "Toycar" situation.

@@ -48,7 +48,7 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
-/// Everything a sample returns (SPEC §2).
+/// Everything a sample returns.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {
     /// Linear RGB radiance.
@@ -748,7 +748,7 @@ impl Tracer {
         }
     }
 
-    /// Trace one sample at pixel coordinates `(x, y)` and time `t` (SPEC §2's
+    /// Trace one sample at pixel coordinates `(x, y)` and time `t` (the tracer's
     /// `trace(x, y, t)`); the scene state comes from the cache.
     pub fn trace(&self, x: f32, y: f32, t: f64) -> Sample {
         let state = self.state_at(t);

@@ -14,7 +14,7 @@
 
 mod report;
 
-pub use report::{markdown, write_all};
+pub use report::{markdown, read_summary, rewrite, write_all};
 
 use std::{path::PathBuf, sync::Arc, time::Instant};
 
@@ -230,7 +230,7 @@ pub struct Scores {
     pub live: LiveFigures,
 }
 
-const SCORE_FIELDS: usize = 11;
+const SCORE_FIELDS: usize = 12;
 
 impl Scores {
     fn fields(&self) -> [Option<f64>; SCORE_FIELDS] {
@@ -247,6 +247,7 @@ impl Scores {
             l.machine_share,
             l.others_share,
             l.load_average_before,
+            l.others_load_before,
         ]
     }
 
@@ -265,6 +266,7 @@ impl Scores {
                 machine_share: f[8],
                 others_share: f[9],
                 load_average_before: f[10],
+                others_load_before: f[11],
             },
         }
     }
@@ -305,9 +307,12 @@ pub struct LiveRun {
     pub scores: Scores,
     /// Sampling threads the method ran.
     pub sampling_threads: usize,
-    /// Set when the machine was busy before the run: the figures may be low.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub warning: Option<String>,
+    /// Why its figures may be low: other work before it or during it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
+    /// The pipeline's own figures over the whole run, warm-up included, as `frameless
+    /// view --headless` reports them under `pipeline`.
+    pub pipeline: serde_json::Value,
 }
 
 /// One method over its runs.
@@ -426,7 +431,7 @@ pub fn run(
         for &method in &cfg.methods {
             let msg = format!("{} (run {repeat} of {})", method.name(), cfg.repeat);
             let t0 = Instant::now();
-            let (rec, warning) = record_run(&scene, cfg, method, progress)?;
+            let (rec, warnings) = record_run(&scene, cfg, method, progress)?;
             timing.live_s += t0.elapsed().as_secs_f64();
             progress.advance(&msg, cfg.warmup_refreshes() + n as u64);
             let t1 = Instant::now();
@@ -439,7 +444,8 @@ pub fn run(
                     repeat,
                     scores: scores_of(&rows, rec.figures),
                     sampling_threads: rec.pipeline.sampling_threads,
-                    warning,
+                    warnings,
+                    pipeline: serde_json::to_value(&rec.pipeline).expect("plain figures serialise"),
                 },
                 strip_images: strip_frames
                     .iter()
@@ -506,13 +512,21 @@ fn ideal_images(
     Ok(ideal)
 }
 
-/// Record one run of `method`, with a warning when the machine was busy before it.
+/// Other processes' share of the machine during a run above which its figures are
+/// called into doubt.
+const OTHERS_SHARE_WARNING: f64 = 0.2;
+
+/// Record one run of `method`, with warnings when the machine was busy before it (other
+/// processes' tasks running or waiting above the core count) or during it (other
+/// processes above [`OTHERS_SHARE_WARNING`] of the cores). The 1-minute load average is
+/// recorded but not judged: it carries this evaluation's previous run, whose threads on
+/// a small machine keep it above the core count for a minute.
 fn record_run(
     scene: &Arc<Scene>,
     cfg: &LiveConfig,
     method: RtMethod,
     progress: &dyn Progress,
-) -> Result<(Recording, Option<String>), EvalError> {
+) -> Result<(Recording, Vec<String>), EvalError> {
     let window = Window {
         warmup: cfg.warmup_refreshes(),
         refreshes: cfg.frames(),
@@ -523,20 +537,28 @@ fn record_run(
             why: format!("{}: {e}", method.name()),
         }
     })?;
-    let cores = machine::cores() as f64;
-    let warning = rec
+    let cores = machine::cores();
+    let mut warnings = Vec::new();
+    if let Some(l) = rec.figures.others_load_before.filter(|&l| l > cores as f64) {
+        warnings.push(format!(
+            "other processes had {l:.1} tasks running or waiting for the {cores} cores \
+             before the run"
+        ));
+    }
+    if let Some(o) = rec
         .figures
-        .load_average_before
-        .filter(|&l| l > cores)
-        .map(|l| {
-            format!(
-                "load average {l:.2} before the run exceeds the {cores} cores: other work may have slowed it"
-            )
-        });
-    if let Some(w) = &warning {
+        .others_share
+        .filter(|&o| o > OTHERS_SHARE_WARNING)
+    {
+        warnings.push(format!(
+            "other processes used {:.0}% of the {cores} cores during the run",
+            100.0 * o
+        ));
+    }
+    for w in &warnings {
         progress.warn(&format!("{}: {w}", method.name()));
     }
-    Ok((rec, warning))
+    Ok((rec, warnings))
 }
 
 /// What refresh `j` of `rec` displayed (black before the first image).
@@ -632,7 +654,7 @@ fn assemble(
             median,
             min,
             max,
-            warnings: of_m.iter().filter(|s| s.run.warning.is_some()).count(),
+            warnings: of_m.iter().filter(|s| !s.run.warnings.is_empty()).count(),
         });
         // The run whose mean RMS is the median's (the lower middle one of an even count).
         let mut by_rms = of_m.clone();

@@ -2,14 +2,22 @@
 //! RMS-over-time plot of each method's median run, strips of what the methods showed
 //! with FLIP error maps, and `report.html`, built from the same pieces as `eval`'s.
 
-use std::{fmt::Write as _, path::Path};
+use std::{
+    fmt::Write as _,
+    path::{Path, PathBuf},
+};
 
 use super::{LiveFrameRow, LiveOutput, LiveRow, LiveSummary, Scores};
 use crate::{
     evaluation::{
-        report::{escape, plot_lines, tagged_strip_names, write_strip_files, STRIP_GAP, STYLE},
+        report::{
+            escape, plot_lines, split_strip, tagged_strip_names, write_strip_files, STRIP_GAP,
+            STYLE,
+        },
         EvalError,
     },
+    image::read_png_rgb8,
+    limits,
     output::{self, OutputDir},
 };
 
@@ -42,7 +50,7 @@ const QUALITY: [Column; 5] = [
 ];
 
 /// What each method got of the machine.
-const LIVE: [Column; 6] = [
+const LIVE: [Column; 7] = [
     ("samples/s", |s| Some(s.live.samples_per_s), 0, None),
     ("new images/s", |s| Some(s.live.images_per_s), 1, None),
     (
@@ -56,6 +64,12 @@ const LIVE: [Column; 6] = [
     (
         "load average before",
         |s| s.live.load_average_before,
+        2,
+        None,
+    ),
+    (
+        "others' load before",
+        |s| s.live.others_load_before,
         2,
         None,
     ),
@@ -107,6 +121,15 @@ fn heading(s: &LiveSummary) -> String {
     )
 }
 
+/// Every run's warnings: (method, run, warning).
+fn warnings(s: &LiveSummary) -> impl Iterator<Item = (&'static str, usize, &str)> {
+    s.runs.iter().flat_map(|r| {
+        r.warnings
+            .iter()
+            .map(move |w| (r.method.name(), r.repeat, w.as_str()))
+    })
+}
+
 /// The summary as Markdown: image quality and live figures, methods as rows, each cell
 /// the median over the runs with its range.
 pub fn markdown(s: &LiveSummary) -> String {
@@ -134,13 +157,8 @@ pub fn markdown(s: &LiveSummary) -> String {
         }
         out.push('\n');
     }
-    let warned: Vec<String> = s
-        .runs
-        .iter()
-        .filter_map(|r| {
-            let w = r.warning.as_ref()?;
-            Some(format!("- {} run {}: {w}", r.method.name(), r.repeat))
-        })
+    let warned: Vec<String> = warnings(s)
+        .map(|(m, k, w)| format!("- {m} run {k}: {w}"))
         .collect();
     if !warned.is_empty() {
         let _ = writeln!(out, "## Warnings\n\n{}\n", warned.join("\n"));
@@ -150,7 +168,7 @@ pub fn markdown(s: &LiveSummary) -> String {
 
 /// Write every output as the folder `dir`, replacing what was there only once all are
 /// written. Returns the report's path.
-pub fn write_all(out: &mut LiveOutput, dir: &Path) -> Result<std::path::PathBuf, EvalError> {
+pub fn write_all(out: &mut LiveOutput, dir: &Path) -> Result<PathBuf, EvalError> {
     let staging = OutputDir::begin(dir).map_err(|e| EvalError::io(dir, e))?;
     write_into(out, staging.path())?;
     staging.commit().map_err(|e| EvalError::io(dir, e))?;
@@ -178,6 +196,89 @@ fn write_into(out: &mut LiveOutput, dir: &Path) -> Result<(), EvalError> {
     let json = serde_json::to_string_pretty(&out.summary).expect("summary serialises");
     write("summary.json", json.as_bytes())?;
     write("report.html", html(&out.summary, &strips).as_bytes())
+}
+
+/// Largest `summary.json` or `frames.csv` read back: far above what a run can write
+/// (10 minutes at 1000 Hz of six methods run 100 times is under 40 GB of rows, but
+/// such a run could not hold its images), so a file past it is not one of ours.
+const MAX_DATA_BYTES: u64 = 1 << 30;
+
+/// The bytes of a data file of `dir`, refused past [`MAX_DATA_BYTES`] or when not a
+/// regular file.
+fn read_data(path: &Path) -> Result<Vec<u8>, EvalError> {
+    let meta = std::fs::metadata(path).map_err(|e| EvalError::io(path, e))?;
+    if !meta.is_file() || meta.len() > MAX_DATA_BYTES {
+        return Err(EvalError::Data {
+            path: path.to_path_buf(),
+            why: format!("not a regular file of at most {MAX_DATA_BYTES} bytes"),
+        });
+    }
+    std::fs::read(path).map_err(|e| EvalError::io(path, e))
+}
+
+/// Read a live evaluation's `summary.json`.
+pub fn read_summary(path: &Path) -> Result<LiveSummary, EvalError> {
+    let bad = |why: String| EvalError::Data {
+        path: path.to_path_buf(),
+        why,
+    };
+    let s: LiveSummary =
+        serde_json::from_slice(&read_data(path)?).map_err(|e| bad(e.to_string()))?;
+    limits::check_display(s.width, s.height).map_err(|e| bad(format!("size: {e}")))?;
+    Ok(s)
+}
+
+/// Read a live evaluation's `frames.csv`.
+fn read_frames_csv(path: &Path) -> Result<Vec<LiveFrameRow>, EvalError> {
+    let bad = |why: String| EvalError::Data {
+        path: path.to_path_buf(),
+        why,
+    };
+    let bytes = read_data(path)?;
+    csv::Reader::from_reader(&bytes[..])
+        .deserialize()
+        .map(|row| row.map_err(|e| bad(e.to_string())))
+        .collect()
+}
+
+/// Make the plot, the FLIP maps and `report.html` of the live output folder `dir`
+/// again with this version, from its `summary.json`, `frames.csv` and the strips it
+/// holds (a strip whose panels are not the summary's methods is left out). Returns the
+/// report's path.
+pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
+    let s = read_summary(&dir.join("summary.json"))?;
+    let frames = read_frames_csv(&dir.join("frames.csv"))?;
+    plot(&s, &frames, &dir.join("rms.svg"))?;
+    let mut labels = vec!["ideal".to_string()];
+    labels.extend(s.results.iter().map(|r| r.method.name().to_string()));
+    let mut found: Vec<usize> = std::fs::read_dir(dir)
+        .map_err(|e| EvalError::io(dir, e))?
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter_map(|n| {
+            n.strip_prefix("strip_live_")?
+                .strip_suffix(".png")?
+                .parse()
+                .ok()
+        })
+        .collect();
+    found.sort_unstable();
+    let mut strips = Vec::new();
+    for frame in found {
+        let names = tagged_strip_names("live", frame);
+        let p = dir.join(&names.0);
+        let (sw, sh, rgb) = read_png_rgb8(&p).map_err(|e| EvalError::io(&p, e))?;
+        let Some(panels) =
+            split_strip(sw, sh, &rgb, s.width, labels.len()).filter(|_| sh == s.height)
+        else {
+            continue;
+        };
+        let panels: Vec<(String, Vec<u8>)> = labels.iter().cloned().zip(panels).collect();
+        write_strip_files(dir, &names, &panels, (s.width, s.height), false)?;
+        strips.push((frame, names, labels.clone()));
+    }
+    let p = dir.join("report.html");
+    output::write_atomic(&p, html(&s, &strips).as_bytes()).map_err(|e| EvalError::io(&p, e))?;
+    Ok(p)
 }
 
 /// `frames.csv`: one row per method, run and refresh, rounded to what the
@@ -256,18 +357,8 @@ fn html(s: &LiveSummary, strips: &[StripEntry]) -> String {
     ] {
         table(&mut h, s, title, columns);
     }
-    let warned: Vec<String> = s
-        .runs
-        .iter()
-        .filter_map(|r| {
-            let w = r.warning.as_ref()?;
-            Some(format!(
-                "<li>{} run {}: {}</li>",
-                r.method.name(),
-                r.repeat,
-                escape(w)
-            ))
-        })
+    let warned: Vec<String> = warnings(s)
+        .map(|(m, k, w)| format!("<li>{m} run {k}: {}</li>", escape(w)))
         .collect();
     if !warned.is_empty() {
         let _ = write!(h, "<h2>Warnings</h2><ul>{}</ul>", warned.concat());

@@ -48,7 +48,7 @@ pub struct SamplerParams {
     pub reprojection: bool,
     /// Leave crosshairs that cannot have moved where they are: zero velocity and a
     /// camera unchanged since they were traced. Their reprojection is the identity, so
-    /// its occlusion ray (one sample of the budget, SPEC §5) is spent only to detect a
+    /// its occlusion ray (one sample of the budget) is spent only to detect a
     /// moving occluder, which the tile's temporal gradient already draws samples to.
     /// Not in the paper (which reprojects every crosshair): under a fixed view it frees
     /// about a quarter of the budget for colour samples, but a moving occluder in front
