@@ -402,6 +402,18 @@ pub(crate) fn write_strip_files(
         .map_err(|e| EvalError::io(&p, e))
 }
 
+/// The `<img>` of panel `i` of a strip file whose panels are `w × h`: the strip
+/// shifted so that only that panel shows.
+pub(crate) fn panel_img(file: &str, i: usize, (w, h): (u32, u32), alt: &str) -> String {
+    let x0 = i as u32 * (w + STRIP_GAP);
+    format!(
+        "<img src=\"{}\" width=\"{w}\" height=\"{h}\" style=\"object-fit:none;\
+         object-position:-{x0}px 0\" alt=\"{}\">",
+        escape(file),
+        escape(alt)
+    )
+}
+
 /// `&`, `<`, `>` and `"` as HTML entities.
 pub(crate) fn escape(s: &str) -> String {
     s.replace('&', "&amp;")
@@ -551,15 +563,8 @@ fn html(
             s.start + st.frame as f64 / s.refresh_hz
         );
         for (i, label) in st.labels.iter().enumerate() {
-            let x0 = i as u32 * (s.width + STRIP_GAP);
             let crop = |file: &str, what: &str| {
-                format!(
-                    "<img src=\"{}\" width=\"{w}\" height=\"{hh}\" style=\"object-fit:none;object-position:-{x0}px 0\" alt=\"{what}, {}\">",
-                    escape(file),
-                    escape(label),
-                    w = s.width,
-                    hh = s.height,
-                )
+                panel_img(file, i, (s.width, s.height), &format!("{what}, {label}"))
             };
             let _ = write!(
                 h,

@@ -11,7 +11,7 @@ use super::{LiveFrameRow, LiveOutput, LiveRow, LiveSummary, Scores};
 use crate::{
     evaluation::{
         report::{
-            escape, plot_lines, split_strip, tagged_strip_names, write_strip_files, STRIP_GAP,
+            escape, panel_img, plot_lines, split_strip, tagged_strip_names, write_strip_files,
             STYLE,
         },
         EvalError,
@@ -369,13 +369,13 @@ fn html(s: &LiveSummary, strips: &[StripEntry]) -> String {
     );
     strips_html(&mut h, s, strips);
     let t = &s.timing;
-    let _ = write!(
+    let _ = writeln!(
         h,
         "<h2>Cost</h2><p>Ideal images {:.1} s ({} from the cache); live runs {:.1} s; \
          scoring {:.1} s; output {:.1} s.</p><h2>Data</h2><p><a href=\"frames.csv\">\
          frames.csv</a> (every refresh of every run); <a href=\"summary.json\">summary.json\
          </a> (every run, the medians and ranges); <a href=\"summary.md\">summary.md</a> \
-         (the tables as Markdown).</p></body></html>\n",
+         (the tables as Markdown).</p></body></html>",
         t.ideal_s, t.ideal_cache_hits, t.live_s, t.metrics_s, t.output_s
     );
     h
@@ -417,16 +417,8 @@ fn strips_html(h: &mut String, s: &LiveSummary, strips: &[StripEntry]) {
             s.start + *frame as f64 / s.refresh_hz
         );
         for (i, label) in labels.iter().enumerate() {
-            let x0 = i as u32 * (s.width + STRIP_GAP);
             let crop = |file: &str, what: &str| {
-                format!(
-                    "<img src=\"{}\" width=\"{w}\" height=\"{hh}\" style=\"object-fit:none;\
-                     object-position:-{x0}px 0\" alt=\"{what}, {}\">",
-                    escape(file),
-                    escape(label),
-                    w = s.width,
-                    hh = s.height,
-                )
+                panel_img(file, i, (s.width, s.height), &format!("{what}, {label}"))
             };
             let _ = write!(
                 h,
