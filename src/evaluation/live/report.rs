@@ -51,7 +51,12 @@ const QUALITY: [Column; 5] = [
 
 /// What each method got of the machine.
 const LIVE: [Column; 7] = [
-    ("samples/s", |s| Some(s.live.samples_per_s), 0, None),
+    (
+        "samples/s (M)",
+        |s| Some(s.live.samples_per_s * 1e-6),
+        2,
+        None,
+    ),
     ("new images/s", |s| Some(s.live.images_per_s), 1, None),
     (
         "late refreshes",
@@ -241,10 +246,10 @@ fn read_frames_csv(path: &Path) -> Result<Vec<LiveFrameRow>, EvalError> {
         .collect()
 }
 
-/// Make the plot, the FLIP maps and `report.html` of the live output folder `dir`
-/// again with this version, from its `summary.json`, `frames.csv` and the strips it
-/// holds (a strip whose panels are not the summary's methods is left out). Returns the
-/// report's path.
+/// Make the plot, the FLIP maps, `summary.md` and `report.html` of the live output
+/// folder `dir` again with this version, from its `summary.json`, `frames.csv` and the
+/// strips it holds (a strip whose panels are not the summary's methods is left out).
+/// Returns the report's path.
 pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
     let s = read_summary(&dir.join("summary.json"))?;
     let frames = read_frames_csv(&dir.join("frames.csv"))?;
@@ -276,6 +281,8 @@ pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
         write_strip_files(dir, &names, &panels, (s.width, s.height), false)?;
         strips.push((frame, names, labels.clone()));
     }
+    let p = dir.join("summary.md");
+    output::write_atomic(&p, markdown(&s).as_bytes()).map_err(|e| EvalError::io(&p, e))?;
     let p = dir.join("report.html");
     output::write_atomic(&p, html(&s, &strips).as_bytes()).map_err(|e| EvalError::io(&p, e))?;
     Ok(p)
