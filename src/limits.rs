@@ -99,6 +99,24 @@ pub fn check_warmup(warmup: f64) -> Result<(), String> {
     Ok(())
 }
 
+/// Slowest display refresh rate any command accepts, Hz.
+pub const MIN_REFRESH_HZ: f64 = 1.0;
+/// Fastest display refresh rate, Hz.
+pub const MAX_REFRESH_HZ: f64 = 1000.0;
+
+/// Check a display refresh rate against [`MIN_REFRESH_HZ`] and [`MAX_REFRESH_HZ`].
+pub fn check_refresh_hz(hz: f64) -> Result<(), String> {
+    if !(hz.is_finite() && (MIN_REFRESH_HZ..=MAX_REFRESH_HZ).contains(&hz)) {
+        return Err(format!(
+            "{} Hz must be in [{}, {}]",
+            num(hz),
+            num(MIN_REFRESH_HZ),
+            num(MAX_REFRESH_HZ)
+        ));
+    }
+    Ok(())
+}
+
 /// Check a window's length against [`MAX_DURATION_S`].
 pub fn check_duration(duration: f64) -> Result<(), String> {
     if !(duration.is_finite() && duration > 0.0 && duration <= MAX_DURATION_S) {
@@ -141,6 +159,15 @@ mod tests {
         assert!(check_start(0.0, 1.0, 1.0).is_ok());
         assert!(check_start(1e300, 1.0, 1.0).unwrap_err().contains("1e300"));
         assert!(check_start(MAX_SCENE_TIME_S, 0.0, 1.0).is_err());
+        assert!(
+            check_refresh_hz(MAX_REFRESH_HZ).is_ok() && check_refresh_hz(MIN_REFRESH_HZ).is_ok()
+        );
+        assert!(check_refresh_hz(MAX_REFRESH_HZ * 1.001).is_err());
+        assert!(check_refresh_hz(0.999).is_err() && check_refresh_hz(f64::NAN).is_err());
+        assert_eq!(
+            check_refresh_hz(0.0).unwrap_err(),
+            "0 Hz must be in [1, 1000]"
+        );
         assert!(check_duration(MAX_DURATION_S).is_ok());
         assert!(check_duration(0.0).is_err());
         assert!(check_display(4096, 4096).is_ok());

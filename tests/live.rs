@@ -208,6 +208,11 @@ fn bad_input_is_refused_before_any_work() {
         err.contains("--seconds") && err.contains("must be in (0,"),
         "{err}"
     );
+    let err = run(&["--refresh-hz", "0"]);
+    assert!(
+        err.contains("--refresh-hz 0 Hz must be in [1, 1000]"),
+        "{err}"
+    );
     let err = run(&["--repeat", "0"]);
     assert!(err.contains("--repeat"), "{err}");
     let err = run(&["--method", "framed,framed"]);

@@ -379,9 +379,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
-    if !(a.refresh_hz.is_finite() && (1.0..=1000.0).contains(&a.refresh_hz)) {
-        bail!("--refresh-hz {} must be in [1, 1000]", a.refresh_hz);
-    }
+    limits::check_refresh_hz(a.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
     let mut params = match a.preset {
         args::SamplerPreset::Ours => SamplerParams::ours(),
         args::SamplerPreset::Paper => SamplerParams::paper(),

@@ -271,11 +271,8 @@ impl EvalConfig {
                 return bad(option, why);
             }
         }
-        if !(self.refresh_hz.is_finite() && (1.0..=1000.0).contains(&self.refresh_hz)) {
-            return bad(
-                "refresh rate",
-                format!("{} Hz must be in [1, 1000]", self.refresh_hz),
-            );
+        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+            return bad("refresh rate", why);
         }
         if self.rates.is_empty() {
             return bad("--rates", "lists no rate".into());

@@ -109,11 +109,8 @@ impl RtConfig {
                 self.recon_threads
             )));
         }
-        if !(self.refresh_hz.is_finite() && (1.0..=1000.0).contains(&self.refresh_hz)) {
-            return Err(RealtimeError::Config(format!(
-                "refresh rate {} Hz out of range 1..=1000",
-                self.refresh_hz
-            )));
+        if let Err(why) = crate::limits::check_refresh_hz(self.refresh_hz) {
+            return Err(RealtimeError::Config(format!("refresh rate {why}")));
         }
         if !self.start.is_finite() {
             return Err(RealtimeError::Config("start time must be finite".into()));

@@ -148,6 +148,9 @@ impl LiveConfig {
                 return bad(option, why);
             }
         }
+        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+            return bad("--refresh-hz", why);
+        }
         if self.methods.is_empty() {
             return bad("--method", "lists no method".into());
         }
