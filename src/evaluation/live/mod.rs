@@ -696,3 +696,39 @@ fn assemble(
         strips,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The memory bound admits a 640×480 run of 10 s at 60 Hz and refuses what would
+    /// not fit, before any work.
+    #[test]
+    fn a_ten_second_640_by_480_run_fits_the_memory_bound() {
+        let mut cfg = LiveConfig::new("toycar");
+        (cfg.width, cfg.height, cfg.seconds) = (640, 480, 10.0);
+        assert!(cfg.validate().is_ok(), "{:?}", cfg.validate());
+        assert_eq!(cfg.run_bytes(), 2 * 600 * 640 * 480 * 3);
+        (cfg.width, cfg.height, cfg.seconds) = (1920, 1080, 2.8);
+        assert!(cfg.validate().is_ok());
+        cfg.seconds = 3.0;
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains("live recording"), "{err}");
+    }
+
+    /// The window lies on `eval`'s refresh grid, after whole refreshes of warm-up.
+    #[test]
+    fn the_window_is_on_the_refresh_grid() {
+        let mut cfg = LiveConfig::new("toycar");
+        (cfg.start, cfg.warmup, cfg.refresh_hz) = (2.0, 0.51, 60.0);
+        assert_eq!(cfg.warmup_refreshes(), 31);
+        let c = cfg.rt_config(RtMethod::Framed);
+        let first = c.start + cfg.warmup_refreshes() as f64 / cfg.refresh_hz;
+        assert!((first - cfg.refresh(0)).abs() < 1e-12);
+        assert_eq!(cfg.refresh(0), 2.0);
+        cfg.warmup = 0.0;
+        assert_eq!(cfg.warmup_refreshes(), 1, "at least one refresh of warm-up");
+        cfg.warmup = 0.5;
+        assert_eq!(cfg.warmup_refreshes(), 30);
+    }
+}
