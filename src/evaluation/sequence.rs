@@ -101,11 +101,8 @@ impl SequenceConfig {
         if let Err(why) = crate::limits::check_warmup(self.warmup) {
             return bad("--warmup", why);
         }
-        if !(self.refresh_hz > 0.0 && self.refresh_hz <= 1000.0) {
-            return bad(
-                "--refresh-hz",
-                format!("{} must be in (0, 1000]", self.refresh_hz),
-            );
+        if let Err(why) = crate::limits::check_refresh_hz(self.refresh_hz) {
+            return bad("--refresh-hz", why);
         }
         let frames = self.frames();
         if frames > MAX_FRAMES {
