@@ -37,6 +37,14 @@ pub enum EvalError {
     /// A method cannot run as asked.
     #[error(transparent)]
     Method(#[from] MethodError),
+    /// A live run's pipeline failed (a thread could not start, or panicked).
+    #[error("{method}: {source}")]
+    Live {
+        /// The real-time method.
+        method: &'static str,
+        /// Why.
+        source: crate::realtime::RealtimeError,
+    },
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

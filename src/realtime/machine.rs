@@ -56,7 +56,7 @@ pub struct CpuMark {
 }
 
 /// Shares of the machine's cores over an interval (0–1 each).
-#[derive(Clone, Copy, Debug, Default, serde::Serialize, serde::Deserialize, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CpuShares {
     /// This process: its CPU seconds / (wall seconds × cores).
     pub process: Option<f64>,

@@ -108,19 +108,17 @@ pub fn record(
             "a recorded window needs a refresh of warm-up and one to record".into(),
         ));
     }
-    let load_average_before = load_average();
-    let others_load_before = others_load(BEFORE_SAMPLES, BEFORE_GAP);
+    let before = Before {
+        load_average: load_average(),
+        others_load: others_load(BEFORE_SAMPLES, BEFORE_GAP),
+    };
     let pipeline = Pipeline::start(tracer, config)?;
     let clock = pipeline.clock();
     let period = 1.0 / config.refresh_hz;
     let mut pacer = Pacer::new(clock, config.refresh_hz);
     let (first, last) = (window.warmup, window.warmup + window.refreshes as u64 - 1);
-    let mut rec = Recording {
-        images: Vec::new(),
-        shown: Vec::with_capacity(window.refreshes),
-        figures: LiveFigures::default(),
-        pipeline: pipeline.stats(),
-    };
+    let mut images = Vec::new();
+    let mut shown = Vec::with_capacity(window.refreshes);
     // The newest image seen and the one before it.
     let mut seen: [Option<Seen>; 2] = [None, None];
     let mut next = 1u64;
@@ -133,9 +131,9 @@ pub fn record(
             mark = Some(mark_now(&pipeline, &pacer, &clock));
         }
         for k in next..=due_now {
-            let shown = on_screen(&mut seen, k as f64 * period);
+            let on = on_screen(&mut seen, k as f64 * period);
             if k >= first {
-                rec.shown.push(shown.map(|s| keep(s, &mut rec.images)));
+                shown.push(on.map(|s| keep(s, &mut images)));
             }
         }
         next = next.max(due_now + 1);
@@ -143,13 +141,19 @@ pub fn record(
     }
     let start = mark.expect("the loop ran past the first recorded refresh");
     let end = mark_now(&pipeline, &pacer, &clock);
-    rec.pipeline = pipeline.stop()?;
-    rec.figures = LiveFigures {
-        load_average_before,
-        others_load_before,
-        ..figures(&rec, &start, &end, window, period)
-    };
-    Ok(rec)
+    let window_images = (window.refreshes as f64 * period, images.len());
+    Ok(Recording {
+        figures: figures(&start, &end, window_images, &before),
+        images,
+        shown,
+        pipeline: pipeline.stop()?,
+    })
+}
+
+/// The machine just before a run.
+struct Before {
+    load_average: Option<f64>,
+    others_load: Option<f64>,
 }
 
 /// Note the pipeline's newest image, quantized as a display does on arrival.
@@ -199,16 +203,23 @@ fn mark_now(pipeline: &Pipeline, pacer: &Pacer, clock: &super::WallClock) -> Mar
     }
 }
 
-fn figures(rec: &Recording, start: &Mark, end: &Mark, window: Window, period: f64) -> LiveFigures {
+/// The window's figures from its start and end marks, with `(window seconds, distinct
+/// images shown)`.
+fn figures(
+    start: &Mark,
+    end: &Mark,
+    (window_s, images): (f64, usize),
+    before: &Before,
+) -> LiveFigures {
     let seconds = (end.seconds - start.seconds).max(1e-9);
     let CpuShares { process, others } = start.cpu.shares_until(&end.cpu);
     LiveFigures {
         samples_per_s: end.samples.saturating_sub(start.samples) as f64 / seconds,
-        images_per_s: rec.images.len() as f64 / (window.refreshes as f64 * period),
+        images_per_s: images as f64 / window_s,
         late_refreshes: end.late.saturating_sub(start.late),
         machine_share: process,
         others_share: others,
-        load_average_before: None,
-        others_load_before: None,
+        load_average_before: before.load_average,
+        others_load_before: before.others_load,
     }
 }

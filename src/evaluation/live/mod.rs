@@ -534,12 +534,13 @@ fn record_run(
         warmup: cfg.warmup_refreshes(),
         refreshes: cfg.frames(),
     };
-    let rec = record::record(tracer(scene, cfg), cfg.rt_config(method), window).map_err(|e| {
-        EvalError::Config {
-            option: "--method",
-            why: format!("{}: {e}", method.name()),
-        }
-    })?;
+    let rec =
+        record::record(tracer(scene, cfg), cfg.rt_config(method), window).map_err(|source| {
+            EvalError::Live {
+                method: method.name(),
+                source,
+            }
+        })?;
     let cores = machine::cores();
     let mut warnings = Vec::new();
     if let Some(l) = rec.figures.others_load_before.filter(|&l| l > cores as f64) {
@@ -597,7 +598,7 @@ fn score(
                 frame: j,
                 time: t,
                 shown_time: image.map(|im| im.time),
-                new_image: j > 0 && rec.shown[j] != rec.shown[j - 1] || j == 0,
+                new_image: j == 0 || rec.shown[j] != rec.shown[j - 1],
                 rms,
                 psnr: metrics::psnr(rms),
                 flip: metrics::flip_mean(&ideal[j], &shown, w, h),
