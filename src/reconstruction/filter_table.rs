@@ -74,7 +74,8 @@ impl Reconstructor {
             let r = tile.rect;
             let rl = filter::local_rate(self.rate, tiles, r.area());
             let (gx, gy, gt) = (tile.gx, tile.gy, tile.gt);
-            let e = filter::extents(1.0 / rl, gx, gy, gt, &self.params.bounds);
+            let v_s = self.params.filter_volume / rl;
+            let e = filter::extents(v_s, gx, gy, gt, &self.params.bounds);
             let k = self.tiles.len() as u32;
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],

@@ -99,7 +99,7 @@ use filter_table::{Lookup, TileFilter};
 use history::History;
 pub use history::HistoryParams;
 pub use lanes::fast_exp_neg;
-pub use params::ReconParams;
+pub use params::{ReconParams, Visibility};
 pub use ring::Ring;
 use splat::{Splat, BAND_ROWS, CHANNELS};
 
@@ -162,6 +162,8 @@ pub struct Reconstructor {
     cs: usize,
     /// Per-row coverage differences, rows of `width + 1`.
     cov: Vec<i32>,
+    /// Front depths of the visibility pass, rows of `cs` floats (empty without it).
+    front: Vec<f32>,
     /// Rows per band of the splat at the last refresh.
     band_rows: usize,
     /// Splats of the last refresh: per piece of the ring (in ring order), per band.
@@ -232,6 +234,7 @@ impl Reconstructor {
             acc: vec![0.0; height as usize * CHANNELS * cs],
             cs,
             cov: vec![0; height as usize * (width as usize + 1)],
+            front: Vec::new(),
             band_rows: BAND_ROWS,
             binned: Vec::new(),
             pieces: 0,

@@ -11,7 +11,7 @@ use super::{
     filter_table::{Lookup, TileFilter},
     lanes::{fast_exp_neg, small_int},
     ring::{field, Ring},
-    splat::{Splat, BAND_ROWS, SINGLE_THREAD_BAND_ROWS},
+    splat::{Splat, BAND_ROWS, OUTSIDE, SINGLE_THREAD_BAND_ROWS},
     Reconstructor,
 };
 use crate::scene::CameraFrame;
@@ -53,18 +53,14 @@ impl Projector {
         }
     }
 
-    /// Pixel coordinates, and whether the point is in front of the eye (only then are
-    /// the coordinates meaningful).
+    /// Pixel coordinates and depth along the view direction (the coordinates are
+    /// meaningful only in front of the eye, `z > 1e-6`).
     #[inline(always)]
-    fn project(&self, p: Vec3) -> (f32, f32, bool) {
+    fn project(&self, p: Vec3) -> (f32, f32, f32) {
         let d = p - self.eye;
         let z = d.dot(self.forward);
         let iz = 1.0 / z;
-        (
-            d.dot(self.u) * iz - self.ou,
-            d.dot(self.v) * iz - self.ov,
-            z > 1e-6,
-        )
+        (d.dot(self.u) * iz - self.ou, d.dot(self.v) * iz - self.ov, z)
     }
 }
 
@@ -80,6 +76,8 @@ pub(super) struct Placed {
     /// `age / e_t` (at most `temporal_cutoff`).
     pub(super) a: f32,
     pub(super) filter: TileFilter,
+    /// Depth in the current view.
+    pub(super) z: f32,
     pub(super) x0: i32,
     pub(super) x1: i32,
     pub(super) y0: i32,
@@ -92,6 +90,8 @@ struct Located {
     x: f32,
     y: f32,
     age: f32,
+    /// Depth along the current view direction (0 without reprojection).
+    z: f32,
     /// The pixel it lands in, clamped to the image.
     pixel: u32,
     /// In front of the eye, at finite coordinates.
@@ -114,13 +114,17 @@ pub(super) struct Placer<'a> {
     temporal_cutoff: f32,
     /// Footprint radius bound.
     max_r: f32,
+    /// With the visibility pass: the largest `age / e_t` of a sample that sets front
+    /// depths.
+    pub(super) setter_age: Option<f32>,
 }
 
 impl Placer<'_> {
-    /// Where a sample at `(x, y)` (in front of the eye if `front`), traced `dt`
-    /// seconds ago, lands (without branches on the data, see [`LOCATE_BLOCK`]).
+    /// Where a sample at `(x, y)` and depth `z` (in front of the eye if `front`),
+    /// traced `dt` seconds ago, lands (without branches on the data, see
+    /// [`LOCATE_BLOCK`]).
     #[inline(always)]
-    fn located(&self, x: f32, y: f32, front: bool, dt: f64) -> Located {
+    fn located(&self, x: f32, y: f32, z: f32, front: bool, dt: f64) -> Located {
         // The filter and scale are those of the pixel the sample lands in, clamped to
         // the image, so a sample just outside still lights the border within its
         // footprint (a NaN coordinate clamps too; `ok` discards it).
@@ -133,6 +137,7 @@ impl Placer<'_> {
             x,
             y,
             age: dt.max(0.0) as f32,
+            z,
             pixel: py * w as u32 + px,
             ok: front & x.is_finite() & y.is_finite(),
         }
@@ -142,11 +147,14 @@ impl Placer<'_> {
     #[cfg(test)]
     fn locate(&self, s: &RingSample) -> Located {
         let dt = self.t - s.t;
-        let (x, y, front) = match &self.proj {
-            Some(p) => p.project(s.hit_point + s.velocity * dt as f32),
-            None => (s.x, s.y, true),
+        let (x, y, z, front) = match &self.proj {
+            Some(p) => {
+                let (x, y, z) = p.project(s.hit_point + s.velocity * dt as f32);
+                (x, y, z, z > 1e-6)
+            }
+            None => (s.x, s.y, 0.0, true),
         };
-        self.located(x, y, front, dt)
+        self.located(x, y, z, front, dt)
     }
 
     /// [`Placer::located`] for the samples at physical indices `p0..p0 + n` of
@@ -162,6 +170,7 @@ impl Placer<'_> {
             b.x[i] = l.x;
             b.y[i] = l.y;
             b.age[i] = if l.ok { l.age } else { f32::NAN };
+            b.z[i] = l.z;
             b.pixel[i] = l.pixel;
         };
         match &self.proj {
@@ -171,14 +180,14 @@ impl Placer<'_> {
                     let dt = self.t - ts[i];
                     let hit = Vec3::new(hx[i], hy[i], hz[i]);
                     let vel = Vec3::new(vx[i], vy[i], vz[i]);
-                    let (x, y, front) = p.project(hit + vel * dt as f32);
-                    put(i, self.located(x, y, front, dt));
+                    let (x, y, z) = p.project(hit + vel * dt as f32);
+                    put(i, self.located(x, y, z, z > 1e-6, dt));
                 }
             }
             None => {
                 let (sx, sy) = (f(X), f(Y));
                 for i in 0..n {
-                    put(i, self.located(sx[i], sy[i], true, self.t - ts[i]));
+                    put(i, self.located(sx[i], sy[i], 0.0, true, self.t - ts[i]));
                 }
             }
         }
@@ -201,6 +210,7 @@ impl Placer<'_> {
         }
         let (rx, ry) = self.radii(&f, look.scale);
         self.footprint(l.x, l.y, l.age, a, f, rx, ry)
+            .map(|p| Placed { z: l.z, ..p })
     }
 
     /// Footprint radii of a sample landing in a pixel of tile filter `f` and splat scale
@@ -228,6 +238,17 @@ impl Placer<'_> {
         ]
     }
 
+    /// The pixel `(x, y)` lies in, [`OUTSIDE`] off the image.
+    #[inline(always)]
+    pub(super) fn inside(&self, x: f32, y: f32) -> u32 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        if x >= 0.0 && x < w && y >= 0.0 && y < h {
+            (y as u32) * self.width as u32 + x as u32
+        } else {
+            OUTSIDE
+        }
+    }
+
     /// The footprint of a sample landing at `(x, y)` that passed the temporal cull.
     #[cfg(test)]
     #[allow(clippy::too_many_arguments)]
@@ -251,6 +272,7 @@ impl Placer<'_> {
             age,
             a,
             filter: f,
+            z: 0.0,
             x0: x0 as i32,
             x1: x1 as i32,
             y0: y0 as i32,
@@ -265,6 +287,7 @@ struct Block {
     y: [f32; LOCATE_BLOCK],
     /// NaN where the sample is not `ok` (see [`Located`]).
     age: [f32; LOCATE_BLOCK],
+    z: [f32; LOCATE_BLOCK],
     pixel: [u32; LOCATE_BLOCK],
     /// The landing pixel's [`Lookup`], one array per field.
     tile: [u32; LOCATE_BLOCK],
@@ -292,6 +315,7 @@ impl Block {
             x: [0.0; LOCATE_BLOCK],
             y: [0.0; LOCATE_BLOCK],
             age: [0.0; LOCATE_BLOCK],
+            z: [0.0; LOCATE_BLOCK],
             pixel: [0; LOCATE_BLOCK],
             tile: [0; LOCATE_BLOCK],
             inv_et: [0.0; LOCATE_BLOCK],
@@ -373,7 +397,7 @@ fn bin_piece(
             let f = &placer.tiles[b.tile[i] as usize];
             let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
             let wt = b.wt[i];
-            let s = Splat {
+            let mut s = Splat {
                 x: b.x[i],
                 y: b.y[i],
                 ax: f.ax,
@@ -383,7 +407,16 @@ fn bin_piece(
                 x1: x1 as u16,
                 y0: y0 as u16,
                 y1: y1 as u16,
+                z: 0.0,
+                z_front: f32::INFINITY,
+                pixel: OUTSIDE,
             };
+            if let Some(max_a) = placer.setter_age {
+                s.z = b.z[i];
+                let a = b.age[i] * b.inv_et[i];
+                s.z_front = if a <= max_a { s.z } else { f32::INFINITY };
+                s.pixel = placer.inside(b.x[i], b.y[i]);
+            }
             let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);
             for o in &mut out[b0..=b1] {
                 o.push(s);
@@ -406,6 +439,10 @@ impl Reconstructor {
             lookup: &self.lookup,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
+            setter_age: p
+                .visibility
+                .filter(|_| p.reproject)
+                .map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
         }

@@ -42,7 +42,17 @@ pub(super) struct Splat {
     pub(super) x1: u16,
     pub(super) y0: u16,
     pub(super) y1: u16,
+    /// Depth in the current view (the visibility pass only).
+    pub(super) z: f32,
+    /// The depth it gives its landing pixel as a front depth: `z`, or infinite when
+    /// it sets none (too old, or no visibility pass).
+    pub(super) z_front: f32,
+    /// The pixel it lands in, [`OUTSIDE`] when that is off the image.
+    pub(super) pixel: u32,
 }
+
+/// [`Splat::pixel`] of a sample that lands off the image.
+pub(super) const OUTSIDE: u32 = u32::MAX;
 
 /// Add one splat to the rows `by0..by1` of a band's accumulators (rows of
 /// `CHANNELS · cs` floats, see [`channel_stride`]) and count it in the band's coverage
@@ -199,8 +209,31 @@ impl Cols<'_> {
     }
 }
 
+/// Whether `s` is in front of, or within the tolerance of, the nearest recent sample
+/// that landed in its pixel (`front`: the image's front depths; `keep`: `1 / (1 +
+/// tolerance)`).
+#[inline(always)]
+fn visible(s: &Splat, front: &[f32], keep: f32) -> bool {
+    s.pixel == OUTSIDE || front[s.pixel as usize] >= s.z * keep
+}
+
+/// The front depths of rows `by0..by1` (`front`, rows of `w`): the nearest `z_front` of
+/// the splats that land there among those binned to the band.
+fn front_band(binned: &[Vec<Vec<Splat>>], b: usize, by0: usize, w: usize, front: &mut [f32]) {
+    front.fill(f32::INFINITY);
+    let (p0, p1) = (by0 * w, by0 * w + front.len());
+    for s in binned.iter().flat_map(|c| c[b].iter()) {
+        let p = s.pixel as usize;
+        if (p0..p1).contains(&p) {
+            let d = &mut front[p - p0];
+            *d = d.min(s.z_front);
+        }
+    }
+}
+
 /// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
-/// ring order.
+/// ring order; with `front` (the image's front depths and `1 / (1 + tolerance)`),
+/// only the splats [`visible`] there.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn splat_band(
@@ -212,13 +245,24 @@ fn splat_band(
     acc: &mut [f32],
     cstride: usize,
     cov: &mut [i32],
+    front: Option<(&[f32], f32)>,
 ) {
     acc.fill(0.0);
     cov.fill(0);
     let by0 = b * band_rows;
     let by1 = (by0 + band_rows).min(h);
-    for s in binned.iter().flat_map(|c| c[b].iter()) {
-        splat_one(s, by0, by1, cs, acc, cstride, cov);
+    let splats = binned.iter().flat_map(|c| c[b].iter());
+    match front {
+        Some((front, keep)) => {
+            for s in splats.filter(|s| visible(s, front, keep)) {
+                splat_one(s, by0, by1, cs, acc, cstride, cov);
+            }
+        }
+        None => {
+            for s in splats {
+                splat_one(s, by0, by1, cs, acc, cstride, cov);
+            }
+        }
     }
     // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
     for r in 1..by1 - by0 {
@@ -236,11 +280,27 @@ impl Reconstructor {
         let (cs, cstride) = (self.cs, self.width as usize + 1);
         let binned = &self.binned[..self.pieces];
         let rows = self.band_rows;
+        let w = self.width as usize;
+        let keep = self
+            .params
+            .visibility
+            .filter(|_| self.params.reproject)
+            .map(|v| 1.0 / (1.0 + v.depth_tolerance));
+        if keep.is_some() {
+            self.front.resize(h * w, f32::INFINITY);
+            self.front
+                .par_chunks_mut(rows * w)
+                .enumerate()
+                .for_each(|(b, front)| front_band(binned, b, b * rows, w, front));
+        }
+        let front = keep.map(|k| (&self.front[..], k));
         self.acc
             .par_chunks_mut(rows * CHANNELS * cs)
             .zip(self.cov.par_chunks_mut(rows * cstride))
             .enumerate()
-            .for_each(|(b, (acc, cov))| splat_band(binned, b, rows, h, cs, acc, cstride, cov));
+            .for_each(|(b, (acc, cov))| {
+                splat_band(binned, b, rows, h, cs, acc, cstride, cov, front)
+            });
     }
 
     /// Channel `ch` of the accumulated sums of pixel `(x, y)`.

@@ -118,8 +118,27 @@ fn direct(
     let placer = r.placer(t, c);
     let w = r.width as usize;
     let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
+    // The visibility pass: each pixel's nearest recent sample landing in it.
+    let mut front = vec![f32::INFINITY; out.len()];
+    let keep = r.params.visibility.map(|v| 1.0 / (1.0 + v.depth_tolerance));
+    let landed = |q: &super::place::Placed| placer.inside(q.x, q.y);
+    if let (Some(max_a), Some(_)) = (placer.setter_age, keep) {
+        for q in r.ring.iter().filter_map(|s| placer.place(&s)) {
+            let p = landed(&q);
+            if q.a <= max_a && p != super::splat::OUTSIDE {
+                front[p as usize] = front[p as usize].min(q.z);
+            }
+        }
+    }
     for s in r.ring.iter() {
         let Some(q) = placer.place(&s) else { continue };
+        if let (Some(keep), Some(_)) = (keep, placer.setter_age) {
+            let p = landed(&q);
+            if p != super::splat::OUTSIDE && front[p as usize] < q.z * keep {
+                // Hidden behind a nearer recent sample: no splat, no coverage.
+                continue;
+            }
+        }
         let [ex, ey, _] = q.filter.e.map(|e| e as f64);
         for y in q.y0..=q.y1 {
             for x in q.x0..=q.x1 {
@@ -168,6 +187,11 @@ fn check_against_direct(r: &mut Reconstructor, c: &CameraFrame, tiling: &TilingS
 fn fast_path_matches_direct_evaluation() {
     for params in [
         ReconParams::paper(),
+        // With the visibility pass (the history's blend is tested on its own).
+        ReconParams {
+            history: None,
+            ..ReconParams::converging()
+        },
         ReconParams::no_reprojection(),
         ReconParams::fixed_filter(),
     ] {

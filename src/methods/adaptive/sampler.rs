@@ -460,7 +460,11 @@ impl Sampler {
         if !self.params.skip_static_reprojection {
             return false;
         }
-        let since = self.camera_since;
+        let since = if self.params.reproject_only_moving {
+            f64::NEG_INFINITY
+        } else {
+            self.camera_since
+        };
         let keep = self
             .buffer
             .iter_at(px, py)
