@@ -286,8 +286,11 @@ impl History {
             .then(|| (y as usize * self.width as usize + x as usize, z))
     }
 
-    /// Move every pixel's history to where its surface point is seen from `camera`.
-    fn reproject_to(&mut self, camera: &CameraFrame) {
+    /// Move every pixel's history to where its surface point is seen from `camera`;
+    /// with `front` (the reconstruction's front depths and `1 / (1 + tolerance)`), a
+    /// history that lands behind a nearer surface is dropped: it was seen past a
+    /// silhouette that now covers it.
+    fn reproject_to(&mut self, camera: &CameraFrame, front: Option<(&[f32], f32)>) {
         let cap = self.params.reprojected_count;
         self.scratch.reset();
         self.depth.fill(f32::INFINITY);
@@ -298,6 +301,9 @@ impl History {
             let Some((d, z)) = self.pixel_at(camera, self.acc.point[q]) else {
                 continue;
             };
+            if hidden(front, d, z) {
+                continue;
+            }
             if z < self.depth[d] {
                 self.depth[d] = z;
                 self.scratch.take(d, &self.acc, q, cap);
@@ -346,6 +352,7 @@ impl History {
         camera: &CameraFrame,
         image: &mut Image,
         age: &mut [f32],
+        front: Option<(&[f32], f32)>,
     ) -> f64 {
         let since = self.view_since.take().unwrap_or(
             if self.last_camera.is_some_and(|c| c.same_view(camera)) {
@@ -357,7 +364,7 @@ impl History {
         self.last_camera = Some(*camera);
         let p = self.params;
         if p.reproject && !self.camera.is_some_and(|c| c.same_view(camera)) {
-            self.reproject_to(camera);
+            self.reproject_to(camera, front);
         }
         if !self.camera.is_some_and(|c| c.same_view(camera)) {
             // A new view: what was gathered belongs elsewhere on screen.
@@ -518,6 +525,12 @@ impl History {
 /// in both, with `buckets` and `out` as scratch; a smaller one through a comparison
 /// sort of `(pixel, index)` keys, whose indices are distinct and increasing, so it is
 /// stable without a stable sort.
+/// Whether a point at depth `z` seen in pixel `q` lies behind the front depth there
+/// (beyond the visibility pass's tolerance).
+fn hidden(front: Option<(&[f32], f32)>, q: usize, z: f32) -> bool {
+    front.is_some_and(|(f, keep)| f[q] < z * keep)
+}
+
 fn sort_by_pixel(
     order: &mut Vec<(u32, u32)>,
     pixels: usize,
@@ -587,7 +600,7 @@ mod tests {
     fn refresh(h: &mut History, t: f64, cam: &CameraFrame, recon: f32) -> Image {
         let mut img = Image::new(4, 4);
         img.pixels.fill(Vec3::splat(recon));
-        h.refresh(t, cam, &mut img, &mut [0.0; 16]);
+        h.refresh(t, cam, &mut img, &mut [0.0; 16], None);
         img
     }
 

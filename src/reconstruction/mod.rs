@@ -88,6 +88,8 @@ mod resolve;
 mod splat;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod visibility_tests;
 
 use std::sync::OnceLock;
 
@@ -372,6 +374,15 @@ impl Reconstructor {
         }
     }
 
+    /// `1 / (1 + depth tolerance)` when the visibility pass is on (it needs samples
+    /// reprojected to the current view).
+    fn visibility_keep(&self) -> Option<f32> {
+        let p = &self.params;
+        p.visibility
+            .filter(|_| p.reproject)
+            .map(|v| 1.0 / (1.0 + v.depth_tolerance))
+    }
+
     /// Reconstruct the image at display time `t` seen by `camera`, with filters from
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
@@ -379,8 +390,9 @@ impl Reconstructor {
         self.prepare_splats(t, camera);
         self.splat();
         self.resolve();
+        let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let Some(h) = &mut self.history {
-            let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age);
+            let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
         &self.image

@@ -414,7 +414,10 @@ fn bin_piece(
             if let Some(max_a) = placer.setter_age {
                 s.z = b.z[i];
                 let a = b.age[i] * b.inv_et[i];
-                s.z_front = if a <= max_a { s.z } else { f32::INFINITY };
+                let still = [field::VX, field::VY, field::VZ]
+                    .iter()
+                    .all(|&k| ring.f[k][p0 + i] == 0.0);
+                s.z_front = if still || a <= max_a { s.z } else { f32::INFINITY };
                 s.pixel = placer.inside(b.x[i], b.y[i]);
             }
             let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);

@@ -281,11 +281,7 @@ impl Reconstructor {
         let binned = &self.binned[..self.pieces];
         let rows = self.band_rows;
         let w = self.width as usize;
-        let keep = self
-            .params
-            .visibility
-            .filter(|_| self.params.reproject)
-            .map(|v| 1.0 / (1.0 + v.depth_tolerance));
+        let keep = self.visibility_keep();
         if keep.is_some() {
             self.front.resize(h * w, f32::INFINITY);
             self.front

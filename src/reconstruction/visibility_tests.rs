@@ -1,0 +1,191 @@
+//! The visibility pass on analytic scenes: a red square in front of a checkered wall,
+//! sampled at random positions and times as the sampler's stream would be, and
+//! reconstructed with and without the pass.
+
+use super::*;
+use crate::scene::Camera;
+
+const W: u32 = 64;
+const H: u32 = 64;
+/// Depth planes (the eye looks down −z from z = 5).
+const FRONT_Z: f32 = 3.0;
+const WALL_Z: f32 = -5.0;
+/// Half the square's side, world units.
+const HALF: f32 = 0.4;
+const RED: Vec3 = Vec3::new(0.9, 0.1, 0.1);
+
+fn camera(eye_x: f32) -> CameraFrame {
+    Camera {
+        eye: Vec3::new(eye_x, 0.0, 5.0),
+        at: Vec3::new(eye_x, 0.0, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 60.0,
+        hither: 1e-3,
+    }
+    .frame(W, H)
+}
+
+/// The scene at time `t`: the square's centre moves along x at `speed`.
+struct Scene {
+    speed: f32,
+}
+
+impl Scene {
+    /// Colour, hit point and velocity of the ray through `(x, y)` of `c` at time `t`.
+    fn cast(&self, c: &CameraFrame, x: f32, y: f32, t: f64) -> (Vec3, Vec3, Vec3) {
+        let d = c.direction(x, y);
+        let p = c.eye + d * ((FRONT_Z - c.eye.z) / d.z);
+        let cx = self.speed * t as f32;
+        if (p.x - cx).abs() <= HALF && p.y.abs() <= HALF {
+            return (RED, p, Vec3::new(self.speed, 0.0, 0.0));
+        }
+        let q = c.eye + d * ((WALL_Z - c.eye.z) / d.z);
+        // Checks of 0.5 units: about 3 pixels on the wall.
+        let odd = ((q.x * 2.0).floor() + (q.y * 2.0).floor()).rem_euclid(2.0) == 1.0;
+        let grey = if odd { 0.8 } else { 0.2 };
+        (Vec3::splat(grey), q, Vec3::ZERO)
+    }
+
+    /// The image at `t` seen by `c`, 4 × 4 samples per pixel, and each pixel's share of
+    /// the square.
+    fn truth(&self, c: &CameraFrame, t: f64) -> (Vec<Vec3>, Vec<f32>) {
+        let mut img = vec![Vec3::ZERO; (W * H) as usize];
+        let mut cover = vec![0.0; img.len()];
+        for y in 0..H {
+            for x in 0..W {
+                let i = (y * W + x) as usize;
+                for k in 0..16 {
+                    let (sx, sy) = ((k % 4) as f32 + 0.5, (k / 4) as f32 + 0.5);
+                    let (col, _, v) = self.cast(c, x as f32 + sx / 4.0, y as f32 + sy / 4.0, t);
+                    img[i] += col / 16.0;
+                    cover[i] += (v != Vec3::ZERO || col == RED) as u32 as f32 / 16.0;
+                }
+            }
+        }
+        (img, cover)
+    }
+}
+
+/// `n` samples at random positions over `t ∈ [0, 1)`, in time order, seen by
+/// `camera_at(t)` and reconstructed at every refresh of a 60 Hz display as they come;
+/// the image at `t = 1`, seen by `camera_at(1)`.
+fn reconstruct(
+    scene: &Scene,
+    camera_at: impl Fn(f64) -> CameraFrame,
+    params: ReconParams,
+    n: usize,
+) -> Vec<Vec3> {
+    let mut rng = crate::sampling::Rng::new(&[7, n as u64]);
+    let mut r = Reconstructor::new(W, H, n as f64, params);
+    // Tiles as the sampler would measure them: a still wall, so long temporal filters.
+    let mut tiling = TilingSnapshot::whole(W, H);
+    tiling.tiles[0].gx = 0.1;
+    tiling.tiles[0].gy = 0.1;
+    tiling.tiles[0].gt = 0.05;
+    let mut refresh = 1;
+    for i in 0..n {
+        let t = i as f64 / n as f64;
+        while t >= refresh as f64 / 60.0 {
+            let tr = refresh as f64 / 60.0;
+            r.reconstruct(tr, &camera_at(tr), &tiling);
+            refresh += 1;
+        }
+        let c = camera_at(t);
+        let (x, y) = (rng.uniform() * W as f32, rng.uniform() * H as f32);
+        let (color, hit_point, velocity) = scene.cast(&c, x, y, t);
+        r.push(RingSample {
+            x,
+            y,
+            t,
+            color,
+            hit_point,
+            velocity,
+        });
+    }
+    r.reconstruct(1.0, &camera_at(1.0), &tiling).pixels.clone()
+}
+
+fn without_visibility() -> ReconParams {
+    ReconParams {
+        visibility: None,
+        ..ReconParams::converging()
+    }
+}
+
+/// Mean absolute error (all channels) over the pixels `keep` selects.
+fn mean_error(img: &[Vec3], truth: &[Vec3], keep: impl Fn(usize) -> bool) -> f32 {
+    let (mut sum, mut n) = (0.0, 0);
+    for i in (0..img.len()).filter(|&i| keep(i)) {
+        sum += (img[i] - truth[i]).abs().element_sum() / 3.0;
+        n += 1;
+    }
+    assert!(n > 20, "only {n} pixels selected");
+    sum / n as f32
+}
+
+/// Pixels within `r` pixels of one the square partly covers.
+fn near_edge(cover: &[f32], r: i32) -> Vec<bool> {
+    let partial = |x: i32, y: i32| {
+        (0..W as i32).contains(&x)
+            && (0..H as i32).contains(&y)
+            && (0.0..1.0).contains(&cover[(y * W as i32 + x) as usize])
+            && cover[(y * W as i32 + x) as usize] > 0.0
+    };
+    (0..(W * H) as i32)
+        .map(|i| {
+            let (x, y) = (i % W as i32, i / W as i32);
+            (-r..=r).any(|dy| (-r..=r).any(|dx| partial(x + dx, y + dy)))
+        })
+        .collect()
+}
+
+#[test]
+fn a_moving_square_keeps_its_silhouette() {
+    // The square crosses the wall at 0.6 units/s (about 17 px/s at its depth): the
+    // wall samples traced before it arrived lie where it is now.
+    let scene = Scene { speed: 0.6 };
+    let c = camera(0.0);
+    let (truth, cover) = scene.truth(&c, 1.0);
+    let edge = near_edge(&cover, 1);
+    let n = (W * H * 6) as usize;
+    let with = reconstruct(&scene, |_| c, ReconParams::converging(), n);
+    let without = reconstruct(&scene, |_| c, without_visibility(), n);
+    let (e_with, e_without) = (
+        mean_error(&with, &truth, |i| edge[i]),
+        mean_error(&without, &truth, |i| edge[i]),
+    );
+    // Measured (session 13): 0.086 with the pass, 0.125 without (0.69×).
+    assert!(
+        e_with < 0.8 * e_without,
+        "edge error {e_with} with the visibility pass, {e_without} without"
+    );
+}
+
+#[test]
+fn a_fast_camera_move_shows_no_wall_through_the_square() {
+    // A still scene; the eye slides 0.6 units sideways in the last 0.2 s, so the wall
+    // seen beside the square from the old view now lies behind it.
+    let scene = Scene { speed: 0.0 };
+    let eye_at = |t: f64| camera(0.6 * ((t as f32 - 0.8) / 0.2).clamp(0.0, 1.0));
+    let (truth, cover) = scene.truth(&eye_at(1.0), 1.0);
+    let edge = near_edge(&cover, 1);
+    // The square's inside, away from its outline.
+    let inside = |i: usize| cover[i] == 1.0 && !edge[i];
+    let n = (W * H * 6) as usize;
+    let with = reconstruct(&scene, eye_at, ReconParams::converging(), n);
+    let without = reconstruct(&scene, eye_at, without_visibility(), n);
+    let worst = |img: &[Vec3]| {
+        (0..img.len())
+            .filter(|&i| inside(i))
+            .map(|i| (img[i] - truth[i]).abs().max_element())
+            .fold(0f32, f32::max)
+    };
+    let (w_with, w_without) = (worst(&with), worst(&without));
+    // Measured (session 13): 0.075 with the pass, 0.53 without. What is left comes
+    // from the few pixels no sample of the square has landed in yet.
+    assert!(w_without > 0.3, "the case should bleed without the pass: {w_without}");
+    assert!(
+        w_with < 0.25 * w_without,
+        "the wall shows through the square: error up to {w_with} (without the pass {w_without})"
+    );
+}
