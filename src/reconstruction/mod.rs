@@ -6,9 +6,13 @@
 //!
 //! 1. reprojects every sample to the current view: world point `hit_point + velocity ·
 //!    (t − t_sample)` projected by the current camera (misses carry a far hit point,
-//!    1e6 along their ray, so only camera rotation moves them). There is no depth test:
-//!    stale samples behind newly visible surfaces are suppressed by the temporal filter
-//!    only, as in the paper;
+//!    1e6 along their ray, so only camera rotation moves them). In the paper's preset
+//!    there is no depth test: stale samples behind newly visible surfaces are
+//!    suppressed by the temporal filter only. With [`ReconParams::visibility`] (ours)
+//!    each pixel's front depth is the nearest of the samples landing in it (still ones
+//!    of any age, moving ones younger than `setter_age_sigmas` temporal sigmas), and a
+//!    sample landing behind its pixel's front (beyond the depth tolerance) is not
+//!    splatted;
 //! 2. looks up the filter of the tile containing the reprojected pixel (extents from the
 //!    tile's local sample rate and gradients, [`filter::extents`]) and the splat scale
 //!    of that pixel (from the previous refresh's coverage map);
