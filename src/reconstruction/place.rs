@@ -60,7 +60,11 @@ impl Projector {
         let d = p - self.eye;
         let z = d.dot(self.forward);
         let iz = 1.0 / z;
-        (d.dot(self.u) * iz - self.ou, d.dot(self.v) * iz - self.ov, z)
+        (
+            d.dot(self.u) * iz - self.ou,
+            d.dot(self.v) * iz - self.ov,
+            z,
+        )
     }
 }
 
@@ -417,7 +421,11 @@ fn bin_piece(
                 let still = [field::VX, field::VY, field::VZ]
                     .iter()
                     .all(|&k| ring.f[k][p0 + i] == 0.0);
-                s.z_front = if still || a <= max_a { s.z } else { f32::INFINITY };
+                s.z_front = if still || a <= max_a {
+                    s.z
+                } else {
+                    f32::INFINITY
+                };
                 s.pixel = placer.inside(b.x[i], b.y[i]);
             }
             let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);

@@ -185,7 +185,10 @@ fn a_fast_camera_move_shows_no_wall_through_the_square() {
     eprintln!("largest error inside: {w_with} with the visibility pass, {w_without} without");
     // Measured (session 13): 0.075 with the pass, 0.53 without. What is left comes
     // from the few pixels no sample of the square has landed in yet.
-    assert!(w_without > 0.3, "the case should bleed without the pass: {w_without}");
+    assert!(
+        w_without > 0.3,
+        "the case should bleed without the pass: {w_without}"
+    );
     assert!(
         w_with < 0.25 * w_without,
         "the wall shows through the square: error up to {w_with} (without the pass {w_without})"
