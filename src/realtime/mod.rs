@@ -216,9 +216,9 @@ impl clap::ValueEnum for Visualisation {
 
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
-    /// machine, reconstruction on half the cores, the real-time sampler
-    /// ([`SamplerParams::realtime`]) and reconstructor ([`ReconParams::realtime`]),
-    /// builds within 0.8 of a refresh period.
+    /// machine, reconstruction on half the cores, the paper's sampler, and the
+    /// real-time reconstructor ([`ReconParams::realtime`]), builds within 0.8 of a refresh
+    /// period.
     pub fn new(method: RtMethod) -> Self {
         Self::for_cores(method, machine::cores())
     }
@@ -233,7 +233,7 @@ impl RtConfig {
             refresh_hz: 60.0,
             start: 0.0,
             seed: 1,
-            sampler: SamplerParams::realtime(),
+            sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: 0.8,
         }

@@ -133,18 +133,10 @@ impl ReconParams {
     /// 0.5–1.5 s of samples at 256×256. Splats are at most 8 px in radius (paper: 24):
     /// sparse early samples otherwise grow huge footprints through the coverage-driven
     /// splat size.
-    ///
-    /// Without the visibility pass and with the paper's filter volume: live, the image
-    /// builder places only what its time budget allows, and both cost it more than they
-    /// gave (session 13, `frameless live --method adaptive --scene toycar --size
-    /// 640x480 --refresh-hz 30 --start 1`, two runs each: RMS 9.5–9.8 without them,
-    /// 10.4–10.5 with them; kitchen Interactive at 256×256 level, 27.4–28.1 either way).
     pub fn realtime() -> Self {
         Self {
             ring_factor: 2.0,
             max_radius: 8.0,
-            filter_volume: 1.0,
-            visibility: None,
             ..Self::converging()
         }
     }

@@ -186,17 +186,6 @@ impl SamplerParams {
         p
     }
 
-    /// The real-time sampling threads' parameters: [`SamplerParams::ours`] with every
-    /// moving or re-viewed crosshair reprojected as before session 13
-    /// (`reproject_only_moving` off). Live, at 640×480 and 30 Hz on the built-in
-    /// `toycar`, reprojecting only moving crosshairs raised RMS from 9.5 to 9.75 (two
-    /// runs each); the real-time path is measured by `frameless live`, not `eval`.
-    pub const fn realtime() -> Self {
-        let mut p = Self::ours();
-        p.reproject_only_moving = false;
-        p
-    }
-
     /// The "Adaptive no reprojection" ablation (paper Fig. 8) of [`SamplerParams::ours`].
     pub const fn no_reprojection() -> Self {
         let mut p = Self::ours();
