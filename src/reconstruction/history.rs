@@ -519,18 +519,18 @@ impl History {
     }
 }
 
-/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel: stably,
-/// so each pixel keeps its samples' order. A batch of more than 1/16 as many as the
-/// `pixels` (a burst, up to a whole ring) goes through a counting sort, in time linear
-/// in both, with `buckets` and `out` as scratch; a smaller one through a comparison
-/// sort of `(pixel, index)` keys, whose indices are distinct and increasing, so it is
-/// stable without a stable sort.
 /// Whether a point at depth `z` seen in pixel `q` lies behind the front depth there
 /// (beyond the visibility pass's tolerance).
 fn hidden(front: Option<(&[f32], f32)>, q: usize, z: f32) -> bool {
     front.is_some_and(|(f, keep)| f[q] < z * keep)
 }
 
+/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel: stably,
+/// so each pixel keeps its samples' order. A batch of more than 1/16 as many as the
+/// `pixels` (a burst, up to a whole ring) goes through a counting sort, in time linear
+/// in both, with `buckets` and `out` as scratch; a smaller one through a comparison
+/// sort of `(pixel, index)` keys, whose indices are distinct and increasing, so it is
+/// stable without a stable sort.
 fn sort_by_pixel(
     order: &mut Vec<(u32, u32)>,
     pixels: usize,

@@ -168,7 +168,7 @@ pub struct Reconstructor {
     cs: usize,
     /// Per-row coverage differences, rows of `width + 1`.
     cov: Vec<i32>,
-    /// Front depths of the visibility pass, rows of `cs` floats (empty without it).
+    /// Front depths of the visibility pass, one per pixel (empty without it).
     front: Vec<f32>,
     /// Rows per band of the splat at the last refresh.
     band_rows: usize,
@@ -378,12 +378,10 @@ impl Reconstructor {
         }
     }
 
-    /// `1 / (1 + depth tolerance)` when the visibility pass is on (it needs samples
-    /// reprojected to the current view).
+    /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
     fn visibility_keep(&self) -> Option<f32> {
-        let p = &self.params;
-        p.visibility
-            .filter(|_| p.reproject)
+        self.params
+            .visibility_in_use()
             .map(|v| 1.0 / (1.0 + v.depth_tolerance))
     }
 

@@ -63,8 +63,9 @@ pub struct ReconParams {
 /// new view, and without a depth test the background seen before a silhouette moved
 /// shows through the object that now covers it (EWA surface splatting's visibility
 /// splatting, Zwicker et al. 2001). Each pixel's front depth is the nearest depth of
-/// the recent samples that land in it; a sample is splatted only if it lies within the
-/// tolerance of the front depth of the pixel it lands in. The test is per sample, not
+/// the samples that land in it (still ones of any age, moving ones while recent); a
+/// sample is splatted only if it lies within the tolerance of the front depth of the
+/// pixel it lands in. The test is per sample, not
 /// per pixel of its footprint: a silhouette pixel that both surfaces partly cover
 /// keeps both surfaces' samples from the pixels around it, so edges stay
 /// anti-aliased (a per-pixel test, measured in session 13, widened every foreground
@@ -74,14 +75,16 @@ pub struct Visibility {
     /// Relative depth tolerance: a sample at depth `z` reaches a pixel of front depth
     /// `z_f` only if `z ≤ z_f · (1 + tolerance)`.
     pub depth_tolerance: f32,
-    /// Only samples younger than this many temporal sigmas set front depths: an old
-    /// sample, nearly weightless, must not hide the current surface behind it.
+    /// Moving samples set front depths only while younger than this many temporal
+    /// sigmas: extrapolated by their velocity, an old one may no longer be where the
+    /// surface is, and must not hide what is really there. Still samples reproject
+    /// exactly and set front depths at any age.
     pub setter_age_sigmas: f32,
 }
 
 impl Default for Visibility {
-    /// A tolerance of 10% of the depth; front depths from samples younger than one
-    /// temporal sigma (weight above `e^(−½)`).
+    /// A tolerance of 10% of the depth; front depths from still samples and from
+    /// moving ones younger than one temporal sigma (weight above `e^(−½)`).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
@@ -91,6 +94,12 @@ impl Default for Visibility {
 }
 
 impl ReconParams {
+    /// The visibility pass, if it is on and can act: it needs samples reprojected to
+    /// the current view.
+    pub fn visibility_in_use(&self) -> Option<Visibility> {
+        self.visibility.filter(|_| self.reproject)
+    }
+
     /// The paper's reconstructor: reprojection, adaptive filter, adaptive splat size.
     pub fn paper() -> Self {
         Self {

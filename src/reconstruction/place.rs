@@ -450,10 +450,7 @@ impl Reconstructor {
             lookup: &self.lookup,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            setter_age: p
-                .visibility
-                .filter(|_| p.reproject)
-                .map(|v| v.setter_age_sigmas),
+            setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
         }

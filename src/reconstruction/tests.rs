@@ -122,7 +122,10 @@ fn direct(
     let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
     // The visibility pass: each pixel's nearest recent sample landing in it.
     let mut front = vec![f32::INFINITY; out.len()];
-    let keep = r.params.visibility.map(|v| 1.0 / (1.0 + v.depth_tolerance));
+    let keep = r
+        .params
+        .visibility_in_use()
+        .map(|v| 1.0 / (1.0 + v.depth_tolerance));
     let landed = |q: &super::place::Placed| placer.inside(q.x, q.y);
     if let (Some(max_a), Some(_)) = (placer.setter_age, keep) {
         for s in r.ring.iter() {

@@ -56,9 +56,10 @@ impl Scene {
                 let i = (y * W + x) as usize;
                 for k in 0..16 {
                     let (sx, sy) = ((k % 4) as f32 + 0.5, (k / 4) as f32 + 0.5);
-                    let (col, _, v) = self.cast(c, x as f32 + sx / 4.0, y as f32 + sy / 4.0, t);
+                    let (col, _, _) = self.cast(c, x as f32 + sx / 4.0, y as f32 + sy / 4.0, t);
                     img[i] += col / 16.0;
-                    cover[i] += (v != Vec3::ZERO || col == RED) as u32 as f32 / 16.0;
+                    // Only the square is red.
+                    cover[i] += (col == RED) as u32 as f32 / 16.0;
                 }
             }
         }
@@ -128,8 +129,8 @@ fn near_edge(cover: &[f32], r: i32) -> Vec<bool> {
     let partial = |x: i32, y: i32| {
         (0..W as i32).contains(&x)
             && (0..H as i32).contains(&y)
-            && (0.0..1.0).contains(&cover[(y * W as i32 + x) as usize])
             && cover[(y * W as i32 + x) as usize] > 0.0
+            && cover[(y * W as i32 + x) as usize] < 1.0
     };
     (0..(W * H) as i32)
         .map(|i| {
