@@ -7,14 +7,15 @@ use frameless::{
     clock::Clock,
     evaluation::{self, EvalConfig, Silent},
     methods::{
-        adaptive::{Adaptive, Sampler, SamplerParams},
+        adaptive::{sampler::crosshair_with, Adaptive, Sampler, SamplerParams},
         Method, MethodContext, MethodKind,
     },
     scene::{
         animation::{KeyframeTrack, TcbKey, VectorSpline},
         Camera, CameraPath, CameraTrack, Group, Material, Node, NodeKind, Scene,
     },
-    trace::{TraceOptions, Tracer},
+    tiles::Rect,
+    trace::{Sample, TraceOptions, Tracer},
 };
 use glam::Vec3;
 
@@ -505,8 +506,13 @@ fn a_region_revealed_by_a_turn_draws_samples_at_once() {
     // (ours), the left half's old crosshairs stay where they were and age out, and the
     // revealed half already draws 0.59 of the samples without the prior (0.63 with it;
     // session 13), so the prior's own effect shows best with the paper's reprojection.
+    // One-pixel arms, as in the paper, so that a visit's samples stay in its tile: with
+    // ours (half the tile) the large tiles of the still left half reach into the right
+    // one, and samples count where they land, not which tile drew them (0.41 with the
+    // prior against 0.38 without; session 14).
     let base = SamplerParams {
         reproject_only_moving: false,
+        arm_fraction: 0.0,
         ..SamplerParams::ours()
     };
     let with_prior = right_share(base);
@@ -535,6 +541,14 @@ fn bad_sampler_parameters_are_refused() {
             decay: -1.0,
             ..SamplerParams::ours()
         },
+        SamplerParams {
+            arm_fraction: 1.5,
+            ..SamplerParams::ours()
+        },
+        SamplerParams {
+            arm_fraction: f32::NAN,
+            ..SamplerParams::ours()
+        },
     ] {
         assert!(
             Sampler::new(c.tracer.clone(), c.clock, p, 1).is_err(),
@@ -559,4 +573,48 @@ fn the_new_view_prior_leaves_a_still_view_alone() {
         ..SamplerParams::ours()
     };
     assert_eq!(run(SamplerParams::ours()), run(without));
+}
+
+#[test]
+fn crosshair_arms_span_half_their_tile() {
+    // Ours: arms half the tile's width and height; the paper's (and any tile under two
+    // pixels) one pixel.
+    let rect = Rect {
+        x0: 8,
+        y0: 4,
+        x1: 24,
+        y1: 10,
+    };
+    assert_eq!(SamplerParams::ours().arms(rect), (8.0, 3.0));
+    assert_eq!(SamplerParams::paper().arms(rect), (1.0, 1.0));
+    let thin = Rect { x1: 9, ..rect };
+    assert_eq!(SamplerParams::ours().arms(thin), (1.0, 3.0));
+    // The arms are traced where they say, and gradients are per pixel of arm length: a
+    // luminance ramp of 0.01 per pixel along x and 0.03 along y reads as such whatever
+    // the arms.
+    for arms in [(1.0, 1.0), (8.0, 3.0)] {
+        let mut at = Vec::new();
+        let c = crosshair_with(64, 64, (20.5, 30.5), arms, 1.0, None, |x, y| {
+            at.push((x, y));
+            Sample {
+                luminance: 0.01 * x + 0.03 * y,
+                ..Sample::default()
+            }
+        });
+        let (ax, ay) = arms;
+        assert_eq!(
+            at,
+            [
+                (20.5, 30.5),
+                (20.5 + ax, 30.5),
+                (20.5 - ax, 30.5),
+                (20.5, 30.5 + ay),
+                (20.5, 30.5 - ay)
+            ]
+        );
+        assert!(
+            (c.gx - 0.01).abs() < 1e-5 && (c.gy - 0.03).abs() < 1e-5,
+            "{c:?}"
+        );
+    }
 }

@@ -201,20 +201,21 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
             let (px, py) = completion_point(&s.config.sampler, &state.camera, &p, rect, now, w, h);
-            let (cx, cy) = (px.floor() as i64, py.floor() as i64);
+            let (ax, ay) = s.config.sampler.arms(rect);
+            let pixel = |x: f32, y: f32| (x.floor() as i64, y.floor() as i64);
             let cross = [
-                (cx, cy),
-                (cx + 1, cy),
-                (cx - 1, cy),
-                (cx, cy + 1),
-                (cx, cy - 1),
+                pixel(px, py),
+                pixel(px + ax, py),
+                pixel(px - ax, py),
+                pixel(px, py + ay),
+                pixel(px, py - ay),
             ];
             let Some(guard) = s.locks.try_lock_many(&cross) else {
                 continue; // another thread is at this crosshair: visit another tile
             };
             let mut rays = 0;
             let stream = &mut batch.stream;
-            let c = crosshair_with(w, h, px, py, now, Some((p.lum, p.t)), |x, y| {
+            let c = crosshair_with(w, h, (px, py), (ax, ay), now, Some((p.lum, p.t)), |x, y| {
                 rays += 1;
                 let sample = tracer.sample(&state, x, y);
                 stream.push(StreamSample {

@@ -2,6 +2,7 @@
 //! paper gives them and documented choices where it does not.
 
 use crate::methods::MethodError;
+use crate::tiles::Rect;
 
 /// Every knob of the adaptive sampler.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -115,6 +116,15 @@ pub struct SamplerParams {
     /// Still at 100K 4% of RMS; without the fading (a constant prior) the moving views
     /// gained as much and still views lost 6–34%.
     pub new_view_prior_s: f64,
+    /// Crosshair arm length as a fraction of the width (the ±x arms) and height (the ±y
+    /// arms) of the tile the crosshair is traced for, at least one pixel (0: the
+    /// paper's arms, one pixel). The arms' samples go to the reconstructor like the
+    /// centre's: with one-pixel arms five of every six samples a visit traces sit in a
+    /// plus sign three pixels wide, and while the view changes the image has a fifth
+    /// as many distinct places sampled. Arms spanning the tile spread them over it,
+    /// and the gradients they measure are the tile's, which is the scale at which the
+    /// reconstruction filter and the tiling use them. Not in the paper.
+    pub arm_fraction: f32,
     /// Ablation: closed-loop gain control (off: the tile count stays at `fixed_tiles`).
     pub gain_control: bool,
     /// Ablation: include the occlusion term (off: its weight goes to variance).
@@ -158,6 +168,7 @@ impl SamplerParams {
             stratified_positions: false,
             discount_converged: false,
             new_view_prior_s: 0.0,
+            arm_fraction: 0.0,
             gain_control: true,
             occlusion_term: true,
             uniform_tiling: false,
@@ -172,8 +183,9 @@ impl SamplerParams {
     /// measure change only against the same surface
     /// ([`SamplerParams::same_surface_gradients`]), crosshair centres are stratified
     /// per pixel ([`SamplerParams::stratified_positions`]), converged pixels draw
-    /// fewer samples ([`SamplerParams::discount_converged`]) and a new view's tiles
-    /// count as average until sampled ([`SamplerParams::new_view_prior_s`]).
+    /// fewer samples ([`SamplerParams::discount_converged`]), a new view's tiles
+    /// count as average until sampled ([`SamplerParams::new_view_prior_s`]) and
+    /// crosshair arms span half their tile ([`SamplerParams::arm_fraction`]).
     pub const fn ours() -> Self {
         let mut p = Self::paper();
         p.skip_static_reprojection = true;
@@ -183,6 +195,7 @@ impl SamplerParams {
         p.stratified_positions = true;
         p.discount_converged = true;
         p.new_view_prior_s = 0.25;
+        p.arm_fraction = 0.5;
         p
     }
 
@@ -191,6 +204,13 @@ impl SamplerParams {
         let mut p = Self::ours();
         p.reprojection = false;
         p
+    }
+
+    /// The crosshair arm lengths `(±x, ±y)` in pixels for a crosshair traced for the
+    /// tile `rect` ([`SamplerParams::arm_fraction`]).
+    pub fn arms(&self, rect: Rect) -> (f32, f32) {
+        let arm = |side: u32| (self.arm_fraction * side as f32).max(1.0);
+        (arm(rect.width()), arm(rect.height()))
     }
 
     /// Check ranges; the message names the bad field.
@@ -207,6 +227,9 @@ impl SamplerParams {
         }
         if !(self.new_view_prior_s.is_finite() && self.new_view_prior_s >= 0.0) {
             return bad("new_view_prior_s", "must be ≥ 0 seconds");
+        }
+        if !(0.0..=1.0).contains(&self.arm_fraction) {
+            return bad("arm_fraction", "must lie in [0, 1]");
         }
         if self.chunk == 0 {
             return bad("chunk", "must be at least 1");

@@ -143,22 +143,24 @@ pub fn stratified_in(
     )
 }
 
-/// A crosshair at `(x, y, t)`: the center and its on-screen neighbours one pixel away
-/// in ±x and ±y, traced by `trace` (center first, then +x, −x, +y, −y), with gradients;
-/// `old` is the earlier sample at the same location `(luminance, time)` for the temporal
-/// gradient. Shared by the sequential sampler and the real-time sampling threads.
+/// A crosshair at `(x, y, t)`: the center and its on-screen neighbours `arms.0` pixels
+/// away in ±x and `arms.1` in ±y ([`SamplerParams::arms`]), traced by `trace` (center
+/// first, then +x, −x, +y, −y), with gradients per pixel; `old` is the earlier sample
+/// at the same location `(luminance, time)` for the temporal gradient. Shared by the
+/// sequential sampler and the real-time sampling threads.
 pub fn crosshair_with(
     width: u32,
     height: u32,
-    x: f32,
-    y: f32,
+    (x, y): (f32, f32),
+    arms: (f32, f32),
     t: f64,
     old: Option<(f32, f64)>,
     mut trace: impl FnMut(f32, f32) -> Sample,
 ) -> Crosshair {
     let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
     let c = trace(x, y);
-    let offsets = [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0)];
+    let (ax, ay) = arms;
+    let offsets = [(ax, 0.0), (-ax, 0.0), (0.0, ay), (0.0, -ay)];
     let mut lum = [c.luminance; 5];
     let mut p = [c.hit_point; 5];
     for (k, (dx, dy)) in offsets.iter().enumerate() {
@@ -170,8 +172,9 @@ pub fn crosshair_with(
         }
     }
     let l0 = lum[0];
-    let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5;
-    let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5;
+    // Per pixel of arm length; an arm off screen counts as flat (the paper's rule).
+    let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5 / ax;
+    let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5 / ay;
     let gt = match old {
         Some((lo, to)) if t > to => ((l0 - lo).abs() as f64 / (t - to).max(MIN_GRADIENT_DT)) as f32,
         _ => 0.0,
@@ -438,18 +441,20 @@ impl Sampler {
         s
     }
 
-    /// Trace a full crosshair at `(x, y)`; `old` is the earlier sample at the same
-    /// location `(luminance, time)` for the temporal gradient.
+    /// Trace a full crosshair at `(x, y)` for the tile `rect` (which sets its arms);
+    /// `old` is the earlier sample at the same location `(luminance, time)` for the
+    /// temporal gradient.
     fn trace_crosshair(
         &mut self,
         state: &SceneState,
-        x: f32,
-        y: f32,
+        at: (f32, f32),
+        rect: Rect,
         t: f64,
         old: Option<(f32, f64)>,
     ) -> Crosshair {
         let (w, h) = (self.width, self.height);
-        let c = crosshair_with(w, h, x, y, t, old, |sx, sy| self.trace(state, sx, sy, t));
+        let arms = self.params.arms(rect);
+        let c = crosshair_with(w, h, at, arms, t, old, |sx, sy| self.trace(state, sx, sy, t));
         self.counters.crosshair_samples += 5;
         c
     }
@@ -499,7 +504,8 @@ impl Sampler {
         if occluded {
             self.counters.occluded += 1;
             self.record_occlusion(px, py, now);
-            let fresh = self.trace_crosshair(state, x, y, now, Some((c.lum[0], c.t)));
+            let rect = self.tiling.node(self.tiling.leaf_at(px, py)).rect;
+            let fresh = self.trace_crosshair(state, (x, y), rect, now, Some((c.lum[0], c.t)));
             self.insert_front(fresh);
             self.since_adjust += 1;
             return;
@@ -583,7 +589,7 @@ impl Sampler {
         let rect = self.tiling.node(leaf).rect;
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
             let (x, y) = completion_point(&self.params, &state.camera, &p, rect, now, self.width, self.height);
-            let c = self.trace_crosshair(&state, x, y, now, Some((p.lum, p.t)));
+            let c = self.trace_crosshair(&state, (x, y), rect, now, Some((p.lum, p.t)));
             self.insert_front(c);
             self.since_adjust += 1;
         }
@@ -638,7 +644,14 @@ impl Sampler {
             );
             let t = self.clock.sample_time(self.next_sample);
             let before = self.counters.rays;
-            let c = self.trace_crosshair(&state, x as f32 + 0.5, y as f32 + 0.5, t, None);
+            // The grid cell the crosshair stands for is its tile.
+            let cell = Rect {
+                x0: x.saturating_sub(sp / 2),
+                y0: y.saturating_sub(sp / 2),
+                x1: x.saturating_sub(sp / 2) + sp,
+                y1: y.saturating_sub(sp / 2) + sp,
+            };
+            let c = self.trace_crosshair(&state, (x as f32 + 0.5, y as f32 + 0.5), cell, t, None);
             self.insert_front(c);
             self.next_sample += self.counters.rays - before;
             self.init_cursor += 1;
