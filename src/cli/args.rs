@@ -287,7 +287,8 @@ pub struct ViewArgs {
     /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
     #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub max_radius: Option<f64>,
-    /// No reprojection in the sampler's controller.
+    /// No reprojection in the sampler's controller (already off in ours, which the
+    /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
     /// Seed of the threads' random choices.
@@ -331,7 +332,7 @@ pub struct SamplerArgs {
     /// ablation flags below apply on top.
     #[arg(long, value_enum, default_value = "ours")]
     pub preset: SamplerPreset,
-    /// Ablation: no reprojection in the sampler.
+    /// Ablation: no reprojection in the sampler (`--preset paper`; ours has none).
     #[arg(long)]
     pub no_reprojection: bool,
     /// Ablation: no gain control (fixed tile count).

@@ -384,7 +384,9 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         args::SamplerPreset::Ours => SamplerParams::ours(),
         args::SamplerPreset::Paper => SamplerParams::paper(),
     };
-    params.reprojection = !a.no_reprojection;
+    if a.no_reprojection {
+        params.reprojection = false;
+    }
     params.gain_control = !a.no_gain_control;
     params.occlusion_term = !a.no_occlusion_term;
     params.uniform_tiling = a.uniform_tiling;
@@ -478,7 +480,9 @@ fn view(a: args::ViewArgs) -> Result<()> {
     cfg.image_budget = a.image_budget;
     cfg.start = a.start;
     cfg.seed = a.seed;
-    cfg.sampler.reprojection = !a.no_reprojection;
+    if a.no_reprojection {
+        cfg.sampler.reprojection = false;
+    }
     if let Some(f) = a.ring_factor {
         if !(f > 0.0 && f <= 64.0) {
             bail!("--ring-factor {f} must be in (0, 64]");

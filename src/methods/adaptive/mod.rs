@@ -62,13 +62,20 @@ pub const ADAPTIVE_PAPER: MethodInfo = MethodInfo {
     },
 };
 
-/// `adaptive-no-reprojection`: the ablation of paper Fig. 8.
+/// `adaptive-no-reprojection`: the ablation of paper Fig. 8, of the paper's method
+/// (ours reprojects no crosshair).
 pub const ADAPTIVE_NO_REPROJECTION: MethodInfo = MethodInfo {
     name: "adaptive-no-reprojection",
-    description: "adaptive frameless without reprojection in the sampler",
+    description: "adaptive frameless as in the paper without reprojection in the sampler (the paper's Fig. 8 ablation)",
     budget: Budget::Rate,
-    check_rate: |shape, _| fits(shape, SamplerParams::no_reprojection(), ReconParams::converging()),
-    build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::no_reprojection())?)),
+    check_rate: |shape, _| fits(shape, SamplerParams::no_reprojection(), ReconParams::paper()),
+    build: |ctx| {
+        Ok(Box::new(Adaptive::with_reconstructor(
+            ctx,
+            SamplerParams::no_reprojection(),
+            ReconParams::paper(),
+        )?))
+    },
 };
 
 /// `adaptive-no-history`: ours without the still-region history.

@@ -176,12 +176,15 @@ impl SamplerParams {
         }
     }
 
-    /// Ours (`adaptive`): the paper's, except that crosshairs that cannot have moved
-    /// stay in place ([`SamplerParams::skip_static_reprojection`]) and only moving ones
-    /// are reprojected ([`SamplerParams::reproject_only_moving`]), pending crosshairs
-    /// follow their surface ([`SamplerParams::follow_surface`]), reprojected ones
-    /// measure change only against the same surface
-    /// ([`SamplerParams::same_surface_gradients`]), crosshair centres are stratified
+    /// Ours (`adaptive`): the paper's, except that no crosshair is reprojected
+    /// ([`SamplerParams::reprojection`] off: with the reconstructor's reprojection and
+    /// visibility pass it did not pay, see docs/methods.md; with it turned back on,
+    /// crosshairs that cannot have moved stay in place,
+    /// [`SamplerParams::skip_static_reprojection`], only moving ones are reprojected,
+    /// [`SamplerParams::reproject_only_moving`], and reprojected ones measure change
+    /// only against the same surface, [`SamplerParams::same_surface_gradients`]),
+    /// pending crosshairs follow their surface ([`SamplerParams::follow_surface`]),
+    /// crosshair centres are stratified
     /// per pixel ([`SamplerParams::stratified_positions`]), converged pixels draw
     /// fewer samples ([`SamplerParams::discount_converged`]), a new view's tiles
     /// count as average until sampled ([`SamplerParams::new_view_prior_s`]) and
@@ -196,12 +199,14 @@ impl SamplerParams {
         p.discount_converged = true;
         p.new_view_prior_s = 0.25;
         p.arm_fraction = 0.5;
+        p.reprojection = false;
         p
     }
 
-    /// The "Adaptive no reprojection" ablation (paper Fig. 8) of [`SamplerParams::ours`].
+    /// The "Adaptive no reprojection" ablation of paper Fig. 8: the paper's sampler
+    /// ([`SamplerParams::paper`]) without reprojection. (Ours has none.)
     pub const fn no_reprojection() -> Self {
-        let mut p = Self::ours();
+        let mut p = Self::paper();
         p.reprojection = false;
         p
     }
