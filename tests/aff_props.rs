@@ -346,8 +346,10 @@ fn check_error(e: &SceneError, dir: &Path) -> Result<(), TestCaseError> {
         SceneError::Parse {
             file, line, column, ..
         } => {
+            // The scene, or a file of its folder that a (mutated) include names: the
+            // part, or even the texture, which then fails to parse as a scene.
             prop_assert!(
-                file == "main.aff" || *file == dir.join("part.aff").display().to_string(),
+                file == "main.aff" || Path::new(file.as_str()).starts_with(dir),
                 "unexpected file in {msg}"
             );
             prop_assert!(*line >= 1 && *column >= 1, "{msg}");
@@ -373,6 +375,30 @@ fn unmutated_scene_is_valid() {
     // Main: p 4 (2) + pp + tt + ttp + m (1); part: m (2) + tt.
     let tris: usize = s.groups.iter().map(|g| g.triangles.len()).sum();
     assert_eq!(tris, 2 + 1 + 1 + 1 + 1 + 2 + 1);
+    let _ = fs::remove_dir_all(dir);
+}
+
+#[test]
+fn an_include_naming_the_texture_fails_in_the_texture() {
+    // Found by the mutation test below in a CI run (session 14): `i 0 tex.ppm` parses
+    // the image as a scene, and the error names the image, line 1.
+    let dir = case_dir(PART.as_bytes());
+    // MAIN holds a byte that is not UTF-8 (a test of its own): splice bytes.
+    let (from, to) = (b"i 0 part.aff", b"i 0 tex.ppm");
+    let at = MAIN
+        .windows(from.len())
+        .position(|w| w == from)
+        .expect("MAIN includes part.aff");
+    let main = [&MAIN[..at], &to[..], &MAIN[at + from.len()..]].concat();
+    let e = parse_str("main.aff", &main, &dir).expect_err("an image is no scene");
+    match &e {
+        SceneError::Parse { file, line, .. } => {
+            assert_eq!(*file, dir.join("tex.ppm").display().to_string(), "{e}");
+            assert_eq!(*line, 1, "{e}");
+        }
+        other => panic!("unexpected error: {other:?}"),
+    }
+    check_error(&e, &dir).unwrap();
     let _ = fs::remove_dir_all(dir);
 }
 
