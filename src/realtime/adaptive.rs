@@ -49,7 +49,7 @@ use crate::{
     clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::{completion_point, crosshair_with, stratified_in},
+        sampler::{completion_point, crosshair_points, crosshair_with, stratified_in},
         tiling::{Pending, Rect, Tiling},
         Sampler,
     },
@@ -201,21 +201,15 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
             let (px, py) = completion_point(&s.config.sampler, &state.camera, &p, rect, now, w, h);
-            let (ax, ay) = s.config.sampler.arms(rect);
-            let pixel = |x: f32, y: f32| (x.floor() as i64, y.floor() as i64);
-            let cross = [
-                pixel(px, py),
-                pixel(px + ax, py),
-                pixel(px - ax, py),
-                pixel(px, py + ay),
-                pixel(px, py - ay),
-            ];
+            let arms = s.config.sampler.arms(rect);
+            let cross =
+                crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
             let Some(guard) = s.locks.try_lock_many(&cross) else {
                 continue; // another thread is at this crosshair: visit another tile
             };
             let mut rays = 0;
             let stream = &mut batch.stream;
-            let c = crosshair_with(w, h, (px, py), (ax, ay), now, Some((p.lum, p.t)), |x, y| {
+            let c = crosshair_with(w, h, (px, py), arms, now, Some((p.lum, p.t)), |x, y| {
                 rays += 1;
                 let sample = tracer.sample(&state, x, y);
                 stream.push(StreamSample {

@@ -522,7 +522,7 @@ impl History {
 /// Whether a point at depth `z` seen in pixel `q` lies behind the front depth there
 /// (beyond the visibility pass's tolerance).
 fn hidden(front: Option<(&[f32], f32)>, q: usize, z: f32) -> bool {
-    front.is_some_and(|(f, keep)| f[q] < z * keep)
+    front.is_some_and(|(f, keep)| super::splat::behind_front(f[q], z, keep))
 }
 
 /// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel: stably,

@@ -214,7 +214,16 @@ impl Cols<'_> {
 /// tolerance)`).
 #[inline(always)]
 fn visible(s: &Splat, front: &[f32], keep: f32) -> bool {
-    s.pixel == OUTSIDE || front[s.pixel as usize] >= s.z * keep
+    s.pixel == OUTSIDE || !behind_front(front[s.pixel as usize], s.z, keep)
+}
+
+/// The visibility pass's rule, for splats, the history and the tests: a point at
+/// depth `z` lies behind a pixel's front depth `front` beyond the tolerance (`keep`:
+/// `1 / (1 + tolerance)`). Depths are never NaN here (a sample that projects to NaN is
+/// culled before it is placed).
+#[inline(always)]
+pub(super) fn behind_front(front: f32, z: f32, keep: f32) -> bool {
+    front < z * keep
 }
 
 /// The front depths of rows `by0..by1` (`front`, rows of `w`): the nearest `z_front` of

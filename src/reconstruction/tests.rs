@@ -122,10 +122,7 @@ fn direct(
     let mut out = vec![([0f64; 5], 0u32); w * r.height as usize];
     // The visibility pass: each pixel's nearest recent sample landing in it.
     let mut front = vec![f32::INFINITY; out.len()];
-    let keep = r
-        .params
-        .visibility_in_use()
-        .map(|v| 1.0 / (1.0 + v.depth_tolerance));
+    let keep = r.visibility_keep();
     let landed = |q: &super::place::Placed| placer.inside(q.x, q.y);
     if let (Some(max_a), Some(_)) = (placer.setter_age, keep) {
         for s in r.ring.iter() {
@@ -141,7 +138,9 @@ fn direct(
         let Some(q) = placer.place(&s) else { continue };
         if let (Some(keep), Some(_)) = (keep, placer.setter_age) {
             let p = landed(&q);
-            if p != super::splat::OUTSIDE && front[p as usize] < q.z * keep {
+            if p != super::splat::OUTSIDE
+                && super::splat::behind_front(front[p as usize], q.z, keep)
+            {
                 // Hidden behind a nearer recent sample: no splat, no coverage.
                 continue;
             }

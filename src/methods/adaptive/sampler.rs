@@ -143,6 +143,12 @@ pub fn stratified_in(
     )
 }
 
+/// Where a crosshair's five samples go: the center `(x, y)`, then `arms.0` pixels away
+/// in +x and −x and `arms.1` in +y and −y (the order [`crosshair_with`] traces them in).
+pub fn crosshair_points((x, y): (f32, f32), (ax, ay): (f32, f32)) -> [(f32, f32); 5] {
+    [(x, y), (x + ax, y), (x - ax, y), (x, y + ay), (x, y - ay)]
+}
+
 /// A crosshair at `(x, y, t)`: the center and its on-screen neighbours `arms.0` pixels
 /// away in ±x and `arms.1` in ±y ([`SamplerParams::arms`]), traced by `trace` (center
 /// first, then +x, −x, +y, −y), with gradients per pixel; `old` is the earlier sample
@@ -160,11 +166,9 @@ pub fn crosshair_with(
     let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
     let c = trace(x, y);
     let (ax, ay) = arms;
-    let offsets = [(ax, 0.0), (-ax, 0.0), (0.0, ay), (0.0, -ay)];
     let mut lum = [c.luminance; 5];
     let mut p = [c.hit_point; 5];
-    for (k, (dx, dy)) in offsets.iter().enumerate() {
-        let (nx, ny) = (x + dx, y + dy);
+    for (k, &(nx, ny)) in crosshair_points((x, y), arms)[1..].iter().enumerate() {
         if on_screen(nx, ny) {
             let s = trace(nx, ny);
             lum[k + 1] = s.luminance;
@@ -645,11 +649,12 @@ impl Sampler {
             let t = self.clock.sample_time(self.next_sample);
             let before = self.counters.rays;
             // The grid cell the crosshair stands for is its tile.
+            let (x0, y0) = (x.saturating_sub(sp / 2), y.saturating_sub(sp / 2));
             let cell = Rect {
-                x0: x.saturating_sub(sp / 2),
-                y0: y.saturating_sub(sp / 2),
-                x1: x.saturating_sub(sp / 2) + sp,
-                y1: y.saturating_sub(sp / 2) + sp,
+                x0,
+                y0,
+                x1: x0 + sp,
+                y1: y0 + sp,
             };
             let c = self.trace_crosshair(&state, (x as f32 + 0.5, y as f32 + 0.5), cell, t, None);
             self.insert_front(c);
