@@ -7,9 +7,13 @@ use frameless::{
     clock::Clock,
     evaluation::{self, EvalConfig, Silent},
     methods::{
-        adaptive::{sampler::crosshair_with, Adaptive, Sampler, SamplerParams},
+        adaptive::{
+            sampler::{choose_tile, crosshair_with},
+            Adaptive, Sampler, SamplerParams,
+        },
         Method, MethodContext, MethodKind,
     },
+    sampling::Rng,
     scene::{
         animation::{KeyframeTrack, TcbKey, VectorSpline},
         Camera, CameraPath, CameraTrack, Group, Material, Node, NodeKind, Scene,
@@ -551,6 +555,14 @@ fn bad_sampler_parameters_are_refused() {
             arm_fraction: f32::NAN,
             ..SamplerParams::ours()
         },
+        SamplerParams {
+            tile_choices: 0,
+            ..SamplerParams::ours()
+        },
+        SamplerParams {
+            tile_choices: 65,
+            ..SamplerParams::ours()
+        },
     ] {
         assert!(
             Sampler::new(c.tracer.clone(), c.clock, p, 1).is_err(),
@@ -619,4 +631,50 @@ fn crosshair_arms_span_half_their_tile() {
             "{c:?}"
         );
     }
+}
+
+#[test]
+fn several_tile_draws_even_out_the_gaps_between_visits() {
+    // 200 tiles, 20,000 visits: whatever the draws, every tile is visited at about the
+    // same rate; with four draws (ours) the gaps between two visits to a tile vary far
+    // less than with the paper's single uniform draw, whose gaps are exponential
+    // (coefficient of variation 1).
+    let n = 200usize;
+    let gaps_cv = |choices: u32| {
+        let mut rng = Rng::new(&[7, choices as u64]);
+        let mut last: Vec<Option<f64>> = vec![None; n];
+        let mut visits = vec![0u32; n];
+        let mut gaps = Vec::new();
+        for step in 0..20_000 {
+            let k = choose_tile(n as u32, choices, &mut rng, |k| last[k]);
+            if let Some(t) = last[k] {
+                gaps.push(step as f64 - t);
+            }
+            last[k] = Some(step as f64);
+            visits[k] += 1;
+        }
+        let (lo, hi) = (visits.iter().min().unwrap(), visits.iter().max().unwrap());
+        let mean = gaps.iter().sum::<f64>() / gaps.len() as f64;
+        let var = gaps.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / gaps.len() as f64;
+        (var.sqrt() / mean, mean, *lo, *hi)
+    };
+    let (cv1, mean1, lo1, hi1) = gaps_cv(1);
+    let (cv4, mean4, lo4, hi4) = gaps_cv(4);
+    // Same mean gap (the tile count), every tile visited.
+    assert!((mean1 - n as f64).abs() < 5.0 && (mean4 - n as f64).abs() < 5.0);
+    assert!(lo1 > 0 && lo4 > 0);
+    assert!(cv1 > 0.8, "one draw: {cv1}");
+    assert!(cv4 < 0.4 * cv1, "four draws: {cv4} against {cv1}");
+    // More even in the counts too.
+    assert!(hi4 - lo4 < hi1 - lo1, "{lo4}..{hi4} against {lo1}..{hi1}");
+    // A tile never visited goes first among the draws.
+    let mut rng = Rng::new(&[1]);
+    let never = 3usize;
+    let mut picked_never = 0;
+    for _ in 0..1000 {
+        let k = choose_tile(8, 8, &mut rng, |k| (k != never).then_some(1.0));
+        picked_never += (k == never) as u32;
+    }
+    // 8 draws of 8 tiles miss tile 3 with probability (7/8)^8 ≈ 0.34.
+    assert!((550..800).contains(&picked_never), "{picked_never}");
 }

@@ -49,7 +49,7 @@ use crate::{
     clock::Clock,
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::{completion_point, crosshair_points, crosshair_with, stratified_in},
+        sampler::{choose_tile, completion_point, crosshair_points, crosshair_with, stratified_in},
         tiling::{Pending, Rect, Tiling},
         Sampler,
     },
@@ -185,6 +185,9 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
     let mut states = StateCache::new();
     let mut snap_seq = u64::MAX;
     let mut snap = lock(&published.snapshot).clone();
+    // When this thread last initiated a crosshair in each tile of the snapshot (the
+    // snapshot's own pending crosshairs until then), for `choose_tile`.
+    let mut last: Vec<Option<f64>> = snap.pending.iter().map(|p| p.map(|p| p.t)).collect();
     let mut batch = Batch::default();
     let mut sent = Instant::now();
     let mut busy = 0.0f64;
@@ -193,10 +196,12 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         if seq != snap_seq {
             snap = lock(&published.snapshot).clone();
             snap_seq = seq;
+            last = snap.pending.iter().map(|p| p.map(|p| p.t)).collect();
         }
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
-        let k = rng.below(snap.rects.len() as u32) as usize;
+        let choices = s.config.sampler.tile_choices;
+        let k = choose_tile(snap.rects.len() as u32, choices, &mut rng, |k| last[k]);
         let rect = snap.rects[k];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
@@ -241,6 +246,7 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             };
             let sample = tracer.sample(&state, x, y);
             drop(guard);
+            last[k] = Some(now);
             batch.stream.push(StreamSample {
                 x,
                 y,

@@ -143,6 +143,28 @@ pub fn stratified_in(
     )
 }
 
+/// The tile a visit goes to, of `n` ([`SamplerParams::tile_choices`]): of `choices`
+/// uniform draws, the one whose last crosshair is the oldest (`last(k)`: when tile `k`
+/// initiated its pending crosshair, `None` if it has none, which counts as oldest; the
+/// earlier draw wins ties). One draw is the paper's uniform choice, with the same
+/// random numbers. Shared by the sequential sampler and the real-time sampling threads.
+pub fn choose_tile(
+    n: u32,
+    choices: u32,
+    rng: &mut Rng,
+    last: impl Fn(usize) -> Option<f64>,
+) -> usize {
+    let when = |k: usize| last(k).unwrap_or(f64::NEG_INFINITY);
+    let mut best = rng.below(n) as usize;
+    for _ in 1..choices {
+        let k = rng.below(n) as usize;
+        if when(k) < when(best) {
+            best = k;
+        }
+    }
+    best
+}
+
 /// Where a crosshair's five samples go: the center `(x, y)`, then `arms.0` pixels away
 /// in +x and −x and `arms.1` in +y and −y (the order [`crosshair_with`] traces them in).
 pub fn crosshair_points((x, y): (f32, f32), (ax, ay): (f32, f32)) -> [(f32, f32); 5] {
@@ -677,7 +699,10 @@ impl Sampler {
             if now - self.t_ref > REBASE_AFTER_S {
                 self.rebase(now);
             }
-            let k = self.rng.below(self.tiling.len() as u32) as usize;
+            let tiling = &self.tiling;
+            let k = choose_tile(tiling.len() as u32, self.params.tile_choices, &mut self.rng, |k| {
+                tiling.node(tiling.leaves()[k]).pending.map(|p| p.t)
+            });
             let leaf = self.tiling.leaves()[k];
             let before = self.counters.rays;
             self.visit(leaf, now);
