@@ -161,6 +161,7 @@ pub fn reconstruct_fixture_with(
             color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
             hit_point: camera.eye + camera.direction(x, y) * depth,
             velocity: v,
+            anchor: Default::default(),
         });
     }
     let mut tiling = Tiling::new(width, height);

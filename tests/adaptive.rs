@@ -397,6 +397,7 @@ fn a_pending_crosshair_completes_where_its_surface_is_now() {
         lum: 0.5,
         hit_point: before.eye + d / -d.z,
         velocity,
+        anchor: Default::default(),
     };
     let tile = Rect {
         x0: 8,

@@ -203,6 +203,7 @@ fn constant_field_reconstructs_exactly_including_holes() {
                     color: c,
                     hit_point: cam.eye + cam.direction(x, y) * (1.0 + rng.uniform()),
                     velocity: Vec3::new(rng.uniform(), 0.0, 0.0) * 0.1,
+                    anchor: Default::default(),
                 });
             }
             let mut tiling = Tiling::new(w, h);

@@ -205,7 +205,15 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         let rect = snap.rects[k];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[k] {
-            let (px, py) = completion_point(&s.config.sampler, &state.camera, &p, rect, now, w, h);
+            let (px, py) = completion_point(
+                &s.config.sampler,
+                &state.camera,
+                &p.follow(&state, now),
+                rect,
+                now,
+                w,
+                h,
+            );
             let arms = s.config.sampler.arms(rect);
             let cross =
                 crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
@@ -260,6 +268,7 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
                 lum: sample.luminance,
                 hit_point: sample.hit_point,
                 velocity: sample.velocity,
+                anchor: sample.anchor,
             }));
             break;
         }
@@ -432,7 +441,9 @@ impl ImageBuilder for Builder {
         for batch in &batches {
             r.push_stream(batch);
         }
-        let camera = s.tracer.state_at(t).camera;
+        let state = s.tracer.state_at(t);
+        let camera = state.camera;
+        r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
         let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
         if s.config.sampler.discount_converged {

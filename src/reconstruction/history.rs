@@ -585,6 +585,7 @@ mod tests {
             color: Vec3::splat(c),
             hit_point: cam.eye + cam.direction(x, y),
             velocity: Vec3::ZERO,
+            anchor: Default::default(),
         }
     }
 

@@ -99,7 +99,12 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use crate::{image::Image, scene::CameraFrame, tiles::TilingSnapshot, trace::StreamSample};
+use crate::{
+    image::Image,
+    scene::CameraFrame,
+    tiles::TilingSnapshot,
+    trace::{Anchor, SceneState, StreamSample},
+};
 pub use filter::{Extents, FilterBounds};
 use filter_table::{Lookup, TileFilter};
 use history::History;
@@ -124,6 +129,8 @@ pub struct RingSample {
     pub hit_point: Vec3,
     /// World velocity of the hit point.
     pub velocity: Vec3,
+    /// What the hit point is fixed to (where it is at display time, exactly).
+    pub anchor: Anchor,
 }
 
 impl From<&StreamSample> for RingSample {
@@ -135,6 +142,7 @@ impl From<&StreamSample> for RingSample {
             color: s.sample.color,
             hit_point: s.sample.hit_point,
             velocity: s.sample.velocity,
+            anchor: s.sample.anchor,
         }
     }
 }
@@ -142,6 +150,8 @@ impl From<&StreamSample> for RingSample {
 /// The adaptive reconstructor.
 pub struct Reconstructor {
     params: ReconParams,
+    /// The scene at the next refresh's time, to place moving samples exactly.
+    motion: Option<std::sync::Arc<SceneState>>,
     width: u32,
     height: u32,
     rate: f64,
@@ -217,6 +227,7 @@ impl Reconstructor {
         let cs = splat::channel_stride(width as usize);
         let scale0 = params.scale_bounds.0.max(1e-3);
         Self {
+            motion: None,
             params,
             width,
             height,
@@ -376,6 +387,13 @@ impl Reconstructor {
         if let Some(h) = &mut self.history {
             h.set_view_since(t0);
         }
+    }
+
+    /// The scene at the next refresh's time: with [`ReconParams::exact_motion`],
+    /// samples fixed to moving things are placed where their points are then (`None`,
+    /// or without it: extrapolated by their velocity).
+    pub fn set_motion(&mut self, state: Option<std::sync::Arc<SceneState>>) {
+        self.motion = state;
     }
 
     /// `1 / (1 + depth tolerance)` when the visibility pass is in use.

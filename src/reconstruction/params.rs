@@ -57,6 +57,13 @@ pub struct ReconParams {
     /// A depth test between reprojected samples (`None`: the paper's reconstructor,
     /// where every sample reaches every pixel of its footprint).
     pub visibility: Option<Visibility>,
+    /// Place a sample of a moving object where its surface point is at display time,
+    /// evaluated from the scene's animation (the rigid transform or the morphing
+    /// triangle it hit, [`crate::trace::Anchor`]), instead of extrapolating the velocity
+    /// it had when traced (off: the paper's). A rotating or morphing object's samples
+    /// then stay on it however old, where extrapolated ones drift off along tangents.
+    /// Needs the scene at each refresh ([`super::Reconstructor::set_motion`]).
+    pub exact_motion: bool,
 }
 
 /// The visibility pass of the splat: reprojected samples are a point cloud seen from a
@@ -119,17 +126,20 @@ impl ReconParams {
             history: None,
             filter_volume: 1.0,
             visibility: None,
+            exact_motion: false,
         }
     }
 
     /// Ours: the paper's reconstructor with the still-region history
-    /// ([`HistoryParams::default`]) and the pull-push fill of sparsely covered pixels.
+    /// ([`HistoryParams::default`]), the pull-push fill of sparsely covered pixels,
+    /// half the filter volume, the visibility pass and exact motion.
     pub fn converging() -> Self {
         Self {
             history: Some(HistoryParams::default()),
             fill_weight: 1.0,
             filter_volume: 0.5,
             visibility: Some(Visibility::default()),
+            exact_motion: true,
             ..Self::paper()
         }
     }

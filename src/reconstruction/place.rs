@@ -14,7 +14,7 @@ use super::{
     splat::{Splat, BAND_ROWS, OUTSIDE, SINGLE_THREAD_BAND_ROWS},
     Reconstructor,
 };
-use crate::scene::CameraFrame;
+use crate::{scene::CameraFrame, trace::SceneState};
 
 /// Samples per task of the parallel splat preparation (with more than one thread).
 const PREP_CHUNK: usize = 16384;
@@ -438,6 +438,33 @@ fn bin_piece(
 }
 
 impl Reconstructor {
+    /// Rewrite the velocity of every live sample fixed to something moving so that
+    /// `hit + velocity · (t − t_s)` is where its point is at `t` (a sample whose
+    /// instance has left the scene gets a NaN hit point, which drops it).
+    fn follow_motion(&mut self, t: f64, state: &SceneState, start: usize) {
+        use field::*;
+        let ring = &mut self.ring;
+        let first = ring.push_index(start);
+        let from = ring.moving.partition_point(|m| m.0 < first);
+        let base = ring.push_index(0);
+        for j in from..ring.moving.len() {
+            let (k, a) = ring.moving[j];
+            let p = ring.phys((k - base) as usize);
+            let dt = (t - ring.t[p]) as f32;
+            match state.anchor_position(&a) {
+                Some(q) if dt > 0.0 => {
+                    let h = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+                    let v = (q - h) / dt;
+                    ring.f[VX][p] = v.x;
+                    ring.f[VY][p] = v.y;
+                    ring.f[VZ][p] = v.z;
+                }
+                Some(_) => {}
+                None => ring.f[HX][p] = f32::NAN,
+            }
+        }
+    }
+
     /// What placing samples at display time `t` seen by `camera` needs (filters as of
     /// the last `update_filters`).
     pub(super) fn placer(&self, t: f64, camera: &CameraFrame) -> Placer<'_> {
@@ -479,6 +506,9 @@ impl Reconstructor {
             None => stale,
         };
         self.placed = self.ring.len() - start.min(self.ring.len());
+        if let Some(state) = self.motion.clone().filter(|_| self.params.exact_motion) {
+            self.follow_motion(t, &state, start);
+        }
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.

@@ -16,6 +16,7 @@ use std::collections::VecDeque;
 use glam::Vec3;
 
 use super::RingSample;
+use crate::trace::Anchor;
 
 /// Pushes per block of the ring's running largest time (see [`Ring::live_start`]).
 pub(crate) const TIME_BLOCK: u64 = 256;
@@ -53,6 +54,9 @@ pub struct Ring {
     pub(crate) f: [Vec<f32>; field::COUNT],
     /// Times, by physical index.
     pub(crate) t: Vec<f64>,
+    /// The samples fixed to moving things, oldest first: `(push index, anchor)` (the
+    /// static world's samples, usually most, take no room here).
+    pub(crate) moving: VecDeque<(u64, Anchor)>,
     /// Physical index of the oldest sample (0 until the ring is full).
     head: usize,
     /// Samples ever pushed.
@@ -76,6 +80,7 @@ impl Ring {
             len: 0,
             f: std::array::from_fn(|_| vec![0.0; capacity]),
             t: vec![0.0; capacity],
+            moving: VecDeque::new(),
             head: 0,
             pushed: 0,
             max_t: f64::NEG_INFINITY,
@@ -122,6 +127,22 @@ impl Ring {
             color: Vec3::new(f(R), f(G), f(B)),
             hit_point: Vec3::new(f(HX), f(HY), f(HZ)),
             velocity: Vec3::new(f(VX), f(VY), f(VZ)),
+            anchor: self.anchor_at(p),
+        }
+    }
+
+    /// Push index of the sample at logical index `i`.
+    pub(crate) fn push_index(&self, i: usize) -> u64 {
+        self.pushed - self.len as u64 + i as u64
+    }
+
+    /// What the sample at physical index `p` is fixed to.
+    fn anchor_at(&self, p: usize) -> Anchor {
+        let i = (p + self.capacity - self.head) % self.capacity;
+        let k = self.push_index(i);
+        match self.moving.binary_search_by_key(&k, |m| m.0) {
+            Ok(j) => self.moving[j].1,
+            Err(_) => Anchor::Still,
         }
     }
 
@@ -166,12 +187,18 @@ impl Ring {
             f[p] = v;
         }
         self.t[p] = s.t;
+        if s.anchor != Anchor::Still {
+            self.moving.push_back((self.pushed, s.anchor));
+        }
         if self.len < self.capacity {
             self.len += 1;
         } else {
             self.head = if p + 1 == self.capacity { 0 } else { p + 1 };
             // The oldest sample is now the one after the overwritten one.
             let front = self.pushed + 1 - self.len() as u64;
+            while self.moving.front().is_some_and(|m| m.0 < front) {
+                self.moving.pop_front();
+            }
             while (self.first_block + 1) * TIME_BLOCK <= front {
                 self.block_max_t.pop_front();
                 self.first_block += 1;
@@ -221,6 +248,7 @@ mod tests {
             color: Vec3::new(1.0, 2.0, 3.0) * t as f32,
             hit_point: Vec3::new(4.0, 5.0, 6.0) * t as f32,
             velocity: Vec3::new(7.0, 8.0, 9.0) * t as f32,
+            anchor: Default::default(),
         }
     }
 

@@ -28,6 +28,7 @@ fn single_sample_fills_the_image_with_its_color() {
         color: Vec3::new(0.25, 0.5, 0.75),
         hit_point: p,
         velocity: Vec3::ZERO,
+        anchor: Default::default(),
     });
     let img = r
         .reconstruct(0.01, &c, &TilingSnapshot::whole(w, h))
@@ -75,6 +76,7 @@ fn random_setup(
                 // A quarter of them still (front depths of any age).
                 velocity: Vec3::new(rng.uniform() - 0.5, rng.uniform() - 0.5, 0.0)
                     * if i % 4 == 0 { 0.0 } else { 0.3 },
+                anchor: Default::default(),
             }
         })
         .collect();
@@ -333,6 +335,7 @@ fn stale_cut_follows_the_ring_as_it_wraps() {
             color: Vec3::ONE,
             hit_point: Vec3::ZERO,
             velocity: Vec3::ZERO,
+            anchor: Default::default(),
         });
         if i % 250 == 0 || i > 4990 {
             let now = i as f64 * 1e-3;
@@ -373,6 +376,7 @@ fn ring_keeps_the_newest() {
             color: Vec3::ZERO,
             hit_point: Vec3::ZERO,
             velocity: Vec3::ZERO,
+            anchor: Default::default(),
         });
     }
     assert_eq!(r.ring().len(), 4);
@@ -404,6 +408,7 @@ fn sparse_ramp(fill_weight: f32) -> (f64, Vec<Vec3>) {
                 color: ramp(x),
                 hit_point: c.eye + c.direction(x, y) * 2.0,
                 velocity: Vec3::ZERO,
+                anchor: Default::default(),
             });
             n += 1;
         }

@@ -101,6 +101,7 @@ fn reconstruct(
             color,
             hit_point,
             velocity,
+            anchor: Default::default(),
         });
     }
     r.reconstruct(1.0, &camera_at(1.0), &tiling).pixels.clone()

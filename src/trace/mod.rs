@@ -48,6 +48,31 @@ pub fn luminance(c: Vec3) -> f32 {
     c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
+/// What a hit point is fixed to, so that where it is at another time can be evaluated
+/// exactly ([`SceneState::anchor_position`]) instead of extrapolated by its velocity.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Anchor {
+    /// The static world (or nothing hit): the point never moves.
+    #[default]
+    Still,
+    /// A point of a rigid instance: the instance group and the point in its local space.
+    Instance {
+        /// Index of the instance group.
+        group: u32,
+        /// The point in the group's local space.
+        local: Vec3,
+    },
+    /// A point of an animated (morphing) triangle: its index and barycentrics.
+    Triangle {
+        /// Index of the triangle in the animated triangles' acceleration structure.
+        index: u32,
+        /// Barycentric weights of the second and third vertices.
+        u: f32,
+        /// See `u`.
+        v: f32,
+    },
+}
+
 /// Everything a sample returns.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Sample {
@@ -69,6 +94,8 @@ pub struct Sample {
     /// same place under the same camera (unless a light moves), so a still region's
     /// history may keep it.
     pub dynamic: bool,
+    /// What the hit point is fixed to.
+    pub anchor: Anchor,
 }
 
 /// A traced sample with where and when it was traced: what samplers stream to a
@@ -174,6 +201,26 @@ pub struct SceneState {
     anim: Option<AnimState>,
 }
 
+impl SceneState {
+    /// Where the point `anchor` names is at this state's time (`None`: its instance is
+    /// not in the scene now).
+    pub fn anchor_position(&self, anchor: &Anchor) -> Option<Vec3> {
+        match *anchor {
+            Anchor::Still => None,
+            Anchor::Instance { group, local } => self
+                .instances
+                .iter()
+                .find(|i| i.group == group)
+                .map(|i| i.world.transform_point3(local)),
+            Anchor::Triangle { index, u, v } => {
+                let tri = self.anim.as_ref()?.tris.get(index as usize)?;
+                // `v0·(1 − u − v) + v1·u + v2·v` with `e1 = v0 − v1`, `e2 = v2 − v0`.
+                Some(Vec3::from(tri.v0 - tri.e1 * u + tri.e2 * v))
+            }
+        }
+    }
+}
+
 /// Where a ray hit.
 #[derive(Clone, Copy, Debug)]
 enum HitWhere {
@@ -196,6 +243,7 @@ pub(crate) struct Surface {
     pub uv: Vec2,
     pub material: MaterialId,
     pub velocity: Vec3,
+    pub anchor: Anchor,
 }
 
 /// A ray tracer for one scene and one image size.
@@ -611,6 +659,7 @@ impl Tracer {
                     uv,
                     material,
                     velocity: Vec3::ZERO,
+                    anchor: Anchor::Still,
                 }
             }
             HitWhere::Instance(ii, pr) => {
@@ -625,6 +674,10 @@ impl Tracer {
                     uv,
                     material,
                     velocity: inst.velocity.transform_point3(pl),
+                    anchor: Anchor::Instance {
+                        group: inst.group,
+                        local: pl,
+                    },
                 }
             }
             HitWhere::Anim(i) => {
@@ -644,6 +697,7 @@ impl Tracer {
                     uv: Vec2::ZERO,
                     material: self.scene.animated_triangles[src].material,
                     velocity: vv[0] * w + vv[1] * u + vv[2] * v,
+                    anchor: Anchor::Triangle { index: i, u, v },
                 }
             }
         }
@@ -725,6 +779,7 @@ impl Tracer {
                     velocity: Vec3::ZERO,
                     hit: false,
                     dynamic: false,
+                    anchor: Anchor::Still,
                 }
             }
             Some(h) => {
@@ -743,6 +798,7 @@ impl Tracer {
                     velocity: s.velocity,
                     hit: true,
                     dynamic,
+                    anchor: s.anchor,
                 }
             }
         }

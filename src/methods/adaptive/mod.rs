@@ -175,7 +175,9 @@ impl Method for Adaptive {
         self.sampler.run_until(t);
         let stream = self.sampler.drain_stream();
         self.recon.push_stream(&stream);
-        let camera = self.tracer.state_at(t).camera;
+        let state = self.tracer.state_at(t);
+        let camera = state.camera;
+        self.recon.set_motion(Some(state));
         self.recon.set_view_since(self.sampler.camera_since());
         self.recon
             .reconstruct(t, &camera, &self.sampler.tiling().snapshot());

@@ -20,8 +20,8 @@ use super::{
 use crate::{
     clock::Clock,
     methods::MethodError,
-    scene::CameraFrame,
     sampling::Rng,
+    scene::CameraFrame,
     trace::{Held, Sample, SceneState, StateCache, StreamSample, Tracer},
 };
 
@@ -614,7 +614,7 @@ impl Sampler {
         self.counters.visits += 1;
         let rect = self.tiling.node(leaf).rect;
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
-            let (x, y) = completion_point(&self.params, &state.camera, &p, rect, now, self.width, self.height);
+            let (x, y) = completion_point(&self.params, &state.camera, &p.follow(&state, now), rect, now, self.width, self.height);
             let c = self.trace_crosshair(&state, (x, y), rect, now, Some((p.lum, p.t)));
             self.insert_front(c);
             self.since_adjust += 1;
@@ -634,6 +634,7 @@ impl Sampler {
             lum: s.luminance,
             hit_point: s.hit_point,
             velocity: s.velocity,
+            anchor: s.anchor,
         });
     }
 

@@ -126,6 +126,23 @@ pub struct Pending {
     pub hit_point: glam::Vec3,
     /// See `hit_point`.
     pub velocity: glam::Vec3,
+    /// What the hit point is fixed to: where it is later, exactly.
+    pub anchor: crate::trace::Anchor,
+}
+
+impl Pending {
+    /// The pending crosshair with a velocity that carries its hit point to where the
+    /// point is at `now` in `state` (the scene at `now`), exactly rather than
+    /// extrapolated; as it was for the static world, or when its object has gone.
+    pub fn follow(mut self, state: &crate::trace::SceneState, now: f64) -> Self {
+        let dt = (now - self.t) as f32;
+        if let Some(q) = state.anchor_position(&self.anchor) {
+            if dt > 0.0 {
+                self.velocity = (q - self.hit_point) / dt;
+            }
+        }
+        self
+    }
 }
 
 /// One node of the K-D tree.
