@@ -24,7 +24,7 @@ use frameless::{
 use glam::Vec3;
 
 mod common;
-use common::{flat, quad};
+use common::{checkerboard, flat, quad};
 
 /// Camera looking down −z at the square [−1, 1]² filling the view.
 fn camera() -> CameraTrack {
@@ -180,13 +180,7 @@ fn right_half_share(d: &[u32], size: u32) -> f64 {
 /// A checkerboard of two greys (edges everywhere) with a small bright square; the
 /// square slides right at `speed` units per second, passing x = 0.2..0.4 at t = 0.7.
 fn motion_scene(speed: f32) -> Scene {
-    let mut bg = Vec::new();
-    for i in 0..80 {
-        for j in 0..16 {
-            let (x, y) = (-10.0 + 0.25 * i as f32, -2.0 + 0.25 * j as f32);
-            bg.extend(quad(x, x + 0.25, y, y + 0.25, -0.5, ((i + j) % 2) as u32));
-        }
-    }
+    let bg = checkerboard(-10.0, -2.0, 80, 16, 0.25, -0.5);
     let keys = (-1..=5)
         .map(|i| {
             let t = i as f32;

@@ -14,26 +14,20 @@ use frameless::{
     render::still::render,
     scene::{
         animation::{KeyframeTrack, RotationSpline, TcbKey},
-        AnimatedTriangle, Camera, CameraTrack, Group, Node, NodeKind, Scene,
+        AnimatedTriangle, Camera, CameraTrack, Group, Scene,
     },
     trace::{Anchor, TraceOptions, Tracer},
 };
 use glam::Vec3;
 
 mod common;
-use common::{flat, quad};
+use common::{animate, checkerboard, flat, quad};
 
 /// A checkerboard at z = −0.5; a bright bar 1.2 × 0.16 at z = 0 spinning about the
 /// view axis at `deg_per_s`; a small triangle at z = 0.1 in the top-right corner that
 /// grows and slides. Seen from z = 1 with a 90° field of view.
 fn spinning_scene(deg_per_s: f32) -> Scene {
-    let mut bg = Vec::new();
-    for i in 0..16 {
-        for j in 0..16 {
-            let (x, y) = (-2.0 + 0.25 * i as f32, -2.0 + 0.25 * j as f32);
-            bg.extend(quad(x, x + 0.25, y, y + 0.25, -0.5, ((i + j) % 2) as u32));
-        }
-    }
+    let bg = checkerboard(-2.0, -2.0, 16, 16, 0.25, -0.5);
     // Keys every 1/8 s; consecutive keys less than 180° apart, so the spline turns
     // the short way.
     let keys = (-8..=40)
@@ -96,14 +90,7 @@ fn spinning_scene(deg_per_s: f32) -> Scene {
         ambient: Vec3::ONE,
         ..Default::default()
     };
-    s.tracks.push(track);
-    s.nodes.push(Node {
-        parent: None,
-        kind: NodeKind::Animated {
-            name: "spin".into(),
-            track: Some(0),
-        },
-    });
+    assert_eq!(animate(&mut s, track), 0);
     s
 }
 

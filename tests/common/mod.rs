@@ -42,6 +42,19 @@ pub fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> Vec<Tr
     ]
 }
 
+/// A checkerboard of `nx × ny` squares of side `cell` from `(x0, y0)` at depth `z`,
+/// facing +z, in materials 0 and 1 alternately.
+pub fn checkerboard(x0: f32, y0: f32, nx: u32, ny: u32, cell: f32, z: f32) -> Vec<Triangle> {
+    let mut tris = Vec::new();
+    for i in 0..nx {
+        for j in 0..ny {
+            let (x, y) = (x0 + cell * i as f32, y0 + cell * j as f32);
+            tris.extend(quad(x, x + cell, y, y + cell, z, (i + j) % 2));
+        }
+    }
+    tris
+}
+
 /// A wall with two spheres in front: silhouettes, so antialiasing matters.
 pub fn two_spheres() -> Scene {
     Scene {
