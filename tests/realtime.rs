@@ -393,3 +393,38 @@ fn viewer_opens_under_xvfb() {
     let rec = CameraPath::load(&dir.join("rec.csv")).unwrap();
     assert!(rec.keys.len() >= 10, "camera recorded at the refresh rate");
 }
+
+#[test]
+fn threads_size_the_viewers_pipeline() {
+    // `frameless --threads N view` sizes the pipeline for N cores, as `live` does:
+    // traditional frameless samples on every core, adaptive on all but one.
+    let dir = std::env::temp_dir().join(format!("frameless-view-threads-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for (method, cores, sampling) in [
+        ("traditional-frameless", 1, 1),
+        ("traditional-frameless", 3, 3),
+        ("adaptive", 3, 2),
+    ] {
+        let out_dir = dir.join(format!("{method}-{cores}"));
+        let out = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .args(["--threads", &cores.to_string(), "view", "--headless"])
+            .args(["--scene", "toycar", "--size", "32x24", "--seconds", "0.3"])
+            .args(["--method", method, "--images", "0", "--out"])
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out_dir.join("stats.json")).unwrap())
+                .unwrap();
+        assert_eq!(
+            stats["pipeline"]["sampling_threads"], sampling,
+            "{method} on {cores} cores"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -41,7 +41,8 @@ impl FromStr for Size {
 #[derive(Parser, Debug)]
 #[command(name = "frameless", version, about, long_about = None)]
 pub struct Cli {
-    /// Worker threads (default: all cores).
+    /// Worker threads (default: all cores); for `view` and `live`, the real-time
+    /// pipeline's threads sized for this many cores.
     #[arg(long, global = true, value_parser = clap::value_parser!(u16).range(1..=1024), allow_negative_numbers = true)]
     pub threads: Option<u16>,
     /// What to do.

@@ -88,7 +88,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sampler(a) => sampler(a),
         Command::Table1(a) => table1(a),
         Command::Render(a) => render(a),
-        Command::View(a) => view(a),
+        Command::View(a) => view(a, cli.threads),
         Command::Live(a) => live(a, cli.threads),
         Command::Sweep(a) => sweep::sweep(a),
         Command::Merge(a) => sweep::merge(a),
@@ -460,7 +460,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     Ok(())
 }
 
-fn view(a: args::ViewArgs) -> Result<()> {
+fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     use frameless::realtime::{self, RtConfig};
     if a.headless {
         frameless::output::check_writable_folder(&a.out)?;
@@ -469,7 +469,11 @@ fn view(a: args::ViewArgs) -> Result<()> {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
     let method = a.method;
-    let mut cfg = RtConfig::new(method);
+    // `--threads N`: the pipeline's threads sized for N cores, as `live` does.
+    let mut cfg = match threads {
+        Some(n) => RtConfig::for_cores(method, n as usize),
+        None => RtConfig::new(method),
+    };
     if let Some(n) = a.sampling_threads {
         cfg.sampling_threads = n as usize;
     }
