@@ -79,6 +79,14 @@ pub struct BenchReport {
     pub reconstruct_scene_ms_1t: f64,
     /// The same on all threads.
     pub reconstruct_scene_ms_all: f64,
+    /// Real-time adaptive's controller against one sampling thread on this scene
+    /// ([`crate::realtime::adaptive::controller_bench`], 2 s recorded from `time`):
+    /// samples per second the controller takes in when fed the recorded batches...
+    pub controller_samples_per_s: f64,
+    /// ...samples per second of tracing time of the one sampling thread...
+    pub controller_tracing_samples_per_s_1t: f64,
+    /// ...and their ratio: the sampling threads one controller keeps up with.
+    pub controller_margin: f64,
 }
 
 /// A reconstructor at `width × height` with a full ring of `n` synthetic samples:
@@ -374,6 +382,7 @@ pub fn run(
     let rcv = one.install(|| reconstruct_realtime_ms(640, 480, 2, rr));
     let rs1 = one.install(|| reconstruct_scene_ms(tracer, time, rr));
     let rsa = reconstruct_scene_ms(tracer, time, rr);
+    let ctrl = controller_throughput(tracer, time);
     BenchReport {
         scene: tracer.scene().name.clone(),
         width: w,
@@ -394,5 +403,23 @@ pub fn run(
         reconstruct_realtime_640_ms_1t: rcv,
         reconstruct_scene_ms_1t: rs1,
         reconstruct_scene_ms_all: rsa,
+        controller_samples_per_s: ctrl.map_or(f64::NAN, |c| c.controller_samples_per_s),
+        controller_tracing_samples_per_s_1t: ctrl.map_or(f64::NAN, |c| c.tracing_samples_per_s),
+        controller_margin: ctrl.map_or(f64::NAN, |c| c.margin()),
     }
 }
+
+/// Real-time adaptive's controller on `tracer`'s scene from `time`
+/// ([`crate::realtime::adaptive::controller_bench`]; `None` if it could not start).
+pub fn controller_throughput(
+    tracer: &std::sync::Arc<Tracer>,
+    time: f64,
+) -> Option<crate::realtime::adaptive::ControllerBench> {
+    use crate::realtime::{RtConfig, RtMethod};
+    let mut config = RtConfig::new(RtMethod::Adaptive);
+    config.start = time;
+    crate::realtime::adaptive::controller_bench(tracer.clone(), config, CONTROLLER_RECORD_S).ok()
+}
+
+/// Wall seconds of sampling the controller bench records.
+const CONTROLLER_RECORD_S: f64 = 2.0;

@@ -428,3 +428,20 @@ fn threads_size_the_viewers_pipeline() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_controller_bench_replays_what_a_sampling_thread_sent() {
+    use frameless::realtime::adaptive::controller_bench;
+    let b = controller_bench(toycar(64, 48), RtConfig::new(RtMethod::Adaptive), 0.3).unwrap();
+    // A third of a second of one thread's crosshairs, measured both ways.
+    assert!(b.samples > 1000, "{b:?}");
+    assert!(
+        b.tracing_samples_per_s.is_finite() && b.tracing_samples_per_s > 0.0,
+        "{b:?}"
+    );
+    assert!(
+        b.controller_samples_per_s.is_finite() && b.controller_samples_per_s > 0.0,
+        "{b:?}"
+    );
+    assert!((b.margin() - b.controller_samples_per_s / b.tracing_samples_per_s).abs() < 1e-9);
+}

@@ -150,6 +150,12 @@ pub fn run(cli: Cli) -> Result<()> {
                     "reconstruct scene {:.1} ms 1 thread, {:.1} ms all (sampler ran 1 s at 400K)",
                     report.reconstruct_scene_ms_1t, report.reconstruct_scene_ms_all
                 );
+                println!(
+                    "controller       {:.2} M samples/s fed recorded batches, {:.2} M/s one tracing thread: keeps up with {:.1} threads",
+                    report.controller_samples_per_s / 1e6,
+                    report.controller_tracing_samples_per_s_1t / 1e6,
+                    report.controller_margin
+                );
             }
             Ok(())
         }

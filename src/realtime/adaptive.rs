@@ -92,22 +92,35 @@ struct Published {
     pixel_draws: Vec<AtomicU32>,
 }
 
+impl Published {
+    /// Nothing published yet: one tile, nothing pending.
+    fn new(s: &Shared) -> Self {
+        let (w, h) = s.tracer.size();
+        Self {
+            snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
+            snapshot_seq: AtomicU64::new(0),
+            tiling: Mutex::new(None),
+            history_counts: Mutex::new(None),
+            pixel_draws: if s.config.sampler.stratified_positions {
+                (0..w as usize * h as usize)
+                    .map(|_| AtomicU32::new(0))
+                    .collect()
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// Publish `sampler`'s tiles for the sampling threads.
+    fn snapshot(&self, sampler: &Sampler) {
+        *lock(&self.snapshot) = Arc::new(TileSnapshot::of(sampler));
+        self.snapshot_seq.fetch_add(1, Ordering::Release);
+    }
+}
+
 fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
-    let (w, h) = s.tracer.size();
-    let published = Arc::new(Published {
-        snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
-        snapshot_seq: AtomicU64::new(0),
-        tiling: Mutex::new(None),
-        history_counts: Mutex::new(None),
-        pixel_draws: if s.config.sampler.stratified_positions {
-            (0..w as usize * h as usize)
-                .map(|_| AtomicU32::new(0))
-                .collect()
-        } else {
-            Vec::new()
-        },
-    });
+    let published = Arc::new(Published::new(&s));
     // Channels are bounded so that a slow consumer slows its producers instead of
     // growing memory without limit; the capacities hold ~100 ms of batches.
     let (to_ctrl, ctrl_rx) = bounded(256);
@@ -159,6 +172,7 @@ impl TileSnapshot {
 }
 
 /// What a sampling thread did on one visit.
+#[derive(Clone)]
 enum Visit {
     /// It completed the crosshair `pending` initiated.
     Completed {
@@ -171,7 +185,7 @@ enum Visit {
 }
 
 /// A batch for the controller.
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Batch {
     visits: Vec<Visit>,
     stream: Vec<StreamSample>,
@@ -287,8 +301,8 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
     }
 }
 
-/// The controller thread: the sampler's one owner.
-fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Vec<StreamSample>>) {
+/// The controller's sampler: fed by the sampling threads, never run on its own.
+fn controller_sampler(s: &Shared) -> Option<Sampler> {
     // The sampler takes its clock's start as the origin of its decay weights; the rate
     // and the refresh only pace `run_until`, the sequential budget, which is never
     // called here (the sampling threads feed the sampler). Hence no rate.
@@ -298,9 +312,63 @@ fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Ve
         first_refresh: s.config.start,
         refresh_hz: s.config.refresh_hz,
     };
-    let mut sampler = match Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed) {
-        Ok(x) => x,
-        Err(_) => return, // validated by the pipeline before it started
+    // Validated by the pipeline before it started.
+    Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed).ok()
+}
+
+/// What the controller did with one batch.
+struct Ingested {
+    /// The batch's samples and the replacement crosshairs the sampler traced.
+    stream: Vec<StreamSample>,
+    /// Rays the controller traced itself (reprojection).
+    own_rays: u64,
+    /// Visits whose reprojection step ran, and those skipped.
+    reprojected: u64,
+    skipped: u64,
+}
+
+/// Take one sampling thread's batch into the sampler: completed crosshairs into the
+/// deep buffer and the tiles' statistics (and their reprojection step when
+/// `reproject`, at `now`), initiated ones as their tiles' pending crosshairs.
+fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: f64) -> Ingested {
+    let (mut own_rays, mut reprojected, mut skipped) = (0, 0, 0);
+    for v in batch.visits {
+        match v {
+            Visit::Completed {
+                crosshair,
+                rays,
+                pending,
+            } => {
+                sampler.clear_pending(pending.x, pending.y, pending.t);
+                let t = crosshair.t;
+                let (px, py) = (crosshair.x as u32, crosshair.y as u32);
+                sampler.ingest_crosshair(crosshair, rays as u64, t);
+                if reproject {
+                    let before = sampler.counters().rays;
+                    sampler.reproject_visit(px, py, now);
+                    own_rays += sampler.counters().rays - before;
+                    reprojected += 1;
+                } else {
+                    skipped += 1;
+                }
+            }
+            Visit::Initiated(p) => sampler.ingest_pending(p),
+        }
+    }
+    let mut stream = batch.stream;
+    stream.extend(sampler.drain_stream()); // replacement crosshairs
+    Ingested {
+        stream,
+        own_rays,
+        reprojected,
+        skipped,
+    }
+}
+
+/// The controller thread: the sampler's one owner.
+fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Vec<StreamSample>>) {
+    let Some(mut sampler) = controller_sampler(s) else {
+        return;
     };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
@@ -310,36 +378,16 @@ fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Ve
             Ok(batch) => {
                 // Behind: more batches are waiting than the one in hand.
                 let reproject = rx.is_empty();
-                let mut own_rays = 0u64;
-                for v in batch.visits {
-                    match v {
-                        Visit::Completed {
-                            crosshair,
-                            rays,
-                            pending,
-                        } => {
-                            sampler.clear_pending(pending.x, pending.y, pending.t);
-                            let t = crosshair.t;
-                            let (px, py) = (crosshair.x as u32, crosshair.y as u32);
-                            sampler.ingest_crosshair(crosshair, rays as u64, t);
-                            if reproject {
-                                let before = sampler.counters().rays;
-                                sampler.reproject_visit(px, py, s.clock.now());
-                                own_rays += sampler.counters().rays - before;
-                                s.reprojected_visits.fetch_add(1, Ordering::Relaxed);
-                            } else {
-                                s.skipped_reprojections.fetch_add(1, Ordering::Relaxed);
-                            }
-                        }
-                        Visit::Initiated(p) => sampler.ingest_pending(p),
-                    }
-                }
-                let mut stream = batch.stream;
-                let extra = sampler.drain_stream(); // replacement crosshairs
-                s.samples.fetch_add(extra.len() as u64, Ordering::Relaxed);
-                s.rays.fetch_add(own_rays, Ordering::Relaxed);
-                stream.extend(extra);
-                if tx.send(stream).is_err() {
+                let traced = batch.stream.len();
+                let done = ingest(&mut sampler, batch, reproject, s.clock.now());
+                let extra = (done.stream.len() - traced) as u64;
+                s.samples.fetch_add(extra, Ordering::Relaxed);
+                s.rays.fetch_add(done.own_rays, Ordering::Relaxed);
+                s.reprojected_visits
+                    .fetch_add(done.reprojected, Ordering::Relaxed);
+                s.skipped_reprojections
+                    .fetch_add(done.skipped, Ordering::Relaxed);
+                if tx.send(done.stream).is_err() {
                     return;
                 }
             }
@@ -347,8 +395,7 @@ fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Ve
             Err(RecvTimeoutError::Disconnected) => return,
         }
         if snap_at.elapsed() >= SNAPSHOT_EVERY {
-            *lock(&published.snapshot) = Arc::new(TileSnapshot::of(&sampler));
-            published.snapshot_seq.fetch_add(1, Ordering::Release);
+            published.snapshot(&sampler);
             s.tiles
                 .store(sampler.tiling().len() as u64, Ordering::Relaxed);
             snap_at = Instant::now();
@@ -532,4 +579,70 @@ mod tests {
         }
         assert_eq!(limit, None);
     }
+}
+
+/// The controller against one sampling thread ([`controller_bench`]).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct ControllerBench {
+    /// Samples one sampling thread traced in the recording.
+    pub samples: u64,
+    /// Its samples per second of tracing (busy) time.
+    pub tracing_samples_per_s: f64,
+    /// Samples per second the controller takes in, fed the recorded batches one after
+    /// another with nothing else to do.
+    pub controller_samples_per_s: f64,
+}
+
+impl ControllerBench {
+    /// How many sampling threads the controller could keep up with.
+    pub fn margin(&self) -> f64 {
+        self.controller_samples_per_s / self.tracing_samples_per_s
+    }
+}
+
+/// Record what one sampling thread sends the controller for `seconds` of wall time
+/// (the controller taking it in as it comes, as live), then feed the recorded batches
+/// in order to a fresh controller and time only that. Real-time adaptive with
+/// `config` on `tracer`'s scene and image. The replay does every visit's
+/// reprojection step (live, a controller that falls behind skips it).
+pub fn controller_bench(
+    tracer: Arc<crate::trace::Tracer>,
+    config: super::RtConfig,
+    seconds: f64,
+) -> Result<ControllerBench, RealtimeError> {
+    let s = Arc::new(Shared::new(tracer, config));
+    let published = Arc::new(Published::new(&s));
+    let mut sampler = controller_sampler(&s).ok_or(RealtimeError::Config(
+        "the sampler's parameters are invalid".into(),
+    ))?;
+    let (tx, rx) = bounded(256);
+    let (s1, p1) = (s.clone(), published.clone());
+    let thread = std::thread::spawn(move || sample(&s1, &p1, 0, tx));
+    let mut recorded = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < seconds {
+        let Ok(batch) = rx.recv_timeout(Duration::from_millis(50)) else {
+            continue;
+        };
+        recorded.push((batch.clone(), s.clock.now()));
+        ingest(&mut sampler, batch, true, s.clock.now());
+        published.snapshot(&sampler);
+    }
+    s.stop.store(true, Ordering::Relaxed);
+    drop(rx);
+    let _ = thread.join();
+    let samples = s.samples.load(Ordering::Relaxed);
+    let busy = s.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9;
+    let recorded_samples: usize = recorded.iter().map(|(b, _)| b.stream.len()).sum();
+    let mut replay = controller_sampler(&s).expect("made once already");
+    let t1 = Instant::now();
+    for (batch, now) in recorded {
+        std::hint::black_box(ingest(&mut replay, batch, true, now).stream.len());
+    }
+    let controller_s = t1.elapsed().as_secs_f64();
+    Ok(ControllerBench {
+        samples,
+        tracing_samples_per_s: samples as f64 / busy.max(1e-9),
+        controller_samples_per_s: recorded_samples as f64 / controller_s.max(1e-9),
+    })
 }
