@@ -435,8 +435,8 @@ impl History {
             }
             let l = luminance(f.color);
             let (lo, hi) = self.acc.lum_range[q];
-            let outside = self.acc.count[q] >= p.min_count_to_test
-                && (l < lo - slack || l > hi + slack);
+            let outside =
+                self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
             match (outside, self.held[q].take()) {
                 (false, held) => {
                     // In range: a held sample was a rare part of the pixel after all.

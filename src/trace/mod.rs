@@ -197,6 +197,9 @@ pub struct SceneState {
     /// Lights: `(position, color)`.
     pub lights: Vec<(Vec3, Vec3)>,
     instances: Vec<InstanceState>,
+    /// The index in `instances` of each instance group's instance (`u32::MAX`: not in
+    /// the scene at this time).
+    instance_of_group: Vec<u32>,
     top: Option<Bvh2>,
     anim: Option<AnimState>,
 }
@@ -207,11 +210,11 @@ impl SceneState {
     pub fn anchor_position(&self, anchor: &Anchor) -> Option<Vec3> {
         match *anchor {
             Anchor::Still => None,
-            Anchor::Instance { group, local } => self
-                .instances
-                .iter()
-                .find(|i| i.group == group)
-                .map(|i| i.world.transform_point3(local)),
+            Anchor::Instance { group, local } => {
+                let i = *self.instance_of_group.get(group as usize)?;
+                let inst = self.instances.get(i as usize)?;
+                Some(inst.world.transform_point3(local))
+            }
             Anchor::Triangle { index, u, v } => {
                 let tri = self.anim.as_ref()?.tris.get(index as usize)?;
                 // `v0·(1 − u − v) + v1·u + v2·v` with `e1 = v0 − v1`, `e2 = v2 − v0`.
@@ -478,6 +481,10 @@ impl Tracer {
                 aabb: transform_aabb(&ns.matrix, &g.aabb),
             });
         }
+        let mut instance_of_group = vec![u32::MAX; self.instance_groups.len()];
+        for (k, inst) in instances.iter().enumerate() {
+            instance_of_group[inst.group as usize] = k as u32;
+        }
         let top = build_top_level(&instances);
         let anim = self.anim_base.as_ref().map(|base| {
             let data = anim_positions(scene, time);
@@ -520,6 +527,7 @@ impl Tracer {
             camera,
             lights,
             instances,
+            instance_of_group,
             top,
             anim,
         }
