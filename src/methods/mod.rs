@@ -1,7 +1,7 @@
 //! Rendering methods compared by the evaluation.
 //!
 //! Each method lives in one file that defines its [`MethodInfo`]: name, description,
-//! budget rules and constructor. The [`registry!`] below lists every method once; it
+//! budget rules and constructor. The `registry!` below lists every method once; it
 //! declares the files and derives [`MethodKind`], the typed name that the evaluation,
 //! Table 1, the CLI (clap) and the reports (serde) use. None of them matches on a
 //! variant: they read the description. Adding a method is one file defining a
