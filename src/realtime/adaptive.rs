@@ -210,7 +210,8 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
         if seq != snap_seq {
             snap = lock(&published.snapshot).clone();
             snap_seq = seq;
-            last = snap.pending.iter().map(|p| p.map(|p| p.t)).collect();
+            last.clear();
+            last.extend(snap.pending.iter().map(|p| p.map(|p| p.t)));
         }
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
@@ -536,6 +537,72 @@ impl ImageBuilder for Builder {
     }
 }
 
+/// The controller against one sampling thread ([`controller_bench`]).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct ControllerBench {
+    /// Samples one sampling thread traced in the recording.
+    pub samples: u64,
+    /// Its samples per second of tracing (busy) time.
+    pub tracing_samples_per_s: f64,
+    /// Samples per second the controller takes in, fed the recorded batches one after
+    /// another with nothing else to do.
+    pub controller_samples_per_s: f64,
+}
+
+impl ControllerBench {
+    /// How many sampling threads the controller could keep up with.
+    pub fn margin(&self) -> f64 {
+        self.controller_samples_per_s / self.tracing_samples_per_s
+    }
+}
+
+/// Record what one sampling thread sends the controller for `seconds` of wall time
+/// (the controller taking it in as it comes, as live), then feed the recorded batches
+/// in order to a fresh controller and time only that. Real-time adaptive with
+/// `config` on `tracer`'s scene and image. The replay does every visit's
+/// reprojection step (live, a controller that falls behind skips it).
+pub fn controller_bench(
+    tracer: Arc<crate::trace::Tracer>,
+    config: super::RtConfig,
+    seconds: f64,
+) -> Result<ControllerBench, RealtimeError> {
+    let s = Arc::new(Shared::new(tracer, config));
+    let published = Arc::new(Published::new(&s));
+    let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
+    let mut sampler = controller_sampler(&s).ok_or_else(invalid)?;
+    let mut replay = controller_sampler(&s).ok_or_else(invalid)?;
+    let (tx, rx) = bounded(256);
+    let (s1, p1) = (s.clone(), published.clone());
+    let thread = std::thread::spawn(move || sample(&s1, &p1, 0, tx));
+    let mut recorded = Vec::new();
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < seconds {
+        let Ok(batch) = rx.recv_timeout(Duration::from_millis(50)) else {
+            continue;
+        };
+        let now = s.clock.now();
+        recorded.push((batch.clone(), now));
+        ingest(&mut sampler, batch, true, now);
+        published.snapshot(&sampler);
+    }
+    s.stop.store(true, Ordering::Relaxed);
+    drop(rx);
+    let _ = thread.join();
+    let samples = s.samples.load(Ordering::Relaxed);
+    let busy = s.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9;
+    let recorded_samples: usize = recorded.iter().map(|(b, _)| b.stream.len()).sum();
+    let t1 = Instant::now();
+    for (batch, now) in recorded {
+        std::hint::black_box(ingest(&mut replay, batch, true, now).stream.len());
+    }
+    let controller_s = t1.elapsed().as_secs_f64();
+    Ok(ControllerBench {
+        samples,
+        tracing_samples_per_s: samples as f64 / busy.max(1e-9),
+        controller_samples_per_s: recorded_samples as f64 / controller_s.max(1e-9),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::next_live_limit;
@@ -579,70 +646,4 @@ mod tests {
         }
         assert_eq!(limit, None);
     }
-}
-
-/// The controller against one sampling thread ([`controller_bench`]).
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-pub struct ControllerBench {
-    /// Samples one sampling thread traced in the recording.
-    pub samples: u64,
-    /// Its samples per second of tracing (busy) time.
-    pub tracing_samples_per_s: f64,
-    /// Samples per second the controller takes in, fed the recorded batches one after
-    /// another with nothing else to do.
-    pub controller_samples_per_s: f64,
-}
-
-impl ControllerBench {
-    /// How many sampling threads the controller could keep up with.
-    pub fn margin(&self) -> f64 {
-        self.controller_samples_per_s / self.tracing_samples_per_s
-    }
-}
-
-/// Record what one sampling thread sends the controller for `seconds` of wall time
-/// (the controller taking it in as it comes, as live), then feed the recorded batches
-/// in order to a fresh controller and time only that. Real-time adaptive with
-/// `config` on `tracer`'s scene and image. The replay does every visit's
-/// reprojection step (live, a controller that falls behind skips it).
-pub fn controller_bench(
-    tracer: Arc<crate::trace::Tracer>,
-    config: super::RtConfig,
-    seconds: f64,
-) -> Result<ControllerBench, RealtimeError> {
-    let s = Arc::new(Shared::new(tracer, config));
-    let published = Arc::new(Published::new(&s));
-    let mut sampler = controller_sampler(&s).ok_or(RealtimeError::Config(
-        "the sampler's parameters are invalid".into(),
-    ))?;
-    let (tx, rx) = bounded(256);
-    let (s1, p1) = (s.clone(), published.clone());
-    let thread = std::thread::spawn(move || sample(&s1, &p1, 0, tx));
-    let mut recorded = Vec::new();
-    let t0 = Instant::now();
-    while t0.elapsed().as_secs_f64() < seconds {
-        let Ok(batch) = rx.recv_timeout(Duration::from_millis(50)) else {
-            continue;
-        };
-        recorded.push((batch.clone(), s.clock.now()));
-        ingest(&mut sampler, batch, true, s.clock.now());
-        published.snapshot(&sampler);
-    }
-    s.stop.store(true, Ordering::Relaxed);
-    drop(rx);
-    let _ = thread.join();
-    let samples = s.samples.load(Ordering::Relaxed);
-    let busy = s.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9;
-    let recorded_samples: usize = recorded.iter().map(|(b, _)| b.stream.len()).sum();
-    let mut replay = controller_sampler(&s).expect("made once already");
-    let t1 = Instant::now();
-    for (batch, now) in recorded {
-        std::hint::black_box(ingest(&mut replay, batch, true, now).stream.len());
-    }
-    let controller_s = t1.elapsed().as_secs_f64();
-    Ok(ControllerBench {
-        samples,
-        tracing_samples_per_s: samples as f64 / busy.max(1e-9),
-        controller_samples_per_s: recorded_samples as f64 / controller_s.max(1e-9),
-    })
 }

@@ -292,6 +292,21 @@ impl History {
         self.view_since = Some(t0);
     }
 
+    /// The range test's slack at a refresh seen by `camera`: the still view's when the
+    /// view is the one the history was gathered in (at the first refresh: when every
+    /// sample in hand was traced since `since`, from this view).
+    fn range_slack(&self, camera: &CameraFrame, since: f64) -> f32 {
+        let still_view = match self.camera {
+            Some(c) => c.same_view(camera),
+            None => self.fresh.iter().all(|f| f.t >= since),
+        };
+        if still_view {
+            self.params.still_range_tolerance
+        } else {
+            self.params.range_tolerance
+        }
+    }
+
     /// The pixel where world point `p` is seen from `camera`, if on screen.
     fn pixel_at(&self, camera: &CameraFrame, p: Vec3) -> Option<(usize, f32)> {
         let (x, y, z) = camera.project(p)?;
@@ -376,17 +391,7 @@ impl History {
         );
         self.last_camera = Some(*camera);
         let p = self.params;
-        // The view has not changed since the history was gathered (at the first
-        // refresh: every sample in hand was traced from this view).
-        let still_view = match self.camera {
-            Some(c) => c.same_view(camera),
-            None => self.fresh.iter().all(|f| f.t >= since),
-        };
-        let slack = if still_view {
-            p.still_range_tolerance
-        } else {
-            p.range_tolerance
-        };
+        let slack = self.range_slack(camera, since);
         if p.reproject && !self.camera.is_some_and(|c| c.same_view(camera)) {
             self.reproject_to(camera, front);
         }

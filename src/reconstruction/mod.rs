@@ -150,7 +150,8 @@ impl From<&StreamSample> for RingSample {
 /// The adaptive reconstructor.
 pub struct Reconstructor {
     params: ReconParams,
-    /// The scene at the next refresh's time, to place moving samples exactly.
+    /// The scene at the next refresh's time, to place moving samples exactly (used
+    /// by that refresh only, so a stale scene is never applied to a later one).
     motion: Option<std::sync::Arc<SceneState>>,
     width: u32,
     height: u32,
@@ -391,7 +392,8 @@ impl Reconstructor {
 
     /// The scene at the next refresh's time: with [`ReconParams::exact_motion`],
     /// samples fixed to moving things are placed where their points are then (`None`,
-    /// or without it: extrapolated by their velocity).
+    /// or without it: extrapolated by their velocity). Applies to the next refresh
+    /// only; set it before each.
     pub fn set_motion(&mut self, state: Option<std::sync::Arc<SceneState>>) {
         self.motion = state;
     }

@@ -506,7 +506,7 @@ impl Reconstructor {
             None => stale,
         };
         self.placed = self.ring.len() - start.min(self.ring.len());
-        if let Some(state) = self.motion.clone().filter(|_| self.params.exact_motion) {
+        if let Some(state) = self.motion.take().filter(|_| self.params.exact_motion) {
             self.follow_motion(t, &state, start);
         }
         let threads = rayon::current_num_threads();
