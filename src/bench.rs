@@ -79,13 +79,15 @@ pub struct BenchReport {
     pub reconstruct_scene_ms_1t: f64,
     /// The same on all threads.
     pub reconstruct_scene_ms_all: f64,
-    /// Real-time adaptive's controller against one sampling thread on this scene
-    /// ([`crate::realtime::adaptive::controller_bench`], 2 s recorded from `time`):
-    /// samples per second the controller takes in when fed the recorded batches...
+    /// Real-time adaptive's controllers against one sampling thread on this scene
+    /// ([`crate::realtime::adaptive::controller_bench`], 2 s recorded from `time`), as
+    /// many as the pipeline runs for `threads` cores...
+    pub controllers: usize,
+    /// ...samples per second they take in together when fed the recorded batches...
     pub controller_samples_per_s: f64,
     /// ...samples per second of tracing time of the one sampling thread...
     pub controller_tracing_samples_per_s_1t: f64,
-    /// ...and their ratio: the sampling threads one controller keeps up with.
+    /// ...and their ratio: the sampling threads the controllers keep up with.
     pub controller_margin: f64,
 }
 
@@ -403,20 +405,22 @@ pub fn run(
         reconstruct_realtime_640_ms_1t: rcv,
         reconstruct_scene_ms_1t: rs1,
         reconstruct_scene_ms_all: rsa,
+        controllers: ctrl.map_or(0, |c| c.controllers),
         controller_samples_per_s: ctrl.map_or(f64::NAN, |c| c.controller_samples_per_s),
         controller_tracing_samples_per_s_1t: ctrl.map_or(f64::NAN, |c| c.tracing_samples_per_s),
         controller_margin: ctrl.map_or(f64::NAN, |c| c.margin()),
     }
 }
 
-/// Real-time adaptive's controller on `tracer`'s scene from `time`
+/// Real-time adaptive's controllers on `tracer`'s scene from `time`, as many as its
+/// pipeline runs on as many cores as the current thread pool has threads
 /// ([`crate::realtime::adaptive::controller_bench`]; `None` if it could not start).
 pub fn controller_throughput(
     tracer: &std::sync::Arc<Tracer>,
     time: f64,
 ) -> Option<crate::realtime::adaptive::ControllerBench> {
     use crate::realtime::{RtConfig, RtMethod};
-    let mut config = RtConfig::new(RtMethod::Adaptive);
+    let mut config = RtConfig::for_cores(RtMethod::Adaptive, rayon::current_num_threads());
     config.start = time;
     crate::realtime::adaptive::controller_bench(tracer.clone(), config, CONTROLLER_RECORD_S).ok()
 }

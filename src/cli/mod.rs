@@ -151,7 +151,8 @@ pub fn run(cli: Cli) -> Result<()> {
                     report.reconstruct_scene_ms_1t, report.reconstruct_scene_ms_all
                 );
                 println!(
-                    "controller       {:.2} M samples/s fed recorded batches, {:.2} M/s one tracing thread: keeps up with {:.1} threads",
+                    "controllers      {} together {:.2} M samples/s fed recorded batches, {:.2} M/s one tracing thread: keep up with {:.1} threads",
+                    report.controllers,
                     report.controller_samples_per_s / 1e6,
                     report.controller_tracing_samples_per_s_1t / 1e6,
                     report.controller_margin

@@ -1,32 +1,40 @@
-//! The real-time adaptive method: adaptive sampling threads, one controller thread that
-//! owns the tiling and the deep buffer (afr-optix keeps "the hierarchy on one
-//! processor"), and the adaptive space-time reconstructor on the image thread.
+//! The real-time adaptive method: adaptive sampling threads, controller threads that
+//! each own the tiling and the deep buffer of one band of the image, and the adaptive
+//! space-time reconstructor on the image thread.
 //!
 //! ```text
-//!  sampling ×N ──crosshairs, initiating samples──► controller (Sampler: deep buffer,
-//!      ▲                                            tiling, gain control, reprojection)
-//!      └──── tile snapshot (Arc, ~1 ms) ◄───────────┘   │ samples + tiling copy (Arc)
+//!  sampling ×N ──crosshairs, initiating samples──► controller ×K, one per band of rows
+//!      ▲             (to the band of the tile)     (Sampler: deep buffer, tiling,
+//!      │                                            gain control, reprojection)
+//!      └──── tile snapshots (Arc, ~1 ms) ◄──────────┘   │ samples + tiling snapshot
 //!                                                       ▼
 //!                                     image thread: Reconstructor at the display rate
 //! ```
 //!
-//! A sampling thread visits a tile of the published snapshot chosen uniformly at
-//! random; it completes the crosshair the tile's pending sample initiated, where its
+//! A sampling thread visits a tile of the published snapshots (the bands' tiles taken
+//! together): it completes the crosshair the tile's pending sample initiated, where its
 //! surface point is now ([`completion_point`], as the sequential sampler; taking its
 //! five pixels) and initiates the next one at a random location in the tile (taking that
 //! pixel). A taken pixel means another thread is there: it picks another tile or
 //! location.
 //!
-//! The controller holds an ordinary [`Sampler`] and feeds it what the sampling threads
-//! traced: completed crosshairs (inserted, with tile statistics updated and the tiling
-//! adjusted after every chunk, exactly as in a sequential visit) and initiating samples
-//! (which become their tile's pending crosshair). The reprojection step of each visit
-//! runs there too, occlusion rays included — but only while the controller keeps up
-//! with its input: when batches queue up it skips reprojection for that batch, so that
-//! the tiling never lags behind the samples (the share that ran is reported). About
-//! every millisecond it publishes the tile selection (rectangles and pending crosshairs)
-//! for the sampling threads, and at twice the display rate a copy of the tiling for the
-//! reconstructor's filters.
+//! A controller holds an ordinary [`Sampler`] for its band ([`Sampler::for_region`])
+//! and feeds it what the sampling threads traced there: completed crosshairs (inserted,
+//! with tile statistics updated and the tiling adjusted after every chunk, exactly as
+//! in a sequential visit) and initiating samples (which become their tile's pending
+//! crosshair). The reprojection step of each visit runs there too, occlusion rays
+//! included — but only while the controller keeps up with its input: when batches
+//! queue up it skips reprojection for that batch, so that the tiling never lags behind
+//! the samples (the share that ran is reported). About every millisecond it publishes
+//! its tiles for the sampling threads, and at twice the display rate a snapshot of its
+//! tiling for the reconstructor's filters.
+//!
+//! One controller takes in the samples of a few sampling threads
+//! ([`THREADS_PER_CONTROLLER`]); with more threads the image is cut into bands of
+//! rows, one controller each, so that no one thread touches every sample. Each band
+//! adapts its own tiles and tile count; samples go to the bands in proportion to their
+//! tiles, since a sampling thread draws among all tiles alike. A sampler that reprojects
+//! crosshairs keeps one band (a crosshair may move anywhere in the image).
 //!
 //! The reconstructor's filters need the sample rate; the image builder measures it.
 
@@ -50,11 +58,12 @@ use crate::{
     methods::adaptive::{
         deep_buffer::Crosshair,
         sampler::{choose_tile, completion_point, crosshair_points, crosshair_with, stratified_in},
-        tiling::{Pending, Rect, Tiling},
-        Sampler,
+        tiling::{Pending, Rect},
+        Sampler, SamplerParams,
     },
     reconstruction::Reconstructor,
     sampling::Rng,
+    tiles::TilingSnapshot,
     trace::{StateCache, StreamSample},
 };
 
@@ -62,29 +71,77 @@ use crate::{
 pub(crate) const METHOD: MethodInfo = MethodInfo {
     name: "adaptive",
     about: "adaptive sampler + adaptive space-time reconstructor",
-    // One sampling thread per core but one: the controller and the reconstruction
+    // One sampling thread per core but one: the controllers and the reconstruction
     // need the rest (measured in `docs/results/realtime/`).
     default_sampling_threads: |cores| cores.saturating_sub(1).max(1),
-    extra_threads: 1, // the controller
+    extra_threads: controllers,
     start,
 };
+
+/// Sampling threads one controller serves. The controller alone takes in 4.7–5 times
+/// what one sampling thread traces on the cheapest scene (built-in `toycar`, the
+/// `controller_*` figures of `frameless bench`), and more on costlier ones.
+pub const THREADS_PER_CONTROLLER: usize = 4;
+
+/// Fewest rows in a controller's band: a band holds tiles of at least the sampler's
+/// smallest side in both directions, and room to adapt them.
+const MIN_BAND_ROWS: u32 = 32;
+
+/// Controller threads for `sampling_threads` sampling threads.
+pub fn controllers(sampling_threads: usize) -> usize {
+    sampling_threads.div_ceil(THREADS_PER_CONTROLLER).max(1)
+}
+
+/// The bands of a `width × height` image for `n` controllers: whole rows, heights
+/// differing by at most one, fewer bands where the image has too few rows, and one
+/// band when `sampler` reprojects crosshairs.
+pub fn bands(width: u32, height: u32, n: usize, sampler: &SamplerParams) -> Vec<Rect> {
+    let most = (height / MIN_BAND_ROWS).max(1) as usize;
+    let n = if sampler.reprojection {
+        1
+    } else {
+        n.clamp(1, most)
+    } as u32;
+    (0..n)
+        .map(|i| Rect {
+            x0: 0,
+            y0: height * i / n,
+            x1: width,
+            y1: height * (i + 1) / n,
+        })
+        .collect()
+}
 
 /// How often the sampling threads' snapshot is republished.
 const SNAPSHOT_EVERY: Duration = Duration::from_millis(1);
 
-/// What the controller publishes for the other threads of the method.
-struct Published {
-    /// The tile selection the sampling threads read.
+/// What one band's controller publishes.
+struct BandPublished {
+    /// The band's pixels.
+    rect: Rect,
+    /// The band's tile selection the sampling threads read.
     snapshot: Mutex<Arc<TileSnapshot>>,
-    /// Bumped with every new snapshot, so that readers lock only when it changed.
+    /// Bumped with every new snapshot of this band.
+    seq: AtomicU64,
+    /// A snapshot of the band's tiling (image coordinates) for the reconstructor's
+    /// filters; `None` until the controller has a sampler.
+    tiling: Mutex<Option<Arc<TilingSnapshot>>>,
+    /// Its tile count.
+    tiles: AtomicU64,
+}
+
+/// What the controllers publish for the other threads of the method.
+struct Published {
+    bands: Vec<BandPublished>,
+    /// Bumped with every new snapshot of any band, so that readers lock only when one
+    /// changed.
     snapshot_seq: AtomicU64,
-    /// A copy of the tiling for the reconstructor's filters; `None` until the
-    /// controller has a sampler.
-    tiling: Mutex<Option<Arc<Tiling>>>,
-    /// The reconstructor's still-region history counts after its newest image, for
+    /// The reconstructor's still-region history counts after its newest image, with
+    /// a number that grows with every map, for
     /// [`crate::methods::adaptive::SamplerParams::discount_converged`] (the
-    /// evaluation passes them after every refresh too); taken by the controller.
-    history_counts: Mutex<Option<Vec<f32>>>,
+    /// evaluation passes them after every refresh too); each controller reads its
+    /// band's rows of a map it has not seen.
+    history_counts: Mutex<(u64, Vec<f32>)>,
     /// Crosshair centres each pixel has had, for
     /// [`crate::methods::adaptive::SamplerParams::stratified_positions`]
     /// (empty when off); relaxed counters: two threads drawing the same index at once
@@ -93,14 +150,24 @@ struct Published {
 }
 
 impl Published {
-    /// Nothing published yet: one tile, nothing pending.
+    /// Nothing published yet: one tile per band, nothing pending.
     fn new(s: &Shared) -> Self {
         let (w, h) = s.tracer.size();
+        let c = &s.config;
+        let bands = bands(w, h, controllers(c.sampling_threads), &c.sampler);
         Self {
-            snapshot: Mutex::new(Arc::new(TileSnapshot::whole(w, h))),
+            bands: bands
+                .into_iter()
+                .map(|rect| BandPublished {
+                    rect,
+                    snapshot: Mutex::new(Arc::new(TileSnapshot::whole(rect))),
+                    seq: AtomicU64::new(0),
+                    tiling: Mutex::new(None),
+                    tiles: AtomicU64::new(1),
+                })
+                .collect(),
             snapshot_seq: AtomicU64::new(0),
-            tiling: Mutex::new(None),
-            history_counts: Mutex::new(None),
+            history_counts: Mutex::new((0, Vec::new())),
             pixel_draws: if s.config.sampler.stratified_positions {
                 (0..w as usize * h as usize)
                     .map(|_| AtomicU32::new(0))
@@ -111,10 +178,51 @@ impl Published {
         }
     }
 
-    /// Publish `sampler`'s tiles for the sampling threads.
-    fn snapshot(&self, sampler: &Sampler) {
-        *lock(&self.snapshot) = Arc::new(TileSnapshot::of(sampler));
+    /// Publish band `b`'s tiles, held by `sampler`, for the sampling threads.
+    fn snapshot(&self, b: usize, sampler: &Sampler) {
+        let band = &self.bands[b];
+        *lock(&band.snapshot) = Arc::new(TileSnapshot::of(sampler));
+        band.seq.fetch_add(1, Ordering::Release);
         self.snapshot_seq.fetch_add(1, Ordering::Release);
+        band.tiles
+            .store(sampler.tiling().len() as u64, Ordering::Relaxed);
+    }
+
+    /// Publish band `b`'s tiling for the reconstructor.
+    fn tiling(&self, b: usize, sampler: &Sampler) {
+        let mut t = sampler.tiling().snapshot();
+        let (ox, oy) = sampler.origin();
+        for tile in &mut t.tiles {
+            tile.rect = offset(tile.rect, ox, oy);
+        }
+        *lock(&self.bands[b].tiling) = Some(Arc::new(t));
+    }
+
+    /// Every band's tiling together; `None` until each has one.
+    fn whole_tiling(&self) -> Option<TilingSnapshot> {
+        let mut tiles = Vec::new();
+        for band in &self.bands {
+            tiles.extend_from_slice(&lock(&band.tiling).as_ref()?.tiles);
+        }
+        Some(TilingSnapshot { tiles })
+    }
+
+    /// Tiles in all bands.
+    fn tiles(&self) -> u64 {
+        self.bands
+            .iter()
+            .map(|b| b.tiles.load(Ordering::Relaxed))
+            .sum()
+    }
+}
+
+/// `r` moved by `(dx, dy)`.
+fn offset(r: Rect, dx: u32, dy: u32) -> Rect {
+    Rect {
+        x0: r.x0 + dx,
+        y0: r.y0 + dy,
+        x1: r.x1 + dx,
+        y1: r.y1 + dy,
     }
 }
 
@@ -123,12 +231,19 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let published = Arc::new(Published::new(&s));
     // Channels are bounded so that a slow consumer slows its producers instead of
     // growing memory without limit; the capacities hold ~100 ms of batches.
-    let (to_ctrl, ctrl_rx) = bounded(256);
     let (to_img, img_rx) = bounded(256);
+    let (mut to_ctrl, mut ctrl_rx) = (Vec::new(), Vec::new());
+    for _ in &published.bands {
+        let (tx, rx) = bounded(256);
+        to_ctrl.push(tx);
+        ctrl_rx.push(rx);
+    }
     let (s1, p1) = (s.clone(), published.clone());
     sp.sampling_threads(to_ctrl, move |i, tx| sample(&s1, &p1, i, tx))?;
-    let (s2, p2) = (s.clone(), published.clone());
-    sp.spawn("controller", move || control(&s2, &p2, ctrl_rx, to_img))?;
+    for (b, rx) in ctrl_rx.into_iter().enumerate() {
+        let (s2, p2, tx) = (s.clone(), published.clone(), to_img.clone());
+        sp.spawn("controller", move || control(&s2, &p2, b, rx, tx))?;
+    }
     Ok(Box::new(Builder {
         s,
         published,
@@ -139,9 +254,9 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     }))
 }
 
-/// The tile selection the sampling threads read.
+/// One band's tile selection as the sampling threads read it.
 struct TileSnapshot {
-    /// The tiles.
+    /// The tiles (image coordinates).
     rects: Vec<Rect>,
     /// Each tile's pending crosshair.
     pending: Vec<Option<Pending>>,
@@ -149,25 +264,89 @@ struct TileSnapshot {
 
 impl TileSnapshot {
     /// One tile, nothing pending.
-    fn whole(w: u32, h: u32) -> Self {
+    fn whole(rect: Rect) -> Self {
         Self {
-            rects: vec![Rect {
-                x0: 0,
-                y0: 0,
-                x1: w,
-                y1: h,
-            }],
+            rects: vec![rect],
             pending: vec![None],
         }
     }
 
     fn of(sampler: &Sampler) -> Self {
         let t = sampler.tiling();
+        let (ox, oy) = sampler.origin();
         let leaves = t.leaves();
         Self {
-            rects: leaves.iter().map(|&l| t.node(l).rect).collect(),
-            pending: leaves.iter().map(|&l| t.node(l).pending).collect(),
+            rects: leaves
+                .iter()
+                .map(|&l| offset(t.node(l).rect, ox, oy))
+                .collect(),
+            pending: leaves
+                .iter()
+                .map(|&l| t.node(l).pending.map(|p| p.moved(ox as f32, oy as f32)))
+                .collect(),
         }
+    }
+}
+
+/// A sampling thread's copy of the bands' snapshots, with when it last initiated a
+/// crosshair in each tile (the snapshot's own pending crosshairs until then), for
+/// [`choose_tile`].
+struct View {
+    snaps: Vec<Arc<TileSnapshot>>,
+    seqs: Vec<u64>,
+    last: Vec<Vec<Option<f64>>>,
+    /// Where each band's tiles start in the numbering of all tiles, and their count.
+    starts: Vec<usize>,
+    /// The `snapshot_seq` the copy is of.
+    seq: u64,
+}
+
+impl View {
+    fn new(published: &Published) -> Self {
+        let k = published.bands.len();
+        let mut v = Self {
+            snaps: Vec::with_capacity(k),
+            seqs: vec![u64::MAX; k],
+            last: vec![Vec::new(); k],
+            starts: vec![0; k + 1],
+            seq: u64::MAX,
+        };
+        for band in &published.bands {
+            v.snaps.push(lock(&band.snapshot).clone());
+        }
+        v.refresh(published);
+        v
+    }
+
+    /// Take in the bands' snapshots that changed since the last call.
+    fn refresh(&mut self, published: &Published) {
+        let seq = published.snapshot_seq.load(Ordering::Acquire);
+        if seq == self.seq {
+            return;
+        }
+        self.seq = seq;
+        for (b, band) in published.bands.iter().enumerate() {
+            let bseq = band.seq.load(Ordering::Acquire);
+            if bseq != self.seqs[b] {
+                self.seqs[b] = bseq;
+                self.snaps[b] = lock(&band.snapshot).clone();
+                let last = &mut self.last[b];
+                last.clear();
+                last.extend(self.snaps[b].pending.iter().map(|p| p.map(|p| p.t)));
+            }
+            self.starts[b + 1] = self.starts[b] + self.snaps[b].rects.len();
+        }
+    }
+
+    /// Tiles in all bands.
+    fn len(&self) -> usize {
+        self.starts[self.snaps.len()]
+    }
+
+    /// Band and index in it of tile `k` of all tiles.
+    fn locate(&self, k: usize) -> (usize, usize) {
+        let b = self.starts[1..].iter().position(|&e| k < e).unwrap_or(0);
+        (b, k - self.starts[b])
     }
 }
 
@@ -191,35 +370,35 @@ struct Batch {
     stream: Vec<StreamSample>,
 }
 
-/// A sampling thread: visits at the current time, batched for the controller.
-fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
+/// Visits in a batch before it is sent.
+const BATCH_VISITS: usize = 256;
+
+/// A sampling thread: visits at the current time, batched for the controllers of
+/// the visited tiles' bands.
+fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>) {
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
     let mut states = StateCache::new();
-    let mut snap_seq = u64::MAX;
-    let mut snap = lock(&published.snapshot).clone();
-    // When this thread last initiated a crosshair in each tile of the snapshot (the
-    // snapshot's own pending crosshairs until then), for `choose_tile`.
-    let mut last: Vec<Option<f64>> = snap.pending.iter().map(|p| p.map(|p| p.t)).collect();
-    let mut batch = Batch::default();
+    let mut view = View::new(published);
+    let mut batches = vec![Batch::default(); tx.len()];
     let mut sent = Instant::now();
     let mut busy = 0.0f64;
     while !s.stopped() {
-        let seq = published.snapshot_seq.load(Ordering::Acquire);
-        if seq != snap_seq {
-            snap = lock(&published.snapshot).clone();
-            snap_seq = seq;
-            last.clear();
-            last.extend(snap.pending.iter().map(|p| p.map(|p| p.t)));
-        }
+        view.refresh(published);
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
         let choices = s.config.sampler.tile_choices;
-        let k = choose_tile(snap.rects.len() as u32, choices, &mut rng, |k| last[k]);
-        let rect = snap.rects[k];
+        let k = choose_tile(view.len() as u32, choices, &mut rng, |k| {
+            let (b, i) = view.locate(k);
+            view.last[b][i]
+        });
+        let (b, i) = view.locate(k);
+        let snap = &view.snaps[b];
+        let rect = snap.rects[i];
+        let batch = &mut batches[b];
         let t0 = Instant::now();
-        if let Some(p) = snap.pending[k] {
+        if let Some(p) = snap.pending[i] {
             let (px, py) = completion_point(
                 &s.config.sampler,
                 &state.camera,
@@ -269,7 +448,7 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             };
             let sample = tracer.sample(&state, x, y);
             drop(guard);
-            last[k] = Some(now);
+            view.last[b][i] = Some(now);
             batch.stream.push(StreamSample {
                 x,
                 y,
@@ -288,22 +467,36 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Sender<Batch>) {
             break;
         }
         busy += t0.elapsed().as_secs_f64();
-        if batch.visits.len() >= 256 || sent.elapsed().as_secs_f64() > BATCH_S {
-            let n = batch.stream.len() as u64;
-            s.samples.fetch_add(n, Ordering::Relaxed);
-            s.rays.fetch_add(n, Ordering::Relaxed);
+        let full = batch.visits.len() >= BATCH_VISITS;
+        if full || sent.elapsed().as_secs_f64() > BATCH_S {
             s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
             busy = 0.0;
-            if tx.send(std::mem::take(&mut batch)).is_err() {
-                return;
+            // A full batch goes alone; on time, every band's batch goes.
+            let due: Vec<usize> = if full {
+                vec![b]
+            } else {
+                sent = Instant::now();
+                (0..batches.len()).collect()
+            };
+            for d in due {
+                if batches[d].visits.is_empty() {
+                    continue;
+                }
+                let n = batches[d].stream.len() as u64;
+                s.samples.fetch_add(n, Ordering::Relaxed);
+                s.rays.fetch_add(n, Ordering::Relaxed);
+                if tx[d].send(std::mem::take(&mut batches[d])).is_err() {
+                    return;
+                }
             }
-            sent = Instant::now();
         }
     }
 }
 
-/// The controller's sampler: fed by the sampling threads, never run on its own.
-fn controller_sampler(s: &Shared) -> Option<Sampler> {
+/// The controller's sampler for `band` of the image: fed by the sampling threads,
+/// never run on its own. The tile count's floor and fixed size are the band's share
+/// of the image's.
+fn controller_sampler(s: &Shared, band: Rect) -> Option<Sampler> {
     // The sampler takes its clock's start as the origin of its decay weights; the rate
     // and the refresh only pace `run_until`, the sequential budget, which is never
     // called here (the sampling threads feed the sampler). Hence no rate.
@@ -313,10 +506,15 @@ fn controller_sampler(s: &Shared) -> Option<Sampler> {
         first_refresh: s.config.start,
         refresh_hz: s.config.refresh_hz,
     };
+    let (w, h) = s.tracer.size();
+    let share = band.area() as f64 / (w as f64 * h as f64);
+    let mut params = s.config.sampler;
+    let part = |n: usize| ((n as f64 * share).ceil() as usize).max(1);
+    params.min_tiles = part(params.min_tiles);
+    params.fixed_tiles = part(params.fixed_tiles);
     // Validated by the pipeline before it started.
-    Sampler::new(s.tracer.clone(), clock, s.config.sampler, s.config.seed).ok()
+    Sampler::for_region(s.tracer.clone(), clock, params, s.config.seed, band).ok()
 }
-
 /// What the controller did with one batch.
 struct Ingested {
     /// The batch's samples and the replacement crosshairs the sampler traced.
@@ -331,16 +529,26 @@ struct Ingested {
 /// Take one sampling thread's batch into the sampler: completed crosshairs into the
 /// deep buffer and the tiles' statistics (and their reprojection step when
 /// `reproject`, at `now`), initiated ones as their tiles' pending crosshairs.
+///
+/// Positions arrive in image coordinates and move to the sampler's region's. An image
+/// position minus the region's integer corner (no greater than it) is exact in `f32`,
+/// and adding the corner back gives the position again, so a pending crosshair that
+/// went out in a snapshot and came back with a completed one still matches exactly.
 fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: f64) -> Ingested {
     let (mut own_rays, mut reprojected, mut skipped) = (0, 0, 0);
+    let (ox, oy) = sampler.origin();
+    let (dx, dy) = (-(ox as f32), -(oy as f32));
     for v in batch.visits {
         match v {
             Visit::Completed {
-                crosshair,
+                mut crosshair,
                 rays,
                 pending,
             } => {
+                let pending = pending.moved(dx, dy);
                 sampler.clear_pending(pending.x, pending.y, pending.t);
+                crosshair.x += dx;
+                crosshair.y += dy;
                 let t = crosshair.t;
                 let (px, py) = (crosshair.x as u32, crosshair.y as u32);
                 sampler.ingest_crosshair(crosshair, rays as u64, t);
@@ -353,7 +561,7 @@ fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: f64) -> Ing
                     skipped += 1;
                 }
             }
-            Visit::Initiated(p) => sampler.ingest_pending(p),
+            Visit::Initiated(p) => sampler.ingest_pending(p.moved(dx, dy)),
         }
     }
     let mut stream = batch.stream;
@@ -366,14 +574,21 @@ fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: f64) -> Ing
     }
 }
 
-/// The controller thread: the sampler's one owner.
-fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Vec<StreamSample>>) {
-    let Some(mut sampler) = controller_sampler(s) else {
+/// Band `b`'s controller thread: its sampler's one owner.
+fn control(
+    s: &Shared,
+    published: &Published,
+    b: usize,
+    rx: Receiver<Batch>,
+    tx: Sender<Vec<StreamSample>>,
+) {
+    let Some(mut sampler) = controller_sampler(s, published.bands[b].rect) else {
         return;
     };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
-    publish_tiling(published, &sampler);
+    let mut history_seen = 0;
+    published.tiling(b, &sampler);
     while !s.stopped() {
         match rx.recv_timeout(Duration::from_millis(2)) {
             Ok(batch) => {
@@ -396,28 +611,44 @@ fn control(s: &Shared, published: &Published, rx: Receiver<Batch>, tx: Sender<Ve
             Err(RecvTimeoutError::Disconnected) => return,
         }
         if snap_at.elapsed() >= SNAPSHOT_EVERY {
-            published.snapshot(&sampler);
-            s.tiles
-                .store(sampler.tiling().len() as u64, Ordering::Relaxed);
+            published.snapshot(b, &sampler);
+            s.tiles.store(published.tiles(), Ordering::Relaxed);
             snap_at = Instant::now();
         }
         if tiling_at.elapsed() >= tiling_every {
-            if let Some(counts) = lock(&published.history_counts).take() {
-                sampler.set_history_counts(&counts);
+            if take_history_counts(published, b, &mut sampler, &mut history_seen) {
                 s.history_maps.fetch_add(1, Ordering::Relaxed);
             }
-            publish_tiling(published, &sampler);
+            published.tiling(b, &sampler);
             tiling_at = Instant::now();
         }
     }
 }
 
-fn publish_tiling(published: &Published, sampler: &Sampler) {
-    *lock(&published.tiling) = Some(Arc::new(sampler.tiling().clone()));
+/// Give band `b`'s sampler its rows of the newest history count map, if it is newer
+/// than map `seen`; whether there was one.
+fn take_history_counts(
+    published: &Published,
+    b: usize,
+    sampler: &mut Sampler,
+    seen: &mut u64,
+) -> bool {
+    let rows = {
+        let maps = lock(&published.history_counts);
+        if maps.0 == *seen || maps.1.is_empty() {
+            return false;
+        }
+        *seen = maps.0;
+        let r = published.bands[b].rect;
+        let w = r.width() as usize;
+        maps.1[r.y0 as usize * w..r.y1 as usize * w].to_vec()
+    };
+    sampler.set_history_counts(&rows);
+    true
 }
 
-/// The image thread's side: the reconstructor, fed with what the controller passed
-/// on, filtered with the newest tiling copy.
+/// The image thread's side: the reconstructor, fed with what the controllers passed
+/// on, filtered with the bands' newest tilings.
 struct Builder {
     s: Arc<Shared>,
     published: Arc<Published>,
@@ -462,7 +693,7 @@ impl ImageBuilder for Builder {
         let t0 = Instant::now();
         let s = &*self.s;
         let (w, h) = s.tracer.size();
-        let tiling = lock(&self.published.tiling).clone()?;
+        let tiling = Arc::new(self.published.whole_tiling()?);
         let batches: Vec<Vec<StreamSample>> = self.rx.try_iter().collect();
         // The filters need the sample rate R, measured over the last second; a new
         // rate takes effect at the next refresh, keeping the ring, the splat scale and
@@ -493,15 +724,15 @@ impl ImageBuilder for Builder {
         let camera = state.camera;
         r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
-        let image = r.reconstruct(t, &camera, &tiling.snapshot()).clone();
+        let image = r.reconstruct(t, &camera, &tiling).clone();
         if s.config.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
-                // The controller takes the newest; an untaken older map is replaced
-                // (its buffer reused).
-                let mut slot = lock(&self.published.history_counts);
-                let buf = slot.get_or_insert_with(Vec::new);
-                buf.clear();
-                buf.extend_from_slice(counts);
+                // Each controller reads the newest; an older map none has read is
+                // replaced (its buffer reused).
+                let mut maps = lock(&self.published.history_counts);
+                maps.0 += 1;
+                maps.1.clear();
+                maps.1.extend_from_slice(counts);
             }
         }
         let ages = r.pixel_ages();
@@ -537,30 +768,76 @@ impl ImageBuilder for Builder {
     }
 }
 
-/// The controller against one sampling thread ([`controller_bench`]).
+/// A fresh controller sampler for every band.
+fn band_samplers(s: &Shared, published: &Published) -> Result<Vec<Sampler>, RealtimeError> {
+    let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
+    let bands = published.bands.iter();
+    bands
+        .map(|b| controller_sampler(s, b.rect).ok_or_else(invalid))
+        .collect()
+}
+
+/// Run one sampling thread for `seconds` of wall time, its batches taken in by the
+/// bands' `samplers` as they come (as live, with every reprojection step); returns the
+/// samplers and each band's batches with the times they were taken in.
+fn record(
+    s: &Arc<Shared>,
+    published: &Arc<Published>,
+    mut samplers: Vec<Sampler>,
+    seconds: f64,
+) -> (Vec<Sampler>, Vec<Vec<(Batch, f64)>>) {
+    let (tx, rx): (Vec<_>, Vec<_>) = published.bands.iter().map(|_| bounded(256)).unzip();
+    let (s1, p1) = (s.clone(), published.clone());
+    let thread = std::thread::spawn(move || sample(&s1, &p1, 0, tx));
+    let mut recorded: Vec<Vec<(Batch, f64)>> = vec![Vec::new(); rx.len()];
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < seconds {
+        let mut any = false;
+        for (b, rx) in rx.iter().enumerate() {
+            let Ok(batch) = rx.try_recv() else { continue };
+            any = true;
+            let now = s.clock.now();
+            recorded[b].push((batch.clone(), now));
+            ingest(&mut samplers[b], batch, true, now);
+            published.snapshot(b, &samplers[b]);
+        }
+        if !any {
+            std::thread::sleep(Duration::from_micros(100));
+        }
+    }
+    s.stop.store(true, Ordering::Relaxed);
+    drop(rx);
+    let _ = thread.join();
+    (samplers, recorded)
+}
+
+/// The controllers against one sampling thread ([`controller_bench`]).
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct ControllerBench {
+    /// Controller threads (bands of the image).
+    pub controllers: usize,
     /// Samples one sampling thread traced in the recording.
     pub samples: u64,
     /// Its samples per second of tracing (busy) time.
     pub tracing_samples_per_s: f64,
-    /// Samples per second the controller takes in, fed the recorded batches one after
-    /// another with nothing else to do.
+    /// Samples per second the controllers take in together, each fed its band's
+    /// recorded batches one after another on its own thread with nothing else to do.
     pub controller_samples_per_s: f64,
 }
 
 impl ControllerBench {
-    /// How many sampling threads the controller could keep up with.
+    /// How many sampling threads the controllers could keep up with.
     pub fn margin(&self) -> f64 {
         self.controller_samples_per_s / self.tracing_samples_per_s
     }
 }
 
-/// Record what one sampling thread sends the controller for `seconds` of wall time
-/// (the controller taking it in as it comes, as live), then feed the recorded batches
-/// in order to a fresh controller and time only that. Real-time adaptive with
-/// `config` on `tracer`'s scene and image. The replay does every visit's
-/// reprojection step (live, a controller that falls behind skips it).
+/// Record what one sampling thread sends the controllers for `seconds` of wall time
+/// (the controllers taking it in as it comes, as live), then feed each band's recorded
+/// batches in order to a fresh controller, all bands at once on threads of their own,
+/// and time only that. Real-time adaptive with `config` on `tracer`'s scene and image,
+/// with the controllers `config.sampling_threads` would have. The replay does every
+/// visit's reprojection step (live, a controller that falls behind skips it).
 pub fn controller_bench(
     tracer: Arc<crate::trace::Tracer>,
     config: super::RtConfig,
@@ -568,35 +845,24 @@ pub fn controller_bench(
 ) -> Result<ControllerBench, RealtimeError> {
     let s = Arc::new(Shared::new(tracer, config));
     let published = Arc::new(Published::new(&s));
-    let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
-    let mut sampler = controller_sampler(&s).ok_or_else(invalid)?;
-    let mut replay = controller_sampler(&s).ok_or_else(invalid)?;
-    let (tx, rx) = bounded(256);
-    let (s1, p1) = (s.clone(), published.clone());
-    let thread = std::thread::spawn(move || sample(&s1, &p1, 0, tx));
-    let mut recorded = Vec::new();
-    let t0 = Instant::now();
-    while t0.elapsed().as_secs_f64() < seconds {
-        let Ok(batch) = rx.recv_timeout(Duration::from_millis(50)) else {
-            continue;
-        };
-        let now = s.clock.now();
-        recorded.push((batch.clone(), now));
-        ingest(&mut sampler, batch, true, now);
-        published.snapshot(&sampler);
-    }
-    s.stop.store(true, Ordering::Relaxed);
-    drop(rx);
-    let _ = thread.join();
+    let replay = band_samplers(&s, &published)?;
+    let (_, recorded) = record(&s, &published, band_samplers(&s, &published)?, seconds);
     let samples = s.samples.load(Ordering::Relaxed);
     let busy = s.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9;
-    let recorded_samples: usize = recorded.iter().map(|(b, _)| b.stream.len()).sum();
+    let recorded_samples: usize = recorded.iter().flatten().map(|(b, _)| b.stream.len()).sum();
     let t1 = Instant::now();
-    for (batch, now) in recorded {
-        std::hint::black_box(ingest(&mut replay, batch, true, now).stream.len());
-    }
+    std::thread::scope(|scope| {
+        for (mut sampler, batches) in replay.into_iter().zip(recorded) {
+            scope.spawn(move || {
+                for (batch, now) in batches {
+                    std::hint::black_box(ingest(&mut sampler, batch, true, now).stream.len());
+                }
+            });
+        }
+    });
     let controller_s = t1.elapsed().as_secs_f64();
     Ok(ControllerBench {
+        controllers: published.bands.len(),
         samples,
         tracing_samples_per_s: samples as f64 / busy.max(1e-9),
         controller_samples_per_s: recorded_samples as f64 / controller_s.max(1e-9),
@@ -605,7 +871,88 @@ pub fn controller_bench(
 
 #[cfg(test)]
 mod tests {
-    use super::next_live_limit;
+    use super::*;
+    use crate::{
+        realtime::{RtConfig, RtMethod},
+        scene::builtin,
+        trace::{TraceOptions, Tracer},
+    };
+
+    #[test]
+    fn bands_are_whole_rows_that_cover_the_image_once() {
+        let ours = SamplerParams::ours();
+        for (w, h, n, expect) in [
+            (640, 480, 1, 1),
+            (640, 480, 4, 4),
+            (640, 481, 3, 3),
+            (256, 256, 16, 8), // bands of at least 32 rows
+            (64, 20, 4, 1),
+        ] {
+            let b = bands(w, h, n, &ours);
+            assert_eq!(b.len(), expect, "{w}x{h} for {n}");
+            assert_eq!((b[0].y0, b[b.len() - 1].y1), (0, h));
+            for (i, r) in b.iter().enumerate() {
+                assert_eq!((r.x0, r.x1), (0, w));
+                assert!(r.height() >= MIN_BAND_ROWS.min(h));
+                if i > 0 {
+                    assert_eq!(r.y0, b[i - 1].y1);
+                    assert!(r.height().abs_diff(b[i - 1].height()) <= 1);
+                }
+            }
+        }
+        // Crosshairs that reproject could leave any band.
+        assert_eq!(bands(640, 480, 4, &SamplerParams::paper()).len(), 1);
+        assert_eq!((controllers(1), controllers(4), controllers(15)), (1, 1, 4));
+    }
+
+    #[test]
+    fn each_controller_adapts_its_own_band() {
+        let (w, h) = (64, 96);
+        let scene = Arc::new(builtin::toycar());
+        let tracer = Arc::new(Tracer::new(scene, w, h, TraceOptions::default()));
+        let mut config = RtConfig::new(RtMethod::Adaptive);
+        config.sampling_threads = 2 * THREADS_PER_CONTROLLER; // two controllers
+        config.start = 1.0;
+        let s = Arc::new(Shared::new(tracer, config));
+        let published = Arc::new(Published::new(&s));
+        assert_eq!(published.bands.len(), 2);
+        let samplers = band_samplers(&s, &published).unwrap();
+        let (samplers, recorded) = record(&s, &published, samplers, 0.5);
+        for (b, sampler) in samplers.iter().enumerate() {
+            published.tiling(b, sampler);
+            sampler.validate().unwrap();
+            let band = published.bands[b].rect;
+            assert!(!recorded[b].is_empty(), "band {b} got no batch");
+            assert!(sampler.buffer().total() > 0, "band {b} holds no crosshair");
+            assert!(sampler.tiling().len() > 1, "band {b} never split a tile");
+            // Its crosshairs and pending samples were traced in its band.
+            for (batch, _) in &recorded[b] {
+                for v in &batch.visits {
+                    let (x, y) = match v {
+                        Visit::Completed { pending, .. } | Visit::Initiated(pending) => {
+                            (pending.x, pending.y)
+                        }
+                    };
+                    assert!(band.contains_point(x, y), "{x}, {y} outside band {b}");
+                }
+            }
+        }
+        // The reconstructor's tiling covers every pixel exactly once.
+        let whole = published.whole_tiling().unwrap();
+        let mut covered = vec![0u8; (w * h) as usize];
+        for t in &whole.tiles {
+            for y in t.rect.y0..t.rect.y1 {
+                for x in t.rect.x0..t.rect.x1 {
+                    covered[(y * w + x) as usize] += 1;
+                }
+            }
+        }
+        assert!(covered.iter().all(|&c| c == 1));
+        assert_eq!(
+            whole.tiles.len(),
+            samplers.iter().map(|s| s.tiling().len()).sum::<usize>()
+        );
+    }
 
     #[test]
     fn the_live_limit_follows_the_build_time_budget() {

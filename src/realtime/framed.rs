@@ -41,7 +41,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     about: "double-buffered frames at full resolution, as fast as they go",
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,
-    extra_threads: 0,
+    extra_threads: |_| 0,
     start: |sp| start_with(sp, false),
 };
 
@@ -50,7 +50,7 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     name: "late-warp",
     about: "framed, the newest frame reprojected to the camera at every refresh (depth + object motion, no rays)",
     default_sampling_threads: |cores| cores,
-    extra_threads: 0,
+    extra_threads: |_| 0,
     start: |sp| start_with(sp, true),
 };
 

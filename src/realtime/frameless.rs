@@ -21,7 +21,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     about: "random pixels, the newest sample shown at every pixel",
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,
-    extra_threads: 0,
+    extra_threads: |_| 0,
     start,
 };
 

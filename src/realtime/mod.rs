@@ -297,6 +297,9 @@ mod tests {
         assert_eq!(threads(RtMethod::LateWarp), cores);
         assert_eq!(threads(RtMethod::Taa), cores);
         assert_eq!(threads(RtMethod::TaaWarp), cores);
-        assert_eq!(RtMethod::Adaptive.info().extra_threads, 1);
+        // Adaptive's controllers: one per four sampling threads.
+        let extra = RtMethod::Adaptive.info().extra_threads;
+        assert_eq!((extra(1), extra(4), extra(5), extra(15)), (1, 1, 2, 4));
+        assert_eq!((RtMethod::TraditionalFrameless.info().extra_threads)(15), 0);
     }
 }

@@ -167,7 +167,8 @@ impl Pipeline {
             method: info.name,
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
-            other_threads: 1 + info.extra_threads, // the image thread and the method's
+            // The image thread and the method's own.
+            other_threads: 1 + (info.extra_threads)(cfg.sampling_threads),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
             samples,

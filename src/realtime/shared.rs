@@ -15,14 +15,12 @@ use std::{
     thread::JoinHandle,
 };
 
-use crossbeam_channel::Sender;
-
 use super::{
     clock::WallClock,
     config::{RealtimeError, RtConfig},
     pixel_locks::PixelLocks,
 };
-use crate::{image::Image, methods::adaptive::tiling::Tiling, trace::Tracer};
+use crate::{image::Image, tiles::TilingSnapshot, trace::Tracer};
 
 /// Longest a sampling thread holds a batch before it sends it, seconds: long enough
 /// that channel traffic stays small next to tracing, short next to a refresh.
@@ -39,7 +37,7 @@ pub struct Frame {
     /// Mean age of the information in it, seconds.
     pub mean_age: f64,
     /// The tiling it was reconstructed with (adaptive only; for visualisations).
-    pub tiling: Option<Arc<Tiling>>,
+    pub tiling: Option<Arc<TilingSnapshot>>,
     /// Ages of the information in an evenly spaced subset of its pixels, seconds (NaN:
     /// none yet), for latency percentiles and for telling when a change shows.
     pub ages: Arc<Vec<f32>>,
@@ -207,7 +205,7 @@ pub(crate) struct Built {
     /// Mean age of the information in it, seconds (NaN: nothing in it yet).
     pub mean_age: f64,
     /// The tiling it was reconstructed with, for the visualisations.
-    pub tiling: Option<Arc<Tiling>>,
+    pub tiling: Option<Arc<TilingSnapshot>>,
     /// Ages of a subset of its pixels ([`sampled_ages`]).
     pub ages: Vec<f32>,
     /// Scene time of the camera it shows the scene from (NaN: each pixel from the
@@ -230,8 +228,9 @@ pub(crate) struct MethodInfo {
     pub about: &'static str,
     /// Default sampling threads on a machine with this many cores.
     pub default_sampling_threads: fn(usize) -> usize,
-    /// Threads it runs besides its sampling threads and the pipeline's image thread.
-    pub extra_threads: usize,
+    /// Threads it runs besides its sampling threads and the pipeline's image thread,
+    /// given how many sampling threads it runs.
+    pub extra_threads: fn(usize) -> usize,
     /// Start its threads; the image thread then calls the builder it returns.
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
 }
@@ -273,13 +272,13 @@ impl<'a> Spawner<'a> {
         Ok(())
     }
 
-    /// `config.sampling_threads` sampling threads running `f(thread index, sender)`,
-    /// each with a clone of `tx` (dropped here, so the channel closes when they all
+    /// `config.sampling_threads` sampling threads running `f(thread index, senders)`,
+    /// each with a clone of `tx` (dropped here, so that channels close when they all
     /// end).
-    pub fn sampling_threads<T: Send + 'static>(
+    pub fn sampling_threads<T: Clone + Send + 'static>(
         &mut self,
-        tx: Sender<T>,
-        f: impl Fn(u64, Sender<T>) + Clone + Send + 'static,
+        tx: T,
+        f: impl Fn(u64, T) + Clone + Send + 'static,
     ) -> Result<(), RealtimeError> {
         for i in 0..self.shared.config.sampling_threads {
             let (f, tx) = (f.clone(), tx.clone());

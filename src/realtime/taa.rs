@@ -43,7 +43,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // time, see `FOLD_HEADROOM`); the sampling threads fill the cores and the OS
     // shares them.
     default_sampling_threads: |cores| cores,
-    extra_threads: 0,
+    extra_threads: |_| 0,
     start: |sp| start_with(sp, false),
 };
 
@@ -52,7 +52,7 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     name: "taa-warp",
     about: "taa, its image warped to the camera at every refresh (depth + object motion, no rays)",
     default_sampling_threads: |cores| cores,
-    extra_threads: 0,
+    extra_threads: |_| 0,
     start: |sp| start_with(sp, true),
 };
 

@@ -65,6 +65,10 @@ pub struct Sampler {
     params: SamplerParams,
     tracer: Arc<Tracer>,
     clock: Clock,
+    /// The corner of the pixels it adapts in the image: `(0, 0)` for the whole image,
+    /// or that of the region a real-time controller adapts; every position it holds is
+    /// relative to it.
+    origin: (u32, u32),
     width: u32,
     height: u32,
     tiling: Tiling,
@@ -265,13 +269,53 @@ impl Sampler {
         params: SamplerParams,
         seed: u64,
     ) -> Result<Self, MethodError> {
-        params.validate()?;
         let (width, height) = tracer.size();
+        let whole = Rect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        };
+        Self::for_region(tracer, clock, params, seed, whole)
+    }
+
+    /// A sampler for the pixels of `region` of `tracer`'s image only, fed by real-time
+    /// sampling threads ([`Sampler::ingest_crosshair`], [`Sampler::ingest_pending`]);
+    /// it keeps its own tiling, deep buffer and gain control for those pixels. Every
+    /// position it takes in, holds and hands out is relative to the region's corner
+    /// ([`Sampler::origin`]). A region smaller than the image cannot reproject (its
+    /// crosshairs could move out of it, and it cannot trace).
+    pub fn for_region(
+        tracer: Arc<Tracer>,
+        clock: Clock,
+        params: SamplerParams,
+        seed: u64,
+        region: Rect,
+    ) -> Result<Self, MethodError> {
+        params.validate()?;
+        let (iw, ih) = tracer.size();
+        let whole = region.x0 == 0 && region.y0 == 0 && (region.x1, region.y1) == (iw, ih);
+        if region.x1 > iw || region.y1 > ih || region.area() == 0 {
+            return Err(MethodError::Parameter {
+                group: "sampler",
+                name: "region",
+                why: "must be a non-empty rectangle inside the image",
+            });
+        }
+        if !whole && params.reprojection {
+            return Err(MethodError::Parameter {
+                group: "sampler",
+                name: "reprojection",
+                why: "must be off in a sampler of part of the image",
+            });
+        }
+        let (width, height) = (region.width(), region.height());
         DeepBuffer::check_budget(width, height, params.depth).map_err(MethodError::Budget)?;
         let mut s = Self {
             params,
             tracer,
             clock,
+            origin: (region.x0, region.y0),
             width,
             height,
             tiling: Tiling::new(width, height),
@@ -315,7 +359,13 @@ impl Sampler {
         &self.tiling
     }
 
-    /// Image size `(width, height)`.
+    /// The corner of its region in the image (`(0, 0)` for the whole image), which its
+    /// positions are relative to.
+    pub fn origin(&self) -> (u32, u32) {
+        self.origin
+    }
+
+    /// Size `(width, height)` of its region (the image's, for the whole image).
     pub fn buffer_size(&self) -> (u32, u32) {
         (self.width, self.height)
     }

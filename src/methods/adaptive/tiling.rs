@@ -143,6 +143,14 @@ impl Pending {
         }
         self
     }
+
+    /// The pending crosshair at a position moved by `(dx, dy)` pixels (from one
+    /// sampler region's coordinates to another's).
+    pub fn moved(mut self, dx: f32, dy: f32) -> Self {
+        self.x += dx;
+        self.y += dy;
+        self
+    }
 }
 
 /// One node of the K-D tree.

@@ -3,20 +3,23 @@
 
 use glam::Vec3;
 
-use super::{tiling::Tiling, Sampler};
-use crate::image::Image;
+use super::Sampler;
+use crate::{
+    image::Image,
+    tiles::{TileGradients, TilingSnapshot},
+};
 
 /// Tile borders drawn in yellow over `base` (paper Fig. 3).
 pub fn tiling_overlay(s: &Sampler, base: &Image) -> Image {
-    tiling_overlay_of(s.tiling(), base)
+    tiling_overlay_of(&s.tiling().snapshot(), base)
 }
 
-/// [`tiling_overlay`] from a tiling alone (the real-time mode holds a snapshot).
-pub fn tiling_overlay_of(t: &Tiling, base: &Image) -> Image {
+/// [`tiling_overlay`] from a tiling's snapshot alone (what the real-time mode holds).
+pub fn tiling_overlay_of(t: &TilingSnapshot, base: &Image) -> Image {
     let mut img = base.clone();
     let w = img.width;
-    for &l in t.leaves() {
-        let r = t.node(l).rect;
+    for tile in &t.tiles {
+        let r = tile.rect;
         for x in r.x0..r.x1 {
             img.pixels[(r.y0 * w + x) as usize] = Vec3::new(1.0, 1.0, 0.0);
         }
@@ -27,11 +30,15 @@ pub fn tiling_overlay_of(t: &Tiling, base: &Image) -> Image {
     img
 }
 
-fn per_tile(t: &Tiling, (w, h): (u32, u32), f: impl Fn(u32) -> Vec3) -> Image {
+fn per_tile(
+    t: &TilingSnapshot,
+    (w, h): (u32, u32),
+    f: impl Fn(&TileGradients) -> Vec3,
+) -> Image {
     let mut img = Image::new(w, h);
-    for &l in t.leaves() {
-        let r = t.node(l).rect;
-        let c = f(l);
+    for tile in &t.tiles {
+        let r = tile.rect;
+        let c = f(tile);
         for y in r.y0..r.y1 {
             for x in r.x0..r.x1 {
                 img.pixels[(y * w + x) as usize] = c;
@@ -55,46 +62,37 @@ fn p95(mut v: Vec<f64>) -> f64 {
 /// Per-tile gradients as color: red Gx, green Gy, blue Gt (paper Fig. 4), each scaled by
 /// its 95th percentile over tiles.
 pub fn gradient_map(s: &Sampler) -> Image {
-    gradient_map_of(s.tiling(), s.buffer_size())
+    gradient_map_of(&s.tiling().snapshot(), s.buffer_size())
 }
 
-/// [`gradient_map`] from a tiling of a `size` image.
-pub fn gradient_map_of(t: &Tiling, size: (u32, u32)) -> Image {
-    let g: Vec<(f64, f64, f64)> = t
-        .leaves()
-        .iter()
-        .map(|&l| t.node(l).stats.gradients())
-        .collect();
+/// [`gradient_map`] from a tiling's snapshot of a `size` image.
+pub fn gradient_map_of(t: &TilingSnapshot, size: (u32, u32)) -> Image {
+    let g: Vec<(f64, f64, f64)> = t.tiles.iter().map(|g| (g.gx, g.gy, g.gt)).collect();
     let (sx, sy, st) = (
         p95(g.iter().map(|v| v.0).collect()),
         p95(g.iter().map(|v| v.1).collect()),
         p95(g.iter().map(|v| v.2).collect()),
     );
-    per_tile(t, size, |l| {
-        let (gx, gy, gt) = t.node(l).stats.gradients();
-        Vec3::new((gx / sx) as f32, (gy / sy) as f32, (gt / st) as f32)
+    per_tile(t, size, |g| {
+        Vec3::new((g.gx / sx) as f32, (g.gy / sy) as f32, (g.gt / st) as f32)
     })
 }
 
 /// Local sample rate (samples per pixel per second ∝ 1 / tile area, since tiles are
 /// chosen uniformly) on a log scale, dark = sparse, bright = dense (paper Fig. 7 left).
 pub fn density_map(s: &Sampler) -> Image {
-    density_map_of(s.tiling(), s.buffer_size())
+    density_map_of(&s.tiling().snapshot(), s.buffer_size())
 }
 
-/// [`density_map`] from a tiling of a `size` image.
-pub fn density_map_of(t: &Tiling, size: (u32, u32)) -> Image {
-    let areas: Vec<f64> = t
-        .leaves()
-        .iter()
-        .map(|&l| t.node(l).rect.area() as f64)
-        .collect();
+/// [`density_map`] from a tiling's snapshot of a `size` image.
+pub fn density_map_of(t: &TilingSnapshot, size: (u32, u32)) -> Image {
+    let areas: Vec<f64> = t.tiles.iter().map(|g| g.rect.area() as f64).collect();
     let (amin, amax) = areas
         .iter()
         .fold((f64::MAX, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
     let span = (amax / amin).ln().max(1e-9);
-    per_tile(t, size, |l| {
-        let a = t.node(l).rect.area() as f64;
+    per_tile(t, size, |g| {
+        let a = g.rect.area() as f64;
         let v = (1.0 - (a / amin).ln() / span) as f32;
         Vec3::new(v, v * 0.8, v * 0.3)
     })
