@@ -397,13 +397,13 @@ fn viewer_opens_under_xvfb() {
 #[test]
 fn threads_size_the_viewers_pipeline() {
     // `frameless --threads N view` sizes the pipeline for N cores, as `live` does:
-    // traditional frameless samples on every core, adaptive on all but one.
+    // every method samples on every core.
     let dir = std::env::temp_dir().join(format!("frameless-view-threads-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     for (method, cores, sampling) in [
         ("traditional-frameless", 1, 1),
         ("traditional-frameless", 3, 3),
-        ("adaptive", 3, 2),
+        ("adaptive", 3, 3),
     ] {
         let out_dir = dir.join(format!("{method}-{cores}"));
         let out = Command::new(env!("CARGO_BIN_EXE_frameless"))

@@ -240,7 +240,7 @@ pub struct ViewArgs {
     /// The real-time method.
     #[arg(long, default_value = "adaptive", value_parser = RtMethodParser)]
     pub method: RtMethod,
-    /// Sampling threads [default: adaptive cores − 1 (at least 1), others all cores].
+    /// Sampling threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub sampling_threads: Option<u16>,
     /// Threads of the reconstructor [default: half the cores, at least 1].

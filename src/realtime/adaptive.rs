@@ -71,9 +71,11 @@ use crate::{
 pub(crate) const METHOD: MethodInfo = MethodInfo {
     name: "adaptive",
     about: "adaptive sampler + adaptive space-time reconstructor",
-    // One sampling thread per core but one: the controllers and the reconstruction
-    // need the rest (measured in `docs/results/realtime/`).
-    default_sampling_threads: |cores| cores.saturating_sub(1).max(1),
+    // One sampling thread per core, as the other methods: sampling threads run below
+    // the controllers and the image thread, so they take only the time those leave
+    // (on 2 cores, 1.3 times the samples of one thread per core but one, at the same
+    // image rate; docs/performance.md).
+    default_sampling_threads: |cores| cores,
     extra_threads: controllers,
     start,
 };
@@ -114,6 +116,9 @@ pub fn bands(width: u32, height: u32, n: usize, sampler: &SamplerParams) -> Vec<
 
 /// How often the sampling threads' snapshot is republished.
 const SNAPSHOT_EVERY: Duration = Duration::from_millis(1);
+
+/// How often a controller passes the samples it took in on to the image thread.
+const PASS_ON_EVERY: Duration = Duration::from_millis(2);
 
 /// What one band's controller publishes.
 struct BandPublished {
@@ -230,11 +235,13 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     let published = Arc::new(Published::new(&s));
     // Channels are bounded so that a slow consumer slows its producers instead of
-    // growing memory without limit; the capacities hold ~100 ms of batches.
+    // growing memory without limit. A controller's holds about 32 ms of batches from
+    // every sampling thread; the image thread's about half a second of every
+    // controller's messages (one per `PASS_ON_EVERY`), divided among the controllers.
     let (to_img, img_rx) = bounded(256);
     let (mut to_ctrl, mut ctrl_rx) = (Vec::new(), Vec::new());
     for _ in &published.bands {
-        let (tx, rx) = bounded(256);
+        let (tx, rx) = bounded(32 * s.config.sampling_threads.max(1));
         to_ctrl.push(tx);
         ctrl_rx.push(rx);
     }
@@ -588,6 +595,11 @@ fn control(
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
     let mut history_seen = 0;
+    // Samples for the image thread, sent together every `PASS_ON_EVERY`: it drains
+    // its channel once per image, and one message per batch (every sampling thread
+    // sends each band a batch a millisecond) would fill it within an image's time on
+    // many cores, stalling the controllers and, behind them, the sampling threads.
+    let (mut out, mut out_at) = (Vec::new(), Instant::now());
     published.tiling(b, &sampler);
     while !s.stopped() {
         match rx.recv_timeout(Duration::from_millis(2)) {
@@ -603,12 +615,20 @@ fn control(
                     .fetch_add(done.reprojected, Ordering::Relaxed);
                 s.skipped_reprojections
                     .fetch_add(done.skipped, Ordering::Relaxed);
-                if tx.send(done.stream).is_err() {
-                    return;
+                if out.is_empty() {
+                    out = done.stream;
+                } else {
+                    out.extend_from_slice(&done.stream);
                 }
             }
             Err(RecvTimeoutError::Timeout) => {}
             Err(RecvTimeoutError::Disconnected) => return,
+        }
+        if !out.is_empty() && out_at.elapsed() >= PASS_ON_EVERY {
+            if tx.send(std::mem::take(&mut out)).is_err() {
+                return;
+            }
+            out_at = Instant::now();
         }
         if snap_at.elapsed() >= SNAPSHOT_EVERY {
             published.snapshot(b, &sampler);
@@ -658,6 +678,23 @@ struct Builder {
     rate_window: VecDeque<(f64, u64)>,
     /// Newest samples the reconstructor places ([`next_live_limit`]).
     live_limit: Option<usize>,
+}
+
+/// Push the newest samples of `batches` (oldest first) into `r`: as many as its ring
+/// holds, and no more than the live limit (the newest samples an image places) when
+/// there is one. The image thread takes samples in one at a time, and on many cores
+/// more arrive between two images than it can take in and still build an image in
+/// its budget; the older ones would not be placed. (They are lost to the still-region
+/// history too, which gathers every sample taken in.)
+fn push_newest(r: &mut Reconstructor, batches: &[Vec<StreamSample>], limit: Option<usize>) {
+    let total: usize = batches.iter().map(Vec::len).sum();
+    let most = limit.map_or(r.capacity(), |l| l.min(r.capacity()));
+    let mut skip = total.saturating_sub(most);
+    for batch in batches {
+        let from = skip.min(batch.len());
+        skip -= from;
+        r.push_stream(&batch[from..]);
+    }
 }
 
 /// The live limit for the next image, after one that placed `placed` samples under
@@ -717,9 +754,7 @@ impl ImageBuilder for Builder {
             None => self.recon = Some(Box::new(Reconstructor::new(w, h, rate, s.config.recon))),
         }
         let r = self.recon.as_mut()?;
-        for batch in &batches {
-            r.push_stream(batch);
-        }
+        push_newest(r, &batches, self.live_limit);
         let state = s.tracer.state_at(t);
         let camera = state.camera;
         r.set_motion(Some(state));
@@ -877,6 +912,47 @@ mod tests {
         scene::builtin,
         trace::{TraceOptions, Tracer},
     };
+
+    #[test]
+    fn an_image_takes_in_only_the_samples_its_ring_holds() {
+        // 8×4 pixels, ring of 2 samples per pixel: 64.
+        let params = crate::reconstruction::ReconParams::realtime();
+        let mut r = Reconstructor::new(8, 4, 1000.0, params);
+        let cap = r.capacity();
+        let stream = |from: usize, n: usize| -> Vec<StreamSample> {
+            (from..from + n)
+                .map(|i| StreamSample {
+                    x: (i % 8) as f32 + 0.5,
+                    y: (i / 8 % 4) as f32 + 0.5,
+                    t: i as f64,
+                    sample: Default::default(),
+                })
+                .collect()
+        };
+        // More than a ring's worth, over three batches: the newest `cap` are in it.
+        let batches = vec![
+            stream(0, cap),
+            stream(cap, cap / 2),
+            stream(cap + cap / 2, cap),
+        ];
+        push_newest(&mut r, &batches, None);
+        let times: Vec<f64> = r.ring().iter().map(|s| s.t).collect();
+        let total = 2 * cap + cap / 2;
+        assert_eq!(
+            times,
+            ((total - cap)..total).map(|i| i as f64).collect::<Vec<_>>()
+        );
+        // Fewer than a ring's worth: all of them, after what was there.
+        push_newest(&mut r, &[stream(total, 3)], None);
+        assert_eq!(r.ring().back().unwrap().t, (total + 2) as f64);
+        assert_eq!(r.ring().len(), cap);
+        // Under a live limit, no more than it.
+        let before = r.ring().back().unwrap().t;
+        push_newest(&mut r, &[stream(total + 3, 10)], Some(4));
+        let newest: Vec<f64> = r.ring().iter().map(|s| s.t).skip(cap - 5).collect();
+        let from = (total + 3 + 6) as f64;
+        assert_eq!(newest, [before, from, from + 1.0, from + 2.0, from + 3.0]);
+    }
 
     #[test]
     fn bands_are_whole_rows_that_cover_the_image_once() {

@@ -291,7 +291,7 @@ mod tests {
     fn threads_come_from_the_description() {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let threads = |m| RtConfig::new(m).sampling_threads;
-        assert_eq!(threads(RtMethod::Adaptive), cores.saturating_sub(1).max(1));
+        assert_eq!(threads(RtMethod::Adaptive), cores);
         assert_eq!(threads(RtMethod::TraditionalFrameless), cores);
         assert_eq!(threads(RtMethod::Framed), cores);
         assert_eq!(threads(RtMethod::LateWarp), cores);
