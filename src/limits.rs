@@ -91,6 +91,84 @@ pub fn check_rate(rate: f64, seconds: f64) -> Result<(), String> {
     Ok(())
 }
 
+/// Most samples per pixel of an ideal image.
+pub const MAX_IDEAL_SPP: u32 = 4096;
+
+/// Deepest reflection/refraction recursion: the tracer recurses once per bounce.
+pub const MAX_DEPTH: u32 = 64;
+
+/// Most rates one run evaluates (table columns).
+pub const MAX_RATES: usize = 64;
+
+/// Most jobs (method × rate runs over all evaluations, sizes and seeds) in one sweep.
+pub const MAX_SWEEP_JOBS: usize = 100_000;
+
+/// Largest data file `report` and `merge` read (`summary.json`, `frames.csv`, a job
+/// result): a window of an hour at the fastest refresh, every method and rate, is
+/// well under it.
+pub const MAX_DATA_FILE_BYTES: u64 = 1 << 30;
+
+/// Read a whole file, refusing what is not a regular file (`/dev/zero`, a FIFO, a
+/// directory) or is larger than `max_bytes`, before reading it: a device would
+/// otherwise be read until memory runs out.
+pub fn read_file(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::Read;
+    let file = std::fs::File::open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    let too_big = || {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("larger than the file size limit of {max_bytes} bytes"),
+        )
+    };
+    if meta.len() > max_bytes {
+        return Err(too_big());
+    }
+    // The length may change under us; never read past the limit either way.
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(max_bytes + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > max_bytes {
+        return Err(too_big());
+    }
+    Ok(bytes)
+}
+
+/// [`read_file`] of a UTF-8 text file.
+pub fn read_text(path: &std::path::Path, max_bytes: u64) -> std::io::Result<String> {
+    String::from_utf8(read_file(path, max_bytes)?)
+        .map_err(|_| std::io::Error::new(std::io::ErrorKind::InvalidData, "not UTF-8 text"))
+}
+
+/// Check an ideal image's samples per pixel against [`MAX_IDEAL_SPP`].
+pub fn check_ideal_spp(spp: u32) -> Result<(), String> {
+    if !(1..=MAX_IDEAL_SPP).contains(&spp) {
+        return Err(format!("{spp} must be in [1, {MAX_IDEAL_SPP}]"));
+    }
+    Ok(())
+}
+
+/// Check a reflection/refraction depth limit against [`MAX_DEPTH`].
+pub fn check_max_depth(depth: u32) -> Result<(), String> {
+    if depth > MAX_DEPTH {
+        return Err(format!("{depth} must be in [0, {MAX_DEPTH}]"));
+    }
+    Ok(())
+}
+
+/// Check a run's count of rates against [`MAX_RATES`].
+pub fn check_rate_count(n: usize) -> Result<(), String> {
+    if n > MAX_RATES {
+        return Err(format!("lists {n} rates, over the limit of {MAX_RATES}"));
+    }
+    Ok(())
+}
+
 /// Check a warm-up against [`MAX_WARMUP_S`].
 pub fn check_warmup(warmup: f64) -> Result<(), String> {
     if !(warmup.is_finite() && (0.0..=MAX_WARMUP_S).contains(&warmup)) {
@@ -172,6 +250,10 @@ mod tests {
         assert!(check_duration(0.0).is_err());
         assert!(check_display(4096, 4096).is_ok());
         assert!(check_display(4097, 4096).is_err());
+        assert!(check_ideal_spp(MAX_IDEAL_SPP).is_ok() && check_ideal_spp(1).is_ok());
+        assert!(check_ideal_spp(MAX_IDEAL_SPP + 1).is_err() && check_ideal_spp(0).is_err());
+        assert!(check_max_depth(MAX_DEPTH).is_ok() && check_max_depth(MAX_DEPTH + 1).is_err());
+        assert!(check_rate_count(MAX_RATES).is_ok() && check_rate_count(MAX_RATES + 1).is_err());
         assert!(check_buffer("ring", MAX_BUFFER_BYTES, "x").is_ok());
         assert!(check_buffer("ring", MAX_BUFFER_BYTES + 1, "x")
             .unwrap_err()

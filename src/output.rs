@@ -55,6 +55,16 @@ pub enum OutputError {
         /// What is there and what was expected.
         why: &'static str,
     },
+    /// The output folder is, holds or lies inside a folder the command reads.
+    #[error("{}: the output folder {how} the input folder {}; writing it would replace what is read", path.display(), input.display())]
+    Overlaps {
+        /// The output asked for.
+        path: PathBuf,
+        /// The input it overlaps.
+        input: PathBuf,
+        /// `is`, `holds` or `lies inside`.
+        how: &'static str,
+    },
     /// A file's name does not end in the extension of the format written.
     #[error("{}: {found}; the file is written as {expected}, so its name must end in .{extension}", path.display())]
     Extension {
@@ -222,6 +232,57 @@ pub fn check_folder_target(path: &Path) -> Result<(), OutputError> {
         });
     }
     Ok(())
+}
+
+/// Check that the output folder `out` is not one of `inputs`, does not hold one and
+/// does not lie inside one (compared as absolute paths with links resolved, as far as
+/// they exist): an output folder is replaced whole.
+pub fn check_apart(out: &Path, inputs: &[PathBuf]) -> Result<(), OutputError> {
+    let o = resolved(out);
+    for input in inputs {
+        let i = resolved(input);
+        let how = if o == i {
+            "is"
+        } else if i.starts_with(&o) {
+            "holds"
+        } else if o.starts_with(&i) {
+            "lies inside"
+        } else {
+            continue;
+        };
+        return Err(OutputError::Overlaps {
+            path: out.to_path_buf(),
+            input: input.clone(),
+            how,
+        });
+    }
+    Ok(())
+}
+
+/// `path` made absolute, with the links of its longest existing ancestor resolved and
+/// the rest appended (`..` in the rest taken lexically).
+fn resolved(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut existing = abs.as_path();
+    let mut rest = Vec::new();
+    while fs::canonicalize(existing).is_err() {
+        match (existing.parent(), existing.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                existing = parent;
+            }
+            _ => break,
+        }
+    }
+    let mut p = fs::canonicalize(existing).unwrap_or_else(|_| existing.to_path_buf());
+    for name in rest.into_iter().rev() {
+        if name == ".." {
+            p.pop();
+        } else if name != "." {
+            p.push(name);
+        }
+    }
+    p
 }
 
 /// As [`check_folder_target`], for outputs written into the folder file by file

@@ -413,3 +413,185 @@ fn a_material_library_that_is_a_device_is_an_error_not_a_read_until_memory_runs_
         "{e}"
     );
 }
+
+/// A sweep file with `extra` keys at the top level (one evaluation of the built-in toy
+/// car, short).
+fn sweep_text(extra: &str, seeds: &str) -> String {
+    format!(
+        "name = \"s\"\nsizes = [\"16x16\"]\nseeds = [{seeds}]\nmethods = [\"adaptive\"]\n\
+         rates = [\"100k\"]\n{extra}\n[[evaluation]]\nname = \"e\"\nscene = \"toycar\"\n\
+         start = 1\nduration = 0.1\nwarmup = 0.1\n"
+    )
+}
+
+#[test]
+fn sweep_settings_are_held_to_the_command_lines_ranges() {
+    use frameless::evaluation::sweep::Sweep;
+    for (extra, key) in [
+        ("ideal_spp = 4097", "ideal_spp: 4097 must be in [1, 4096]"),
+        ("ideal_spp = 4294967295", "ideal_spp"),
+        ("max_depth = 65", "max_depth: 65 must be in [0, 64]"),
+        ("max_depth = 4294967295", "max_depth"),
+    ] {
+        let e = Sweep::parse(&sweep_text(extra, "1"), "s.toml").unwrap_err();
+        assert!(e.to_string().contains(key), "{extra}: {e}");
+    }
+    for extra in ["ideal_spp = 4096", "max_depth = 64", "max_depth = 0"] {
+        Sweep::parse(&sweep_text(extra, "1"), "s.toml").unwrap();
+    }
+}
+
+#[test]
+fn a_sweep_of_a_million_seeds_is_refused_and_its_repeats_found_in_one_pass() {
+    use frameless::{evaluation::sweep::Sweep, limits::MAX_SWEEP_JOBS};
+    let seeds = |n: usize| (0..n).map(|i| i.to_string()).collect::<Vec<_>>().join(",");
+    let e = Sweep::parse(&sweep_text("", &seeds(1_000_000)), "s.toml").unwrap_err();
+    assert!(
+        e.to_string().contains("1000000 jobs, over the limit"),
+        "{e}"
+    );
+    // The largest accepted, and a repeat at its very end.
+    let s = Sweep::parse(&sweep_text("", &seeds(MAX_SWEEP_JOBS)), "s.toml").unwrap();
+    assert_eq!(s.jobs().len(), MAX_SWEEP_JOBS);
+    let repeated = format!("{},5", seeds(MAX_SWEEP_JOBS - 1));
+    let e = Sweep::parse(&sweep_text("", &repeated), "s.toml").unwrap_err();
+    assert!(e.to_string().contains("lists 5 twice"), "{e}");
+}
+
+/// A copy of a committed evaluation folder to edit.
+fn eval_folder(name: &str) -> PathBuf {
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/results/toycar");
+    let d = dir(name);
+    for e in std::fs::read_dir(&src).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), d.join(e.file_name())).unwrap();
+        }
+    }
+    d
+}
+
+fn edit_summary(d: &std::path::Path, f: impl Fn(&mut serde_json::Value)) {
+    let p = d.join("summary.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    f(&mut v);
+    std::fs::write(&p, serde_json::to_string(&v).unwrap()).unwrap();
+}
+
+#[test]
+fn report_holds_what_it_reads_to_the_budgets() {
+    let report = |d: &std::path::Path| run(&["report", d.to_str().unwrap()]);
+    // The unedited copy is reported.
+    let d = eval_folder("report-ok");
+    assert_eq!(report(&d).0, 0);
+    // A width past the display budget: an error, not an overflow.
+    let d = eval_folder("report-width");
+    edit_summary(&d, |v| v["width"] = 2147483664u64.into());
+    fails_with(
+        &["report", d.to_str().unwrap()],
+        &["summary.json", "size", "over the limit"],
+    );
+    // 100,000 distinct rates.
+    let d = eval_folder("report-rates");
+    edit_summary(&d, |v| {
+        let r0 = v["results"][0].clone();
+        v["results"] = (0..100_000)
+            .map(|i| {
+                let mut r = r0.clone();
+                r["rate"] = (1000.0 + i as f64).into();
+                r
+            })
+            .collect();
+    });
+    fails_with(
+        &["report", d.to_str().unwrap()],
+        &["summary.json", "result rows"],
+    );
+    // frames.csv as a device.
+    #[cfg(unix)]
+    {
+        let d = eval_folder("report-device");
+        std::fs::remove_file(d.join("frames.csv")).unwrap();
+        std::os::unix::fs::symlink("/dev/zero", d.join("frames.csv")).unwrap();
+        fails_with(
+            &["report", d.to_str().unwrap()],
+            &["frames.csv", "not a regular file"],
+        );
+    }
+    // A frame row relabelled with another method: a repeat of that method's row.
+    let d = eval_folder("report-relabel");
+    let p = d.join("frames.csv");
+    let text = std::fs::read_to_string(&p).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let first = lines[1].split(',').next().unwrap().to_string();
+    let other = lines[1..]
+        .iter()
+        .map(|l| l.split(',').next().unwrap())
+        .find(|m| *m != first)
+        .unwrap()
+        .to_string();
+    lines[1] = lines[1].replacen(&first, &other, 1);
+    std::fs::write(&p, lines.join("\n") + "\n").unwrap();
+    fails_with(
+        &["report", d.to_str().unwrap()],
+        &["frames.csv", "there twice"],
+    );
+}
+
+#[test]
+fn framed_methods_fit_their_budget_at_any_aspect_ratio() {
+    let d = dir("aspect");
+    for size in ["4096x1", "2048x1", "4096x2", "1x4096"] {
+        for m in ["framed-60hz", "late-warp", "taa", "taa-warp"] {
+            let out = d.join(format!("{m}-{size}"));
+            let (code, err) = run(&[
+                "eval",
+                "--size",
+                size,
+                "--rates",
+                "100k",
+                "--methods",
+                m,
+                "--duration",
+                "0.05",
+                "--warmup",
+                "0",
+                "--ideal-spp",
+                "1",
+                "--out",
+                out.to_str().unwrap(),
+            ]);
+            assert_eq!(code, 0, "{m} at {size}: {err}");
+        }
+    }
+}
+
+#[test]
+fn bart_names_stay_inside_the_bart_folder_and_errors_say_things_once() {
+    use frameless::evaluation::sweep::SweepFile;
+    let d = dir("bart-names");
+    let bart = d.join("bart");
+    std::fs::create_dir_all(&bart).unwrap();
+    std::fs::write(d.join("outside.aff"), "").unwrap();
+    for name in ["bart:../outside.aff", "bart:/etc/passwd", "bart:"] {
+        let text =
+            sweep_text("", "1").replace("scene = \"toycar\"", &format!("scene = \"{name}\""));
+        let p = d.join("s.toml");
+        std::fs::write(&p, text).unwrap();
+        let f = SweepFile::load(&p).unwrap();
+        let e = f.scene_source(0, Some(&bart)).unwrap_err().to_string();
+        assert!(e.contains("inside the BART folder"), "{name}: {e}");
+    }
+    // An OS error is printed once, after the path it concerns.
+    let missing = d.join("missing");
+    let (code, err) = run(&[
+        "merge",
+        missing.to_str().unwrap(),
+        "--out",
+        d.join("o").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert_eq!(err.matches("os error 2").count(), 1, "{err}");
+    assert!(!err.contains("hashs"));
+}

@@ -341,7 +341,7 @@ fn results_of_another_sweep_or_renderer_or_foreign_files_are_refused() {
         (
             edit(
                 "other-format",
-                "\"format_version\":1",
+                "\"format_version\":2",
                 "\"format_version\":7",
             ),
             "format version 7",
@@ -373,6 +373,132 @@ fn results_of_another_sweep_or_renderer_or_foreign_files_are_refused() {
         !o.status.success() && err.contains("notes.json: not a job result"),
         "{err}"
     );
+}
+
+/// A result file that contradicts its own key, or whose sweep text was edited, is
+/// refused with a message naming it; so is a merge into one of its own input folders.
+#[test]
+fn results_that_contradict_their_key_or_hash_are_refused() {
+    use serde_json::Value;
+    let f = fixture();
+    // Shard 2's results, with `edit` applied to the one file `pick` chooses.
+    let tamper = |name: &str, pick: &dyn Fn(&Value) -> bool, edit: &dyn Fn(&mut Value)| {
+        let d = tmp(name);
+        std::fs::create_dir_all(&d).expect("folder");
+        let mut edited = None;
+        for n in file_names(&f.shards[2]) {
+            let text = std::fs::read_to_string(f.shards[2].join(&n)).expect("result");
+            let mut v: Value = serde_json::from_str(&text).expect("JSON");
+            if edited.is_none() && pick(&v) {
+                edit(&mut v);
+                edited = Some(n.clone());
+            }
+            std::fs::write(d.join(&n), serde_json::to_string(&v).expect("JSON")).expect("written");
+        }
+        (d, edited.expect("a result to edit"))
+    };
+    let rated = |v: &Value| v["key"]["rate"].is_number();
+    let with_strips = |v: &Value| v["strips"].as_array().is_some_and(|s| !s.is_empty());
+    let cases: Vec<(PathBuf, String, &str)> = vec![
+        {
+            let (d, n) = tamper("row-rate", &rated, &|v| {
+                v["results"][0]["rate"] = 123456.0.into()
+            });
+            (d, n, "not this job's")
+        },
+        {
+            let (d, n) = tamper("frame-method", &rated, &|v| {
+                let other = if v["key"]["method"] == "adaptive" {
+                    "framed-60hz"
+                } else {
+                    "adaptive"
+                };
+                v["frames"][3]["method"] = other.into();
+            });
+            (d, n, "not this job's")
+        },
+        {
+            let (d, n) = tamper("strip-twice", &with_strips, &|v| {
+                let first = v["strips"][0].clone();
+                v["strips"].as_array_mut().unwrap().push(first);
+            });
+            (d, n, "there twice")
+        },
+        {
+            let (d, n) = tamper("sweep-text", &rated, &|v| {
+                let t = v["sweep_text"]
+                    .as_str()
+                    .unwrap()
+                    .replace("ideal_spp = 4", "ideal_spp = 5");
+                v["sweep_text"] = t.into();
+            });
+            (d, n, "edited")
+        },
+    ];
+    for (dir, name, what) in cases {
+        let o = frameless(&[
+            &"merge",
+            &f.shards[0],
+            &f.shards[1],
+            &dir,
+            &"--out",
+            &tmp("contradiction"),
+        ])
+        .output()
+        .expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(
+            err.contains(&name) && err.contains(what),
+            "{name}, {what}: {err}"
+        );
+    }
+    // One job's strip removed while another's is duplicated: the duplicate is refused
+    // rather than shown under the wrong label.
+    let (d, _) = tamper("strip-moved", &with_strips, &|v| {
+        v["strips"].as_array_mut().unwrap().clear();
+    });
+    let o = frameless(&[
+        &"merge",
+        &f.shards[0],
+        &f.shards[1],
+        &d,
+        &"--out",
+        &tmp("moved"),
+    ])
+    .output()
+    .expect("runs");
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // A merge's output folder may not be, hold or lie inside an input folder, and the
+    // inputs are untouched.
+    let before = tree(&f.shards[0]);
+    let inside = f.shards[0].join("merged");
+    let parent = f.shards[0].parent().unwrap().to_path_buf();
+    for out in [&f.shards[0], &inside, &parent] {
+        let o = frameless(&[
+            &"merge",
+            &f.shards[0],
+            &f.shards[1],
+            &f.shards[2],
+            &"--out",
+            out,
+        ])
+        .output()
+        .expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            o.status.code() == Some(1) && err.contains("input folder"),
+            "{}: {err}",
+            out.display()
+        );
+    }
+    assert!(!inside.exists());
+    assert_eq!(tree(&f.shards[0]), before);
 }
 
 /// A shard run again keeps the results it finds, so a stopped shard resumes.

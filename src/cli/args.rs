@@ -184,7 +184,7 @@ pub struct Table1Args {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
     pub ideal_spp: u32,
     /// Compute FLIP on every n-th refresh (1: every one).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
@@ -394,13 +394,13 @@ pub struct EvalArgs {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
     pub ideal_spp: u32,
     /// Seconds every method runs before the first evaluated refresh.
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
     pub max_depth: u32,
     /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
     /// ~/.cache/frameless/ideal].
@@ -457,14 +457,14 @@ pub struct LiveArgs {
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
     pub ideal_spp: u32,
     /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint) or
     /// none (full-resolution bilinear lookups, the paper's setting).
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
     pub max_depth: u32,
     /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
     /// ~/.cache/frameless/ideal].
@@ -513,7 +513,7 @@ pub struct StillArgs {
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
     /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=64), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
     pub max_depth: u32,
     /// Output file: `.png` (as displayed: clamped, 8-bit) or `.exr` (OpenEXR, linear
     /// HDR, 32-bit float).

@@ -9,7 +9,7 @@ pub mod sequence;
 pub mod sweep;
 pub mod table1;
 
-use std::{path::PathBuf, sync::Arc, time::Instant};
+use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -203,7 +203,7 @@ impl EvalConfig {
 
     /// Number of evaluated refreshes.
     pub fn frames(&self) -> usize {
-        ((self.duration * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
+        refreshes(self.duration, self.refresh_hz)
     }
 
     /// The simulated clock at `rate`: sample 0 at the start of the warm-up.
@@ -295,11 +295,12 @@ impl EvalConfig {
                 return bad("--methods", format!("lists {m} twice"));
             }
         }
-        for (i, &r) in self.rates.iter().enumerate() {
-            if let Some(&q) = self.rates[..i]
-                .iter()
-                .find(|&&q| rate_label(q) == rate_label(r))
-            {
+        if let Err(why) = limits::check_rate_count(self.rates.len()) {
+            return bad("--rates", why);
+        }
+        let mut labels: HashMap<String, f64> = HashMap::with_capacity(self.rates.len());
+        for &r in &self.rates {
+            if let Some(&q) = labels.get(&rate_label(r)) {
                 let why = if q == r {
                     format!("lists {} twice", rate_label(r))
                 } else {
@@ -310,12 +311,16 @@ impl EvalConfig {
                 };
                 return bad("--rates", why);
             }
+            labels.insert(rate_label(r), r);
         }
         if self.flip_every == 0 {
             return bad("--flip-every", "must be at least 1".into());
         }
-        if self.ideal_spp == 0 {
-            return bad("--ideal-spp", "must be at least 1".into());
+        if let Err(why) = limits::check_ideal_spp(self.ideal_spp) {
+            return bad("--ideal-spp", why);
+        }
+        if let Err(why) = limits::check_max_depth(self.max_depth) {
+            return bad("--max-depth", why);
         }
         if let Err(why) = limits::check_display(self.width, self.height) {
             return bad("--size", why);
@@ -440,6 +445,88 @@ pub struct Summary {
     pub results: Vec<ResultRow>,
     /// Cost of the run.
     pub timing: Timing,
+}
+
+/// Refreshes in a window of `duration` seconds at `refresh_hz` (at least one).
+fn refreshes(duration: f64, refresh_hz: f64) -> usize {
+    ((duration * refresh_hz) + 1e-9).floor().max(1.0) as usize
+}
+
+impl Summary {
+    /// Check a summary read from a file that anyone can edit against the run budgets
+    /// and for rows that contradict each other; the error says what is wrong.
+    pub fn check(&self) -> Result<(), String> {
+        limits::check_display(self.width, self.height).map_err(|e| format!("size: {e}"))?;
+        limits::check_refresh_hz(self.refresh_hz).map_err(|e| format!("refresh_hz: {e}"))?;
+        limits::check_warmup(self.warmup).map_err(|e| format!("warmup: {e}"))?;
+        limits::check_duration(self.duration).map_err(|e| format!("duration: {e}"))?;
+        limits::check_start(self.start, self.warmup, self.duration)
+            .map_err(|e| format!("start: {e}"))?;
+        limits::check_ideal_spp(self.ideal_spp).map_err(|e| format!("ideal_spp: {e}"))?;
+        let most = MethodKind::ALL.len() * limits::MAX_RATES;
+        if self.results.len() > most {
+            return Err(format!(
+                "{} result rows, more than {most} (every method at {} rates)",
+                self.results.len(),
+                limits::MAX_RATES
+            ));
+        }
+        let mut rates = std::collections::HashSet::new();
+        let mut cells = std::collections::HashSet::new();
+        for r in &self.results {
+            if !(r.rate.is_finite() && r.rate > 0.0) {
+                return Err(format!(
+                    "{}: rate {} is not a positive number",
+                    r.method, r.rate
+                ));
+            }
+            rates.insert(r.rate.to_bits());
+            if !cells.insert((r.method, r.rate.to_bits())) {
+                return Err(format!("{} at {} has two result rows", r.method, r.rate));
+            }
+        }
+        limits::check_rate_count(rates.len()).map_err(|e| format!("results: {e}"))
+    }
+
+    /// Evaluated refreshes of the run it summarises.
+    pub fn frames(&self) -> usize {
+        refreshes(self.duration, self.refresh_hz)
+    }
+
+    /// Check per-frame rows against the summary: each of a method and rate it has
+    /// a result row for, within its window, once. The error names the row (1-based,
+    /// as in `frames.csv` after its header).
+    pub fn check_frames(&self, frames: &[FrameRow]) -> Result<(), String> {
+        let cells: std::collections::HashSet<(MethodKind, u64)> = self
+            .results
+            .iter()
+            .map(|r| (r.method, r.rate.to_bits()))
+            .collect();
+        let n = self.frames();
+        let mut seen = HashMap::with_capacity(frames.len());
+        for (i, f) in frames.iter().enumerate() {
+            let row = i + 1;
+            if !cells.contains(&(f.method, f.rate.to_bits())) {
+                return Err(format!(
+                    "row {row}: {} at {} has no result row in the summary",
+                    f.method, f.rate
+                ));
+            }
+            if f.frame >= n {
+                return Err(format!(
+                    "row {row}: frame {} is past the window's {n} refreshes",
+                    f.frame
+                ));
+            }
+            if let Some(first) = seen.insert((f.method, f.rate.to_bits(), f.frame), row) {
+                return Err(format!(
+                    "rows {first} and {row}: {} at {} frame {} is there twice",
+                    f.method, f.rate, f.frame
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Everything a run produced.

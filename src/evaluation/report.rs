@@ -15,6 +15,7 @@ use super::{metrics, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{
     image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
+    limits,
     methods::MethodKind,
     output::{self, OutputDir},
 };
@@ -121,7 +122,9 @@ pub fn read_frames_csv(path: &Path) -> Result<Vec<FrameRow>, EvalError> {
         path: path.to_path_buf(),
         why,
     };
-    let mut reader = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
+    let bytes =
+        limits::read_file(path, limits::MAX_DATA_FILE_BYTES).map_err(|e| EvalError::io(path, e))?;
+    let mut reader = csv::Reader::from_reader(&bytes[..]);
     reader
         .deserialize()
         .map(|row| row.map_err(|e| bad(e.to_string())))
@@ -134,7 +137,8 @@ pub fn read_summary(path: &Path) -> Result<Summary, EvalError> {
         path: path.to_path_buf(),
         why,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| EvalError::io(path, e))?;
+    let text =
+        limits::read_text(path, limits::MAX_DATA_FILE_BYTES).map_err(|e| EvalError::io(path, e))?;
     serde_json::from_str(&text).map_err(|e| bad(e.to_string()))
 }
 
@@ -305,10 +309,13 @@ pub const STRIP_GAP: u32 = 4;
 
 /// The panels of a strip made by [`strip`], if it holds exactly `n` of `w × h`.
 pub(crate) fn split_strip(sw: u32, sh: u32, rgb: &[u8], w: u32, n: usize) -> Option<Vec<Vec<u8>>> {
-    let n32 = n as u32;
-    if n == 0 || sw != n32 * w + (n32 - 1) * STRIP_GAP || rgb.len() != (sw * sh * 3) as usize {
+    // In u64: a strip's sizes come from files anyone can edit.
+    let (n64, w64) = (n as u64, w as u64);
+    let width = n64 * w64 + n64.saturating_sub(1) * STRIP_GAP as u64;
+    if n == 0 || sw as u64 != width || rgb.len() as u64 != sw as u64 * sh as u64 * 3 {
         return None;
     }
+    let n32 = n as u32;
     Some(
         (0..n32)
             .map(|i| {
@@ -700,8 +707,13 @@ fn write_plots(
 /// image strips it holds (strips deleted since are left out; the data files are not
 /// changed). Each file is replaced atomically. Returns the report's path.
 pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
-    let summary = read_summary(&dir.join("summary.json"))?;
-    let frames = read_frames_csv(&dir.join("frames.csv"))?;
+    let summary_path = dir.join("summary.json");
+    let summary = read_summary(&summary_path)?;
+    let bad = |path: PathBuf| move |why: String| EvalError::Data { path, why };
+    summary.check().map_err(bad(summary_path))?;
+    let frames_path = dir.join("frames.csv");
+    let frames = read_frames_csv(&frames_path)?;
+    summary.check_frames(&frames).map_err(bad(frames_path))?;
     let plots = write_plots(&summary, &frames, dir)?;
     let mut labels = vec!["ideal".to_string()];
     labels.extend(

@@ -232,7 +232,9 @@ impl Framed {
 /// The largest `gw × gh ≤ n` grid with (about) the aspect of `w × h`, within `w × h`.
 pub fn reduced_grid(w: u32, h: u32, n: u64) -> (u32, u32) {
     let aspect = w as f64 / h as f64;
-    let gw = ((n as f64 * aspect).sqrt().floor() as u64).clamp(1, w as u64);
+    // Never wider than the budget: at one row per frame (a very wide display) the
+    // aspect-true width would exceed it.
+    let gw = ((n as f64 * aspect).sqrt().floor() as u64).clamp(1, (w as u64).min(n.max(1)));
     let gh = (n / gw).clamp(1, h as u64);
     (gw as u32, gh as u32)
 }
@@ -329,6 +331,14 @@ mod tests {
         assert_eq!(reduced_grid(256, 256, 1_000_000), (256, 256));
         assert_eq!(reduced_grid(256, 128, 2), (2, 1));
         assert_eq!(reduced_grid(256, 256, 1), (1, 1));
+        // Extreme aspect ratios: one row (or column) still fits the budget.
+        assert_eq!(reduced_grid(4096, 1, 1667), (1667, 1));
+        let (w, h) = reduced_grid(1, 4096, 1667);
+        assert!(w * h <= 1667 && w >= 1, "{w}x{h}");
+        for (w, h, n) in [(4096, 2, 1667), (2048, 1, 100), (4096, 1, 1)] {
+            let (gw, gh) = reduced_grid(w, h, n);
+            assert!(gw as u64 * gh as u64 <= n, "{w}x{h} at {n}: {gw}x{gh}");
+        }
     }
 
     #[test]

@@ -40,31 +40,7 @@ pub const MAX_FILE_BYTES: u64 = 2 << 30;
 /// directory) or is larger than [`MAX_FILE_BYTES`], before reading it: a device would
 /// otherwise be read until memory runs out.
 pub fn read_bounded(path: &std::path::Path) -> std::io::Result<Vec<u8>> {
-    use std::io::Read;
-    let file = std::fs::File::open(path)?;
-    let meta = file.metadata()?;
-    if !meta.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file",
-        ));
-    }
-    let too_big = || {
-        std::io::Error::new(
-            std::io::ErrorKind::InvalidData,
-            format!("larger than the file size limit of {MAX_FILE_BYTES} bytes"),
-        )
-    };
-    if meta.len() > MAX_FILE_BYTES {
-        return Err(too_big());
-    }
-    // The length may change under us; never read past the limit either way.
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
-    file.take(MAX_FILE_BYTES + 1).read_to_end(&mut bytes)?;
-    if bytes.len() as u64 > MAX_FILE_BYTES {
-        return Err(too_big());
-    }
-    Ok(bytes)
+    crate::limits::read_file(path, MAX_FILE_BYTES)
 }
 
 /// Whether a colour is finite and within [`MAX_COLOR`].

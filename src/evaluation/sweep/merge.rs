@@ -16,7 +16,7 @@ use std::{
 
 use serde::{Deserialize, Serialize};
 
-use super::{run::JobResult, Instance, Sweep, SweepError, SweepReport};
+use super::{run::JobResult, Instance, JobKey, Sweep, SweepError, SweepReport};
 use crate::{
     evaluation::{
         report::{self, rate_label},
@@ -224,19 +224,8 @@ fn assemble(
                 job.id()
             )));
         }
-        let columns = if job.rate.is_some() {
-            1
-        } else {
-            cfg.rates.len()
-        };
-        if r.results.len() != columns || r.frames.len() != columns * n {
-            return Err(not(format!(
-                "{} result rows and {} frame rows; the job has {columns} and {}",
-                r.results.len(),
-                r.frames.len(),
-                columns * n
-            )));
-        }
+        let rates = job.rate.map_or(cfg.rates.clone(), |r| vec![r]);
+        check_rows(r, &job, &rates, n).map_err(not)?;
         match &scene {
             None => scene = Some((r.job.clone(), &r.scene_fingerprint)),
             Some((first, fp)) if *fp != r.scene_fingerprint => {
@@ -305,6 +294,56 @@ fn assemble(
         // Sweeps keep display-quantized strips only (no HDR strips in job results).
         linear: Vec::new(),
     })
+}
+
+/// Check that a job's result rows, frame rows and strips are those of `job`: its
+/// method, at its `rates`, each rate's row and each of its `n` frames once, and a strip
+/// at most once per rate and frame.
+fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], n: usize) -> Result<(), String> {
+    let columns = rates.len();
+    if r.results.len() != columns || r.frames.len() != columns * n {
+        return Err(format!(
+            "{} result rows and {} frame rows; the job has {columns} and {}",
+            r.results.len(),
+            r.frames.len(),
+            columns * n
+        ));
+    }
+    let column = |rate: f64| rates.iter().position(|&x| x == rate);
+    let mut rows = vec![false; columns];
+    for row in &r.results {
+        let Some(c) = column(row.rate).filter(|_| row.method == job.method) else {
+            return Err(format!(
+                "a result row of {} at {}, which is not this job's",
+                row.method, row.rate
+            ));
+        };
+        if std::mem::replace(&mut rows[c], true) {
+            return Err(format!("two result rows at {}", row.rate));
+        }
+    }
+    let mut frames = vec![false; columns * n];
+    for f in &r.frames {
+        let Some(c) = column(f.rate).filter(|_| f.method == job.method && f.frame < n) else {
+            return Err(format!(
+                "a frame row of {} at {} frame {}, which is not this job's",
+                f.method, f.rate, f.frame
+            ));
+        };
+        if std::mem::replace(&mut frames[c * n + f.frame], true) {
+            return Err(format!("two frame rows at {} frame {}", f.rate, f.frame));
+        }
+    }
+    let mut strips = HashSet::new();
+    for s in &r.strips {
+        if column(s.rate).is_none() || !strips.insert((s.rate.to_bits(), s.frame)) {
+            return Err(format!(
+                "a strip at {} frame {} that is not this job's, or is there twice",
+                s.rate, s.frame
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn add_timing(sum: &mut Timing, t: &Timing) {

@@ -105,7 +105,7 @@ pub enum SweepError {
         why: String,
     },
     /// Results disagree on something that must be the same for all.
-    #[error("{}: {what} is {found}, but {} has {expected}; results of different {what}s cannot be merged", path.display(), reference.display())]
+    #[error("{}: {what} is {found}, but {} has {expected}; results whose {what} differs cannot be merged", path.display(), reference.display())]
     Mismatch {
         /// What differs (`sweep file hash`, `renderer version`).
         what: &'static str,
@@ -511,6 +511,22 @@ fn line_of(text: &str, at: usize) -> usize {
     text[..at.min(text.len())].matches('\n').count() + 1
 }
 
+/// Whether the relative path `rel` names something inside the folder it is joined to:
+/// no root or prefix, no `..`.
+fn stays_inside(rel: &str) -> bool {
+    use std::path::Component;
+    !rel.is_empty()
+        && Path::new(rel)
+            .components()
+            .all(|c| matches!(c, Component::Normal(_) | Component::CurDir))
+}
+
+/// The first item of `items` that an earlier one equals (one pass).
+fn first_repeat<T: std::hash::Hash + Eq + Copy>(items: &[T]) -> Option<T> {
+    let mut seen = std::collections::HashSet::with_capacity(items.len());
+    items.iter().copied().find(|x| !seen.insert(*x))
+}
+
 /// Names become file names and parts of job names.
 fn valid_name(s: &str) -> bool {
     !s.is_empty()
@@ -563,19 +579,18 @@ impl Sweep {
             return Err(e);
         }
         // Job names are built from these; a repeat would be one job run twice.
-        if let Some(i) = (1..sizes.len()).find(|&i| sizes[..i].contains(&sizes[i])) {
-            let (w, h) = sizes[i];
+        if let Some((w, h)) = first_repeat(&sizes) {
             return Err(invalid(
                 sizes_at,
                 "sizes".into(),
                 format!("lists {w}x{h} twice"),
             ));
         }
-        if let Some(i) = (1..seeds.len()).find(|&i| seeds[..i].contains(&seeds[i])) {
+        if let Some(seed) = first_repeat(&seeds) {
             return Err(invalid(
                 seeds_at,
                 "seeds".into(),
-                format!("lists {} twice", seeds[i]),
+                format!("lists {seed} twice"),
             ));
         }
         if raw.evaluations.is_empty() {
@@ -583,6 +598,34 @@ impl Sweep {
                 text.len(),
                 "evaluation".into(),
                 "the sweep has no [[evaluation]]".into(),
+            ));
+        }
+        let per_instance: u128 = methods
+            .iter()
+            .map(|m| {
+                if m.rate_independent() {
+                    1
+                } else {
+                    rates.len() as u128
+                }
+            })
+            .sum();
+        let jobs = raw.evaluations.len() as u128
+            * sizes.len() as u128
+            * seeds.len() as u128
+            * per_instance;
+        if jobs > crate::limits::MAX_SWEEP_JOBS as u128 {
+            return Err(invalid(
+                name_at,
+                "jobs".into(),
+                format!(
+                    "{} evaluations × {} sizes × {} seeds × {per_instance} method and rate runs \
+                     make {jobs} jobs, over the limit of {} per sweep",
+                    raw.evaluations.len(),
+                    sizes.len(),
+                    seeds.len(),
+                    crate::limits::MAX_SWEEP_JOBS
+                ),
             ));
         }
         if raw.report == SweepReport::Table1 && (sizes.len() > 1 || seeds.len() > 1) {
@@ -594,6 +637,7 @@ impl Sweep {
             ));
         }
         let mut evaluations: Vec<Evaluation> = Vec::new();
+        let mut names = std::collections::HashSet::new();
         for e in raw.evaluations {
             let at = e.name.span().start;
             let name = e.name.into_inner();
@@ -604,7 +648,7 @@ impl Sweep {
                     format!("`{name}` must be 1 to 64 letters, digits, - or _"),
                 ));
             }
-            if evaluations.iter().any(|x| x.name == name) {
+            if !names.insert(name.clone()) {
                 return Err(invalid(
                     at,
                     "evaluation.name".into(),
@@ -709,14 +753,6 @@ impl Sweep {
             .collect()
     }
 
-    /// The instance a job belongs to.
-    pub fn instance_of(&self, job: &JobKey) -> Option<Instance> {
-        self.instances().into_iter().find(|i| {
-            self.evaluations[i.evaluation].name == job.evaluation
-                && (i.width, i.height, i.seed) == (job.width, job.height, job.seed)
-        })
-    }
-
     /// The output folder of an instance: the evaluation's name, with size and seed
     /// when the sweep has more than one of either.
     pub fn folder(&self, inst: &Instance) -> String {
@@ -788,8 +824,19 @@ pub struct SweepFile {
     /// Each evaluation's camera path (parallel to `sweep.evaluations`).
     pub camera_paths: Vec<Option<CameraPath>>,
     /// Hash of the sweep file and of every camera-path file it names: results of
-    /// different inputs are never merged.
+    /// different inputs are never merged ([`sweep_hash`]).
     pub hash: u64,
+    /// Hash of the camera-path files alone, so that a merge can recompute
+    /// [`SweepFile::hash`] from a result's sweep text.
+    pub cameras_hash: u64,
+}
+
+/// The hash of a sweep whose file is `text` and whose camera-path files hash to
+/// `cameras` ([`SweepFile::cameras_hash`]).
+pub fn sweep_hash(text: &str, cameras: u64) -> u64 {
+    let mut bytes = stable_hash(text.as_bytes()).to_le_bytes().to_vec();
+    bytes.extend_from_slice(&cameras.to_le_bytes());
+    stable_hash(&bytes)
 }
 
 impl SweepFile {
@@ -799,7 +846,8 @@ impl SweepFile {
             path: p.to_path_buf(),
             source,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| io(path, e))?;
+        let text = crate::limits::read_text(path, crate::limits::MAX_DATA_FILE_BYTES)
+            .map_err(|e| io(path, e))?;
         let file = path.display().to_string();
         let sweep = Sweep::parse(&text, &file)?;
         let dir = path.parent().unwrap_or(Path::new(""));
@@ -810,7 +858,6 @@ impl SweepFile {
             hashed.extend_from_slice(&(bytes.len() as u64).to_le_bytes());
             hashed.extend_from_slice(bytes);
         };
-        add(text.as_bytes());
         let mut camera_paths = Vec::new();
         for e in &sweep.evaluations {
             let Some(rel) = &e.camera_path else {
@@ -827,9 +874,11 @@ impl SweepFile {
             add(&std::fs::read(&p).map_err(|err| io(&p, err))?);
             camera_paths.push(Some(cam));
         }
+        let cameras_hash = stable_hash(&hashed);
         Ok(SweepFile {
             path: path.to_path_buf(),
-            hash: stable_hash(&hashed),
+            hash: sweep_hash(&text, cameras_hash),
+            cameras_hash,
             text,
             sweep,
             camera_paths,
@@ -853,6 +902,12 @@ impl SweepFile {
             return Ok(e.scene.clone());
         }
         let path = match e.scene.strip_prefix("bart:") {
+            // Only plain names below the folder: no root, no `..`.
+            Some(rel) if !stays_inside(rel) => {
+                return Err(err(format!(
+                    "bart:{rel} must be a relative path inside the BART folder, without `..`"
+                )))
+            }
             Some(rel) => match bart {
                 Some(dir) => dir.join(rel),
                 None => {

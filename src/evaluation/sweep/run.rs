@@ -16,7 +16,7 @@ use std::{
 use base64::Engine as _;
 use serde::{Deserialize, Serialize};
 
-use super::{JobKey, Shard, SweepError, SweepFile};
+use super::{Instance, JobKey, Shard, SweepError, SweepFile};
 use crate::{
     evaluation::{self, FrameRow, Progress, ResultRow, Timing},
     output,
@@ -28,7 +28,7 @@ use crate::{
 /// `format` of every result file.
 pub const RESULT_FORMAT: &str = "frameless sweep job result";
 /// Bump when a result file's content changes meaning; the merge reads only its own.
-pub const RESULT_VERSION: u32 = 1;
+pub const RESULT_VERSION: u32 = 2;
 
 /// One refresh's image strip of one job: the ideal image and the method's, as PNG in
 /// base64.
@@ -75,6 +75,9 @@ pub struct JobResult {
     pub sweep_hash: String,
     /// The sweep file's text, from which the merge learns every job there must be.
     pub sweep_text: String,
+    /// [`SweepFile::cameras_hash`], hexadecimal: with `sweep_text` it gives
+    /// `sweep_hash` again ([`super::sweep_hash`]).
+    pub cameras_hash: String,
     /// The tracer's [`RENDERER_VERSION`] that rendered it.
     pub renderer_version: u32,
     /// The `frameless` package version that ran it.
@@ -96,10 +99,12 @@ pub struct JobResult {
 impl JobResult {
     /// Read a result file; errors name the file and the place in it.
     pub fn read(path: &Path) -> Result<JobResult, SweepError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SweepError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let text = crate::limits::read_text(path, crate::limits::MAX_DATA_FILE_BYTES).map_err(
+            |source| SweepError::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+        )?;
         let not = |why: String| SweepError::NotAResult {
             path: path.to_path_buf(),
             why,
@@ -119,6 +124,17 @@ impl JobResult {
             _ => return Err(not(format!("it has no \"format\": \"{RESULT_FORMAT}\""))),
         }
         let r: JobResult = serde_json::from_str(&text).map_err(|e| not(e.to_string()))?;
+        let cameras = u64::from_str_radix(&r.cameras_hash, 16).map_err(|_| {
+            not(format!(
+                "cameras_hash \"{}\" is not hexadecimal",
+                r.cameras_hash
+            ))
+        })?;
+        if format!("{:016x}", super::sweep_hash(&r.sweep_text, cameras)) != r.sweep_hash {
+            return Err(not(
+                "its sweep_text does not give its sweep file hash: the file was edited".into(),
+            ));
+        }
         if r.job != r.key.id() {
             return Err(not(format!(
                 "its job \"{}\" does not match its key ({})",
@@ -246,10 +262,24 @@ pub fn result_path(out: &Path, job: &JobKey) -> PathBuf {
 
 /// The jobs of `shard`, in the sweep's order.
 pub fn shard_jobs(file: &SweepFile, shard: Shard) -> Vec<JobKey> {
-    file.sweep
-        .jobs()
+    shard_instance_jobs(file, shard)
         .into_iter()
-        .filter(|j| shard.owns(j))
+        .map(|(_, j)| j)
+        .collect()
+}
+
+/// [`shard_jobs`] with the instance each job belongs to.
+fn shard_instance_jobs(file: &SweepFile, shard: Shard) -> Vec<(Instance, JobKey)> {
+    let sweep = &file.sweep;
+    sweep
+        .instances()
+        .into_iter()
+        .flat_map(|inst| {
+            let jobs = sweep.instance_jobs(&inst);
+            jobs.into_iter()
+                .filter(|j| shard.owns(j))
+                .map(move |j| (inst, j))
+        })
         .collect()
 }
 
@@ -272,23 +302,20 @@ pub fn run_shard(
     })?;
     let sweep = &file.sweep;
     let hash = format!("{:016x}", file.hash);
-    let jobs = shard_jobs(file, shard);
+    let jobs = shard_instance_jobs(file, shard);
     let mut run = ShardRun {
         jobs: jobs.len(),
         ..Default::default()
     };
     // Every scene this shard needs is found before the first job, which may be long.
     let mut sources: HashMap<usize, String> = HashMap::new();
-    for job in &jobs {
-        let inst = sweep
-            .instance_of(job)
-            .expect("jobs come from the sweep's instances");
+    for (inst, _) in &jobs {
         if let std::collections::hash_map::Entry::Vacant(v) = sources.entry(inst.evaluation) {
             v.insert(file.scene_source(inst.evaluation, opts.bart_dir.as_deref())?);
         }
     }
     let mut scenes: HashMap<String, (Arc<Scene>, String)> = HashMap::new();
-    for (index, job) in jobs.iter().enumerate() {
+    for (index, (inst, job)) in jobs.iter().enumerate() {
         let path = result_path(out, job);
         if let Ok(r) = JobResult::read(&path) {
             if r.key == *job && r.sweep_hash == hash && r.renderer_version == RENDERER_VERSION {
@@ -303,9 +330,6 @@ pub fn run_shard(
             total: jobs.len(),
         });
         let t0 = Instant::now();
-        let inst = sweep
-            .instance_of(job)
-            .expect("jobs come from the sweep's instances");
         let e = &sweep.evaluations[inst.evaluation];
         let src = &sources[&inst.evaluation];
         if !scenes.contains_key(src) {
@@ -319,7 +343,7 @@ pub fn run_shard(
         }
         let (scene, fingerprint) = &scenes[src];
         let cfg = sweep.job_config(
-            &inst,
+            inst,
             job,
             file.camera_paths[inst.evaluation].clone(),
             opts.cache_dir.clone(),
@@ -353,6 +377,7 @@ pub fn run_shard(
             key: job.clone(),
             sweep_name: sweep.name.clone(),
             sweep_hash: hash.clone(),
+            cameras_hash: format!("{:016x}", file.cameras_hash),
             sweep_text: file.text.clone(),
             renderer_version: RENDERER_VERSION,
             frameless_version: env!("CARGO_PKG_VERSION").into(),
