@@ -339,11 +339,9 @@ fn find_in_path(bin: &str) -> Option<PathBuf> {
 }
 
 #[test]
-fn viewer_opens_under_xvfb() {
-    let Some(xvfb) = find_in_path("Xvfb") else {
-        println!("note: Xvfb not installed; viewer test skipped (apt-get install xvfb)");
-        return;
-    };
+#[ignore = "needs Xvfb and the X client libraries (apt-get install xvfb)"]
+fn display_viewer_opens_under_xvfb() {
+    let xvfb = find_in_path("Xvfb").expect("Xvfb not installed (apt-get install xvfb)");
     let dir = tmp_dir("xvfb");
     // A display number unlikely to be in use, derived from the process id.
     let display = format!(":{}", 90 + std::process::id() % 100);
@@ -383,11 +381,8 @@ fn viewer_opens_under_xvfb() {
     let _ = server.kill();
     let _ = server.wait();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    if !out.status.success() && stderr.contains("cannot open a window") {
-        // Xvfb present but the X client libraries (libX11 …) are not.
-        println!("note: viewer could not open a window under Xvfb, skipped: {stderr}");
-        return;
-    }
+    // A window that cannot open (Xvfb present but not the X client libraries, libX11
+    // …) fails here too.
     assert!(out.status.success(), "{stderr}");
     assert!(shot.exists(), "screenshot written");
     let rec = CameraPath::load(&dir.join("rec.csv")).unwrap();
