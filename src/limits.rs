@@ -24,6 +24,30 @@ pub const MAX_SCENE_TIME_S: f64 = 1e4;
 /// Most display pixels (4096 × 4096) for the methods that keep per-pixel state.
 pub const MAX_DISPLAY_PIXELS: u64 = 1 << 24;
 
+/// Longest side of an image size (`WxH`) any command or file accepts; the display
+/// budget ([`MAX_DISPLAY_PIXELS`]) bounds the product further where per-pixel state is
+/// kept.
+pub const MAX_SIDE: u32 = 16384;
+
+/// Parse an image size `WxH` (or `WXH`): two whole numbers in `1..=MAX_SIDE`. The one
+/// parser of sizes, for the command line and sweep files alike.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("`{s}` is not a size: expected WxH, e.g. 256x256"))?;
+    let side = |v: &str| -> Result<u32, String> {
+        let n: u32 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
+        if n == 0 || n > MAX_SIDE {
+            return Err(format!("size side {n} out of range 1..={MAX_SIDE}"));
+        }
+        Ok(n)
+    };
+    Ok((side(w)?, side(h)?))
+}
+
 /// Largest single per-run buffer (the adaptive sampler's deep buffer, a
 /// reconstructor's sample ring), bytes.
 pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
@@ -250,6 +274,11 @@ mod tests {
         assert!(check_duration(0.0).is_err());
         assert!(check_display(4096, 4096).is_ok());
         assert!(check_display(4097, 4096).is_err());
+        assert_eq!(parse_size("640x480"), Ok((640, 480)));
+        assert_eq!(parse_size(" 16 X 9 "), Ok((16, 9)));
+        for bad in ["640", "0x4", "4x0", "16385x1", "ax4", "4x-1", ""] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
         assert!(check_ideal_spp(MAX_IDEAL_SPP).is_ok() && check_ideal_spp(1).is_ok());
         assert!(check_ideal_spp(MAX_IDEAL_SPP + 1).is_err() && check_ideal_spp(0).is_err());
         assert!(check_max_depth(MAX_DEPTH).is_ok() && check_max_depth(MAX_DEPTH + 1).is_err());

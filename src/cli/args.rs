@@ -10,9 +10,6 @@ use frameless::{
     trace::TextureFilter,
 };
 
-/// Largest image side accepted.
-pub const MAX_SIDE: u32 = 16384;
-
 /// An image size `WxH`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Size(pub u32, pub u32);
@@ -20,20 +17,8 @@ pub struct Size(pub u32, pub u32);
 impl FromStr for Size {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        let (w, h) = s
-            .split_once(['x', 'X'])
-            .ok_or_else(|| format!("`{s}` is not a size: expected WxH, e.g. 256x256"))?;
-        let side = |v: &str| -> Result<u32, String> {
-            let n: u32 = v
-                .trim()
-                .parse()
-                .map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
-            if n == 0 || n > MAX_SIDE {
-                return Err(format!("size side {n} out of range 1..={MAX_SIDE}"));
-            }
-            Ok(n)
-        };
-        Ok(Size(side(w)?, side(h)?))
+        let (w, h) = frameless::limits::parse_size(s)?;
+        Ok(Size(w, h))
     }
 }
 
@@ -271,7 +256,7 @@ pub struct ViewArgs {
     #[arg(long, default_value = "view-out")]
     pub out: PathBuf,
     /// Displayed images --headless writes, evenly spaced.
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=100), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=frameless::realtime::headless::MAX_IMAGES as i64), allow_negative_numbers = true)]
     pub images: u32,
     /// Record the camera path to this CSV file (replay with `eval --camera-path`).
     #[arg(long)]

@@ -1,5 +1,5 @@
-//! The real-time parallel pipeline (as the afr-optix system runs it), the interactive viewer and
-//! its headless mode.
+//! The real-time parallel pipeline (as the OptiX adaptive frameless renderer runs it),
+//! the interactive viewer and its headless mode.
 //!
 //! Scene time follows the wall clock ([`clock`]). Several sampling threads trace samples
 //! concurrently, each at the current time; per-pixel exclusion ([`pixel_locks`])

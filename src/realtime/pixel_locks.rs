@@ -1,5 +1,5 @@
-//! Per-pixel exclusion between sampling threads (afr-optix: "threads that find a pixel
-//! locked simply sample a different pixel").
+//! Per-pixel exclusion between sampling threads: a thread that finds a pixel taken
+//! samples a different one, as the OptiX adaptive frameless renderer does.
 //!
 //! One `AtomicBool` per pixel; taking a pixel is a `compare_exchange(false → true)`,
 //! so it never blocks: a thread that loses the race gets `None` and picks other work.

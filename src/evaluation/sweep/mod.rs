@@ -278,15 +278,8 @@ struct Size(u32, u32);
 impl<'de> Deserialize<'de> for Size {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         let s = String::deserialize(d)?;
-        let parsed = s.split_once(['x', 'X']).and_then(|(w, h)| {
-            let side = |v: &str| v.trim().parse::<u32>().ok().filter(|&n| n > 0);
-            Some(Size(side(w)?, side(h)?))
-        });
-        parsed.ok_or_else(|| {
-            de::Error::custom(format!(
-                "`{s}` is not a size: expected WxH with whole numbers above 0, e.g. \"256x256\""
-            ))
-        })
+        let (w, h) = crate::limits::parse_size(&s).map_err(de::Error::custom)?;
+        Ok(Size(w, h))
     }
 }
 
