@@ -447,6 +447,36 @@ pub struct Summary {
     pub timing: Timing,
 }
 
+impl FrameRow {
+    /// What in the row no run writes: a time outside the scene times a run may touch,
+    /// an error that is negative, not finite or past its largest value (RMS and
+    /// instability over 0–255 RGB: at most 255·√3; FLIP at most 1), a NaN PSNR, or an
+    /// age that is neither NaN (nothing shown yet) nor a finite time.
+    pub fn out_of_range(&self) -> Option<String> {
+        let most = 255.0 * 3f64.sqrt() + 1e-6;
+        let within = |v: f64, hi: f64| v.is_finite() && (0.0..=hi).contains(&v);
+        if !(self.time.is_finite() && self.time.abs() <= limits::MAX_SCENE_TIME_S) {
+            return Some(format!(
+                "time {} is not a scene time a run reaches",
+                self.time
+            ));
+        }
+        if !within(self.rms, most) || !self.instability.is_none_or(|v| within(v, most)) {
+            return Some("an RMS or instability outside [0, 255·√3]".into());
+        }
+        if !self.flip.is_none_or(|v| within(v, 1.0)) {
+            return Some("a FLIP outside [0, 1]".into());
+        }
+        if self.psnr.is_nan() {
+            return Some("a PSNR that is not a number".into());
+        }
+        if !(self.age_s.is_nan() || (self.age_s.is_finite() && self.age_s.abs() <= 1e6)) {
+            return Some(format!("age {} is not a time", self.age_s));
+        }
+        None
+    }
+}
+
 /// Refreshes in a window of `duration` seconds at `refresh_hz` (at least one).
 fn refreshes(duration: f64, refresh_hz: f64) -> usize {
     ((duration * refresh_hz) + 1e-9).floor().max(1.0) as usize
@@ -517,6 +547,9 @@ impl Summary {
                     "row {row}: frame {} is past the window's {n} refreshes",
                     f.frame
                 ));
+            }
+            if let Some(why) = f.out_of_range() {
+                return Err(format!("row {row}: {why}"));
             }
             if let Some(first) = seen.insert((f.method, f.rate.to_bits(), f.frame), row) {
                 return Err(format!(

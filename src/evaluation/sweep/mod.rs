@@ -234,7 +234,9 @@ impl StripFrames {
     pub fn frames(self, n: usize) -> Vec<usize> {
         match self {
             StripFrames::Quartiles => {
-                let mut f = vec![n / 4, n / 2, (3 * n) / 4];
+                // ⌊3n/4⌋ without forming 3n, which overflows for a window of
+                // unbounded length (caught by the checks that follow).
+                let mut f = vec![n / 4, n / 2, n / 4 * 3 + n % 4 * 3 / 4];
                 f.dedup();
                 f
             }
