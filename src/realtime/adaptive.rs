@@ -64,7 +64,7 @@ use crate::{
     reconstruction::Reconstructor,
     sampling::Rng,
     tiles::TilingSnapshot,
-    trace::{StateCache, StreamSample},
+    trace::{SceneState, StateCache, StreamSample},
 };
 
 /// The adaptive method's description.
@@ -384,13 +384,10 @@ const BATCH_VISITS: usize = 256;
 /// the visited tiles' bands.
 fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>) {
     let tracer = &s.tracer;
-    let (w, h) = tracer.size();
     let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
     let mut states = StateCache::new();
     let mut view = View::new(published);
-    let mut batches = vec![Batch::default(); tx.len()];
-    let mut sent = Instant::now();
-    let mut busy = 0.0f64;
+    let mut out = Outbox::new(tx);
     while !s.stopped() {
         view.refresh(published);
         let now = s.clock.now();
@@ -403,100 +400,160 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>
         let (b, i) = view.locate(k);
         let snap = &view.snaps[b];
         let rect = snap.rects[i];
-        let batch = &mut batches[b];
+        let batch = &mut out.batches[b];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[i] {
-            let (px, py) = completion_point(
-                &s.config.sampler,
-                &state.camera,
-                &p.follow(&state, now),
-                rect,
-                now,
-                w,
-                h,
-            );
-            let arms = s.config.sampler.arms(rect);
-            let cross =
-                crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
-            let Some(guard) = s.locks.try_lock_many(&cross) else {
+            if !complete(s, &state, p, rect, now, batch) {
                 continue; // another thread is at this crosshair: visit another tile
-            };
-            let mut rays = 0;
-            let stream = &mut batch.stream;
-            let c = crosshair_with(w, h, (px, py), arms, now, Some((p.lum, p.t)), |x, y| {
-                rays += 1;
-                let sample = tracer.sample(&state, x, y);
-                stream.push(StreamSample {
-                    x,
-                    y,
-                    t: now,
-                    sample,
-                });
-                sample
-            });
-            drop(guard);
-            batch.visits.push(Visit::Completed {
-                crosshair: c,
-                rays,
-                pending: p,
-            });
-        }
-        for _ in 0..4 {
-            let draws = &published.pixel_draws;
-            let (x, y) = if draws.is_empty() {
-                rect.random_point(&mut rng)
-            } else {
-                stratified_in(rect, &mut rng, s.config.seed, w, |p| {
-                    draws[p].fetch_add(1, Ordering::Relaxed)
-                })
-            };
-            let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
-                continue;
-            };
-            let sample = tracer.sample(&state, x, y);
-            drop(guard);
-            view.last[b][i] = Some(now);
-            batch.stream.push(StreamSample {
-                x,
-                y,
-                t: now,
-                sample,
-            });
-            batch.visits.push(Visit::Initiated(Pending {
-                x,
-                y,
-                t: now,
-                lum: sample.luminance,
-                hit_point: sample.hit_point,
-                velocity: sample.velocity,
-                anchor: sample.anchor,
-            }));
-            break;
-        }
-        busy += t0.elapsed().as_secs_f64();
-        let full = batch.visits.len() >= BATCH_VISITS;
-        if full || sent.elapsed().as_secs_f64() > BATCH_S {
-            s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
-            busy = 0.0;
-            // A full batch goes alone; on time, every band's batch goes.
-            let due: Vec<usize> = if full {
-                vec![b]
-            } else {
-                sent = Instant::now();
-                (0..batches.len()).collect()
-            };
-            for d in due {
-                if batches[d].visits.is_empty() {
-                    continue;
-                }
-                let n = batches[d].stream.len() as u64;
-                s.samples.fetch_add(n, Ordering::Relaxed);
-                s.rays.fetch_add(n, Ordering::Relaxed);
-                if tx[d].send(std::mem::take(&mut batches[d])).is_err() {
-                    return;
-                }
             }
         }
+        if initiate(s, published, &state, rect, now, &mut rng, batch) {
+            view.last[b][i] = Some(now);
+        }
+        out.busy += t0.elapsed().as_secs_f64();
+        if !out.send_due(s, b) {
+            return;
+        }
+    }
+}
+
+/// Complete the crosshair `p` initiated in tile `rect`, where its surface point is
+/// at `now`, into `batch`; `false` if another thread holds one of its pixels.
+fn complete(
+    s: &Shared,
+    state: &SceneState,
+    p: Pending,
+    rect: Rect,
+    now: f64,
+    batch: &mut Batch,
+) -> bool {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let sampler = &s.config.sampler;
+    let at = p.follow(state, now);
+    let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
+    let arms = sampler.arms(rect);
+    let cross = crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
+    let Some(guard) = s.locks.try_lock_many(&cross) else {
+        return false;
+    };
+    let mut rays = 0;
+    let stream = &mut batch.stream;
+    let c = crosshair_with(w, h, (px, py), arms, now, Some((p.lum, p.t)), |x, y| {
+        rays += 1;
+        let sample = tracer.sample(state, x, y);
+        stream.push(StreamSample {
+            x,
+            y,
+            t: now,
+            sample,
+        });
+        sample
+    });
+    drop(guard);
+    batch.visits.push(Visit::Completed {
+        crosshair: c,
+        rays,
+        pending: p,
+    });
+    true
+}
+
+/// Initiate a crosshair at a random place in tile `rect` into `batch` (a few tries
+/// for a pixel no other thread holds); whether it did.
+fn initiate(
+    s: &Shared,
+    published: &Published,
+    state: &SceneState,
+    rect: Rect,
+    now: f64,
+    rng: &mut Rng,
+    batch: &mut Batch,
+) -> bool {
+    let (w, _) = s.tracer.size();
+    let draws = &published.pixel_draws;
+    for _ in 0..4 {
+        let (x, y) = if draws.is_empty() {
+            rect.random_point(rng)
+        } else {
+            stratified_in(rect, rng, s.config.seed, w, |p| {
+                draws[p].fetch_add(1, Ordering::Relaxed)
+            })
+        };
+        let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
+            continue;
+        };
+        let sample = s.tracer.sample(state, x, y);
+        drop(guard);
+        batch.stream.push(StreamSample {
+            x,
+            y,
+            t: now,
+            sample,
+        });
+        batch.visits.push(Visit::Initiated(Pending {
+            x,
+            y,
+            t: now,
+            lum: sample.luminance,
+            hit_point: sample.hit_point,
+            velocity: sample.velocity,
+            anchor: sample.anchor,
+        }));
+        return true;
+    }
+    false
+}
+
+/// A sampling thread's batches, one per band, and its tracing time since they last went.
+struct Outbox {
+    tx: Vec<Sender<Batch>>,
+    batches: Vec<Batch>,
+    sent: Instant,
+    busy: f64,
+}
+
+impl Outbox {
+    fn new(tx: Vec<Sender<Batch>>) -> Self {
+        Self {
+            batches: vec![Batch::default(); tx.len()],
+            tx,
+            sent: Instant::now(),
+            busy: 0.0,
+        }
+    }
+
+    /// Send what is due after a visit to band `b`: its batch alone when full, every
+    /// band's when [`BATCH_S`] has passed. `false` once the controllers are gone.
+    fn send_due(&mut self, s: &Shared, b: usize) -> bool {
+        let full = self.batches[b].visits.len() >= BATCH_VISITS;
+        if !full && self.sent.elapsed().as_secs_f64() <= BATCH_S {
+            return true;
+        }
+        s.busy_ns
+            .fetch_add((self.busy * 1e9) as u64, Ordering::Relaxed);
+        self.busy = 0.0;
+        let due = if full {
+            b..b + 1
+        } else {
+            self.sent = Instant::now();
+            0..self.batches.len()
+        };
+        for d in due {
+            if self.batches[d].visits.is_empty() {
+                continue;
+            }
+            let n = self.batches[d].stream.len() as u64;
+            s.samples.fetch_add(n, Ordering::Relaxed);
+            s.rays.fetch_add(n, Ordering::Relaxed);
+            if self.tx[d]
+                .send(std::mem::take(&mut self.batches[d]))
+                .is_err()
+            {
+                return false;
+            }
+        }
+        true
     }
 }
 

@@ -530,6 +530,69 @@ fn valid_name(s: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
 }
 
+/// The jobs of `evaluations × sizes × seeds` instances of `methods` at `rates` rates,
+/// or why they are too many ([`crate::limits::MAX_SWEEP_JOBS`]); counted before any
+/// is made.
+fn job_count(
+    (evaluations, sizes, seeds): (usize, usize, usize),
+    methods: &[MethodKind],
+    rates: usize,
+) -> Result<u128, String> {
+    let per_instance: u128 = methods
+        .iter()
+        .map(|m| {
+            if m.rate_independent() {
+                1
+            } else {
+                rates as u128
+            }
+        })
+        .sum();
+    let jobs = evaluations as u128 * sizes as u128 * seeds as u128 * per_instance;
+    let most = crate::limits::MAX_SWEEP_JOBS;
+    if jobs > most as u128 {
+        return Err(format!(
+            "{evaluations} evaluations × {sizes} sizes × {seeds} seeds × {per_instance} \
+             method and rate runs make {jobs} jobs, over the limit of {most} per sweep"
+        ));
+    }
+    Ok(jobs)
+}
+
+/// The evaluations as written, names checked (valid, distinct).
+fn evaluations(
+    raw: Vec<RawEvaluation>,
+    text: &str,
+    invalid: &dyn Fn(usize, &str, String) -> SweepError,
+) -> Result<Vec<Evaluation>, SweepError> {
+    let mut evaluations: Vec<Evaluation> = Vec::with_capacity(raw.len());
+    let mut names = std::collections::HashSet::new();
+    for e in raw {
+        let at = e.name.span().start;
+        let name = e.name.into_inner();
+        if !valid_name(&name) {
+            let why = format!("`{name}` must be 1 to 64 letters, digits, - or _");
+            return Err(invalid(at, "evaluation.name", why));
+        }
+        if !names.insert(name.clone()) {
+            let why = format!("`{name}` names two evaluations");
+            return Err(invalid(at, "evaluation.name", why));
+        }
+        evaluations.push(Evaluation {
+            title: e.title.unwrap_or_else(|| e.scene.clone()),
+            name,
+            scene: e.scene,
+            description: e.description,
+            camera_path: e.camera_path,
+            start: e.start,
+            duration: e.duration,
+            warmup: e.warmup,
+            line: line_of(text, at),
+        });
+    }
+    Ok(evaluations)
+}
+
 impl Sweep {
     /// Parse and check a sweep file's text; `file` names it in messages. Every
     /// evaluation is checked as `frameless eval` checks its settings.
@@ -538,10 +601,10 @@ impl Sweep {
             file: file.to_string(),
             message: e.to_string().trim_end().to_string(),
         })?;
-        let invalid = |at: usize, key: String, why: String| SweepError::Invalid {
+        let invalid = |at: usize, key: &str, why: String| SweepError::Invalid {
             file: file.to_string(),
             line: line_of(text, at),
-            key,
+            key: key.to_string(),
             why,
         };
         let name_at = raw.name.span().start;
@@ -549,119 +612,47 @@ impl Sweep {
         if !valid_name(&name) {
             return Err(invalid(
                 name_at,
-                "name".into(),
+                "name",
                 format!("`{name}` must be 1 to 64 letters, digits, - or _"),
             ));
         }
-        let list = |at: usize, key: &str, len: usize| {
-            (len == 0).then(|| invalid(at, key.into(), "lists nothing".into()))
-        };
-        let sizes_at = raw.sizes.span().start;
+        let (sizes_at, seeds_at) = (raw.sizes.span().start, raw.seeds.span().start);
+        let (methods_at, rates_at) = (raw.methods.span().start, raw.rates.span().start);
         let sizes: Vec<(u32, u32)> = raw.sizes.into_inner().iter().map(|s| (s.0, s.1)).collect();
-        let seeds_at = raw.seeds.span().start;
         let seeds = raw.seeds.into_inner();
-        let methods_at = raw.methods.span().start;
         let methods = raw.methods.into_inner();
-        let rates_at = raw.rates.span().start;
         let rates: Vec<f64> = raw.rates.into_inner().iter().map(|r| r.0).collect();
-        let firsts = [
-            list(sizes_at, "sizes", sizes.len()),
-            list(seeds_at, "seeds", seeds.len()),
-            list(methods_at, "methods", methods.len()),
-            list(rates_at, "rates", rates.len()),
+        let lists = [
+            (sizes_at, "sizes", sizes.len()),
+            (seeds_at, "seeds", seeds.len()),
+            (methods_at, "methods", methods.len()),
+            (rates_at, "rates", rates.len()),
         ];
-        if let Some(e) = firsts.into_iter().flatten().next() {
-            return Err(e);
+        if let Some(&(at, key, _)) = lists.iter().find(|l| l.2 == 0) {
+            return Err(invalid(at, key, "lists nothing".into()));
         }
         // Job names are built from these; a repeat would be one job run twice.
         if let Some((w, h)) = first_repeat(&sizes) {
-            return Err(invalid(
-                sizes_at,
-                "sizes".into(),
-                format!("lists {w}x{h} twice"),
-            ));
+            return Err(invalid(sizes_at, "sizes", format!("lists {w}x{h} twice")));
         }
         if let Some(seed) = first_repeat(&seeds) {
-            return Err(invalid(
-                seeds_at,
-                "seeds".into(),
-                format!("lists {seed} twice"),
-            ));
+            return Err(invalid(seeds_at, "seeds", format!("lists {seed} twice")));
         }
         if raw.evaluations.is_empty() {
-            return Err(invalid(
-                text.len(),
-                "evaluation".into(),
-                "the sweep has no [[evaluation]]".into(),
-            ));
+            let why = "the sweep has no [[evaluation]]".into();
+            return Err(invalid(text.len(), "evaluation", why));
         }
-        let per_instance: u128 = methods
-            .iter()
-            .map(|m| {
-                if m.rate_independent() {
-                    1
-                } else {
-                    rates.len() as u128
-                }
-            })
-            .sum();
-        let jobs = raw.evaluations.len() as u128
-            * sizes.len() as u128
-            * seeds.len() as u128
-            * per_instance;
-        if jobs > crate::limits::MAX_SWEEP_JOBS as u128 {
-            return Err(invalid(
-                name_at,
-                "jobs".into(),
-                format!(
-                    "{} evaluations × {} sizes × {} seeds × {per_instance} method and rate runs \
-                     make {jobs} jobs, over the limit of {} per sweep",
-                    raw.evaluations.len(),
-                    sizes.len(),
-                    seeds.len(),
-                    crate::limits::MAX_SWEEP_JOBS
-                ),
-            ));
-        }
+        let counts = (raw.evaluations.len(), sizes.len(), seeds.len());
+        job_count(counts, &methods, rates.len()).map_err(|why| invalid(name_at, "jobs", why))?;
         if raw.report == SweepReport::Table1 && (sizes.len() > 1 || seeds.len() > 1) {
             return Err(invalid(
                 sizes_at,
-                "report".into(),
+                "report",
                 "\"table1\" writes one folder per evaluation, so it takes one size and one seed"
                     .into(),
             ));
         }
-        let mut evaluations: Vec<Evaluation> = Vec::new();
-        let mut names = std::collections::HashSet::new();
-        for e in raw.evaluations {
-            let at = e.name.span().start;
-            let name = e.name.into_inner();
-            if !valid_name(&name) {
-                return Err(invalid(
-                    at,
-                    "evaluation.name".into(),
-                    format!("`{name}` must be 1 to 64 letters, digits, - or _"),
-                ));
-            }
-            if !names.insert(name.clone()) {
-                return Err(invalid(
-                    at,
-                    "evaluation.name".into(),
-                    format!("`{name}` names two evaluations"),
-                ));
-            }
-            evaluations.push(Evaluation {
-                title: e.title.unwrap_or_else(|| e.scene.clone()),
-                name,
-                scene: e.scene,
-                description: e.description,
-                camera_path: e.camera_path,
-                start: e.start,
-                duration: e.duration,
-                warmup: e.warmup,
-                line: line_of(text, at),
-            });
-        }
+        let evaluations = evaluations(raw.evaluations, text, &invalid)?;
         let sweep = Sweep {
             name,
             report: raw.report,
@@ -677,9 +668,15 @@ impl Sweep {
             refresh_hz: raw.refresh_hz,
             evaluations,
         };
-        for inst in sweep.instances() {
-            let e = &sweep.evaluations[inst.evaluation];
-            if let Err(err) = sweep.config(&inst, None, None).validate() {
+        sweep.check_instances(file)?;
+        Ok(sweep)
+    }
+
+    /// Check every instance's settings as `frameless eval` checks its options.
+    fn check_instances(&self, file: &str) -> Result<(), SweepError> {
+        for inst in self.instances() {
+            let e = &self.evaluations[inst.evaluation];
+            if let Err(err) = self.config(&inst, None, None).validate() {
                 // The evaluation's checks name command-line options; here they are keys.
                 let (key, why) = match err {
                     EvalError::Config { option, why } => {
@@ -698,7 +695,7 @@ impl Sweep {
                 });
             }
         }
-        Ok(sweep)
+        Ok(())
     }
 
     /// Every evaluation at every size and seed, in file order.
