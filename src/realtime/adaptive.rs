@@ -77,6 +77,8 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // image rate; docs/performance.md).
     default_sampling_threads: |cores| cores,
     extra_threads: controllers,
+    // Its buffers (deep buffer, ring) include the display check.
+    check_size: |c, w, h| crate::methods::adaptive::check_budget(w, h, &c.sampler, &c.recon),
     start,
 };
 

@@ -86,13 +86,7 @@ impl RtConfig {
     /// Check that a `width × height` display fits the run budgets ([`crate::limits`])
     /// with this method's buffers, before any thread allocates them.
     pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
-        // The adaptive method's buffers include the display check.
-        if self.method == RtMethod::Adaptive {
-            crate::methods::adaptive::check_budget(width, height, &self.sampler, &self.recon)
-        } else {
-            crate::limits::check_display(width, height)
-        }
-        .map_err(RealtimeError::Config)
+        (self.method.info().check_size)(self, width, height).map_err(RealtimeError::Config)
     }
 
     /// Check ranges.

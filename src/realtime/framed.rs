@@ -42,6 +42,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
+    check_size: super::shared::display_only,
     start: |sp| start_with(sp, false),
 };
 
@@ -51,6 +52,7 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     about: "framed, the newest frame reprojected to the camera at every refresh (depth + object motion, no rays)",
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
+    check_size: super::shared::display_only,
     start: |sp| start_with(sp, true),
 };
 

@@ -22,6 +22,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
+    check_size: super::shared::display_only,
     start,
 };
 

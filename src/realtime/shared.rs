@@ -231,8 +231,16 @@ pub(crate) struct MethodInfo {
     /// Threads it runs besides its sampling threads and the pipeline's image thread,
     /// given how many sampling threads it runs.
     pub extra_threads: fn(usize) -> usize,
+    /// Check that a `width × height` display fits the run budgets with its buffers
+    /// under `config` ([`display_only`] for a method with no buffer beyond the image).
+    pub check_size: fn(&RtConfig, u32, u32) -> Result<(), String>,
     /// Start its threads; the image thread then calls the builder it returns.
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
+}
+
+/// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.
+pub(crate) fn display_only(_: &RtConfig, width: u32, height: u32) -> Result<(), String> {
+    crate::limits::check_display(width, height)
 }
 
 /// What a method starts its threads with: the shared state, and a place for the

@@ -44,6 +44,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // shares them.
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
+    check_size: super::shared::display_only,
     start: |sp| start_with(sp, false),
 };
 
@@ -53,6 +54,7 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     about: "taa, its image warped to the camera at every refresh (depth + object motion, no rays)",
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
+    check_size: super::shared::display_only,
     start: |sp| start_with(sp, true),
 };
 
