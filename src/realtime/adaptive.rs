@@ -154,6 +154,11 @@ struct Published {
     /// (empty when off); relaxed counters: two threads drawing the same index at once
     /// only repeat one position.
     pixel_draws: Vec<AtomicU32>,
+    /// Visits whose reprojection step a controller ran, and skipped (behind).
+    reprojected_visits: AtomicU64,
+    skipped_reprojections: AtomicU64,
+    /// History count maps the controllers passed to their samplers.
+    history_maps: AtomicU64,
 }
 
 impl Published {
@@ -175,6 +180,9 @@ impl Published {
                 .collect(),
             snapshot_seq: AtomicU64::new(0),
             history_counts: Mutex::new((0, Vec::new())),
+            reprojected_visits: AtomicU64::new(0),
+            skipped_reprojections: AtomicU64::new(0),
+            history_maps: AtomicU64::new(0),
             pixel_draws: if s.config.sampler.stratified_positions {
                 (0..w as usize * h as usize)
                     .map(|_| AtomicU32::new(0))
@@ -260,6 +268,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         recon: None,
         rate_window: VecDeque::new(),
         live_limit: None,
+        figures: ImageFigures::default(),
     }))
 }
 
@@ -670,9 +679,11 @@ fn control(
                 let extra = (done.stream.len() - traced) as u64;
                 s.samples.fetch_add(extra, Ordering::Relaxed);
                 s.rays.fetch_add(done.own_rays, Ordering::Relaxed);
-                s.reprojected_visits
+                published
+                    .reprojected_visits
                     .fetch_add(done.reprojected, Ordering::Relaxed);
-                s.skipped_reprojections
+                published
+                    .skipped_reprojections
                     .fetch_add(done.skipped, Ordering::Relaxed);
                 if out.is_empty() {
                     out = done.stream;
@@ -691,12 +702,11 @@ fn control(
         }
         if snap_at.elapsed() >= SNAPSHOT_EVERY {
             published.snapshot(b, &sampler);
-            s.tiles.store(published.tiles(), Ordering::Relaxed);
             snap_at = Instant::now();
         }
         if tiling_at.elapsed() >= tiling_every {
             if take_history_counts(published, b, &mut sampler, &mut history_seen) {
-                s.history_maps.fetch_add(1, Ordering::Relaxed);
+                published.history_maps.fetch_add(1, Ordering::Relaxed);
             }
             published.tiling(b, &sampler);
             tiling_at = Instant::now();
@@ -737,6 +747,20 @@ struct Builder {
     rate_window: VecDeque<(f64, u64)>,
     /// Newest samples the reconstructor places ([`next_live_limit`]).
     live_limit: Option<usize>,
+    figures: ImageFigures,
+}
+
+/// What the image builder reports ([`ImageBuilder::stats`]).
+#[derive(Default)]
+struct ImageFigures {
+    /// The sample rate the filters assume after the newest image, and the ring's
+    /// capacity.
+    recon_rate: f64,
+    ring_capacity: usize,
+    /// Images built, those built under a live limit, and the samples they placed.
+    images: u64,
+    limited_images: u64,
+    placed_sum: f64,
 }
 
 /// Push the newest samples of `batches` (oldest first) into `r`: as many as its ring
@@ -785,6 +809,38 @@ fn next_live_limit(
 }
 
 impl ImageBuilder for Builder {
+    /// `tiles` now; `reprojected_share` of visits whose reprojection step ran (the
+    /// controllers skip it while behind their input); `history_maps` the controllers
+    /// received ([`crate::methods::adaptive::SamplerParams::discount_converged`]); the
+    /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
+    /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
+    /// most the live limit); `limited_share` of images built under a live limit
+    /// ([`super::RtConfig::image_budget`]).
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        let p = &*self.published;
+        let (rv, sv) = (
+            p.reprojected_visits.load(Ordering::Relaxed),
+            p.skipped_reprojections.load(Ordering::Relaxed),
+        );
+        let f = &self.figures;
+        let per_image = |x: f64| x / f.images.max(1) as f64;
+        vec![
+            ("tiles", p.tiles().into()),
+            (
+                "reprojected_share",
+                (rv as f64 / (rv + sv).max(1) as f64).into(),
+            ),
+            (
+                "history_maps",
+                p.history_maps.load(Ordering::Relaxed).into(),
+            ),
+            ("recon_rate", f.recon_rate.into()),
+            ("ring_capacity", f.ring_capacity.into()),
+            ("placed_mean", per_image(f.placed_sum).into()),
+            ("limited_share", per_image(f.limited_images as f64).into()),
+        ]
+    }
+
     fn build(&mut self, t: f64) -> Option<Built> {
         let t0 = Instant::now();
         let s = &*self.s;
@@ -844,13 +900,12 @@ impl ImageBuilder for Builder {
             floor,
             r.capacity(),
         );
-        {
-            let mut st = lock(&s.image_stats);
-            st.recon_rate = rate;
-            st.ring_capacity = r.capacity();
-            st.limited_images += limited as u64;
-            st.placed_sum += r.placed() as f64;
-        }
+        let fig = &mut self.figures;
+        fig.recon_rate = rate;
+        fig.ring_capacity = r.capacity();
+        fig.images += 1;
+        fig.limited_images += limited as u64;
+        fig.placed_sum += r.placed() as f64;
         Some(Built {
             image,
             mean_age: r.mean_age(),

@@ -113,6 +113,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
         front_time: (0, f64::NAN),
         front_g: None,
         warp: warp.then(|| Warp::new(w, h)),
+        dropped_frames: 0,
     }))
 }
 
@@ -177,9 +178,15 @@ struct Builder {
     /// Late warp: the front frame's hits and camera, and the warp's buffers.
     front_g: Option<GBuffer>,
     warp: Option<Warp>,
+    /// Frames (whole or in part) traced but never shown.
+    dropped_frames: u64,
 }
 
 impl ImageBuilder for Builder {
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        vec![("dropped_frames", self.dropped_frames.into())]
+    }
+
     fn build(&mut self, t: f64) -> Option<Built> {
         let (w, h) = self.size;
         // Frames completed in this build before a newer one: traced, never shown.
@@ -223,9 +230,7 @@ impl ImageBuilder for Builder {
             }
         }
         dropped += self.building.take_abandoned();
-        if dropped > 0 {
-            lock(&self.s.image_stats).dropped_frames += dropped;
-        }
+        self.dropped_frames += dropped;
         let n = self.front.pixels.len();
         let age = (t - self.front_time.1) as f32;
         // The warp moves what the frame saw to where it is now; it adds no new

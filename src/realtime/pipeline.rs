@@ -68,28 +68,11 @@ pub struct PipelineStats {
     pub age_p99_s: f64,
     /// Attempts to take a pixel that another thread held.
     pub pixel_conflicts: u64,
-    /// Adaptive: tiles now.
-    pub tiles: u64,
-    /// Adaptive: share of visits whose reprojection step ran (the controller skips it
-    /// while it is behind its input).
-    pub reprojected_share: f64,
-    /// Adaptive: maps of the reconstructor's still-region history counts the
-    /// controller received, so that converged pixels draw fewer samples
-    /// ([`crate::methods::adaptive::SamplerParams::discount_converged`]).
-    pub history_maps: u64,
-    /// Adaptive: the sample rate the reconstructor's filters assume (measured), /s.
-    pub recon_rate: f64,
-    /// Adaptive: ring capacity.
-    pub ring_capacity: usize,
-    /// Adaptive: samples the reconstructor placed per image, mean (the ring within the
-    /// temporal cutoff, at most the live limit of the image budget).
-    pub placed_mean: f64,
-    /// Adaptive: share of images built under a live limit, because the previous one
-    /// took longer than the image budget ([`RtConfig::image_budget`]).
-    pub limited_share: f64,
-    /// Framed methods and taa: frames (whole or in part) traced but never shown,
-    /// because a newer frame was complete first; their samples count in `samples`.
-    pub dropped_frames: u64,
+    /// The method's own figures, each named by its method and listed in `stats.json`
+    /// beside the figures every method has (the README's `view` section says what
+    /// each is).
+    #[serde(flatten)]
+    pub method_stats: std::collections::BTreeMap<&'static str, serde_json::Value>,
 }
 
 /// A running pipeline. Dropping it stops and joins its threads.
@@ -157,10 +140,6 @@ impl Pipeline {
             .get(((sorted.len() as f64 - 1.0) * 0.95).max(0.0) as usize)
             .copied()
             .unwrap_or(0.0);
-        let (rv, sv) = (
-            s.reprojected_visits.load(Ordering::Relaxed),
-            s.skipped_reprojections.load(Ordering::Relaxed),
-        );
         let cfg = &s.config;
         let info = cfg.method.info();
         PipelineStats {
@@ -188,18 +167,7 @@ impl Pipeline {
             age_p95_s: img.age_hist.quantile(0.95),
             age_p99_s: img.age_hist.quantile(0.99),
             pixel_conflicts: s.locks.conflicts(),
-            tiles: s.tiles.load(Ordering::Relaxed),
-            reprojected_share: if rv + sv > 0 {
-                rv as f64 / (rv + sv) as f64
-            } else {
-                0.0
-            },
-            recon_rate: img.recon_rate,
-            ring_capacity: img.ring_capacity,
-            placed_mean: img.placed_sum / img.images.max(1) as f64,
-            limited_share: img.limited_images as f64 / img.images.max(1) as f64,
-            dropped_frames: img.dropped_frames,
-            history_maps: s.history_maps.load(Ordering::Relaxed),
+            method_stats: img.method.iter().cloned().collect(),
         }
     }
 
@@ -349,6 +317,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             published_s: s.clock.elapsed(),
         }));
         let mut st = lock(&s.image_stats);
+        st.method = builder.stats();
         st.images += 1;
         st.build_ms.push(ms);
         st.age_hist.add(&ages);

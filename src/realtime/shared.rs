@@ -138,15 +138,6 @@ pub(crate) struct Shared {
     pub rays: AtomicU64,
     /// Nanoseconds sampling threads spent tracing (summed over threads).
     pub busy_ns: AtomicU64,
-    /// Adaptive: visits whose reprojection step the controller ran, and skipped
-    /// (behind). Here rather than in the method so that the statistics can report them
-    /// for every method (as zeros).
-    pub reprojected_visits: AtomicU64,
-    pub skipped_reprojections: AtomicU64,
-    /// Adaptive: history count maps the controller passed to its sampler.
-    pub history_maps: AtomicU64,
-    /// Adaptive: tiles now (1 for the other methods: the whole image).
-    pub tiles: AtomicU64,
     pub latest: Mutex<Option<Arc<Frame>>>,
     pub image_stats: Mutex<ImageThreadStats>,
 }
@@ -164,10 +155,6 @@ impl Shared {
             samples: AtomicU64::new(0),
             rays: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
-            reprojected_visits: AtomicU64::new(0),
-            skipped_reprojections: AtomicU64::new(0),
-            history_maps: AtomicU64::new(0),
-            tiles: AtomicU64::new(1),
             latest: Mutex::new(None),
             image_stats: Mutex::new(ImageThreadStats::default()),
         }
@@ -186,16 +173,8 @@ pub(crate) struct ImageThreadStats {
     pub ages: Vec<f64>,
     /// Pixel ages of every image built, pooled.
     pub age_hist: AgeHistogram,
-    /// Adaptive: the sample rate the reconstructor's filters assume, and its ring's
-    /// capacity (the builder reports them; the pipeline only passes them on).
-    pub recon_rate: f64,
-    pub ring_capacity: usize,
-    /// Adaptive: images built under a live limit, and the samples placed, summed over
-    /// images.
-    pub limited_images: u64,
-    pub placed_sum: f64,
-    /// Frames whose samples were traced but never shown (framed methods and taa).
-    pub dropped_frames: u64,
+    /// The method's own figures after its newest image ([`ImageBuilder::stats`]).
+    pub method: Vec<(&'static str, serde_json::Value)>,
 }
 
 /// An image a method built for the display.
@@ -217,6 +196,12 @@ pub(crate) struct Built {
 /// builds the image shown at scene time `t`. `None`: nothing to show yet.
 pub(crate) trait ImageBuilder: Send {
     fn build(&mut self, t: f64) -> Option<Built>;
+
+    /// The method's own figures so far, by the names the pipeline statistics give
+    /// them (beside the figures every method has).
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        Vec::new()
+    }
 }
 
 /// The description of one real-time method, a `const` in the method's own file that

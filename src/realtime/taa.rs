@@ -177,6 +177,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
         fold_s,
         history,
         warp: warp.then(|| Warp::new(size.0, size.1)),
+        dropped_frames: 0,
     }))
 }
 
@@ -230,6 +231,8 @@ struct Builder {
     fold_s: Arc<AtomicU64>,
     history: TaaHistory,
     warp: Option<Warp>,
+    /// Frames (whole or in part) traced but never shown.
+    dropped_frames: u64,
 }
 
 impl Builder {
@@ -257,6 +260,10 @@ impl Builder {
 }
 
 impl ImageBuilder for Builder {
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        vec![("dropped_frames", self.dropped_frames.into())]
+    }
+
     fn build(&mut self, t: f64) -> Option<Built> {
         // Collected first: folding borrows the whole builder.
         let rows: Vec<Row> = self.rx.try_iter().collect();
@@ -290,9 +297,7 @@ impl ImageBuilder for Builder {
                 dropped += 1;
             }
         }
-        if dropped > 0 {
-            lock(&self.s.image_stats).dropped_frames += dropped;
-        }
+        self.dropped_frames += dropped;
         let (_, newest) = self.folded?;
         let times = self.history.output_times();
         let ages = sampled_ages(times.len(), |i| (t - times[i]) as f32);
