@@ -44,6 +44,16 @@ impl Rect {
         x >= self.x0 && x < self.x1 && y >= self.y0 && y < self.y1
     }
 
+    /// The rectangle moved by `(dx, dy)` pixels.
+    pub fn offset(&self, dx: u32, dy: u32) -> Rect {
+        Rect {
+            x0: self.x0 + dx,
+            y0: self.y0 + dy,
+            x1: self.x1 + dx,
+            y1: self.y1 + dy,
+        }
+    }
+
     /// A uniformly random sub-pixel position inside.
     pub fn random_point(&self, rng: &mut Rng) -> (f32, f32) {
         let x = self.x0 as f32 + rng.uniform() * self.width() as f32;

@@ -201,6 +201,14 @@ fn fixture() -> &'static Fixture {
     })
 }
 
+/// `frameless merge` of shards 0 and 1 with `third` into `out`.
+fn merge_with(third: &Path, out: &Path) -> Output {
+    let f = fixture();
+    frameless(&[&"merge", &f.shards[0], &f.shards[1], &third, &"--out", &out])
+        .output()
+        .expect("runs")
+}
+
 fn file_names(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
         .expect("readable")
@@ -348,16 +356,7 @@ fn results_of_another_sweep_or_renderer_or_foreign_files_are_refused() {
         ),
     ];
     for (dir, what) in cases {
-        let o = frameless(&[
-            &"merge",
-            &f.shards[0],
-            &f.shards[1],
-            &dir,
-            &"--out",
-            &tmp("refused"),
-        ])
-        .output()
-        .expect("runs");
+        let o = merge_with(&dir, &tmp("refused"));
         assert!(!o.status.success(), "{what}");
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains(what), "{what}: {err}");
@@ -436,16 +435,7 @@ fn results_that_contradict_their_key_or_hash_are_refused() {
         },
     ];
     for (dir, name, what) in cases {
-        let o = frameless(&[
-            &"merge",
-            &f.shards[0],
-            &f.shards[1],
-            &dir,
-            &"--out",
-            &tmp("contradiction"),
-        ])
-        .output()
-        .expect("runs");
+        let o = merge_with(&dir, &tmp("contradiction"));
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{name}: {err}");
         assert!(
@@ -458,16 +448,7 @@ fn results_that_contradict_their_key_or_hash_are_refused() {
     let (d, _) = tamper("strip-moved", &with_strips, &|v| {
         v["strips"].as_array_mut().unwrap().clear();
     });
-    let o = frameless(&[
-        &"merge",
-        &f.shards[0],
-        &f.shards[1],
-        &d,
-        &"--out",
-        &tmp("moved"),
-    ])
-    .output()
-    .expect("runs");
+    let o = merge_with(&d, &tmp("moved"));
     assert_eq!(
         o.status.code(),
         Some(1),
@@ -480,16 +461,7 @@ fn results_that_contradict_their_key_or_hash_are_refused() {
     let inside = f.shards[0].join("merged");
     let parent = f.shards[0].parent().unwrap().to_path_buf();
     for out in [&f.shards[0], &inside, &parent] {
-        let o = frameless(&[
-            &"merge",
-            &f.shards[0],
-            &f.shards[1],
-            &f.shards[2],
-            &"--out",
-            out,
-        ])
-        .output()
-        .expect("runs");
+        let o = merge_with(&f.shards[2], out);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(
             o.status.code() == Some(1) && err.contains("input folder"),

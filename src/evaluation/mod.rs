@@ -300,18 +300,18 @@ impl EvalConfig {
         }
         let mut labels: HashMap<String, f64> = HashMap::with_capacity(self.rates.len());
         for &r in &self.rates {
-            if let Some(&q) = labels.get(&rate_label(r)) {
+            let label = rate_label(r);
+            if let Some(&q) = labels.get(&label) {
                 let why = if q == r {
-                    format!("lists {} twice", rate_label(r))
+                    format!("lists {label} twice")
                 } else {
                     format!(
-                        "{q} and {r} would both be labelled {} (rates must differ in their first three digits)",
-                        rate_label(r)
+                        "{q} and {r} would both be labelled {label} (rates must differ in their first three digits)"
                     )
                 };
                 return bad("--rates", why);
             }
-            labels.insert(rate_label(r), r);
+            labels.insert(label, r);
         }
         if self.flip_every == 0 {
             return bad("--flip-every", "must be at least 1".into());

@@ -133,8 +133,6 @@ struct BandPublished {
     /// A snapshot of the band's tiling (image coordinates) for the reconstructor's
     /// filters; `None` until the controller has a sampler.
     tiling: Mutex<Option<Arc<TilingSnapshot>>>,
-    /// Its tile count.
-    tiles: AtomicU64,
 }
 
 /// What the controllers publish for the other threads of the method.
@@ -175,7 +173,6 @@ impl Published {
                     snapshot: Mutex::new(Arc::new(TileSnapshot::whole(rect))),
                     seq: AtomicU64::new(0),
                     tiling: Mutex::new(None),
-                    tiles: AtomicU64::new(1),
                 })
                 .collect(),
             snapshot_seq: AtomicU64::new(0),
@@ -199,8 +196,6 @@ impl Published {
         *lock(&band.snapshot) = Arc::new(TileSnapshot::of(sampler));
         band.seq.fetch_add(1, Ordering::Release);
         self.snapshot_seq.fetch_add(1, Ordering::Release);
-        band.tiles
-            .store(sampler.tiling().len() as u64, Ordering::Relaxed);
     }
 
     /// Publish band `b`'s tiling for the reconstructor.
@@ -208,7 +203,7 @@ impl Published {
         let mut t = sampler.tiling().snapshot();
         let (ox, oy) = sampler.origin();
         for tile in &mut t.tiles {
-            tile.rect = offset(tile.rect, ox, oy);
+            tile.rect = tile.rect.offset(ox, oy);
         }
         *lock(&self.bands[b].tiling) = Some(Arc::new(t));
     }
@@ -222,22 +217,12 @@ impl Published {
         Some(TilingSnapshot { tiles })
     }
 
-    /// Tiles in all bands.
-    fn tiles(&self) -> u64 {
+    /// Tiles in all bands' newest snapshots.
+    fn tiles(&self) -> usize {
         self.bands
             .iter()
-            .map(|b| b.tiles.load(Ordering::Relaxed))
+            .map(|b| lock(&b.snapshot).rects.len())
             .sum()
-    }
-}
-
-/// `r` moved by `(dx, dy)`.
-fn offset(r: Rect, dx: u32, dy: u32) -> Rect {
-    Rect {
-        x0: r.x0 + dx,
-        y0: r.y0 + dy,
-        x1: r.x1 + dx,
-        y1: r.y1 + dy,
     }
 }
 
@@ -296,7 +281,7 @@ impl TileSnapshot {
         Self {
             rects: leaves
                 .iter()
-                .map(|&l| offset(t.node(l).rect, ox, oy))
+                .map(|&l| t.node(l).rect.offset(ox, oy))
                 .collect(),
             pending: leaves
                 .iter()
@@ -590,6 +575,7 @@ fn controller_sampler(s: &Shared, band: Rect) -> Option<Sampler> {
     // Validated by the pipeline before it started.
     Sampler::for_region(s.tracer.clone(), clock, params, s.config.seed, band).ok()
 }
+
 /// What the controller did with one batch.
 struct Ingested {
     /// The batch's samples and the replacement crosshairs the sampler traced.

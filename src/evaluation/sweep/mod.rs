@@ -530,14 +530,13 @@ fn valid_name(s: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
 }
 
-/// The jobs of `evaluations × sizes × seeds` instances of `methods` at `rates` rates,
-/// or why they are too many ([`crate::limits::MAX_SWEEP_JOBS`]); counted before any
-/// is made.
-fn job_count(
+/// Check that `evaluations × sizes × seeds` instances of `methods` at `rates` rates
+/// make at most [`crate::limits::MAX_SWEEP_JOBS`] jobs, counted before any is made.
+fn check_job_count(
     (evaluations, sizes, seeds): (usize, usize, usize),
     methods: &[MethodKind],
     rates: usize,
-) -> Result<u128, String> {
+) -> Result<(), String> {
     let per_instance: u128 = methods
         .iter()
         .map(|m| {
@@ -556,7 +555,7 @@ fn job_count(
              method and rate runs make {jobs} jobs, over the limit of {most} per sweep"
         ));
     }
-    Ok(jobs)
+    Ok(())
 }
 
 /// The evaluations as written, names checked (valid, distinct).
@@ -643,7 +642,8 @@ impl Sweep {
             return Err(invalid(text.len(), "evaluation", why));
         }
         let counts = (raw.evaluations.len(), sizes.len(), seeds.len());
-        job_count(counts, &methods, rates.len()).map_err(|why| invalid(name_at, "jobs", why))?;
+        check_job_count(counts, &methods, rates.len())
+            .map_err(|why| invalid(name_at, "jobs", why))?;
         if raw.report == SweepReport::Table1 && (sizes.len() > 1 || seeds.len() > 1) {
             return Err(invalid(
                 sizes_at,
