@@ -78,10 +78,15 @@
 //! `holes.rs` and `pullpush.rs` (step 4's hole and low-density filling); `lanes.rs` holds the 8-lane arithmetic they
 //! share, `params.rs` the parameters and presets.
 
+pub mod device;
 pub mod filter;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod ring;
 
 mod filter_table;
+#[cfg(all(test, feature = "gpu"))]
+mod gpu_tests;
 mod history;
 mod holes;
 mod lanes;
@@ -199,6 +204,12 @@ pub struct Reconstructor {
     holes: usize,
     /// The still-region history, if the parameters ask for one.
     history: Option<History>,
+    /// The GPU side, when refreshes run there ([`Reconstructor::use_gpu`]).
+    #[cfg(feature = "gpu")]
+    gpu: Option<Box<gpu::GpuRecon>>,
+    /// Why the GPU side was given up, if it failed at a refresh (they then run on the
+    /// CPU).
+    gpu_failure: Option<String>,
 }
 
 impl Reconstructor {
@@ -263,7 +274,44 @@ impl Reconstructor {
             mean_age: 0.0,
             holes: n,
             history: params.history.map(|h| History::new(width, height, h)),
+            #[cfg(feature = "gpu")]
+            gpu: None,
+            gpu_failure: None,
         }
+    }
+
+    /// Run refreshes on `ctx`'s GPU from now on. An error if the parameters ask for a
+    /// step the GPU reconstructor does not have, or the adapter is too small.
+    #[cfg(feature = "gpu")]
+    pub fn use_gpu(&mut self, ctx: std::sync::Arc<gpu::GpuContext>) -> Result<(), gpu::GpuError> {
+        gpu::GpuRecon::check_params(&self.params)?;
+        let scale0 = self.params.scale_bounds.0.max(1e-3);
+        self.scale.fill(scale0);
+        self.gpu = Some(Box::new(gpu::GpuRecon::new(
+            ctx,
+            self.width,
+            self.height,
+            self.capacity,
+            scale0,
+        )?));
+        Ok(())
+    }
+
+    /// Where refreshes run: the CPU, or the GPU adapter in words.
+    pub fn used(&self) -> device::ReconUsed {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &self.gpu {
+            return device::ReconUsed {
+                device: "gpu".into(),
+                adapter: Some(g.describe()),
+            };
+        }
+        device::ReconUsed::cpu()
+    }
+
+    /// Why the GPU side was given up at a refresh, if it was.
+    pub fn gpu_failure(&self) -> Option<&str> {
+        self.gpu_failure.as_deref()
     }
 
     /// The sampler's rate `R` (samples per second) that the filters scale with, from
@@ -409,6 +457,16 @@ impl Reconstructor {
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
         self.update_filters(tiling);
+        #[cfg(feature = "gpu")]
+        if self.gpu.is_some() {
+            match self.reconstruct_on_gpu(t, camera) {
+                Ok(()) => return &self.image,
+                Err(e) => {
+                    self.gpu = None;
+                    self.gpu_failure = Some(e.to_string());
+                }
+            }
+        }
         self.prepare_splats(t, camera);
         self.splat();
         self.resolve();
@@ -418,5 +476,35 @@ impl Reconstructor {
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
         &self.image
+    }
+
+    /// [`Reconstructor::reconstruct`] on the GPU, after the filter table is built.
+    #[cfg(feature = "gpu")]
+    fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
+        let start = self.live_range(t);
+        let max_r = self.max_footprint_radius();
+        let Some(g) = self.gpu.as_mut() else {
+            return Ok(());
+        };
+        let back = g.refresh(
+            &self.ring,
+            start,
+            t,
+            self.params.reproject.then_some(camera),
+            &self.tiles,
+            &self.lookup,
+            &self.params,
+            max_r,
+        )?;
+        back.unpack(
+            &mut self.image.pixels,
+            &mut self.age,
+            &mut self.coverage,
+            &mut self.scale,
+        );
+        self.holes = back.holes;
+        let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
+        self.mean_age = age_sum / self.age.len().max(1) as f64;
+        Ok(())
     }
 }

@@ -479,7 +479,7 @@ impl Reconstructor {
             temporal_cutoff: p.temporal_cutoff,
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
-            max_r: p.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5),
+            max_r: self.max_footprint_radius(),
         }
     }
 
@@ -496,16 +496,28 @@ impl Reconstructor {
         self.ring.live_start(tc)
     }
 
-    /// Place the live part of the ring and bin its splats by band, pieces of the ring
-    /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
-    /// of it.
-    pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
+    /// The first logical ring index a refresh at `t` places (past the stale part and
+    /// within the live limit), counting the samples placed.
+    pub(super) fn live_range(&mut self, t: f64) -> usize {
         let stale = self.live_start(t);
         let start = match self.live_limit {
             Some(k) => stale.max(self.ring.len().saturating_sub(k)),
             None => stale,
         };
         self.placed = self.ring.len() - start.min(self.ring.len());
+        start
+    }
+
+    /// Largest footprint radius of a splat, pixels.
+    pub(super) fn max_footprint_radius(&self) -> f32 {
+        self.params.max_radius.min((MAX_SPAN as f32 - 1.0) * 0.5)
+    }
+
+    /// Place the live part of the ring and bin its splats by band, pieces of the ring
+    /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
+    /// of it.
+    pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
+        let start = self.live_range(t);
         if let Some(state) = self.motion.take().filter(|_| self.params.exact_motion) {
             self.follow_motion(t, &state, start);
         }

@@ -45,7 +45,7 @@ fn single_sample_fills_the_image_with_its_color() {
 /// `t = 1` (slowly moving, some behind or beside the view), samples pushed in order
 /// unless `shuffle`, and a tiling of 16 tiles with spatial gradients of every kind
 /// and the temporal gradients `gts`.
-fn random_setup(
+pub(super) fn random_setup(
     w: u32,
     h: u32,
     n: usize,
@@ -107,7 +107,7 @@ fn random_setup(
 }
 
 /// Static, slow and fast tiles.
-const GTS: [f64; 4] = [0.0, 0.3, 3.0, 30.0];
+pub(super) const GTS: [f64; 4] = [0.0, 0.3, 3.0, 30.0];
 
 /// Sums `[r, g, b, w, w·age]` and coverage per pixel by direct evaluation of the
 /// Gaussian in f64 for every sample of the ring (no stale-prefix cut, no bands), with

@@ -1,0 +1,171 @@
+//! The GPU device: which adapter a run gets for `--recon gpu|auto`.
+//!
+//! `gpu` takes the best adapter there is, a software one (Mesa's lavapipe) included;
+//! `auto` never takes a software adapter unless `WGPU_ADAPTER_NAME` names it, so that
+//! a machine without a GPU reconstructs on its own cores instead of emulating one on
+//! them. `WGPU_BACKEND` and `WGPU_ADAPTER_NAME` narrow the choice as wgpu documents.
+
+use std::sync::Arc;
+
+use super::super::device::{ReconDevice, ReconUsed};
+
+/// Why no GPU reconstructor could be had.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No adapter at all (or none matching `WGPU_ADAPTER_NAME`).
+    #[error("no GPU adapter found{0} (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1; or use --recon cpu)")]
+    NoAdapter(String),
+    /// The adapter refused a device.
+    #[error("the GPU adapter {adapter} gave no device: {why}")]
+    Device {
+        /// The adapter in words.
+        adapter: String,
+        /// What wgpu said.
+        why: String,
+    },
+    /// The adapter's limits are below what the reconstructor needs.
+    #[error("the GPU adapter {adapter} is too small for this reconstructor: {why}")]
+    Limits {
+        /// The adapter in words.
+        adapter: String,
+        /// Which limit, and what was needed.
+        why: String,
+    },
+    /// The parameters ask for a step the GPU reconstructor does not have.
+    #[error("the GPU reconstructor does not have {0} yet; use --recon cpu")]
+    Unsupported(String),
+    /// A GPU operation failed.
+    #[error("GPU reconstruction failed: {0}")]
+    Failed(String),
+}
+
+/// A device and its queue, shared by every reconstructor of a run.
+pub struct GpuContext {
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    pub(crate) limits: wgpu::Limits,
+    info: wgpu::AdapterInfo,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("adapter", &self.describe())
+            .finish()
+    }
+}
+
+/// Rank of an adapter kind: hardware first, software last.
+fn rank(t: wgpu::DeviceType) -> u8 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+impl GpuContext {
+    /// The device `choice` asks for: `Ok(None)` for `cpu`, and for `auto` where there is
+    /// no hardware adapter; an error for `gpu` where there is no adapter at all.
+    pub fn acquire(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>, GpuError> {
+        if choice == ReconDevice::Cpu {
+            return Ok(None);
+        }
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        let named = std::env::var("WGPU_ADAPTER_NAME")
+            .ok()
+            .map(|n| n.to_lowercase());
+        let mut fit: Vec<wgpu::Adapter> = adapters
+            .into_iter()
+            .filter(|a| {
+                let info = a.get_info();
+                match &named {
+                    Some(n) => info.name.to_lowercase().contains(n),
+                    None => choice == ReconDevice::Gpu || info.device_type != wgpu::DeviceType::Cpu,
+                }
+            })
+            .collect();
+        fit.sort_by_key(|a| rank(a.get_info().device_type));
+        let Some(adapter) = fit.into_iter().next() else {
+            return match (choice, &named) {
+                (ReconDevice::Auto, None) => Ok(None),
+                (_, Some(n)) => Err(GpuError::NoAdapter(format!(
+                    " whose name contains '{n}' (WGPU_ADAPTER_NAME)"
+                ))),
+                _ => Err(GpuError::NoAdapter(String::new())),
+            };
+        };
+        Self::open(adapter).map(|c| Some(Arc::new(c)))
+    }
+
+    fn open(adapter: wgpu::Adapter) -> Result<Self, GpuError> {
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let name = describe(&info);
+        if limits.max_storage_buffers_per_shader_stage < super::STORAGE_BUFFERS {
+            return Err(GpuError::Limits {
+                adapter: name,
+                why: format!(
+                    "{} storage buffers per shader stage, {} needed",
+                    limits.max_storage_buffers_per_shader_stage,
+                    super::STORAGE_BUFFERS
+                ),
+            });
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("frameless reconstructor"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::Device {
+            adapter: name.clone(),
+            why: e.to_string(),
+        })?;
+        Ok(Self {
+            device,
+            queue,
+            limits,
+            info,
+        })
+    }
+
+    /// The adapter in words: name, driver, backend and kind.
+    pub fn describe(&self) -> String {
+        describe(&self.info)
+    }
+
+    /// A software adapter (the CPU's cores emulating a GPU).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// What results record of it.
+    pub fn used(&self) -> ReconUsed {
+        ReconUsed {
+            device: "gpu".into(),
+            adapter: Some(self.describe()),
+        }
+    }
+}
+
+fn describe(info: &wgpu::AdapterInfo) -> String {
+    let kind = match info.device_type {
+        wgpu::DeviceType::DiscreteGpu => "discrete GPU",
+        wgpu::DeviceType::IntegratedGpu => "integrated GPU",
+        wgpu::DeviceType::VirtualGpu => "virtual GPU",
+        wgpu::DeviceType::Cpu => "software, on the CPU",
+        wgpu::DeviceType::Other => "other",
+    };
+    let driver = [info.driver.as_str(), info.driver_info.as_str()]
+        .iter()
+        .filter(|s| !s.is_empty())
+        .copied()
+        .collect::<Vec<_>>()
+        .join(" ");
+    format!("{}, {driver}, {:?}, {kind}", info.name, info.backend)
+}

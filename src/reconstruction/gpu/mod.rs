@@ -1,0 +1,723 @@
+//! The reconstructor's refresh on a GPU (`--recon gpu|auto`), in compute shaders
+//! (`recon.wgsl`).
+//!
+//! The CPU [`Reconstructor`](super::Reconstructor) stays the reference and keeps
+//! everything between refreshes but the splat scale map: its ring, the filter table it
+//! builds from the sampler's tiling, the stale cut. At a refresh this side uploads the
+//! samples pushed since the last one (into a ring of the same layout on the GPU), the
+//! per-tile filters and the pixel → tile map, and reads back the image, ages,
+//! coverage and splat scale. Splatting becomes a gather: each footprint is listed in
+//! the 16×16-pixel bins it touches, each bin's list is sorted into ring order, and each
+//! pixel adds the weights of its bin's splats in that order. The arithmetic is the
+//! CPU's, but for `exp` and the pyramid sums (f32 here, f64 there), so images agree
+//! to rounding (`tests/gpu.rs` states the tolerance).
+//!
+//! Which steps run here: reprojection by velocity, the adaptive (or fixed) filter,
+//! adaptive splat size and the hole-filling pyramid, i.e. the paper's reconstructor.
+//! The visibility pass, the pull-push fill, the still-region history and exact motion
+//! are CPU-only so far; asking for them on the GPU is an error
+//! ([`GpuRecon::check_params`]).
+
+mod context;
+
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+pub use context::{GpuContext, GpuError};
+use glam::Vec3;
+
+use super::{
+    filter_table::{Lookup, TileFilter},
+    ring::{field, Ring},
+    ReconParams,
+};
+use crate::scene::CameraFrame;
+
+/// Storage buffers the shaders bind at once.
+pub(super) const STORAGE_BUFFERS: u32 = 11;
+/// Side of a bin of pixels (the shaders' `BIN`).
+const BIN: u32 = 16;
+/// Floats per ring sample on the GPU: the CPU ring's fields and the time.
+const RING_FIELDS: usize = field::COUNT + 1;
+/// Floats per pixel of the accumulators and of the read-back image.
+const PER_PIXEL: usize = 6;
+/// Floats per pyramid block.
+const PER_BLOCK: usize = 5;
+/// Workgroup size of the one-dimensional passes.
+const GROUP: u32 = 256;
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct Params {
+    eye: [f32; 3],
+    t: f32,
+    forward: [f32; 3],
+    reproject: u32,
+    u: [f32; 3],
+    ou: f32,
+    v: [f32; 3],
+    ov: f32,
+    width: u32,
+    height: u32,
+    cap: u32,
+    first: u32,
+    count: u32,
+    bins_x: u32,
+    bins_y: u32,
+    items_cap: u32,
+    temporal_cutoff: f32,
+    max_r: f32,
+    grow: f32,
+    shrink: f32,
+    undersampled: u32,
+    oversampled: u32,
+    scale_lo: f32,
+    scale_hi: f32,
+    levels: u32,
+    pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuTile {
+    inv_et: f32,
+    ax: f32,
+    ay: f32,
+    cx: f32,
+    cy: f32,
+    pad: [f32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct Level {
+    src: u32,
+    dst: u32,
+    src_w: u32,
+    src_h: u32,
+    dst_w: u32,
+    dst_h: u32,
+    from_acc: u32,
+    pad: u32,
+}
+
+/// Bytes of one splat in the shaders' `Splat`.
+const SPLAT_BYTES: u64 = 64;
+
+/// What a refresh reads back.
+pub(super) struct Readback {
+    /// Per pixel: red, green, blue, age, coverage (bits), splat scale.
+    pub(super) pixels: Vec<f32>,
+    /// Pixels no splat reached.
+    pub(super) holes: usize,
+}
+
+impl Readback {
+    /// Copy into the reconstructor's image, ages, coverage and splat scale.
+    pub(super) fn unpack(
+        &self,
+        image: &mut [Vec3],
+        age: &mut [f32],
+        coverage: &mut [u32],
+        scale: &mut [f32],
+    ) {
+        for (i, p) in self.pixels.chunks_exact(PER_PIXEL).enumerate() {
+            image[i] = Vec3::new(p[0], p[1], p[2]);
+            age[i] = p[3];
+            coverage[i] = p[4].to_bits();
+            scale[i] = p[5];
+        }
+    }
+}
+
+/// The GPU side of one reconstructor (see the module doc).
+pub struct GpuRecon {
+    ctx: Arc<GpuContext>,
+    width: u32,
+    height: u32,
+    cap: usize,
+    bins: (u32, u32),
+    levels: Vec<Level>,
+    pipelines: Pipelines,
+    buffers: Buffers,
+    bind: wgpu::BindGroup,
+    level_bind: wgpu::BindGroup,
+    level_stride: u64,
+    /// Samples of the CPU ring uploaded so far (its push count then).
+    uploaded: u64,
+    /// Time that ring times are uploaded relative to (f32 keeps microseconds over
+    /// hours of scene time only relative to a nearby origin).
+    epoch: Option<f64>,
+}
+
+struct Pipelines {
+    place: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
+    sort: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    resolve: wgpu::ComputePipeline,
+    pull: wgpu::ComputePipeline,
+    holes: wgpu::ComputePipeline,
+    layout0: wgpu::BindGroupLayout,
+    layout1: wgpu::BindGroupLayout,
+}
+
+struct Buffers {
+    params: wgpu::Buffer,
+    ring: wgpu::Buffer,
+    tiles: wgpu::Buffer,
+    pix_tile: wgpu::Buffer,
+    scale: wgpu::Buffer,
+    splats: wgpu::Buffer,
+    bins: wgpu::Buffer,
+    bin_start: wgpu::Buffer,
+    items: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    out: wgpu::Buffer,
+    pyramid: wgpu::Buffer,
+    levels: wgpu::Buffer,
+    read_out: wgpu::Buffer,
+    read_counts: wgpu::Buffer,
+    /// Tiles and items the buffers hold.
+    tiles_cap: usize,
+    items_cap: usize,
+}
+
+fn storage(
+    device: &wgpu::Device,
+    label: &str,
+    bytes: u64,
+    extra: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+        mapped_at_creation: false,
+    })
+}
+
+fn readback(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// The pull pyramid's levels 1 and up over a `width × height` image.
+fn pyramid_levels(width: u32, height: u32) -> Vec<Level> {
+    let mut levels = Vec::new();
+    let (mut w, mut h, mut src, mut dst) = (width, height, 0u32, 0u32);
+    while w > 1 || h > 1 {
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        levels.push(Level {
+            src,
+            dst,
+            src_w: w,
+            src_h: h,
+            dst_w: nw,
+            dst_h: nh,
+            from_acc: levels.is_empty() as u32,
+            pad: 0,
+        });
+        src = dst;
+        dst += nw * nh;
+        (w, h) = (nw, nh);
+    }
+    levels
+}
+
+impl GpuRecon {
+    /// Whether the GPU reconstructor has every step `params` asks for.
+    pub fn check_params(params: &ReconParams) -> Result<(), GpuError> {
+        let missing: Vec<&str> = [
+            (params.visibility_in_use().is_some(), "the visibility pass"),
+            (params.fill_weight > 0.0, "the pull-push fill"),
+            (params.history.is_some(), "the still-region history"),
+            (params.exact_motion, "exact motion"),
+        ]
+        .into_iter()
+        .filter_map(|(asked, what)| asked.then_some(what))
+        .collect();
+        if missing.is_empty() {
+            Ok(())
+        } else {
+            Err(GpuError::Unsupported(missing.join(", ")))
+        }
+    }
+
+    /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
+    /// every pixel's splat scale starting at `scale0`.
+    pub(super) fn new(
+        ctx: Arc<GpuContext>,
+        width: u32,
+        height: u32,
+        cap: usize,
+        scale0: f32,
+    ) -> Result<Self, GpuError> {
+        let n = width as u64 * height as u64;
+        let bins = (width.div_ceil(BIN), height.div_ceil(BIN));
+        let nb = bins.0 as u64 * bins.1 as u64;
+        let levels = pyramid_levels(width, height);
+        let blocks: u64 = levels.iter().map(|l| l.dst_w as u64 * l.dst_h as u64).sum();
+        let largest = [
+            cap as u64 * RING_FIELDS as u64 * 4,
+            cap as u64 * SPLAT_BYTES,
+            n * PER_PIXEL as u64 * 4,
+            blocks * PER_BLOCK as u64 * 4,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        let lim = &ctx.limits;
+        if largest > lim.max_storage_buffer_binding_size.min(lim.max_buffer_size) {
+            return Err(GpuError::Limits {
+                adapter: ctx.describe(),
+                why: format!(
+                    "a buffer of {largest} bytes, over its limit of {} bytes per storage buffer",
+                    lim.max_storage_buffer_binding_size.min(lim.max_buffer_size)
+                ),
+            });
+        }
+        let pipelines = Pipelines::new(&ctx.device);
+        let d = &ctx.device;
+        let none = wgpu::BufferUsages::empty();
+        let level_stride = (lim.min_uniform_buffer_offset_alignment as u64).max(32);
+        let buffers = Buffers {
+            params: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("params"),
+                size: std::mem::size_of::<Params>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            ring: storage(d, "ring", cap as u64 * RING_FIELDS as u64 * 4, none),
+            tiles: storage(d, "tiles", 64 * 32, none),
+            pix_tile: storage(d, "pixel tiles", n * 4, none),
+            scale: storage(d, "splat scale", n * 4, none),
+            splats: storage(d, "splats", cap as u64 * SPLAT_BYTES, none),
+            bins: storage(d, "bins", (2 * nb + 2) * 4, wgpu::BufferUsages::COPY_SRC),
+            bin_start: storage(d, "bin starts", (nb + 1) * 4, none),
+            items: storage(d, "bin items", cap as u64 * 4, none),
+            acc: storage(d, "accumulators", n * PER_PIXEL as u64 * 4, none),
+            out: storage(
+                d,
+                "image",
+                n * PER_PIXEL as u64 * 4,
+                wgpu::BufferUsages::COPY_SRC,
+            ),
+            pyramid: storage(d, "pyramid", blocks * PER_BLOCK as u64 * 4, none),
+            levels: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("levels"),
+                size: level_stride * levels.len().max(1) as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            read_out: readback(d, "image readback", n * PER_PIXEL as u64 * 4),
+            read_counts: readback(d, "count readback", 8),
+            tiles_cap: 64,
+            items_cap: cap,
+        };
+        ctx.queue.write_buffer(
+            &buffers.scale,
+            0,
+            bytemuck::cast_slice(&vec![scale0; n as usize]),
+        );
+        for (k, l) in levels.iter().enumerate() {
+            ctx.queue.write_buffer(
+                &buffers.levels,
+                k as u64 * level_stride,
+                bytemuck::bytes_of(l),
+            );
+        }
+        let bind = buffers.bind_group(d, &pipelines.layout0);
+        let level_bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("level"),
+            layout: &pipelines.layout1,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &buffers.levels,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(std::mem::size_of::<Level>() as u64),
+                }),
+            }],
+        });
+        Ok(Self {
+            ctx,
+            width,
+            height,
+            cap,
+            bins,
+            levels,
+            pipelines,
+            buffers,
+            bind,
+            level_bind,
+            level_stride,
+            uploaded: 0,
+            epoch: None,
+        })
+    }
+
+    /// The adapter in words.
+    pub fn describe(&self) -> String {
+        self.ctx.describe()
+    }
+
+    /// The adapter.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// Upload the samples pushed into `ring` since the last upload.
+    fn upload_ring(&mut self, ring: &Ring) {
+        let epoch = *self
+            .epoch
+            .get_or_insert_with(|| ring.back().map_or(0.0, |s| s.t));
+        let new = ring.pushed - self.uploaded;
+        let cap = self.cap as u64;
+        // The physical slots written since: one run, or two where they wrap.
+        let ranges = if new >= cap {
+            [0..self.cap, 0..0]
+        } else {
+            let p0 = (self.uploaded % cap) as usize;
+            let p1 = p0 + new as usize;
+            if p1 <= self.cap {
+                [p0..p1, 0..0]
+            } else {
+                [p0..self.cap, 0..p1 - self.cap]
+            }
+        };
+        let q = &self.ctx.queue;
+        for r in ranges.into_iter().filter(|r| !r.is_empty()) {
+            for k in 0..field::COUNT {
+                let off = (k * self.cap + r.start) as u64 * 4;
+                q.write_buffer(
+                    &self.buffers.ring,
+                    off,
+                    bytemuck::cast_slice(&ring.f[k][r.clone()]),
+                );
+            }
+            let times: Vec<f32> = ring.t[r.clone()]
+                .iter()
+                .map(|&t| (t - epoch) as f32)
+                .collect();
+            let off = (field::COUNT * self.cap + r.start) as u64 * 4;
+            q.write_buffer(&self.buffers.ring, off, bytemuck::cast_slice(&times));
+        }
+        self.uploaded = ring.pushed;
+    }
+
+    /// Upload the filter table of this refresh.
+    fn upload_filters(&mut self, tiles: &[TileFilter], lookup: &[Lookup]) {
+        if tiles.len() > self.buffers.tiles_cap {
+            self.buffers.tiles_cap = tiles.len().next_power_of_two();
+            self.buffers.tiles = storage(
+                &self.ctx.device,
+                "tiles",
+                self.buffers.tiles_cap as u64 * 32,
+                wgpu::BufferUsages::empty(),
+            );
+            self.bind = self
+                .buffers
+                .bind_group(&self.ctx.device, &self.pipelines.layout0);
+        }
+        let gt: Vec<GpuTile> = tiles
+            .iter()
+            .map(|f| GpuTile {
+                inv_et: f.inv_et,
+                ax: f.ax,
+                ay: f.ay,
+                cx: f.cx,
+                cy: f.cy,
+                pad: [0.0; 3],
+            })
+            .collect();
+        let ids: Vec<u32> = lookup.iter().map(|l| l.tile).collect();
+        let q = &self.ctx.queue;
+        q.write_buffer(&self.buffers.tiles, 0, bytemuck::cast_slice(&gt));
+        q.write_buffer(&self.buffers.pix_tile, 0, bytemuck::cast_slice(&ids));
+    }
+
+    /// One refresh at time `t` seen by `camera` (`None`: no reprojection) of the ring's
+    /// logical samples `start..len`, with this refresh's filter table.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn refresh(
+        &mut self,
+        ring: &Ring,
+        start: usize,
+        t: f64,
+        camera: Option<&CameraFrame>,
+        tiles: &[TileFilter],
+        lookup: &[Lookup],
+        params: &ReconParams,
+        max_r: f32,
+    ) -> Result<Readback, GpuError> {
+        self.upload_ring(ring);
+        self.upload_filters(tiles, lookup);
+        let count = ring.len().saturating_sub(start);
+        let mut p = self.params(t, camera, params, max_r);
+        p.first = if count > 0 {
+            ring.phys(start) as u32
+        } else {
+            0
+        };
+        p.count = count as u32;
+        loop {
+            p.items_cap = self.buffers.items_cap as u32;
+            self.ctx
+                .queue
+                .write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&p));
+            let total = self.bin_pass(count)?;
+            if total <= self.buffers.items_cap {
+                break;
+            }
+            self.grow_items(total);
+        }
+        self.splat_pass()
+    }
+
+    fn params(&self, t: f64, camera: Option<&CameraFrame>, rp: &ReconParams, max_r: f32) -> Params {
+        let epoch = self.epoch.unwrap_or(t);
+        let mut p = Params {
+            t: (t - epoch) as f32,
+            width: self.width,
+            height: self.height,
+            cap: self.cap as u32,
+            bins_x: self.bins.0,
+            bins_y: self.bins.1,
+            temporal_cutoff: rp.temporal_cutoff,
+            max_r,
+            grow: rp.grow,
+            shrink: rp.shrink,
+            undersampled: rp.undersampled,
+            oversampled: rp.oversampled,
+            scale_lo: rp.scale_bounds.0,
+            scale_hi: rp.scale_bounds.1,
+            levels: self.levels.len() as u32,
+            ..Params::default()
+        };
+        if let Some(c) = camera {
+            // The CPU placer's projector: the same constants, computed the same way.
+            let u = c.du / c.du.length_squared();
+            let v = c.dv / c.dv.length_squared();
+            p.eye = c.eye.to_array();
+            p.forward = c.forward.to_array();
+            p.u = u.to_array();
+            p.v = v.to_array();
+            p.ou = c.corner.dot(u);
+            p.ov = c.corner.dot(v);
+            p.reproject = 1;
+        }
+        p
+    }
+
+    fn grow_items(&mut self, total: usize) {
+        self.buffers.items_cap = total + total / 4 + 1024;
+        self.buffers.items = storage(
+            &self.ctx.device,
+            "bin items",
+            self.buffers.items_cap as u64 * 4,
+            wgpu::BufferUsages::empty(),
+        );
+        self.bind = self
+            .buffers
+            .bind_group(&self.ctx.device, &self.pipelines.layout0);
+    }
+
+    fn dispatch(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipe: &wgpu::ComputePipeline,
+        groups: (u32, u32),
+        level: Option<usize>,
+    ) {
+        if groups.0 == 0 || groups.1 == 0 {
+            return;
+        }
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+        pass.set_pipeline(pipe);
+        pass.set_bind_group(0, &self.bind, &[]);
+        let off = level.map_or(0, |k| (k as u64 * self.level_stride) as u32);
+        pass.set_bind_group(1, &self.level_bind, &[off]);
+        pass.dispatch_workgroups(groups.0, groups.1, 1);
+    }
+
+    /// Place, count, scan and list the splats by bin; returns the items listed.
+    fn bin_pass(&self, count: usize) -> Result<usize, GpuError> {
+        let nb = self.bins.0 as u64 * self.bins.1 as u64;
+        let d = &self.ctx.device;
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        enc.clear_buffer(&self.buffers.bins, 0, Some(nb * 4));
+        let groups = (count as u32).div_ceil(GROUP);
+        let pl = &self.pipelines;
+        self.dispatch(&mut enc, &pl.place, (groups, 1), None);
+        self.dispatch(&mut enc, &pl.scan, (1, 1), None);
+        self.dispatch(&mut enc, &pl.fill, (groups, 1), None);
+        enc.copy_buffer_to_buffer(
+            &self.buffers.bins,
+            2 * nb * 4,
+            &self.buffers.read_counts,
+            0,
+            4,
+        );
+        self.ctx.queue.submit([enc.finish()]);
+        let counts = self.read(&self.buffers.read_counts, 4)?;
+        Ok(counts[0].to_bits() as usize)
+    }
+
+    /// Sort the bins, gather, resolve and fill holes; read the image back.
+    fn splat_pass(&self) -> Result<Readback, GpuError> {
+        let n = self.width as u64 * self.height as u64;
+        let nb = self.bins.0 as u64 * self.bins.1 as u64;
+        let d = &self.ctx.device;
+        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        let pl = &self.pipelines;
+        let pixels = (n as u32).div_ceil(GROUP);
+        self.dispatch(&mut enc, &pl.sort, self.bins, None);
+        self.dispatch(&mut enc, &pl.gather, self.bins, None);
+        self.dispatch(&mut enc, &pl.resolve, (pixels, 1), None);
+        for (k, l) in self.levels.iter().enumerate() {
+            let groups = (l.dst_w * l.dst_h).div_ceil(GROUP);
+            self.dispatch(&mut enc, &pl.pull, (groups, 1), Some(k));
+        }
+        self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
+        let bytes = n * PER_PIXEL as u64 * 4;
+        enc.copy_buffer_to_buffer(&self.buffers.out, 0, &self.buffers.read_out, 0, bytes);
+        enc.copy_buffer_to_buffer(
+            &self.buffers.bins,
+            (2 * nb + 1) * 4,
+            &self.buffers.read_counts,
+            0,
+            4,
+        );
+        self.ctx.queue.submit([enc.finish()]);
+        let holes = self.read(&self.buffers.read_counts, 4)?[0].to_bits() as usize;
+        let pixels = self.read(&self.buffers.read_out, bytes)?;
+        Ok(Readback { pixels, holes })
+    }
+
+    /// The first `bytes` of a read-back buffer, after the work submitted so far.
+    fn read(&self, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
+        let slice = buf.slice(0..bytes);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Failed(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Failed(e.to_string()))?
+            .map_err(|e| GpuError::Failed(e.to_string()))?;
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Failed(e.to_string()))?;
+        let out = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+        drop(view);
+        buf.unmap();
+        Ok(out)
+    }
+}
+
+impl Buffers {
+    fn bind_group(&self, device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
+        let bufs = [
+            &self.params,
+            &self.ring,
+            &self.tiles,
+            &self.pix_tile,
+            &self.scale,
+            &self.splats,
+            &self.bins,
+            &self.bin_start,
+            &self.items,
+            &self.acc,
+            &self.out,
+            &self.pyramid,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = bufs
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("reconstructor"),
+            layout,
+            entries: &entries,
+        })
+    }
+}
+
+impl Pipelines {
+    fn new(device: &wgpu::Device) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("recon.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("recon.wgsl").into()),
+        });
+        let entry =
+            |binding: u32, ty: wgpu::BufferBindingType, dynamic: bool| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty,
+                    has_dynamic_offset: dynamic,
+                    min_binding_size: None,
+                },
+                count: None,
+            };
+        let read_only = [1u32, 2, 3];
+        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform, false)];
+        for b in 1..=STORAGE_BUFFERS {
+            entries.push(entry(
+                b,
+                wgpu::BufferBindingType::Storage {
+                    read_only: read_only.contains(&b),
+                },
+                false,
+            ));
+        }
+        let layout0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("reconstructor"),
+            entries: &entries,
+        });
+        let layout1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("level"),
+            entries: &[entry(0, wgpu::BufferBindingType::Uniform, true)],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("reconstructor"),
+            bind_group_layouts: &[Some(&layout0), Some(&layout1)],
+            immediate_size: 0,
+        });
+        let make = |name: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(name),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Self {
+            place: make("place"),
+            scan: make("scan"),
+            fill: make("fill"),
+            sort: make("sort"),
+            gather: make("gather"),
+            resolve: make("resolve"),
+            pull: make("pull"),
+            holes: make("holes"),
+            layout0,
+            layout1,
+        }
+    }
+}

@@ -1,0 +1,453 @@
+// The reconstructor's refresh in compute shaders: the same steps and the same
+// arithmetic as the CPU reconstructor, with the splat turned into a gather.
+//
+// place   one thread per live ring sample: reprojection, the pixel's tile filter and
+//         splat scale, the temporal cull, the footprint box; counts the footprint in
+//         every 16×16 bin of pixels it touches.
+// scan    one workgroup: each bin's first item (exclusive prefix sum of the counts).
+// fill    one thread per splat: its index into each bin it touches.
+// sort    one workgroup per bin: the bin's splat indices in ring order, so that every
+//         pixel adds its splats in the order the CPU does, whatever order the atomic
+//         counters handed out the slots in (the image is the same at every run).
+// gather  one thread per pixel: the Gaussian weights of its bin's splats.
+// resolve one thread per pixel: quotients, coverage, the next splat scale.
+// pull    one thread per block of a pyramid level: 2×2 sums of the level below.
+// holes   one thread per pixel: a pixel no splat reached takes the mean of the
+//         smallest pyramid block around it that has samples.
+
+struct Params {
+    eye: vec3<f32>,
+    t: f32,
+    forward: vec3<f32>,
+    reproject: u32,
+    u: vec3<f32>,
+    ou: f32,
+    v: vec3<f32>,
+    ov: f32,
+    width: u32,
+    height: u32,
+    cap: u32,
+    // Physical ring index of the first live sample.
+    first: u32,
+    count: u32,
+    bins_x: u32,
+    bins_y: u32,
+    items_cap: u32,
+    temporal_cutoff: f32,
+    max_r: f32,
+    grow: f32,
+    shrink: f32,
+    undersampled: u32,
+    oversampled: u32,
+    scale_lo: f32,
+    scale_hi: f32,
+    levels: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+struct TileFilter {
+    inv_et: f32,
+    ax: f32,
+    ay: f32,
+    cx: f32,
+    cy: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+// A sample ready to splat; `x0 > x1` marks one culled.
+struct Splat {
+    x: f32,
+    y: f32,
+    ax: f32,
+    ay: f32,
+    // Temporal weight × (red, green, blue, 1).
+    c: vec4<f32>,
+    // Temporal weight × age.
+    age: f32,
+    x0: i32,
+    x1: i32,
+    y0: i32,
+    y1: i32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
+}
+
+struct Level {
+    // Offset of the level below in `pyramid` (in blocks), 0 for level 1 (read from
+    // `acc`), and of this level.
+    src: u32,
+    dst: u32,
+    src_w: u32,
+    src_h: u32,
+    dst_w: u32,
+    dst_h: u32,
+    from_acc: u32,
+    pad0: u32,
+}
+
+const BIN: u32 = 16u;
+const MIN_WEIGHT: f32 = 1e-24;
+// Fields of the ring, one run of `cap` floats each (as the CPU ring's arrays).
+const X: u32 = 0u;
+const Y: u32 = 1u;
+const R: u32 = 2u;
+const HX: u32 = 5u;
+const VX: u32 = 8u;
+const T: u32 = 11u;
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var<storage, read> ring: array<f32>;
+@group(0) @binding(2) var<storage, read> tiles: array<TileFilter>;
+@group(0) @binding(3) var<storage, read> pix_tile: array<u32>;
+@group(0) @binding(4) var<storage, read_write> scale: array<f32>;
+@group(0) @binding(5) var<storage, read_write> splats: array<Splat>;
+// Per bin: counts, then cursors; then the total of items and the hole count.
+@group(0) @binding(6) var<storage, read_write> bins: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> bin_start: array<u32>;
+@group(0) @binding(8) var<storage, read_write> items: array<u32>;
+// Per pixel: weighted red, green, blue, weight, weighted age, coverage (bits).
+@group(0) @binding(9) var<storage, read_write> acc: array<f32>;
+// Per pixel: red, green, blue, age, coverage (bits), splat scale.
+@group(0) @binding(10) var<storage, read_write> out: array<f32>;
+// Pyramid levels 1 and up, 5 floats per block (the accumulator's first five).
+@group(0) @binding(11) var<storage, read_write> pyramid: array<f32>;
+@group(1) @binding(0) var<uniform> L: Level;
+
+fn finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+fn ring_at(field: u32, p: u32) -> f32 {
+    return ring[field * P.cap + p];
+}
+
+fn bin_count() -> u32 {
+    return P.bins_x * P.bins_y;
+}
+
+fn empty_splat() -> Splat {
+    var s: Splat;
+    s.x0 = 1;
+    s.x1 = 0;
+    s.y0 = 1;
+    s.y1 = 0;
+    return s;
+}
+
+@compute @workgroup_size(256)
+fn place(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= P.count {
+        return;
+    }
+    var p = P.first + i;
+    if p >= P.cap {
+        p -= P.cap;
+    }
+    let dt = P.t - ring_at(T, p);
+    var x: f32;
+    var y: f32;
+    var front = true;
+    if P.reproject != 0u {
+        let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
+        let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
+        let d = hit + vel * dt - P.eye;
+        let z = dot(d, P.forward);
+        let iz = 1.0 / z;
+        x = dot(d, P.u) * iz - P.ou;
+        y = dot(d, P.v) * iz - P.ov;
+        front = z > 1e-6;
+    } else {
+        x = ring_at(X, p);
+        y = ring_at(Y, p);
+    }
+    var s = empty_splat();
+    if front && finite(x) && finite(y) {
+        let w = f32(P.width - 1u);
+        let h = f32(P.height - 1u);
+        let px = u32(floor(min(max(x, 0.0), w)));
+        let py = u32(floor(min(max(y, 0.0), h)));
+        let pix = py * P.width + px;
+        let f = tiles[pix_tile[pix]];
+        let age = max(dt, 0.0);
+        let a = age * f.inv_et;
+        if a <= P.temporal_cutoff {
+            let sc = scale[pix];
+            let rx = min(f.cx * sc, P.max_r);
+            let ry = min(f.cy * sc, P.max_r);
+            let x0 = max(ceil(x - 0.5 - rx), 0.0);
+            let x1 = min(floor(x - 0.5 + rx), w);
+            let y0 = max(ceil(y - 0.5 - ry), 0.0);
+            let y1 = min(floor(y - 0.5 + ry), h);
+            if x0 <= x1 && y0 <= y1 {
+                let wt = exp(-0.5 * a * a);
+                s.x = x;
+                s.y = y;
+                s.ax = f.ax;
+                s.ay = f.ay;
+                s.c = wt * vec4<f32>(ring_at(R, p), ring_at(R + 1u, p), ring_at(R + 2u, p), 1.0);
+                s.age = wt * age;
+                s.x0 = i32(x0);
+                s.x1 = i32(x1);
+                s.y0 = i32(y0);
+                s.y1 = i32(y1);
+                for (var by = u32(y0) / BIN; by <= u32(y1) / BIN; by++) {
+                    for (var bx = u32(x0) / BIN; bx <= u32(x1) / BIN; bx++) {
+                        atomicAdd(&bins[by * P.bins_x + bx], 1u);
+                    }
+                }
+            }
+        }
+    }
+    splats[i] = s;
+}
+
+var<workgroup> partial: array<u32, 256>;
+
+@compute @workgroup_size(256)
+fn scan(@builtin(local_invocation_index) li: u32) {
+    let nb = bin_count();
+    let per = (nb + 255u) / 256u;
+    let b0 = min(li * per, nb);
+    let b1 = min(b0 + per, nb);
+    var sum = 0u;
+    for (var b = b0; b < b1; b++) {
+        sum += atomicLoad(&bins[b]);
+    }
+    partial[li] = sum;
+    workgroupBarrier();
+    for (var off = 1u; off < 256u; off *= 2u) {
+        var v = 0u;
+        if li >= off {
+            v = partial[li - off];
+        }
+        workgroupBarrier();
+        partial[li] += v;
+        workgroupBarrier();
+    }
+    var run = partial[li] - sum;
+    for (var b = b0; b < b1; b++) {
+        bin_start[b] = run;
+        run += atomicLoad(&bins[b]);
+        atomicStore(&bins[nb + b], 0u);
+    }
+    if li == 255u {
+        bin_start[nb] = partial[255];
+        atomicStore(&bins[2u * nb], partial[255]);
+        atomicStore(&bins[2u * nb + 1u], 0u);
+    }
+}
+
+@compute @workgroup_size(256)
+fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= P.count {
+        return;
+    }
+    let s = splats[i];
+    if s.x0 > s.x1 {
+        return;
+    }
+    let nb = bin_count();
+    for (var by = u32(s.y0) / BIN; by <= u32(s.y1) / BIN; by++) {
+        for (var bx = u32(s.x0) / BIN; bx <= u32(s.x1) / BIN; bx++) {
+            let b = by * P.bins_x + bx;
+            let slot = bin_start[b] + atomicAdd(&bins[nb + b], 1u);
+            if slot < P.items_cap {
+                items[slot] = i;
+            }
+        }
+    }
+}
+
+var<workgroup> sort_n: u32;
+var<workgroup> sort_o: u32;
+
+// A bitonic network whose comparators all put the smaller index first (the first
+// step of each merge compares mirrored positions), so the list need not be a power
+// of two long: positions past its end act as +∞ and are never moved into it.
+@compute @workgroup_size(256)
+fn sort(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    if li == 0u {
+        let b = wid.y * P.bins_x + wid.x;
+        let o = min(bin_start[b], P.items_cap);
+        sort_o = o;
+        sort_n = min(bin_start[b + 1u], P.items_cap) - o;
+    }
+    let n = workgroupUniformLoad(&sort_n);
+    let o = workgroupUniformLoad(&sort_o);
+    var m = 1u;
+    while m < n {
+        m *= 2u;
+    }
+    for (var k = 2u; k <= m; k *= 2u) {
+        for (var j = k / 2u; j > 0u; j /= 2u) {
+            for (var i = li; i < m; i += 256u) {
+                var q = i ^ j;
+                if j == k / 2u {
+                    q = i ^ (k - 1u);
+                }
+                if q > i && q < n {
+                    let a = items[o + i];
+                    let b = items[o + q];
+                    if b < a {
+                        items[o + i] = b;
+                        items[o + q] = a;
+                    }
+                }
+            }
+            storageBarrier();
+            workgroupBarrier();
+        }
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    if gid.x >= P.width || gid.y >= P.height {
+        return;
+    }
+    let b = wid.y * P.bins_x + wid.x;
+    let o = min(bin_start[b], P.items_cap);
+    let e = min(bin_start[b + 1u], P.items_cap);
+    let cx = f32(gid.x) + 0.5;
+    let cy = f32(gid.y) + 0.5;
+    let xi = i32(gid.x);
+    let yi = i32(gid.y);
+    var sum = vec4<f32>(0.0);
+    var age = 0.0;
+    var cov = 0u;
+    for (var k = o; k < e; k++) {
+        let s = splats[items[k]];
+        if xi >= s.x0 && xi <= s.x1 && yi >= s.y0 && yi <= s.y1 {
+            let dx = cx - s.x;
+            let dy = cy - s.y;
+            let gx = exp(-(dx * dx * s.ax));
+            let gy = exp(-(dy * dy * s.ay));
+            sum += (gx * s.c) * gy;
+            age += (gx * s.age) * gy;
+            cov += 1u;
+        }
+    }
+    let q = (gid.y * P.width + gid.x) * 6u;
+    acc[q] = sum.x;
+    acc[q + 1u] = sum.y;
+    acc[q + 2u] = sum.z;
+    acc[q + 3u] = sum.w;
+    acc[q + 4u] = age;
+    acc[q + 5u] = bitcast<f32>(cov);
+}
+
+@compute @workgroup_size(256)
+fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pix = gid.x;
+    if pix >= P.width * P.height {
+        return;
+    }
+    let q = pix * 6u;
+    let w = acc[q + 3u];
+    let cov = bitcast<u32>(acc[q + 5u]);
+    var s = scale[pix];
+    if cov < P.undersampled {
+        s *= P.grow;
+    } else if cov > P.oversampled {
+        s *= P.shrink;
+    }
+    s = clamp(s, P.scale_lo, P.scale_hi);
+    scale[pix] = s;
+    if w >= MIN_WEIGHT {
+        out[q] = acc[q] / w;
+        out[q + 1u] = acc[q + 1u] / w;
+        out[q + 2u] = acc[q + 2u] / w;
+        out[q + 3u] = acc[q + 4u] / w;
+    } else {
+        atomicAdd(&bins[2u * bin_count() + 1u], 1u);
+        out[q] = 0.0;
+        out[q + 1u] = 0.0;
+        out[q + 2u] = 0.0;
+        out[q + 3u] = 0.0;
+    }
+    out[q + 4u] = bitcast<f32>(cov);
+    out[q + 5u] = s;
+}
+
+// The five sums of one block of the level below `L` (a pixel's own sums at level 0,
+// zero for a hole).
+fn below(x: u32, y: u32) -> array<f32, 5> {
+    var r: array<f32, 5>;
+    if L.from_acc != 0u {
+        let q = (y * L.src_w + x) * 6u;
+        if acc[q + 3u] >= MIN_WEIGHT {
+            for (var c = 0u; c < 5u; c++) {
+                r[c] = acc[q + c];
+            }
+        }
+    } else {
+        let q = (L.src + y * L.src_w + x) * 5u;
+        for (var c = 0u; c < 5u; c++) {
+            r[c] = pyramid[q + c];
+        }
+    }
+    return r;
+}
+
+@compute @workgroup_size(256)
+fn pull(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= L.dst_w * L.dst_h {
+        return;
+    }
+    let bx = i % L.dst_w;
+    let by = i / L.dst_w;
+    var sum: array<f32, 5>;
+    for (var k = 0u; k < 4u; k++) {
+        let x = 2u * bx + (k & 1u);
+        let y = 2u * by + (k >> 1u);
+        if x < L.src_w && y < L.src_h {
+            let s = below(x, y);
+            for (var c = 0u; c < 5u; c++) {
+                sum[c] += s[c];
+            }
+        }
+    }
+    let q = (L.dst + i) * 5u;
+    for (var c = 0u; c < 5u; c++) {
+        pyramid[q + c] = sum[c];
+    }
+}
+
+@compute @workgroup_size(256)
+fn holes(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pix = gid.x;
+    if pix >= P.width * P.height || acc[pix * 6u + 3u] >= MIN_WEIGHT {
+        return;
+    }
+    let x = pix % P.width;
+    let y = pix / P.width;
+    var w = P.width;
+    var h = P.height;
+    var off = 0u;
+    for (var k = 1u; k <= P.levels; k++) {
+        let lw = (w + 1u) / 2u;
+        let lh = (h + 1u) / 2u;
+        let q = (off + (y >> k) * lw + (x >> k)) * 5u;
+        let sw = pyramid[q + 3u];
+        if sw > 0.0 {
+            let inv = 1.0 / sw;
+            let o = pix * 6u;
+            out[o] = pyramid[q] * inv;
+            out[o + 1u] = pyramid[q + 1u] * inv;
+            out[o + 2u] = pyramid[q + 2u] * inv;
+            out[o + 3u] = pyramid[q + 4u] * inv;
+            return;
+        }
+        off += lw * lh;
+        w = lw;
+        h = lh;
+    }
+}

@@ -1,0 +1,177 @@
+//! The GPU reconstructor against the CPU one on the same samples: the same images to
+//! rounding, the same coverage and splat scale. Needs a Vulkan (or Metal, DX12)
+//! adapter; Mesa's lavapipe serves (`apt-get install mesa-vulkan-drivers libvulkan1`).
+
+use std::sync::Arc;
+
+use super::{
+    device::ReconDevice,
+    gpu::GpuContext,
+    tests::{random_setup, GTS},
+    *,
+};
+
+/// Largest difference of a colour channel or age allowed between the two images: a
+/// quarter of one 8-bit level. The arithmetic is the same but for `exp` and the
+/// rounding of sums added in another grouping (and the pyramid in f32, not f64).
+const MAX_DIFF: f32 = 0.25 / 255.0;
+
+fn context() -> Arc<GpuContext> {
+    match GpuContext::acquire(ReconDevice::Gpu) {
+        Ok(Some(c)) => c,
+        Ok(None) => panic!("--recon gpu gave no adapter"),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+/// What differs between two reconstructors' last images.
+#[derive(Debug)]
+struct Differences {
+    max_colour: f32,
+    max_age: f32,
+    coverage: usize,
+    scale: usize,
+    holes: (usize, usize),
+}
+
+fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
+    let max = |x: &[f32], y: &[f32]| {
+        x.iter()
+            .zip(y)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0f32, f32::max)
+    };
+    let ca: Vec<f32> = a.image().pixels.iter().flat_map(|p| p.to_array()).collect();
+    let cb: Vec<f32> = b.image().pixels.iter().flat_map(|p| p.to_array()).collect();
+    Differences {
+        max_colour: max(&ca, &cb),
+        max_age: max(a.pixel_ages(), b.pixel_ages()),
+        coverage: a
+            .coverage()
+            .iter()
+            .zip(b.coverage())
+            .filter(|(p, q)| p != q)
+            .count(),
+        scale: a
+            .splat_scale()
+            .iter()
+            .zip(b.splat_scale())
+            .filter(|(p, q)| p != q)
+            .count(),
+        holes: (a.holes(), b.holes()),
+    }
+}
+
+fn check(d: &Differences, pixels: usize, what: &str) {
+    assert!(
+        d.max_colour <= MAX_DIFF && d.max_age <= 1e-4,
+        "{what}: {d:?}"
+    );
+    // A footprint's bounds are floors and ceilings of the reprojected position, which
+    // the GPU may round differently in the last bit: a pixel's coverage can then
+    // differ by one, on a few pixels at most.
+    assert!(
+        d.coverage * 200 <= pixels && d.scale * 200 <= pixels,
+        "{what}: {d:?}"
+    );
+    assert!(
+        d.holes.0.abs_diff(d.holes.1) * 200 <= pixels,
+        "{what}: {d:?}"
+    );
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_refreshes_match_the_cpu() {
+    let ctx = context();
+    // The ablations with the paper's steps only.
+    let paper_steps = |p: ReconParams| ReconParams {
+        fill_weight: 0.0,
+        history: None,
+        visibility: None,
+        exact_motion: false,
+        ..p
+    };
+    for params in [
+        ReconParams::paper(),
+        paper_steps(ReconParams::no_reprojection()),
+        paper_steps(ReconParams::fixed_filter()),
+    ] {
+        for (w, h) in [(40, 30), (67, 41)] {
+            let (mut cpu, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+            let (mut gpu, _, _) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+            gpu.use_gpu(ctx.clone())
+                .expect("the paper's steps run on the GPU");
+            for k in 0..3 {
+                // Refreshes at and after the last sample: splat scales evolve.
+                let t = 1.0 + 0.01 * k as f64;
+                cpu.reconstruct(t, &c, &tiling);
+                gpu.reconstruct(t, &c, &tiling);
+                assert_eq!(gpu.gpu_failure(), None);
+                assert_eq!(cpu.placed(), gpu.placed());
+                check(
+                    &differences(&cpu, &gpu),
+                    (w * h) as usize,
+                    &format!("{w}x{h} refresh {k}"),
+                );
+            }
+            assert_eq!(gpu.used().device, "gpu");
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_follows_pushes_across_the_ring_wrap() {
+    // Samples pushed between refreshes, more than the ring holds in all: the GPU's
+    // copy of the ring is updated from the pushes since the last refresh.
+    let ctx = context();
+    let params = ReconParams {
+        ring_factor: 1.5,
+        ..ReconParams::paper()
+    };
+    let (w, h) = (48, 32);
+    let (mut cpu, c, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+    let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+    gpu.use_gpu(ctx).expect("the paper's steps run on the GPU");
+    let mut rng = crate::sampling::Rng::new(&[5]);
+    for k in 0..6 {
+        let t = 1.0 + 0.05 * k as f64;
+        for i in 0..700 {
+            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+            let s = RingSample {
+                x,
+                y,
+                t: t - 0.05 + 0.05 * i as f64 / 700.0,
+                color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+                hit_point: c.eye + c.direction(x, y) * (1.0 + rng.uniform()),
+                velocity: Vec3::ZERO,
+                anchor: Default::default(),
+            };
+            cpu.push(s);
+            gpu.push(s);
+        }
+        cpu.reconstruct(t, &c, &tiling);
+        gpu.reconstruct(t, &c, &tiling);
+        assert_eq!(gpu.gpu_failure(), None);
+        check(
+            &differences(&cpu, &gpu),
+            (w * h) as usize,
+            &format!("refresh {k}"),
+        );
+    }
+    assert!(
+        cpu.ring().len() == cpu.capacity(),
+        "the ring should have wrapped"
+    );
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_refuses_steps_it_does_not_have() {
+    let ctx = context();
+    let mut r = Reconstructor::new(16, 16, 1e4, ReconParams::converging());
+    let e = r.use_gpu(ctx).expect_err("converging needs the history");
+    assert!(e.to_string().contains("still-region history"), "{e}");
+    assert_eq!(r.used().device, "cpu");
+}
