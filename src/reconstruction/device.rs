@@ -76,3 +76,55 @@ impl fmt::Display for ReconUsed {
         }
     }
 }
+
+#[cfg(feature = "gpu")]
+pub use super::gpu::{GpuContext, GpuError};
+
+/// A GPU device; this build has none (it was built without the `gpu` feature).
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug)]
+pub enum GpuContext {}
+
+#[cfg(not(feature = "gpu"))]
+impl GpuContext {
+    /// The adapter in words.
+    pub fn describe(&self) -> String {
+        match *self {}
+    }
+
+    /// A software adapter.
+    pub fn is_software(&self) -> bool {
+        match *self {}
+    }
+
+    /// What results record of it.
+    pub fn used(&self) -> ReconUsed {
+        match *self {}
+    }
+}
+
+/// Why no GPU reconstructor could be had.
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// This build has no GPU reconstructor.
+    #[error(
+        "this build has no GPU reconstructor (built without the 'gpu' feature); use --recon cpu"
+    )]
+    NotBuilt,
+}
+
+/// The GPU device `choice` asks for: `Ok(None)` for `cpu`, and for `auto` where there
+/// is no hardware adapter (or, without the `gpu` feature, no GPU support); an error
+/// for `gpu` where there is no adapter at all.
+pub fn acquire(choice: ReconDevice) -> Result<Option<std::sync::Arc<GpuContext>>, GpuError> {
+    #[cfg(feature = "gpu")]
+    {
+        GpuContext::acquire(choice)
+    }
+    #[cfg(not(feature = "gpu"))]
+    match choice {
+        ReconDevice::Gpu => Err(GpuError::NotBuilt),
+        ReconDevice::Cpu | ReconDevice::Auto => Ok(None),
+    }
+}

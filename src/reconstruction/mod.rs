@@ -297,6 +297,15 @@ impl Reconstructor {
         Ok(())
     }
 
+    /// Run refreshes on a GPU: this build has none.
+    #[cfg(not(feature = "gpu"))]
+    pub fn use_gpu(
+        &mut self,
+        ctx: std::sync::Arc<device::GpuContext>,
+    ) -> Result<(), device::GpuError> {
+        match *ctx {}
+    }
+
     /// Where refreshes run: the CPU, or the GPU adapter in words.
     pub fn used(&self) -> device::ReconUsed {
         #[cfg(feature = "gpu")]
