@@ -466,19 +466,11 @@ impl Reconstructor {
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
         self.update_filters(tiling);
-        #[cfg(feature = "gpu")]
-        if self.gpu.is_some() {
-            match self.reconstruct_on_gpu(t, camera) {
-                Ok(()) => return &self.image,
-                Err(e) => {
-                    self.gpu = None;
-                    self.gpu_failure = Some(e.to_string());
-                }
-            }
+        if !self.refresh_on_gpu(t, camera) {
+            self.prepare_splats(t, camera);
+            self.splat();
+            self.resolve();
         }
-        self.prepare_splats(t, camera);
-        self.splat();
-        self.resolve();
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let Some(h) = &mut self.history {
             let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
@@ -487,10 +479,35 @@ impl Reconstructor {
         &self.image
     }
 
-    /// [`Reconstructor::reconstruct`] on the GPU, after the filter table is built.
+    /// The splat, resolve and fill of a refresh on the GPU, if there is one; false if
+    /// they are still to be done (no GPU, or it failed now: then it is given up).
+    fn refresh_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> bool {
+        #[cfg(feature = "gpu")]
+        if self.gpu.is_some() {
+            match self.reconstruct_on_gpu(t, camera) {
+                Ok(()) => return true,
+                Err(e) => {
+                    self.gpu = None;
+                    self.gpu_failure = Some(e.to_string());
+                }
+            }
+        }
+        let _ = (t, camera);
+        false
+    }
+
+    /// [`Reconstructor::reconstruct`]'s splat, resolve and fill on the GPU, after the
+    /// filter table is built.
     #[cfg(feature = "gpu")]
     fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
         let start = self.live_range(t);
+        let moved = match self.motion.take().filter(|_| self.params.exact_motion) {
+            Some(state) => {
+                self.follow_motion(t, &state, start);
+                true
+            }
+            None => false,
+        };
         let max_r = self.max_footprint_radius();
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
@@ -498,6 +515,7 @@ impl Reconstructor {
         let back = g.refresh(
             &self.ring,
             start,
+            moved,
             t,
             self.params.reproject.then_some(camera),
             &self.tiles,
@@ -512,6 +530,9 @@ impl Reconstructor {
             &mut self.scale,
         );
         self.holes = back.holes;
+        if let Some(front) = back.front {
+            self.front = front;
+        }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;
         Ok(())

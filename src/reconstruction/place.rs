@@ -441,7 +441,7 @@ impl Reconstructor {
     /// Rewrite the velocity of every live sample fixed to something moving so that
     /// `hit + velocity · (t − t_s)` is where its point is at `t` (a sample whose
     /// instance has left the scene gets a NaN hit point, which drops it).
-    fn follow_motion(&mut self, t: f64, state: &SceneState, start: usize) {
+    pub(super) fn follow_motion(&mut self, t: f64, state: &SceneState, start: usize) {
         use field::*;
         let ring = &mut self.ring;
         let first = ring.push_index(start);

@@ -12,11 +12,12 @@
 //! CPU's, but for `exp` and the pyramid sums (f32 here, f64 there), so images agree
 //! to rounding (`tests/gpu.rs` states the tolerance).
 //!
-//! Which steps run here: reprojection by velocity, the adaptive (or fixed) filter,
-//! adaptive splat size and the hole-filling pyramid, i.e. the paper's reconstructor.
-//! The visibility pass, the pull-push fill, the still-region history and exact motion
-//! are CPU-only so far; asking for them on the GPU is an error
-//! ([`GpuRecon::check_params`]).
+//! Which steps run here: reprojection (by velocity; exact motion rewrites the
+//! velocities of the live moving samples on the CPU first, which are uploaded again),
+//! the adaptive (or fixed) filter, adaptive splat size, the visibility pass, the
+//! hole-filling pyramid and the pull-push fill. The still-region history stays on the
+//! CPU, over the image (and front depths) read back: its cost follows the new samples
+//! and the pixels, not the ring.
 
 mod context;
 
@@ -34,7 +35,7 @@ use super::{
 use crate::scene::CameraFrame;
 
 /// Storage buffers the shaders bind at once.
-pub(super) const STORAGE_BUFFERS: u32 = 11;
+pub(super) const STORAGE_BUFFERS: u32 = 12;
 /// Side of a bin of pixels (the shaders' `BIN`).
 const BIN: u32 = 16;
 /// Floats per ring sample on the GPU: the CPU ring's fields and the time.
@@ -74,7 +75,9 @@ struct Params {
     scale_lo: f32,
     scale_hi: f32,
     levels: u32,
-    pad: [u32; 3],
+    keep: f32,
+    setter_age: f32,
+    fill_weight: f32,
 }
 
 #[repr(C)]
@@ -110,6 +113,8 @@ pub(super) struct Readback {
     pub(super) pixels: Vec<f32>,
     /// Pixels no splat reached.
     pub(super) holes: usize,
+    /// Each pixel's front depth (infinite where none), if asked for.
+    pub(super) front: Option<Vec<f32>>,
 }
 
 impl Readback {
@@ -152,6 +157,7 @@ pub struct GpuRecon {
 
 struct Pipelines {
     place: wgpu::ComputePipeline,
+    count: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     fill: wgpu::ComputePipeline,
     sort: wgpu::ComputePipeline,
@@ -159,6 +165,10 @@ struct Pipelines {
     resolve: wgpu::ComputePipeline,
     pull: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
+    pp_pull: wgpu::ComputePipeline,
+    pp_top: wgpu::ComputePipeline,
+    pp_push: wgpu::ComputePipeline,
+    pp_final: wgpu::ComputePipeline,
     layout0: wgpu::BindGroupLayout,
     layout1: wgpu::BindGroupLayout,
 }
@@ -177,7 +187,9 @@ struct Buffers {
     out: wgpu::Buffer,
     pyramid: wgpu::Buffer,
     levels: wgpu::Buffer,
+    front: wgpu::Buffer,
     read_out: wgpu::Buffer,
+    read_front: wgpu::Buffer,
     read_counts: wgpu::Buffer,
     /// Tiles and items the buffers hold.
     tiles_cap: usize,
@@ -231,22 +243,10 @@ fn pyramid_levels(width: u32, height: u32) -> Vec<Level> {
 }
 
 impl GpuRecon {
-    /// Whether the GPU reconstructor has every step `params` asks for.
-    pub fn check_params(params: &ReconParams) -> Result<(), GpuError> {
-        let missing: Vec<&str> = [
-            (params.visibility_in_use().is_some(), "the visibility pass"),
-            (params.fill_weight > 0.0, "the pull-push fill"),
-            (params.history.is_some(), "the still-region history"),
-            (params.exact_motion, "exact motion"),
-        ]
-        .into_iter()
-        .filter_map(|(asked, what)| asked.then_some(what))
-        .collect();
-        if missing.is_empty() {
-            Ok(())
-        } else {
-            Err(GpuError::Unsupported(missing.join(", ")))
-        }
+    /// Whether the GPU reconstructor has every step `params` asks for (it has them
+    /// all: the still-region history runs on the CPU over the image read back).
+    pub fn check_params(_params: &ReconParams) -> Result<(), GpuError> {
+        Ok(())
     }
 
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
@@ -315,7 +315,9 @@ impl GpuRecon {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
+            front: storage(d, "front depths", n * 4, wgpu::BufferUsages::COPY_SRC),
             read_out: readback(d, "image readback", n * PER_PIXEL as u64 * 4),
+            read_front: readback(d, "front depth readback", n * 4),
             read_counts: readback(d, "count readback", 8),
             tiles_cap: 64,
             items_cap: cap,
@@ -443,12 +445,15 @@ impl GpuRecon {
     }
 
     /// One refresh at time `t` seen by `camera` (`None`: no reprojection) of the ring's
-    /// logical samples `start..len`, with this refresh's filter table.
+    /// logical samples `start..len`, with this refresh's filter table. `moved`: the
+    /// hit points and velocities of live samples were rewritten since the last
+    /// upload (exact motion).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn refresh(
         &mut self,
         ring: &Ring,
         start: usize,
+        moved: bool,
         t: f64,
         camera: Option<&CameraFrame>,
         tiles: &[TileFilter],
@@ -457,6 +462,9 @@ impl GpuRecon {
         max_r: f32,
     ) -> Result<Readback, GpuError> {
         self.upload_ring(ring);
+        if moved {
+            self.upload_motion(ring, start);
+        }
         self.upload_filters(tiles, lookup);
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
@@ -477,7 +485,23 @@ impl GpuRecon {
             }
             self.grow_items(total);
         }
-        self.splat_pass()
+        let front = p.keep > 0.0 && params.history.is_some();
+        self.splat_pass(params.fill_weight > 0.0, front)
+    }
+
+    /// Upload the hit points and velocities of the live samples `start..` again.
+    fn upload_motion(&self, ring: &Ring, start: usize) {
+        let q = &self.ctx.queue;
+        for r in ring.runs(start).into_iter().filter(|r| !r.is_empty()) {
+            for k in [field::HX, field::VX, field::VY, field::VZ] {
+                let off = (k * self.cap + r.start) as u64 * 4;
+                q.write_buffer(
+                    &self.buffers.ring,
+                    off,
+                    bytemuck::cast_slice(&ring.f[k][r.clone()]),
+                );
+            }
+        }
     }
 
     fn params(&self, t: f64, camera: Option<&CameraFrame>, rp: &ReconParams, max_r: f32) -> Params {
@@ -498,8 +522,13 @@ impl GpuRecon {
             scale_lo: rp.scale_bounds.0,
             scale_hi: rp.scale_bounds.1,
             levels: self.levels.len() as u32,
+            fill_weight: rp.fill_weight.max(0.0),
             ..Params::default()
         };
+        if let Some(v) = rp.visibility_in_use() {
+            p.keep = 1.0 / (1.0 + v.depth_tolerance);
+            p.setter_age = v.setter_age_sigmas;
+        }
         if let Some(c) = camera {
             // The CPU placer's projector: the same constants, computed the same way.
             let u = c.du / c.du.length_squared();
@@ -552,9 +581,11 @@ impl GpuRecon {
         let d = &self.ctx.device;
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         enc.clear_buffer(&self.buffers.bins, 0, Some(nb * 4));
+        enc.clear_buffer(&self.buffers.front, 0, None);
         let groups = (count as u32).div_ceil(GROUP);
         let pl = &self.pipelines;
         self.dispatch(&mut enc, &pl.place, (groups, 1), None);
+        self.dispatch(&mut enc, &pl.count, (groups, 1), None);
         self.dispatch(&mut enc, &pl.scan, (1, 1), None);
         self.dispatch(&mut enc, &pl.fill, (groups, 1), None);
         enc.copy_buffer_to_buffer(
@@ -569,8 +600,9 @@ impl GpuRecon {
         Ok(counts[0].to_bits() as usize)
     }
 
-    /// Sort the bins, gather, resolve and fill holes; read the image back.
-    fn splat_pass(&self) -> Result<Readback, GpuError> {
+    /// Sort the bins, gather, resolve and fill; read the image back (and the front
+    /// depths with `front`).
+    fn splat_pass(&self, pull_push: bool, front: bool) -> Result<Readback, GpuError> {
         let n = self.width as u64 * self.height as u64;
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         let d = &self.ctx.device;
@@ -580,11 +612,15 @@ impl GpuRecon {
         self.dispatch(&mut enc, &pl.sort, self.bins, None);
         self.dispatch(&mut enc, &pl.gather, self.bins, None);
         self.dispatch(&mut enc, &pl.resolve, (pixels, 1), None);
-        for (k, l) in self.levels.iter().enumerate() {
-            let groups = (l.dst_w * l.dst_h).div_ceil(GROUP);
-            self.dispatch(&mut enc, &pl.pull, (groups, 1), Some(k));
+        if pull_push {
+            self.pull_push(&mut enc);
+        } else {
+            for (k, l) in self.levels.iter().enumerate() {
+                let groups = (l.dst_w * l.dst_h).div_ceil(GROUP);
+                self.dispatch(&mut enc, &pl.pull, (groups, 1), Some(k));
+            }
+            self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
         }
-        self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
         let bytes = n * PER_PIXEL as u64 * 4;
         enc.copy_buffer_to_buffer(&self.buffers.out, 0, &self.buffers.read_out, 0, bytes);
         enc.copy_buffer_to_buffer(
@@ -594,10 +630,54 @@ impl GpuRecon {
             0,
             4,
         );
+        if front {
+            enc.copy_buffer_to_buffer(&self.buffers.front, 0, &self.buffers.read_front, 0, n * 4);
+        }
         self.ctx.queue.submit([enc.finish()]);
         let holes = self.read(&self.buffers.read_counts, 4)?[0].to_bits() as usize;
         let pixels = self.read(&self.buffers.read_out, bytes)?;
-        Ok(Readback { pixels, holes })
+        let front = if front {
+            let raw = self.read(&self.buffers.read_front, n * 4)?;
+            Some(
+                raw.iter()
+                    .map(|f| match f.to_bits() {
+                        0 => f32::INFINITY,
+                        b => f32::from_bits(!b),
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        Ok(Readback {
+            pixels,
+            holes,
+            front,
+        })
+    }
+
+    /// The pull-push fill's passes: pull up every level, normalise the top, push down
+    /// to the image.
+    fn pull_push(&self, enc: &mut wgpu::CommandEncoder) {
+        let pl = &self.pipelines;
+        let groups = |w: u32, h: u32| (w * h).div_ceil(GROUP);
+        for (k, l) in self.levels.iter().enumerate() {
+            self.dispatch(enc, &pl.pp_pull, (groups(l.dst_w, l.dst_h), 1), Some(k));
+        }
+        let Some(top) = self.levels.len().checked_sub(1) else {
+            return;
+        };
+        self.dispatch(enc, &pl.pp_top, (1, 1), Some(top));
+        for k in (1..self.levels.len()).rev() {
+            let l = &self.levels[k];
+            self.dispatch(enc, &pl.pp_push, (groups(l.src_w, l.src_h), 1), Some(k));
+        }
+        self.dispatch(
+            enc,
+            &pl.pp_final,
+            (groups(self.width, self.height), 1),
+            Some(0),
+        );
     }
 
     /// The first `bytes` of a read-back buffer, after the work submitted so far.
@@ -639,6 +719,7 @@ impl Buffers {
             &self.acc,
             &self.out,
             &self.pyramid,
+            &self.front,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = bufs
             .iter()
@@ -709,6 +790,7 @@ impl Pipelines {
         };
         Self {
             place: make("place"),
+            count: make("count"),
             scan: make("scan"),
             fill: make("fill"),
             sort: make("sort"),
@@ -716,6 +798,10 @@ impl Pipelines {
             resolve: make("resolve"),
             pull: make("pull"),
             holes: make("holes"),
+            pp_pull: make("pp_pull"),
+            pp_top: make("pp_top"),
+            pp_push: make("pp_push"),
+            pp_final: make("pp_final"),
             layout0,
             layout1,
         }

@@ -42,9 +42,12 @@ struct Params {
     scale_lo: f32,
     scale_hi: f32,
     levels: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    // `1 / (1 + depth tolerance)` of the visibility pass, 0 without it.
+    keep: f32,
+    // Moving samples set front depths while `age / e_t` is at most this.
+    setter_age: f32,
+    // Weight below which the pull-push fill completes a pixel, 0 without it.
+    fill_weight: f32,
 }
 
 struct TileFilter {
@@ -72,9 +75,11 @@ struct Splat {
     x1: i32,
     y0: i32,
     y1: i32,
-    pad0: f32,
-    pad1: f32,
-    pad2: f32,
+    // Depth in the current view, and the pixel it lands in (`OUTSIDE` off the image;
+    // both for the visibility pass only).
+    z: f32,
+    pixel: u32,
+    pad: f32,
 }
 
 struct Level {
@@ -91,6 +96,7 @@ struct Level {
 }
 
 const BIN: u32 = 16u;
+const OUTSIDE: u32 = 0xffffffffu;
 const MIN_WEIGHT: f32 = 1e-24;
 // Fields of the ring, one run of `cap` floats each (as the CPU ring's arrays).
 const X: u32 = 0u;
@@ -116,6 +122,10 @@ const T: u32 = 11u;
 @group(0) @binding(10) var<storage, read_write> out: array<f32>;
 // Pyramid levels 1 and up, 5 floats per block (the accumulator's first five).
 @group(0) @binding(11) var<storage, read_write> pyramid: array<f32>;
+// Per pixel: the nearest depth a front-setting sample gives it, as the complement of
+// its bits (depths are positive, so the largest complement is the nearest depth, and
+// a cleared buffer, 0, means none).
+@group(0) @binding(12) var<storage, read_write> front: array<atomic<u32>>;
 @group(1) @binding(0) var<uniform> L: Level;
 
 fn finite(x: f32) -> bool {
@@ -136,7 +146,14 @@ fn empty_splat() -> Splat {
     s.x1 = 0;
     s.y0 = 1;
     s.y1 = 0;
+    s.pixel = OUTSIDE;
     return s;
+}
+
+// Whether depth `z` lies behind the front depth of pixel `p` (beyond the tolerance).
+fn hidden(p: u32, z: f32) -> bool {
+    let f = atomicLoad(&front[p]);
+    return f != 0u && bitcast<f32>(~f) < z * P.keep;
 }
 
 @compute @workgroup_size(256)
@@ -152,22 +169,23 @@ fn place(@builtin(global_invocation_id) gid: vec3<u32>) {
     let dt = P.t - ring_at(T, p);
     var x: f32;
     var y: f32;
-    var front = true;
+    var z = 0.0;
+    var in_front = true;
     if P.reproject != 0u {
         let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
         let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
         let d = hit + vel * dt - P.eye;
-        let z = dot(d, P.forward);
+        z = dot(d, P.forward);
         let iz = 1.0 / z;
         x = dot(d, P.u) * iz - P.ou;
         y = dot(d, P.v) * iz - P.ov;
-        front = z > 1e-6;
+        in_front = z > 1e-6;
     } else {
         x = ring_at(X, p);
         y = ring_at(Y, p);
     }
     var s = empty_splat();
-    if front && finite(x) && finite(y) {
+    if in_front && finite(x) && finite(y) {
         let w = f32(P.width - 1u);
         let h = f32(P.height - 1u);
         let px = u32(floor(min(max(x, 0.0), w)));
@@ -196,15 +214,52 @@ fn place(@builtin(global_invocation_id) gid: vec3<u32>) {
                 s.x1 = i32(x1);
                 s.y0 = i32(y0);
                 s.y1 = i32(y1);
-                for (var by = u32(y0) / BIN; by <= u32(y1) / BIN; by++) {
-                    for (var bx = u32(x0) / BIN; bx <= u32(x1) / BIN; bx++) {
-                        atomicAdd(&bins[by * P.bins_x + bx], 1u);
-                    }
+                if P.keep > 0.0 {
+                    set_front(&s, p, a, z);
                 }
             }
         }
     }
     splats[i] = s;
+}
+
+// The visibility pass's part of placing: where the splat lands, and the front depth
+// it sets there if it is still or recent.
+fn set_front(s: ptr<function, Splat>, p: u32, a: f32, z: f32) {
+    (*s).z = z;
+    let x = (*s).x;
+    let y = (*s).y;
+    if x >= 0.0 && x < f32(P.width) && y >= 0.0 && y < f32(P.height) {
+        let pix = u32(y) * P.width + u32(x);
+        (*s).pixel = pix;
+        let still = ring_at(VX, p) == 0.0 && ring_at(VX + 1u, p) == 0.0 && ring_at(VX + 2u, p) == 0.0;
+        if still || a <= P.setter_age {
+            atomicMax(&front[pix], ~bitcast<u32>(z));
+        }
+    }
+}
+
+// Drop the splats hidden behind a nearer surface (the visibility pass) and count
+// every other one in the bins its footprint touches.
+@compute @workgroup_size(256)
+fn count(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= P.count {
+        return;
+    }
+    let s = splats[i];
+    if s.x0 > s.x1 {
+        return;
+    }
+    if P.keep > 0.0 && s.pixel != OUTSIDE && hidden(s.pixel, s.z) {
+        splats[i] = empty_splat();
+        return;
+    }
+    for (var by = u32(s.y0) / BIN; by <= u32(s.y1) / BIN; by++) {
+        for (var bx = u32(s.x0) / BIN; bx <= u32(s.x1) / BIN; bx++) {
+            atomicAdd(&bins[by * P.bins_x + bx], 1u);
+        }
+    }
 }
 
 var<workgroup> partial: array<u32, 256>;
@@ -449,5 +504,141 @@ fn holes(@builtin(global_invocation_id) gid: vec3<u32>) {
         off += lw * lh;
         w = lw;
         h = lh;
+    }
+}
+
+// The pull-push fill of pixels whose weight is below `fill_weight` (the CPU's
+// `pullpush.rs`): levels of premultiplied (red, green, blue, age, coverage α) in
+// `pyramid`, pulled up as coverage-weighted 2×2 sums capped at coverage 1, pushed
+// down as `own + (1 − α) · bilinear(coarser)`.
+
+// The full-resolution level at pixel (x, y): α = min(W / W₀, 1); zero for a hole.
+fn premultiplied(x: u32, y: u32) -> array<f32, 5> {
+    let q = (y * P.width + x) * 6u;
+    var r: array<f32, 5>;
+    let cw = acc[q + 3u];
+    if cw >= MIN_WEIGHT {
+        let a = min(cw / P.fill_weight, 1.0);
+        for (var c = 0u; c < 4u; c++) {
+            r[c] = out[q + c] * a;
+        }
+        r[4] = a;
+    }
+    return r;
+}
+
+@compute @workgroup_size(256)
+fn pp_pull(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= L.dst_w * L.dst_h {
+        return;
+    }
+    let bx = i % L.dst_w;
+    let by = i / L.dst_w;
+    var sum: array<f32, 5>;
+    for (var k = 0u; k < 4u; k++) {
+        let x = 2u * bx + (k & 1u);
+        let y = 2u * by + (k >> 1u);
+        if x < L.src_w && y < L.src_h {
+            var s: array<f32, 5>;
+            if L.from_acc != 0u {
+                s = premultiplied(x, y);
+            } else {
+                let q = (L.src + y * L.src_w + x) * 5u;
+                for (var c = 0u; c < 5u; c++) {
+                    s[c] = pyramid[q + c];
+                }
+            }
+            for (var c = 0u; c < 5u; c++) {
+                sum[c] += s[c];
+            }
+        }
+    }
+    var k = 1.0;
+    if sum[4] > 1.0 {
+        k = 1.0 / sum[4];
+    }
+    let q = (L.dst + i) * 5u;
+    for (var c = 0u; c < 5u; c++) {
+        pyramid[q + c] = sum[c] * k;
+    }
+}
+
+// The coarsest level (`L.dst`, one block) divided by its coverage.
+@compute @workgroup_size(1)
+fn pp_top() {
+    let q = L.dst * 5u;
+    let a = pyramid[q + 4u];
+    if a > 0.0 {
+        let k = 1.0 / a;
+        for (var c = 0u; c < 5u; c++) {
+            pyramid[q + c] *= k;
+        }
+    }
+}
+
+// The bilinear taps of pixel `i` of a level twice as fine as one of `n` pixels: the
+// two coarse pixels around its centre (clamped at the edges) and the second's weight.
+fn tap(i: u32, n: u32) -> vec3<f32> {
+    let f = clamp((f32(i) + 0.5) * 0.5 - 0.5, 0.0, f32(n - 1u));
+    let i0 = u32(f);
+    return vec3<f32>(f32(i0), f32(min(i0 + 1u, n - 1u)), f - f32(i0));
+}
+
+// The coarser level `L.dst` interpolated at pixel (x, y) of the finer one: along x
+// first, then along y, as the CPU does.
+fn bilinear(x: u32, y: u32) -> array<f32, 4> {
+    let tx = tap(x, L.dst_w);
+    let ty = tap(y, L.dst_h);
+    let x0 = u32(tx.x);
+    let x1 = u32(tx.y);
+    let r0 = L.dst + u32(ty.x) * L.dst_w;
+    let r1 = L.dst + u32(ty.y) * L.dst_w;
+    var v: array<f32, 4>;
+    for (var c = 0u; c < 4u; c++) {
+        let a0 = pyramid[(r0 + x0) * 5u + c];
+        let b0 = pyramid[(r0 + x1) * 5u + c];
+        let a1 = pyramid[(r1 + x0) * 5u + c];
+        let b1 = pyramid[(r1 + x1) * 5u + c];
+        let u0 = a0 + (b0 - a0) * tx.z;
+        let u1 = a1 + (b1 - a1) * tx.z;
+        v[c] = u0 + (u1 - u0) * ty.z;
+    }
+    return v;
+}
+
+// Push into pyramid level `L.src` from `L.dst`.
+@compute @workgroup_size(256)
+fn pp_push(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= L.src_w * L.src_h {
+        return;
+    }
+    let up = bilinear(i % L.src_w, i / L.src_w);
+    let q = (L.src + i) * 5u;
+    let a = pyramid[q + 4u];
+    for (var c = 0u; c < 4u; c++) {
+        pyramid[q + c] += (1.0 - a) * up[c];
+    }
+    pyramid[q + 4u] = 1.0;
+}
+
+// Push into the image: only pixels below full coverage change.
+@compute @workgroup_size(256)
+fn pp_final(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let pix = gid.x;
+    if pix >= P.width * P.height {
+        return;
+    }
+    let x = pix % P.width;
+    let y = pix / P.width;
+    let v = premultiplied(x, y);
+    let a = v[4];
+    if a < 1.0 {
+        let up = bilinear(x, y);
+        let q = pix * 6u;
+        for (var c = 0u; c < 4u; c++) {
+            out[q + c] = v[c] + (1.0 - a) * up[c];
+        }
     }
 }
