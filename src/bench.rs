@@ -4,18 +4,22 @@
 //! less coherent than scanline order — through a 256×256 view of the scene at its start
 //! time. Each figure is the best of a few timed repetitions, to damp machine noise.
 
-use std::time::Instant;
+use std::{collections::BTreeMap, sync::Arc, time::Instant};
 
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::{sampling::Rng, trace::Tracer};
+use crate::{
+    reconstruction::device::{GpuContext, ReconUsed},
+    sampling::Rng,
+    trace::Tracer,
+};
 
 /// Timed reconstructor refreshes at 256×256 per repetition of the ray measurements.
 const RECON_REPEATS_PER_REPEAT: usize = 5;
 
 /// Benchmark settings.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct BenchOptions {
     /// Rays per repetition.
     pub rays: usize,
@@ -23,6 +27,9 @@ pub struct BenchOptions {
     pub repeats: usize,
     /// Seed of the pixel order.
     pub seed: u64,
+    /// The GPU the reconstruction figures are measured on, where the reconstructor's
+    /// parameters allow it (`None`: the CPU).
+    pub gpu: Option<Arc<GpuContext>>,
 }
 
 impl Default for BenchOptions {
@@ -31,6 +38,7 @@ impl Default for BenchOptions {
             rays: 1 << 19,
             repeats: 3,
             seed: 1,
+            gpu: None,
         }
     }
 }
@@ -89,6 +97,13 @@ pub struct BenchReport {
     pub controller_tracing_samples_per_s_1t: f64,
     /// ...and their ratio: the sampling threads the controllers keep up with.
     pub controller_margin: f64,
+    /// Where the `reconstruct_*` figures were measured: the CPU, or the GPU and its
+    /// adapter (then their `1t`/`all` thread counts are the CPU side's only).
+    pub recon: ReconUsed,
+    /// Per `reconstruct_*` figure that could not be measured on the GPU (it is then
+    /// `null`): why.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub recon_notes: BTreeMap<&'static str, String>,
 }
 
 /// A reconstructor at `width × height` with a full ring of `n` synthetic samples:
@@ -209,8 +224,42 @@ pub fn reconstruct_fixture_with(
 /// Milliseconds of one reconstructor refresh on the [`reconstruct_fixture`] (best of
 /// `repeats`, after `warmup` refreshes that settle the splat scale map).
 pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats: usize) -> f64 {
+    reconstruct_ms_on(None, width, height, n, warmup, repeats).unwrap_or(f64::NAN)
+}
+
+/// [`reconstruct_ms`] on `gpu` where one is given; the error says why the GPU
+/// reconstructor could not measure it.
+pub fn reconstruct_ms_on(
+    gpu: Option<&Arc<GpuContext>>,
+    width: u32,
+    height: u32,
+    n: usize,
+    warmup: usize,
+    repeats: usize,
+) -> Result<f64, String> {
     let (mut r, camera, tiling) = reconstruct_fixture(width, height, n, 1);
-    best_refresh_ms(&mut r, &camera, &tiling, warmup, repeats)
+    use_gpu(&mut r, gpu)?;
+    let ms = best_refresh_ms(&mut r, &camera, &tiling, warmup, repeats);
+    on_gpu_throughout(&r, ms)
+}
+
+/// Hand `r`'s refreshes to `gpu`, if one is given.
+fn use_gpu(
+    r: &mut crate::reconstruction::Reconstructor,
+    gpu: Option<&Arc<GpuContext>>,
+) -> Result<(), String> {
+    match gpu {
+        Some(g) => r.use_gpu(g.clone()).map_err(|e| e.to_string()),
+        None => Ok(()),
+    }
+}
+
+/// `ms`, unless `r`'s GPU side failed on the way (the time is then partly the CPU's).
+fn on_gpu_throughout(r: &crate::reconstruction::Reconstructor, ms: f64) -> Result<f64, String> {
+    match r.gpu_failure() {
+        Some(why) => Err(format!("the GPU reconstructor failed: {why}")),
+        None => Ok(ms),
+    }
 }
 
 /// Milliseconds of one refresh of a [`reconstruct_fixture`] at time 1 (best of
@@ -245,34 +294,67 @@ fn best_refresh_ms(
 ///
 /// [`ReconParams::realtime`]: crate::reconstruction::ReconParams::realtime
 pub fn reconstruct_realtime_ms(width: u32, height: u32, warmup: usize, repeats: usize) -> f64 {
+    reconstruct_realtime_ms_on(None, width, height, warmup, repeats).unwrap_or(f64::NAN)
+}
+
+/// [`reconstruct_realtime_ms`] on `gpu` where one is given; the error says why the
+/// GPU reconstructor could not measure it (it may lack a step of these parameters).
+pub fn reconstruct_realtime_ms_on(
+    gpu: Option<&Arc<GpuContext>>,
+    width: u32,
+    height: u32,
+    warmup: usize,
+    repeats: usize,
+) -> Result<f64, String> {
     let n = (width as usize * height as usize).div_ceil(2);
     let params = crate::reconstruction::ReconParams::realtime();
     let (mut r, camera, tiling) = reconstruct_fixture_with(width, height, n, 1, params);
+    use_gpu(&mut r, gpu)?;
     r.set_view_since(0.0);
-    best_refresh_ms(&mut r, &camera, &tiling, warmup.max(1), repeats)
+    let ms = best_refresh_ms(&mut r, &camera, &tiling, warmup.max(1), repeats);
+    on_gpu_throughout(&r, ms)
 }
 
 /// Milliseconds of one refresh of the `adaptive` method's reconstructor on `tracer`'s
 /// scene after its sampler ran for 1 s at 400K samples/s from `time` (best of
 /// `repeats`; nothing new is sampled during the timed refreshes).
 pub fn reconstruct_scene_ms(tracer: &std::sync::Arc<Tracer>, time: f64, repeats: usize) -> f64 {
+    reconstruct_scene_ms_on(None, tracer, time, repeats).unwrap_or(f64::NAN)
+}
+
+/// [`reconstruct_scene_ms`] on `gpu` where one is given; the error says why it could
+/// not be measured.
+pub fn reconstruct_scene_ms_on(
+    gpu: Option<&Arc<GpuContext>>,
+    tracer: &std::sync::Arc<Tracer>,
+    time: f64,
+    repeats: usize,
+) -> Result<f64, String> {
     use crate::methods::Method;
-    let Ok((mut m, end)) = adaptive_after_one_second(tracer, time) else {
-        return f64::NAN;
-    };
+    let (mut m, end) =
+        adaptive_after_one_second_on(gpu, tracer, time).map_err(|e| e.to_string())?;
     let mut best = f64::INFINITY;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
         std::hint::black_box(m.display(end).mean_age);
         best = best.min(t0.elapsed().as_secs_f64());
     }
-    best * 1e3
+    on_gpu_throughout(m.reconstructor(), best * 1e3)
 }
 
 /// The `adaptive` method (paper parameters, seed 1) on `tracer`'s scene after its
 /// sampler ran for 1 s at 400K samples/s from `time`, with one image displayed at the
 /// end of that second; returns it and that time.
 pub fn adaptive_after_one_second(
+    tracer: &std::sync::Arc<Tracer>,
+    time: f64,
+) -> Result<(crate::methods::adaptive::Adaptive, f64), crate::methods::MethodError> {
+    adaptive_after_one_second_on(None, tracer, time)
+}
+
+/// [`adaptive_after_one_second`], its reconstructor on `gpu` where one is given.
+pub fn adaptive_after_one_second_on(
+    gpu: Option<&Arc<GpuContext>>,
     tracer: &std::sync::Arc<Tracer>,
     time: f64,
 ) -> Result<(crate::methods::adaptive::Adaptive, f64), crate::methods::MethodError> {
@@ -288,6 +370,7 @@ pub fn adaptive_after_one_second(
         seed: 1,
         ideal_spp: 1,
         ideal_cache: None,
+        gpu: gpu.cloned(),
     };
     let mut m = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper())?;
     let end = time + 1.0;
@@ -374,16 +457,7 @@ pub fn run(
     let sa = best_rate(opts.repeats, shaded_pts.len(), || {
         std::hint::black_box(shaded(shaded_pts));
     });
-    // A refresh takes tens of milliseconds and these machines' speed varies from one
-    // second to the next: the best of several times the rays' repetitions.
-    let rr = RECON_REPEATS_PER_REPEAT * opts.repeats;
-    let rc1 = one.install(|| reconstruct_ms(256, 256, 400_000, 2, rr));
-    let rca = reconstruct_ms(256, 256, 400_000, 2, rr);
-    let rc512 = reconstruct_ms(512, 512, 6 * 512 * 512, 1, 2);
-    let rc1024 = reconstruct_ms(1024, 1024, 6 * 1024 * 1024, 1, 1);
-    let rcv = one.install(|| reconstruct_realtime_ms(640, 480, 2, rr));
-    let rs1 = one.install(|| reconstruct_scene_ms(tracer, time, rr));
-    let rsa = reconstruct_scene_ms(tracer, time, rr);
+    let recon = recon_figures(tracer, time, &opts, &one);
     let ctrl = controller_throughput(tracer, time);
     BenchReport {
         scene: tracer.scene().name.clone(),
@@ -398,17 +472,81 @@ pub fn run(
         primary_mrays_per_s_all: pa / 1e6,
         shaded_samples_per_s_all: sa,
         shaded_samples_per_s_1t: s1,
-        reconstruct_ms_1t: rc1,
-        reconstruct_ms_all: rca,
-        reconstruct_ms_512_all: rc512,
-        reconstruct_ms_1024_all: rc1024,
-        reconstruct_realtime_640_ms_1t: rcv,
-        reconstruct_scene_ms_1t: rs1,
-        reconstruct_scene_ms_all: rsa,
+        reconstruct_ms_1t: recon.ms_1t,
+        reconstruct_ms_all: recon.ms_all,
+        reconstruct_ms_512_all: recon.ms_512_all,
+        reconstruct_ms_1024_all: recon.ms_1024_all,
+        reconstruct_realtime_640_ms_1t: recon.realtime_640_ms_1t,
+        reconstruct_scene_ms_1t: recon.scene_ms_1t,
+        reconstruct_scene_ms_all: recon.scene_ms_all,
         controllers: ctrl.map_or(0, |c| c.controllers),
         controller_samples_per_s: ctrl.map_or(f64::NAN, |c| c.controller_samples_per_s),
         controller_tracing_samples_per_s_1t: ctrl.map_or(f64::NAN, |c| c.tracing_samples_per_s),
         controller_margin: ctrl.map_or(f64::NAN, |c| c.margin()),
+        recon: opts.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used()),
+        recon_notes: recon.notes,
+    }
+}
+
+/// The `reconstruct_*` figures of a [`BenchReport`], and why any is missing.
+struct ReconFigures {
+    ms_1t: f64,
+    ms_all: f64,
+    ms_512_all: f64,
+    ms_1024_all: f64,
+    realtime_640_ms_1t: f64,
+    scene_ms_1t: f64,
+    scene_ms_all: f64,
+    notes: BTreeMap<&'static str, String>,
+}
+
+/// Time the reconstructor on the fixtures and on `tracer`'s scene, on `opts.gpu` where
+/// one is given; a figure the GPU reconstructor cannot measure is NaN (`null` in the
+/// JSON) with a note saying why. `one` is a pool of one thread.
+fn recon_figures(
+    tracer: &Arc<Tracer>,
+    time: f64,
+    opts: &BenchOptions,
+    one: &rayon::ThreadPool,
+) -> ReconFigures {
+    let gpu = opts.gpu.as_ref();
+    let mut notes = BTreeMap::new();
+    let mut figure = |name: &'static str, measured: Result<f64, String>| {
+        measured.unwrap_or_else(|why| {
+            notes.insert(name, why);
+            f64::NAN
+        })
+    };
+    // A refresh takes tens of milliseconds and these machines' speed varies from one
+    // second to the next: the best of several times the rays' repetitions.
+    let rr = RECON_REPEATS_PER_REPEAT * opts.repeats;
+    let fixture = |w, n, warmup, repeats| reconstruct_ms_on(gpu, w, w, n, warmup, repeats);
+    let ms_1t = figure(
+        "reconstruct_ms_1t",
+        one.install(|| fixture(256, 400_000, 2, rr)),
+    );
+    let ms_all = figure("reconstruct_ms_all", fixture(256, 400_000, 2, rr));
+    let ms_512_all = figure("reconstruct_ms_512_all", fixture(512, 6 * 512 * 512, 1, 2));
+    let ms_1024_all = figure(
+        "reconstruct_ms_1024_all",
+        fixture(1024, 6 * 1024 * 1024, 1, 1),
+    );
+    let realtime_640_ms_1t = figure(
+        "reconstruct_realtime_640_ms_1t",
+        one.install(|| reconstruct_realtime_ms_on(gpu, 640, 480, 2, rr)),
+    );
+    let scene = || reconstruct_scene_ms_on(gpu, tracer, time, rr);
+    let scene_ms_1t = figure("reconstruct_scene_ms_1t", one.install(scene));
+    let scene_ms_all = figure("reconstruct_scene_ms_all", scene());
+    ReconFigures {
+        ms_1t,
+        ms_all,
+        ms_512_all,
+        ms_1024_all,
+        realtime_640_ms_1t,
+        scene_ms_1t,
+        scene_ms_all,
+        notes,
     }
 }
 

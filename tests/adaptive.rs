@@ -79,6 +79,7 @@ fn ctx(scene: Scene, size: u32, rate: f64) -> MethodContext {
         seed: 9,
         ideal_spp: 1,
         ideal_cache: None,
+        gpu: None,
     }
 }
 
@@ -322,6 +323,7 @@ fn evaluation_with_adaptive_is_thread_count_independent() {
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 4,
+        gpu: None,
     };
     let run = |n: usize| {
         rayon::ThreadPoolBuilder::new()

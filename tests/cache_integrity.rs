@@ -41,6 +41,7 @@ fn config(cache_dir: Option<PathBuf>) -> EvalConfig {
         cache_dir,
         strip_frames: vec![0, 3],
         flip_every: 1,
+        gpu: None,
     }
 }
 

@@ -43,6 +43,7 @@ fn cfg(methods: &[MethodKind], warmup: f64, duration: f64) -> EvalConfig {
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 1000,
+        gpu: None,
         texture_filter: TextureFilter::RayCones,
     }
 }
@@ -169,6 +170,7 @@ fn an_object_that_starts_moving_after_a_long_still_leaves_no_ghost() {
         seed: 4,
         ideal_spp: 1,
         ideal_cache: None,
+        gpu: None,
     };
     let build = |m: MethodKind| (m.info().build)(&ctx).unwrap();
     let (mut ours, mut without) = (

@@ -98,6 +98,7 @@ fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> 
         cache_dir: None,
         strip_frames: vec![0],
         flip_every: 1,
+        gpu: None,
     }
 }
 
@@ -128,6 +129,7 @@ fn double_buffering_timing_hand_worked() {
         seed: 1,
         ideal_spp: 1,
         ideal_cache: None,
+        gpu: None,
     };
     let mut m = Framed::full_res(&ctx).unwrap();
     assert_eq!(m.samples_per_frame(), 768);

@@ -137,6 +137,7 @@ fn recorded_camera_path_replays_to_the_same_camera() {
         ])
         .args(["--duration", "0.1", "--warmup", "0.1", "--rates", "20k"])
         .args(["--methods", "framed-60hz", "--ideal-spp", "1", "--no-cache"])
+        .args(["--recon", "cpu"])
         .arg("--camera-path")
         .arg(&file)
         .arg("--out")
@@ -150,6 +151,13 @@ fn recorded_camera_path_replays_to_the_same_camera() {
     );
     let summary = std::fs::read_to_string(dir.join("eval/summary.json")).unwrap();
     assert!(summary.contains("\"camera_path\": true"), "{summary}");
+    // The reconstructor the results come from: the CPU, as asked.
+    let json: serde_json::Value = serde_json::from_str(&summary).unwrap();
+    assert_eq!(
+        json["recon"],
+        serde_json::json!({"device": "cpu", "adapter": null}),
+        "{summary}"
+    );
 }
 
 #[test]

@@ -165,6 +165,7 @@ fn ctx(scene: Scene, size: u32, rate: f64) -> MethodContext {
         seed: 3,
         ideal_spp: 16,
         ideal_cache: None,
+        gpu: None,
     }
 }
 

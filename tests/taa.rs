@@ -41,6 +41,7 @@ fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
         cache_dir: None,
         strip_frames: vec![],
         flip_every: 1000,
+        gpu: None,
         texture_filter: frameless::trace::TextureFilter::None,
     }
 }

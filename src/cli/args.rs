@@ -7,6 +7,7 @@ use frameless::{
     clock::parse_rate,
     methods::MethodKind,
     realtime::{RtMethod, Visualisation},
+    reconstruction::device::ReconDevice,
     trace::TextureFilter,
 };
 
@@ -20,6 +21,33 @@ impl FromStr for Size {
         let (w, h) = frameless::limits::parse_size(s)?;
         Ok(Size(w, h))
     }
+}
+
+/// `--recon`, shared by the commands that run the adaptive reconstructor.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct ReconArg {
+    /// Where the adaptive reconstructor runs: cpu (the reference; committed results
+    /// come from it), gpu (compute shaders on any adapter, a software one such as
+    /// Mesa's lavapipe included; an error where there is none) or auto (a hardware GPU
+    /// where there is one, else the CPU). WGPU_BACKEND and WGPU_ADAPTER_NAME narrow
+    /// the choice of adapter. Parameters the GPU reconstructor cannot run yet are an
+    /// error, not a silent fallback.
+    #[arg(long, value_name = "DEVICE", default_value = "cpu", value_parser = recon_parser())]
+    pub recon: ReconDevice,
+}
+
+/// The parser of `--recon`: its values and what each means, for `--help` and for the
+/// error that lists them.
+fn recon_parser() -> impl clap::builder::TypedValueParser<Value = ReconDevice> {
+    let values = ReconDevice::ALL.map(|d| {
+        clap::builder::PossibleValue::new(d.name()).help(match d {
+            ReconDevice::Cpu => "the CPU reconstructor, the reference",
+            ReconDevice::Gpu => "compute shaders on any GPU adapter, a software one included",
+            ReconDevice::Auto => "a hardware GPU where there is one, else the CPU",
+        })
+    });
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<ReconDevice>())
 }
 
 /// `frameless`: adaptive frameless rendering.
@@ -184,6 +212,8 @@ pub struct Table1Args {
     /// Rates that get image strips, comma-separated (default: every rate).
     #[arg(long = "strip-rate", alias = "strip-rates", value_name = "RATE", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub strip_rates: Option<Vec<f64>>,
+    #[command(flatten)]
+    pub recon: ReconArg,
     /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
     /// animation.
     #[arg(long, default_value = "table1-out")]
@@ -231,6 +261,8 @@ pub struct ViewArgs {
     /// Threads of the reconstructor [default: half the cores, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
+    #[command(flatten)]
+    pub recon: ReconArg,
     /// Display refresh rate, Hz.
     #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
@@ -402,6 +434,8 @@ pub struct EvalArgs {
     /// and quantizes) under `exr/`: the ideal image and every method's.
     #[arg(long)]
     pub exr: bool,
+    #[command(flatten)]
+    pub recon: ReconArg,
     /// Output folder.
     #[arg(long, default_value = "eval-out")]
     pub out: PathBuf,
@@ -458,6 +492,8 @@ pub struct LiveArgs {
     /// Do not read or write the ideal-image cache.
     #[arg(long)]
     pub no_cache: bool,
+    #[command(flatten)]
+    pub recon: ReconArg,
     /// Output folder.
     #[arg(long, default_value = "live-out")]
     pub out: PathBuf,
@@ -524,6 +560,8 @@ pub struct BenchArgs {
     /// Print one JSON object instead of a table.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub recon: ReconArg,
 }
 
 fn parse_rays(s: &str) -> Result<usize, String> {
@@ -772,6 +810,53 @@ mod tests {
             (a.max_depth, a.texture_filter),
             (cfg.max_depth, cfg.texture_filter)
         );
+    }
+
+    #[test]
+    fn recon_is_one_option_on_every_command_that_reconstructs_cpu_by_default() {
+        let parse = |args: &[&str]| Cli::try_parse_from(args.iter().copied());
+        let recon = |args: &[&str]| -> ReconDevice {
+            match parse(args).expect("parses").command {
+                Command::Eval(a) => a.recon.recon,
+                Command::Table1(a) => a.recon.recon,
+                Command::View(a) => a.recon.recon,
+                Command::Live(a) => a.recon.recon,
+                Command::Bench(a) => a.recon.recon,
+                c => panic!("no --recon on {c:?}"),
+            }
+        };
+        for cmd in ["eval", "table1", "view", "live", "bench"] {
+            assert_eq!(recon(&["frameless", cmd]), ReconDevice::Cpu, "{cmd}");
+            for d in ReconDevice::ALL {
+                assert_eq!(recon(&["frameless", cmd, "--recon", d.name()]), d, "{cmd}");
+            }
+            let e = parse(&["frameless", cmd, "--recon", "bogus"])
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("'bogus'") && e.contains("--recon"), "{cmd}: {e}");
+            for d in ["cpu", "gpu", "auto"] {
+                assert!(e.contains(d), "{cmd}: {e} does not list {d}");
+            }
+        }
+        // Commands that run no reconstructor choice take no --recon.
+        assert!(parse(&["frameless", "still", "--recon", "gpu"]).is_err());
+    }
+
+    #[test]
+    fn recon_help_says_what_each_choice_does() {
+        use clap::CommandFactory;
+        let mut cmd = Cli::command();
+        let eval = cmd.find_subcommand_mut("eval").expect("eval command");
+        let help = eval.render_long_help().to_string();
+        for words in [
+            "the reference",
+            "software",
+            "hardware GPU",
+            "WGPU_BACKEND",
+            "WGPU_ADAPTER_NAME",
+        ] {
+            assert!(help.contains(words), "--recon help lacks {words}: {help}");
+        }
     }
 
     #[test]

@@ -17,6 +17,7 @@ use frameless::{
     bench,
     evaluation::{self, report, EvalConfig},
     image::ImageFormat,
+    reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
@@ -111,74 +112,103 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Sweep(a) => sweep::sweep(a),
         Command::Merge(a) => sweep::merge(a),
         Command::Report(a) => rewrite_report(&a.dir),
-        Command::Bench(a) => {
-            let t0 = Instant::now();
-            let scene = load_scene(&a.scene)?;
-            let load_s = t0.elapsed().as_secs_f64();
-            let time = a.time.unwrap_or(scene.time_range().0 as f64);
-            let Size(w, h) = a.size;
-            let t1 = Instant::now();
-            let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions::default());
-            let build_s = t1.elapsed().as_secs_f64();
-            let opts = bench::BenchOptions {
-                rays: a.rays,
-                ..Default::default()
-            };
-            let tracer = Arc::new(tracer);
-            let report = bench::run(&tracer, time, opts, load_s, build_s);
-            if a.json {
-                println!("{}", serde_json::to_string(&report)?);
-            } else {
-                println!("scene            {}", report.scene);
-                println!("primitives       {}", report.primitives);
-                println!(
-                    "load / build     {:.2} s / {:.2} s",
-                    report.load_s, report.build_s
-                );
-                println!("threads          {}", report.threads);
-                println!(
-                    "primary 1 thread {:.2} M rays/s",
-                    report.primary_mrays_per_s_1t
-                );
-                println!(
-                    "primary all      {:.2} M rays/s",
-                    report.primary_mrays_per_s_all
-                );
-                println!(
-                    "shaded 1 thread  {:.0} samples/s",
-                    report.shaded_samples_per_s_1t
-                );
-                println!(
-                    "shaded all       {:.0} samples/s",
-                    report.shaded_samples_per_s_all
-                );
-                println!(
-                    "reconstruct      {:.1} ms 1 thread, {:.1} ms all (400K, 256x256)",
-                    report.reconstruct_ms_1t, report.reconstruct_ms_all
-                );
-                println!(
-                    "reconstruct all  {:.1} ms 512x512, {:.1} ms 1024x1024 (6 x pixels)",
-                    report.reconstruct_ms_512_all, report.reconstruct_ms_1024_all
-                );
-                println!(
-                    "reconstruct rt   {:.1} ms 1 thread (history and fill, 640x480, 0.5 per pixel)",
-                    report.reconstruct_realtime_640_ms_1t
-                );
-                println!(
-                    "reconstruct scene {:.1} ms 1 thread, {:.1} ms all (sampler ran 1 s at 400K)",
-                    report.reconstruct_scene_ms_1t, report.reconstruct_scene_ms_all
-                );
-                println!(
-                    "controllers      {} together {:.2} M samples/s fed recorded batches, {:.2} M/s one tracing thread: keep up with {:.1} threads",
-                    report.controllers,
-                    report.controller_samples_per_s / 1e6,
-                    report.controller_tracing_samples_per_s_1t / 1e6,
-                    report.controller_margin
-                );
-            }
-            Ok(())
-        }
+        Command::Bench(a) => bench(a),
     }
+}
+
+/// `frameless bench`: throughput of the tracer, the reconstructor (on `--recon`'s
+/// device) and the real-time controllers.
+fn bench(a: args::BenchArgs) -> Result<()> {
+    let gpu = acquire_recon(a.recon.recon)?;
+    let t0 = Instant::now();
+    let scene = load_scene(&a.scene)?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let time = a.time.unwrap_or(scene.time_range().0 as f64);
+    let Size(w, h) = a.size;
+    let t1 = Instant::now();
+    let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions::default());
+    let build_s = t1.elapsed().as_secs_f64();
+    let opts = bench::BenchOptions {
+        rays: a.rays,
+        gpu,
+        ..Default::default()
+    };
+    let tracer = Arc::new(tracer);
+    let report = bench::run(&tracer, time, opts, load_s, build_s);
+    if a.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print_bench(&report);
+    }
+    Ok(())
+}
+
+/// `frameless bench`'s table.
+fn print_bench(report: &bench::BenchReport) {
+    println!("scene            {}", report.scene);
+    println!("primitives       {}", report.primitives);
+    println!(
+        "load / build     {:.2} s / {:.2} s",
+        report.load_s, report.build_s
+    );
+    println!("threads          {}", report.threads);
+    println!(
+        "primary 1 thread {:.2} M rays/s",
+        report.primary_mrays_per_s_1t
+    );
+    println!(
+        "primary all      {:.2} M rays/s",
+        report.primary_mrays_per_s_all
+    );
+    println!(
+        "shaded 1 thread  {:.0} samples/s",
+        report.shaded_samples_per_s_1t
+    );
+    println!(
+        "shaded all       {:.0} samples/s",
+        report.shaded_samples_per_s_all
+    );
+    println!("reconstructor    {}", report.recon);
+    println!(
+        "reconstruct      {:.1} ms 1 thread, {:.1} ms all (400K, 256x256)",
+        report.reconstruct_ms_1t, report.reconstruct_ms_all
+    );
+    println!(
+        "reconstruct all  {:.1} ms 512x512, {:.1} ms 1024x1024 (6 x pixels)",
+        report.reconstruct_ms_512_all, report.reconstruct_ms_1024_all
+    );
+    println!(
+        "reconstruct rt   {:.1} ms 1 thread (history and fill, 640x480, 0.5 per pixel)",
+        report.reconstruct_realtime_640_ms_1t
+    );
+    println!(
+        "reconstruct scene {:.1} ms 1 thread, {:.1} ms all (sampler ran 1 s at 400K)",
+        report.reconstruct_scene_ms_1t, report.reconstruct_scene_ms_all
+    );
+    for (figure, why) in &report.recon_notes {
+        println!("  {figure} not measured: {why}");
+    }
+    println!(
+        "controllers      {} together {:.2} M samples/s fed recorded batches, {:.2} M/s one tracing thread: keep up with {:.1} threads",
+        report.controllers,
+        report.controller_samples_per_s / 1e6,
+        report.controller_tracing_samples_per_s_1t / 1e6,
+        report.controller_margin
+    );
+}
+
+/// The GPU `choice` asks for, acquired once for the whole command, with one line on
+/// stderr saying where the reconstructor runs when that is not the CPU asked for.
+fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
+    let gpu = device::acquire(choice).with_context(|| format!("--recon {choice}"))?;
+    match &gpu {
+        Some(g) => eprintln!("reconstructing on {}", g.describe()),
+        None if choice == ReconDevice::Auto => {
+            eprintln!("note: no hardware GPU adapter; reconstructing on the CPU")
+        }
+        None => {}
+    }
+    Ok(gpu)
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
@@ -207,9 +237,11 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         cache_dir,
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
+        gpu: None,
     };
     cfg.strip_frames = cfg.quartile_frames();
     cfg.validate()?;
+    cfg.gpu = acquire_recon(a.recon.recon)?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
@@ -331,6 +363,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             cache_dir: Some(cache_dir.clone()),
             strip_frames: Vec::new(),
             flip_every: a.flip_every as usize,
+            gpu: None,
         };
         cfg.strip_frames = match a.strips {
             args::Strips::Quartiles => cfg.quartile_frames(),
@@ -340,6 +373,11 @@ fn table1(a: args::Table1Args) -> Result<()> {
         cfg.validate()
             .with_context(|| format!("animation {}", anim.name))?;
         cfgs.push(cfg);
+    }
+    // One GPU for every animation's evaluation.
+    let gpu = acquire_recon(a.recon.recon)?;
+    for cfg in &mut cfgs {
+        cfg.gpu = gpu.clone();
     }
     let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
     let outputs = table1::Table1Output::begin(&a.out)?;
@@ -433,6 +471,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         seed: a.seed,
         ideal_spp: 1,
         ideal_cache: None,
+        gpu: None,
     };
     let mut m = Adaptive::new(&ctx, params)?;
     let frames = (a.duration * a.refresh_hz).ceil() as u64;
@@ -532,6 +571,8 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     }
     let Size(w, h) = a.size;
     cfg.check_size(w, h)?;
+    cfg.gpu = acquire_recon(a.recon.recon)?;
+    cfg.check_gpu()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(
@@ -561,7 +602,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
             scene: a.scene.clone(),
             camera_step_s: a.camera_step,
         };
-        let st = realtime::run_headless(tracer, cfg, &opts)?;
+        let st = realtime::run_headless(tracer, cfg.clone(), &opts)?;
         println!(
             "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
             cfg.method.name(),
@@ -632,6 +673,9 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     cfg.max_depth = a.max_depth;
     cfg.texture_filter = a.texture_filter;
     cfg.cache_dir = (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir));
+    cfg.validate()?;
+    cfg.gpu = acquire_recon(a.recon.recon)?;
+    // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = Meter::new("live", "refreshes");

@@ -18,6 +18,7 @@ use crate::{
     clock::{rate_label, Clock},
     limits,
     methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
+    reconstruction::device::{GpuContext, ReconUsed},
     render::cache::{IdealCache, Lookup},
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
@@ -146,6 +147,9 @@ pub struct EvalConfig {
     /// FLIP is computed on every n-th frame (it costs more than tracing a frame at the
     /// paper's rates); RMS and PSNR on every frame.
     pub flip_every: usize,
+    /// The GPU the adaptive methods reconstruct on, acquired once for the whole run
+    /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
+    pub gpu: Option<Arc<GpuContext>>,
 }
 
 /// The methods `frameless eval` runs when none are named: the baselines, today's
@@ -187,9 +191,15 @@ impl EvalConfig {
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,
+            gpu: None,
         };
         cfg.strip_frames = cfg.quartile_frames();
         cfg
+    }
+
+    /// The reconstructor the run's results come from.
+    pub fn recon_used(&self) -> ReconUsed {
+        self.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used())
     }
 
     /// The frames at a quarter, half and three quarters of the window (the strips
@@ -247,6 +257,7 @@ impl EvalConfig {
             seed: self.seed,
             ideal_spp: self.ideal_spp,
             camera_path: self.camera_path.is_some(),
+            recon: self.recon_used(),
             results,
             timing,
         }
@@ -441,6 +452,10 @@ pub struct Summary {
     pub ideal_spp: u32,
     /// Camera path file contents were used (true) or the scene camera (false).
     pub camera_path: bool,
+    /// The reconstructor the adaptive methods ran on (summaries written before it was
+    /// recorded were all made on the CPU).
+    #[serde(default = "ReconUsed::cpu")]
+    pub recon: ReconUsed,
     /// Per method and rate.
     pub results: Vec<ResultRow>,
     /// Cost of the run.
@@ -729,7 +744,9 @@ pub fn run_with(
         seed: cfg.seed,
         ideal_spp: cfg.ideal_spp,
         ideal_cache: cache.clone(),
+        gpu: cfg.gpu.clone(),
     };
+    refuse_early(cfg, &ctx_for(cfg.rates[0]))?;
     let ideal = ideal_images(
         cfg,
         &ctx_for(cfg.rates[0]),
@@ -775,6 +792,7 @@ pub fn run_with(
         let mut method = kind.build(&ctx_for(rate))?;
         let tm = Instant::now();
         let mut shown = show(cfg, kind, rate, method.as_mut(), keep_linear, progress)?;
+        warn_of_gpu_failure(kind, rate, &shown, progress);
         // Methods may trace less than their budget; the total counted the budget.
         progress.advance(
             kind.name(),
@@ -817,6 +835,32 @@ pub fn run_with(
         strips,
         linear,
     })
+}
+
+/// With a GPU, build each method once, so that one whose reconstructor the GPU cannot
+/// run fails before the ideal images are made rather than after.
+fn refuse_early(cfg: &EvalConfig, ctx: &MethodContext) -> Result<(), EvalError> {
+    if ctx.gpu.is_some() {
+        for kind in &cfg.methods {
+            kind.build(ctx)?;
+        }
+    }
+    Ok(())
+}
+
+/// Tell the user if a method's GPU reconstructor was given up during its run (its
+/// statistics say so, [`Method::extra_stats`]; the rest of the run was the CPU's).
+fn warn_of_gpu_failure(kind: MethodKind, rate: f64, shown: &Shown, progress: &dyn Progress) {
+    let why = shown
+        .extra
+        .as_ref()
+        .and_then(|e| e.get("gpu_failure")?.as_str());
+    if let Some(why) = why {
+        progress.warn(&format!(
+            "{kind} at {}: the GPU reconstructor failed, the rest ran on the CPU: {why}",
+            rate_label(rate)
+        ));
+    }
 }
 
 /// The ideal image of every refresh of the window, as displayed (8-bit RGB), made
@@ -1018,6 +1062,7 @@ mod tests {
             cache_dir: Some(dir.clone()),
             strip_frames: Vec::new(),
             flip_every: 1,
+            gpu: None,
         };
         let n = cfg.frames();
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
@@ -1044,6 +1089,23 @@ mod tests {
         assert_eq!(third.frames, first.frames);
         assert_eq!(timing(&run()), (n, 0), "rejected entries were rewritten");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// `summary.json` records the reconstructor; one written before it did reads as
+    /// the CPU's, which made every result then.
+    #[test]
+    fn summaries_record_the_reconstructor_and_older_ones_read_as_the_cpus() {
+        use crate::reconstruction::device::ReconUsed;
+        let s = EvalConfig::new("toycar").summary(Vec::new(), evaluation::Timing::default());
+        let mut v = serde_json::to_value(&s).expect("serialises");
+        assert_eq!(
+            v["recon"],
+            serde_json::json!({"device": "cpu", "adapter": null})
+        );
+        v.as_object_mut().expect("an object").remove("recon");
+        let old: evaluation::Summary = serde_json::from_value(v).expect("reads");
+        assert_eq!(old.recon, ReconUsed::cpu());
+        assert_eq!(old, s);
     }
 
     /// The registered test method runs through the whole evaluation by name and
@@ -1073,6 +1135,7 @@ mod tests {
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,
+            gpu: None,
         };
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
         let out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");

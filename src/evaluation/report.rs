@@ -54,6 +54,7 @@ pub fn markdown(s: &Summary) -> String {
         "# Evaluation: {} at {}x{}, {} Hz, t = {} s + {} s (warm-up {} s, seed {}, ideal {} spp)\n",
         s.scene, s.width, s.height, s.refresh_hz, s.start, s.duration, s.warmup, s.seed, s.ideal_spp
     );
+    let _ = writeln!(out, "Reconstructor: {}\n", s.recon);
     let tables: [Metric; 5] = [
         ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 1),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2),
@@ -464,7 +465,7 @@ fn html(
         h,
         "<h1>Evaluation: {}</h1><p>{}×{} pixels, display refreshed at {} Hz; {} s window \
          from t = {} s after {} s of warm-up; seed {}; ideal images with {} samples per \
-         pixel{}.</p>",
+         pixel{}.</p><p>Reconstructor: {}.</p>",
         escape(&s.scene),
         s.width,
         s.height,
@@ -474,7 +475,8 @@ fn html(
         s.warmup,
         s.seed,
         s.ideal_spp,
-        if s.camera_path { "; camera path" } else { "" }
+        if s.camera_path { "; camera path" } else { "" },
+        escape(&s.recon.to_string())
     );
     let methods = methods_in_order(s);
     let rates = rates_in_order(s);

@@ -129,6 +129,7 @@ impl SequenceConfig {
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,
+            gpu: None,
         }
         .validate()
     }
@@ -169,6 +170,7 @@ pub fn render_sequence(
         seed: cfg.seed,
         ideal_spp: 16,
         ideal_cache: None,
+        gpu: None,
     };
     let mut m = cfg.method.build(&ctx)?;
     let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;

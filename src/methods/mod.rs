@@ -15,6 +15,7 @@ use std::sync::Arc;
 use crate::{
     clock::{rate_label, Clock},
     image::Image,
+    reconstruction::device::GpuContext,
     render::cache::IdealCache,
     trace::Tracer,
 };
@@ -171,6 +172,14 @@ pub enum MethodError {
         /// What does not hold.
         why: String,
     },
+    /// The method cannot reconstruct on the GPU it was given (`--recon gpu|auto`).
+    #[error("{method}: {why}")]
+    Gpu {
+        /// The method, as users name it.
+        method: &'static str,
+        /// Why (the GPU reconstructor's error).
+        why: String,
+    },
 }
 
 /// [`MethodInfo::check_rate`] of a method that runs at any positive rate.
@@ -236,9 +245,15 @@ impl MethodKind {
         self.info().budget.rate_independent()
     }
 
-    /// Build the method for one run.
+    /// Build the method for one run. A GPU error names this method.
     pub fn build(self, ctx: &MethodContext) -> Result<Box<dyn Method>, MethodError> {
-        (self.info().build)(ctx)
+        (self.info().build)(ctx).map_err(|e| match e {
+            MethodError::Gpu { why, .. } => MethodError::Gpu {
+                method: self.name(),
+                why,
+            },
+            e => e,
+        })
     }
 }
 
@@ -300,6 +315,8 @@ pub struct MethodContext {
     pub ideal_spp: u32,
     /// Where ideal images are cached, if anywhere.
     pub ideal_cache: Option<Arc<IdealCache>>,
+    /// The GPU the adaptive reconstructor runs on (`None`: the CPU, the reference).
+    pub gpu: Option<Arc<GpuContext>>,
 }
 
 /// What the display shows at one refresh.

@@ -61,7 +61,10 @@ use crate::{
         tiling::{Pending, Rect},
         Sampler, SamplerParams,
     },
-    reconstruction::Reconstructor,
+    reconstruction::{
+        device::{GpuContext, ReconUsed},
+        Reconstructor,
+    },
     sampling::Rng,
     tiles::TilingSnapshot,
     trace::{SceneState, StateCache, StreamSample},
@@ -79,6 +82,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: controllers,
     // Its buffers (deep buffer, ring) include the display check.
     check_size: |c, w, h| crate::methods::adaptive::check_budget(w, h, &c.sampler, &c.recon),
+    check_gpu,
     start,
 };
 
@@ -228,6 +232,7 @@ impl Published {
 
 fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
+    let recon = reconstructor(&s)?;
     let published = Arc::new(Published::new(&s));
     // Channels are bounded so that a slow consumer slows its producers instead of
     // growing memory without limit. A controller's holds about 32 ms of batches from
@@ -250,11 +255,36 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         s,
         published,
         rx: img_rx,
-        recon: None,
+        recon,
         rate_window: VecDeque::new(),
         live_limit: None,
         figures: ImageFigures::default(),
     }))
+}
+
+/// The image builder's reconstructor, on the run's GPU when it has one: refused before
+/// any thread starts where the GPU reconstructor lacks a step its parameters ask for.
+fn reconstructor(s: &Shared) -> Result<Box<Reconstructor>, RealtimeError> {
+    let (w, h) = s.tracer.size();
+    // The filters' rate is measured and set at every image ([`Builder::build`]).
+    let mut r = Box::new(Reconstructor::new(w, h, 1.0, s.config.recon));
+    if let Some(gpu) = &s.config.gpu {
+        r.use_gpu(gpu.clone()).map_err(|e| RealtimeError::Gpu {
+            method: METHOD.name,
+            why: e.to_string(),
+        })?;
+    }
+    Ok(r)
+}
+
+/// [`MethodInfo::check_gpu`]: whether the GPU reconstructor has every step of
+/// `config`'s reconstructor, asked of a small one with the same parameters (the
+/// adapter's limits at the display's size are checked when the pipeline starts).
+fn check_gpu(config: &super::RtConfig, gpu: &Arc<GpuContext>) -> Result<(), String> {
+    let side = 16;
+    Reconstructor::new(side, side, 1.0, config.recon)
+        .use_gpu(gpu.clone())
+        .map_err(|e| e.to_string())
 }
 
 /// One band's tile selection as the sampling threads read it.
@@ -728,7 +758,7 @@ struct Builder {
     s: Arc<Shared>,
     published: Arc<Published>,
     rx: Receiver<Vec<StreamSample>>,
-    recon: Option<Box<Reconstructor>>,
+    recon: Box<Reconstructor>,
     /// Ray counts at recent images, to measure the rate the filters assume.
     rate_window: VecDeque<(f64, u64)>,
     /// Newest samples the reconstructor places ([`next_live_limit`]).
@@ -801,7 +831,8 @@ impl ImageBuilder for Builder {
     /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
     /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
     /// most the live limit); `limited_share` of images built under a live limit
-    /// ([`super::RtConfig::image_budget`]).
+    /// ([`super::RtConfig::image_budget`]); `gpu_failure`, why the GPU reconstructor
+    /// was given up, if it was (the images after it were built on the CPU).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         let p = &*self.published;
         let (rv, sv) = (
@@ -810,7 +841,7 @@ impl ImageBuilder for Builder {
         );
         let f = &self.figures;
         let per_image = |x: f64| x / f.images.max(1) as f64;
-        vec![
+        let mut figures = vec![
             ("tiles", p.tiles().into()),
             (
                 "reprojected_share",
@@ -824,7 +855,15 @@ impl ImageBuilder for Builder {
             ("ring_capacity", f.ring_capacity.into()),
             ("placed_mean", per_image(f.placed_sum).into()),
             ("limited_share", per_image(f.limited_images as f64).into()),
-        ]
+        ];
+        if let Some(why) = self.recon.gpu_failure() {
+            figures.push(("gpu_failure", why.into()));
+        }
+        figures
+    }
+
+    fn recon(&self) -> ReconUsed {
+        self.recon.used()
     }
 
     fn build(&mut self, t: f64) -> Option<Built> {
@@ -850,11 +889,8 @@ impl ImageBuilder for Builder {
             rays as f64 / el.max(1e-3)
         }
         .max(1.0);
-        match &mut self.recon {
-            Some(r) => r.set_rate(rate),
-            None => self.recon = Some(Box::new(Reconstructor::new(w, h, rate, s.config.recon))),
-        }
-        let r = self.recon.as_mut()?;
+        let r = &mut self.recon;
+        r.set_rate(rate);
         push_newest(r, &batches, self.live_limit);
         let state = s.tracer.state_at(t);
         let camera = state.camera;

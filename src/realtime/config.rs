@@ -2,7 +2,12 @@
 //! real-time mode shares, below the methods and the pipeline. Which methods exist and
 //! what each needs is the registry's business (the parent module), not this file's.
 
-use crate::{methods::adaptive::SamplerParams, reconstruction::ReconParams};
+use std::sync::Arc;
+
+use crate::{
+    methods::adaptive::SamplerParams,
+    reconstruction::{device::GpuContext, ReconParams},
+};
 
 /// Errors of the real-time mode.
 #[derive(Debug, thiserror::Error)]
@@ -32,6 +37,14 @@ pub enum RealtimeError {
     /// The window system failed.
     #[error("window: {0}")]
     Window(String),
+    /// The method cannot reconstruct on the GPU it was given (`--recon gpu|auto`).
+    #[error("{method}: {why}")]
+    Gpu {
+        /// The real-time method.
+        method: &'static str,
+        /// Why (the GPU reconstructor's error).
+        why: String,
+    },
 }
 
 /// What the pipeline renders. Each variant is described (name, threads, how it starts)
@@ -56,7 +69,7 @@ pub enum RtMethod {
 }
 
 /// Settings of one pipeline run.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct RtConfig {
     /// What to render.
     pub method: RtMethod,
@@ -80,6 +93,8 @@ pub struct RtConfig {
     /// many as fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the
     /// whole ring always.
     pub image_budget: f64,
+    /// The GPU the adaptive reconstructor runs on (`None`: the CPU, the reference).
+    pub gpu: Option<Arc<GpuContext>>,
 }
 
 impl RtConfig {
@@ -87,6 +102,19 @@ impl RtConfig {
     /// with this method's buffers, before any thread allocates them.
     pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
         (self.method.info().check_size)(self, width, height).map_err(RealtimeError::Config)
+    }
+
+    /// Check that the method's images can be reconstructed on the run's GPU, if it has
+    /// one (before any thread starts; the pipeline would refuse it when it starts).
+    pub fn check_gpu(&self) -> Result<(), RealtimeError> {
+        let Some(gpu) = &self.gpu else {
+            return Ok(());
+        };
+        let info = self.method.info();
+        (info.check_gpu)(self, gpu).map_err(|why| RealtimeError::Gpu {
+            method: info.name,
+            why,
+        })
     }
 
     /// Check ranges.

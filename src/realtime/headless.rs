@@ -131,7 +131,7 @@ pub fn run_headless(
     let load_average_before = load_average();
     let cpu0 = process_cpu_seconds();
     let t_start = Instant::now();
-    let pipeline = Pipeline::start(tracer, config)?;
+    let pipeline = Pipeline::start(tracer, config.clone())?;
     let clock = pipeline.clock();
     let mut pacer = Pacer::new(clock, config.refresh_hz);
     let n_images = opts.images;

@@ -236,6 +236,7 @@ impl RtConfig {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: 0.8,
+            gpu: None,
         }
     }
 }

@@ -20,7 +20,7 @@ use super::{
     config::{RealtimeError, RtConfig},
     shared::{lock, ImageBuilder, Shared, Spawner},
 };
-use crate::trace::Tracer;
+use crate::{reconstruction::device::ReconUsed, trace::Tracer};
 
 pub use super::shared::Frame;
 
@@ -68,6 +68,9 @@ pub struct PipelineStats {
     pub age_p99_s: f64,
     /// Attempts to take a pixel that another thread held.
     pub pixel_conflicts: u64,
+    /// Where the method reconstructs its images: `{"device": "cpu", "adapter": null}`,
+    /// or the GPU and its adapter.
+    pub recon: ReconUsed,
     /// The method's own figures, each named by its method and listed in `stats.json`
     /// beside the figures every method has (the README's `view` section says what
     /// each is).
@@ -87,13 +90,15 @@ impl Pipeline {
         config.validate()?;
         let (w, h) = tracer.size();
         config.check_size(w, h)?;
+        let start = config.method.info().start;
         let shared = Arc::new(Shared::new(tracer, config));
         let mut handles = Vec::new();
         let mut spawner = Spawner::new(&shared, &mut handles);
         // On an error here the handles go with `p`, whose drop stops and joins them.
-        let started = (config.method.info().start)(&mut spawner);
+        let started = start(&mut spawner);
         let mut p = Pipeline { shared, handles };
         let builder = started?;
+        lock(&p.shared.image_stats).recon = Some(builder.recon());
         let s = p.shared.clone();
         Spawner::new(&p.shared, &mut p.handles)
             .spawn("image", move || image_thread(&s, builder))?;
@@ -167,6 +172,7 @@ impl Pipeline {
             age_p95_s: img.age_hist.quantile(0.95),
             age_p99_s: img.age_hist.quantile(0.99),
             pixel_conflicts: s.locks.conflicts(),
+            recon: img.recon.unwrap_or_else(ReconUsed::cpu),
             method_stats: img.method.iter().cloned().collect(),
         }
     }
@@ -318,6 +324,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         }));
         let mut st = lock(&s.image_stats);
         st.method = builder.stats();
+        st.recon = Some(builder.recon());
         st.images += 1;
         st.build_ms.push(ms);
         st.age_hist.add(&ages);

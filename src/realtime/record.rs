@@ -112,7 +112,7 @@ pub fn record(
         load_average: load_average(),
         others_load: others_load(BEFORE_SAMPLES, BEFORE_GAP),
     };
-    let pipeline = Pipeline::start(tracer, config)?;
+    let pipeline = Pipeline::start(tracer, config.clone())?;
     let clock = pipeline.clock();
     let period = 1.0 / config.refresh_hz;
     let mut pacer = Pacer::new(clock, config.refresh_hz);

@@ -20,7 +20,12 @@ use super::{
     config::{RealtimeError, RtConfig},
     pixel_locks::PixelLocks,
 };
-use crate::{image::Image, tiles::TilingSnapshot, trace::Tracer};
+use crate::{
+    image::Image,
+    reconstruction::device::{GpuContext, ReconUsed},
+    tiles::TilingSnapshot,
+    trace::Tracer,
+};
 
 /// Longest a sampling thread holds a batch before it sends it, seconds: long enough
 /// that channel traffic stays small next to tracing, short next to a refresh.
@@ -175,6 +180,9 @@ pub(crate) struct ImageThreadStats {
     pub age_hist: AgeHistogram,
     /// The method's own figures after its newest image ([`ImageBuilder::stats`]).
     pub method: Vec<(&'static str, serde_json::Value)>,
+    /// Where its images are reconstructed ([`ImageBuilder::recon`]; `None`: not yet
+    /// known, the CPU).
+    pub recon: Option<ReconUsed>,
 }
 
 /// An image a method built for the display.
@@ -202,6 +210,12 @@ pub(crate) trait ImageBuilder: Send {
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         Vec::new()
     }
+
+    /// Where it reconstructs its images: the CPU unless the method runs a
+    /// reconstructor on the GPU.
+    fn recon(&self) -> ReconUsed {
+        ReconUsed::cpu()
+    }
 }
 
 /// The description of one real-time method, a `const` in the method's own file that
@@ -219,8 +233,18 @@ pub(crate) struct MethodInfo {
     /// Check that a `width × height` display fits the run budgets with its buffers
     /// under `config` ([`display_only`] for a method with no buffer beyond the image).
     pub check_size: fn(&RtConfig, u32, u32) -> Result<(), String>,
+    /// Check that its images can be reconstructed on the GPU under `config`
+    /// ([`no_reconstructor`] for a method without the adaptive reconstructor); the error
+    /// says why not.
+    pub check_gpu: fn(&RtConfig, &Arc<GpuContext>) -> Result<(), String>,
     /// Start its threads; the image thread then calls the builder it returns.
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
+}
+
+/// [`MethodInfo::check_gpu`] of a method that has no reconstructor to run on a GPU
+/// (its images are built on the CPU whatever `--recon` says).
+pub(crate) fn no_reconstructor(_: &RtConfig, _: &Arc<GpuContext>) -> Result<(), String> {
+    Ok(())
 }
 
 /// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.

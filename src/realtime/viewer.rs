@@ -6,7 +6,8 @@
 //! [`RtMethod::ALL`] order (1 adaptive, 2 traditional frameless, 3 framed, 4 late
 //! warp, 5 taa, 6 taa-warp); V cycles the visualisation (image, tiling, gradients,
 //! density); P writes a screenshot; Esc quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
-//! of the information on screen, and the visualisation with its colour key. Neither X11 nor Wayland libraries are linked: winit and
+//! of the information on screen, the visualisation with its colour key, and where the
+//! images are reconstructed (`recon: cpu`, or `recon: gpu (adapter)`). Neither X11 nor Wayland libraries are linked: winit and
 //! softbuffer load them at run time.
 
 use std::{
@@ -58,7 +59,7 @@ pub fn run_viewer(
             "cannot open a window ({e}); is DISPLAY or WAYLAND_DISPLAY set? `--headless` needs neither"
         ))
     })?;
-    let pipeline = Pipeline::start(tracer, config)?;
+    let pipeline = Pipeline::start(tracer, config.clone())?;
     let pacer = Pacer::new(pipeline.clock(), config.refresh_hz);
     let mut app = App {
         opened: Instant::now(),
@@ -175,7 +176,7 @@ impl App {
         // Scene time goes on where it was.
         self.config.method = m;
         self.config.start = now;
-        let p = Pipeline::start(tracer, self.config)?;
+        let p = Pipeline::start(tracer, self.config.clone())?;
         self.pacer = Pacer::new(p.clock(), self.config.refresh_hz);
         self.title_samples = 0;
         self.title_images = 0;
@@ -286,13 +287,14 @@ impl App {
                 .map_or(f64::NAN, |f| super::shared::quantile_of(&f.ages, 0.95));
             let threads = self.config.sampling_threads;
             window.set_title(&format!(
-                "frameless · {} · {:.2} M samples/s · {:.0} fps · age {:.0} ms (p95 {:.0}) · {} · {} thread{}{}",
+                "frameless · {} · {:.2} M samples/s · {:.0} fps · age {:.0} ms (p95 {:.0}) · {} · recon: {} · {} thread{}{}",
                 self.config.method.name(),
                 sps / 1e6,
                 fps,
                 age * 1e3,
                 p95 * 1e3,
                 self.opts.visualisation.key(),
+                st.recon,
                 threads,
                 if threads == 1 { "" } else { "s" },
                 if self.opts.record.is_some() {

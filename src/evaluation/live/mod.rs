@@ -29,6 +29,7 @@ use crate::{
         record::{self, LiveFigures, Recording, Window},
         RtConfig, RtMethod,
     },
+    reconstruction::device::{GpuContext, ReconUsed},
     render::{cache::IdealCache, cache::Lookup, still},
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
@@ -73,6 +74,9 @@ pub struct LiveConfig {
     pub texture_filter: TextureFilter,
     /// Ideal-image cache directory (`None`: no cache).
     pub cache_dir: Option<PathBuf>,
+    /// The GPU the adaptive reconstructor runs on, acquired once for every run
+    /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
+    pub gpu: Option<Arc<GpuContext>>,
 }
 
 impl LiveConfig {
@@ -98,6 +102,7 @@ impl LiveConfig {
             max_depth: 5,
             texture_filter: TextureFilter::RayCones,
             cache_dir: None,
+            gpu: None,
         }
     }
 
@@ -122,6 +127,7 @@ impl LiveConfig {
         c.refresh_hz = self.refresh_hz;
         c.seed = self.seed;
         c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
+        c.gpu = self.gpu.clone();
         c
     }
 
@@ -172,7 +178,8 @@ impl LiveConfig {
             let c = self.rt_config(m);
             let check = c
                 .validate()
-                .and_then(|()| c.check_size(self.width, self.height));
+                .and_then(|()| c.check_size(self.width, self.height))
+                .and_then(|()| c.check_gpu());
             if let Err(e) = check {
                 return bad("--method", format!("{}: {e}", m.name()));
             }
@@ -373,6 +380,10 @@ pub struct LiveSummary {
     pub ideal_spp: u32,
     /// A camera path file was used (true) or the scene camera (false).
     pub camera_path: bool,
+    /// The reconstructor the adaptive method ran on (summaries written before it was
+    /// recorded were all made on the CPU).
+    #[serde(default = "ReconUsed::cpu")]
+    pub recon: ReconUsed,
     /// Runs of each method.
     pub repeat: usize,
     /// Cores of the machine.
@@ -686,6 +697,7 @@ fn assemble(
             seed: cfg.seed,
             ideal_spp: cfg.ideal_spp,
             camera_path: cfg.camera_path.is_some(),
+            recon: cfg.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used()),
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,
@@ -715,6 +727,19 @@ mod tests {
         cfg.seconds = 3.0;
         let err = cfg.validate().unwrap_err().to_string();
         assert!(err.contains("live recording"), "{err}");
+    }
+
+    /// A summary written before the reconstructor was recorded reads as the CPU's.
+    #[test]
+    fn committed_summaries_read_as_the_cpus() {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("docs/results/live/kitchen_toycar/summary.json");
+        let text = std::fs::read_to_string(&p).expect("committed summary");
+        let v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+        assert!(v.get("recon").is_none(), "written before `recon`");
+        let s = read_summary(&p).expect("reads");
+        assert_eq!(s.recon, ReconUsed::cpu());
+        assert!(markdown(&s).contains("reconstructor: cpu)"));
     }
 
     /// The window lies on `eval`'s refresh grid, after whole refreshes of warm-up.

@@ -108,7 +108,8 @@ fn best(s: &LiveSummary, f: fn(&Scores) -> Option<f64>, higher: bool) -> Option<
 fn heading(s: &LiveSummary) -> String {
     format!(
         "{} at {}x{}, {} Hz, t = {} s + {} s live (warm-up {} s; {} run{} of each method, \
-         alternated; threads for {} of the machine's {} cores; seed {}, ideal {} spp{})",
+         alternated; threads for {} of the machine's {} cores; seed {}, ideal {} spp{}; \
+         reconstructor: {})",
         s.scene,
         s.width,
         s.height,
@@ -123,6 +124,7 @@ fn heading(s: &LiveSummary) -> String {
         s.seed,
         s.ideal_spp,
         if s.camera_path { ", camera path" } else { "" },
+        s.recon,
     )
 }
 

@@ -782,6 +782,8 @@ impl Sweep {
             cache_dir,
             strip_frames: Vec::new(),
             flip_every: self.flip_every as usize,
+            // Sweep jobs reconstruct on the CPU, the reference.
+            gpu: None,
         };
         cfg.strip_frames = self.strips.frames(cfg.frames());
         cfg

@@ -152,9 +152,20 @@ impl Adaptive {
                 why,
             });
         }
+        let mut reconstructor = Reconstructor::new(w, h, ctx.clock.rate, recon);
+        if let Some(gpu) = &ctx.gpu {
+            // Named by the registry ([`super::MethodKind::build`]); `adaptive` when
+            // built directly.
+            reconstructor
+                .use_gpu(gpu.clone())
+                .map_err(|e| MethodError::Gpu {
+                    method: ADAPTIVE.name,
+                    why: e.to_string(),
+                })?;
+        }
         Ok(Self {
             sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?,
-            recon: Reconstructor::new(w, h, ctx.clock.rate, recon),
+            recon: reconstructor,
             tracer: ctx.tracer.clone(),
         })
     }
@@ -198,5 +209,13 @@ impl Method for Adaptive {
 
     fn trace_seconds(&self) -> f64 {
         self.sampler.timing().0
+    }
+
+    /// Why the GPU reconstructor was given up during the run (its refreshes then ran
+    /// on the CPU), if it was.
+    fn extra_stats(&self) -> Option<serde_json::Value> {
+        self.recon
+            .gpu_failure()
+            .map(|why| serde_json::json!({ "gpu_failure": why }))
     }
 }
