@@ -152,6 +152,8 @@ pub struct RenderArgs {
     /// linear HDR, 32-bit float).
     #[arg(long, value_enum, default_value = "png")]
     pub format: FrameFormat,
+    #[command(flatten)]
+    pub recon: ReconArg,
     /// Output folder for `frame_NNNNN.png` (or `.exr`) and `stats.json`.
     #[arg(long, default_value = "render-out")]
     pub out: PathBuf,

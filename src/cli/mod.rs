@@ -289,8 +289,13 @@ fn render(a: args::RenderArgs) -> Result<()> {
             args::FrameFormat::Png => ImageFormat::Png,
             args::FrameFormat::Exr => ImageFormat::Exr,
         },
+        gpu: None,
     };
     cfg.validate()?;
+    let cfg = SequenceConfig {
+        gpu: acquire_recon(a.recon.recon)?,
+        ..cfg
+    };
     let scene = Arc::new(load_scene(&a.scene)?);
     let bar = Meter::new("rendering", "rays");
     let stats = render_sequence(scene, &cfg, &a.out, &bar)?;

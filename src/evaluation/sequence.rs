@@ -48,6 +48,8 @@ pub struct SequenceConfig {
     pub texture_filter: TextureFilter,
     /// File format of the frames.
     pub format: ImageFormat,
+    /// The GPU the reconstructor runs on, if any.
+    pub gpu: Option<Arc<crate::reconstruction::device::GpuContext>>,
 }
 
 /// `stats.json` of a sequence.
@@ -83,6 +85,8 @@ pub struct SequenceStats {
     pub wall_s: f64,
     /// Method-specific statistics.
     pub extra: Option<serde_json::Value>,
+    /// Where the reconstructor ran (the GPU given, else the CPU).
+    pub recon: crate::reconstruction::device::ReconUsed,
 }
 
 impl SequenceConfig {
@@ -170,7 +174,7 @@ pub fn render_sequence(
         seed: cfg.seed,
         ideal_spp: 16,
         ideal_cache: None,
-        gpu: None,
+        gpu: cfg.gpu.clone(),
     };
     let mut m = cfg.method.build(&ctx)?;
     let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;
@@ -217,6 +221,10 @@ pub fn render_sequence(
         mean_age_s: ages / frames as f64,
         wall_s: t0.elapsed().as_secs_f64(),
         extra: m.extra_stats(),
+        recon: cfg
+            .gpu
+            .as_ref()
+            .map_or_else(crate::reconstruction::device::ReconUsed::cpu, |g| g.used()),
     };
     let p = staging.path().join("stats.json");
     // Numbers and strings always serialise.
