@@ -189,30 +189,12 @@ fn gpu_eval_of_the_papers_method_records_the_gpu() {
 #[cfg(feature = "gpu")]
 #[test]
 #[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
-fn gpu_eval_of_ours_follows_use_gpu() {
-    use frameless::reconstruction::{ReconParams, Reconstructor};
-    let expected =
-        Reconstructor::new(16, 16, 1e4, ReconParams::converging()).use_gpu(gpu_context());
+fn gpu_eval_of_ours_runs_on_the_gpu() {
     let d = scratch("gpu-ours");
     let out = d.join("out");
     let o = eval("adaptive", &["--recon", "gpu"], &out);
-    match expected {
-        Ok(()) => {
-            succeeded(&o);
-            assert_eq!(recon_of(&out)["device"], "gpu");
-        }
-        Err(why) => {
-            assert!(!o.status.success(), "ran although use_gpu said: {why}");
-            let e = stderr(&o);
-            assert!(
-                e.contains("adaptive")
-                    && e.contains("does not have")
-                    && e.contains(&why.to_string()),
-                "{e}"
-            );
-            assert!(!out.exists(), "the error comes before any work");
-        }
-    }
+    succeeded(&o);
+    assert_eq!(recon_of(&out)["device"], "gpu");
     let _ = std::fs::remove_dir_all(&d);
 }
 

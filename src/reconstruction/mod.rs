@@ -280,11 +280,10 @@ impl Reconstructor {
         }
     }
 
-    /// Run refreshes on `ctx`'s GPU from now on. An error if the parameters ask for a
-    /// step the GPU reconstructor does not have, or the adapter is too small.
+    /// Run refreshes on `ctx`'s GPU from now on. An error if the adapter is too small
+    /// for this display's buffers.
     #[cfg(feature = "gpu")]
     pub fn use_gpu(&mut self, ctx: std::sync::Arc<gpu::GpuContext>) -> Result<(), gpu::GpuError> {
-        gpu::GpuRecon::check_params(&self.params)?;
         let scale0 = self.params.scale_bounds.0.max(1e-3);
         self.scale.fill(scale0);
         self.gpu = Some(Box::new(gpu::GpuRecon::new(

@@ -31,9 +31,6 @@ pub enum GpuError {
         /// Which limit, and what was needed.
         why: String,
     },
-    /// The parameters ask for a step the GPU reconstructor does not have.
-    #[error("the GPU reconstructor does not have {0} yet; use --recon cpu")]
-    Unsupported(String),
     /// A GPU operation failed.
     #[error("GPU reconstruction failed: {0}")]
     Failed(String),

@@ -243,12 +243,6 @@ fn pyramid_levels(width: u32, height: u32) -> Vec<Level> {
 }
 
 impl GpuRecon {
-    /// Whether the GPU reconstructor has every step `params` asks for (it has them
-    /// all: the still-region history runs on the CPU over the image read back).
-    pub fn check_params(_params: &ReconParams) -> Result<(), GpuError> {
-        Ok(())
-    }
-
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
     /// every pixel's splat scale starting at `scale0`.
     pub(super) fn new(
