@@ -81,6 +81,8 @@ pub struct BenchReport {
     /// One refresh of the real-time reconstructor (history and fill) at 640×480 with
     /// half a sample per pixel, one thread, ms ([`reconstruct_realtime_ms`]).
     pub reconstruct_realtime_640_ms_1t: f64,
+    /// The same at 256×256, one thread, ms.
+    pub reconstruct_realtime_256_ms_1t: f64,
     /// Milliseconds of one reconstructor refresh on this scene after the adaptive sampler
     /// has run 1 s at 400K samples/s (ring of 400K real samples and the real tiling),
     /// one thread.
@@ -477,6 +479,7 @@ pub fn run(
         reconstruct_ms_512_all: recon.ms_512_all,
         reconstruct_ms_1024_all: recon.ms_1024_all,
         reconstruct_realtime_640_ms_1t: recon.realtime_640_ms_1t,
+        reconstruct_realtime_256_ms_1t: recon.realtime_256_ms_1t,
         reconstruct_scene_ms_1t: recon.scene_ms_1t,
         reconstruct_scene_ms_all: recon.scene_ms_all,
         controllers: ctrl.map_or(0, |c| c.controllers),
@@ -495,6 +498,7 @@ struct ReconFigures {
     ms_512_all: f64,
     ms_1024_all: f64,
     realtime_640_ms_1t: f64,
+    realtime_256_ms_1t: f64,
     scene_ms_1t: f64,
     scene_ms_all: f64,
     notes: BTreeMap<&'static str, String>,
@@ -535,6 +539,10 @@ fn recon_figures(
         "reconstruct_realtime_640_ms_1t",
         one.install(|| reconstruct_realtime_ms_on(gpu, 640, 480, 2, rr)),
     );
+    let realtime_256_ms_1t = figure(
+        "reconstruct_realtime_256_ms_1t",
+        one.install(|| reconstruct_realtime_ms_on(gpu, 256, 256, 2, rr)),
+    );
     let scene = || reconstruct_scene_ms_on(gpu, tracer, time, rr);
     let scene_ms_1t = figure("reconstruct_scene_ms_1t", one.install(scene));
     let scene_ms_all = figure("reconstruct_scene_ms_all", scene());
@@ -544,6 +552,7 @@ fn recon_figures(
         ms_512_all,
         ms_1024_all,
         realtime_640_ms_1t,
+        realtime_256_ms_1t,
         scene_ms_1t,
         scene_ms_all,
         notes,

@@ -178,8 +178,8 @@ fn print_bench(report: &bench::BenchReport) {
         report.reconstruct_ms_512_all, report.reconstruct_ms_1024_all
     );
     println!(
-        "reconstruct rt   {:.1} ms 1 thread (history and fill, 640x480, 0.5 per pixel)",
-        report.reconstruct_realtime_640_ms_1t
+        "reconstruct rt   {:.1} ms 640x480, {:.1} ms 256x256, 1 thread (history and fill, 0.5 per pixel)",
+        report.reconstruct_realtime_640_ms_1t, report.reconstruct_realtime_256_ms_1t
     );
     println!(
         "reconstruct scene {:.1} ms 1 thread, {:.1} ms all (sampler ran 1 s at 400K)",
