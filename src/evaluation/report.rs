@@ -454,6 +454,17 @@ fn html(
 ) -> String {
     let present = |file: &str| dir.join(file).is_file();
     let mut h = String::new();
+    html_heading(&mut h, s);
+    html_tables(&mut h, s);
+    html_plots(&mut h, plots, &present);
+    html_strips(&mut h, s, frames, strips, &present);
+    html_cost_and_data(&mut h, s, &present);
+    h.push_str("</body></html>\n");
+    h
+}
+
+/// The page's head, title and the run's settings.
+fn html_heading(h: &mut String, s: &Summary) {
     let _ = write!(
         h,
         "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\">\
@@ -478,6 +489,10 @@ fn html(
         if s.camera_path { "; camera path" } else { "" },
         escape(&s.recon.to_string())
     );
+}
+
+/// One table per score: methods by rate, the best of each rate in bold.
+fn html_tables(h: &mut String, s: &Summary) {
     let methods = methods_in_order(s);
     let rates = rates_in_order(s);
     // Title, value, decimals, whether higher is better.
@@ -541,6 +556,10 @@ fn html(
         }
         h.push_str("</table>");
     }
+}
+
+/// The RMS-over-time plots that are in the folder.
+fn html_plots(h: &mut String, plots: &[(f64, String)], present: &dyn Fn(&str) -> bool) {
     let plots: Vec<&(f64, String)> = plots.iter().filter(|(_, f)| present(f)).collect();
     if !plots.is_empty() {
         h.push_str("<h2>RMS error over time</h2>");
@@ -553,6 +572,17 @@ fn html(
             );
         }
     }
+}
+
+/// The image strips that are in the folder, a panel per method with its frame's
+/// scores, and the FLIP maps below them.
+fn html_strips(
+    h: &mut String,
+    s: &Summary,
+    frames: &[FrameRow],
+    strips: &[StripFiles],
+    present: &dyn Fn(&str) -> bool,
+) {
     let strips: Vec<&StripFiles> = strips.iter().filter(|st| present(&st.image)).collect();
     if !strips.is_empty() {
         h.push_str(
@@ -602,6 +632,10 @@ fn html(
         }
         h.push_str("</div>");
     }
+}
+
+/// Where the run's time went, and links to the data files that are in the folder.
+fn html_cost_and_data(h: &mut String, s: &Summary, present: &dyn Fn(&str) -> bool) {
     let t = &s.timing;
     let _ = write!(
         h,
@@ -629,8 +663,6 @@ fn html(
     if !data.is_empty() {
         let _ = write!(h, "<h2>Data</h2><p>{}.</p>", data.join("; "));
     }
-    h.push_str("</body></html>\n");
-    h
 }
 
 /// Write every output as the folder `dir`, replacing what was there only once all are
