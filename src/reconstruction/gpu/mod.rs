@@ -242,6 +242,57 @@ fn pyramid_levels(width: u32, height: u32) -> Vec<Level> {
     levels
 }
 
+/// What a reconstructor's GPU buffers hold.
+struct Sizes {
+    pixels: u64,
+    cap: u64,
+    bins: (u32, u32),
+    levels: Vec<Level>,
+    /// Blocks of all pyramid levels together.
+    blocks: u64,
+}
+
+impl Sizes {
+    fn new(width: u32, height: u32, cap: usize) -> Self {
+        let levels = pyramid_levels(width, height);
+        Self {
+            pixels: width as u64 * height as u64,
+            cap: cap as u64,
+            bins: (width.div_ceil(BIN), height.div_ceil(BIN)),
+            blocks: levels.iter().map(|l| l.dst_w as u64 * l.dst_h as u64).sum(),
+            levels,
+        }
+    }
+
+    fn bin_count(&self) -> u64 {
+        self.bins.0 as u64 * self.bins.1 as u64
+    }
+
+    /// Whether the largest buffer fits the adapter's limit on one storage buffer.
+    fn check(&self, ctx: &GpuContext) -> Result<(), GpuError> {
+        let largest = [
+            self.cap * RING_FIELDS as u64 * 4,
+            self.cap * SPLAT_BYTES,
+            self.pixels * PER_PIXEL as u64 * 4,
+            self.blocks * PER_BLOCK as u64 * 4,
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
+        let lim = &ctx.limits;
+        let most = lim.max_storage_buffer_binding_size.min(lim.max_buffer_size);
+        if largest > most {
+            return Err(GpuError::Limits {
+                adapter: ctx.describe(),
+                why: format!(
+                    "a buffer of {largest} bytes, over its limit of {most} bytes per storage buffer"
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl GpuRecon {
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
     /// every pixel's splat scale starting at `scale0`.
@@ -252,102 +303,30 @@ impl GpuRecon {
         cap: usize,
         scale0: f32,
     ) -> Result<Self, GpuError> {
-        let n = width as u64 * height as u64;
-        let bins = (width.div_ceil(BIN), height.div_ceil(BIN));
-        let nb = bins.0 as u64 * bins.1 as u64;
-        let levels = pyramid_levels(width, height);
-        let blocks: u64 = levels.iter().map(|l| l.dst_w as u64 * l.dst_h as u64).sum();
-        let largest = [
-            cap as u64 * RING_FIELDS as u64 * 4,
-            cap as u64 * SPLAT_BYTES,
-            n * PER_PIXEL as u64 * 4,
-            blocks * PER_BLOCK as u64 * 4,
-        ]
-        .into_iter()
-        .max()
-        .unwrap_or(0);
-        let lim = &ctx.limits;
-        if largest > lim.max_storage_buffer_binding_size.min(lim.max_buffer_size) {
-            return Err(GpuError::Limits {
-                adapter: ctx.describe(),
-                why: format!(
-                    "a buffer of {largest} bytes, over its limit of {} bytes per storage buffer",
-                    lim.max_storage_buffer_binding_size.min(lim.max_buffer_size)
-                ),
-            });
-        }
+        let sizes = Sizes::new(width, height, cap);
+        sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);
-        let d = &ctx.device;
-        let none = wgpu::BufferUsages::empty();
-        let level_stride = (lim.min_uniform_buffer_offset_alignment as u64).max(32);
-        let buffers = Buffers {
-            params: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("params"),
-                size: std::mem::size_of::<Params>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            ring: storage(d, "ring", cap as u64 * RING_FIELDS as u64 * 4, none),
-            tiles: storage(d, "tiles", 64 * 32, none),
-            pix_tile: storage(d, "pixel tiles", n * 4, none),
-            scale: storage(d, "splat scale", n * 4, none),
-            splats: storage(d, "splats", cap as u64 * SPLAT_BYTES, none),
-            bins: storage(d, "bins", (2 * nb + 2) * 4, wgpu::BufferUsages::COPY_SRC),
-            bin_start: storage(d, "bin starts", (nb + 1) * 4, none),
-            items: storage(d, "bin items", cap as u64 * 4, none),
-            acc: storage(d, "accumulators", n * PER_PIXEL as u64 * 4, none),
-            out: storage(
-                d,
-                "image",
-                n * PER_PIXEL as u64 * 4,
-                wgpu::BufferUsages::COPY_SRC,
-            ),
-            pyramid: storage(d, "pyramid", blocks * PER_BLOCK as u64 * 4, none),
-            levels: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("levels"),
-                size: level_stride * levels.len().max(1) as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            front: storage(d, "front depths", n * 4, wgpu::BufferUsages::COPY_SRC),
-            read_out: readback(d, "image readback", n * PER_PIXEL as u64 * 4),
-            read_front: readback(d, "front depth readback", n * 4),
-            read_counts: readback(d, "count readback", 8),
-            tiles_cap: 64,
-            items_cap: cap,
-        };
-        ctx.queue.write_buffer(
-            &buffers.scale,
-            0,
-            bytemuck::cast_slice(&vec![scale0; n as usize]),
-        );
-        for (k, l) in levels.iter().enumerate() {
-            ctx.queue.write_buffer(
+        let level_stride = (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(32);
+        let buffers = Buffers::new(&ctx.device, &sizes, level_stride);
+        let n = sizes.pixels as usize;
+        let q = &ctx.queue;
+        q.write_buffer(&buffers.scale, 0, bytemuck::cast_slice(&vec![scale0; n]));
+        for (k, l) in sizes.levels.iter().enumerate() {
+            q.write_buffer(
                 &buffers.levels,
                 k as u64 * level_stride,
                 bytemuck::bytes_of(l),
             );
         }
-        let bind = buffers.bind_group(d, &pipelines.layout0);
-        let level_bind = d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("level"),
-            layout: &pipelines.layout1,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                    buffer: &buffers.levels,
-                    offset: 0,
-                    size: wgpu::BufferSize::new(std::mem::size_of::<Level>() as u64),
-                }),
-            }],
-        });
+        let bind = buffers.bind_group(&ctx.device, &pipelines.layout0);
+        let level_bind = buffers.level_bind_group(&ctx.device, &pipelines.layout1);
         Ok(Self {
             ctx,
             width,
             height,
             cap,
-            bins,
-            levels,
+            bins: sizes.bins,
+            levels: sizes.levels,
             pipelines,
             buffers,
             bind,
@@ -699,6 +678,62 @@ impl GpuRecon {
 }
 
 impl Buffers {
+    fn new(d: &wgpu::Device, z: &Sizes, level_stride: u64) -> Self {
+        let none = wgpu::BufferUsages::empty();
+        let src = wgpu::BufferUsages::COPY_SRC;
+        let uniform = |label: &str, size: u64| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let (n, nb, cap) = (z.pixels, z.bin_count(), z.cap);
+        let image = n * PER_PIXEL as u64 * 4;
+        Self {
+            params: uniform("params", std::mem::size_of::<Params>() as u64),
+            ring: storage(d, "ring", cap * RING_FIELDS as u64 * 4, none),
+            tiles: storage(d, "tiles", 64 * 32, none),
+            pix_tile: storage(d, "pixel tiles", n * 4, none),
+            scale: storage(d, "splat scale", n * 4, none),
+            splats: storage(d, "splats", cap * SPLAT_BYTES, none),
+            bins: storage(d, "bins", (2 * nb + 2) * 4, src),
+            bin_start: storage(d, "bin starts", (nb + 1) * 4, none),
+            items: storage(d, "bin items", cap * 4, none),
+            acc: storage(d, "accumulators", image, none),
+            out: storage(d, "image", image, src),
+            pyramid: storage(d, "pyramid", z.blocks * PER_BLOCK as u64 * 4, none),
+            levels: uniform("levels", level_stride * z.levels.len().max(1) as u64),
+            front: storage(d, "front depths", n * 4, src),
+            read_out: readback(d, "image readback", image),
+            read_front: readback(d, "front depth readback", n * 4),
+            read_counts: readback(d, "count readback", 8),
+            tiles_cap: 64,
+            items_cap: cap as usize,
+        }
+    }
+
+    /// The pyramid level's parameters, one at each dynamic offset.
+    fn level_bind_group(
+        &self,
+        d: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+    ) -> wgpu::BindGroup {
+        d.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("level"),
+            layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &self.levels,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(std::mem::size_of::<Level>() as u64),
+                }),
+            }],
+        })
+    }
+
     fn bind_group(&self, device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
         let bufs = [
             &self.params,
