@@ -577,7 +577,6 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     let Size(w, h) = a.size;
     cfg.check_size(w, h)?;
     cfg.gpu = acquire_recon(a.recon.recon)?;
-    cfg.check_gpu()?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(

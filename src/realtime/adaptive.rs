@@ -61,10 +61,7 @@ use crate::{
         tiling::{Pending, Rect},
         Sampler, SamplerParams,
     },
-    reconstruction::{
-        device::{GpuContext, ReconUsed},
-        Reconstructor,
-    },
+    reconstruction::{device::ReconUsed, Reconstructor},
     sampling::Rng,
     tiles::TilingSnapshot,
     trace::{SceneState, StateCache, StreamSample},
@@ -82,7 +79,6 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: controllers,
     // Its buffers (deep buffer, ring) include the display check.
     check_size: |c, w, h| crate::methods::adaptive::check_budget(w, h, &c.sampler, &c.recon),
-    check_gpu,
     start,
 };
 
@@ -263,7 +259,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
 }
 
 /// The image builder's reconstructor, on the run's GPU when it has one: refused before
-/// any thread starts where the GPU reconstructor lacks a step its parameters ask for.
+/// any thread starts where the adapter is too small for the display's buffers.
 fn reconstructor(s: &Shared) -> Result<Box<Reconstructor>, RealtimeError> {
     let (w, h) = s.tracer.size();
     // The filters' rate is measured and set at every image ([`Builder::build`]).
@@ -275,16 +271,6 @@ fn reconstructor(s: &Shared) -> Result<Box<Reconstructor>, RealtimeError> {
         })?;
     }
     Ok(r)
-}
-
-/// [`MethodInfo::check_gpu`]: whether the GPU reconstructor has every step of
-/// `config`'s reconstructor, asked of a small one with the same parameters (the
-/// adapter's limits at the display's size are checked when the pipeline starts).
-fn check_gpu(config: &super::RtConfig, gpu: &Arc<GpuContext>) -> Result<(), String> {
-    let side = 16;
-    Reconstructor::new(side, side, 1.0, config.recon)
-        .use_gpu(gpu.clone())
-        .map_err(|e| e.to_string())
 }
 
 /// One band's tile selection as the sampling threads read it.

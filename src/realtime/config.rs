@@ -104,19 +104,6 @@ impl RtConfig {
         (self.method.info().check_size)(self, width, height).map_err(RealtimeError::Config)
     }
 
-    /// Check that the method's images can be reconstructed on the run's GPU, if it has
-    /// one (before any thread starts; the pipeline would refuse it when it starts).
-    pub fn check_gpu(&self) -> Result<(), RealtimeError> {
-        let Some(gpu) = &self.gpu else {
-            return Ok(());
-        };
-        let info = self.method.info();
-        (info.check_gpu)(self, gpu).map_err(|why| RealtimeError::Gpu {
-            method: info.name,
-            why,
-        })
-    }
-
     /// Check ranges.
     pub fn validate(&self) -> Result<(), RealtimeError> {
         if !(1..=256).contains(&self.sampling_threads) {

@@ -43,7 +43,6 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    check_gpu: super::shared::no_reconstructor,
     start: |sp| start_with(sp, false),
 };
 
@@ -54,7 +53,6 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    check_gpu: super::shared::no_reconstructor,
     start: |sp| start_with(sp, true),
 };
 

@@ -21,10 +21,7 @@ use super::{
     pixel_locks::PixelLocks,
 };
 use crate::{
-    image::Image,
-    reconstruction::device::{GpuContext, ReconUsed},
-    tiles::TilingSnapshot,
-    trace::Tracer,
+    image::Image, reconstruction::device::ReconUsed, tiles::TilingSnapshot, trace::Tracer,
 };
 
 /// Longest a sampling thread holds a batch before it sends it, seconds: long enough
@@ -233,18 +230,8 @@ pub(crate) struct MethodInfo {
     /// Check that a `width × height` display fits the run budgets with its buffers
     /// under `config` ([`display_only`] for a method with no buffer beyond the image).
     pub check_size: fn(&RtConfig, u32, u32) -> Result<(), String>,
-    /// Check that its images can be reconstructed on the GPU under `config`
-    /// ([`no_reconstructor`] for a method without the adaptive reconstructor); the error
-    /// says why not.
-    pub check_gpu: fn(&RtConfig, &Arc<GpuContext>) -> Result<(), String>,
     /// Start its threads; the image thread then calls the builder it returns.
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
-}
-
-/// [`MethodInfo::check_gpu`] of a method that has no reconstructor to run on a GPU
-/// (its images are built on the CPU whatever `--recon` says).
-pub(crate) fn no_reconstructor(_: &RtConfig, _: &Arc<GpuContext>) -> Result<(), String> {
-    Ok(())
 }
 
 /// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.

@@ -45,7 +45,6 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    check_gpu: super::shared::no_reconstructor,
     start: |sp| start_with(sp, false),
 };
 
@@ -56,7 +55,6 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    check_gpu: super::shared::no_reconstructor,
     start: |sp| start_with(sp, true),
 };
 

@@ -92,11 +92,6 @@ impl GpuContext {
         match *self {}
     }
 
-    /// A software adapter.
-    pub fn is_software(&self) -> bool {
-        match *self {}
-    }
-
     /// What results record of it.
     pub fn used(&self) -> ReconUsed {
         match *self {}

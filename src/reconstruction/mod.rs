@@ -309,10 +309,7 @@ impl Reconstructor {
     pub fn used(&self) -> device::ReconUsed {
         #[cfg(feature = "gpu")]
         if let Some(g) = &self.gpu {
-            return device::ReconUsed {
-                device: "gpu".into(),
-                adapter: Some(g.describe()),
-            };
+            return g.context().used();
         }
         device::ReconUsed::cpu()
     }
@@ -500,13 +497,7 @@ impl Reconstructor {
     #[cfg(feature = "gpu")]
     fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
         let start = self.live_range(t);
-        let moved = match self.motion.take().filter(|_| self.params.exact_motion) {
-            Some(state) => {
-                self.follow_motion(t, &state, start);
-                true
-            }
-            None => false,
-        };
+        let moved = self.follow_motion_if_asked(t, start);
         let max_r = self.max_footprint_radius();
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());

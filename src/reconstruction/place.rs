@@ -438,10 +438,23 @@ fn bin_piece(
 }
 
 impl Reconstructor {
+    /// With exact motion and the scene of this refresh given
+    /// ([`Reconstructor::set_motion`]), [`Reconstructor::follow_motion`] from logical
+    /// index `start`; whether it did (the scene is used by this refresh only).
+    pub(super) fn follow_motion_if_asked(&mut self, t: f64, start: usize) -> bool {
+        match self.motion.take().filter(|_| self.params.exact_motion) {
+            Some(state) => {
+                self.follow_motion(t, &state, start);
+                true
+            }
+            None => false,
+        }
+    }
+
     /// Rewrite the velocity of every live sample fixed to something moving so that
     /// `hit + velocity · (t − t_s)` is where its point is at `t` (a sample whose
     /// instance has left the scene gets a NaN hit point, which drops it).
-    pub(super) fn follow_motion(&mut self, t: f64, state: &SceneState, start: usize) {
+    fn follow_motion(&mut self, t: f64, state: &SceneState, start: usize) {
         use field::*;
         let ring = &mut self.ring;
         let first = ring.push_index(start);
@@ -518,9 +531,7 @@ impl Reconstructor {
     /// of it.
     pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
         let start = self.live_range(t);
-        if let Some(state) = self.motion.take().filter(|_| self.params.exact_motion) {
-            self.follow_motion(t, &state, start);
-        }
+        self.follow_motion_if_asked(t, start);
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.

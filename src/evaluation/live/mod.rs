@@ -178,8 +178,7 @@ impl LiveConfig {
             let c = self.rt_config(m);
             let check = c
                 .validate()
-                .and_then(|()| c.check_size(self.width, self.height))
-                .and_then(|()| c.check_gpu());
+                .and_then(|()| c.check_size(self.width, self.height));
             if let Err(e) = check {
                 return bad("--method", format!("{}: {e}", m.name()));
             }

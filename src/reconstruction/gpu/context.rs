@@ -136,11 +136,6 @@ impl GpuContext {
         describe(&self.info)
     }
 
-    /// A software adapter (the CPU's cores emulating a GPU).
-    pub fn is_software(&self) -> bool {
-        self.info.device_type == wgpu::DeviceType::Cpu
-    }
-
     /// What results record of it.
     pub fn used(&self) -> ReconUsed {
         ReconUsed {

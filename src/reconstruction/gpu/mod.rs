@@ -337,11 +337,6 @@ impl GpuRecon {
         })
     }
 
-    /// The adapter in words.
-    pub fn describe(&self) -> String {
-        self.ctx.describe()
-    }
-
     /// The adapter.
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
@@ -366,22 +361,15 @@ impl GpuRecon {
                 [p0..self.cap, 0..p1 - self.cap]
             }
         };
-        let q = &self.ctx.queue;
         for r in ranges.into_iter().filter(|r| !r.is_empty()) {
             for k in 0..field::COUNT {
-                let off = (k * self.cap + r.start) as u64 * 4;
-                q.write_buffer(
-                    &self.buffers.ring,
-                    off,
-                    bytemuck::cast_slice(&ring.f[k][r.clone()]),
-                );
+                self.write_field(k, r.start, &ring.f[k][r.clone()]);
             }
             let times: Vec<f32> = ring.t[r.clone()]
                 .iter()
                 .map(|&t| (t - epoch) as f32)
                 .collect();
-            let off = (field::COUNT * self.cap + r.start) as u64 * 4;
-            q.write_buffer(&self.buffers.ring, off, bytemuck::cast_slice(&times));
+            self.write_field(field::COUNT, r.start, &times);
         }
         self.uploaded = ring.pushed;
     }
@@ -396,9 +384,7 @@ impl GpuRecon {
                 self.buffers.tiles_cap as u64 * 32,
                 wgpu::BufferUsages::empty(),
             );
-            self.bind = self
-                .buffers
-                .bind_group(&self.ctx.device, &self.pipelines.layout0);
+            self.rebind();
         }
         let gt: Vec<GpuTile> = tiles
             .iter()
@@ -464,17 +450,19 @@ impl GpuRecon {
 
     /// Upload the hit points and velocities of the live samples `start..` again.
     fn upload_motion(&self, ring: &Ring, start: usize) {
-        let q = &self.ctx.queue;
         for r in ring.runs(start).into_iter().filter(|r| !r.is_empty()) {
             for k in [field::HX, field::VX, field::VY, field::VZ] {
-                let off = (k * self.cap + r.start) as u64 * 4;
-                q.write_buffer(
-                    &self.buffers.ring,
-                    off,
-                    bytemuck::cast_slice(&ring.f[k][r.clone()]),
-                );
+                self.write_field(k, r.start, &ring.f[k][r.clone()]);
             }
         }
+    }
+
+    /// Write `values` into the GPU ring's field `k` from physical index `p0`.
+    fn write_field(&self, k: usize, p0: usize, values: &[f32]) {
+        let off = (k * self.cap + p0) as u64 * 4;
+        self.ctx
+            .queue
+            .write_buffer(&self.buffers.ring, off, bytemuck::cast_slice(values));
     }
 
     fn params(&self, t: f64, camera: Option<&CameraFrame>, rp: &ReconParams, max_r: f32) -> Params {
@@ -525,6 +513,11 @@ impl GpuRecon {
             self.buffers.items_cap as u64 * 4,
             wgpu::BufferUsages::empty(),
         );
+        self.rebind();
+    }
+
+    /// The bind group again, after a buffer was replaced by a larger one.
+    fn rebind(&mut self) {
         self.bind = self
             .buffers
             .bind_group(&self.ctx.device, &self.pipelines.layout0);

@@ -431,11 +431,13 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     out[q + 5u] = s;
 }
 
-// The five sums of one block of the level below `L` (a pixel's own sums at level 0,
-// zero for a hole).
+// One block of the level below `L`: at level 0 a pixel's own sums (zero for a hole),
+// or with the pull-push fill its premultiplied values (`premultiplied`).
 fn below(x: u32, y: u32) -> array<f32, 5> {
     var r: array<f32, 5>;
-    if L.from_acc != 0u {
+    if L.from_acc != 0u && P.fill_weight > 0.0 {
+        r = premultiplied(x, y);
+    } else if L.from_acc != 0u {
         let q = (y * L.src_w + x) * 6u;
         if acc[q + 3u] >= MIN_WEIGHT {
             for (var c = 0u; c < 5u; c++) {
@@ -451,12 +453,9 @@ fn below(x: u32, y: u32) -> array<f32, 5> {
     return r;
 }
 
-@compute @workgroup_size(256)
-fn pull(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if i >= L.dst_w * L.dst_h {
-        return;
-    }
+// Block `i` of level `L.dst`: its children below summed in the order (0, 0), (1, 0),
+// (0, 1), (1, 1) from zero, as the CPU adds them.
+fn children(i: u32) -> array<f32, 5> {
     let bx = i % L.dst_w;
     let by = i / L.dst_w;
     var sum: array<f32, 5>;
@@ -470,6 +469,16 @@ fn pull(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
+    return sum;
+}
+
+@compute @workgroup_size(256)
+fn pull(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= L.dst_w * L.dst_h {
+        return;
+    }
+    let sum = children(i);
     let q = (L.dst + i) * 5u;
     for (var c = 0u; c < 5u; c++) {
         pyramid[q + c] = sum[c];
@@ -527,33 +536,14 @@ fn premultiplied(x: u32, y: u32) -> array<f32, 5> {
     return r;
 }
 
+// A pull-push level: the children's sums, scaled to coverage 1 where they exceed it.
 @compute @workgroup_size(256)
 fn pp_pull(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if i >= L.dst_w * L.dst_h {
         return;
     }
-    let bx = i % L.dst_w;
-    let by = i / L.dst_w;
-    var sum: array<f32, 5>;
-    for (var k = 0u; k < 4u; k++) {
-        let x = 2u * bx + (k & 1u);
-        let y = 2u * by + (k >> 1u);
-        if x < L.src_w && y < L.src_h {
-            var s: array<f32, 5>;
-            if L.from_acc != 0u {
-                s = premultiplied(x, y);
-            } else {
-                let q = (L.src + y * L.src_w + x) * 5u;
-                for (var c = 0u; c < 5u; c++) {
-                    s[c] = pyramid[q + c];
-                }
-            }
-            for (var c = 0u; c < 5u; c++) {
-                sum[c] += s[c];
-            }
-        }
-    }
+    let sum = children(i);
     var k = 1.0;
     if sum[4] > 1.0 {
         k = 1.0 / sum[4];
