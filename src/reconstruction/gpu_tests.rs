@@ -32,6 +32,9 @@ struct Differences {
     coverage: usize,
     scale: usize,
     holes: (usize, usize),
+    /// Pixels whose history counts differ, and the cuts of each.
+    counts: usize,
+    cuts: (u64, u64),
 }
 
 fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
@@ -59,6 +62,15 @@ fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
             .filter(|(p, q)| p != q)
             .count(),
         holes: (a.holes(), b.holes()),
+        counts: match (a.history_counts(), b.history_counts()) {
+            (Some(x), Some(y)) => x
+                .iter()
+                .zip(y)
+                .filter(|(p, q)| (*p - *q).abs() > 1e-3 * p.abs().max(1.0))
+                .count(),
+            (x, y) => (x.is_some() != y.is_some()) as usize * a.coverage().len(),
+        },
+        cuts: (a.history_cuts(), b.history_cuts()),
     }
 }
 
@@ -76,6 +88,12 @@ fn check(d: &Differences, pixels: usize, what: &str) {
     );
     assert!(
         d.holes.0.abs_diff(d.holes.1) * 200 <= pixels,
+        "{what}: {d:?}"
+    );
+    // The history's pixels are chosen on the CPU for both but for reprojected
+    // histories, whose destination the GPU may round differently at a pixel's edge.
+    assert!(
+        d.counts * 200 <= pixels && d.cuts.0.abs_diff(d.cuts.1) * 200 <= pixels as u64,
         "{what}: {d:?}"
     );
 }
@@ -175,4 +193,89 @@ fn gpu_follows_pushes_across_the_ring_wrap() {
         cpu.ring().len() == cpu.capacity(),
         "the ring should have wrapped"
     );
+}
+
+/// Samples for the history test: still ones of a grey that steps at `t` = 1.4 in the
+/// image's left half (a change the range test and the clamp must catch), and moving
+/// ones, some marked as dynamic.
+fn history_batch(
+    rng: &mut crate::sampling::Rng,
+    c: &CameraFrame,
+    (w, h): (u32, u32),
+    t: f64,
+) -> Vec<(RingSample, bool)> {
+    (0..1500)
+        .map(|i| {
+            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+            let grey = if t > 1.4 && x < w as f32 / 2.0 {
+                0.8
+            } else {
+                0.3
+            };
+            let moving = i % 5 == 0;
+            let s = RingSample {
+                x,
+                y,
+                t: t - 0.05 + 0.05 * i as f64 / 1500.0,
+                color: Vec3::splat(grey) + Vec3::splat(0.05 * rng.uniform()),
+                hit_point: c.eye + c.direction(x, y) * 1.5,
+                velocity: if moving {
+                    Vec3::new(0.2, 0.1, 0.0)
+                } else {
+                    Vec3::ZERO
+                },
+                anchor: Default::default(),
+            };
+            (s, i % 7 == 0)
+        })
+        .collect()
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_history_matches_the_cpu_through_view_changes() {
+    // Still stretches, where the history grows, a change it must cut, and a moving
+    // view: followed (reprojection) and, without it, dropped.
+    let ctx = context();
+    for reproject in [true, false] {
+        let mut params = ReconParams::converging();
+        if let Some(h) = &mut params.history {
+            h.reproject = reproject;
+        }
+        let (w, h) = (48, 32);
+        let (mut cpu, c0, tiling) = random_setup(w, h, 2000, 1.0, false, params, GTS);
+        let (mut gpu, _, _) = random_setup(w, h, 2000, 1.0, false, params, GTS);
+        gpu.use_gpu(ctx.clone())
+            .expect("the history runs on the GPU");
+        let mut rng = crate::sampling::Rng::new(&[9]);
+        for k in 0..14 {
+            let t = 1.0 + 0.05 * k as f64;
+            // The view moves sideways on refreshes 5 to 7.
+            let shift = 0.02 * (k as f32 - 4.0).clamp(0.0, 3.0);
+            let mut cam = c0;
+            cam.eye += Vec3::new(shift, 0.0, 0.0);
+            for (s, dynamic) in history_batch(&mut rng, &cam, (w, h), t) {
+                cpu.push_marked(s, dynamic);
+                gpu.push_marked(s, dynamic);
+            }
+            if k == 2 {
+                cpu.set_view_since(1.0);
+                gpu.set_view_since(1.0);
+            }
+            cpu.reconstruct(t, &cam, &tiling);
+            gpu.reconstruct(t, &cam, &tiling);
+            assert_eq!(gpu.gpu_failure(), None);
+            let what = format!("reproject {reproject}, refresh {k}");
+            check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+        }
+        let counts = cpu.history_counts().unwrap();
+        assert!(
+            counts.iter().any(|&n| n >= 6.0),
+            "the still stretches should have grown histories: {counts:?}"
+        );
+        assert!(
+            cpu.history_cuts() > 0,
+            "the change should have cut histories"
+        );
+    }
 }

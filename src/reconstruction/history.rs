@@ -195,14 +195,43 @@ impl Accum {
 
 /// A sample waiting to enter the history at the next refresh.
 #[derive(Clone, Copy, Debug)]
-struct Fresh {
-    x: f32,
-    y: f32,
-    color: Vec3,
-    t: f64,
-    still: bool,
-    hit_point: Vec3,
-    velocity: Vec3,
+pub(super) struct Fresh {
+    pub(super) x: f32,
+    pub(super) y: f32,
+    pub(super) color: Vec3,
+    pub(super) t: f64,
+    pub(super) still: bool,
+    pub(super) hit_point: Vec3,
+    pub(super) velocity: Vec3,
+}
+
+/// What a refresh does to the view the history was gathered in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum ViewChange {
+    /// The same view: the history stays where it is.
+    Same,
+    /// A new view: each pixel's history moves to where its surface point is seen now.
+    Reproject,
+    /// A new view: everything gathered is dropped.
+    Reset,
+}
+
+/// One refresh of the per-pixel history, decided from the views and the samples
+/// pushed since the last refresh. The CPU's arrays ([`Pixels`]) or the GPU's carry
+/// it out, in this order: the view change, the fresh samples, the cuts, the blend.
+pub(super) struct Step {
+    pub(super) t: f64,
+    pub(super) camera: CameraFrame,
+    pub(super) view: ViewChange,
+    /// Slack of the range test at this refresh.
+    pub(super) slack: f32,
+    /// The samples pushed since the last refresh, and the `(pixel, index)` of those
+    /// that enter, in pixel order (stably, so each pixel sees its samples in the
+    /// order they came).
+    pub(super) fresh: Vec<Fresh>,
+    pub(super) order: Vec<(u32, u32)>,
+    /// Pixels where recent samples of moving surfaces are now, oldest first.
+    pub(super) cuts: Vec<u32>,
 }
 
 /// Per-pixel history of still samples.
@@ -210,14 +239,11 @@ pub(super) struct History {
     params: HistoryParams,
     width: u32,
     height: u32,
-    acc: Accum,
-    /// The next `acc` while the history is reprojected (reused), and the depth of
-    /// what landed on each pixel.
-    scratch: Accum,
-    depth: Vec<f32>,
-    /// A still sample outside its pixel's range, held back until the next one says
-    /// whether it was a rare part of the pixel (kept) or the start of a change.
-    held: Vec<Option<(Vec3, f64, Vec3)>>,
+    /// The per-pixel arrays on the CPU; made at the first refresh done here (none
+    /// while the GPU holds them).
+    pixels: Option<Box<Pixels>>,
+    /// Each pixel's count as the GPU last read it back.
+    gpu_counts: Vec<f32>,
     /// Recent samples of moving surfaces `(hit point, velocity, time)`: at each refresh
     /// they cut the history where they are now, ahead of the samples that will land
     /// there.
@@ -229,13 +255,10 @@ pub(super) struct History {
     /// Time since which the caller knows the view to have been the current one.
     view_since: Option<f64>,
     fresh: Vec<Fresh>,
-    /// Per pixel, the lowest and highest colour of the reconstruction before blending
-    /// over the pixel and its two neighbours in the row (reused).
-    row_lo: Vec<Vec3>,
-    row_hi: Vec<Vec3>,
-    /// The fresh samples' pixels and indices, sorted by pixel (reused), and the
-    /// counting sort's buckets and output for large batches.
+    /// A step's vectors between refreshes, and the counting sort's buckets and output
+    /// for large batches (reused).
     order: Vec<(u32, u32)>,
+    cut_pixels: Vec<u32>,
     buckets: Vec<u32>,
     sorted: Vec<(u32, u32)>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
@@ -244,27 +267,28 @@ pub(super) struct History {
 
 impl History {
     pub(super) fn new(width: u32, height: u32, params: HistoryParams) -> Self {
-        let n = (width * height) as usize;
         Self {
             params,
             width,
             height,
-            acc: Accum::new(n),
-            scratch: Accum::new(n),
-            depth: vec![f32::INFINITY; n],
-            held: vec![None; n],
+            pixels: None,
+            gpu_counts: Vec::new(),
             moving: Default::default(),
             camera: None,
             last_camera: None,
             view_since: None,
             fresh: Vec::new(),
-            row_lo: Vec::new(),
-            row_hi: Vec::new(),
             order: Vec::new(),
+            cut_pixels: Vec::new(),
             buckets: Vec::new(),
             sorted: Vec::new(),
             cuts: 0,
         }
+    }
+
+    #[cfg(feature = "gpu")]
+    pub(super) fn params(&self) -> &HistoryParams {
+        &self.params
     }
 
     /// Note a sample pushed to the ring (it enters at the next refresh); `moving`: its
@@ -309,71 +333,21 @@ impl History {
 
     /// The pixel where world point `p` is seen from `camera`, if on screen.
     fn pixel_at(&self, camera: &CameraFrame, p: Vec3) -> Option<(usize, f32)> {
-        let (x, y, z) = camera.project(p)?;
-        (x >= 0.0 && y >= 0.0 && x < self.width as f32 && y < self.height as f32)
-            .then(|| (y as usize * self.width as usize + x as usize, z))
-    }
-
-    /// Move every pixel's history to where its surface point is seen from `camera`;
-    /// with `front` (the reconstruction's front depths and `1 / (1 + tolerance)`), a
-    /// history that lands behind a nearer surface is dropped: it was seen past a
-    /// silhouette that now covers it.
-    fn reproject_to(&mut self, camera: &CameraFrame, front: Option<(&[f32], f32)>) {
-        let cap = self.params.reprojected_count;
-        self.scratch.reset();
-        self.depth.fill(f32::INFINITY);
-        for q in 0..self.acc.count.len() {
-            if self.acc.count[q] <= 0.0 {
-                continue;
-            }
-            let Some((d, z)) = self.pixel_at(camera, self.acc.point[q]) else {
-                continue;
-            };
-            if hidden(front, d, z) {
-                continue;
-            }
-            if z < self.depth[d] {
-                self.depth[d] = z;
-                self.scratch.take(d, &self.acc, q, cap);
-            }
-        }
-        std::mem::swap(&mut self.acc, &mut self.scratch);
-        self.held.fill(None);
-        self.camera = Some(*camera);
-    }
-
-    fn cut(&mut self, q: usize) {
-        self.cuts += (self.acc.count[q] > 0.0) as u64;
-        self.acc.clear(q);
-        self.held[q] = None;
-    }
-
-    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3) {
-        let (a, max) = (&mut self.acc, self.params.max_count);
-        a.point[q] = hit;
-        a.sum[q] += c;
-        a.time_sum[q] += t;
-        a.count[q] += 1.0;
-        let l = luminance(c);
-        let r = &mut a.lum_range[q];
-        *r = (r.0.min(l), r.1.max(l));
-        if a.count[q] > max {
-            let k = max / a.count[q];
-            a.sum[q] *= k;
-            a.time_sum[q] *= k as f64;
-            a.count[q] = max;
-        }
+        pixel_at(camera, p, self.width, self.height)
     }
 
     /// Samples in each pixel's history.
     pub(super) fn counts(&self) -> &[f32] {
-        &self.acc.count
+        match &self.pixels {
+            Some(px) => &px.acc.count,
+            None => &self.gpu_counts,
+        }
     }
 
     /// Take in the samples pushed since the last refresh and blend the history over
     /// `image` (the reconstruction at `t` seen by `camera`, whose per-pixel age is
     /// `age`, replaced by the age of what is shown); returns the sum over pixels of the
-    /// shown age.
+    /// shown age. `front`: the reconstruction's front depths and `1 / (1 + tolerance)`.
     pub(super) fn refresh(
         &mut self,
         t: f64,
@@ -382,6 +356,26 @@ impl History {
         age: &mut [f32],
         front: Option<(&[f32], f32)>,
     ) -> f64 {
+        let step = self.plan(t, camera);
+        let n = (self.width * self.height) as usize;
+        let px = self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)));
+        let (cuts, age_sum) = px.apply(&step, &self.params, front, image, age);
+        self.cuts += cuts;
+        self.recycle(step);
+        age_sum
+    }
+
+    /// After the GPU carried out `step`: its counts and the pixels it cut.
+    #[cfg(feature = "gpu")]
+    pub(super) fn done_on_gpu(&mut self, step: Step, counts: Vec<f32>, cuts: u64) {
+        self.gpu_counts = counts;
+        self.cuts += cuts;
+        self.recycle(step);
+    }
+
+    /// Decide the refresh at `t` seen by `camera`: the view change, the samples that
+    /// enter and where, and the pixels moving surfaces cut.
+    pub(super) fn plan(&mut self, t: f64, camera: &CameraFrame) -> Step {
         let since = self.view_since.take().unwrap_or(
             if self.last_camera.is_some_and(|c| c.same_view(camera)) {
                 f64::NEG_INFINITY
@@ -390,28 +384,40 @@ impl History {
             },
         );
         self.last_camera = Some(*camera);
-        let p = self.params;
         let slack = self.range_slack(camera, since);
-        if p.reproject && !self.camera.is_some_and(|c| c.same_view(camera)) {
-            self.reproject_to(camera, front);
-        }
-        if !self.camera.is_some_and(|c| c.same_view(camera)) {
-            // A new view: what was gathered belongs elsewhere on screen.
-            self.acc.reset();
-            self.held.fill(None);
+        let view = if self.camera.is_some_and(|c| c.same_view(camera)) {
+            ViewChange::Same
+        } else if self.params.reproject {
+            ViewChange::Reproject
+        } else {
+            // What was gathered belongs elsewhere on screen, and so do the moving
+            // surfaces seen so far.
             self.moving.clear();
-            self.camera = Some(*camera);
+            ViewChange::Reset
+        };
+        self.camera = Some(*camera);
+        let order = self.order_fresh(t, camera, since);
+        let cuts = self.moving_cuts(t, camera);
+        Step {
+            t,
+            camera: *camera,
+            view,
+            slack,
+            fresh: std::mem::take(&mut self.fresh),
+            order,
+            cuts,
         }
-        let (w, h) = (self.width as usize, self.height as usize);
-        let mut fresh = std::mem::take(&mut self.fresh);
-        // Each sample's pixel first, then the samples in pixel order (stable, so each
-        // pixel sees its samples in the order they came): what a sample does touches
-        // only its own pixel, so the outcome is the same as in arrival order, and the
-        // history's arrays are read in address order instead of at random.
+    }
+
+    /// Each fresh sample's pixel, then the samples in pixel order: what a sample does
+    /// touches only its own pixel, so the outcome is the same as in arrival order, and
+    /// the history's arrays are read in address order instead of at random.
+    fn order_fresh(&mut self, t: f64, camera: &CameraFrame, since: f64) -> Vec<(u32, u32)> {
+        let w = self.width as usize;
         let mut order = std::mem::take(&mut self.order);
         order.clear();
-        for (i, f) in fresh.iter().enumerate() {
-            let q = if p.reproject {
+        for (i, f) in self.fresh.iter().enumerate() {
+            let q = if self.params.reproject {
                 // Where the sample's surface point is seen now.
                 match self.pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32) {
                     Some((q, _)) => q,
@@ -430,53 +436,211 @@ impl History {
             }
             order.push((q as u32, i as u32));
         }
-        sort_by_pixel(&mut order, w * h, &mut self.buckets, &mut self.sorted);
-        for &(q, i) in &order {
-            let (q, f) = (q as usize, &fresh[i as usize]);
-            if !f.still {
-                // Something moving covers (part of) the pixel now.
-                self.cut(q);
-                continue;
-            }
-            let l = luminance(f.color);
-            let (lo, hi) = self.acc.lum_range[q];
-            let outside =
-                self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
-            match (outside, self.held[q].take()) {
-                (false, held) => {
-                    // In range: a held sample was a rare part of the pixel after all.
-                    if let Some((c, t, hit)) = held {
-                        self.add(q, c, t, hit);
-                    }
-                    self.add(q, f.color, f.t, f.hit_point);
-                }
-                (true, None) => self.held[q] = Some((f.color, f.t, f.hit_point)),
-                (true, Some((c, t, hit))) => {
-                    // Two in a row outside what the pixel showed: it changed (a surface
-                    // uncovered, a shadow gone); start over from them.
-                    self.cut(q);
-                    self.add(q, c, t, hit);
-                    self.add(q, f.color, f.t, f.hit_point);
-                }
-            }
-        }
-        fresh.clear();
-        self.fresh = fresh;
-        self.order = order;
-        // Moving surfaces cut the history where they are now.
-        while self
-            .moving
-            .front()
-            .is_some_and(|m| t - m.2 > p.moving_memory)
-        {
+        let pixels = w * self.height as usize;
+        sort_by_pixel(&mut order, pixels, &mut self.buckets, &mut self.sorted);
+        order
+    }
+
+    /// Forget moving samples older than the memory; the pixels where the others are now.
+    fn moving_cuts(&mut self, t: f64, camera: &CameraFrame) -> Vec<u32> {
+        let memory = self.params.moving_memory;
+        while self.moving.front().is_some_and(|m| t - m.2 > memory) {
             self.moving.pop_front();
         }
-        for k in 0..self.moving.len() {
-            let (hit, v, ts) = self.moving[k];
+        let mut cuts = std::mem::take(&mut self.cut_pixels);
+        cuts.clear();
+        for &(hit, v, ts) in &self.moving {
             if let Some((q, _)) = self.pixel_at(camera, hit + v * (t - ts) as f32) {
-                self.cut(q);
+                cuts.push(q as u32);
             }
         }
+        cuts
+    }
+
+    /// Keep a step's vectors for the next.
+    fn recycle(&mut self, step: Step) {
+        let mut fresh = step.fresh;
+        fresh.clear();
+        // Samples pushed while the step was out (none today) would be in `self.fresh`.
+        fresh.append(&mut self.fresh);
+        self.fresh = fresh;
+        self.order = step.order;
+        self.cut_pixels = step.cuts;
+    }
+}
+
+/// The pixel of a `width × height` view `camera` where world point `p` is seen, and
+/// its depth, if on screen.
+pub(super) fn pixel_at(
+    camera: &CameraFrame,
+    p: Vec3,
+    width: u32,
+    height: u32,
+) -> Option<(usize, f32)> {
+    let (x, y, z) = camera.project(p)?;
+    (x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32)
+        .then(|| (y as usize * width as usize + x as usize, z))
+}
+
+/// The history's per-pixel arrays on the CPU.
+struct Pixels {
+    acc: Accum,
+    /// The next `acc` while the history is reprojected (reused), and the depth of
+    /// what landed on each pixel.
+    scratch: Accum,
+    depth: Vec<f32>,
+    /// A still sample outside its pixel's range, held back until the next one says
+    /// whether it was a rare part of the pixel (kept) or the start of a change.
+    held: Vec<Option<(Vec3, f64, Vec3)>>,
+    /// Per pixel, the lowest and highest colour of the reconstruction before blending
+    /// over the pixel and its two neighbours in the row (reused).
+    row_lo: Vec<Vec3>,
+    row_hi: Vec<Vec3>,
+    /// Pixels cut during the step under way.
+    cuts: u64,
+}
+
+impl Pixels {
+    fn new(n: usize) -> Self {
+        Self {
+            acc: Accum::new(n),
+            scratch: Accum::new(n),
+            depth: vec![f32::INFINITY; n],
+            held: vec![None; n],
+            row_lo: Vec::new(),
+            row_hi: Vec::new(),
+            cuts: 0,
+        }
+    }
+
+    /// Carry out `step` over `image` and `age`; returns the pixels cut and the sum of
+    /// the shown ages.
+    fn apply(
+        &mut self,
+        step: &Step,
+        p: &HistoryParams,
+        front: Option<(&[f32], f32)>,
+        image: &mut Image,
+        age: &mut [f32],
+    ) -> (u64, f64) {
+        self.cuts = 0;
+        match step.view {
+            ViewChange::Same => {}
+            ViewChange::Reproject => {
+                self.reproject_to(&step.camera, front, p.reprojected_count, image.width)
+            }
+            ViewChange::Reset => {
+                self.acc.reset();
+                self.held.fill(None);
+            }
+        }
+        for &(q, i) in &step.order {
+            self.take_in(q as usize, &step.fresh[i as usize], step.slack, p);
+        }
+        for &q in &step.cuts {
+            self.cut(q as usize);
+        }
+        let (cuts, age_sum) = self.blend(step.t, p, image, age);
+        (self.cuts + cuts, age_sum)
+    }
+
+    /// Move every pixel's history to where its surface point is seen from `camera`,
+    /// keeping at most `cap` samples' worth; with `front`, a history that lands behind
+    /// a nearer surface is dropped: it was seen past a silhouette that now covers it.
+    fn reproject_to(
+        &mut self,
+        camera: &CameraFrame,
+        front: Option<(&[f32], f32)>,
+        cap: f32,
+        width: u32,
+    ) {
+        let height = (self.acc.count.len() / width.max(1) as usize) as u32;
+        self.scratch.reset();
+        self.depth.fill(f32::INFINITY);
+        for q in 0..self.acc.count.len() {
+            if self.acc.count[q] <= 0.0 {
+                continue;
+            }
+            let Some((d, z)) = pixel_at(camera, self.acc.point[q], width, height) else {
+                continue;
+            };
+            if hidden(front, d, z) {
+                continue;
+            }
+            if z < self.depth[d] {
+                self.depth[d] = z;
+                self.scratch.take(d, &self.acc, q, cap);
+            }
+        }
+        std::mem::swap(&mut self.acc, &mut self.scratch);
+        self.held.fill(None);
+    }
+
+    /// A still sample joins pixel `q` if it agrees with what the pixel showed; two in
+    /// a row that do not start the pixel over; a moving one cuts it.
+    fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
+        if !f.still {
+            // Something moving covers (part of) the pixel now.
+            self.cut(q);
+            return;
+        }
+        let l = luminance(f.color);
+        let (lo, hi) = self.acc.lum_range[q];
+        let outside =
+            self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
+        match (outside, self.held[q].take()) {
+            (false, held) => {
+                // In range: a held sample was a rare part of the pixel after all.
+                if let Some((c, t, hit)) = held {
+                    self.add(q, c, t, hit, p.max_count);
+                }
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+            (true, None) => self.held[q] = Some((f.color, f.t, f.hit_point)),
+            (true, Some((c, t, hit))) => {
+                // Two in a row outside what the pixel showed: it changed (a surface
+                // uncovered, a shadow gone); start over from them.
+                self.cut(q);
+                self.add(q, c, t, hit, p.max_count);
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+        }
+    }
+
+    fn cut(&mut self, q: usize) {
+        self.cuts += (self.acc.count[q] > 0.0) as u64;
+        self.acc.clear(q);
+        self.held[q] = None;
+    }
+
+    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
+        let a = &mut self.acc;
+        a.point[q] = hit;
+        a.sum[q] += c;
+        a.time_sum[q] += t;
+        a.count[q] += 1.0;
+        let l = luminance(c);
+        let r = &mut a.lum_range[q];
+        *r = (r.0.min(l), r.1.max(l));
+        if a.count[q] > max {
+            let k = max / a.count[q];
+            a.sum[q] *= k;
+            a.time_sum[q] *= k as f64;
+            a.count[q] = max;
+        }
+    }
+
+    /// Clamp each pixel's history to the box of the reconstruction around it, then
+    /// blend it over `image` at time `t`; returns the pixels the clamp cut and the
+    /// sum of the shown ages.
+    fn blend(
+        &mut self,
+        t: f64,
+        p: &HistoryParams,
+        image: &mut Image,
+        age: &mut [f32],
+    ) -> (u64, f64) {
+        let (w, h) = (image.width as usize, image.height as usize);
         // The 3×3 neighbourhood's range, separably: each pixel's range over its row
         // neighbours here, over the rows' ranges below (the same minima and maxima).
         self.row_lo.resize(w * h, Vec3::ZERO);
@@ -494,13 +658,14 @@ impl History {
                 }
             });
         let (row_lo, row_hi) = (&self.row_lo, &self.row_hi);
+        let acc = &mut self.acc;
         let rows: Vec<(u64, f64)> = image
             .pixels
             .par_chunks_mut(w)
-            .zip(self.acc.sum.par_chunks_mut(w))
-            .zip(self.acc.time_sum.par_chunks_mut(w))
-            .zip(self.acc.count.par_chunks_mut(w))
-            .zip(self.acc.lum_range.par_chunks_mut(w))
+            .zip(acc.sum.par_chunks_mut(w))
+            .zip(acc.time_sum.par_chunks_mut(w))
+            .zip(acc.count.par_chunks_mut(w))
+            .zip(acc.lum_range.par_chunks_mut(w))
             .zip(age.par_chunks_mut(w))
             .enumerate()
             .map(|(y, (((((out, sum), time_sum), count), range), age))| {
@@ -512,28 +677,14 @@ impl History {
                     let shown_age = if count[x] > 0.0 {
                         let lo = lo_a[x].min(lo_m[x]).min(lo_b[x]);
                         let hi = hi_a[x].max(hi_m[x]).max(hi_b[x]);
-                        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
-                        let slack = half + Vec3::splat(p.tolerance);
-                        let mean = sum[x] / count[x];
-                        let clamped = mean.clamp(mid - slack, mid + slack);
-                        if clamped != mean {
-                            let n = count[x].min(p.clamped_count);
-                            let mean_t = time_sum[x] / count[x] as f64;
-                            cuts += 1;
-                            count[x] = n;
-                            sum[x] = clamped * n;
-                            time_sum[x] = mean_t * n as f64;
-                            let l = luminance(clamped);
-                            range[x] = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
-                        }
-                        let (k, n) = (p.recon_weight, count[x]);
-                        out[x] = (out[x] * k + sum[x]) / (k + n);
-                        let hist_age = if n > 0.0 {
-                            t - time_sum[x] / n as f64
-                        } else {
-                            0.0
+                        let mut px = PixelHistory {
+                            sum: &mut sum[x],
+                            time_sum: &mut time_sum[x],
+                            count: &mut count[x],
+                            range: &mut range[x],
                         };
-                        (age[x] as f64 * k as f64 + hist_age * n as f64) / (k + n) as f64
+                        cuts += px.clamp_to(lo, hi, p) as u64;
+                        px.blend_over(&mut out[x], age[x], t, p.recon_weight)
                     } else {
                         age[x] as f64
                     };
@@ -543,8 +694,51 @@ impl History {
                 (cuts, age_sum)
             })
             .collect();
-        self.cuts += rows.iter().map(|r| r.0).sum::<u64>();
-        rows.iter().map(|r| r.1).sum()
+        let cuts = rows.iter().map(|r| r.0).sum::<u64>();
+        (cuts, rows.iter().map(|r| r.1).sum())
+    }
+}
+
+/// One pixel's history, borrowed from the arrays.
+struct PixelHistory<'a> {
+    sum: &'a mut Vec3,
+    time_sum: &'a mut f64,
+    count: &'a mut f32,
+    range: &'a mut (f32, f32),
+}
+
+impl PixelHistory<'_> {
+    /// Clamp the mean into the reconstruction's box `lo..hi` (widened); where that
+    /// moves it, the count falls to the clamped count. Whether it moved.
+    fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> bool {
+        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
+        let slack = half + Vec3::splat(p.tolerance);
+        let mean = *self.sum / *self.count;
+        let clamped = mean.clamp(mid - slack, mid + slack);
+        if clamped == mean {
+            return false;
+        }
+        let n = self.count.min(p.clamped_count);
+        let mean_t = *self.time_sum / *self.count as f64;
+        *self.count = n;
+        *self.sum = clamped * n;
+        *self.time_sum = mean_t * n as f64;
+        let l = luminance(clamped);
+        *self.range = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
+        true
+    }
+
+    /// Blend over the reconstruction's colour `out` of age `age`, which counts as
+    /// `k` samples; returns the age of what is shown.
+    fn blend_over(&self, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
+        let n = *self.count;
+        *out = (*out * k + *self.sum) / (k + n);
+        let hist_age = if n > 0.0 {
+            t - *self.time_sum / n as f64
+        } else {
+            0.0
+        };
+        (age as f64 * k as f64 + hist_age * n as f64) / (k + n) as f64
     }
 }
 

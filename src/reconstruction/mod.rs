@@ -288,10 +288,10 @@ impl Reconstructor {
         self.scale.fill(scale0);
         self.gpu = Some(Box::new(gpu::GpuRecon::new(
             ctx,
-            self.width,
-            self.height,
+            (self.width, self.height),
             self.capacity,
             scale0,
+            self.history.as_ref().map(|h| *h.params()),
         )?));
         Ok(())
     }
@@ -462,11 +462,12 @@ impl Reconstructor {
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
         self.update_filters(tiling);
-        if !self.refresh_on_gpu(t, camera) {
-            self.prepare_splats(t, camera);
-            self.splat();
-            self.resolve();
+        if self.refresh_on_gpu(t, camera) {
+            return &self.image;
         }
+        self.prepare_splats(t, camera);
+        self.splat();
+        self.resolve();
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let Some(h) = &mut self.history {
             let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
@@ -475,8 +476,8 @@ impl Reconstructor {
         &self.image
     }
 
-    /// The splat, resolve and fill of a refresh on the GPU, if there is one; false if
-    /// they are still to be done (no GPU, or it failed now: then it is given up).
+    /// A refresh on the GPU, if there is one; false if it is still to be done (no GPU,
+    /// or it failed now: then it is given up).
     fn refresh_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> bool {
         #[cfg(feature = "gpu")]
         if self.gpu.is_some() {
@@ -492,13 +493,14 @@ impl Reconstructor {
         false
     }
 
-    /// [`Reconstructor::reconstruct`]'s splat, resolve and fill on the GPU, after the
-    /// filter table is built.
+    /// [`Reconstructor::reconstruct`]'s splat, resolve, fill and history on the GPU,
+    /// after the filter table is built.
     #[cfg(feature = "gpu")]
     fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
         let max_r = self.max_footprint_radius();
+        let step = self.history.as_mut().map(|h| h.plan(t, camera));
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -512,6 +514,7 @@ impl Reconstructor {
             &self.lookup,
             &self.params,
             max_r,
+            step.as_ref(),
         )?;
         back.unpack(
             &mut self.image.pixels,
@@ -520,8 +523,8 @@ impl Reconstructor {
             &mut self.scale,
         );
         self.holes = back.holes;
-        if let Some(front) = back.front {
-            self.front = front;
+        if let (Some(h), Some(step), Some(hb)) = (&mut self.history, step, back.history) {
+            h.done_on_gpu(step, hb.counts, hb.cuts);
         }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;

@@ -15,11 +15,12 @@
 //! Which steps run here: reprojection (by velocity; exact motion rewrites the
 //! velocities of the live moving samples on the CPU first, which are uploaded again),
 //! the adaptive (or fixed) filter, adaptive splat size, the visibility pass, the
-//! hole-filling pyramid and the pull-push fill. The still-region history stays on the
-//! CPU, over the image (and front depths) read back: its cost follows the new samples
-//! and the pixels, not the ring.
+//! hole-filling pyramid and the pull-push fill, and the still-region history
+//! ([`history`]), whose per-pixel arrays stay here too: the CPU only plans each of its
+//! refreshes from the samples pushed since the last.
 
 mod context;
+mod history;
 
 use std::sync::Arc;
 
@@ -29,8 +30,9 @@ use glam::Vec3;
 
 use super::{
     filter_table::{Lookup, TileFilter},
+    history::Step,
     ring::{field, Ring},
-    ReconParams,
+    HistoryParams, ReconParams,
 };
 use crate::scene::CameraFrame;
 
@@ -113,8 +115,8 @@ pub(super) struct Readback {
     pub(super) pixels: Vec<f32>,
     /// Pixels no splat reached.
     pub(super) holes: usize,
-    /// Each pixel's front depth (infinite where none), if asked for.
-    pub(super) front: Option<Vec<f32>>,
+    /// The history's counts and cuts, with one.
+    pub(super) history: Option<history::HistoryBack>,
 }
 
 impl Readback {
@@ -153,6 +155,7 @@ pub struct GpuRecon {
     /// Time that ring times are uploaded relative to (f32 keeps microseconds over
     /// hours of scene time only relative to a nearby origin).
     epoch: Option<f64>,
+    history: Option<history::GpuHistory>,
 }
 
 struct Pipelines {
@@ -189,7 +192,6 @@ struct Buffers {
     levels: wgpu::Buffer,
     front: wgpu::Buffer,
     read_out: wgpu::Buffer,
-    read_front: wgpu::Buffer,
     read_counts: wgpu::Buffer,
     /// Tiles and items the buffers hold.
     tiles_cap: usize,
@@ -250,12 +252,14 @@ struct Sizes {
     levels: Vec<Level>,
     /// Blocks of all pyramid levels together.
     blocks: u64,
+    history: bool,
 }
 
 impl Sizes {
-    fn new(width: u32, height: u32, cap: usize) -> Self {
+    fn new(width: u32, height: u32, cap: usize, history: bool) -> Self {
         let levels = pyramid_levels(width, height);
         Self {
+            history,
             pixels: width as u64 * height as u64,
             cap: cap as u64,
             bins: (width.div_ceil(BIN), height.div_ceil(BIN)),
@@ -275,6 +279,11 @@ impl Sizes {
             self.cap * SPLAT_BYTES,
             self.pixels * PER_PIXEL as u64 * 4,
             self.blocks * PER_BLOCK as u64 * 4,
+            if self.history {
+                history::GpuHistory::largest_buffer(self.pixels)
+            } else {
+                0
+            },
         ]
         .into_iter()
         .max()
@@ -295,15 +304,16 @@ impl Sizes {
 
 impl GpuRecon {
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
-    /// every pixel's splat scale starting at `scale0`.
+    /// every pixel's splat scale starting at `scale0`, and a still-region history with
+    /// `history`.
     pub(super) fn new(
         ctx: Arc<GpuContext>,
-        width: u32,
-        height: u32,
+        (width, height): (u32, u32),
         cap: usize,
         scale0: f32,
+        history: Option<HistoryParams>,
     ) -> Result<Self, GpuError> {
-        let sizes = Sizes::new(width, height, cap);
+        let sizes = Sizes::new(width, height, cap, history.is_some());
         sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);
         let level_stride = (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(32);
@@ -320,7 +330,11 @@ impl GpuRecon {
         }
         let bind = buffers.bind_group(&ctx.device, &pipelines.layout0);
         let level_bind = buffers.level_bind_group(&ctx.device, &pipelines.layout1);
+        let history = history.map(|h| {
+            history::GpuHistory::new(&ctx, width, height, h, &buffers.out, &buffers.front)
+        });
         Ok(Self {
+            history,
             ctx,
             width,
             height,
@@ -404,9 +418,9 @@ impl GpuRecon {
     }
 
     /// One refresh at time `t` seen by `camera` (`None`: no reprojection) of the ring's
-    /// logical samples `start..len`, with this refresh's filter table. `moved`: the
-    /// hit points and velocities of live samples were rewritten since the last
-    /// upload (exact motion).
+    /// logical samples `start..len`, with this refresh's filter table, and the
+    /// history's `step` with one. `moved`: the hit points and velocities of live
+    /// samples were rewritten since the last upload (exact motion).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn refresh(
         &mut self,
@@ -419,6 +433,7 @@ impl GpuRecon {
         lookup: &[Lookup],
         params: &ReconParams,
         max_r: f32,
+        step: Option<&Step>,
     ) -> Result<Readback, GpuError> {
         self.upload_ring(ring);
         if moved {
@@ -444,8 +459,7 @@ impl GpuRecon {
             }
             self.grow_items(total);
         }
-        let front = p.keep > 0.0 && params.history.is_some();
-        self.splat_pass(params.fill_weight > 0.0, front)
+        self.splat_pass(params.fill_weight > 0.0, step, p.keep)
     }
 
     /// Upload the hit points and velocities of the live samples `start..` again.
@@ -566,9 +580,14 @@ impl GpuRecon {
         Ok(counts[0].to_bits() as usize)
     }
 
-    /// Sort the bins, gather, resolve and fill; read the image back (and the front
-    /// depths with `front`).
-    fn splat_pass(&self, pull_push: bool, front: bool) -> Result<Readback, GpuError> {
+    /// Sort the bins, gather, resolve and fill, then the history's `step` with one;
+    /// read the image back.
+    fn splat_pass(
+        &mut self,
+        pull_push: bool,
+        step: Option<&Step>,
+        keep: f32,
+    ) -> Result<Readback, GpuError> {
         let n = self.width as u64 * self.height as u64;
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         let d = &self.ctx.device;
@@ -588,7 +607,14 @@ impl GpuRecon {
             self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
         }
         let bytes = n * PER_PIXEL as u64 * 4;
-        enc.copy_buffer_to_buffer(&self.buffers.out, 0, &self.buffers.read_out, 0, bytes);
+        let mut shown = &self.buffers.out;
+        if let (Some(h), Some(step)) = (&mut self.history, step) {
+            let epoch = self.epoch.unwrap_or(step.t);
+            let image = (&self.buffers.out, &self.buffers.front);
+            h.encode(&self.ctx, &mut enc, step, epoch, keep, image);
+            shown = &h.shown;
+        }
+        enc.copy_buffer_to_buffer(shown, 0, &self.buffers.read_out, 0, bytes);
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
             (2 * nb + 1) * 4,
@@ -596,29 +622,17 @@ impl GpuRecon {
             0,
             4,
         );
-        if front {
-            enc.copy_buffer_to_buffer(&self.buffers.front, 0, &self.buffers.read_front, 0, n * 4);
-        }
         self.ctx.queue.submit([enc.finish()]);
         let holes = self.read(&self.buffers.read_counts, 4)?[0].to_bits() as usize;
         let pixels = self.read(&self.buffers.read_out, bytes)?;
-        let front = if front {
-            let raw = self.read(&self.buffers.read_front, n * 4)?;
-            Some(
-                raw.iter()
-                    .map(|f| match f.to_bits() {
-                        0 => f32::INFINITY,
-                        b => f32::from_bits(!b),
-                    })
-                    .collect(),
-            )
-        } else {
-            None
+        let history = match (&self.history, step) {
+            (Some(h), Some(_)) => Some(h.read(&self.ctx)?),
+            _ => None,
         };
         Ok(Readback {
             pixels,
             holes,
-            front,
+            history,
         })
     }
 
@@ -646,28 +660,31 @@ impl GpuRecon {
         );
     }
 
-    /// The first `bytes` of a read-back buffer, after the work submitted so far.
     fn read(&self, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
-        let slice = buf.slice(0..bytes);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Failed(e.to_string()))?;
-        rx.recv()
-            .map_err(|e| GpuError::Failed(e.to_string()))?
-            .map_err(|e| GpuError::Failed(e.to_string()))?;
-        let view = slice
-            .get_mapped_range()
-            .map_err(|e| GpuError::Failed(e.to_string()))?;
-        let out = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
-        drop(view);
-        buf.unmap();
-        Ok(out)
+        read(&self.ctx, buf, bytes)
     }
+}
+
+/// The first `bytes` of a read-back buffer, after the work submitted so far.
+fn read(ctx: &GpuContext, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
+    let slice = buf.slice(0..bytes);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Failed(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Failed(e.to_string()))?
+        .map_err(|e| GpuError::Failed(e.to_string()))?;
+    let view = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::Failed(e.to_string()))?;
+    let out = bytemuck::cast_slice::<u8, f32>(&view).to_vec();
+    drop(view);
+    buf.unmap();
+    Ok(out)
 }
 
 impl Buffers {
@@ -700,7 +717,6 @@ impl Buffers {
             levels: uniform("levels", level_stride * z.levels.len().max(1) as u64),
             front: storage(d, "front depths", n * 4, src),
             read_out: readback(d, "image readback", image),
-            read_front: readback(d, "front depth readback", n * 4),
             read_counts: readback(d, "count readback", 8),
             tiles_cap: 64,
             items_cap: cap as usize,

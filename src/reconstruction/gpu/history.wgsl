@@ -1,0 +1,355 @@
+// The still-region history's refresh in compute shaders: the same steps and the same
+// arithmetic as the CPU's, over per-pixel arrays that stay on the GPU. The CPU decides
+// each refresh (the view change, which samples enter and where, in pixel order, and
+// which pixels moving surfaces cut) and uploads that; these passes carry it out over
+// the reconstruction in `image`, writing what is shown to `shown`.
+//
+// reset   one thread per pixel: every pixel's history empty (a new view, not followed).
+// depth   one thread per pixel with history: where its surface point is seen now; the
+//         nearest depth wins each destination pixel (atomic max of complemented bits).
+// pick    the same, the lowest source pixel among those at the nearest depth (the CPU
+//         visits pixels in order and keeps the first nearest).
+// take    one thread per pixel: the winner's history, its count capped, into `scratch`.
+// fresh   one thread per run of fresh samples of a pixel: the samples in order.
+// cut     one thread per pixel a moving surface covers now.
+// blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend.
+
+struct H {
+    eye: vec3<f32>,
+    t: f32,
+    forward: vec3<f32>,
+    n_fresh: u32,
+    corner: vec3<f32>,
+    n_cuts: u32,
+    du: vec3<f32>,
+    du2: f32,
+    dv: vec3<f32>,
+    dv2: f32,
+    width: u32,
+    height: u32,
+    slack: f32,
+    // `1 / (1 + depth tolerance)` of the visibility pass, 0 without it.
+    keep: f32,
+    recon_weight: f32,
+    max_count: f32,
+    box_scale: f32,
+    tolerance: f32,
+    clamped_count: f32,
+    min_count_to_test: f32,
+    reprojected_count: f32,
+    pad: f32,
+}
+
+// Floats per pixel of the history: sum (3), mean time, count, luminance range (2),
+// newest hit point (3), padding (2).
+const ACC: u32 = 12u;
+const SUM: u32 = 0u;
+const TMEAN: u32 = 3u;
+const COUNT: u32 = 4u;
+const LO: u32 = 5u;
+const HI: u32 = 6u;
+const POINT: u32 = 7u;
+// Floats per held sample: flag, colour (3), time, hit point (3).
+const HELD: u32 = 8u;
+// Floats per fresh sample: pixel (bits), still flag, colour (3), time, hit point (3),
+// padding.
+const FRESH: u32 = 10u;
+// Floats per pixel of the reconstruction and of what is shown: red, green, blue, age,
+// coverage (bits), splat scale.
+const IMAGE: u32 = 6u;
+const OUTSIDE: u32 = 0xffffffffu;
+
+@group(0) @binding(0) var<uniform> P: H;
+@group(0) @binding(1) var<storage, read_write> acc: array<f32>;
+@group(0) @binding(2) var<storage, read_write> scratch: array<f32>;
+@group(0) @binding(3) var<storage, read_write> held: array<f32>;
+// Per pixel the nearest depth (complemented bits), then per pixel the winner
+// (complemented index); then the count of pixels cut.
+@group(0) @binding(4) var<storage, read_write> pick: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read> fresh: array<f32>;
+@group(0) @binding(6) var<storage, read> cut_list: array<u32>;
+@group(0) @binding(7) var<storage, read> image: array<f32>;
+// The reconstruction's front depths, as the complement of their bits (0: none).
+@group(0) @binding(8) var<storage, read> front: array<u32>;
+@group(0) @binding(9) var<storage, read_write> shown: array<f32>;
+@group(0) @binding(10) var<storage, read_write> counts: array<f32>;
+
+fn pixels() -> u32 {
+    return P.width * P.height;
+}
+
+fn luminance(c: vec3<f32>) -> f32 {
+    return dot(c, vec3<f32>(0.2126, 0.7152, 0.0722));
+}
+
+fn infinity() -> f32 {
+    return bitcast<f32>(0x7f800000u);
+}
+
+// The pixel where world point `p` is seen now and the bits of its depth, or `OUTSIDE`.
+fn pixel_at(p: vec3<f32>) -> vec2<u32> {
+    let d = p - P.eye;
+    let z = dot(d, P.forward);
+    if !(z > 1e-6) {
+        return vec2<u32>(OUTSIDE, 0u);
+    }
+    let q = d / z - P.corner;
+    let x = dot(q, P.du) / P.du2;
+    let y = dot(q, P.dv) / P.dv2;
+    if !(x >= 0.0 && y >= 0.0 && x < f32(P.width) && y < f32(P.height)) {
+        return vec2<u32>(OUTSIDE, 0u);
+    }
+    return vec2<u32>(u32(y) * P.width + u32(x), bitcast<u32>(z));
+}
+
+// Whether depth `z` lies behind the front depth of pixel `q` (beyond the tolerance).
+fn hidden(q: u32, z: f32) -> bool {
+    let f = front[q];
+    return P.keep > 0.0 && f != 0u && bitcast<f32>(~f) < z * P.keep;
+}
+
+fn vec_at(a: u32) -> vec3<f32> {
+    return vec3<f32>(acc[a], acc[a + 1u], acc[a + 2u]);
+}
+
+fn set_vec(a: u32, v: vec3<f32>) {
+    acc[a] = v.x;
+    acc[a + 1u] = v.y;
+    acc[a + 2u] = v.z;
+}
+
+fn clear_acc(q: u32) {
+    let a = q * ACC;
+    set_vec(a + SUM, vec3<f32>(0.0));
+    acc[a + TMEAN] = 0.0;
+    acc[a + COUNT] = 0.0;
+    acc[a + LO] = infinity();
+    acc[a + HI] = -infinity();
+}
+
+fn cut(q: u32) {
+    if acc[q * ACC + COUNT] > 0.0 {
+        atomicAdd(&pick[2u * pixels()], 1u);
+    }
+    clear_acc(q);
+    held[q * HELD] = 0.0;
+}
+
+fn add(q: u32, c: vec3<f32>, t: f32, hit: vec3<f32>) {
+    let a = q * ACC;
+    set_vec(a + POINT, hit);
+    var sum = vec_at(a + SUM) + c;
+    var n = acc[a + COUNT] + 1.0;
+    // The mean time, not the sum: f32 keeps it to rounding over any count.
+    acc[a + TMEAN] += (t - acc[a + TMEAN]) / n;
+    let l = luminance(c);
+    acc[a + LO] = min(acc[a + LO], l);
+    acc[a + HI] = max(acc[a + HI], l);
+    if n > P.max_count {
+        sum *= P.max_count / n;
+        n = P.max_count;
+    }
+    set_vec(a + SUM, sum);
+    acc[a + COUNT] = n;
+}
+
+@compute @workgroup_size(256)
+fn reset(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let q = gid.x;
+    if q >= pixels() {
+        return;
+    }
+    clear_acc(q);
+    held[q * HELD] = 0.0;
+}
+
+// Where pixel `q`'s history is seen now, unless it has none or lies hidden.
+fn destination(q: u32) -> vec2<u32> {
+    if !(acc[q * ACC + COUNT] > 0.0) {
+        return vec2<u32>(OUTSIDE, 0u);
+    }
+    let r = pixel_at(vec_at(q * ACC + POINT));
+    if r.x == OUTSIDE || hidden(r.x, bitcast<f32>(r.y)) {
+        return vec2<u32>(OUTSIDE, 0u);
+    }
+    return r;
+}
+
+@compute @workgroup_size(256)
+fn depth(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let q = gid.x;
+    if q >= pixels() {
+        return;
+    }
+    let r = destination(q);
+    if r.x != OUTSIDE {
+        atomicMax(&pick[r.x], ~r.y);
+    }
+}
+
+@compute @workgroup_size(256)
+fn pick_winner(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let q = gid.x;
+    if q >= pixels() {
+        return;
+    }
+    let r = destination(q);
+    if r.x != OUTSIDE && atomicLoad(&pick[r.x]) == ~r.y {
+        atomicMax(&pick[pixels() + r.x], ~q);
+    }
+}
+
+@compute @workgroup_size(256)
+fn take(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let d = gid.x;
+    if d >= pixels() {
+        return;
+    }
+    held[d * HELD] = 0.0;
+    let w = atomicLoad(&pick[pixels() + d]);
+    let b = d * ACC;
+    if w == 0u {
+        for (var k = 0u; k < 5u; k++) {
+            scratch[b + k] = 0.0;
+        }
+        scratch[b + LO] = infinity();
+        scratch[b + HI] = -infinity();
+        return;
+    }
+    let a = (~w) * ACC;
+    let n = acc[a + COUNT];
+    let k = min(n, P.reprojected_count) / n;
+    for (var i = 0u; i < 3u; i++) {
+        scratch[b + SUM + i] = acc[a + SUM + i] * k;
+    }
+    scratch[b + TMEAN] = acc[a + TMEAN];
+    scratch[b + COUNT] = n * k;
+    for (var i = LO; i < ACC; i++) {
+        scratch[b + i] = acc[a + i];
+    }
+}
+
+fn fresh_pixel(i: u32) -> u32 {
+    return bitcast<u32>(fresh[i * FRESH]);
+}
+
+// Fresh sample `i` in pixel `q`: a moving one cuts it; a still one joins it if it
+// agrees with what the pixel showed, is held back if not, and starts the pixel over
+// with the held one if it is the second in a row that does not.
+fn take_in(q: u32, i: u32) {
+    let f = i * FRESH;
+    if fresh[f + 1u] == 0.0 {
+        cut(q);
+        return;
+    }
+    let c = vec3<f32>(fresh[f + 2u], fresh[f + 3u], fresh[f + 4u]);
+    let t = fresh[f + 5u];
+    let hit = vec3<f32>(fresh[f + 6u], fresh[f + 7u], fresh[f + 8u]);
+    let a = q * ACC;
+    let l = luminance(c);
+    let outside = acc[a + COUNT] >= P.min_count_to_test
+        && (l < acc[a + LO] - P.slack || l > acc[a + HI] + P.slack);
+    let h = q * HELD;
+    let was_held = held[h] != 0.0;
+    held[h] = 0.0;
+    let hc = vec3<f32>(held[h + 1u], held[h + 2u], held[h + 3u]);
+    let ht = held[h + 4u];
+    let hhit = vec3<f32>(held[h + 5u], held[h + 6u], held[h + 7u]);
+    if !outside {
+        if was_held {
+            add(q, hc, ht, hhit);
+        }
+        add(q, c, t, hit);
+    } else if !was_held {
+        held[h] = 1.0;
+        held[h + 1u] = c.x;
+        held[h + 2u] = c.y;
+        held[h + 3u] = c.z;
+        held[h + 4u] = t;
+        held[h + 5u] = hit.x;
+        held[h + 6u] = hit.y;
+        held[h + 7u] = hit.z;
+    } else {
+        cut(q);
+        add(q, hc, ht, hhit);
+        add(q, c, t, hit);
+    }
+}
+
+@compute @workgroup_size(256)
+fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= P.n_fresh {
+        return;
+    }
+    let q = fresh_pixel(i);
+    if i > 0u && fresh_pixel(i - 1u) == q {
+        return;
+    }
+    for (var j = i; j < P.n_fresh && fresh_pixel(j) == q; j++) {
+        take_in(q, j);
+    }
+}
+
+@compute @workgroup_size(256)
+fn cut_moving(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i < P.n_cuts {
+        cut(cut_list[i]);
+    }
+}
+
+fn image_rgb(q: u32) -> vec3<f32> {
+    return vec3<f32>(image[q * IMAGE], image[q * IMAGE + 1u], image[q * IMAGE + 2u]);
+}
+
+@compute @workgroup_size(256)
+fn blend(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let q = gid.x;
+    if q >= pixels() {
+        return;
+    }
+    let x = q % P.width;
+    let y = q / P.width;
+    var lo = image_rgb(q);
+    var hi = lo;
+    for (var yy = max(y, 1u) - 1u; yy <= min(y + 1u, P.height - 1u); yy++) {
+        for (var xx = max(x, 1u) - 1u; xx <= min(x + 1u, P.width - 1u); xx++) {
+            let c = image_rgb(yy * P.width + xx);
+            lo = min(lo, c);
+            hi = max(hi, c);
+        }
+    }
+    let o = q * IMAGE;
+    var rgb = image_rgb(q);
+    var age = image[o + 3u];
+    let a = q * ACC;
+    var n = acc[a + COUNT];
+    if n > 0.0 {
+        let mid = (lo + hi) * 0.5;
+        let slack = (hi - lo) * (0.5 * P.box_scale) + vec3<f32>(P.tolerance);
+        let mean = vec_at(a + SUM) / n;
+        let clamped = min(max(mean, mid - slack), mid + slack);
+        if any(clamped != mean) {
+            // The reconstruction disagrees: new samples take over.
+            n = min(n, P.clamped_count);
+            atomicAdd(&pick[2u * pixels()], 1u);
+            acc[a + COUNT] = n;
+            set_vec(a + SUM, clamped * n);
+            let l = luminance(clamped);
+            acc[a + LO] = select(infinity(), l, n > 0.0);
+            acc[a + HI] = select(-infinity(), l, n > 0.0);
+        }
+        let k = P.recon_weight;
+        rgb = (rgb * k + vec_at(a + SUM)) / (k + n);
+        let hist_age = select(0.0, P.t - acc[a + TMEAN], n > 0.0);
+        age = (age * k + hist_age * n) / (k + n);
+    }
+    shown[o] = rgb.x;
+    shown[o + 1u] = rgb.y;
+    shown[o + 2u] = rgb.z;
+    shown[o + 3u] = age;
+    shown[o + 4u] = image[o + 4u];
+    shown[o + 5u] = image[o + 5u];
+    counts[q] = n;
+}
