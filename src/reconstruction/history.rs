@@ -40,8 +40,8 @@ use crate::{image::Image, scene::CameraFrame, trace::luminance};
 pub struct HistoryParams {
     /// How many samples' worth the space-time reconstruction counts for in the blend.
     /// Where the view is still it is a blurred average of the few samples of its
-    /// temporal window, worth about one sharp sample: still `room` (400K, 4 s
-    /// warm-up) gave RMS 1.5 / FLIP 0.0137 with 1 against 1.5 / 0.0146 with 4.
+    /// temporal window, worth about one sharp sample (docs/performance.md, "Tuning
+    /// records", has the measurements behind this and the choices below).
     pub recon_weight: f32,
     /// Largest count: beyond it older samples are down-weighted (a running mean over
     /// the last ~`max_count` samples), which bounds f32 rounding and lets very slow
@@ -68,10 +68,8 @@ pub struct HistoryParams {
     /// refresh: every sample in hand was traced from its view). Then a sample outside
     /// the range means a change on the surface, which the moving-sample cuts and the
     /// clamp to the reconstruction also catch; while the view moves it may also mean a
-    /// history reprojected onto the wrong surface. 0.2:
-    /// the still `room` at 400K FLIP 0.0103 → 0.0102 (RMS 1.39 → 1.33); windows with
-    /// a moving view are unchanged, the kitchen's Toycar and Still a little better.
-    /// 0.2 everywhere cost museum4 100K RMS 16.0 → 16.2 (docs/results/README.md).
+    /// history reprojected onto the wrong surface, so only a still view gets the
+    /// wider slack.
     pub still_range_tolerance: f32,
     /// How long a sample of a moving surface keeps cutting the history where it has
     /// moved to, seconds: until newer samples of the surface have landed ahead of it.
@@ -82,8 +80,8 @@ pub struct HistoryParams {
     /// now, instead of cutting everything when the view changes.
     pub reproject: bool,
     /// Count a pixel's history keeps when it is reprojected: nearest-pixel moves
-    /// resample it, so it should soon give way to new samples. 8 (as `taa`'s moving
-    /// cap); 3 and 24 gave the same RMS on `kitchen_glance.csv` (8.7 at 400K).
+    /// resample it, so it should soon give way to new samples. 8, as `taa`'s moving
+    /// cap.
     pub reprojected_count: f32,
 }
 

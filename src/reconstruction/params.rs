@@ -23,8 +23,8 @@ pub struct ReconParams {
     /// Samples older than this many temporal sigmas get no weight. Default 2.5, the
     /// spatial cutoff: the kernel's support is cut at the same
     /// number of sigmas in space and time, so a dropped sample weighs at most
-    /// e^(−3.125) ≈ 4.4% of a fresh one at the same place. (3 sigmas changed the
-    /// Table 1 RMS by at most 0.1 of 255 and cost 12% more per refresh: README.)
+    /// e^(−3.125) ≈ 4.4% of a fresh one at the same place; a longer support costs
+    /// more per refresh for no gain (docs/performance.md, "Tuning records").
     pub temporal_cutoff: f32,
     /// Largest footprint radius, pixels (bounds the cost of one splat).
     pub max_radius: f32,

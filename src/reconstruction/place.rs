@@ -358,82 +358,118 @@ fn bin_piece(
     out.resize_with(bands, Vec::new);
     out.iter_mut().for_each(Vec::clear);
     let mut b = Block::new();
-    let tc = placer.temporal_cutoff;
     let (cr, cg, cb) = (&ring.f[field::R], &ring.f[field::G], &ring.f[field::B]);
     let mut p0 = piece.start;
     while p0 < piece.end {
         let n = LOCATE_BLOCK.min(piece.end - p0);
         placer.locate_block(ring, p0, n, &mut b);
-        for i in 0..n {
-            let l = placer.lookup[b.pixel[i] as usize];
-            let f = &placer.tiles[l.tile as usize];
-            b.tile[i] = l.tile;
-            b.inv_et[i] = f.inv_et;
-            (b.rx[i], b.ry[i]) = placer.radii(f, l.scale);
-        }
-        // The cull, footprint, temporal weight and weighted color of every lane (the
-        // arithmetic of the tests' `Placer::finish`), in vector code: reading every
-        // lane's color here streams the ring's color arrays, where reading only the
-        // survivors' later waits on each one's cache miss.
-        let (r, g, bl) = (&cr[p0..p0 + n], &cg[p0..p0 + n], &cb[p0..p0 + n]);
-        for i in 0..n {
-            let a = b.age[i] * b.inv_et[i];
-            let [x0, x1, y0, y1] = placer.bounds(b.x[i], b.y[i], b.rx[i], b.ry[i]);
-            b.x0[i] = small_int(x0);
-            b.x1[i] = small_int(x1);
-            b.y0[i] = small_int(y0);
-            b.y1[i] = small_int(y1);
-            let wt = fast_exp_neg(-0.5 * a * a);
-            b.wt[i] = wt;
-            b.wc[0][i] = wt * r[i];
-            b.wc[1][i] = wt * g[i];
-            b.wc[2][i] = wt * bl[i];
-            // A NaN age (not `ok`) fails the first test.
-            b.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
-        }
-        let mut m = 0;
-        for i in 0..n {
-            b.kept[m] = i as u8;
-            m += b.keep[i] as usize;
-        }
+        b.look_up_filters(placer, n);
+        b.weigh(
+            placer,
+            n,
+            [&cr[p0..p0 + n], &cg[p0..p0 + n], &cb[p0..p0 + n]],
+        );
+        let m = b.list_survivors(n);
         for &i in &b.kept[..m] {
             let i = i as usize;
-            let f = &placer.tiles[b.tile[i] as usize];
-            let (x0, x1, y0, y1) = (b.x0[i], b.x1[i], b.y0[i], b.y1[i]);
-            let wt = b.wt[i];
-            let mut s = Splat {
-                x: b.x[i],
-                y: b.y[i],
-                ax: f.ax,
-                ay: f.ay,
-                c: [b.wc[0][i], b.wc[1][i], b.wc[2][i], wt, wt * b.age[i]],
-                x0: x0 as u16,
-                x1: x1 as u16,
-                y0: y0 as u16,
-                y1: y1 as u16,
-                z: 0.0,
-                z_front: f32::INFINITY,
-                pixel: OUTSIDE,
-            };
-            if let Some(max_a) = placer.setter_age {
-                s.z = b.z[i];
-                let a = b.age[i] * b.inv_et[i];
-                let still = [field::VX, field::VY, field::VZ]
-                    .iter()
-                    .all(|&k| ring.f[k][p0 + i] == 0.0);
-                s.z_front = if still || a <= max_a {
-                    s.z
-                } else {
-                    f32::INFINITY
-                };
-                s.pixel = placer.inside(b.x[i], b.y[i]);
-            }
-            let (b0, b1) = (y0 as usize >> band_shift, y1 as usize >> band_shift);
+            let s = b.splat(placer, ring, i, p0);
+            let (y0, y1) = (b.y0[i] as usize, b.y1[i] as usize);
+            let (b0, b1) = (y0 >> band_shift, y1 >> band_shift);
             for o in &mut out[b0..=b1] {
                 o.push(s);
             }
         }
         p0 += n;
+    }
+}
+
+impl Block {
+    /// Each of the first `n` lanes' tile filter and footprint radii.
+    #[inline(always)]
+    fn look_up_filters(&mut self, placer: &Placer, n: usize) {
+        for i in 0..n {
+            let l = placer.lookup[self.pixel[i] as usize];
+            let f = &placer.tiles[l.tile as usize];
+            self.tile[i] = l.tile;
+            self.inv_et[i] = f.inv_et;
+            (self.rx[i], self.ry[i]) = placer.radii(f, l.scale);
+        }
+    }
+
+    /// The cull, footprint, temporal weight and weighted colour (`rgb`) of every lane
+    /// (the arithmetic of the tests' `Placer::finish`), in vector code: reading every
+    /// lane's colour here streams the ring's colour arrays, where reading only the
+    /// survivors' later waits on each one's cache miss.
+    #[inline(always)]
+    fn weigh(&mut self, placer: &Placer, n: usize, [r, g, bl]: [&[f32]; 3]) {
+        let tc = placer.temporal_cutoff;
+        for i in 0..n {
+            let a = self.age[i] * self.inv_et[i];
+            let [x0, x1, y0, y1] = placer.bounds(self.x[i], self.y[i], self.rx[i], self.ry[i]);
+            self.x0[i] = small_int(x0);
+            self.x1[i] = small_int(x1);
+            self.y0[i] = small_int(y0);
+            self.y1[i] = small_int(y1);
+            let wt = fast_exp_neg(-0.5 * a * a);
+            self.wt[i] = wt;
+            self.wc[0][i] = wt * r[i];
+            self.wc[1][i] = wt * g[i];
+            self.wc[2][i] = wt * bl[i];
+            // A NaN age (not `ok`) fails the first test.
+            self.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
+        }
+    }
+
+    /// The lanes kept, in order, into `kept` (no branch per lane); how many.
+    #[inline(always)]
+    fn list_survivors(&mut self, n: usize) -> usize {
+        let mut m = 0;
+        for i in 0..n {
+            self.kept[m] = i as u8;
+            m += self.keep[i] as usize;
+        }
+        m
+    }
+
+    /// The splat of lane `i`, the ring's sample at physical index `p0 + i`.
+    #[inline(always)]
+    fn splat(&self, placer: &Placer, ring: &Ring, i: usize, p0: usize) -> Splat {
+        let f = &placer.tiles[self.tile[i] as usize];
+        let wt = self.wt[i];
+        let mut s = Splat {
+            x: self.x[i],
+            y: self.y[i],
+            ax: f.ax,
+            ay: f.ay,
+            c: [
+                self.wc[0][i],
+                self.wc[1][i],
+                self.wc[2][i],
+                wt,
+                wt * self.age[i],
+            ],
+            x0: self.x0[i] as u16,
+            x1: self.x1[i] as u16,
+            y0: self.y0[i] as u16,
+            y1: self.y1[i] as u16,
+            z: 0.0,
+            z_front: f32::INFINITY,
+            pixel: OUTSIDE,
+        };
+        if let Some(max_a) = placer.setter_age {
+            s.z = self.z[i];
+            let a = self.age[i] * self.inv_et[i];
+            let still = [field::VX, field::VY, field::VZ]
+                .iter()
+                .all(|&k| ring.f[k][p0 + i] == 0.0);
+            s.z_front = if still || a <= max_a {
+                s.z
+            } else {
+                f32::INFINITY
+            };
+            s.pixel = placer.inside(self.x[i], self.y[i]);
+        }
+        s
     }
 }
 

@@ -15,8 +15,7 @@
 //!   and takes `1 − α` from the bilinear interpolation of the coarser level.
 //!
 //! Pixels with `W ≥ W₀` are left as they are. `W₀ = 1` is one fresh sample at the
-//! pixel's centre: on Interactive t = 6.3–6.9 s, 100K, RMS went from 25.3 to 23.0
-//! (0.3: 23.5; 3: 22.7 but FLIP worse at 400K; 10: FLIP 10% worse at 400K).
+//! pixel's centre (docs/performance.md, "Tuning records", has the choice).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -68,121 +67,157 @@ impl Reconstructor {
     /// recomputed a row at a time from the accumulators and the resolved image where
     /// the first pull and the last push need them.
     pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let cs = self.cs;
-        let (acc, px, age) = (&self.acc, &self.image.pixels, &self.age);
-        // Accumulated weights (channel 3) of row `y`.
-        let weights = |acc, y| &channel_row(acc, cs, y, 3)[..w];
-        // Row `y` of the full-resolution level, premultiplied, into `out` (`CH · w`).
-        let full_row = |y: usize, out: &mut [f32]| {
-            premultiplied_row(
-                weights(acc, y),
-                w0,
-                &px[y * w..(y + 1) * w],
-                &age[y * w..(y + 1) * w],
-                out,
-            )
-        };
         let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
+        let mut image = std::mem::take(&mut self.image.pixels);
+        let mut ages = std::mem::take(&mut self.age);
+        let full = Full {
+            acc: &self.acc,
+            cs: self.cs,
+            w: self.width as usize,
+            h: self.height as usize,
+            w0,
+        };
         if levels.is_empty() {
             // The display's size fixes the levels; every value is rewritten below.
-            let (mut lw, mut lh) = (w, h);
+            let (mut lw, mut lh) = (full.w, full.h);
             while lw > 1 || lh > 1 {
                 (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
                 levels.push(Level::new(lw, lh));
             }
         }
-        // Pull: each level the coverage-weighted 2×2 mean of the finer one, its
-        // coverage the children's summed and capped at 1.
         if let Some(first) = levels.first_mut() {
-            let nw = first.w;
-            first.v.par_chunks_mut(CH * nw).enumerate().for_each_init(
-                || vec![0f32; 2 * CH * w],
-                |rows, (by, out)| {
-                    let (r0, r1) = rows.split_at_mut(CH * w);
-                    full_row(2 * by, r0);
-                    if 2 * by + 1 < h {
-                        full_row(2 * by + 1, r1);
-                    } else {
-                        r1.fill(0.0);
-                    }
-                    pull_row(r0, r1, w, out, nw);
-                },
-            );
+            full.pull_into(first, &image, &ages);
         }
-        for k in 1..levels.len() {
-            let (finer, rest) = levels.split_at_mut(k);
-            let (prev, next) = (&finer[k - 1], &mut rest[0]);
-            let nw = next.w;
-            let zeros = vec![0f32; CH * prev.w];
-            next.v
-                .par_chunks_mut(CH * nw)
-                .enumerate()
-                .for_each(|(by, out)| {
-                    let r1 = if 2 * by + 1 < prev.h {
-                        prev.row(2 * by + 1)
-                    } else {
-                        &zeros
-                    };
-                    pull_row(prev.row(2 * by), r1, prev.w, out, nw);
-                });
-        }
-        // Push, coarsest first: each level keeps `α` of its own colour and takes
-        // `1 − α` from the bilinear interpolation of the (complete) coarser one.
-        if let Some(top) = levels.last_mut() {
-            let a = top.v[ALPHA];
-            if a > 0.0 {
-                let k = 1.0 / a;
-                for c in 0..CH {
-                    top.v[c] *= k;
-                }
-            }
-        }
-        for k in (1..levels.len()).rev() {
-            let (finer, coarser) = levels.split_at_mut(k);
-            let (coarse, fine) = (&coarser[0], &mut finer[k - 1]);
-            let fw = fine.w;
-            let up = upsampled(coarse, fw, &mut up);
-            fine.v
-                .par_chunks_mut(CH * fw)
-                .enumerate()
-                .for_each(|(y, row)| {
-                    let (y0, y1, ty) = tap(y, coarse.h);
-                    let (vals, alpha) = row.split_at_mut(4 * fw);
-                    push_row(vals, alpha, up_row(up, y0, fw), up_row(up, y1, fw), ty, fw);
-                    alpha.fill(1.0);
-                });
-        }
-        // The full-resolution level: only pixels below full coverage change.
-        let mut image = std::mem::take(&mut self.image.pixels);
-        let mut ages = std::mem::take(&mut self.age);
+        pull_levels(&mut levels);
+        push_levels(&mut levels, &mut up);
         if let Some(coarse) = levels.first() {
-            let up = upsampled(coarse, w, &mut up);
-            image
-                .par_chunks_mut(w)
-                .zip(ages.par_chunks_mut(w))
-                .enumerate()
-                .for_each_init(
-                    || vec![0f32; CH * w],
-                    |v, (y, (px, age))| {
-                        premultiplied_row(weights(acc, y), w0, px, age, v);
-                        let (y0, y1, ty) = tap(y, coarse.h);
-                        let (vals, alpha) = v.split_at_mut(4 * w);
-                        push_row(vals, alpha, up_row(up, y0, w), up_row(up, y1, w), ty, w);
-                        // Pixels at full coverage stay as they are.
-                        for x in 0..w {
-                            if alpha[x] < 1.0 {
-                                px[x] = Vec3::new(vals[x], vals[w + x], vals[2 * w + x]);
-                                age[x] = vals[3 * w + x];
-                            }
-                        }
-                    },
-                );
+            full.push_from(coarse, &mut up, &mut image, &mut ages);
         }
         self.image.pixels = image;
         self.age = ages;
         self.pull = Pyramid { levels, up };
         self.age.iter().map(|&a| a as f64).sum()
+    }
+}
+
+/// The full-resolution level, recomputed a row at a time from the accumulators
+/// (`acc`, rows of stride `cs`) of a `w × h` image and the coverage weight `w0`.
+struct Full<'a> {
+    acc: &'a [f32],
+    cs: usize,
+    w: usize,
+    h: usize,
+    w0: f32,
+}
+
+impl Full<'_> {
+    /// Accumulated weights (channel 3) of row `y`.
+    fn weights(&self, y: usize) -> &[f32] {
+        &channel_row(self.acc, self.cs, y, 3)[..self.w]
+    }
+
+    /// Row `y`, premultiplied, into `out` (`CH · w`).
+    fn row(&self, y: usize, px: &[Vec3], age: &[f32], out: &mut [f32]) {
+        let r = y * self.w..(y + 1) * self.w;
+        premultiplied_row(self.weights(y), self.w0, &px[r.clone()], &age[r], out)
+    }
+
+    /// The first pull: `first` the coverage-weighted 2×2 mean of the image `px` of
+    /// ages `age`.
+    fn pull_into(&self, first: &mut Level, px: &[Vec3], age: &[f32]) {
+        let (w, nw) = (self.w, first.w);
+        first.v.par_chunks_mut(CH * nw).enumerate().for_each_init(
+            || vec![0f32; 2 * CH * w],
+            |rows, (by, out)| {
+                let (r0, r1) = rows.split_at_mut(CH * w);
+                self.row(2 * by, px, age, r0);
+                if 2 * by + 1 < self.h {
+                    self.row(2 * by + 1, px, age, r1);
+                } else {
+                    r1.fill(0.0);
+                }
+                pull_row(r0, r1, w, out, nw);
+            },
+        );
+    }
+
+    /// The last push, from the first level `coarse` into the image: only pixels below
+    /// full coverage change.
+    fn push_from(&self, coarse: &Level, up: &mut Vec<f32>, image: &mut [Vec3], ages: &mut [f32]) {
+        let w = self.w;
+        let up = upsampled(coarse, w, up);
+        image
+            .par_chunks_mut(w)
+            .zip(ages.par_chunks_mut(w))
+            .enumerate()
+            .for_each_init(
+                || vec![0f32; CH * w],
+                |v, (y, (px, age))| {
+                    premultiplied_row(self.weights(y), self.w0, px, age, v);
+                    let (y0, y1, ty) = tap(y, coarse.h);
+                    let (vals, alpha) = v.split_at_mut(4 * w);
+                    push_row(vals, alpha, up_row(up, y0, w), up_row(up, y1, w), ty, w);
+                    // Pixels at full coverage stay as they are.
+                    for x in 0..w {
+                        if alpha[x] < 1.0 {
+                            px[x] = Vec3::new(vals[x], vals[w + x], vals[2 * w + x]);
+                            age[x] = vals[3 * w + x];
+                        }
+                    }
+                },
+            );
+    }
+}
+
+/// Pull: each level above the first the coverage-weighted 2×2 mean of the finer one,
+/// its coverage the children's summed and capped at 1.
+fn pull_levels(levels: &mut [Level]) {
+    for k in 1..levels.len() {
+        let (finer, rest) = levels.split_at_mut(k);
+        let (prev, next) = (&finer[k - 1], &mut rest[0]);
+        let nw = next.w;
+        let zeros = vec![0f32; CH * prev.w];
+        next.v
+            .par_chunks_mut(CH * nw)
+            .enumerate()
+            .for_each(|(by, out)| {
+                let r1 = if 2 * by + 1 < prev.h {
+                    prev.row(2 * by + 1)
+                } else {
+                    &zeros
+                };
+                pull_row(prev.row(2 * by), r1, prev.w, out, nw);
+            });
+    }
+}
+
+/// Push, coarsest first, down to the first level: each level keeps `α` of its own
+/// colour and takes `1 − α` from the bilinear interpolation of the (complete)
+/// coarser one.
+fn push_levels(levels: &mut [Level], up: &mut Vec<f32>) {
+    if let Some(top) = levels.last_mut() {
+        let a = top.v[ALPHA];
+        if a > 0.0 {
+            let k = 1.0 / a;
+            for c in 0..CH {
+                top.v[c] *= k;
+            }
+        }
+    }
+    for k in (1..levels.len()).rev() {
+        let (finer, coarser) = levels.split_at_mut(k);
+        let (coarse, fine) = (&coarser[0], &mut finer[k - 1]);
+        let fw = fine.w;
+        let up = upsampled(coarse, fw, up);
+        fine.v
+            .par_chunks_mut(CH * fw)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let (y0, y1, ty) = tap(y, coarse.h);
+                let (vals, alpha) = row.split_at_mut(4 * fw);
+                push_row(vals, alpha, up_row(up, y0, fw), up_row(up, y1, fw), ty, fw);
+                alpha.fill(1.0);
+            });
     }
 }
 
