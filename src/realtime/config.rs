@@ -4,6 +4,7 @@
 
 use std::sync::Arc;
 
+pub use super::RtMethod;
 use crate::{
     methods::adaptive::SamplerParams,
     reconstruction::{device::GpuContext, ReconParams},
@@ -45,27 +46,6 @@ pub enum RealtimeError {
         /// Why (the GPU reconstructor's error).
         why: String,
     },
-}
-
-/// What the pipeline renders. Each variant is described (name, threads, how it starts)
-/// in its own file and registered once in the parent module's registry, whose order is
-/// [`RtMethod::ALL`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum RtMethod {
-    /// Adaptive sampler + adaptive space-time reconstructor.
-    Adaptive,
-    /// Traditional frameless: random pixels, newest sample shown per pixel.
-    TraditionalFrameless,
-    /// Double-buffered framed rendering at full resolution, as fast as it goes.
-    Framed,
-    /// Framed, with the newest frame reprojected to the camera at every refresh.
-    LateWarp,
-    /// Temporal upsampler: jittered low-resolution frames accumulated into a
-    /// full-resolution history.
-    Taa,
-    /// The temporal upsampler, its image reprojected to the camera at every refresh.
-    TaaWarp,
 }
 
 /// Settings of one pipeline run.

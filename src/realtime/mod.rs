@@ -37,6 +37,8 @@ pub mod machine;
 pub mod pacing;
 pub mod pipeline;
 pub mod pixel_locks;
+#[cfg(test)]
+mod probe;
 pub mod record;
 mod shared;
 pub mod taa;
@@ -44,7 +46,7 @@ pub mod viewer;
 
 pub use camera::{CameraRecorder, FlyCamera};
 pub use clock::WallClock;
-pub use config::{RealtimeError, RtConfig, RtMethod};
+pub use config::{RealtimeError, RtConfig};
 pub use headless::{run_headless, HeadlessOptions, HeadlessStats};
 pub use pipeline::{Frame, Pipeline, PipelineStats};
 pub use pixel_locks::{PixelGuard, PixelLocks};
@@ -55,16 +57,46 @@ use clap::builder::PossibleValue;
 use crate::{methods::adaptive::SamplerParams, reconstruction::ReconParams};
 use shared::MethodInfo;
 
-/// The registry: every real-time method and its description, in the viewer's key
-/// order (1, 2, 3, …).
-const REGISTRY: &[(RtMethod, &MethodInfo)] = &[
-    (RtMethod::Adaptive, &adaptive::METHOD),
-    (RtMethod::TraditionalFrameless, &frameless::METHOD),
-    (RtMethod::Framed, &framed::METHOD),
-    (RtMethod::LateWarp, &framed::LATE_WARP),
-    (RtMethod::Taa, &taa::METHOD),
-    (RtMethod::TaaWarp, &taa::TAA_WARP),
-];
+/// Declares [`RtMethod`], a variant per registered method, and the registry that maps
+/// each variant to the description in the method's own file.
+macro_rules! registry {
+    ($($(#[doc = $doc:literal])* $(#[cfg($cfg:meta)])? $variant:ident => $info:path,)*) => {
+        /// What the pipeline renders: one variant per method of the registry, in the
+        /// viewer's key order ([`RtMethod::ALL`]). Each is described (name, threads,
+        /// how it starts) in its own file.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+        #[serde(rename_all = "kebab-case")]
+        pub enum RtMethod {
+            $($(#[doc = $doc])* $(#[cfg($cfg)])? $variant,)*
+        }
+
+        /// The registry: every real-time method and its description.
+        const REGISTRY: &[(RtMethod, &MethodInfo)] = &[
+            $($(#[cfg($cfg)])? (RtMethod::$variant, &$info),)*
+        ];
+    };
+}
+
+// Adding a method: its file (a `MethodInfo`, its threads and its image builder) and a
+// line here.
+registry! {
+    /// Adaptive sampler + adaptive space-time reconstructor.
+    Adaptive => adaptive::METHOD,
+    /// Traditional frameless: random pixels, newest sample shown per pixel.
+    TraditionalFrameless => frameless::METHOD,
+    /// Double-buffered framed rendering at full resolution, as fast as it goes.
+    Framed => framed::METHOD,
+    /// Framed, with the newest frame reprojected to the camera at every refresh.
+    LateWarp => framed::LATE_WARP,
+    /// Temporal upsampler: jittered low-resolution frames accumulated into a
+    /// full-resolution history.
+    Taa => taa::METHOD,
+    /// The temporal upsampler, its image reprojected to the camera at every refresh.
+    TaaWarp => taa::TAA_WARP,
+    /// A flat grey from threads that trace nothing: the pipeline's own tests.
+    #[cfg(test)]
+    Probe => probe::METHOD,
+}
 
 impl RtMethod {
     /// All methods, in the viewer's key order (1, 2, 3, …).
@@ -250,8 +282,9 @@ mod tests {
     #[test]
     fn method_names_parse_back_and_are_clap_values() {
         let names: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
+        // The shipped methods first (the tests' own methods follow them).
         assert_eq!(
-            names,
+            names[..6],
             [
                 "adaptive",
                 "traditional-frameless",
@@ -270,7 +303,7 @@ mod tests {
         let err = RtMethod::parse("bogus").unwrap_err().to_string();
         assert!(
             err.contains(
-                "unknown method `bogus` (expected adaptive, traditional-frameless, framed, late-warp, taa or taa-warp)"
+                "unknown method `bogus` (expected adaptive, traditional-frameless, framed, late-warp, taa, taa-warp"
             ),
             "{err}"
         );
