@@ -6,7 +6,10 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{readback, storage, GpuContext, GpuError, GROUP, PER_PIXEL};
+use super::{
+    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GpuError, GROUP,
+    PER_PIXEL,
+};
 use crate::reconstruction::{
     history::{Step, ViewChange},
     HistoryParams,
@@ -289,19 +292,12 @@ impl GpuHistory {
             &self.shown,
             &self.counts,
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = bufs
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        self.bind = Some(d.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("history"),
-            layout: &self.pipelines.layout,
-            entries: &entries,
-        }));
+        self.bind = Some(super::bind_buffers(
+            d,
+            &self.pipelines.layout,
+            "history",
+            &bufs,
+        ));
     }
 }
 
@@ -311,42 +307,14 @@ impl Pipelines {
             label: Some("history.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("history.wgsl").into()),
         });
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
         // The fresh samples, cut pixels, image and front depths are only read.
-        let read_only = [5u32, 6, 7, 8];
-        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform)];
-        for b in 1..=BUFFERS {
-            let read_only = read_only.contains(&b);
-            entries.push(entry(b, wgpu::BufferBindingType::Storage { read_only }));
-        }
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("history"),
-            entries: &entries,
-        });
+        let layout = uniform_and_storage(device, "history", BUFFERS, &[5, 6, 7, 8]);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("history"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let make = |name: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: Some(&pipeline_layout),
-                module: &module,
-                entry_point: Some(name),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let make = |name: &str| compute_pipeline(device, &pipeline_layout, &module, name);
         Self {
             reset: make("reset"),
             depth: make("depth"),

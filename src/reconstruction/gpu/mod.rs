@@ -744,7 +744,7 @@ impl Buffers {
     }
 
     fn bind_group(&self, device: &wgpu::Device, layout: &wgpu::BindGroupLayout) -> wgpu::BindGroup {
-        let bufs = [
+        let buffers = [
             &self.params,
             &self.ring,
             &self.tiles,
@@ -759,20 +759,88 @@ impl Buffers {
             &self.pyramid,
             &self.front,
         ];
-        let entries: Vec<wgpu::BindGroupEntry> = bufs
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("reconstructor"),
-            layout,
-            entries: &entries,
-        })
+        bind_buffers(device, layout, "reconstructor", &buffers)
     }
+}
+
+/// A bind group of whole `buffers` at bindings 0, 1, 2, …
+fn bind_buffers(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// A buffer at `binding` of a compute shader.
+fn buffer_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+    dynamic: bool,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// The layout of a uniform at binding 0 and `storage` buffers after it (read-only
+/// where `read_only` lists them).
+fn uniform_and_storage(
+    device: &wgpu::Device,
+    label: &str,
+    storage: u32,
+    read_only: &[u32],
+) -> wgpu::BindGroupLayout {
+    let mut entries = vec![buffer_entry(0, wgpu::BufferBindingType::Uniform, false)];
+    for b in 1..=storage {
+        let read_only = read_only.contains(&b);
+        entries.push(buffer_entry(
+            b,
+            wgpu::BufferBindingType::Storage { read_only },
+            false,
+        ));
+    }
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &entries,
+    })
+}
+
+/// The compute pipeline of `module`'s entry point `name`.
+fn compute_pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    name: &str,
+) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(name),
+        layout: Some(layout),
+        module,
+        entry_point: Some(name),
+        compilation_options: Default::default(),
+        cache: None,
+    })
 }
 
 impl Pipelines {
@@ -781,51 +849,18 @@ impl Pipelines {
             label: Some("recon.wgsl"),
             source: wgpu::ShaderSource::Wgsl(include_str!("recon.wgsl").into()),
         });
-        let entry =
-            |binding: u32, ty: wgpu::BufferBindingType, dynamic: bool| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty,
-                    has_dynamic_offset: dynamic,
-                    min_binding_size: None,
-                },
-                count: None,
-            };
-        let read_only = [1u32, 2, 3];
-        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform, false)];
-        for b in 1..=STORAGE_BUFFERS {
-            entries.push(entry(
-                b,
-                wgpu::BufferBindingType::Storage {
-                    read_only: read_only.contains(&b),
-                },
-                false,
-            ));
-        }
-        let layout0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("reconstructor"),
-            entries: &entries,
-        });
+        // The ring, the tile filters and the pixel → tile map are only read.
+        let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2, 3]);
         let layout1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("level"),
-            entries: &[entry(0, wgpu::BufferBindingType::Uniform, true)],
+            entries: &[buffer_entry(0, wgpu::BufferBindingType::Uniform, true)],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("reconstructor"),
             bind_group_layouts: &[Some(&layout0), Some(&layout1)],
             immediate_size: 0,
         });
-        let make = |name: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: Some(&layout),
-                module: &module,
-                entry_point: Some(name),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let make = |name: &str| compute_pipeline(device, &layout, &module, name);
         Self {
             place: make("place"),
             count: make("count"),
