@@ -3,6 +3,8 @@
 use std::{path::PathBuf, sync::Arc};
 
 use frameless::{
+    evaluation::Progress,
+    image::Image,
     render::still,
     scene::{self, builtin, CameraPath, Scene},
     trace::{TraceOptions, Tracer},
@@ -97,13 +99,35 @@ impl NativeScene {
         let path = self.camera_path.clone();
         let img = work::run(py, progress.as_ref(), move |work| {
             let tracer = Tracer::new(scene, w, h, options).with_camera_path(path);
-            work.checkpoint();
-            frameless::evaluation::Progress::total(work, h as u64);
-            Ok(still::render(&tracer, time, spp as u32, seed, &|rows| {
-                work.set_done(rows as u64)
-            }))
+            Ok(render_still(&tracer, time, spp as u32, seed, work))
         })?;
         Ok(crate::to_array(py, &img))
+    }
+}
+
+/// `still::render`'s image, each row started only if the caller has not cancelled, so
+/// that Ctrl-C stops a long render within one row's time.
+fn render_still(tracer: &Tracer, time: f64, spp: u32, seed: u64, work: &work::Work) -> Image {
+    use rayon::prelude::*;
+    let (w, h) = tracer.size();
+    work.checkpoint();
+    work.total(h as u64);
+    let state = tracer.state_at(time);
+    let rows: Vec<Vec<glam::Vec3>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            work.checkpoint();
+            let row = (0..w)
+                .map(|x| still::pixel(tracer, &state, x, y, spp, seed))
+                .collect();
+            work.advance("", 1);
+            row
+        })
+        .collect();
+    Image {
+        width: w,
+        height: h,
+        pixels: rows.into_iter().flatten().collect(),
     }
 }
 

@@ -43,12 +43,6 @@ impl Work {
         }
     }
 
-    /// `n` units done so far in all (for counters that report a position).
-    pub fn set_done(&self, n: u64) {
-        self.checkpoint();
-        self.done.fetch_max(n, Ordering::Relaxed);
-    }
-
     fn snapshot(&self) -> (u64, u64, String) {
         let msg = self.msg.lock().map(|m| m.clone()).unwrap_or_default();
         (
