@@ -118,7 +118,7 @@ class _Bar:
                 from tqdm.auto import tqdm
             except ImportError:
                 return
-            self.bar = tqdm(total=None, desc=desc, unit=unit, unit_scale=True, leave=False)
+            self.bar = tqdm(total=None, desc=desc, unit=unit, unit_scale=unit == "rays", leave=False)
             self.callback = self._update
 
     def _update(self, done: int, total: int, msg: str) -> None:
@@ -346,15 +346,18 @@ def render(
     size: Size = (256, 256),
     seed: int = 1,
     texture_filter: str = "ray-cones",
-    progress: Progress = False,
+    progress: Progress = True,
 ) -> Render:
     """``frameless render``: what ``method`` displays at each refresh of
     ``[start, start + duration)`` under the simulated clock at ``rate`` samples per
     second. Yields ``(time, image)``, the image linear ``H×W×3`` float32 (the values
     of ``--format exr``'s frames; ``to_display`` gives the PNG frames' bytes). The
     settings are checked here, before the first image."""
+    rates = _rates(rate)
+    if len(rates) != 1:
+        raise ValueError(f"rate {rate!r}: render runs one rate")
     native = _frameless.NativeRender(
-        _scene(scene)._native, method, _rates(rate)[0], float(start), float(duration),
+        _scene(scene)._native, method, rates[0], float(start), float(duration),
         float(warmup), _size(size), float(refresh_hz), seed, texture_filter,
     )
     return Render(native, progress)

@@ -4,8 +4,8 @@
 //! here with the same bounds, the message naming the option.
 
 use frameless::{
-    clock::parse_rate, evaluation::live::LiveConfig, evaluation::EvalConfig,
-    methods::MethodKind, realtime::RtMethod, trace::TextureFilter,
+    clock::parse_rate, evaluation::live::LiveConfig, evaluation::EvalConfig, methods::MethodKind,
+    realtime::RtMethod, trace::TextureFilter,
 };
 use pyo3::{prelude::*, types::PyDict};
 

@@ -90,7 +90,12 @@ impl NativeScene {
         let time = args::finite("--time", time)?;
         let (w, h) = args::size(size)?;
         args::in_range("--spp", spp, 1, 65536)?;
-        args::in_range("--max-depth", max_depth, 0, frameless::limits::MAX_DEPTH as u64)?;
+        args::in_range(
+            "--max-depth",
+            max_depth,
+            0,
+            frameless::limits::MAX_DEPTH as u64,
+        )?;
         let options = TraceOptions {
             max_depth: max_depth as u32,
             texture_filter: args::texture_filter(texture_filter)?,
