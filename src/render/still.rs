@@ -27,7 +27,9 @@ pub fn render(
     let rows: Vec<Vec<glam::Vec3>> = (0..h)
         .into_par_iter()
         .map(|y| {
-            let row = (0..w).map(|x| pixel(tracer, &state, x, y, spp, seed)).collect();
+            let row = (0..w)
+                .map(|x| pixel(tracer, &state, x, y, spp, seed))
+                .collect();
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
             row
         })
@@ -41,7 +43,14 @@ pub fn render(
 
 /// Pixel `(x, y)` of [`render`]'s image, for callers that schedule the rows themselves
 /// (to stop between them): the same samples, so the same value.
-pub fn pixel(tracer: &Tracer, state: &SceneState, x: u32, y: u32, spp: u32, seed: u64) -> glam::Vec3 {
+pub fn pixel(
+    tracer: &Tracer,
+    state: &SceneState,
+    x: u32,
+    y: u32,
+    spp: u32,
+    seed: u64,
+) -> glam::Vec3 {
     let mut rng = Rng::new(&[seed, 0x5717, x as u64, y as u64]);
     let pts = stratified::unit_square(spp, &mut rng);
     let sum: glam::Vec3 = pts

@@ -39,7 +39,8 @@ pub fn load(name: &str) -> Option<Scene> {
 /// typo meant; `None` when it is a built-in name or looks like a file (it holds `/` or
 /// `.`, or exists), which the loaders judge instead.
 pub fn unknown_name(arg: &str) -> Option<String> {
-    let looks_like_path = arg.contains('/') || arg.contains('.') || std::path::Path::new(arg).exists();
+    let looks_like_path =
+        arg.contains('/') || arg.contains('.') || std::path::Path::new(arg).exists();
     if looks_like_path || NAMES.contains(&arg) {
         return None;
     }
