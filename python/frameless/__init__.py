@@ -106,7 +106,8 @@ def _cache_dir(cache_dir: Optional[PathLike], no_cache: bool) -> Optional[str]:
 
 class _Bar:
     """A tqdm bar fed by the native side's ``(done, total, message)`` reports, or the
-    caller's own callback, or nothing."""
+    caller's own callback, or nothing. The bar opens at the first report, so that work
+    refused at once or done within a tenth of a second shows none."""
 
     def __init__(self, progress: Progress, desc: str, unit: str):
         self.bar = None
@@ -118,10 +119,14 @@ class _Bar:
                 from tqdm.auto import tqdm
             except ImportError:
                 return
-            self.bar = tqdm(total=None, desc=desc, unit=unit, unit_scale=unit == "rays", leave=False)
+            self._open = lambda: tqdm(
+                total=None, desc=desc, unit=unit, unit_scale=unit == "rays", leave=False
+            )
             self.callback = self._update
 
     def _update(self, done: int, total: int, msg: str) -> None:
+        if self.bar is None:
+            self.bar = self._open()
         bar = self.bar
         if total and bar.total != total:
             bar.total = total
