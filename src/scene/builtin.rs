@@ -731,4 +731,18 @@ mod tests {
         assert_ne!(room.camera_at(1.0).eye, room.camera_at(2.0).eye);
         assert!(load("nope").is_none());
     }
+
+    #[test]
+    fn unknown_names_get_the_list_and_the_name_a_typo_meant() {
+        for name in NAMES {
+            assert_eq!(unknown_name(name), None);
+        }
+        // Files are the loaders' to judge.
+        assert_eq!(unknown_name("scenes/kitchen.aff"), None);
+        let why = unknown_name("toycat").expect("not a scene");
+        assert!(why.contains("did you mean `toycar`?"), "{why}");
+        let why = unknown_name("kitchen").expect("not a scene");
+        assert!(!why.contains("did you mean"), "{why}");
+        assert!(NAMES.iter().all(|n| why.contains(n)), "{why}");
+    }
 }
