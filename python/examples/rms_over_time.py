@@ -40,11 +40,13 @@ for row in ev.results:
 # %%
 try:
     import matplotlib.pyplot as plt
+
+    have_matplotlib = True
 except ImportError:
-    plt = None
+    have_matplotlib = False
     print("matplotlib is not installed: no plot")
 
-if plt is not None:
+if have_matplotlib:
     fig, ax = plt.subplots(figsize=(6, 3.5))
     for m in methods:
         pick = ev.frames["method"] == m

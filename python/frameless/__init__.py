@@ -110,7 +110,7 @@ class _Bar:
     refused at once or done within a tenth of a second shows none."""
 
     def __init__(self, progress: Progress, desc: str, unit: str):
-        self.bar = None
+        self.bar: Any = None
         self.callback: Optional[Callable[[int, int, str], Any]] = None
         if callable(progress):
             self.callback = progress
