@@ -183,6 +183,21 @@ def test_unknown_scene_and_missing_file_messages(tmp_path, binary):
         assert stderr == f"error: {e.value}" and words in stderr
 
 
+def test_bart_kitchen_still_equals_the_commands(tmp_path, binary):
+    # As the Rust tests: skipped without FRAMELESS_BART_DIR, failing if it names a
+    # folder without the scene.
+    bart = os.environ.get("FRAMELESS_BART_DIR")
+    if not bart:
+        pytest.skip("FRAMELESS_BART_DIR is not set")
+    kitchen = Path(bart) / "kitchen" / "kitchen.aff"
+    assert kitchen.is_file(), f"FRAMELESS_BART_DIR is set but {kitchen} is missing"
+    args = ["--time", "2", "--size", "40x30", "--spp", "2"]
+    cli(binary, "still", "--scene", kitchen, *args, "--out", tmp_path / "k.exr")
+    img = frameless.Scene.load(kitchen).still(2.0, size=(40, 30), spp=2, progress=False)
+    assert np.array_equal(bits(img), bits(read_exr(tmp_path / "k.exr")))
+    assert img.std() > 0.01
+
+
 def test_python_defaults_are_the_librarys():
     lib = frameless._frameless.defaults()
     ev = inspect.signature(frameless.evaluate).parameters
