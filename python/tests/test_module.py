@@ -40,11 +40,10 @@ def cli(binary, *args, ok=True):
 
 
 def read_exr(path: Path) -> np.ndarray:
-    with OpenEXR.File(str(path)) as f:
-        channels = f.channels()
-        if "RGB" in channels:
-            return np.asarray(channels["RGB"].pixels)
-        return np.stack([np.asarray(channels[c].pixels) for c in "RGB"], axis=-1)
+    channels = OpenEXR.File(str(path)).channels()
+    if "RGB" in channels:
+        return np.asarray(channels["RGB"].pixels)
+    return np.stack([np.asarray(channels[c].pixels) for c in "RGB"], axis=-1)
 
 
 def bits(a: np.ndarray) -> np.ndarray:
