@@ -224,3 +224,24 @@ def test_ctrl_c_stops_a_long_still(toycar):
     assert time.monotonic() - t0 < 5.0
     # The module still works afterwards.
     assert toycar.still(size=(8, 8), spp=1, progress=False).shape == (8, 8, 3)
+
+
+def test_long_work_releases_the_gil(toycar):
+    # A Python thread keeps counting while a still renders (here near 900 ticks a
+    # second); holding the GIL for the whole render would leave it at (nearly) none.
+    ticks, stop = [0], threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks[0] += 1
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    t0 = time.monotonic()
+    toycar.still(size=(192, 144), spp=128, progress=False)
+    seconds = time.monotonic() - t0
+    stop.set()
+    t.join()
+    assert seconds > 0.2, "the render is too short to tell"
+    assert ticks[0] > 10 * seconds, (ticks[0], seconds)
