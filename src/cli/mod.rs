@@ -704,39 +704,13 @@ fn default_cache_dir() -> std::path::PathBuf {
 
 /// Load a scene from a built-in name or a path, with a helpful error.
 pub fn load_scene(arg: &str) -> Result<Scene> {
-    let looks_like_path = arg.contains('/') || arg.contains('.') || Path::new(arg).exists();
-    if !looks_like_path && builtin::load(arg).is_none() {
-        let close = builtin::NAMES
-            .iter()
-            .find(|n| edit_distance(n, arg) <= 2)
-            .map(|n| format!(" (did you mean `{n}`?)"))
-            .unwrap_or_default();
-        bail!(
-            "unknown scene `{arg}`{close}: built-in scenes are {}; or give a scene file \
-             (.aff, .gltf, .glb, .obj)",
-            builtin::NAMES.join(", ")
-        );
+    if let Some(why) = builtin::unknown_name(arg) {
+        bail!(why);
     }
     let spinner = Meter::spinner(&format!("loading {arg}"));
     let s = scene::load(arg);
     spinner.finish();
     Ok(s?)
-}
-
-/// Levenshtein distance, for suggesting the name a typo meant.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut prev = row[0];
-        row[0] = i + 1;
-        for (j, &cb) in b.iter().enumerate() {
-            let here = row[j + 1];
-            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(here + 1);
-            prev = here;
-        }
-    }
-    row[b.len()]
 }
 
 /// `frameless report DIR`: an evaluation folder's report made again, or each of a

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use crate::{
     image::Image,
     sampling::{stratified, Rng},
-    trace::Tracer,
+    trace::{SceneState, Tracer},
 };
 
 /// Render the image at time `t` with `spp` samples per pixel. `progress` is called with
@@ -28,15 +28,7 @@ pub fn render(
         .into_par_iter()
         .map(|y| {
             let row = (0..w)
-                .map(|x| {
-                    let mut rng = Rng::new(&[seed, 0x5717, x as u64, y as u64]);
-                    let pts = stratified::unit_square(spp, &mut rng);
-                    let sum: glam::Vec3 = pts
-                        .iter()
-                        .map(|(dx, dy)| tracer.sample(&state, x as f32 + dx, y as f32 + dy).color)
-                        .sum();
-                    sum / pts.len() as f32
-                })
+                .map(|x| pixel(tracer, &state, x, y, spp, seed))
                 .collect();
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
             row
@@ -47,4 +39,23 @@ pub fn render(
         height: h,
         pixels: rows.into_iter().flatten().collect(),
     }
+}
+
+/// Pixel `(x, y)` of [`render`]'s image, for callers that schedule the rows themselves
+/// (to stop between them): the same samples, so the same value.
+pub fn pixel(
+    tracer: &Tracer,
+    state: &SceneState,
+    x: u32,
+    y: u32,
+    spp: u32,
+    seed: u64,
+) -> glam::Vec3 {
+    let mut rng = Rng::new(&[seed, 0x5717, x as u64, y as u64]);
+    let pts = stratified::unit_square(spp, &mut rng);
+    let sum: glam::Vec3 = pts
+        .iter()
+        .map(|(dx, dy)| tracer.sample(state, x as f32 + dx, y as f32 + dy).color)
+        .sum();
+    sum / pts.len() as f32
 }

@@ -35,6 +35,43 @@ pub fn load(name: &str) -> Option<Scene> {
     }
 }
 
+/// Why `arg` is taken for a built-in scene name that does not exist, with the name a
+/// typo meant; `None` when it is a built-in name or looks like a file (it holds `/` or
+/// `.`, or exists), which the loaders judge instead.
+pub fn unknown_name(arg: &str) -> Option<String> {
+    let looks_like_path =
+        arg.contains('/') || arg.contains('.') || std::path::Path::new(arg).exists();
+    if looks_like_path || NAMES.contains(&arg) {
+        return None;
+    }
+    let close = NAMES
+        .iter()
+        .find(|n| edit_distance(n, arg) <= 2)
+        .map(|n| format!(" (did you mean `{n}`?)"))
+        .unwrap_or_default();
+    Some(format!(
+        "unknown scene `{arg}`{close}: built-in scenes are {}; or give a scene file \
+         (.aff, .gltf, .glb, .obj)",
+        NAMES.join(", ")
+    ))
+}
+
+/// Levenshtein distance, for suggesting the name a typo meant.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut prev = row[0];
+        row[0] = i + 1;
+        for (j, &cb) in b.iter().enumerate() {
+            let here = row[j + 1];
+            row[j + 1] = (prev + usize::from(ca != cb)).min(row[j] + 1).min(here + 1);
+            prev = here;
+        }
+    }
+    row[b.len()]
+}
+
 /// Incremental construction of a scene.
 struct Builder {
     scene: Scene,
@@ -693,5 +730,19 @@ mod tests {
         let room = room();
         assert_ne!(room.camera_at(1.0).eye, room.camera_at(2.0).eye);
         assert!(load("nope").is_none());
+    }
+
+    #[test]
+    fn unknown_names_get_the_list_and_the_name_a_typo_meant() {
+        for name in NAMES {
+            assert_eq!(unknown_name(name), None);
+        }
+        // Files are the loaders' to judge.
+        assert_eq!(unknown_name("scenes/kitchen.aff"), None);
+        let why = unknown_name("toycat").expect("not a scene");
+        assert!(why.contains("did you mean `toycar`?"), "{why}");
+        let why = unknown_name("kitchen").expect("not a scene");
+        assert!(!why.contains("did you mean"), "{why}");
+        assert!(NAMES.iter().all(|n| why.contains(n)), "{why}");
     }
 }

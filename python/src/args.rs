@@ -1,0 +1,118 @@
+//! Arguments as the command line spells them (`"256x256"`, `"400k"`, method names),
+//! parsed by the library's parsers so that a bad one gets the command line's reason.
+//! The ranges clap checks on the command line (`--spp`, `--max-depth`, …) are checked
+//! here with the same bounds, the message naming the option.
+
+use frameless::{
+    clock::parse_rate, evaluation::live::LiveConfig, evaluation::EvalConfig, methods::MethodKind,
+    realtime::RtMethod, trace::TextureFilter,
+};
+use pyo3::{prelude::*, types::PyDict};
+
+use crate::errors::{message, value};
+
+/// `WxH`, as `--size` takes it.
+pub fn size(s: &str) -> PyResult<(u32, u32)> {
+    frameless::limits::parse_size(s).map_err(value)
+}
+
+/// Sample rates as `--rate` takes them (`100k`, `1.5M`, `400000`).
+pub fn rates(list: &[String]) -> PyResult<Vec<f64>> {
+    list.iter()
+        .map(|r| parse_rate(r).map_err(|e| value(message(&e))))
+        .collect()
+}
+
+/// Method names under the simulated clock, blanks around a name ignored.
+pub fn methods(list: &[String]) -> PyResult<Vec<MethodKind>> {
+    list.iter()
+        .map(|m| MethodKind::parse(m.trim()).map_err(|e| value(message(&e))))
+        .collect()
+}
+
+/// Method names of the real-time pipeline.
+pub fn rt_methods(list: &[String]) -> PyResult<Vec<RtMethod>> {
+    list.iter()
+        .map(|m| RtMethod::parse(m.trim()).map_err(|e| value(message(&e))))
+        .collect()
+}
+
+/// `--texture-filter`.
+pub fn texture_filter(name: &str) -> PyResult<TextureFilter> {
+    match name {
+        "ray-cones" => Ok(TextureFilter::RayCones),
+        "none" => Ok(TextureFilter::None),
+        _ => Err(value(format!(
+            "--texture-filter `{name}`: expected ray-cones or none"
+        ))),
+    }
+}
+
+/// A whole-number option clap bounds on the command line.
+pub fn in_range(option: &str, v: u64, lo: u64, hi: u64) -> PyResult<()> {
+    if (lo..=hi).contains(&v) {
+        Ok(())
+    } else {
+        Err(value(format!("{option}: {v} is not in {lo}..={hi}")))
+    }
+}
+
+/// A setting that must be a finite number, as every time and rate option is.
+pub fn finite(option: &str, v: f64) -> PyResult<f64> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(value(format!("{option} `{v}` is not finite")))
+    }
+}
+
+/// defaults()
+/// --
+///
+/// The library's defaults of `eval`, `live` and `still`, which the Python signatures
+/// repeat (a test holds them equal).
+#[pyfunction]
+fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    let e = EvalConfig::new("toycar");
+    let eval = PyDict::new(py);
+    let names = |ms: &[MethodKind]| ms.iter().map(|m| m.name()).collect::<Vec<_>>();
+    eval.set_item("methods", names(&e.methods))?;
+    eval.set_item("rates", e.rates.clone())?;
+    eval.set_item("start", e.start)?;
+    eval.set_item("duration", e.duration)?;
+    eval.set_item("size", (e.width, e.height))?;
+    eval.set_item("refresh_hz", e.refresh_hz)?;
+    eval.set_item("seed", e.seed)?;
+    eval.set_item("ideal_spp", e.ideal_spp)?;
+    eval.set_item("warmup", e.warmup)?;
+    eval.set_item("max_depth", e.max_depth)?;
+    eval.set_item("flip_every", e.flip_every)?;
+    d.set_item("evaluate", eval)?;
+    let l = LiveConfig::new("toycar");
+    let live = PyDict::new(py);
+    let rt: Vec<&str> = l.methods.iter().map(|m| m.name()).collect();
+    live.set_item("methods", rt)?;
+    live.set_item("start", l.start)?;
+    live.set_item("seconds", l.seconds)?;
+    live.set_item("warmup", l.warmup)?;
+    live.set_item("size", (l.width, l.height))?;
+    live.set_item("refresh_hz", l.refresh_hz)?;
+    live.set_item("repeat", l.repeat)?;
+    live.set_item("seed", l.seed)?;
+    live.set_item("ideal_spp", l.ideal_spp)?;
+    live.set_item("max_depth", l.max_depth)?;
+    d.set_item("live", live)?;
+    d.set_item("max_depth_limit", frameless::limits::MAX_DEPTH)?;
+    d.set_item("max_ideal_spp", frameless::limits::MAX_IDEAL_SPP)?;
+    d.set_item("scenes", frameless::scene::builtin::NAMES.to_vec())?;
+    let all: Vec<&str> = MethodKind::ALL.iter().map(|m| m.name()).collect();
+    d.set_item("all_methods", all)?;
+    let all_rt: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
+    d.set_item("all_live_methods", all_rt)?;
+    Ok(d)
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(defaults, m)?)
+}

@@ -1,0 +1,162 @@
+//! `frameless eval` and `frameless live` without their output folders: the summary
+//! and the per-refresh table come back as JSON text, which the Python side turns into
+//! dicts and numpy columns.
+
+use std::path::PathBuf;
+
+use frameless::evaluation::{self, live as live_eval, EvalConfig};
+use pyo3::prelude::*;
+
+use crate::{args, errors, scene::NativeScene, work};
+
+/// JSON text of something the library serialises (numbers and strings only).
+fn json<T: serde::Serialize>(v: &T) -> String {
+    serde_json::to_string(v).expect("summaries and rows serialise")
+}
+
+/// evaluate(scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
+///          warmup, max_depth, texture_filter, flip_every, cache_dir, progress=None)
+/// --
+///
+/// `frameless eval` with these settings: `(summary_json, frames_json)`; `cache_dir`
+/// None reads and writes no ideal-image cache.
+#[pyfunction]
+#[pyo3(signature = (scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
+                    warmup, max_depth, texture_filter, flip_every, cache_dir, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn evaluate(
+    py: Python<'_>,
+    scene: &NativeScene,
+    methods: Vec<String>,
+    rates: Vec<String>,
+    start: f64,
+    duration: f64,
+    size: &str,
+    refresh_hz: f64,
+    seed: u64,
+    ideal_spp: u64,
+    warmup: f64,
+    max_depth: u64,
+    texture_filter: &str,
+    flip_every: u64,
+    cache_dir: Option<PathBuf>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<(String, String)> {
+    let (width, height) = args::size(size)?;
+    args::in_range(
+        "--ideal-spp",
+        ideal_spp,
+        1,
+        frameless::limits::MAX_IDEAL_SPP as u64,
+    )?;
+    args::in_range(
+        "--max-depth",
+        max_depth,
+        0,
+        frameless::limits::MAX_DEPTH as u64,
+    )?;
+    args::in_range("--flip-every", flip_every, 1, u32::MAX as u64)?;
+    let mut cfg = EvalConfig {
+        scene_name: scene.name.clone(),
+        camera_path: scene.camera_path.clone(),
+        start: args::finite("--start", start)?,
+        duration: args::finite("--duration", duration)?,
+        width,
+        height,
+        rates: args::rates(&rates)?,
+        methods: args::methods(&methods)?,
+        seed,
+        ideal_spp: ideal_spp as u32,
+        warmup: args::finite("--warmup", warmup)?,
+        refresh_hz: args::finite("--refresh-hz", refresh_hz)?,
+        max_depth: max_depth as u32,
+        texture_filter: args::texture_filter(texture_filter)?,
+        cache_dir,
+        strip_frames: Vec::new(),
+        flip_every: flip_every as usize,
+        gpu: None,
+    };
+    // As the command line: image strips at the quartiles (they cost little and the
+    // run's ideal-image order does not depend on them).
+    cfg.strip_frames = cfg.quartile_frames();
+    cfg.validate().map_err(errors::eval)?;
+    let scene = scene.scene.clone();
+    work::run(py, progress.as_ref(), move |work| {
+        let out = evaluation::run(scene, &cfg, work).map_err(errors::eval)?;
+        Ok((json(&out.summary), json(&out.frames)))
+    })
+}
+
+/// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
+///      ideal_spp, max_depth, texture_filter, cache_dir, progress=None)
+/// --
+///
+/// `frameless live` with these settings: `(summary_json, frames_json)`.
+#[pyfunction]
+#[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
+                    seed, ideal_spp, max_depth, texture_filter, cache_dir, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn live(
+    py: Python<'_>,
+    scene: &NativeScene,
+    methods: Option<Vec<String>>,
+    start: f64,
+    seconds: f64,
+    warmup: f64,
+    size: &str,
+    refresh_hz: f64,
+    repeat: u64,
+    threads: Option<u64>,
+    seed: u64,
+    ideal_spp: u64,
+    max_depth: u64,
+    texture_filter: &str,
+    cache_dir: Option<PathBuf>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<(String, String)> {
+    let (w, h) = args::size(size)?;
+    args::in_range("--repeat", repeat, 1, 100)?;
+    args::in_range(
+        "--ideal-spp",
+        ideal_spp,
+        1,
+        frameless::limits::MAX_IDEAL_SPP as u64,
+    )?;
+    args::in_range(
+        "--max-depth",
+        max_depth,
+        0,
+        frameless::limits::MAX_DEPTH as u64,
+    )?;
+    let mut cfg = live_eval::LiveConfig::new(&scene.name);
+    cfg.camera_path = scene.camera_path.clone();
+    cfg.start = args::finite("--start", start)?;
+    cfg.seconds = args::finite("--seconds", seconds)?;
+    cfg.warmup = args::finite("--warmup", warmup)?;
+    (cfg.width, cfg.height) = (w, h);
+    cfg.refresh_hz = args::finite("--refresh-hz", refresh_hz)?;
+    if let Some(m) = methods {
+        cfg.methods = args::rt_methods(&m)?;
+    }
+    cfg.repeat = repeat as usize;
+    if let Some(n) = threads {
+        args::in_range("--threads", n, 1, 1024)?;
+        cfg.cores = n as usize;
+    }
+    cfg.seed = seed;
+    cfg.ideal_spp = ideal_spp as u32;
+    cfg.max_depth = max_depth as u32;
+    cfg.texture_filter = args::texture_filter(texture_filter)?;
+    cfg.cache_dir = cache_dir;
+    cfg.validate().map_err(errors::eval)?;
+    let scene = scene.scene.clone();
+    work::run(py, progress.as_ref(), move |work| {
+        let out = live_eval::run(scene, &cfg, work).map_err(errors::eval)?;
+        Ok((json(&out.summary), json(&out.frames)))
+    })
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(evaluate, m)?)?;
+    m.add_function(wrap_pyfunction!(live, m)?)
+}

@@ -1,0 +1,150 @@
+//! `frameless render` as an iterator: one `(time, image)` pair per refresh, the linear
+//! image its OpenEXR frame holds. The method runs on a thread of its own, one refresh
+//! ahead of the consumer; dropping the iterator stops it after that refresh.
+
+use std::{sync::Arc, time::Duration};
+
+use crossbeam_channel as mpsc;
+
+use frameless::{
+    clock::Clock,
+    evaluation::sequence::SequenceConfig,
+    image::{Image, ImageFormat},
+    methods::MethodContext,
+    trace::{TraceOptions, Tracer},
+};
+use numpy::PyArray3;
+use pyo3::{exceptions::PyRuntimeError, prelude::*};
+
+use crate::{args, errors, scene::NativeScene};
+
+/// What the method's thread sends: a refresh, or why it cannot run.
+type Frame = PyResult<(f64, Image)>;
+
+/// The displayed images of one method at every refresh of a window.
+#[pyclass(name = "NativeRender", module = "frameless._frameless")]
+pub struct NativeRender {
+    frames: mpsc::Receiver<Frame>,
+    /// Refreshes in the window.
+    #[pyo3(get)]
+    len: u64,
+}
+
+/// Trace the method refresh by refresh, sending each image (as `render_sequence`
+/// builds the method and steps it, without the files).
+fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::Sender<Frame>) {
+    let tracer = Tracer::new(
+        scene,
+        cfg.width,
+        cfg.height,
+        TraceOptions {
+            texture_filter: cfg.texture_filter,
+            ..TraceOptions::default()
+        },
+    )
+    .with_camera_path(cfg.camera_path.clone());
+    let ctx = MethodContext {
+        tracer: Arc::new(tracer),
+        clock: Clock {
+            start: cfg.start - cfg.warmup,
+            rate: cfg.rate,
+            first_refresh: cfg.start,
+            refresh_hz: cfg.refresh_hz,
+        },
+        seed: cfg.seed,
+        ideal_spp: 16,
+        ideal_cache: None,
+        gpu: None,
+    };
+    let mut method = match cfg.method.build(&ctx) {
+        Ok(m) => m,
+        Err(e) => {
+            let _ = tx.send(Err(errors::method(e)));
+            return;
+        }
+    };
+    for k in 0..cfg.frames() {
+        let t = cfg.start + k as f64 / cfg.refresh_hz;
+        let image = method.display(t).image.clone();
+        if tx.send(Ok((t, image))).is_err() {
+            return; // The iterator is gone.
+        }
+    }
+}
+
+#[pymethods]
+impl NativeRender {
+    /// NativeRender(scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
+    ///              texture_filter)
+    /// --
+    ///
+    /// Checks the settings as `frameless render` does, then starts the method.
+    #[new]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        scene: &NativeScene,
+        method: String,
+        rate: String,
+        start: f64,
+        duration: f64,
+        warmup: f64,
+        size: &str,
+        refresh_hz: f64,
+        seed: u64,
+        texture_filter: &str,
+    ) -> PyResult<Self> {
+        let (width, height) = args::size(size)?;
+        let cfg = SequenceConfig {
+            scene_name: scene.name.clone(),
+            camera_path: scene.camera_path.clone(),
+            method: args::methods(&[method])?[0],
+            rate: args::rates(&[rate])?[0],
+            start: args::finite("--start", start)?,
+            duration: args::finite("--duration", duration)?,
+            warmup: args::finite("--warmup", warmup)?,
+            refresh_hz: args::finite("--refresh-hz", refresh_hz)?,
+            width,
+            height,
+            seed,
+            texture_filter: args::texture_filter(texture_filter)?,
+            format: ImageFormat::Exr,
+            gpu: None,
+        };
+        cfg.validate().map_err(errors::eval)?;
+        let len = cfg.frames();
+        // One refresh traced ahead of the one being looked at.
+        let (tx, rx) = mpsc::bounded(1);
+        let scene = scene.scene.clone();
+        std::thread::Builder::new()
+            .name("frameless-render".into())
+            .spawn(move || produce(scene, cfg, tx))
+            .map_err(|e| PyRuntimeError::new_err(format!("starting a worker thread: {e}")))?;
+        Ok(Self { frames: rx, len })
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    /// The next `(time, image)`, waiting with the GIL released and Ctrl-C heard.
+    fn __next__<'py>(
+        &mut self,
+        py: Python<'py>,
+    ) -> PyResult<Option<(f64, Bound<'py, PyArray3<f32>>)>> {
+        loop {
+            let rx = &self.frames;
+            match py.detach(|| rx.recv_timeout(Duration::from_millis(100))) {
+                Ok(frame) => {
+                    let (t, image) = frame?;
+                    return Ok(Some((t, crate::to_array(py, &image))));
+                }
+                Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+                Err(mpsc::RecvTimeoutError::Disconnected) => return Ok(None),
+            }
+        }
+    }
+}
+
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<NativeRender>()
+}

@@ -1,0 +1,247 @@
+"""The `frameless` module against the `frameless` binary: a still equals the command's
+PNG and OpenEXR files (the EXR bit for bit), `evaluate` and `render` give the numbers
+and images of `frameless eval` and `frameless render`, a bad setting raises ValueError
+with the command's message, and long work stops on Ctrl-C.
+
+Needs the frameless binary: $FRAMELESS_BIN, else target/debug/frameless (cargo build).
+"""
+
+import _thread
+import inspect
+import json
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import OpenEXR
+import pytest
+from PIL import Image
+
+import frameless
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def binary() -> Path:
+    p = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "debug" / "frameless")
+    if not p.is_file():
+        pytest.fail(f"no frameless binary at {p}: run `cargo build` or set FRAMELESS_BIN")
+    return p
+
+
+def cli(binary, *args, ok=True):
+    p = subprocess.run([str(binary), *map(str, args)], capture_output=True, text=True)
+    assert (p.returncode == 0) == ok, p.stderr
+    return p
+
+
+def read_exr(path: Path) -> np.ndarray:
+    channels = OpenEXR.File(str(path)).channels()
+    if "RGB" in channels:
+        return np.asarray(channels["RGB"].pixels)
+    return np.stack([np.asarray(channels[c].pixels) for c in "RGB"], axis=-1)
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.float32).view(np.uint32)
+
+
+@pytest.fixture(scope="module")
+def toycar():
+    return frameless.Scene.load("toycar")
+
+
+def test_still_equals_the_commands_png_and_exr(tmp_path, binary, toycar):
+    args = ["--scene", "toycar", "--time", "0.75", "--size", "48x32", "--spp", "4", "--seed", "3"]
+    cli(binary, "still", *args, "--out", tmp_path / "s.exr")
+    cli(binary, "still", *args, "--out", tmp_path / "s.png")
+    img = toycar.still(0.75, size=(48, 32), spp=4, seed=3, progress=False)
+    assert img.shape == (32, 48, 3) and img.dtype == np.float32
+    exr = read_exr(tmp_path / "s.exr")
+    assert exr.shape == img.shape
+    assert np.array_equal(bits(exr), bits(img)), "EXR values differ"
+    png = np.asarray(Image.open(tmp_path / "s.png").convert("RGB"))
+    assert np.array_equal(png, frameless.to_display(img))
+    # Not a constant image: the comparison above could tell two renderings apart.
+    assert img.std() > 0.01
+
+
+def test_still_defaults_are_the_commands(tmp_path, binary, toycar):
+    cli(binary, "still", "--spp", "1", "--out", tmp_path / "d.exr")
+    img = toycar.still(spp=1, progress=False)
+    assert np.array_equal(bits(read_exr(tmp_path / "d.exr")), bits(img))
+
+
+def without_timing(summary: dict) -> dict:
+    assert "timing" in summary
+    return {k: v for k, v in summary.items() if k != "timing"}
+
+
+def test_evaluate_gives_the_numbers_of_summary_json(tmp_path, binary, toycar):
+    methods, rates = ["traditional-frameless", "adaptive", "taa"], ["200k", "400k"]
+    cli(
+        binary, "eval", "--scene", "toycar", "--size", "40x32", "--duration", "0.2",
+        "--warmup", "0.25", "--method", ",".join(methods), "--rate", ",".join(rates),
+        "--no-cache", "--out", tmp_path / "eval",
+    )
+    want = json.loads((tmp_path / "eval" / "summary.json").read_text())
+    calls = []
+    ev = frameless.evaluate(
+        toycar, methods=methods, rates=rates, duration=0.2, warmup=0.25, size=(40, 32),
+        no_cache=True, progress=lambda *a: calls.append(a),
+    )
+    assert without_timing(ev.summary) == without_timing(want)
+    assert len(ev.results) == len(methods) * len(rates)
+    # The per-frame table holds every method, rate and frame; its means are the rows'.
+    n = ev.summary["results"][0]["frames"]
+    assert len(ev.frames["rms"]) == len(ev.results) * n
+    for row in ev.results:
+        pick = (ev.frames["method"] == row["method"]) & (ev.frames["rate"] == row["rate"])
+        assert pick.sum() == n
+        assert ev.frames["rms"][pick].mean() == pytest.approx(row["rms_mean"], rel=1e-9)
+    done, total, _ = calls[-1]
+    assert total > 0 and done == total
+
+
+def test_render_yields_the_commands_exr_frames(tmp_path, binary, toycar):
+    args = ["--size", "32x24", "--duration", "0.05", "--warmup", "0.1", "--rate", "200k"]
+    cli(binary, "render", "--scene", "toycar", *args, "--format", "exr", "--out", tmp_path / "r")
+    frames = list(
+        frameless.render(toycar, "adaptive", "200k", size=(32, 24), duration=0.05, warmup=0.1)
+    )
+    files = sorted((tmp_path / "r").glob("frame_*.exr"))
+    assert len(frames) == len(files) == 3
+    for k, ((t, img), f) in enumerate(zip(frames, files)):
+        assert t == pytest.approx(k / 60.0)
+        assert np.array_equal(bits(img), bits(read_exr(f))), f.name
+
+
+# Settings the library checks: the whole message is the command's.
+LIBRARY_CHECKED = [
+    (["eval", "--duration", "-1"], lambda s: frameless.evaluate(s, duration=-1)),
+    (["eval", "--rate", "1", "--method", "framed-60hz"],
+     lambda s: frameless.evaluate(s, methods="framed-60hz", rates=1)),
+    (["eval", "--method", "adaptive,adaptive"],
+     lambda s: frameless.evaluate(s, methods=["adaptive", "adaptive"])),
+    (["eval", "--size", "4096x4097"], lambda s: frameless.evaluate(s, size=(4096, 4097))),
+    (["render", "--warmup", "-2"], lambda s: frameless.render(s, warmup=-2)),
+    (["live", "--seconds", "0"], lambda s: frameless.live(s, seconds=0)),
+]
+
+# Values clap parses on the command line ("invalid value '…' for '--opt <OPT>':
+# <reason>"): the reason is the command's.
+CLAP_PARSED = [
+    (["eval", "--size", "0x10"], lambda s: frameless.evaluate(s, size=(0, 10))),
+    (["eval", "--rate", "fast"], lambda s: frameless.evaluate(s, rates="fast")),
+    (["still", "--spp", "0"], lambda s: s.still(spp=0)),
+    (["still", "--max-depth", "65"], lambda s: s.still(max_depth=65)),
+]
+
+
+def cli_error(binary, *args) -> str:
+    p = cli(binary, *args, ok=False)
+    # Progress lines may come before the error when stderr is a pipe, and clap adds a
+    # hint after it.
+    errors = [line for line in p.stderr.splitlines() if line.startswith("error: ")]
+    assert len(errors) == 1, p.stderr
+    return errors[0]
+
+
+@pytest.mark.parametrize("cli_args, call", LIBRARY_CHECKED)
+def test_bad_settings_raise_value_error_with_the_commands_message(
+    tmp_path, binary, toycar, cli_args, call
+):
+    stderr = cli_error(binary, *cli_args, "--out", tmp_path / "x")
+    with pytest.raises(ValueError) as e:
+        call(toycar)
+    assert stderr == f"error: {e.value}"
+
+
+@pytest.mark.parametrize("cli_args, call", CLAP_PARSED)
+def test_bad_values_raise_value_error_with_the_commands_reason(
+    tmp_path, binary, toycar, cli_args, call
+):
+    stderr = cli_error(binary, *cli_args, "--out", tmp_path / "x.png")
+    with pytest.raises(ValueError) as e:
+        call(toycar)
+    reason = str(e.value).split(": ", 1)[-1]
+    assert len(reason) > 10 and reason in stderr, (str(e.value), stderr)
+
+
+def test_unknown_scene_and_missing_file_messages(tmp_path, binary):
+    cases = [("toycat", ValueError, "did you mean `toycar`"),
+             (str(tmp_path / "no.obj"), OSError, "no.obj")]
+    for name, exc, words in cases:
+        stderr = cli_error(binary, "still", "--scene", name, "--out", tmp_path / "x.png")
+        with pytest.raises(exc) as e:
+            frameless.Scene.load(name)
+        assert stderr == f"error: {e.value}" and words in stderr
+
+
+def test_bart_kitchen_still_equals_the_commands(tmp_path, binary):
+    # As the Rust tests: skipped without FRAMELESS_BART_DIR, failing if it names a
+    # folder without the scene.
+    bart = os.environ.get("FRAMELESS_BART_DIR")
+    if not bart:
+        pytest.skip("FRAMELESS_BART_DIR is not set")
+    kitchen = Path(bart) / "kitchen" / "kitchen.aff"
+    assert kitchen.is_file(), f"FRAMELESS_BART_DIR is set but {kitchen} is missing"
+    args = ["--time", "2", "--size", "40x30", "--spp", "2"]
+    cli(binary, "still", "--scene", kitchen, *args, "--out", tmp_path / "k.exr")
+    img = frameless.Scene.load(kitchen).still(2.0, size=(40, 30), spp=2, progress=False)
+    assert np.array_equal(bits(img), bits(read_exr(tmp_path / "k.exr")))
+    assert img.std() > 0.01
+
+
+def test_python_defaults_are_the_librarys():
+    lib = frameless._frameless.defaults()
+    ev = inspect.signature(frameless.evaluate).parameters
+    assert list(frameless.DEFAULT_METHODS) == lib["evaluate"]["methods"]
+    assert [float(r[:-1]) * 1e3 for r in frameless.DEFAULT_RATES] == lib["evaluate"]["rates"]
+    for k in ("start", "duration", "refresh_hz", "seed", "ideal_spp", "warmup", "max_depth",
+              "flip_every"):
+        assert ev[k].default == lib["evaluate"][k], k
+    assert tuple(ev["size"].default) == tuple(lib["evaluate"]["size"])
+    lv = inspect.signature(frameless.live).parameters
+    for k in ("start", "seconds", "warmup", "refresh_hz", "repeat", "seed", "ideal_spp",
+              "max_depth"):
+        assert lv[k].default == lib["live"][k], k
+    assert tuple(lv["size"].default) == tuple(lib["live"]["size"])
+    assert frameless.scenes() == lib["scenes"] and "toycar" in lib["scenes"]
+
+
+def test_ctrl_c_stops_a_long_still(toycar):
+    # Long enough to take many seconds here; Ctrl-C a quarter second in.
+    timer = threading.Timer(0.25, _thread.interrupt_main)
+    t0 = time.monotonic()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        toycar.still(size=(512, 384), spp=4096, progress=False)
+    assert time.monotonic() - t0 < 5.0
+    # The module still works afterwards.
+    assert toycar.still(size=(8, 8), spp=1, progress=False).shape == (8, 8, 3)
+
+
+def test_long_work_releases_the_gil(toycar):
+    # A Python thread keeps counting while a still renders (here near 900 ticks a
+    # second); holding the GIL for the whole render would leave it at (nearly) none.
+    ticks, stop = [0], threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks[0] += 1
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    t0 = time.monotonic()
+    toycar.still(size=(192, 144), spp=128, progress=False)
+    seconds = time.monotonic() - t0
+    stop.set()
+    t.join()
+    assert seconds > 0.2, "the render is too short to tell"
+    assert ticks[0] > 10 * seconds, (ticks[0], seconds)
