@@ -1,7 +1,8 @@
 //! The run budgets: how large, long and fast a run may be. Each is checked when the
 //! settings are validated, before anything is allocated or traced, and the error names
 //! the limit. Scene budgets (coordinates, triangles, textures, file sizes) are in
-//! [`crate::scene::limits`]. The README's "Input limits" table lists them all.
+//! [`crate::scene::limits`]. The "Input limits" table of
+//! `docs/usage.md` lists them all.
 
 /// Largest sample rate, samples per second of scene time: two orders of magnitude
 /// beyond what a CPU traces, so only a typing slip reaches it.

@@ -1,5 +1,5 @@
 //! The input budgets every loader enforces, in one place so that they are documented
-//! once (README, "Input limits") and a scene that passes them can always be built and
+//! once (`docs/usage.md`, "Input limits") and a scene that passes them can always be built and
 //! traced: no overflow in the BVH builder's surface areas, no allocation the machine
 //! cannot make.
 //!
