@@ -396,7 +396,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
             .with_context(|| format!("animation {}", anim.name))?;
         bar.finish();
         if let Some(keep) = &a.strip_rates {
-            out.strips.retain(|s| keep.contains(&s.0));
+            out.strips.retain(|s| keep.contains(&s.rate));
         }
         outputs.write_animation(anim.name, &mut out)?;
         let t = &out.summary.timing;

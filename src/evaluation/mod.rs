@@ -583,7 +583,7 @@ pub struct EvalOutput {
     pub summary: Summary,
     /// Every frame's measurements.
     pub frames: Vec<FrameRow>,
-    /// Strip images: `(rate, frame, [(label, 8-bit RGB)])`, the ideal image first.
+    /// Strip images: the ideal image and each method's at a few frames of each rate.
     pub strips: Vec<Strip>,
     /// The strip frames' linear images, when asked for ([`RunOptions::linear_strips`]).
     pub linear: Vec<LinearImage>,
@@ -628,8 +628,8 @@ pub struct RunOptions {
 /// A strip frame's image before display quantization.
 #[derive(Clone, Debug)]
 pub struct LinearImage {
-    /// `ideal` or the method's name.
-    pub label: String,
+    /// The method that showed it, or [`MethodKind::Ideal`] for the ideal image.
+    pub method: MethodKind,
     /// The rate column (`None` for the ideal image, which has none).
     pub rate: Option<f64>,
     /// Frame index in the window.
@@ -638,9 +638,37 @@ pub struct LinearImage {
     pub image: crate::image::Image,
 }
 
-/// Strip images at one rate and frame: `(rate, frame, [(label, 8-bit RGB)])`, the
-/// ideal image first.
-pub type Strip = (f64, usize, Vec<(String, Vec<u8>)>);
+/// Strip images at one rate and frame, as displayed (8-bit RGB).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strip {
+    /// The rate column.
+    pub rate: f64,
+    /// Frame index in the window.
+    pub frame: usize,
+    /// The ideal image of that frame.
+    pub ideal: Vec<u8>,
+    /// Each method's displayed image, in the run's method order.
+    pub shown: Vec<(MethodKind, Vec<u8>)>,
+}
+
+impl Strip {
+    /// A strip with the ideal image and no method's yet.
+    pub fn new(rate: f64, frame: usize, ideal: Vec<u8>) -> Strip {
+        Strip {
+            rate,
+            frame,
+            ideal,
+            shown: Vec::new(),
+        }
+    }
+
+    /// The panels left to right, each with the method that shows it: the ideal image
+    /// ([`MethodKind::Ideal`]) first, then the methods'.
+    pub fn panels(&self) -> impl Iterator<Item = (MethodKind, &[u8])> {
+        std::iter::once((MethodKind::Ideal, self.ideal.as_slice()))
+            .chain(self.shown.iter().map(|(m, rgb)| (*m, rgb.as_slice())))
+    }
+}
 
 /// One method's displayed images over the window, and what it cost.
 struct Shown {
@@ -764,7 +792,7 @@ pub fn run_with(
         .collect();
     for rate in &cfg.rates {
         for &k in &strip_frames {
-            strips.push((*rate, k, vec![("ideal".to_string(), ideal[k].clone())]));
+            strips.push(Strip::new(*rate, k, ideal[k].clone()));
         }
     }
     let mut linear = Vec::new();
@@ -778,7 +806,7 @@ pub fn run_with(
         let t0 = Instant::now();
         for &k in keep_linear {
             linear.push(LinearImage {
-                label: "ideal".into(),
+                method: MethodKind::Ideal,
                 rate: None,
                 frame: k,
                 image: ideal_image(&ctx, cfg.refresh(k)),
@@ -812,7 +840,7 @@ pub fn run_with(
         for r in &columns {
             for (k, image) in &shown.linear {
                 linear.push(LinearImage {
-                    label: kind.name().into(),
+                    method: kind,
                     rate: Some(*r),
                     frame: *k,
                     image: image.clone(),
@@ -823,8 +851,8 @@ pub fn run_with(
         for r in columns {
             let rows = frame_rows(cfg, kind, r, &shown, &metrics);
             results.push(aggregate(kind, r, &rows, &shown));
-            for (_, k, list) in strips.iter_mut().filter(|s| s.0 == r) {
-                list.push((kind.name().into(), shown.frames[*k].0.clone()));
+            for s in strips.iter_mut().filter(|s| s.rate == r) {
+                s.shown.push((kind, shown.frames[s.frame].0.clone()));
             }
             frames.extend(rows);
         }

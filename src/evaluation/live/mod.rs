@@ -397,13 +397,15 @@ pub struct LiveSummary {
     pub timing: LiveTiming,
 }
 
-/// Strip images at one refresh: the ideal image first, then each method's as its
+/// Strip images at one refresh, 8-bit RGB: the ideal image, and each method's as its
 /// median run (by mean RMS) showed it.
 pub struct LiveStrip {
     /// Refresh index in the window.
     pub frame: usize,
-    /// `(label, 8-bit RGB)`.
-    pub panels: Vec<(String, Vec<u8>)>,
+    /// The ideal image at the refresh's scan-out time.
+    pub ideal: Vec<u8>,
+    /// Each method's image, in the evaluation's method order.
+    pub shown: Vec<(RtMethod, Vec<u8>)>,
 }
 
 /// Everything a live evaluation produced.
@@ -655,7 +657,8 @@ fn assemble(
         .iter()
         .map(|&j| LiveStrip {
             frame: j,
-            panels: vec![("ideal".into(), ideal[j].clone())],
+            ideal: ideal[j].clone(),
+            shown: Vec::new(),
         })
         .collect();
     for &m in &cfg.methods {
@@ -675,7 +678,7 @@ fn assemble(
         by_rms.sort_by(|a, b| a.run.scores.rms.total_cmp(&b.run.scores.rms));
         let typical = by_rms[(by_rms.len() - 1) / 2];
         for (strip, image) in strips.iter_mut().zip(&typical.strip_images) {
-            strip.panels.push((m.name().to_string(), image.clone()));
+            strip.shown.push((m, image.clone()));
         }
     }
     let mut runs = Vec::new();

@@ -206,7 +206,7 @@ fn assemble(
     let mut strips: Vec<Strip> = Vec::new();
     for &rate in &cfg.rates {
         for &k in cfg.strip_frames.iter().filter(|&&k| k < n) {
-            strips.push((rate, k, vec![("ideal".to_string(), Vec::new())]));
+            strips.push(Strip::new(rate, k, Vec::new()));
         }
     }
     let mut ideal_from: Vec<Option<String>> = vec![None; strips.len()];
@@ -246,19 +246,22 @@ fn assemble(
         add_timing(&mut timing, &r.timing);
         for strip in r.decoded_strips(path)? {
             let (rate, frame, ideal, shown) = (strip.rate, strip.frame, strip.ideal, strip.shown);
-            let Some(i) = strips.iter().position(|s| s.0 == rate && s.1 == frame) else {
+            let Some(i) = strips
+                .iter()
+                .position(|s| s.rate == rate && s.frame == frame)
+            else {
                 return Err(not(format!(
                     "a strip at {} frame {frame}, which the sweep does not make",
                     rate_label(rate)
                 )));
             };
-            let slot = &mut strips[i].2;
+            let slot = &mut strips[i];
             match &ideal_from[i] {
                 None => {
-                    slot[0].1 = ideal;
+                    slot.ideal = ideal;
                     ideal_from[i] = Some(r.job.clone());
                 }
-                Some(first) if slot[0].1 != ideal => {
+                Some(first) if slot.ideal != ideal => {
                     return Err(SweepError::Inconsistent {
                         first: first.clone(),
                         second: r.job.clone(),
@@ -271,17 +274,18 @@ fn assemble(
                 }
                 Some(_) => {}
             }
-            slot.push((job.method.name().to_string(), shown));
+            slot.shown.push((job.method, shown));
         }
     }
     // Each strip holds the ideal image and one image per method.
-    if let Some((rate, k, _)) = strips.iter().find(|s| s.2.len() != 1 + cfg.methods.len()) {
+    if let Some(s) = strips.iter().find(|s| s.shown.len() != cfg.methods.len()) {
         return Err(SweepError::NotAResult {
             path: results[found[&sweep.instance_jobs(inst)[0].id()]].0.clone(),
             why: format!(
-                "the jobs of {} lack image strips at {} frame {k}",
+                "the jobs of {} lack image strips at {} frame {}",
                 sweep.folder(inst),
-                rate_label(*rate)
+                rate_label(s.rate),
+                s.frame
             ),
         });
     }

@@ -362,12 +362,12 @@ pub fn run_shard(
         let strips = out_job
             .strips
             .iter()
-            .map(|(rate, frame, list)| StripImages {
-                rate: *rate,
-                frame: *frame,
-                // A job's strips hold the ideal image and its one method's.
-                ideal_png: encode_png(&list[0].1, w, h),
-                shown_png: encode_png(&list[1].1, w, h),
+            .map(|s| StripImages {
+                rate: s.rate,
+                frame: s.frame,
+                ideal_png: encode_png(&s.ideal, w, h),
+                // A job runs one method.
+                shown_png: encode_png(&s.shown[0].1, w, h),
             })
             .collect();
         let result = JobResult {
