@@ -16,8 +16,8 @@ use frameless::{
 pub struct Size(pub u32, pub u32);
 
 impl FromStr for Size {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = frameless::limits::LimitError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
         let (w, h) = frameless::limits::parse_size(s)?;
         Ok(Size(w, h))
     }

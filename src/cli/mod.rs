@@ -15,8 +15,9 @@ use progress::Meter;
 
 use frameless::{
     bench,
-    evaluation::{self, report, EvalConfig},
+    evaluation::{self, report, EvalConfig, EvalError},
     image::ImageFormat,
+    limits::Setting,
     reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
     scene::{self, builtin, CameraPath, Scene},
@@ -41,7 +42,10 @@ pub(crate) fn main() -> std::process::ExitCode {
 fn message(e: &anyhow::Error) -> String {
     let mut msg = String::new();
     for cause in e.chain() {
-        let text = cause.to_string();
+        let text = match cause.downcast_ref::<EvalError>() {
+            Some(EvalError::Config { setting, why }) => format!("{} {why}", option(*setting)),
+            _ => cause.to_string(),
+        };
         if msg.ends_with(&text) {
             continue;
         }
@@ -51,6 +55,25 @@ fn message(e: &anyhow::Error) -> String {
         msg.push_str(&text);
     }
     msg
+}
+
+/// The option that sets `setting`, as the library's errors leave it to the binary to
+/// name.
+fn option(setting: Setting) -> &'static str {
+    match setting {
+        Setting::Warmup => "--warmup",
+        Setting::Duration => "--duration",
+        Setting::Seconds => "--seconds",
+        Setting::Start => "--start",
+        Setting::RefreshHz => "--refresh-hz",
+        Setting::Rates => "--rate",
+        Setting::Methods => "--method",
+        Setting::FlipEvery => "--flip-every",
+        Setting::IdealSpp => "--ideal-spp",
+        Setting::MaxDepth => "--max-depth",
+        Setting::Size => "--size",
+        Setting::Repeat => "--repeat",
+    }
 }
 
 /// Run one parsed command.

@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     clock::{rate_label, Clock},
-    limits,
+    limits::{self, Setting},
     methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
     reconstruction::device::{GpuContext, ReconUsed},
     render::cache::{IdealCache, Lookup},
@@ -28,10 +28,10 @@ use crate::{
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
     /// A setting is out of range.
-    #[error("{option} {why}")]
+    #[error("{setting} {why}")]
     Config {
-        /// The option, as users write it.
-        option: &'static str,
+        /// The setting (the binary names its option).
+        setting: Setting,
         /// What is wrong and what would do.
         why: String,
     },
@@ -101,10 +101,10 @@ impl EvalError {
         }
     }
 
-    fn config(option: &'static str, why: impl Into<String>) -> Self {
+    pub(crate) fn config(setting: Setting, why: impl ToString) -> Self {
         EvalError::Config {
-            option,
-            why: why.into(),
+            setting,
+            why: why.to_string(),
         }
     }
 }
@@ -276,38 +276,38 @@ impl EvalConfig {
 
     /// Check the settings; the error says what is wrong and how to fix it.
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::config(option, why));
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
         let times = [
-            ("--warmup", limits::check_warmup(self.warmup)),
-            ("--duration", limits::check_duration(self.duration)),
+            (Setting::Warmup, limits::check_warmup(self.warmup)),
+            (Setting::Duration, limits::check_duration(self.duration)),
             (
-                "--start",
+                Setting::Start,
                 limits::check_start(self.start, self.warmup, self.duration),
             ),
         ];
         for (option, check) in times {
             if let Err(why) = check {
-                return bad(option, why);
+                return bad(option, why.to_string());
             }
         }
         if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
-            return bad("refresh rate", why);
+            return bad(Setting::RefreshHz, why.to_string());
         }
         if self.rates.is_empty() {
-            return bad("--rates", "lists no rate".into());
+            return bad(Setting::Rates, "lists no rate".into());
         }
         if self.methods.is_empty() {
-            return bad("--methods", "lists no method".into());
+            return bad(Setting::Methods, "lists no method".into());
         }
         // Rows, files and plot series are keyed by method and by rate label: a repeat
         // would be run twice and overwrite itself.
         for (i, m) in self.methods.iter().enumerate() {
             if self.methods[..i].contains(m) {
-                return bad("--methods", format!("lists {m} twice"));
+                return bad(Setting::Methods, format!("lists {m} twice"));
             }
         }
         if let Err(why) = limits::check_rate_count(self.rates.len()) {
-            return bad("--rates", why);
+            return bad(Setting::Rates, why.to_string());
         }
         let mut labels: HashMap<String, f64> = HashMap::with_capacity(self.rates.len());
         for &r in &self.rates {
@@ -320,26 +320,26 @@ impl EvalConfig {
                         "{q} and {r} would both be labelled {label} (rates must differ in their first three digits)"
                     )
                 };
-                return bad("--rates", why);
+                return bad(Setting::Rates, why.to_string());
             }
             labels.insert(label, r);
         }
         if self.flip_every == 0 {
-            return bad("--flip-every", "must be at least 1".into());
+            return bad(Setting::FlipEvery, "must be at least 1".into());
         }
         if let Err(why) = limits::check_ideal_spp(self.ideal_spp) {
-            return bad("--ideal-spp", why);
+            return bad(Setting::IdealSpp, why.to_string());
         }
         if let Err(why) = limits::check_max_depth(self.max_depth) {
-            return bad("--max-depth", why);
+            return bad(Setting::MaxDepth, why.to_string());
         }
         if let Err(why) = limits::check_display(self.width, self.height) {
-            return bad("--size", why);
+            return bad(Setting::Size, why.to_string());
         }
         let shape = self.shape();
         for &r in &self.rates {
             if let Err(why) = limits::check_rate(r, shape.seconds) {
-                return bad("--rates", why);
+                return bad(Setting::Rates, why.to_string());
             }
             for m in &self.methods {
                 (m.info().check_rate)(&shape, r)?;

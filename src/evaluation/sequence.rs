@@ -98,21 +98,25 @@ impl SequenceConfig {
     /// Check the settings: the ranges, and the same checks as an evaluation of this
     /// method (e.g. a rate too low for a framed method to finish one frame).
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::Config { option, why });
-        if let Err(why) = crate::limits::check_duration(self.duration) {
-            return bad("--duration", why);
+        use crate::limits::{self, Setting};
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
+        if let Err(why) = limits::check_duration(self.duration) {
+            return bad(Setting::Duration, why.to_string());
         }
-        if let Err(why) = crate::limits::check_warmup(self.warmup) {
-            return bad("--warmup", why);
+        if let Err(why) = limits::check_warmup(self.warmup) {
+            return bad(Setting::Warmup, why.to_string());
         }
-        if let Err(why) = crate::limits::check_refresh_hz(self.refresh_hz) {
-            return bad("--refresh-hz", why);
+        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+            return bad(Setting::RefreshHz, why.to_string());
         }
         let frames = self.frames();
         if frames > MAX_FRAMES {
             return bad(
-                "--duration",
-                format!("gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower --refresh-hz"),
+                Setting::Duration,
+                format!(
+                    "gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower the \
+                     refresh rate"
+                ),
             );
         }
         EvalConfig {

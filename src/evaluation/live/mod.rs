@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{metrics, EvalError, Progress};
 use crate::{
-    limits,
+    limits::{self, Setting},
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
@@ -139,40 +139,42 @@ impl LiveConfig {
 
     /// Check the settings before any work; the error names the option.
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::Config { option, why });
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
         let checks = [
-            ("--warmup", limits::check_warmup(self.warmup)),
-            ("--seconds", limits::check_duration(self.seconds)),
+            (Setting::Warmup, limits::check_warmup(self.warmup)),
+            (Setting::Seconds, limits::check_duration(self.seconds)),
             (
-                "--start",
+                Setting::Start,
                 limits::check_start(self.start, self.warmup, self.seconds),
             ),
-            ("--size", limits::check_display(self.width, self.height)),
         ];
-        for (option, check) in checks {
+        for (setting, check) in checks {
             if let Err(why) = check {
-                return bad(option, why);
+                return bad(setting, why.to_string());
             }
         }
+        if let Err(why) = limits::check_display(self.width, self.height) {
+            return bad(Setting::Size, why);
+        }
         if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
-            return bad("--refresh-hz", why);
+            return bad(Setting::RefreshHz, why.to_string());
         }
         if self.methods.is_empty() {
-            return bad("--method", "lists no method".into());
+            return bad(Setting::Methods, "lists no method".into());
         }
         for (i, m) in self.methods.iter().enumerate() {
             if self.methods[..i].contains(m) {
-                return bad("--method", format!("lists {} twice", m.name()));
+                return bad(Setting::Methods, format!("lists {} twice", m.name()));
             }
         }
         if !(1..=MAX_REPEAT).contains(&self.repeat) {
             return bad(
-                "--repeat",
+                Setting::Repeat,
                 format!("{} must be in 1..={MAX_REPEAT}", self.repeat),
             );
         }
         if self.ideal_spp == 0 {
-            return bad("--ideal-spp", "must be at least 1".into());
+            return bad(Setting::IdealSpp, "must be at least 1".into());
         }
         for &m in &self.methods {
             let c = self.rt_config(m);
@@ -180,13 +182,13 @@ impl LiveConfig {
                 .validate()
                 .and_then(|()| c.check_size(self.width, self.height));
             if let Err(e) = check {
-                return bad("--method", format!("{}: {e}", m.name()));
+                return bad(Setting::Methods, format!("{}: {e}", m.name()));
             }
         }
         let why = "a run holds the images it shows and the ideal images of its window; \
-                   shorten --seconds or lower --refresh-hz or --size";
+                   record fewer seconds or lower the refresh rate or the size";
         if let Err(e) = limits::check_buffer("live recording", self.run_bytes(), why) {
-            return bad("--seconds", e);
+            return bad(Setting::Seconds, e.to_string());
         }
         Ok(())
     }

@@ -677,12 +677,9 @@ impl Sweep {
         for inst in self.instances() {
             let e = &self.evaluations[inst.evaluation];
             if let Err(err) = self.config(&inst, None, None).validate() {
-                // The evaluation's checks name command-line options; here they are keys.
                 let (key, why) = match err {
-                    EvalError::Config { option, why } => {
-                        (option.trim_start_matches("--").replace('-', "_"), why)
-                    }
-                    other => ("settings".into(), other.to_string()),
+                    EvalError::Config { setting, why } => (setting.key(), why),
+                    other => ("settings", other.to_string()),
                 };
                 return Err(SweepError::Invalid {
                     file: file.to_string(),
