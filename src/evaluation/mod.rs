@@ -742,28 +742,15 @@ pub fn run_with(
     };
     let n = cfg.frames();
     let runs = cfg.runs();
-    let shape = cfg.shape();
-    // Progress in rays. A cached ideal image costs a read, counted as one sample per
-    // pixel; whether it is cached is known (up to a rare rejected entry) from its file.
-    let pixels = cfg.width as u64 * cfg.height as u64;
-    let ideal_units = |k: usize| match &cache {
-        Some(c)
-            if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
-                .is_file() =>
-        {
-            pixels
-        }
-        _ => pixels * cfg.ideal_spp as u64,
-    };
-    // A method's refresh costs its samples and, besides, work over every pixel (its
-    // image, the metrics); on a 2-core machine that work was worth about one ray a pixel.
-    let run_units = |kind: MethodKind, rate: f64| {
-        let rate = kind.info().budget.effective_rate(&shape, rate);
-        (rate * shape.seconds) as u64 + n as u64 * pixels
+    let units = Units {
+        cfg,
+        cache: cache.as_deref(),
+        pixels: cfg.width as u64 * cfg.height as u64,
+        shape: cfg.shape(),
     };
     progress.total(
-        (0..n).map(ideal_units).sum::<u64>()
-            + runs.iter().map(|&(k, r)| run_units(k, r)).sum::<u64>(),
+        (0..n).map(|k| units.ideal(k)).sum::<u64>()
+            + runs.iter().map(|&(k, r)| units.run(k, r)).sum::<u64>(),
     );
     let mut timing = Timing::default();
     let ctx_for = |rate: f64| MethodContext {
@@ -780,56 +767,151 @@ pub fn run_with(
         &ctx_for(cfg.rates[0]),
         options.first_ideal,
         &mut timing,
-        &ideal_units,
+        &|k| units.ideal(k),
         progress,
     );
-    let mut strips: Vec<Strip> = Vec::new();
     let strip_frames: Vec<usize> = cfg
         .strip_frames
         .iter()
         .copied()
         .filter(|&k| k < n)
         .collect();
+    let mut strips: Vec<Strip> = Vec::new();
     for rate in &cfg.rates {
         for &k in &strip_frames {
             strips.push(Strip::new(*rate, k, ideal[k].clone()));
         }
     }
-    let mut linear = Vec::new();
     let keep_linear: &[usize] = if options.linear_strips {
         &strip_frames
     } else {
         &[]
     };
-    if !keep_linear.is_empty() {
-        let ctx = ctx_for(cfg.rates[0]);
+    let mut out = Collected {
+        frames: Vec::new(),
+        results: Vec::new(),
+        strips,
+        linear: linear_ideals(cfg, &ctx_for(cfg.rates[0]), keep_linear, &mut timing),
+    };
+    for (kind, rate) in runs {
+        let run = MethodRun {
+            kind,
+            rate,
+            keep_linear,
+            ideal: &ideal,
+        };
+        run.evaluate(cfg, &ctx_for(rate), &units, &mut timing, &mut out, progress)?;
+    }
+    Ok(EvalOutput {
+        summary: cfg.summary(out.results, timing),
+        frames: out.frames,
+        strips: out.strips,
+        linear: out.linear,
+    })
+}
+
+/// How much work an evaluation's parts are, in rays, for progress.
+struct Units<'a> {
+    cfg: &'a EvalConfig,
+    cache: Option<&'a IdealCache>,
+    pixels: u64,
+    shape: RunShape,
+}
+
+impl Units<'_> {
+    /// The ideal image of refresh `k`. A cached one costs a read, counted as one sample
+    /// per pixel; whether it is cached is known (up to a rare rejected entry) from its
+    /// file.
+    fn ideal(&self, k: usize) -> u64 {
+        let cfg = self.cfg;
+        match self.cache {
+            Some(c)
+                if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
+                    .is_file() =>
+            {
+                self.pixels
+            }
+            _ => self.pixels * cfg.ideal_spp as u64,
+        }
+    }
+
+    /// A method's run at `rate`. A refresh costs its samples and, besides, work over
+    /// every pixel (its image, the metrics); on a 2-core machine that work was worth
+    /// about one ray a pixel.
+    fn run(&self, kind: MethodKind, rate: f64) -> u64 {
+        let rate = kind.info().budget.effective_rate(&self.shape, rate);
+        (rate * self.shape.seconds) as u64 + self.cfg.frames() as u64 * self.pixels
+    }
+}
+
+/// The linear ideal images of the refreshes `keep` (none unless HDR strips are asked
+/// for), rendered again since the cache holds them as displayed.
+fn linear_ideals(
+    cfg: &EvalConfig,
+    ctx: &MethodContext,
+    keep: &[usize],
+    timing: &mut Timing,
+) -> Vec<LinearImage> {
+    let mut linear = Vec::new();
+    if !keep.is_empty() {
         let t0 = Instant::now();
-        for &k in keep_linear {
+        for &k in keep {
             linear.push(LinearImage {
                 method: MethodKind::Ideal,
                 rate: None,
                 frame: k,
-                image: ideal_image(&ctx, cfg.refresh(k)),
+                image: ideal_image(ctx, cfg.refresh(k)),
             });
         }
         timing.ideal_s += t0.elapsed().as_secs_f64();
     }
-    let mut frames = Vec::new();
-    let mut results = Vec::new();
-    for (kind, rate) in runs {
-        let mut method = kind.build(&ctx_for(rate))?;
+    linear
+}
+
+/// What the runs have produced so far.
+struct Collected {
+    frames: Vec<FrameRow>,
+    results: Vec<ResultRow>,
+    strips: Vec<Strip>,
+    linear: Vec<LinearImage>,
+}
+
+/// One method's run at one rate.
+struct MethodRun<'a> {
+    kind: MethodKind,
+    rate: f64,
+    /// Refreshes whose linear images are kept.
+    keep_linear: &'a [usize],
+    /// The ideal image of every refresh, as displayed.
+    ideal: &'a [Vec<u8>],
+}
+
+impl MethodRun<'_> {
+    /// Run the method, measure what it showed and add its rows, results, strip panels
+    /// and linear images to `out`.
+    fn evaluate(
+        &self,
+        cfg: &EvalConfig,
+        ctx: &MethodContext,
+        units: &Units<'_>,
+        timing: &mut Timing,
+        out: &mut Collected,
+        progress: &dyn Progress,
+    ) -> Result<(), EvalError> {
+        let (kind, rate) = (self.kind, self.rate);
+        let mut method = kind.build(ctx)?;
         let tm = Instant::now();
-        let mut shown = show(cfg, kind, rate, method.as_mut(), keep_linear, progress)?;
+        let mut shown = show(cfg, kind, rate, method.as_mut(), self.keep_linear, progress)?;
         warn_of_gpu_failure(kind, rate, &shown, progress);
         // Methods may trace less than their budget; the total counted the budget.
         progress.advance(
             kind.name(),
-            run_units(kind, rate).saturating_sub(shown.counted),
+            units.run(kind, rate).saturating_sub(shown.counted),
         );
         timing.methods_s += tm.elapsed().as_secs_f64();
         timing.trace_s += method.trace_seconds();
         let tq = Instant::now();
-        let metrics = measure(cfg, &shown.frames, &ideal);
+        let metrics = measure(cfg, &shown.frames, self.ideal);
         timing.metrics_s += tq.elapsed().as_secs_f64();
         // A rate-independent method's one run fills every rate column.
         let columns = if kind.rate_independent() {
@@ -839,7 +921,7 @@ pub fn run_with(
         };
         for r in &columns {
             for (k, image) in &shown.linear {
-                linear.push(LinearImage {
+                out.linear.push(LinearImage {
                     method: kind,
                     rate: Some(*r),
                     frame: *k,
@@ -850,19 +932,14 @@ pub fn run_with(
         shown.linear.clear();
         for r in columns {
             let rows = frame_rows(cfg, kind, r, &shown, &metrics);
-            results.push(aggregate(kind, r, &rows, &shown));
-            for s in strips.iter_mut().filter(|s| s.rate == r) {
+            out.results.push(aggregate(kind, r, &rows, &shown));
+            for s in out.strips.iter_mut().filter(|s| s.rate == r) {
                 s.shown.push((kind, shown.frames[s.frame].0.clone()));
             }
-            frames.extend(rows);
+            out.frames.extend(rows);
         }
+        Ok(())
     }
-    Ok(EvalOutput {
-        summary: cfg.summary(results, timing),
-        frames,
-        strips,
-        linear,
-    })
 }
 
 /// With a GPU, build each method once, so that one whose reconstructor the GPU cannot

@@ -627,7 +627,7 @@ impl Sweep {
             (methods_at, "methods", methods.len()),
             (rates_at, "rates", rates.len()),
         ];
-        if let Some(&(at, key, _)) = lists.iter().find(|l| l.2 == 0) {
+        if let Some(&(at, key, _)) = lists.iter().find(|&&(_, _, len)| len == 0) {
             return Err(invalid(at, key, "lists nothing".into()));
         }
         // Job names are built from these; a repeat would be one job run twice.
