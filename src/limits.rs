@@ -30,81 +30,6 @@ pub const MAX_DISPLAY_PIXELS: u64 = 1 << 24;
 /// kept.
 pub const MAX_SIDE: u32 = 16384;
 
-/// A run setting, as an error names it. The library says which setting is wrong; the
-/// command line and sweep files each spell it their own way ([`Setting::key`] for
-/// sweep files, the option name in the binary).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Setting {
-    /// Seconds of scene time each method runs before the window.
-    Warmup,
-    /// The window's length, seconds of scene time.
-    Duration,
-    /// Wall seconds a live run records.
-    Seconds,
-    /// The window's first scene time.
-    Start,
-    /// The display's refresh rate.
-    RefreshHz,
-    /// The sample budgets.
-    Rates,
-    /// The methods.
-    Methods,
-    /// Every how many frames FLIP is computed.
-    FlipEvery,
-    /// The ideal image's samples per pixel.
-    IdealSpp,
-    /// The reflection/refraction depth limit.
-    MaxDepth,
-    /// The display size.
-    Size,
-    /// How many times each live method runs.
-    Repeat,
-}
-
-impl Setting {
-    /// The setting's name in a sweep file.
-    pub fn key(self) -> &'static str {
-        match self {
-            Setting::Warmup => "warmup",
-            Setting::Duration => "duration",
-            Setting::Seconds => "seconds",
-            Setting::Start => "start",
-            Setting::RefreshHz => "refresh_hz",
-            Setting::Rates => "rates",
-            Setting::Methods => "methods",
-            Setting::FlipEvery => "flip_every",
-            Setting::IdealSpp => "ideal_spp",
-            Setting::MaxDepth => "max_depth",
-            Setting::Size => "size",
-            Setting::Repeat => "repeat",
-        }
-    }
-
-    /// The setting in words, for messages that reach neither a command line nor a file.
-    pub fn words(self) -> &'static str {
-        match self {
-            Setting::Warmup => "warm-up",
-            Setting::Duration => "duration",
-            Setting::Seconds => "recorded seconds",
-            Setting::Start => "start",
-            Setting::RefreshHz => "refresh rate",
-            Setting::Rates => "rates",
-            Setting::Methods => "methods",
-            Setting::FlipEvery => "FLIP interval",
-            Setting::IdealSpp => "ideal samples per pixel",
-            Setting::MaxDepth => "depth limit",
-            Setting::Size => "size",
-            Setting::Repeat => "repeat count",
-        }
-    }
-}
-
-impl std::fmt::Display for Setting {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.words())
-    }
-}
-
 /// A setting past its budget, or a size that does not parse. The message names the
 /// value and the limit; the caller names the setting.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -368,6 +293,20 @@ pub fn check_refresh_hz(hz: f64) -> Result<(), LimitError> {
         return Err(out_of(
             format!("{} Hz", num(hz)),
             format!("[{}, {}]", num(MIN_REFRESH_HZ), num(MAX_REFRESH_HZ)),
+        ));
+    }
+    Ok(())
+}
+
+/// Longest run of the viewer or of a headless real-time run, wall seconds: a day.
+pub const MAX_VIEW_SECONDS: f64 = 86_400.0;
+
+/// Check a viewer's or headless run's length against [`MAX_VIEW_SECONDS`].
+pub fn check_view_seconds(seconds: f64) -> Result<(), LimitError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_VIEW_SECONDS) {
+        return Err(out_of(
+            num(seconds),
+            format!("(0, {}]", num(MAX_VIEW_SECONDS)),
         ));
     }
     Ok(())

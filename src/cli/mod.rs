@@ -17,10 +17,10 @@ use frameless::{
     bench,
     evaluation::{self, report, EvalConfig, EvalError},
     image::ImageFormat,
-    limits::Setting,
     reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
     scene::{self, builtin, CameraPath, Scene},
+    settings::{self, Setting},
     trace::{TraceOptions, Tracer},
 };
 
@@ -101,8 +101,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 w,
                 h,
                 TraceOptions {
-                    max_depth: a.max_depth,
-                    texture_filter: a.texture_filter,
+                    max_depth: a.depth.max_depth,
+                    texture_filter: a.filter.texture_filter,
                 },
             )
             .with_camera_path(path);
@@ -252,11 +252,11 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         rates: a.rates.clone(),
         methods: a.methods.clone(),
         seed: a.seed,
-        ideal_spp: a.ideal_spp,
+        ideal_spp: a.ideal.ideal_spp,
         warmup: a.warmup,
         refresh_hz: a.refresh_hz,
-        max_depth: a.max_depth,
-        texture_filter: a.texture_filter,
+        max_depth: a.depth.max_depth,
+        texture_filter: a.filter.texture_filter,
         cache_dir,
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
@@ -307,7 +307,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         width: w,
         height: h,
         seed: a.seed,
-        texture_filter: a.texture_filter,
+        texture_filter: a.filter.texture_filter,
         format: match a.format {
             args::FrameFormat::Png => ImageFormat::Png,
             args::FrameFormat::Exr => ImageFormat::Exr,
@@ -426,11 +426,11 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
             None => evaluation::table1::METHODS.to_vec(),
         },
         seed: a.seed,
-        ideal_spp: a.ideal_spp,
+        ideal_spp: a.ideal.ideal_spp,
         warmup: anim.warmup,
-        refresh_hz: 60.0,
-        max_depth: 5,
-        texture_filter: a.texture_filter,
+        refresh_hz: settings::REFRESH_HZ,
+        max_depth: settings::MAX_DEPTH,
+        texture_filter: a.filter.texture_filter,
         cache_dir: Some(a.cache_dir.clone().unwrap_or_else(default_cache_dir)),
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
@@ -586,9 +586,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     }
     let mut cfg = view_config(&a, threads)?;
     if let Some(s) = a.seconds {
-        if !(s > 0.0 && s <= 86400.0) {
-            bail!("--seconds {s} must be in (0, 86400]");
-        }
+        frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--seconds {e}"))?;
     }
     let Size(w, h) = a.size;
     cfg.check_size(w, h)?;
@@ -600,7 +598,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
             w,
             h,
             TraceOptions {
-                texture_filter: a.texture_filter,
+                texture_filter: a.filter.texture_filter,
                 ..TraceOptions::default()
             },
         )
@@ -736,9 +734,9 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
         cfg.cores = n as usize;
     }
     cfg.seed = a.seed;
-    cfg.ideal_spp = a.ideal_spp;
-    cfg.max_depth = a.max_depth;
-    cfg.texture_filter = a.texture_filter;
+    cfg.ideal_spp = a.ideal.ideal_spp;
+    cfg.max_depth = a.depth.max_depth;
+    cfg.texture_filter = a.filter.texture_filter;
     cfg.cache_dir = (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir));
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.recon.recon)?;

@@ -98,7 +98,7 @@ impl SequenceConfig {
     /// Check the settings: the ranges, and the same checks as an evaluation of this
     /// method (e.g. a rate too low for a framed method to finish one frame).
     pub fn validate(&self) -> Result<(), EvalError> {
-        use crate::limits::{self, Setting};
+        use crate::{limits, settings::Setting};
         let bad = |setting, why: String| Err(EvalError::config(setting, why));
         if let Err(why) = limits::check_duration(self.duration) {
             return bad(Setting::Duration, why.to_string());
@@ -132,7 +132,7 @@ impl SequenceConfig {
             ideal_spp: 1,
             warmup: self.warmup,
             refresh_hz: self.refresh_hz,
-            max_depth: 5,
+            max_depth: crate::settings::MAX_DEPTH,
             texture_filter: self.texture_filter,
             cache_dir: None,
             strip_frames: Vec::new(),
@@ -176,7 +176,7 @@ pub fn render_sequence(
             refresh_hz: cfg.refresh_hz,
         },
         seed: cfg.seed,
-        ideal_spp: 16,
+        ideal_spp: crate::settings::IDEAL_SPP,
         ideal_cache: None,
         gpu: cfg.gpu.clone(),
     };

@@ -155,11 +155,8 @@ pub fn run_headless(
 }
 
 fn check_options(opts: &HeadlessOptions) -> Result<(), RealtimeError> {
-    if !(opts.seconds.is_finite() && opts.seconds > 0.0 && opts.seconds <= 86400.0) {
-        return Err(RealtimeError::Config(format!(
-            "seconds {} out of range (0, 86400]",
-            opts.seconds
-        )));
+    if let Err(e) = crate::limits::check_view_seconds(opts.seconds) {
+        return Err(RealtimeError::Config(format!("seconds {e}")));
     }
     if opts.images > MAX_IMAGES {
         return Err(RealtimeError::Config(format!(

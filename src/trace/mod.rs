@@ -174,7 +174,7 @@ pub struct TraceOptions {
 impl Default for TraceOptions {
     fn default() -> Self {
         Self {
-            max_depth: 5,
+            max_depth: crate::settings::MAX_DEPTH,
             texture_filter: TextureFilter::None,
         }
     }

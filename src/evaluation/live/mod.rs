@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{metrics, EvalError, Progress};
 use crate::{
-    limits::{self, Setting},
+    limits,
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
@@ -32,6 +32,7 @@ use crate::{
     reconstruction::device::{GpuContext, ReconUsed},
     render::{cache::IdealCache, cache::Lookup, still},
     scene::{CameraPath, Scene},
+    settings::{self, Setting},
     trace::{TextureFilter, TraceOptions, Tracer},
 };
 
@@ -91,15 +92,15 @@ impl LiveConfig {
             start: 0.0,
             seconds: 3.0,
             warmup: 1.0,
-            width: 256,
-            height: 256,
-            refresh_hz: 60.0,
+            width: settings::SIZE.0,
+            height: settings::SIZE.1,
+            refresh_hz: settings::REFRESH_HZ,
             methods: RtMethod::ALL.to_vec(),
             repeat: 1,
             cores: machine::cores(),
-            seed: 1,
-            ideal_spp: 16,
-            max_depth: 5,
+            seed: settings::SEED,
+            ideal_spp: settings::IDEAL_SPP,
+            max_depth: settings::MAX_DEPTH,
             texture_filter: TextureFilter::RayCones,
             cache_dir: None,
             gpu: None,

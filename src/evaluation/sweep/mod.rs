@@ -286,16 +286,16 @@ impl<'de> Deserialize<'de> for Size {
 }
 
 fn default_ideal_spp() -> u32 {
-    16
+    crate::settings::IDEAL_SPP
 }
 fn default_max_depth() -> u32 {
-    5
+    crate::settings::MAX_DEPTH
 }
 fn default_flip_every() -> u32 {
     1
 }
 fn default_refresh_hz() -> f64 {
-    60.0
+    crate::settings::REFRESH_HZ
 }
 
 /// The file as written; checked and turned into a [`Sweep`] by [`Sweep::parse`].
