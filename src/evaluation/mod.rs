@@ -734,13 +734,7 @@ pub fn run_with(
         )
         .with_camera_path(cfg.camera_path.clone()),
     );
-    let cache = match &cfg.cache_dir {
-        Some(dir) => Some(Arc::new(
-            IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
-                .map_err(|e| EvalError::io(dir, e))?,
-        )),
-        None => None,
-    };
+    let cache = open_cache(cfg, &tracer)?;
     let n = cfg.frames();
     let runs = cfg.runs();
     let units = Units {
@@ -771,18 +765,14 @@ pub fn run_with(
         &|k| units.ideal(k),
         progress,
     );
+    // Strip frames past the window are left out.
     let strip_frames: Vec<usize> = cfg
         .strip_frames
         .iter()
         .copied()
         .filter(|&k| k < n)
         .collect();
-    let mut strips: Vec<Strip> = Vec::new();
-    for rate in &cfg.rates {
-        for &k in &strip_frames {
-            strips.push(Strip::new(*rate, k, ideal[k].clone()));
-        }
-    }
+    let strips = ideal_strips(cfg, &strip_frames, &ideal);
     let keep_linear: &[usize] = if options.linear_strips {
         &strip_frames
     } else {
@@ -808,6 +798,26 @@ pub fn run_with(
         frames: out.frames,
         strips: out.strips,
         linear: out.linear,
+    })
+}
+
+/// A strip at every rate and every one of `frames`, each with its ideal image.
+fn ideal_strips(cfg: &EvalConfig, frames: &[usize], ideal: &[Vec<u8>]) -> Vec<Strip> {
+    cfg.rates
+        .iter()
+        .flat_map(|&rate| frames.iter().map(move |&k| (rate, k)))
+        .map(|(rate, k)| Strip::new(rate, k, ideal[k].clone()))
+        .collect()
+}
+
+/// The ideal-image cache of the run, if it asks for one.
+fn open_cache(cfg: &EvalConfig, tracer: &Tracer) -> Result<Option<Arc<IdealCache>>, EvalError> {
+    Ok(match &cfg.cache_dir {
+        Some(dir) => Some(Arc::new(
+            IdealCache::new(dir, tracer, cfg.camera_path.as_ref())
+                .map_err(|e| EvalError::io(dir, e))?,
+        )),
+        None => None,
     })
 }
 
