@@ -484,10 +484,7 @@ fn table1_animation(
 }
 
 fn sampler(a: args::SamplerArgs) -> Result<()> {
-    use frameless::methods::{
-        adaptive::{vis, Adaptive, SamplerParams},
-        Method, MethodContext,
-    };
+    use frameless::methods::{adaptive::Adaptive, Method, MethodContext};
     frameless::output::check_folder_target(&a.out)?;
     let rate = a.rate;
     use frameless::limits;
@@ -495,16 +492,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
     limits::check_refresh_hz(a.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
-    let mut params = match a.preset {
-        args::SamplerPreset::Ours => SamplerParams::ours(),
-        args::SamplerPreset::Paper => SamplerParams::paper(),
-    };
-    if a.no_reprojection {
-        params.reprojection = false;
-    }
-    params.gain_control = !a.no_gain_control;
-    params.occlusion_term = !a.no_occlusion_term;
-    params.uniform_tiling = a.uniform_tiling;
+    let params = sampler_params(&a);
     let Size(w, h) = a.size;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
@@ -538,16 +526,48 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     bar.finish();
     let wall = t0.elapsed().as_secs_f64();
     let end = a.start + frames as f64 / a.refresh_hz;
+    let stats = write_sampler_outputs(&a, m.sampler(), &display, end, wall)?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    println!("images: {}", a.out.display());
+    Ok(())
+}
+
+/// The sampler's parameters: `--preset` with the ablations asked for.
+fn sampler_params(a: &args::SamplerArgs) -> frameless::methods::adaptive::SamplerParams {
+    use frameless::methods::adaptive::SamplerParams;
+    let mut params = match a.preset {
+        args::SamplerPreset::Ours => SamplerParams::ours(),
+        args::SamplerPreset::Paper => SamplerParams::paper(),
+    };
+    if a.no_reprojection {
+        params.reprojection = false;
+    }
+    params.gain_control = !a.no_gain_control;
+    params.occlusion_term = !a.no_occlusion_term;
+    params.uniform_tiling = a.uniform_tiling;
+    params
+}
+
+/// Write what the sampler `s` saw after its run up to scene time `end` into `--out`:
+/// the pictures and `stats.json`, whose contents it returns.
+fn write_sampler_outputs(
+    a: &args::SamplerArgs,
+    s: &frameless::methods::adaptive::Sampler,
+    display: &frameless::image::Image,
+    end: f64,
+    wall: f64,
+) -> Result<serde_json::Value> {
+    use frameless::methods::adaptive::vis;
+    let Size(w, h) = a.size;
     let staging = frameless::output::OutputDir::begin(&a.out)
         .with_context(|| format!("creating {}", a.out.display()))?;
-    let s = m.sampler();
     let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
         let p = staging.path().join(name);
         img.save_png(&p)
             .with_context(|| format!("writing {}", p.display()))
     };
-    save("display.png", &display)?;
-    save("tiling.png", &vis::tiling_overlay(s, &display))?;
+    save("display.png", display)?;
+    save("tiling.png", &vis::tiling_overlay(s, display))?;
     save("gradients.png", &vis::gradient_map(s))?;
     save("density.png", &vis::density_map(s))?;
     save("occlusion.png", &vis::occlusion_map(s, end))?;
@@ -557,7 +577,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         serde_json::json!({"gs": gs, "gt": gt, "age_s": age})
     };
     let stats = serde_json::json!({
-        "scene": a.scene, "width": w, "height": h, "rate": rate, "start": a.start, "end": end,
+        "scene": a.scene, "width": w, "height": h, "rate": a.rate, "start": a.start, "end": end,
         "tiles": s.tiling().len(), "target_tiles": s.target_tiles(),
         "gain_inputs": gain_inputs,
         "counters": s.counters(),
@@ -571,9 +591,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     staging
         .commit()
         .with_context(|| format!("replacing {}", a.out.display()))?;
-    println!("{}", serde_json::to_string_pretty(&stats)?);
-    println!("images: {}", a.out.display());
-    Ok(())
+    Ok(stats)
 }
 
 fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
