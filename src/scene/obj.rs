@@ -162,9 +162,9 @@ fn prescan(file: &str, bytes: &[u8]) -> Result<Vec<FaceInfo>, SceneError> {
     }
     let mut seen = [0i64; 3];
     let mut faces = Vec::new();
-    const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     for l in text_lines(file, bytes) {
         let (ln, l) = l?;
+        let at = |column: usize, message: String| err(ln, column, message);
         let mut w = words(l);
         let Some((_, key)) = w.next() else { continue };
         let (slot, needed) = match key {
@@ -172,93 +172,112 @@ fn prescan(file: &str, bytes: &[u8]) -> Result<Vec<FaceInfo>, SceneError> {
             "vt" => (1, 2),
             "vn" => (2, 3),
             "f" | "l" => {
-                let mut info = FaceInfo {
-                    triangles: 0,
-                    keep: key == "f",
-                    uv: true,
-                    normal: true,
-                };
-                let mut vertices = 0usize;
-                for (col, tok) in w {
-                    vertices += 1;
-                    let parts: Vec<&str> = tok.split('/').collect();
-                    if parts.len() > 3 {
-                        return Err(err(ln, col, format!("`{tok}` has more than three indices")));
-                    }
-                    info.uv &= parts.get(1).is_some_and(|p| !p.is_empty());
-                    info.normal &= parts.get(2).is_some_and(|p| !p.is_empty());
-                    for (k, part) in parts.iter().enumerate() {
-                        if part.is_empty() {
-                            if k == 0 {
-                                return Err(err(ln, col, format!("`{tok}` has no vertex index")));
-                            }
-                            continue;
-                        }
-                        let x: i64 = part
-                            .parse()
-                            .map_err(|_| err(ln, col, format!("`{part}` is not an index")))?;
-                        let ok = match x {
-                            0 => {
-                                return Err(err(
-                                    ln,
-                                    col,
-                                    "index 0 is invalid (OBJ indices start at 1)".into(),
-                                ))
-                            }
-                            x if x > 0 => x <= total[k],
-                            x => x.checked_add(seen[k]).is_some_and(|i| i >= 0),
-                        };
-                        if !ok {
-                            let (have, when) = if x > 0 {
-                                (total[k], "in the file")
-                            } else {
-                                (seen[k], "so far")
-                            };
-                            return Err(err(
-                                ln,
-                                col,
-                                format!(
-                                    "{} index {x} is out of range ({have} defined {when})",
-                                    KIND[k]
-                                ),
-                            ));
-                        }
-                    }
-                }
-                if vertices == 0 {
-                    return Err(err(ln, 1, format!("`{key}` without vertices")));
-                }
-                info.triangles = vertices.saturating_sub(2);
-                faces.push(info);
+                faces.push(scan_face(key, w, (&total, &seen), &at)?);
                 continue;
             }
             _ => continue,
         };
         seen[slot] += 1;
-        let mut count = 0;
-        for (col, tok) in w {
-            match tok.parse::<f32>() {
-                Ok(v) if v.abs() <= MAX_COORDINATE => count += 1,
-                Ok(v) if v.is_finite() => {
-                    return Err(err(
-                        ln,
-                        col,
-                        format!("`{tok}` exceeds the coordinate limit of ±{MAX_COORDINATE:e}"),
-                    ))
-                }
-                Ok(_) => return Err(err(ln, col, format!("`{tok}` is not a finite number"))),
-                Err(_) => return Err(err(ln, col, format!("`{tok}` is not a number"))),
-            }
-        }
+        let count = scan_numbers(w, &at)?;
         if count < needed {
-            return Err(err(
-                ln,
+            return Err(at(
                 l.len().max(1),
                 format!("`{key}` needs {needed} numbers, found {count}"),
             ));
         }
     }
     Ok(faces)
+}
+
+/// The indices of an `f` or `l` statement (`key`), given the vertex lines of each kind
+/// in the file (`total`) and before this line (`seen`); `at` makes an error at a column
+/// of the line.
+fn scan_face<'a>(
+    key: &str,
+    words: impl Iterator<Item = (usize, &'a str)>,
+    (total, seen): (&[i64; 3], &[i64; 3]),
+    at: &dyn Fn(usize, String) -> SceneError,
+) -> Result<FaceInfo, SceneError> {
+    const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let mut info = FaceInfo {
+        triangles: 0,
+        keep: key == "f",
+        uv: true,
+        normal: true,
+    };
+    let mut vertices = 0usize;
+    for (col, tok) in words {
+        vertices += 1;
+        let parts: Vec<&str> = tok.split('/').collect();
+        if parts.len() > 3 {
+            return Err(at(col, format!("`{tok}` has more than three indices")));
+        }
+        info.uv &= parts.get(1).is_some_and(|p| !p.is_empty());
+        info.normal &= parts.get(2).is_some_and(|p| !p.is_empty());
+        for (k, part) in parts.iter().enumerate() {
+            if part.is_empty() {
+                if k == 0 {
+                    return Err(at(col, format!("`{tok}` has no vertex index")));
+                }
+                continue;
+            }
+            let x: i64 = part
+                .parse()
+                .map_err(|_| at(col, format!("`{part}` is not an index")))?;
+            let ok = match x {
+                0 => {
+                    return Err(at(
+                        col,
+                        "index 0 is invalid (OBJ indices start at 1)".into(),
+                    ))
+                }
+                x if x > 0 => x <= total[k],
+                x => x.checked_add(seen[k]).is_some_and(|i| i >= 0),
+            };
+            if !ok {
+                let (have, when) = if x > 0 {
+                    (total[k], "in the file")
+                } else {
+                    (seen[k], "so far")
+                };
+                return Err(at(
+                    col,
+                    format!(
+                        "{} index {x} is out of range ({have} defined {when})",
+                        KIND[k]
+                    ),
+                ));
+            }
+        }
+    }
+    if vertices == 0 {
+        return Err(at(1, format!("`{key}` without vertices")));
+    }
+    info.triangles = vertices.saturating_sub(2);
+    Ok(info)
+}
+
+/// How many numbers a `v`, `vt` or `vn` statement gives, each checked against the
+/// coordinate limit.
+fn scan_numbers<'a>(
+    words: impl Iterator<Item = (usize, &'a str)>,
+    at: &dyn Fn(usize, String) -> SceneError,
+) -> Result<usize, SceneError> {
+    let mut count = 0;
+    for (col, tok) in words {
+        match tok.parse::<f32>() {
+            Ok(v) if v.abs() <= MAX_COORDINATE => count += 1,
+            Ok(v) if v.is_finite() => {
+                return Err(at(
+                    col,
+                    format!("`{tok}` exceeds the coordinate limit of ±{MAX_COORDINATE:e}"),
+                ))
+            }
+            Ok(_) => return Err(at(col, format!("`{tok}` is not a finite number"))),
+            Err(_) => return Err(at(col, format!("`{tok}` is not a number"))),
+        }
+    }
+    Ok(count)
 }
 
 /// Expand MTL colors given as one value (`Kd 0.8`, which the MTL format defines as grey)
