@@ -78,39 +78,7 @@ impl<'a> Build<'a> {
                     doc.node_name(gi)
                 )));
             }
-            let check = |what: &str, m: &[f32]| {
-                if m.iter().all(|v| v.is_finite()) {
-                    Ok(())
-                } else {
-                    Err(doc.invalid(format!("node {gi}: {what} is not finite")))
-                }
-            };
-            check("matrix", &node.matrix.unwrap_or([0.0; 16]))?;
-            check("translation", &node.translation.unwrap_or([0.0; 3]))?;
-            check("rotation", &node.rotation.map_or([0.0; 4], |q| q.0))?;
-            check("scale", &node.scale.unwrap_or([0.0; 3]))?;
-            let kind = match channels.remove(&gi) {
-                Some(ch) => {
-                    let (translation, rotation, scale) = node_trs(node);
-                    for s in [&ch.translation, &ch.rotation, &ch.scale]
-                        .into_iter()
-                        .flatten()
-                    {
-                        let (a, b) = (s.times()[0], s.times()[s.times().len() - 1]);
-                        range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
-                    }
-                    NodeKind::Sampled(Box::new(NodeAnimation {
-                        name: doc.node_name(gi),
-                        translation,
-                        rotation,
-                        scale,
-                        translation_sampler: ch.translation,
-                        rotation_sampler: ch.rotation,
-                        scale_sampler: ch.scale,
-                    }))
-                }
-                None => NodeKind::Static(node_matrix(node)),
-            };
+            let kind = node_kind(doc, gi, node, channels.remove(&gi), &mut range)?;
             let id = self.scene.nodes.len() as NodeId;
             self.scene.nodes.push(Node { parent, kind });
             ids[gi] = Some(id);
@@ -187,6 +155,50 @@ impl<'a> Build<'a> {
             }
         })
     }
+}
+
+/// The transform of glTF node `gi`, checked finite: sampled where `channels` animate
+/// it (widening `range` to their keys), else static.
+fn node_kind(
+    doc: &Doc,
+    gi: usize,
+    node: &json::Node,
+    channels: Option<animation::Channels>,
+    range: &mut Option<(f32, f32)>,
+) -> Result<NodeKind, SceneError> {
+    let check = |what: &str, m: &[f32]| {
+        if m.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(doc.invalid(format!("node {gi}: {what} is not finite")))
+        }
+    };
+    check("matrix", &node.matrix.unwrap_or([0.0; 16]))?;
+    check("translation", &node.translation.unwrap_or([0.0; 3]))?;
+    check("rotation", &node.rotation.map_or([0.0; 4], |q| q.0))?;
+    check("scale", &node.scale.unwrap_or([0.0; 3]))?;
+    Ok(match channels {
+        Some(ch) => {
+            let (translation, rotation, scale) = node_trs(node);
+            for s in [&ch.translation, &ch.rotation, &ch.scale]
+                .into_iter()
+                .flatten()
+            {
+                let (a, b) = (s.times()[0], s.times()[s.times().len() - 1]);
+                *range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+            }
+            NodeKind::Sampled(Box::new(NodeAnimation {
+                name: doc.node_name(gi),
+                translation,
+                rotation,
+                scale,
+                translation_sampler: ch.translation,
+                rotation_sampler: ch.rotation,
+                scale_sampler: ch.scale,
+            }))
+        }
+        None => NodeKind::Static(node_matrix(node)),
+    })
 }
 
 /// A node's local transform as written (matrix, or TRS with defaults).
