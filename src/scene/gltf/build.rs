@@ -11,6 +11,7 @@ use glam::{Mat4, Quat, Vec3, Vec4};
 
 use super::{
     animation::{self, NodeAnimation},
+    camera::CameraNode,
     container::Doc,
 };
 use crate::scene::{
@@ -60,7 +61,7 @@ impl<'a> Build<'a> {
 
         // Depth-first, parents before children; glTF node index → scene node id.
         let mut ids: Vec<Option<NodeId>> = vec![None; root.nodes.len()];
-        let mut cameras: Vec<(NodeId, usize, usize)> = Vec::new();
+        let mut cameras: Vec<CameraNode> = Vec::new();
         let mut lights: Vec<(NodeId, usize)> = Vec::new();
         let mut range: Option<(f32, f32)> = None;
         let mut stack: Vec<(usize, Option<NodeId>)> =
@@ -93,7 +94,11 @@ impl<'a> Build<'a> {
                 }
             }
             if let Some(c) = node.camera {
-                cameras.push((id, gi, c.value()));
+                cameras.push(CameraNode {
+                    id,
+                    node: gi,
+                    camera: c.value(),
+                });
             }
             if let Some(l) = node
                 .extensions
