@@ -622,7 +622,10 @@ pub struct RunOptions {
     /// and every method's, for HDR output ([`EvalOutput::linear`]). The ideal images of
     /// those frames are rendered again, since the cache holds them as displayed.
     pub linear_strips: bool,
-    /// Make the ideal images from this refresh on, then wrap around ([`run_from`]).
+    /// Make the ideal images from this refresh on, then wrap around. Runs of one
+    /// evaluation that share a cold cache at the same time (a sweep's shards) start at
+    /// different refreshes, so each renders its part and reads the rest from the cache
+    /// instead of all rendering all; the results do not depend on the order.
     pub first_ideal: usize,
 }
 
@@ -691,27 +694,6 @@ pub fn run(
     progress: &dyn Progress,
 ) -> Result<EvalOutput, EvalError> {
     run_with(scene, cfg, progress, RunOptions::default())
-}
-
-/// [`run`], making the ideal images from refresh `first_ideal` on (then wrapping
-/// around). Runs of one evaluation that share a cold cache at the same time (a sweep's
-/// shards) start at different refreshes, so each renders its part and reads the rest
-/// from the cache instead of all rendering all; the results do not depend on the order.
-pub fn run_from(
-    scene: Arc<Scene>,
-    cfg: &EvalConfig,
-    progress: &dyn Progress,
-    first_ideal: usize,
-) -> Result<EvalOutput, EvalError> {
-    run_with(
-        scene,
-        cfg,
-        progress,
-        RunOptions {
-            first_ideal,
-            ..RunOptions::default()
-        },
-    )
 }
 
 /// [`run`], keeping what `options` asks for besides the measurements.

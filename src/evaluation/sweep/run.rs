@@ -374,8 +374,12 @@ fn run_job(
     // Shards that reach this evaluation together render different refreshes'
     // ideal images first, and read the others' from a shared cache.
     let first_ideal = shard.index as usize * cfg.frames() / shard.count as usize;
+    let options = evaluation::RunOptions {
+        first_ideal,
+        ..evaluation::RunOptions::default()
+    };
     let out_job =
-        evaluation::run_from(scene.clone(), &cfg, progress, first_ideal).map_err(|source| {
+        evaluation::run_with(scene.clone(), &cfg, progress, options).map_err(|source| {
             SweepError::Job {
                 job: job.id(),
                 source: Box::new(source),
