@@ -63,6 +63,14 @@ pub enum EvalError {
         /// What is wrong, with the line where the format says it.
         why: String,
     },
+    /// A `summary.json` or `frames.csv` read back is not one a run could write.
+    #[error("{}: {source}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        source: DataError,
+    },
     /// A plot could not be drawn.
     #[error("plot {}: {why}", path.display())]
     Plot {
@@ -90,6 +98,90 @@ pub enum EvalError {
         name: String,
         /// The names there are.
         expected: String,
+    },
+}
+
+/// What is wrong with a `summary.json` or `frames.csv` read back: a setting past its
+/// budget, or rows that contradict each other or the summary. Rows are counted from 1,
+/// as in `frames.csv` after its header.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A setting past its budget, named by its key in the file.
+    #[error("{key}: {why}")]
+    Setting {
+        /// The key.
+        key: &'static str,
+        /// Which budget it breaks.
+        why: String,
+    },
+    /// More result rows than every method at the most rates.
+    #[error(
+        "{rows} result rows, more than {most} (every method at {} rates)",
+        limits::MAX_RATES
+    )]
+    ResultRows {
+        /// Rows in the file.
+        rows: usize,
+        /// The most there can be.
+        most: usize,
+    },
+    /// A result row whose rate is not a positive number.
+    #[error("{method}: rate {rate} is not a positive number")]
+    Rate {
+        /// The row's method.
+        method: MethodKind,
+        /// Its rate.
+        rate: f64,
+    },
+    /// Two result rows of one method and rate.
+    #[error("{method} at {rate} has two result rows")]
+    TwoResultRows {
+        /// The method.
+        method: MethodKind,
+        /// The rate.
+        rate: f64,
+    },
+    /// A frame row of a method and rate the summary has no result for.
+    #[error("row {row}: {method} at {rate} has no result row in the summary")]
+    NoResultRow {
+        /// The frame row.
+        row: usize,
+        /// Its method.
+        method: MethodKind,
+        /// Its rate.
+        rate: f64,
+    },
+    /// A frame row past the window.
+    #[error("row {row}: frame {frame} is past the window's {refreshes} refreshes")]
+    PastWindow {
+        /// The frame row.
+        row: usize,
+        /// Its frame.
+        frame: usize,
+        /// Refreshes in the window.
+        refreshes: usize,
+    },
+    /// A frame row with a value out of its range.
+    #[error("row {row}: {why}")]
+    OutOfRange {
+        /// The frame row.
+        row: usize,
+        /// Which value, and its range.
+        why: String,
+    },
+    /// Two frame rows of one method, rate and frame.
+    #[error("rows {first} and {row}: {method} at {rate} frame {frame} is there twice")]
+    Twice {
+        /// The first row.
+        first: usize,
+        /// The second.
+        row: usize,
+        /// Their method.
+        method: MethodKind,
+        /// Their rate.
+        rate: f64,
+        /// Their frame.
+        frame: usize,
     },
 }
 
@@ -501,37 +593,40 @@ fn refreshes(duration: f64, refresh_hz: f64) -> usize {
 impl Summary {
     /// Check a summary read from a file that anyone can edit against the run budgets
     /// and for rows that contradict each other; the error says what is wrong.
-    pub fn check(&self) -> Result<(), String> {
-        limits::check_display(self.width, self.height).map_err(|e| format!("size: {e}"))?;
-        limits::check_refresh_hz(self.refresh_hz).map_err(|e| format!("refresh_hz: {e}"))?;
-        limits::check_warmup(self.warmup).map_err(|e| format!("warmup: {e}"))?;
-        limits::check_duration(self.duration).map_err(|e| format!("duration: {e}"))?;
-        limits::check_start(self.start, self.warmup, self.duration)
-            .map_err(|e| format!("start: {e}"))?;
-        limits::check_ideal_spp(self.ideal_spp).map_err(|e| format!("ideal_spp: {e}"))?;
+    pub fn check(&self) -> Result<(), DataError> {
+        let setting = |key: &'static str| move |why: String| DataError::Setting { key, why };
+        let limit = |key| move |e: limits::LimitError| setting(key)(e.to_string());
+        limits::check_display(self.width, self.height).map_err(setting("size"))?;
+        limits::check_refresh_hz(self.refresh_hz).map_err(limit("refresh_hz"))?;
+        limits::check_warmup(self.warmup).map_err(limit("warmup"))?;
+        limits::check_duration(self.duration).map_err(limit("duration"))?;
+        limits::check_start(self.start, self.warmup, self.duration).map_err(limit("start"))?;
+        limits::check_ideal_spp(self.ideal_spp).map_err(limit("ideal_spp"))?;
         let most = MethodKind::ALL.len() * limits::MAX_RATES;
         if self.results.len() > most {
-            return Err(format!(
-                "{} result rows, more than {most} (every method at {} rates)",
-                self.results.len(),
-                limits::MAX_RATES
-            ));
+            return Err(DataError::ResultRows {
+                rows: self.results.len(),
+                most,
+            });
         }
         let mut rates = std::collections::HashSet::new();
         let mut cells = std::collections::HashSet::new();
         for r in &self.results {
             if !(r.rate.is_finite() && r.rate > 0.0) {
-                return Err(format!(
-                    "{}: rate {} is not a positive number",
-                    r.method, r.rate
-                ));
+                return Err(DataError::Rate {
+                    method: r.method,
+                    rate: r.rate,
+                });
             }
             rates.insert(r.rate.to_bits());
             if !cells.insert((r.method, r.rate.to_bits())) {
-                return Err(format!("{} at {} has two result rows", r.method, r.rate));
+                return Err(DataError::TwoResultRows {
+                    method: r.method,
+                    rate: r.rate,
+                });
             }
         }
-        limits::check_rate_count(rates.len()).map_err(|e| format!("results: {e}"))
+        limits::check_rate_count(rates.len()).map_err(limit("results"))
     }
 
     /// Evaluated refreshes of the run it summarises.
@@ -542,7 +637,7 @@ impl Summary {
     /// Check per-frame rows against the summary: each of a method and rate it has
     /// a result row for, within its window, once. The error names the row (1-based,
     /// as in `frames.csv` after its header).
-    pub fn check_frames(&self, frames: &[FrameRow]) -> Result<(), String> {
+    pub fn check_frames(&self, frames: &[FrameRow]) -> Result<(), DataError> {
         let cells: std::collections::HashSet<(MethodKind, u64)> = self
             .results
             .iter()
@@ -553,25 +648,30 @@ impl Summary {
         for (i, f) in frames.iter().enumerate() {
             let row = i + 1;
             if !cells.contains(&(f.method, f.rate.to_bits())) {
-                return Err(format!(
-                    "row {row}: {} at {} has no result row in the summary",
-                    f.method, f.rate
-                ));
+                return Err(DataError::NoResultRow {
+                    row,
+                    method: f.method,
+                    rate: f.rate,
+                });
             }
             if f.frame >= n {
-                return Err(format!(
-                    "row {row}: frame {} is past the window's {n} refreshes",
-                    f.frame
-                ));
+                return Err(DataError::PastWindow {
+                    row,
+                    frame: f.frame,
+                    refreshes: n,
+                });
             }
             if let Some(why) = f.out_of_range() {
-                return Err(format!("row {row}: {why}"));
+                return Err(DataError::OutOfRange { row, why });
             }
             if let Some(first) = seen.insert((f.method, f.rate.to_bits(), f.frame), row) {
-                return Err(format!(
-                    "rows {first} and {row}: {} at {} frame {} is there twice",
-                    f.method, f.rate, f.frame
-                ));
+                return Err(DataError::Twice {
+                    first,
+                    row,
+                    method: f.method,
+                    rate: f.rate,
+                    frame: f.frame,
+                });
             }
         }
         Ok(())

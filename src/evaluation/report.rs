@@ -743,7 +743,7 @@ fn write_plots(
 pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
     let summary_path = dir.join("summary.json");
     let summary = read_summary(&summary_path)?;
-    let bad = |path: PathBuf| move |why: String| EvalError::Data { path, why };
+    let bad = |path: PathBuf| move |source| EvalError::Invalid { path, source };
     summary.check().map_err(bad(summary_path))?;
     let frames_path = dir.join("frames.csv");
     let frames = read_frames_csv(&frames_path)?;
