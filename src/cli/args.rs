@@ -170,7 +170,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sampling before the first refresh (seconds).
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     /// Display refresh rate, Hz.
     #[arg(long, alias = "fps", default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
@@ -440,7 +440,7 @@ pub struct EvalArgs {
     #[command(flatten)]
     pub ideal: IdealSppArg,
     /// Seconds every method runs before the first evaluated refresh.
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     #[command(flatten)]
     pub depth: MaxDepthArg,
