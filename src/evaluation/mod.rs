@@ -356,6 +356,22 @@ impl EvalConfig {
         }
     }
 
+    /// The tracer of `scene` at the run's size, trace options and camera path.
+    pub fn tracer(&self, scene: Arc<Scene>) -> Arc<Tracer> {
+        Arc::new(
+            Tracer::new(
+                scene,
+                self.width,
+                self.height,
+                TraceOptions {
+                    max_depth: self.max_depth,
+                    texture_filter: self.texture_filter,
+                },
+            )
+            .with_camera_path(self.camera_path.clone()),
+        )
+    }
+
     /// What the methods' budget rules need to know of this run.
     pub fn shape(&self) -> RunShape {
         RunShape {
@@ -804,18 +820,7 @@ pub fn run_with(
     options: RunOptions,
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
-    let tracer = Arc::new(
-        Tracer::new(
-            scene,
-            cfg.width,
-            cfg.height,
-            TraceOptions {
-                max_depth: cfg.max_depth,
-                texture_filter: cfg.texture_filter,
-            },
-        )
-        .with_camera_path(cfg.camera_path.clone()),
-    );
+    let tracer = cfg.tracer(scene);
     let cache = open_cache(cfg, &tracer)?;
     let n = cfg.frames();
     let runs = cfg.runs();
