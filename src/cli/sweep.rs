@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use frameless::evaluation::{
-    sweep::{self, run::shard_jobs, JobEvent, Shard, ShardOptions, SweepFile, SweepReport},
+    sweep::{
+        self, run::shard_jobs, JobEvent, Shard, ShardOptions, SweepError, SweepFile, SweepReport,
+    },
     table1,
 };
 
@@ -79,7 +81,15 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
         JobEvent::Done { job, seconds } => eprintln!("{}: {seconds:.1} s", job.id()),
         JobEvent::Kept { job } => eprintln!("{}: kept (already done)", job.id()),
     };
-    let run = sweep::run_shard(&file, a.shard, &a.out, &opts, &mut events, &bar)?;
+    let run =
+        sweep::run_shard(&file, a.shard, &a.out, &opts, &mut events, &bar).map_err(
+            |e| match e {
+                SweepError::NoBartFolder { .. } => {
+                    anyhow::anyhow!("{e}: give --bart DIR or set FRAMELESS_BART_DIR")
+                }
+                e => e.into(),
+            },
+        )?;
     bar.finish();
     println!(
         "shard {} of sweep {}: {} jobs, {} run, {} kept, {:.1} s; results in {}",

@@ -85,6 +85,15 @@ pub enum SweepError {
         /// Why.
         why: String,
     },
+    /// A scene named `bart:<path>`, and no BART folder to find it in (the binary says
+    /// how to give one).
+    #[error("evaluation '{evaluation}': scene '{scene}' names a BART scene, and no BART folder was given")]
+    NoBartFolder {
+        /// The evaluation.
+        evaluation: String,
+        /// The scene as the sweep names it.
+        scene: String,
+    },
     /// A shard is not `i/N` with `i < N`.
     #[error("`{0}` is not a shard: expected i/N with 0 <= i < N <= 100000, e.g. 0/4")]
     Shard(String),
@@ -902,9 +911,10 @@ impl SweepFile {
             Some(rel) => match bart {
                 Some(dir) => dir.join(rel),
                 None => {
-                    return Err(err(
-                        "names a BART scene: give --bart DIR or set FRAMELESS_BART_DIR".into(),
-                    ))
+                    return Err(SweepError::NoBartFolder {
+                        evaluation: e.name.clone(),
+                        scene: e.scene.clone(),
+                    })
                 }
             },
             None => self.path.parent().unwrap_or(Path::new("")).join(&e.scene),
