@@ -229,6 +229,21 @@ pub fn reconstruct_ms(width: u32, height: u32, n: usize, warmup: usize, repeats:
     reconstruct_ms_on(None, width, height, n, warmup, repeats).unwrap_or(f64::NAN)
 }
 
+/// Why a reconstruction figure could not be measured on the GPU.
+#[derive(Debug, thiserror::Error)]
+pub enum Unmeasured {
+    /// The reconstructor could not take its refreshes to the GPU (a step of its
+    /// parameters it lacks, a buffer over the adapter's limits).
+    #[error(transparent)]
+    Gpu(#[from] crate::reconstruction::device::GpuError),
+    /// The GPU reconstructor failed during the measurement; the time is partly the CPU's.
+    #[error("the GPU reconstructor failed: {0}")]
+    Failed(String),
+    /// The adaptive method could not be built on it.
+    #[error(transparent)]
+    Method(#[from] crate::methods::MethodError),
+}
+
 /// [`reconstruct_ms`] on `gpu` where one is given; the error says why the GPU
 /// reconstructor could not measure it.
 pub fn reconstruct_ms_on(
@@ -238,7 +253,7 @@ pub fn reconstruct_ms_on(
     n: usize,
     warmup: usize,
     repeats: usize,
-) -> Result<f64, String> {
+) -> Result<f64, Unmeasured> {
     let (mut r, camera, tiling) = reconstruct_fixture(width, height, n, 1);
     use_gpu(&mut r, gpu)?;
     let ms = best_refresh_ms(&mut r, &camera, &tiling, warmup, repeats);
@@ -249,17 +264,17 @@ pub fn reconstruct_ms_on(
 fn use_gpu(
     r: &mut crate::reconstruction::Reconstructor,
     gpu: Option<&Arc<GpuContext>>,
-) -> Result<(), String> {
+) -> Result<(), Unmeasured> {
     match gpu {
-        Some(g) => r.use_gpu(g.clone()).map_err(|e| e.to_string()),
+        Some(g) => Ok(r.use_gpu(g.clone())?),
         None => Ok(()),
     }
 }
 
 /// `ms`, unless `r`'s GPU side failed on the way (the time is then partly the CPU's).
-fn on_gpu_throughout(r: &crate::reconstruction::Reconstructor, ms: f64) -> Result<f64, String> {
+fn on_gpu_throughout(r: &crate::reconstruction::Reconstructor, ms: f64) -> Result<f64, Unmeasured> {
     match r.gpu_failure() {
-        Some(why) => Err(format!("the GPU reconstructor failed: {why}")),
+        Some(why) => Err(Unmeasured::Failed(why.to_string())),
         None => Ok(ms),
     }
 }
@@ -307,7 +322,7 @@ pub fn reconstruct_realtime_ms_on(
     height: u32,
     warmup: usize,
     repeats: usize,
-) -> Result<f64, String> {
+) -> Result<f64, Unmeasured> {
     let n = (width as usize * height as usize).div_ceil(2);
     let params = crate::reconstruction::ReconParams::realtime();
     let (mut r, camera, tiling) = reconstruct_fixture_with(width, height, n, 1, params);
@@ -331,10 +346,9 @@ pub fn reconstruct_scene_ms_on(
     tracer: &std::sync::Arc<Tracer>,
     time: f64,
     repeats: usize,
-) -> Result<f64, String> {
+) -> Result<f64, Unmeasured> {
     use crate::methods::Method;
-    let (mut m, end) =
-        adaptive_after_one_second_on(gpu, tracer, time).map_err(|e| e.to_string())?;
+    let (mut m, end) = adaptive_after_one_second_on(gpu, tracer, time)?;
     let mut best = f64::INFINITY;
     for _ in 0..repeats.max(1) {
         let t0 = Instant::now();
@@ -515,9 +529,9 @@ fn recon_figures(
 ) -> ReconFigures {
     let gpu = opts.gpu.as_ref();
     let mut notes = BTreeMap::new();
-    let mut figure = |name: &'static str, measured: Result<f64, String>| {
+    let mut figure = |name: &'static str, measured: Result<f64, Unmeasured>| {
         measured.unwrap_or_else(|why| {
-            notes.insert(name, why);
+            notes.insert(name, why.to_string());
             f64::NAN
         })
     };

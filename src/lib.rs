@@ -43,5 +43,6 @@ pub mod reconstruction;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod settings;
 pub mod tiles;
 pub mod trace;

@@ -1,7 +1,8 @@
 //! The run budgets: how large, long and fast a run may be. Each is checked when the
 //! settings are validated, before anything is allocated or traced, and the error names
 //! the limit. Scene budgets (coordinates, triangles, textures, file sizes) are in
-//! [`crate::scene::limits`]. The README's "Input limits" table lists them all.
+//! [`crate::scene::limits`]. The "Input limits" table of
+//! `docs/usage.md` lists them all.
 
 /// Largest sample rate, samples per second of scene time: two orders of magnitude
 /// beyond what a CPU traces, so only a typing slip reaches it.
@@ -29,19 +30,111 @@ pub const MAX_DISPLAY_PIXELS: u64 = 1 << 24;
 /// kept.
 pub const MAX_SIDE: u32 = 16384;
 
+/// A setting past its budget, or a size that does not parse. The message names the
+/// value and the limit; the caller names the setting.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum LimitError {
+    /// Not of the form `WxH`.
+    #[error("`{0}` is not a size: expected WxH, e.g. 256x256")]
+    NotASize(String),
+    /// A side of a size is not a whole number.
+    #[error("`{side}` in `{size}` is not a whole number")]
+    NotASide {
+        /// The side as written.
+        side: String,
+        /// The size as written.
+        size: String,
+    },
+    /// A side of a size is 0 or over [`MAX_SIDE`].
+    #[error("size side {0} out of range 1..={MAX_SIDE}")]
+    Side(u32),
+    /// A buffer over [`MAX_BUFFER_BYTES`].
+    #[error(
+        "the {what} would take {:.1} GiB ({because}), over the {} GiB limit per buffer",
+        *bytes as f64 / (1u64 << 30) as f64,
+        MAX_BUFFER_BYTES >> 30
+    )]
+    Buffer {
+        /// The buffer.
+        what: String,
+        /// Its size.
+        bytes: u64,
+        /// What makes it that large.
+        because: String,
+    },
+    /// A display over [`MAX_DISPLAY_PIXELS`].
+    #[error(
+        "display {width}x{height} has {} pixels, over the limit of {MAX_DISPLAY_PIXELS} (4096x4096)",
+        *width as u64 * *height as u64
+    )]
+    Display {
+        /// Width, pixels.
+        width: u32,
+        /// Height, pixels.
+        height: u32,
+    },
+    /// A sample rate that is not a positive number.
+    #[error("{} must be a positive number of samples per second", num(*.0))]
+    RateNotPositive(f64),
+    /// A sample rate over [`MAX_RATE`].
+    #[error("{} samples/s is over the limit of {}", num(*.0), num(MAX_RATE))]
+    Rate(f64),
+    /// A run tracing more than [`MAX_SAMPLES_PER_RUN`].
+    #[error(
+        "{} samples/s for {} s (warm-up included) is {} samples, over the limit of {} per run",
+        num(*rate),
+        num(*seconds),
+        num(rate * seconds),
+        num(MAX_SAMPLES_PER_RUN)
+    )]
+    Samples {
+        /// Samples per second.
+        rate: f64,
+        /// Seconds traced.
+        seconds: f64,
+    },
+    /// A value outside its range, both as people read them (`0 Hz`, `[1, 1000]`).
+    #[error("{value} must be in {range}")]
+    Range {
+        /// The value with its unit.
+        value: String,
+        /// The range allowed.
+        range: String,
+    },
+    /// More rates than [`MAX_RATES`].
+    #[error("lists {0} rates, over the limit of {MAX_RATES}")]
+    RateCount(usize),
+    /// A run reaching past ±[`MAX_SCENE_TIME_S`].
+    #[error(
+        "{} s: the run would span scene times {} to {} s, outside ±{} s",
+        num(*start),
+        num(*first),
+        num(*last),
+        num(MAX_SCENE_TIME_S)
+    )]
+    SceneTime {
+        /// The window's start.
+        start: f64,
+        /// The first scene time the run touches (start − warm-up).
+        first: f64,
+        /// The last (start + duration).
+        last: f64,
+    },
+}
+
 /// Parse an image size `WxH` (or `WXH`): two whole numbers in `1..=MAX_SIDE`. The one
 /// parser of sizes, for the command line and sweep files alike.
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+pub fn parse_size(s: &str) -> Result<(u32, u32), LimitError> {
     let (w, h) = s
         .split_once(['x', 'X'])
-        .ok_or_else(|| format!("`{s}` is not a size: expected WxH, e.g. 256x256"))?;
-    let side = |v: &str| -> Result<u32, String> {
-        let n: u32 = v
-            .trim()
-            .parse()
-            .map_err(|_| format!("`{v}` in `{s}` is not a whole number"))?;
+        .ok_or_else(|| LimitError::NotASize(s.to_string()))?;
+    let side = |v: &str| -> Result<u32, LimitError> {
+        let n: u32 = v.trim().parse().map_err(|_| LimitError::NotASide {
+            side: v.to_string(),
+            size: s.to_string(),
+        })?;
         if n == 0 || n > MAX_SIDE {
-            return Err(format!("size side {n} out of range 1..={MAX_SIDE}"));
+            return Err(LimitError::Side(n));
         }
         Ok(n)
     };
@@ -53,25 +146,24 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
 pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
 
 /// Check a buffer's size against [`MAX_BUFFER_BYTES`] before it is allocated; the error
-/// names the buffer, its size and what makes it that large.
+/// names the buffer, its size and what makes it that large. The message is text because
+/// the reconstructor's and the methods' budget checks pass it on as text.
 pub fn check_buffer(what: &str, bytes: u64, because: &str) -> Result<(), String> {
     if bytes > MAX_BUFFER_BYTES {
-        return Err(format!(
-            "the {what} would take {:.1} GiB ({because}), over the {} GiB limit per buffer",
-            bytes as f64 / (1u64 << 30) as f64,
-            MAX_BUFFER_BYTES >> 30
-        ));
+        return Err(LimitError::Buffer {
+            what: what.to_string(),
+            bytes,
+            because: because.to_string(),
+        }
+        .to_string());
     }
     Ok(())
 }
 
-/// Check a display size against [`MAX_DISPLAY_PIXELS`].
+/// Check a display size against [`MAX_DISPLAY_PIXELS`] (text, as [`check_buffer`]).
 pub fn check_display(width: u32, height: u32) -> Result<(), String> {
-    let pixels = width as u64 * height as u64;
-    if pixels > MAX_DISPLAY_PIXELS {
-        return Err(format!(
-            "display {width}x{height} has {pixels} pixels, over the limit of {MAX_DISPLAY_PIXELS} (4096x4096)"
-        ));
+    if width as u64 * height as u64 > MAX_DISPLAY_PIXELS {
+        return Err(LimitError::Display { width, height }.to_string());
     }
     Ok(())
 }
@@ -88,29 +180,15 @@ pub fn num(v: f64) -> String {
 
 /// Check a sample rate against [`MAX_RATE`] and, with the seconds a run traces, against
 /// [`MAX_SAMPLES_PER_RUN`].
-pub fn check_rate(rate: f64, seconds: f64) -> Result<(), String> {
+pub fn check_rate(rate: f64, seconds: f64) -> Result<(), LimitError> {
     if !(rate.is_finite() && rate > 0.0) {
-        return Err(format!(
-            "{} must be a positive number of samples per second",
-            num(rate)
-        ));
+        return Err(LimitError::RateNotPositive(rate));
     }
     if rate > MAX_RATE {
-        return Err(format!(
-            "{} samples/s is over the limit of {}",
-            num(rate),
-            num(MAX_RATE)
-        ));
+        return Err(LimitError::Rate(rate));
     }
-    let samples = rate * seconds;
-    if samples > MAX_SAMPLES_PER_RUN {
-        return Err(format!(
-            "{} samples/s for {} s (warm-up included) is {} samples, over the limit of {} per run",
-            num(rate),
-            num(seconds),
-            num(samples),
-            num(MAX_SAMPLES_PER_RUN)
-        ));
+    if rate * seconds > MAX_SAMPLES_PER_RUN {
+        return Err(LimitError::Samples { rate, seconds });
     }
     Ok(())
 }
@@ -170,33 +248,36 @@ pub fn read_text(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Stri
 }
 
 /// Check an ideal image's samples per pixel against [`MAX_IDEAL_SPP`].
-pub fn check_ideal_spp(spp: u32) -> Result<(), String> {
+pub fn check_ideal_spp(spp: u32) -> Result<(), LimitError> {
     if !(1..=MAX_IDEAL_SPP).contains(&spp) {
-        return Err(format!("{spp} must be in [1, {MAX_IDEAL_SPP}]"));
+        return Err(out_of(spp.to_string(), format!("[1, {MAX_IDEAL_SPP}]")));
     }
     Ok(())
 }
 
 /// Check a reflection/refraction depth limit against [`MAX_DEPTH`].
-pub fn check_max_depth(depth: u32) -> Result<(), String> {
+pub fn check_max_depth(depth: u32) -> Result<(), LimitError> {
     if depth > MAX_DEPTH {
-        return Err(format!("{depth} must be in [0, {MAX_DEPTH}]"));
+        return Err(out_of(depth.to_string(), format!("[0, {MAX_DEPTH}]")));
     }
     Ok(())
 }
 
 /// Check a run's count of rates against [`MAX_RATES`].
-pub fn check_rate_count(n: usize) -> Result<(), String> {
+pub fn check_rate_count(n: usize) -> Result<(), LimitError> {
     if n > MAX_RATES {
-        return Err(format!("lists {n} rates, over the limit of {MAX_RATES}"));
+        return Err(LimitError::RateCount(n));
     }
     Ok(())
 }
 
 /// Check a warm-up against [`MAX_WARMUP_S`].
-pub fn check_warmup(warmup: f64) -> Result<(), String> {
+pub fn check_warmup(warmup: f64) -> Result<(), LimitError> {
     if !(warmup.is_finite() && (0.0..=MAX_WARMUP_S).contains(&warmup)) {
-        return Err(format!("{} s must be in [0, {MAX_WARMUP_S}]", num(warmup)));
+        return Err(out_of(
+            format!("{} s", num(warmup)),
+            format!("[0, {MAX_WARMUP_S}]"),
+        ));
     }
     Ok(())
 }
@@ -207,24 +288,36 @@ pub const MIN_REFRESH_HZ: f64 = 1.0;
 pub const MAX_REFRESH_HZ: f64 = 1000.0;
 
 /// Check a display refresh rate against [`MIN_REFRESH_HZ`] and [`MAX_REFRESH_HZ`].
-pub fn check_refresh_hz(hz: f64) -> Result<(), String> {
+pub fn check_refresh_hz(hz: f64) -> Result<(), LimitError> {
     if !(hz.is_finite() && (MIN_REFRESH_HZ..=MAX_REFRESH_HZ).contains(&hz)) {
-        return Err(format!(
-            "{} Hz must be in [{}, {}]",
-            num(hz),
-            num(MIN_REFRESH_HZ),
-            num(MAX_REFRESH_HZ)
+        return Err(out_of(
+            format!("{} Hz", num(hz)),
+            format!("[{}, {}]", num(MIN_REFRESH_HZ), num(MAX_REFRESH_HZ)),
+        ));
+    }
+    Ok(())
+}
+
+/// Longest run of the viewer or of a headless real-time run, wall seconds: a day.
+pub const MAX_VIEW_SECONDS: f64 = 86_400.0;
+
+/// Check a viewer's or headless run's length against [`MAX_VIEW_SECONDS`].
+pub fn check_view_seconds(seconds: f64) -> Result<(), LimitError> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= MAX_VIEW_SECONDS) {
+        return Err(out_of(
+            num(seconds),
+            format!("(0, {}]", num(MAX_VIEW_SECONDS)),
         ));
     }
     Ok(())
 }
 
 /// Check a window's length against [`MAX_DURATION_S`].
-pub fn check_duration(duration: f64) -> Result<(), String> {
+pub fn check_duration(duration: f64) -> Result<(), LimitError> {
     if !(duration.is_finite() && duration > 0.0 && duration <= MAX_DURATION_S) {
-        return Err(format!(
-            "{} s must be in (0, {MAX_DURATION_S}]",
-            num(duration)
+        return Err(out_of(
+            format!("{} s", num(duration)),
+            format!("(0, {MAX_DURATION_S}]"),
         ));
     }
     Ok(())
@@ -232,18 +325,16 @@ pub fn check_duration(duration: f64) -> Result<(), String> {
 
 /// Check that a run from `start − warmup` to `start + duration` stays within
 /// ±[`MAX_SCENE_TIME_S`].
-pub fn check_start(start: f64, warmup: f64, duration: f64) -> Result<(), String> {
+pub fn check_start(start: f64, warmup: f64, duration: f64) -> Result<(), LimitError> {
     let (first, last) = (start - warmup, start + duration);
     if !(start.is_finite() && first.abs() <= MAX_SCENE_TIME_S && last.abs() <= MAX_SCENE_TIME_S) {
-        return Err(format!(
-            "{} s: the run would span scene times {} to {} s, outside ±{} s",
-            num(start),
-            num(first),
-            num(last),
-            num(MAX_SCENE_TIME_S)
-        ));
+        return Err(LimitError::SceneTime { start, first, last });
     }
     Ok(())
+}
+
+fn out_of(value: String, range: String) -> LimitError {
+    LimitError::Range { value, range }
 }
 
 #[cfg(test)]
@@ -254,12 +345,21 @@ mod tests {
     fn each_budget_rejects_just_past_its_limit_and_accepts_at_it() {
         assert!(check_rate(MAX_RATE, 1.0).is_ok());
         assert!(check_rate(MAX_RATE * 1.01, 1.0).is_err());
-        assert!(check_rate(1e30, 1.0).unwrap_err().contains("limit"));
-        assert!(check_rate(400e3, 1e4).unwrap_err().contains("per run"));
+        assert!(check_rate(1e30, 1.0)
+            .unwrap_err()
+            .to_string()
+            .contains("limit"));
+        assert!(check_rate(400e3, 1e4)
+            .unwrap_err()
+            .to_string()
+            .contains("per run"));
         assert!(check_warmup(MAX_WARMUP_S).is_ok());
         assert!(check_warmup(1e4).is_err());
         assert!(check_start(0.0, 1.0, 1.0).is_ok());
-        assert!(check_start(1e300, 1.0, 1.0).unwrap_err().contains("1e300"));
+        assert!(check_start(1e300, 1.0, 1.0)
+            .unwrap_err()
+            .to_string()
+            .contains("1e300"));
         assert!(check_start(MAX_SCENE_TIME_S, 0.0, 1.0).is_err());
         assert!(
             check_refresh_hz(MAX_REFRESH_HZ).is_ok() && check_refresh_hz(MIN_REFRESH_HZ).is_ok()
@@ -267,7 +367,7 @@ mod tests {
         assert!(check_refresh_hz(MAX_REFRESH_HZ * 1.001).is_err());
         assert!(check_refresh_hz(0.999).is_err() && check_refresh_hz(f64::NAN).is_err());
         assert_eq!(
-            check_refresh_hz(0.0).unwrap_err(),
+            check_refresh_hz(0.0).unwrap_err().to_string(),
             "0 Hz must be in [1, 1000]"
         );
         assert!(check_duration(MAX_DURATION_S).is_ok());

@@ -1,6 +1,9 @@
 //! The committed documents and reports name only files that are committed: every
-//! relative link and image of the README and `docs/**/*.md`, and every `src` and `href`
-//! of the committed `report.html` files.
+//! relative link and image of the README and `docs/**/*.md` (`docs/usage.md`, the
+//! command reference, included), and every `src` and `href` of the committed
+//! `report.html` files. A link into a Markdown file's section (`file.md#anchor`, or
+//! `#anchor` within the same file) must name a heading that file has, so that moving a
+//! section between documents cannot leave links pointing at nothing.
 
 use std::path::{Path, PathBuf};
 
@@ -42,16 +45,81 @@ fn html_targets(text: &str) -> Vec<String> {
         .collect()
 }
 
-/// The targets that name a file of the repository and are missing.
+/// The anchors GitHub gives a Markdown text's headings: lower case, spaces as hyphens,
+/// punctuation other than `-` and `_` dropped, `-1`, `-2`, … after repeats. Headings
+/// inside fenced code are not headings.
+fn anchors(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut fenced = false;
+    for line in text.lines() {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            continue;
+        }
+        let Some(title) = line.strip_prefix('#') else {
+            continue;
+        };
+        if fenced {
+            continue;
+        }
+        let title = title.trim_start_matches('#');
+        if !title.starts_with(' ') {
+            continue;
+        }
+        let slug: String = title
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter_map(|c| match c {
+                ' ' => Some('-'),
+                c if c.is_alphanumeric() || c == '-' || c == '_' => Some(c),
+                _ => None,
+            })
+            .collect();
+        let repeats = out
+            .iter()
+            .filter(|a| {
+                **a == slug
+                    || a.strip_prefix(&format!("{slug}-"))
+                        .is_some_and(|n| n.parse::<u32>().is_ok())
+            })
+            .count();
+        out.push(if repeats == 0 {
+            slug
+        } else {
+            format!("{slug}-{repeats}")
+        });
+    }
+    out
+}
+
+/// The targets that name a file of the repository, or a section of a Markdown file,
+/// that is not there.
 fn missing(doc: &Path, targets: Vec<String>) -> Vec<String> {
     let dir = doc.parent().unwrap();
     targets
         .into_iter()
-        .filter(|t| !t.contains("://") && !t.starts_with('#') && !t.starts_with("mailto:"))
+        .filter(|t| !t.contains("://") && !t.starts_with("mailto:"))
         .filter_map(|t| {
-            let path = t.split('#').next().unwrap_or_default().to_string();
-            (!path.is_empty() && !dir.join(&path).exists())
-                .then(|| format!("{}: {t}", doc.display()))
+            let (path, anchor) = match t.split_once('#') {
+                Some((p, a)) => (p, Some(a)),
+                None => (t.as_str(), None),
+            };
+            let file = if path.is_empty() {
+                doc.to_path_buf()
+            } else {
+                dir.join(path)
+            };
+            let ok = file.exists()
+                && match anchor {
+                    Some(a) if file.extension().is_some_and(|e| e == "md") => {
+                        anchors(&std::fs::read_to_string(&file).unwrap())
+                            .iter()
+                            .any(|h| h == a)
+                    }
+                    _ => true,
+                };
+            (!ok).then(|| format!("{}: {t}", doc.display()))
         })
         .collect()
 }
@@ -107,6 +175,24 @@ fn the_checks_see_a_missing_file() {
         )
         .len(),
         1
+    );
+    // A section the file has, one it lacks, and the same two within the README.
+    assert_eq!(
+        missing(
+            &doc,
+            markdown_targets(
+                "[a](docs/usage.md#camera-paths) [b](docs/usage.md#no-such-section) \
+                 [c](#license) [d](#no-such-section)"
+            )
+        ),
+        vec![
+            format!("{}: docs/usage.md#no-such-section", doc.display()),
+            format!("{}: #no-such-section", doc.display()),
+        ]
+    );
+    assert_eq!(
+        anchors("# A `b`: c\n```\n# not a heading\n```\n## A b c\n### (x) y-z_w"),
+        ["a-b-c", "a-b-c-1", "x-y-z_w"]
     );
     assert_eq!(
         missing(

@@ -10,7 +10,9 @@ use std::{
 
 /// Layers from the bottom up; must match `docs/ARCHITECTURE.md`.
 const LAYERS: &[&[&str]] = &[
-    &["image", "output", "limits", "sampling", "clock", "tiles"],
+    &[
+        "image", "output", "limits", "settings", "sampling", "clock", "tiles",
+    ],
     &["scene"],
     &["trace"],
     &["render"],

@@ -248,7 +248,7 @@ fn gpu_bench_figures_run_on_the_gpu_or_say_why_not() {
         expected,
     ) {
         (Ok(ms), Ok(())) => assert!(ms.is_finite() && ms > 0.0, "{ms}"),
-        (Err(why), Err(e)) => assert_eq!(why, e.to_string()),
+        (Err(why), Err(e)) => assert_eq!(why.to_string(), e.to_string()),
         (got, want) => panic!("benchmark {got:?}, use_gpu {want:?}"),
     }
 }

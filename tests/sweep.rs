@@ -261,7 +261,7 @@ fn merged_outputs_are_those_of_a_single_evaluation() {
         2 * 15
     );
     assert_eq!(out.strips.len(), 2 * 3);
-    assert!(out.strips.iter().all(|s| s.2.len() == 1 + 4));
+    assert!(out.strips.iter().all(|s| s.shown.len() == 4));
 }
 
 #[test]

@@ -8,6 +8,7 @@ use frameless::{
     methods::MethodKind,
     realtime::{RtMethod, Visualisation},
     reconstruction::device::ReconDevice,
+    settings,
     trace::TextureFilter,
 };
 
@@ -15,12 +16,49 @@ use frameless::{
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Size(pub u32, pub u32);
 
+impl Size {
+    /// The display size every command defaults to.
+    pub const DEFAULT: Size = Size(settings::SIZE.0, settings::SIZE.1);
+}
+
+impl std::fmt::Display for Size {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.0, self.1)
+    }
+}
+
 impl FromStr for Size {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = frameless::limits::LimitError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
         let (w, h) = frameless::limits::parse_size(s)?;
         Ok(Size(w, h))
     }
+}
+
+/// `--ideal-spp`, shared by the commands that make ideal images.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct IdealSppArg {
+    /// Samples per pixel of the ideal images.
+    #[arg(long, default_value_t = settings::IDEAL_SPP, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
+    pub ideal_spp: u32,
+}
+
+/// `--max-depth`, shared by the commands that let the tracer's recursion be set.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct MaxDepthArg {
+    /// Reflection/refraction depth limit.
+    #[arg(long, default_value_t = settings::MAX_DEPTH, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
+    pub max_depth: u32,
+}
+
+/// `--texture-filter`, shared by the commands that trace textured scenes.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct TextureFilterArg {
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value = "ray-cones")]
+    pub texture_filter: TextureFilter,
 }
 
 /// `--recon`, shared by the commands that run the adaptive reconstructor.
@@ -132,22 +170,19 @@ pub struct RenderArgs {
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sampling before the first refresh (seconds).
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     /// Display refresh rate, Hz.
-    #[arg(long, alias = "fps", default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, alias = "fps", default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Display size.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
     /// File format of the frames: png (as displayed: clamped, 8-bit) or exr (OpenEXR,
     /// linear HDR, 32-bit float).
     #[arg(long, value_enum, default_value = "png")]
@@ -188,19 +223,15 @@ pub struct Table1Args {
     #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Display size.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
-    /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
-    pub ideal_spp: u32,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
+    #[command(flatten)]
+    pub ideal: IdealSppArg,
     /// Compute FLIP on every n-th refresh (1: every one).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
@@ -252,7 +283,7 @@ pub struct ViewArgs {
     #[arg(long)]
     pub camera_path: Option<PathBuf>,
     /// Image size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// The real-time method.
     #[arg(long, default_value = "adaptive", value_parser = RtMethodParser)]
@@ -266,7 +297,7 @@ pub struct ViewArgs {
     #[command(flatten)]
     pub recon: ReconArg,
     /// Display refresh rate, Hz.
-    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Adaptive: share of a refresh period an image may take to build; when one takes
     /// longer, the next reconstructs from only the newest samples that fit (0: always
@@ -312,13 +343,10 @@ pub struct ViewArgs {
     #[arg(long)]
     pub no_reprojection: bool,
     /// Seed of the threads' random choices.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
 }
 
 /// Arguments of `frameless sampler`.
@@ -340,13 +368,13 @@ pub struct SamplerArgs {
     #[arg(long, default_value = "400k", value_parser = parse_rate, allow_negative_numbers = true)]
     pub rate: f64,
     /// Display refresh rate, Hz: the sampler is run up to each refresh in turn.
-    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Image size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Seed.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
     /// Sampler parameters: ours (`adaptive`) or the paper's (`adaptive-paper`); the
     /// ablation flags below apply on top.
@@ -385,14 +413,14 @@ pub struct EvalArgs {
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Display size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Sample budgets, samples per second of scene time, comma-separated; suffixes k and
     /// M (e.g. 100k,400k,800k).
     #[arg(long = "rate", alias = "rates", value_name = "RATE", default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub rates: Vec<f64>,
     /// Display refresh rate, Hz: every method is asked what it shows at each refresh.
-    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Methods to evaluate, comma-separated.
     #[arg(
@@ -405,22 +433,17 @@ pub struct EvalArgs {
     )]
     pub methods: Vec<MethodKind>,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
-    /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
-    pub ideal_spp: u32,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
+    #[command(flatten)]
+    pub ideal: IdealSppArg,
     /// Seconds every method runs before the first evaluated refresh.
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
-    pub max_depth: u32,
+    #[command(flatten)]
+    pub depth: MaxDepthArg,
     /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
     /// ~/.cache/frameless/ideal].
     #[arg(long)]
@@ -462,10 +485,10 @@ pub struct LiveArgs {
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
     /// Display size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Display refresh rate, Hz.
-    #[arg(long, default_value = "60", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
     /// Real-time methods to run, comma-separated [default: all of them].
     #[arg(long = "method", alias = "methods", value_name = "METHOD", value_delimiter = ',', value_parser = RtMethodParser)]
@@ -475,18 +498,14 @@ pub struct LiveArgs {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
     pub repeat: u32,
     /// Seed of the methods' random choices and of the ideal images.
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
-    pub ideal_spp: u32,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint) or
-    /// none (full-resolution bilinear lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
-    /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
-    pub max_depth: u32,
+    #[command(flatten)]
+    pub ideal: IdealSppArg,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
+    #[command(flatten)]
+    pub depth: MaxDepthArg,
     /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
     /// ~/.cache/frameless/ideal].
     #[arg(long)]
@@ -530,14 +549,10 @@ pub struct StillArgs {
     /// Seed of the sample positions.
     #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
-    /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
-    pub max_depth: u32,
+    #[command(flatten)]
+    pub filter: TextureFilterArg,
+    #[command(flatten)]
+    pub depth: MaxDepthArg,
     /// Output file: `.png` (as displayed: clamped, 8-bit) or `.exr` (OpenEXR, linear
     /// HDR, 32-bit float).
     #[arg(long, default_value = "still.png")]
@@ -554,7 +569,7 @@ pub struct BenchArgs {
     #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
     pub time: Option<f64>,
     /// View size WxH.
-    #[arg(long, default_value = "256x256")]
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Rays per timed repetition.
     #[arg(long, default_value_t = 1 << 19, value_parser = parse_rays, allow_negative_numbers = true)]
@@ -801,7 +816,7 @@ mod tests {
         assert_eq!(a.rates, cfg.rates);
         let Size(w, h) = a.size;
         assert_eq!(
-            (w, h, a.seed, a.ideal_spp),
+            (w, h, a.seed, a.ideal.ideal_spp),
             (cfg.width, cfg.height, cfg.seed, cfg.ideal_spp)
         );
         assert_eq!(
@@ -809,7 +824,7 @@ mod tests {
             (cfg.start, cfg.duration, cfg.warmup, cfg.refresh_hz)
         );
         assert_eq!(
-            (a.max_depth, a.texture_filter),
+            (a.depth.max_depth, a.filter.texture_filter),
             (cfg.max_depth, cfg.texture_filter)
         );
     }

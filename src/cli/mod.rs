@@ -15,11 +15,12 @@ use progress::Meter;
 
 use frameless::{
     bench,
-    evaluation::{self, report, EvalConfig},
+    evaluation::{self, report, EvalConfig, EvalError},
     image::ImageFormat,
     reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
     scene::{self, builtin, CameraPath, Scene},
+    settings::{self, Setting},
     trace::{TraceOptions, Tracer},
 };
 
@@ -41,7 +42,10 @@ pub(crate) fn main() -> std::process::ExitCode {
 fn message(e: &anyhow::Error) -> String {
     let mut msg = String::new();
     for cause in e.chain() {
-        let text = cause.to_string();
+        let text = match cause.downcast_ref::<EvalError>() {
+            Some(EvalError::Config { setting, why }) => format!("{} {why}", option(*setting)),
+            _ => cause.to_string(),
+        };
         if msg.ends_with(&text) {
             continue;
         }
@@ -51,6 +55,25 @@ fn message(e: &anyhow::Error) -> String {
         msg.push_str(&text);
     }
     msg
+}
+
+/// The option that sets `setting`, as the library's errors leave it to the binary to
+/// name. The lists take their plural spellings, which every command accepts.
+fn option(setting: Setting) -> &'static str {
+    match setting {
+        Setting::Warmup => "--warmup",
+        Setting::Duration => "--duration",
+        Setting::Seconds => "--seconds",
+        Setting::Start => "--start",
+        Setting::RefreshHz => "--refresh-hz",
+        Setting::Rates => "--rates",
+        Setting::Methods => "--methods",
+        Setting::FlipEvery => "--flip-every",
+        Setting::IdealSpp => "--ideal-spp",
+        Setting::MaxDepth => "--max-depth",
+        Setting::Size => "--size",
+        Setting::Repeat => "--repeat",
+    }
 }
 
 /// Run one parsed command.
@@ -78,8 +101,8 @@ pub fn run(cli: Cli) -> Result<()> {
                 w,
                 h,
                 TraceOptions {
-                    max_depth: a.max_depth,
-                    texture_filter: a.texture_filter,
+                    max_depth: a.depth.max_depth,
+                    texture_filter: a.filter.texture_filter,
                 },
             )
             .with_camera_path(path);
@@ -229,11 +252,11 @@ fn eval(a: args::EvalArgs) -> Result<()> {
         rates: a.rates.clone(),
         methods: a.methods.clone(),
         seed: a.seed,
-        ideal_spp: a.ideal_spp,
+        ideal_spp: a.ideal.ideal_spp,
         warmup: a.warmup,
         refresh_hz: a.refresh_hz,
-        max_depth: a.max_depth,
-        texture_filter: a.texture_filter,
+        max_depth: a.depth.max_depth,
+        texture_filter: a.filter.texture_filter,
         cache_dir,
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
@@ -284,7 +307,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         width: w,
         height: h,
         seed: a.seed,
-        texture_filter: a.texture_filter,
+        texture_filter: a.filter.texture_filter,
         format: match a.format {
             args::FrameFormat::Png => ImageFormat::Png,
             args::FrameFormat::Exr => ImageFormat::Exr,
@@ -311,74 +334,23 @@ fn render(a: args::RenderArgs) -> Result<()> {
 }
 
 fn table1(a: args::Table1Args) -> Result<()> {
-    use evaluation::table1::{self, AnimationResult, TableSummary};
+    use evaluation::table1::{self, TableSummary};
     frameless::output::check_folder_target(&a.out)?;
-    let bart = match a.bart.clone().or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)) {
-        Some(b) => b,
-        None => bail!("--bart is required (the BART folder holding kitchen/kitchen.aff), or set FRAMELESS_BART_DIR"),
-    };
-    let kitchen = bart.join("kitchen/kitchen.aff");
-    if !kitchen.is_file() {
-        bail!(
-            "{} not found: --bart must name the BART folder holding kitchen/kitchen.aff",
-            kitchen.display()
-        );
-    }
+    let kitchen = bart_kitchen(a.bart.as_deref())?;
     let animations = parse_list(&a.animations, table1::animation).context("--animations")?;
-    let rates = a.rates.clone();
     for r in a.strip_rates.iter().flatten() {
-        if !rates.contains(r) {
+        if !a.rates.contains(r) {
             bail!(
                 "--strip-rate: {} is not one of --rate",
                 frameless::clock::rate_label(*r)
             );
         }
     }
-    let methods = match &a.methods {
-        Some(m) => m.clone(),
-        None => table1::METHODS.to_vec(),
-    };
-    let Size(w, h) = a.size;
-    let cache_dir = a.cache_dir.clone().unwrap_or_else(default_cache_dir);
     // Validate every configuration before the first (long) run starts.
-    let mut cfgs = Vec::new();
-    for anim in &animations {
-        let camera_path = match anim.camera_path {
-            Some(text) => Some(
-                CameraPath::parse(anim.camera_path_file.unwrap_or(anim.name), text)
-                    .map_err(anyhow::Error::from)?,
-            ),
-            None => None,
-        };
-        let mut cfg = EvalConfig {
-            scene_name: format!("kitchen ({})", anim.name),
-            camera_path,
-            start: anim.start,
-            duration: a.duration.unwrap_or(anim.duration),
-            width: w,
-            height: h,
-            rates: rates.clone(),
-            methods: methods.clone(),
-            seed: a.seed,
-            ideal_spp: a.ideal_spp,
-            warmup: anim.warmup,
-            refresh_hz: 60.0,
-            max_depth: 5,
-            texture_filter: a.texture_filter,
-            cache_dir: Some(cache_dir.clone()),
-            strip_frames: Vec::new(),
-            flip_every: a.flip_every as usize,
-            gpu: None,
-        };
-        cfg.strip_frames = match a.strips {
-            args::Strips::Quartiles => cfg.quartile_frames(),
-            args::Strips::Middle => vec![cfg.frames() / 2],
-            args::Strips::None => Vec::new(),
-        };
-        cfg.validate()
-            .with_context(|| format!("animation {}", anim.name))?;
-        cfgs.push(cfg);
-    }
+    let mut cfgs = animations
+        .iter()
+        .map(|anim| table1_config(&a, anim))
+        .collect::<Result<Vec<_>>>()?;
     // One GPU for every animation's evaluation.
     let gpu = acquire_recon(a.recon.recon)?;
     for cfg in &mut cfgs {
@@ -390,34 +362,10 @@ fn table1(a: args::Table1Args) -> Result<()> {
     let mut results = Vec::new();
     let mut cost = Vec::new();
     for (anim, cfg) in animations.iter().zip(&cfgs) {
-        let bar = Meter::new(anim.name, "rays");
-        let ta = Instant::now();
-        let mut out = evaluation::run(scene.clone(), cfg, &bar)
-            .with_context(|| format!("animation {}", anim.name))?;
-        bar.finish();
-        if let Some(keep) = &a.strip_rates {
-            out.strips.retain(|s| keep.contains(&s.0));
-        }
-        outputs.write_animation(anim.name, &mut out)?;
-        let t = &out.summary.timing;
-        let line = format!(
-            "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache, {} rejected; methods {:.0} s)",
-            anim.name,
-            ta.elapsed().as_secs_f64(),
-            t.ideal_s,
-            t.ideal_cache_hits,
-            cfg.frames(),
-            t.ideal_cache_rejected,
-            t.methods_s
-        );
+        let (result, line) = table1_animation(&a, anim, cfg, &scene, &outputs)?;
         eprintln!("{line}");
         cost.push(line);
-        results.push(AnimationResult {
-            name: anim.name.to_string(),
-            description: anim.description.to_string(),
-            camera_path: anim.camera_path_file.map(str::to_string),
-            summary: out.summary,
-        });
+        results.push(result);
     }
     let threads = rayon::current_num_threads();
     let cost = format!(
@@ -436,11 +384,107 @@ fn table1(a: args::Table1Args) -> Result<()> {
     Ok(())
 }
 
-fn sampler(a: args::SamplerArgs) -> Result<()> {
-    use frameless::methods::{
-        adaptive::{vis, Adaptive, SamplerParams},
-        Method, MethodContext,
+/// The kitchen scene file of the BART folder `--bart` (else `$FRAMELESS_BART_DIR`).
+fn bart_kitchen(bart: Option<&Path>) -> Result<std::path::PathBuf> {
+    let bart = match bart
+        .map(Path::to_path_buf)
+        .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into))
+    {
+        Some(b) => b,
+        None => bail!("--bart is required (the BART folder holding kitchen/kitchen.aff), or set FRAMELESS_BART_DIR"),
     };
+    let kitchen = bart.join("kitchen/kitchen.aff");
+    if !kitchen.is_file() {
+        bail!(
+            "{} not found: --bart must name the BART folder holding kitchen/kitchen.aff",
+            kitchen.display()
+        );
+    }
+    Ok(kitchen)
+}
+
+/// The evaluation of one Table 1 animation, validated.
+fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> Result<EvalConfig> {
+    let camera_path = match anim.camera_path {
+        Some(text) => Some(
+            CameraPath::parse(anim.camera_path_file.unwrap_or(anim.name), text)
+                .map_err(anyhow::Error::from)?,
+        ),
+        None => None,
+    };
+    let Size(w, h) = a.size;
+    let mut cfg = EvalConfig {
+        scene_name: format!("kitchen ({})", anim.name),
+        camera_path,
+        start: anim.start,
+        duration: a.duration.unwrap_or(anim.duration),
+        width: w,
+        height: h,
+        rates: a.rates.clone(),
+        methods: match &a.methods {
+            Some(m) => m.clone(),
+            None => evaluation::table1::METHODS.to_vec(),
+        },
+        seed: a.seed,
+        ideal_spp: a.ideal.ideal_spp,
+        warmup: anim.warmup,
+        refresh_hz: settings::REFRESH_HZ,
+        max_depth: settings::MAX_DEPTH,
+        texture_filter: a.filter.texture_filter,
+        cache_dir: Some(a.cache_dir.clone().unwrap_or_else(default_cache_dir)),
+        strip_frames: Vec::new(),
+        flip_every: a.flip_every as usize,
+        gpu: None,
+    };
+    cfg.strip_frames = match a.strips {
+        args::Strips::Quartiles => cfg.quartile_frames(),
+        args::Strips::Middle => vec![cfg.frames() / 2],
+        args::Strips::None => Vec::new(),
+    };
+    cfg.validate()
+        .with_context(|| format!("animation {}", anim.name))?;
+    Ok(cfg)
+}
+
+/// Run and write one Table 1 animation; its result and a line saying what it cost.
+fn table1_animation(
+    a: &args::Table1Args,
+    anim: &evaluation::table1::Animation,
+    cfg: &EvalConfig,
+    scene: &Arc<Scene>,
+    outputs: &evaluation::table1::Table1Output,
+) -> Result<(evaluation::table1::AnimationResult, String)> {
+    let bar = Meter::new(anim.name, "rays");
+    let ta = Instant::now();
+    let mut out = evaluation::run(scene.clone(), cfg, &bar)
+        .with_context(|| format!("animation {}", anim.name))?;
+    bar.finish();
+    if let Some(keep) = &a.strip_rates {
+        out.strips.retain(|s| keep.contains(&s.rate));
+    }
+    outputs.write_animation(anim.name, &mut out)?;
+    let t = &out.summary.timing;
+    let line = format!(
+        "{}: {:.0} s (ideal {:.0} s, {} of {} frames from cache, {} rejected; methods {:.0} s)",
+        anim.name,
+        ta.elapsed().as_secs_f64(),
+        t.ideal_s,
+        t.ideal_cache_hits,
+        cfg.frames(),
+        t.ideal_cache_rejected,
+        t.methods_s
+    );
+    let result = evaluation::table1::AnimationResult {
+        name: anim.name.to_string(),
+        description: anim.description.to_string(),
+        camera_path: anim.camera_path_file.map(str::to_string),
+        summary: out.summary,
+    };
+    Ok((result, line))
+}
+
+fn sampler(a: args::SamplerArgs) -> Result<()> {
+    use frameless::methods::{adaptive::Adaptive, Method, MethodContext};
     frameless::output::check_folder_target(&a.out)?;
     let rate = a.rate;
     use frameless::limits;
@@ -448,16 +492,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
     limits::check_refresh_hz(a.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
-    let mut params = match a.preset {
-        args::SamplerPreset::Ours => SamplerParams::ours(),
-        args::SamplerPreset::Paper => SamplerParams::paper(),
-    };
-    if a.no_reprojection {
-        params.reprojection = false;
-    }
-    params.gain_control = !a.no_gain_control;
-    params.occlusion_term = !a.no_occlusion_term;
-    params.uniform_tiling = a.uniform_tiling;
+    let params = sampler_params(&a);
     let Size(w, h) = a.size;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
@@ -491,16 +526,48 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     bar.finish();
     let wall = t0.elapsed().as_secs_f64();
     let end = a.start + frames as f64 / a.refresh_hz;
+    let stats = write_sampler_outputs(&a, m.sampler(), &display, end, wall)?;
+    println!("{}", serde_json::to_string_pretty(&stats)?);
+    println!("images: {}", a.out.display());
+    Ok(())
+}
+
+/// The sampler's parameters: `--preset` with the ablations asked for.
+fn sampler_params(a: &args::SamplerArgs) -> frameless::methods::adaptive::SamplerParams {
+    use frameless::methods::adaptive::SamplerParams;
+    let mut params = match a.preset {
+        args::SamplerPreset::Ours => SamplerParams::ours(),
+        args::SamplerPreset::Paper => SamplerParams::paper(),
+    };
+    if a.no_reprojection {
+        params.reprojection = false;
+    }
+    params.gain_control = !a.no_gain_control;
+    params.occlusion_term = !a.no_occlusion_term;
+    params.uniform_tiling = a.uniform_tiling;
+    params
+}
+
+/// Write what the sampler `s` saw after its run up to scene time `end` into `--out`:
+/// the pictures and `stats.json`, whose contents it returns.
+fn write_sampler_outputs(
+    a: &args::SamplerArgs,
+    s: &frameless::methods::adaptive::Sampler,
+    display: &frameless::image::Image,
+    end: f64,
+    wall: f64,
+) -> Result<serde_json::Value> {
+    use frameless::methods::adaptive::vis;
+    let Size(w, h) = a.size;
     let staging = frameless::output::OutputDir::begin(&a.out)
         .with_context(|| format!("creating {}", a.out.display()))?;
-    let s = m.sampler();
     let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
         let p = staging.path().join(name);
         img.save_png(&p)
             .with_context(|| format!("writing {}", p.display()))
     };
-    save("display.png", &display)?;
-    save("tiling.png", &vis::tiling_overlay(s, &display))?;
+    save("display.png", display)?;
+    save("tiling.png", &vis::tiling_overlay(s, display))?;
     save("gradients.png", &vis::gradient_map(s))?;
     save("density.png", &vis::density_map(s))?;
     save("occlusion.png", &vis::occlusion_map(s, end))?;
@@ -510,7 +577,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         serde_json::json!({"gs": gs, "gt": gt, "age_s": age})
     };
     let stats = serde_json::json!({
-        "scene": a.scene, "width": w, "height": h, "rate": rate, "start": a.start, "end": end,
+        "scene": a.scene, "width": w, "height": h, "rate": a.rate, "start": a.start, "end": end,
         "tiles": s.tiling().len(), "target_tiles": s.target_tiles(),
         "gain_inputs": gain_inputs,
         "counters": s.counters(),
@@ -524,24 +591,57 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     staging
         .commit()
         .with_context(|| format!("replacing {}", a.out.display()))?;
-    println!("{}", serde_json::to_string_pretty(&stats)?);
-    println!("images: {}", a.out.display());
-    Ok(())
+    Ok(stats)
 }
 
 fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
-    use frameless::realtime::{self, RtConfig};
+    use frameless::realtime;
     if a.headless {
         frameless::output::check_writable_folder(&a.out)?;
     }
     if let Some(p) = &a.screenshot {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
-    let method = a.method;
+    let mut cfg = view_config(&a, threads)?;
+    if let Some(s) = a.seconds {
+        frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--seconds {e}"))?;
+    }
+    let Size(w, h) = a.size;
+    cfg.check_size(w, h)?;
+    cfg.gpu = acquire_recon(a.recon.recon)?;
+    let scene = Arc::new(load_scene(&a.scene)?);
+    let tracer = Arc::new(
+        Tracer::new(
+            scene,
+            w,
+            h,
+            TraceOptions {
+                texture_filter: a.filter.texture_filter,
+                ..TraceOptions::default()
+            },
+        )
+        .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+    );
+    if a.headless {
+        return view_headless(&a, tracer, cfg);
+    }
+    let opts = realtime::ViewerOptions {
+        seconds: a.seconds,
+        record: a.record.clone(),
+        screenshot: a.screenshot.clone(),
+        visualisation: a.vis,
+    };
+    realtime::run_viewer(tracer, cfg, opts)?;
+    Ok(())
+}
+
+/// The real-time pipeline's settings from `view`'s options, checked.
+fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::realtime::RtConfig> {
+    use frameless::realtime::RtConfig;
     // `--threads N`: the pipeline's threads sized for N cores, as `live` does.
     let mut cfg = match threads {
-        Some(n) => RtConfig::for_cores(method, n as usize),
-        None => RtConfig::new(method),
+        Some(n) => RtConfig::for_cores(a.method, n as usize),
+        None => RtConfig::new(a.method),
     };
     if let Some(n) = a.sampling_threads {
         cfg.sampling_threads = n as usize;
@@ -569,88 +669,67 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
         cfg.recon.max_radius = r as f32;
     }
     cfg.validate()?;
-    if let Some(s) = a.seconds {
-        if !(s > 0.0 && s <= 86400.0) {
-            bail!("--seconds {s} must be in (0, 86400]");
-        }
-    }
-    let Size(w, h) = a.size;
-    cfg.check_size(w, h)?;
-    cfg.gpu = acquire_recon(a.recon.recon)?;
-    let scene = Arc::new(load_scene(&a.scene)?);
-    let tracer = Arc::new(
-        Tracer::new(
-            scene,
-            w,
-            h,
-            TraceOptions {
-                texture_filter: a.texture_filter,
-                ..TraceOptions::default()
-            },
-        )
-        .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
-    );
-    if a.headless {
-        let Some(seconds) = a.seconds else {
-            bail!("--headless needs --seconds N");
-        };
-        if let Some(at) = a.camera_step {
-            if !(at >= 0.0 && at < seconds) {
-                bail!("--camera-step {at} must be within the run: [0, --seconds {seconds})");
-            }
-        }
-        let opts = realtime::HeadlessOptions {
-            seconds,
-            out: a.out.clone(),
-            images: a.images as usize,
-            scene: a.scene.clone(),
-            camera_step_s: a.camera_step,
-        };
-        let st = realtime::run_headless(tracer, cfg.clone(), &opts)?;
-        println!(
-            "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
-            cfg.method.name(),
-            st.samples_per_s,
-            st.display_fps,
-            st.display.present_hz,
-            st.display.late_refreshes,
-            st.pipeline.reconstruct_ms_mean,
-            st.pipeline.mean_age_s * 1e3,
-            st.pipeline.age_p50_s * 1e3,
-            st.pipeline.age_p95_s * 1e3,
-            st.pipeline.age_p99_s * 1e3,
-            st.pipeline.sampling_threads,
-            if st.pipeline.sampling_threads == 1 { "" } else { "s" }
-        );
-        if let Some(c) = &st.camera_step {
-            let ms =
-                |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
-            println!(
-                "camera step of {}° at {:.2} s: first image after it {}, first from the turned camera {}, half the pixels new {}",
-                c.yaw_deg,
-                c.at_s,
-                ms(c.first_image_ms),
-                ms(c.view_ms),
-                ms(c.half_new_ms)
-            );
-        }
-        if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {
-            println!(
-                "this run got {:.0}% of the machine's {} cores (load average before: {load:.1})",
-                share * 100.0,
-                st.pipeline.cores
-            );
-        }
-        println!("wrote {}", a.out.join("stats.json").display());
-        return Ok(());
-    }
-    let opts = realtime::ViewerOptions {
-        seconds: a.seconds,
-        record: a.record.clone(),
-        screenshot: a.screenshot.clone(),
-        visualisation: a.vis,
+    Ok(cfg)
+}
+
+/// `view --headless`: run the pipeline for `--seconds`, write its outputs and print
+/// its figures.
+fn view_headless(
+    a: &args::ViewArgs,
+    tracer: Arc<Tracer>,
+    cfg: frameless::realtime::RtConfig,
+) -> Result<()> {
+    use frameless::realtime;
+    let Some(seconds) = a.seconds else {
+        bail!("--headless needs --seconds N");
     };
-    realtime::run_viewer(tracer, cfg, opts)?;
+    if let Some(at) = a.camera_step {
+        if !(at >= 0.0 && at < seconds) {
+            bail!("--camera-step {at} must be within the run: [0, --seconds {seconds})");
+        }
+    }
+    let opts = realtime::HeadlessOptions {
+        seconds,
+        out: a.out.clone(),
+        images: a.images as usize,
+        scene: a.scene.clone(),
+        camera_step_s: a.camera_step,
+    };
+    let st = realtime::run_headless(tracer, cfg.clone(), &opts)?;
+    println!(
+        "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
+        cfg.method.name(),
+        st.samples_per_s,
+        st.display_fps,
+        st.display.present_hz,
+        st.display.late_refreshes,
+        st.pipeline.reconstruct_ms_mean,
+        st.pipeline.mean_age_s * 1e3,
+        st.pipeline.age_p50_s * 1e3,
+        st.pipeline.age_p95_s * 1e3,
+        st.pipeline.age_p99_s * 1e3,
+        st.pipeline.sampling_threads,
+        if st.pipeline.sampling_threads == 1 { "" } else { "s" }
+    );
+    if let Some(c) = &st.camera_step {
+        let ms = |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
+        println!(
+            "camera step of {}° at {:.2} s: first image after it {}, first from the turned camera {}, half the pixels new {}",
+            c.yaw_deg,
+            c.at_s,
+            ms(c.first_image_ms),
+            ms(c.view_ms),
+            ms(c.half_new_ms)
+        );
+    }
+    if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {
+        println!(
+            "this run got {:.0}% of the machine's {} cores (load average before: {load:.1})",
+            share * 100.0,
+            st.pipeline.cores
+        );
+    }
+    println!("wrote {}", a.out.join("stats.json").display());
     Ok(())
 }
 
@@ -673,9 +752,9 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
         cfg.cores = n as usize;
     }
     cfg.seed = a.seed;
-    cfg.ideal_spp = a.ideal_spp;
-    cfg.max_depth = a.max_depth;
-    cfg.texture_filter = a.texture_filter;
+    cfg.ideal_spp = a.ideal.ideal_spp;
+    cfg.max_depth = a.depth.max_depth;
+    cfg.texture_filter = a.filter.texture_filter;
     cfg.cache_dir = (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir));
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.recon.recon)?;

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use frameless::evaluation::{
-    sweep::{self, run::shard_jobs, JobEvent, Shard, ShardOptions, SweepFile, SweepReport},
+    sweep::{
+        self, run::shard_jobs, JobEvent, Shard, ShardOptions, SweepError, SweepFile, SweepReport,
+    },
     table1,
 };
 
@@ -79,7 +81,15 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
         JobEvent::Done { job, seconds } => eprintln!("{}: {seconds:.1} s", job.id()),
         JobEvent::Kept { job } => eprintln!("{}: kept (already done)", job.id()),
     };
-    let run = sweep::run_shard(&file, a.shard, &a.out, &opts, &mut events, &bar)?;
+    let run =
+        sweep::run_shard(&file, a.shard, &a.out, &opts, &mut events, &bar).map_err(
+            |e| match e {
+                SweepError::NoBartFolder { .. } => {
+                    anyhow::anyhow!("{e}: give --bart DIR or set FRAMELESS_BART_DIR")
+                }
+                e => e.into(),
+            },
+        )?;
     bar.finish();
     println!(
         "shard {} of sweep {}: {} jobs, {} run, {} kept, {:.1} s; results in {}",
@@ -138,9 +148,9 @@ mod tests {
         let Size(w, h) = a.size;
         assert_eq!(s.sizes, vec![(w, h)]);
         assert_eq!(s.seeds, vec![a.seed]);
-        assert_eq!(s.ideal_spp, a.ideal_spp);
+        assert_eq!(s.ideal_spp, a.ideal.ideal_spp);
         assert_eq!(s.flip_every, a.flip_every);
-        assert_eq!(s.texture_filter, a.texture_filter);
+        assert_eq!(s.texture_filter, a.filter.texture_filter);
         assert_eq!(a.strips, Strips::Quartiles);
         assert_eq!(s.strips, StripFrames::Quartiles);
         assert!(a.methods.is_none() && a.duration.is_none() && a.strip_rates.is_none());

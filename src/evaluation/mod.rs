@@ -21,6 +21,7 @@ use crate::{
     reconstruction::device::{GpuContext, ReconUsed},
     render::cache::{IdealCache, Lookup},
     scene::{CameraPath, Scene},
+    settings::{self, Setting},
     trace::{TextureFilter, TraceOptions, Tracer},
 };
 
@@ -28,10 +29,10 @@ use crate::{
 #[derive(Debug, thiserror::Error)]
 pub enum EvalError {
     /// A setting is out of range.
-    #[error("{option} {why}")]
+    #[error("{setting} {why}")]
     Config {
-        /// The option, as users write it.
-        option: &'static str,
+        /// The setting (the binary names its option).
+        setting: Setting,
         /// What is wrong and what would do.
         why: String,
     },
@@ -61,6 +62,14 @@ pub enum EvalError {
         path: PathBuf,
         /// What is wrong, with the line where the format says it.
         why: String,
+    },
+    /// A `summary.json` or `frames.csv` read back is not one a run could write.
+    #[error("{}: {source}", path.display())]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        source: DataError,
     },
     /// A plot could not be drawn.
     #[error("plot {}: {why}", path.display())]
@@ -92,6 +101,90 @@ pub enum EvalError {
     },
 }
 
+/// What is wrong with a `summary.json` or `frames.csv` read back: a setting past its
+/// budget, or rows that contradict each other or the summary. Rows are counted from 1,
+/// as in `frames.csv` after its header.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A setting past its budget, named by its key in the file.
+    #[error("{key}: {why}")]
+    Setting {
+        /// The key.
+        key: &'static str,
+        /// Which budget it breaks.
+        why: String,
+    },
+    /// More result rows than every method at the most rates.
+    #[error(
+        "{rows} result rows, more than {most} (every method at {} rates)",
+        limits::MAX_RATES
+    )]
+    ResultRows {
+        /// Rows in the file.
+        rows: usize,
+        /// The most there can be.
+        most: usize,
+    },
+    /// A result row whose rate is not a positive number.
+    #[error("{method}: rate {rate} is not a positive number")]
+    Rate {
+        /// The row's method.
+        method: MethodKind,
+        /// Its rate.
+        rate: f64,
+    },
+    /// Two result rows of one method and rate.
+    #[error("{method} at {rate} has two result rows")]
+    TwoResultRows {
+        /// The method.
+        method: MethodKind,
+        /// The rate.
+        rate: f64,
+    },
+    /// A frame row of a method and rate the summary has no result for.
+    #[error("row {row}: {method} at {rate} has no result row in the summary")]
+    NoResultRow {
+        /// The frame row.
+        row: usize,
+        /// Its method.
+        method: MethodKind,
+        /// Its rate.
+        rate: f64,
+    },
+    /// A frame row past the window.
+    #[error("row {row}: frame {frame} is past the window's {refreshes} refreshes")]
+    PastWindow {
+        /// The frame row.
+        row: usize,
+        /// Its frame.
+        frame: usize,
+        /// Refreshes in the window.
+        refreshes: usize,
+    },
+    /// A frame row with a value out of its range.
+    #[error("row {row}: {why}")]
+    OutOfRange {
+        /// The frame row.
+        row: usize,
+        /// Which value, and its range.
+        why: String,
+    },
+    /// Two frame rows of one method, rate and frame.
+    #[error("rows {first} and {row}: {method} at {rate} frame {frame} is there twice")]
+    Twice {
+        /// The first row.
+        first: usize,
+        /// The second.
+        row: usize,
+        /// Their method.
+        method: MethodKind,
+        /// Their rate.
+        rate: f64,
+        /// Their frame.
+        frame: usize,
+    },
+}
+
 impl EvalError {
     /// An I/O error on `path`.
     pub fn io(path: &std::path::Path, source: std::io::Error) -> Self {
@@ -101,10 +194,10 @@ impl EvalError {
         }
     }
 
-    fn config(option: &'static str, why: impl Into<String>) -> Self {
+    pub(crate) fn config(setting: Setting, why: impl ToString) -> Self {
         EvalError::Config {
-            option,
-            why: why.into(),
+            setting,
+            why: why.to_string(),
         }
     }
 }
@@ -178,15 +271,15 @@ impl EvalConfig {
             camera_path: None,
             start: 0.0,
             duration: 1.0,
-            width: 256,
-            height: 256,
-            rates: vec![100_000.0, 400_000.0, 800_000.0],
+            width: settings::SIZE.0,
+            height: settings::SIZE.1,
+            rates: settings::RATES.to_vec(),
             methods: DEFAULT_METHODS.to_vec(),
-            seed: 1,
-            ideal_spp: 16,
-            warmup: 1.0,
-            refresh_hz: 60.0,
-            max_depth: 5,
+            seed: settings::SEED,
+            ideal_spp: settings::IDEAL_SPP,
+            warmup: settings::WARMUP_S,
+            refresh_hz: settings::REFRESH_HZ,
+            max_depth: settings::MAX_DEPTH,
             texture_filter: TextureFilter::RayCones,
             cache_dir: None,
             strip_frames: Vec::new(),
@@ -263,6 +356,22 @@ impl EvalConfig {
         }
     }
 
+    /// The tracer of `scene` at the run's size, trace options and camera path.
+    pub fn tracer(&self, scene: Arc<Scene>) -> Arc<Tracer> {
+        Arc::new(
+            Tracer::new(
+                scene,
+                self.width,
+                self.height,
+                TraceOptions {
+                    max_depth: self.max_depth,
+                    texture_filter: self.texture_filter,
+                },
+            )
+            .with_camera_path(self.camera_path.clone()),
+        )
+    }
+
     /// What the methods' budget rules need to know of this run.
     pub fn shape(&self) -> RunShape {
         RunShape {
@@ -276,38 +385,38 @@ impl EvalConfig {
 
     /// Check the settings; the error says what is wrong and how to fix it.
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::config(option, why));
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
         let times = [
-            ("--warmup", limits::check_warmup(self.warmup)),
-            ("--duration", limits::check_duration(self.duration)),
+            (Setting::Warmup, limits::check_warmup(self.warmup)),
+            (Setting::Duration, limits::check_duration(self.duration)),
             (
-                "--start",
+                Setting::Start,
                 limits::check_start(self.start, self.warmup, self.duration),
             ),
         ];
         for (option, check) in times {
             if let Err(why) = check {
-                return bad(option, why);
+                return bad(option, why.to_string());
             }
         }
         if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
-            return bad("refresh rate", why);
+            return bad(Setting::RefreshHz, why.to_string());
         }
         if self.rates.is_empty() {
-            return bad("--rates", "lists no rate".into());
+            return bad(Setting::Rates, "lists no rate".into());
         }
         if self.methods.is_empty() {
-            return bad("--methods", "lists no method".into());
+            return bad(Setting::Methods, "lists no method".into());
         }
         // Rows, files and plot series are keyed by method and by rate label: a repeat
         // would be run twice and overwrite itself.
         for (i, m) in self.methods.iter().enumerate() {
             if self.methods[..i].contains(m) {
-                return bad("--methods", format!("lists {m} twice"));
+                return bad(Setting::Methods, format!("lists {m} twice"));
             }
         }
         if let Err(why) = limits::check_rate_count(self.rates.len()) {
-            return bad("--rates", why);
+            return bad(Setting::Rates, why.to_string());
         }
         let mut labels: HashMap<String, f64> = HashMap::with_capacity(self.rates.len());
         for &r in &self.rates {
@@ -320,26 +429,26 @@ impl EvalConfig {
                         "{q} and {r} would both be labelled {label} (rates must differ in their first three digits)"
                     )
                 };
-                return bad("--rates", why);
+                return bad(Setting::Rates, why.to_string());
             }
             labels.insert(label, r);
         }
         if self.flip_every == 0 {
-            return bad("--flip-every", "must be at least 1".into());
+            return bad(Setting::FlipEvery, "must be at least 1".into());
         }
         if let Err(why) = limits::check_ideal_spp(self.ideal_spp) {
-            return bad("--ideal-spp", why);
+            return bad(Setting::IdealSpp, why.to_string());
         }
         if let Err(why) = limits::check_max_depth(self.max_depth) {
-            return bad("--max-depth", why);
+            return bad(Setting::MaxDepth, why.to_string());
         }
         if let Err(why) = limits::check_display(self.width, self.height) {
-            return bad("--size", why);
+            return bad(Setting::Size, why.to_string());
         }
         let shape = self.shape();
         for &r in &self.rates {
             if let Err(why) = limits::check_rate(r, shape.seconds) {
-                return bad("--rates", why);
+                return bad(Setting::Rates, why.to_string());
             }
             for m in &self.methods {
                 (m.info().check_rate)(&shape, r)?;
@@ -500,37 +609,40 @@ fn refreshes(duration: f64, refresh_hz: f64) -> usize {
 impl Summary {
     /// Check a summary read from a file that anyone can edit against the run budgets
     /// and for rows that contradict each other; the error says what is wrong.
-    pub fn check(&self) -> Result<(), String> {
-        limits::check_display(self.width, self.height).map_err(|e| format!("size: {e}"))?;
-        limits::check_refresh_hz(self.refresh_hz).map_err(|e| format!("refresh_hz: {e}"))?;
-        limits::check_warmup(self.warmup).map_err(|e| format!("warmup: {e}"))?;
-        limits::check_duration(self.duration).map_err(|e| format!("duration: {e}"))?;
-        limits::check_start(self.start, self.warmup, self.duration)
-            .map_err(|e| format!("start: {e}"))?;
-        limits::check_ideal_spp(self.ideal_spp).map_err(|e| format!("ideal_spp: {e}"))?;
+    pub fn check(&self) -> Result<(), DataError> {
+        let setting = |key: &'static str| move |why: String| DataError::Setting { key, why };
+        let limit = |key| move |e: limits::LimitError| setting(key)(e.to_string());
+        limits::check_display(self.width, self.height).map_err(setting("size"))?;
+        limits::check_refresh_hz(self.refresh_hz).map_err(limit("refresh_hz"))?;
+        limits::check_warmup(self.warmup).map_err(limit("warmup"))?;
+        limits::check_duration(self.duration).map_err(limit("duration"))?;
+        limits::check_start(self.start, self.warmup, self.duration).map_err(limit("start"))?;
+        limits::check_ideal_spp(self.ideal_spp).map_err(limit("ideal_spp"))?;
         let most = MethodKind::ALL.len() * limits::MAX_RATES;
         if self.results.len() > most {
-            return Err(format!(
-                "{} result rows, more than {most} (every method at {} rates)",
-                self.results.len(),
-                limits::MAX_RATES
-            ));
+            return Err(DataError::ResultRows {
+                rows: self.results.len(),
+                most,
+            });
         }
         let mut rates = std::collections::HashSet::new();
         let mut cells = std::collections::HashSet::new();
         for r in &self.results {
             if !(r.rate.is_finite() && r.rate > 0.0) {
-                return Err(format!(
-                    "{}: rate {} is not a positive number",
-                    r.method, r.rate
-                ));
+                return Err(DataError::Rate {
+                    method: r.method,
+                    rate: r.rate,
+                });
             }
             rates.insert(r.rate.to_bits());
             if !cells.insert((r.method, r.rate.to_bits())) {
-                return Err(format!("{} at {} has two result rows", r.method, r.rate));
+                return Err(DataError::TwoResultRows {
+                    method: r.method,
+                    rate: r.rate,
+                });
             }
         }
-        limits::check_rate_count(rates.len()).map_err(|e| format!("results: {e}"))
+        limits::check_rate_count(rates.len()).map_err(limit("results"))
     }
 
     /// Evaluated refreshes of the run it summarises.
@@ -541,7 +653,7 @@ impl Summary {
     /// Check per-frame rows against the summary: each of a method and rate it has
     /// a result row for, within its window, once. The error names the row (1-based,
     /// as in `frames.csv` after its header).
-    pub fn check_frames(&self, frames: &[FrameRow]) -> Result<(), String> {
+    pub fn check_frames(&self, frames: &[FrameRow]) -> Result<(), DataError> {
         let cells: std::collections::HashSet<(MethodKind, u64)> = self
             .results
             .iter()
@@ -552,25 +664,30 @@ impl Summary {
         for (i, f) in frames.iter().enumerate() {
             let row = i + 1;
             if !cells.contains(&(f.method, f.rate.to_bits())) {
-                return Err(format!(
-                    "row {row}: {} at {} has no result row in the summary",
-                    f.method, f.rate
-                ));
+                return Err(DataError::NoResultRow {
+                    row,
+                    method: f.method,
+                    rate: f.rate,
+                });
             }
             if f.frame >= n {
-                return Err(format!(
-                    "row {row}: frame {} is past the window's {n} refreshes",
-                    f.frame
-                ));
+                return Err(DataError::PastWindow {
+                    row,
+                    frame: f.frame,
+                    refreshes: n,
+                });
             }
             if let Some(why) = f.out_of_range() {
-                return Err(format!("row {row}: {why}"));
+                return Err(DataError::OutOfRange { row, why });
             }
             if let Some(first) = seen.insert((f.method, f.rate.to_bits(), f.frame), row) {
-                return Err(format!(
-                    "rows {first} and {row}: {} at {} frame {} is there twice",
-                    f.method, f.rate, f.frame
-                ));
+                return Err(DataError::Twice {
+                    first,
+                    row,
+                    method: f.method,
+                    rate: f.rate,
+                    frame: f.frame,
+                });
             }
         }
         Ok(())
@@ -583,7 +700,7 @@ pub struct EvalOutput {
     pub summary: Summary,
     /// Every frame's measurements.
     pub frames: Vec<FrameRow>,
-    /// Strip images: `(rate, frame, [(label, 8-bit RGB)])`, the ideal image first.
+    /// Strip images: the ideal image and each method's at a few frames of each rate.
     pub strips: Vec<Strip>,
     /// The strip frames' linear images, when asked for ([`RunOptions::linear_strips`]).
     pub linear: Vec<LinearImage>,
@@ -621,15 +738,18 @@ pub struct RunOptions {
     /// and every method's, for HDR output ([`EvalOutput::linear`]). The ideal images of
     /// those frames are rendered again, since the cache holds them as displayed.
     pub linear_strips: bool,
-    /// Make the ideal images from this refresh on, then wrap around ([`run_from`]).
+    /// Make the ideal images from this refresh on, then wrap around. Runs of one
+    /// evaluation that share a cold cache at the same time (a sweep's shards) start at
+    /// different refreshes, so each renders its part and reads the rest from the cache
+    /// instead of all rendering all; the results do not depend on the order.
     pub first_ideal: usize,
 }
 
 /// A strip frame's image before display quantization.
 #[derive(Clone, Debug)]
 pub struct LinearImage {
-    /// `ideal` or the method's name.
-    pub label: String,
+    /// The method that showed it, or [`MethodKind::Ideal`] for the ideal image.
+    pub method: MethodKind,
     /// The rate column (`None` for the ideal image, which has none).
     pub rate: Option<f64>,
     /// Frame index in the window.
@@ -638,9 +758,37 @@ pub struct LinearImage {
     pub image: crate::image::Image,
 }
 
-/// Strip images at one rate and frame: `(rate, frame, [(label, 8-bit RGB)])`, the
-/// ideal image first.
-pub type Strip = (f64, usize, Vec<(String, Vec<u8>)>);
+/// Strip images at one rate and frame, as displayed (8-bit RGB).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strip {
+    /// The rate column.
+    pub rate: f64,
+    /// Frame index in the window.
+    pub frame: usize,
+    /// The ideal image of that frame.
+    pub ideal: Vec<u8>,
+    /// Each method's displayed image, in the run's method order.
+    pub shown: Vec<(MethodKind, Vec<u8>)>,
+}
+
+impl Strip {
+    /// A strip with the ideal image and no method's yet.
+    pub fn new(rate: f64, frame: usize, ideal: Vec<u8>) -> Strip {
+        Strip {
+            rate,
+            frame,
+            ideal,
+            shown: Vec::new(),
+        }
+    }
+
+    /// The panels left to right, each with the method that shows it: the ideal image
+    /// ([`MethodKind::Ideal`]) first, then the methods'.
+    pub fn panels(&self) -> impl Iterator<Item = (MethodKind, &[u8])> {
+        std::iter::once((MethodKind::Ideal, self.ideal.as_slice()))
+            .chain(self.shown.iter().map(|(m, rgb)| (*m, rgb.as_slice())))
+    }
+}
 
 /// One method's displayed images over the window, and what it cost.
 struct Shown {
@@ -664,27 +812,6 @@ pub fn run(
     run_with(scene, cfg, progress, RunOptions::default())
 }
 
-/// [`run`], making the ideal images from refresh `first_ideal` on (then wrapping
-/// around). Runs of one evaluation that share a cold cache at the same time (a sweep's
-/// shards) start at different refreshes, so each renders its part and reads the rest
-/// from the cache instead of all rendering all; the results do not depend on the order.
-pub fn run_from(
-    scene: Arc<Scene>,
-    cfg: &EvalConfig,
-    progress: &dyn Progress,
-    first_ideal: usize,
-) -> Result<EvalOutput, EvalError> {
-    run_with(
-        scene,
-        cfg,
-        progress,
-        RunOptions {
-            first_ideal,
-            ..RunOptions::default()
-        },
-    )
-}
-
 /// [`run`], keeping what `options` asks for besides the measurements.
 pub fn run_with(
     scene: Arc<Scene>,
@@ -693,49 +820,19 @@ pub fn run_with(
     options: RunOptions,
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
-    let tracer = Arc::new(
-        Tracer::new(
-            scene,
-            cfg.width,
-            cfg.height,
-            TraceOptions {
-                max_depth: cfg.max_depth,
-                texture_filter: cfg.texture_filter,
-            },
-        )
-        .with_camera_path(cfg.camera_path.clone()),
-    );
-    let cache = match &cfg.cache_dir {
-        Some(dir) => Some(Arc::new(
-            IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
-                .map_err(|e| EvalError::io(dir, e))?,
-        )),
-        None => None,
-    };
+    let tracer = cfg.tracer(scene);
+    let cache = open_cache(cfg, &tracer)?;
     let n = cfg.frames();
     let runs = cfg.runs();
-    let shape = cfg.shape();
-    // Progress in rays. A cached ideal image costs a read, counted as one sample per
-    // pixel; whether it is cached is known (up to a rare rejected entry) from its file.
-    let pixels = cfg.width as u64 * cfg.height as u64;
-    let ideal_units = |k: usize| match &cache {
-        Some(c)
-            if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
-                .is_file() =>
-        {
-            pixels
-        }
-        _ => pixels * cfg.ideal_spp as u64,
-    };
-    // A method's refresh costs its samples and, besides, work over every pixel (its
-    // image, the metrics); on a 2-core machine that work was worth about one ray a pixel.
-    let run_units = |kind: MethodKind, rate: f64| {
-        let rate = kind.info().budget.effective_rate(&shape, rate);
-        (rate * shape.seconds) as u64 + n as u64 * pixels
+    let units = Units {
+        cfg,
+        cache: cache.as_deref(),
+        pixels: cfg.width as u64 * cfg.height as u64,
+        shape: cfg.shape(),
     };
     progress.total(
-        (0..n).map(ideal_units).sum::<u64>()
-            + runs.iter().map(|&(k, r)| run_units(k, r)).sum::<u64>(),
+        (0..n).map(|k| units.ideal(k)).sum::<u64>()
+            + runs.iter().map(|&(k, r)| units.run(k, r)).sum::<u64>(),
     );
     let mut timing = Timing::default();
     let ctx_for = |rate: f64| MethodContext {
@@ -752,56 +849,167 @@ pub fn run_with(
         &ctx_for(cfg.rates[0]),
         options.first_ideal,
         &mut timing,
-        &ideal_units,
+        &|k| units.ideal(k),
         progress,
     );
-    let mut strips: Vec<Strip> = Vec::new();
+    // Strip frames past the window are left out.
     let strip_frames: Vec<usize> = cfg
         .strip_frames
         .iter()
         .copied()
         .filter(|&k| k < n)
         .collect();
-    for rate in &cfg.rates {
-        for &k in &strip_frames {
-            strips.push((*rate, k, vec![("ideal".to_string(), ideal[k].clone())]));
-        }
-    }
-    let mut linear = Vec::new();
+    let strips = ideal_strips(cfg, &strip_frames, &ideal);
     let keep_linear: &[usize] = if options.linear_strips {
         &strip_frames
     } else {
         &[]
     };
-    if !keep_linear.is_empty() {
-        let ctx = ctx_for(cfg.rates[0]);
+    let mut out = Collected {
+        frames: Vec::new(),
+        results: Vec::new(),
+        strips,
+        linear: linear_ideals(cfg, &ctx_for(cfg.rates[0]), keep_linear, &mut timing),
+    };
+    for (kind, rate) in runs {
+        let run = MethodRun {
+            kind,
+            rate,
+            keep_linear,
+            ideal: &ideal,
+        };
+        run.evaluate(cfg, &ctx_for(rate), &units, &mut timing, &mut out, progress)?;
+    }
+    Ok(EvalOutput {
+        summary: cfg.summary(out.results, timing),
+        frames: out.frames,
+        strips: out.strips,
+        linear: out.linear,
+    })
+}
+
+/// A strip at every rate and every one of `frames`, each with its ideal image.
+fn ideal_strips(cfg: &EvalConfig, frames: &[usize], ideal: &[Vec<u8>]) -> Vec<Strip> {
+    cfg.rates
+        .iter()
+        .flat_map(|&rate| frames.iter().map(move |&k| (rate, k)))
+        .map(|(rate, k)| Strip::new(rate, k, ideal[k].clone()))
+        .collect()
+}
+
+/// The ideal-image cache of the run, if it asks for one.
+fn open_cache(cfg: &EvalConfig, tracer: &Tracer) -> Result<Option<Arc<IdealCache>>, EvalError> {
+    Ok(match &cfg.cache_dir {
+        Some(dir) => Some(Arc::new(
+            IdealCache::new(dir, tracer, cfg.camera_path.as_ref())
+                .map_err(|e| EvalError::io(dir, e))?,
+        )),
+        None => None,
+    })
+}
+
+/// How much work an evaluation's parts are, in rays, for progress.
+struct Units<'a> {
+    cfg: &'a EvalConfig,
+    cache: Option<&'a IdealCache>,
+    pixels: u64,
+    shape: RunShape,
+}
+
+impl Units<'_> {
+    /// The ideal image of refresh `k`. A cached one costs a read, counted as one sample
+    /// per pixel; whether it is cached is known (up to a rare rejected entry) from its
+    /// file.
+    fn ideal(&self, k: usize) -> u64 {
+        let cfg = self.cfg;
+        match self.cache {
+            Some(c)
+                if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
+                    .is_file() =>
+            {
+                self.pixels
+            }
+            _ => self.pixels * cfg.ideal_spp as u64,
+        }
+    }
+
+    /// A method's run at `rate`. A refresh costs its samples and, besides, work over
+    /// every pixel (its image, the metrics); on a 2-core machine that work was worth
+    /// about one ray a pixel.
+    fn run(&self, kind: MethodKind, rate: f64) -> u64 {
+        let rate = kind.info().budget.effective_rate(&self.shape, rate);
+        (rate * self.shape.seconds) as u64 + self.cfg.frames() as u64 * self.pixels
+    }
+}
+
+/// The linear ideal images of the refreshes `keep` (none unless HDR strips are asked
+/// for), rendered again since the cache holds them as displayed.
+fn linear_ideals(
+    cfg: &EvalConfig,
+    ctx: &MethodContext,
+    keep: &[usize],
+    timing: &mut Timing,
+) -> Vec<LinearImage> {
+    let mut linear = Vec::new();
+    if !keep.is_empty() {
         let t0 = Instant::now();
-        for &k in keep_linear {
+        for &k in keep {
             linear.push(LinearImage {
-                label: "ideal".into(),
+                method: MethodKind::Ideal,
                 rate: None,
                 frame: k,
-                image: ideal_image(&ctx, cfg.refresh(k)),
+                image: ideal_image(ctx, cfg.refresh(k)),
             });
         }
         timing.ideal_s += t0.elapsed().as_secs_f64();
     }
-    let mut frames = Vec::new();
-    let mut results = Vec::new();
-    for (kind, rate) in runs {
-        let mut method = kind.build(&ctx_for(rate))?;
+    linear
+}
+
+/// What the runs have produced so far.
+struct Collected {
+    frames: Vec<FrameRow>,
+    results: Vec<ResultRow>,
+    strips: Vec<Strip>,
+    linear: Vec<LinearImage>,
+}
+
+/// One method's run at one rate.
+struct MethodRun<'a> {
+    kind: MethodKind,
+    rate: f64,
+    /// Refreshes whose linear images are kept.
+    keep_linear: &'a [usize],
+    /// The ideal image of every refresh, as displayed.
+    ideal: &'a [Vec<u8>],
+}
+
+impl MethodRun<'_> {
+    /// Run the method, measure what it showed and add its rows, results, strip panels
+    /// and linear images to `out`.
+    fn evaluate(
+        &self,
+        cfg: &EvalConfig,
+        ctx: &MethodContext,
+        units: &Units<'_>,
+        timing: &mut Timing,
+        out: &mut Collected,
+        progress: &dyn Progress,
+    ) -> Result<(), EvalError> {
+        let (kind, rate) = (self.kind, self.rate);
+        let mut method = kind.build(ctx)?;
         let tm = Instant::now();
-        let mut shown = show(cfg, kind, rate, method.as_mut(), keep_linear, progress)?;
+        let mut shown = show(cfg, kind, rate, method.as_mut(), self.keep_linear, progress)?;
         warn_of_gpu_failure(kind, rate, &shown, progress);
         // Methods may trace less than their budget; the total counted the budget.
         progress.advance(
             kind.name(),
-            run_units(kind, rate).saturating_sub(shown.counted),
+            units.run(kind, rate).saturating_sub(shown.counted),
         );
         timing.methods_s += tm.elapsed().as_secs_f64();
         timing.trace_s += method.trace_seconds();
         let tq = Instant::now();
-        let metrics = measure(cfg, &shown.frames, &ideal);
+        let metrics = measure(cfg, &shown.frames, self.ideal);
         timing.metrics_s += tq.elapsed().as_secs_f64();
         // A rate-independent method's one run fills every rate column.
         let columns = if kind.rate_independent() {
@@ -811,8 +1019,8 @@ pub fn run_with(
         };
         for r in &columns {
             for (k, image) in &shown.linear {
-                linear.push(LinearImage {
-                    label: kind.name().into(),
+                out.linear.push(LinearImage {
+                    method: kind,
                     rate: Some(*r),
                     frame: *k,
                     image: image.clone(),
@@ -822,19 +1030,14 @@ pub fn run_with(
         shown.linear.clear();
         for r in columns {
             let rows = frame_rows(cfg, kind, r, &shown, &metrics);
-            results.push(aggregate(kind, r, &rows, &shown));
-            for (_, k, list) in strips.iter_mut().filter(|s| s.0 == r) {
-                list.push((kind.name().into(), shown.frames[*k].0.clone()));
+            out.results.push(aggregate(kind, r, &rows, &shown));
+            for s in out.strips.iter_mut().filter(|s| s.rate == r) {
+                s.shown.push((kind, shown.frames[s.frame].0.clone()));
             }
-            frames.extend(rows);
+            out.frames.extend(rows);
         }
+        Ok(())
     }
-    Ok(EvalOutput {
-        summary: cfg.summary(results, timing),
-        frames,
-        strips,
-        linear,
-    })
 }
 
 /// With a GPU, build each method once, so that one whose reconstructor the GPU cannot

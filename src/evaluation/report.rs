@@ -345,8 +345,8 @@ pub struct StripFiles {
     pub image: String,
     /// The strip of FLIP error maps against the first panel, the ideal image.
     pub flip: String,
-    /// The panels' labels, left to right: `ideal`, then the methods.
-    pub labels: Vec<String>,
+    /// What the panels show, left to right: [`MethodKind::Ideal`], then the methods.
+    pub labels: Vec<MethodKind>,
 }
 
 /// File names of the strip at `rate` and `frame`: images and FLIP maps.
@@ -365,19 +365,20 @@ pub(crate) fn tagged_strip_names(tag: &str, frame: usize) -> (String, String) {
 fn write_strip(
     dir: &Path,
     (rate, frame): (f64, usize),
-    panels: &[(String, Vec<u8>)],
+    panels: &[(MethodKind, &[u8])],
     (w, h): (u32, u32),
     write_images: bool,
 ) -> Result<StripFiles, EvalError> {
     let names = strip_names(rate, frame);
-    write_strip_files(dir, &names, panels, (w, h), write_images)?;
+    let images: Vec<&[u8]> = panels.iter().map(|(_, rgb)| *rgb).collect();
+    write_strip_files(dir, &names, &images, (w, h), write_images)?;
     let (image, flip) = names;
     Ok(StripFiles {
         rate,
         frame,
         image,
         flip,
-        labels: panels.iter().map(|(l, _)| l.clone()).collect(),
+        labels: panels.iter().map(|(m, _)| *m).collect(),
     })
 }
 
@@ -386,20 +387,20 @@ fn write_strip(
 pub(crate) fn write_strip_files(
     dir: &Path,
     (image, flip): &(String, String),
-    panels: &[(String, Vec<u8>)],
+    panels: &[&[u8]],
     (w, h): (u32, u32),
     write_images: bool,
 ) -> Result<(), EvalError> {
     let p = dir.join(image);
     if write_images {
-        let images: Vec<Vec<u8>> = panels.iter().map(|(_, rgb)| rgb.clone()).collect();
+        let images: Vec<Vec<u8>> = panels.iter().map(|rgb| rgb.to_vec()).collect();
         let (sw, sh, rgb) = strip(&images, w, h);
         write_png_rgb8(&p, sw, sh, &rgb).map_err(|e| EvalError::io(&p, e))?;
     }
-    let ideal = &panels[0].1;
+    let ideal = panels[0];
     let maps: Vec<Vec<u8>> = panels
         .iter()
-        .map(|(_, rgb)| {
+        .map(|rgb| {
             // Images of the strip's own size always compare.
             metrics::flip_map(ideal, rgb, w, h).unwrap_or_else(|| vec![0; rgb.len() / 3])
         })
@@ -601,20 +602,18 @@ fn html_strips(
             st.frame,
             s.start + st.frame as f64 / s.refresh_hz
         );
-        for (i, label) in st.labels.iter().enumerate() {
+        for (i, &label) in st.labels.iter().enumerate() {
             let crop = |file: &str, what: &str| {
                 panel_img(file, i, (s.width, s.height), &format!("{what}, {label}"))
             };
             let _ = write!(
                 h,
                 "<figure class=\"panel\"><figcaption><b>{}</b>",
-                escape(label)
+                escape(label.name())
             );
-            let row = MethodKind::parse(label).ok().and_then(|m| {
-                frames
-                    .iter()
-                    .find(|f| f.method == m && f.rate == st.rate && f.frame == st.frame)
-            });
+            let row = frames
+                .iter()
+                .find(|f| f.method == label && f.rate == st.rate && f.frame == st.frame);
             if let Some(f) = row {
                 let _ = write!(h, "<br>RMS {:.2}", f.rms);
                 if let Some(v) = f.flip {
@@ -692,16 +691,17 @@ pub(crate) fn write_into(out: &mut EvalOutput, dir: &Path) -> Result<(), EvalErr
     let plots = write_plots(&out.summary, &out.frames, dir)?;
     let (w, h) = (out.summary.width, out.summary.height);
     let mut strips = Vec::new();
-    for (r, k, list) in &out.strips {
-        strips.push(write_strip(dir, (*r, *k), list, (w, h), true)?);
+    for s in &out.strips {
+        let panels: Vec<(MethodKind, &[u8])> = s.panels().collect();
+        strips.push(write_strip(dir, (s.rate, s.frame), &panels, (w, h), true)?);
     }
     if !out.linear.is_empty() {
         let exr = dir.join("exr");
         std::fs::create_dir_all(&exr).map_err(|e| io(&exr, e))?;
         for l in &out.linear {
             let name = match l.rate {
-                Some(r) => format!("{}_{}_{:04}.exr", l.label, rate_label(r), l.frame),
-                None => format!("{}_{:04}.exr", l.label, l.frame),
+                Some(r) => format!("{}_{}_{:04}.exr", l.method, rate_label(r), l.frame),
+                None => format!("{}_{:04}.exr", l.method, l.frame),
             };
             let p = exr.join(name);
             l.image.save_exr(&p).map_err(|e| io(&p, e))?;
@@ -743,18 +743,14 @@ fn write_plots(
 pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
     let summary_path = dir.join("summary.json");
     let summary = read_summary(&summary_path)?;
-    let bad = |path: PathBuf| move |why: String| EvalError::Data { path, why };
+    let bad = |path: PathBuf| move |source| EvalError::Invalid { path, source };
     summary.check().map_err(bad(summary_path))?;
     let frames_path = dir.join("frames.csv");
     let frames = read_frames_csv(&frames_path)?;
     summary.check_frames(&frames).map_err(bad(frames_path))?;
     let plots = write_plots(&summary, &frames, dir)?;
-    let mut labels = vec!["ideal".to_string()];
-    labels.extend(
-        methods_in_order(&summary)
-            .iter()
-            .map(|m| m.name().to_string()),
-    );
+    let mut labels = vec![MethodKind::Ideal];
+    labels.extend(methods_in_order(&summary));
     let (w, h) = (summary.width, summary.height);
     let mut strips = Vec::new();
     for r in rates_in_order(&summary) {
@@ -774,7 +770,11 @@ pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
             else {
                 continue;
             };
-            let panels: Vec<(String, Vec<u8>)> = labels.iter().cloned().zip(panels).collect();
+            let panels: Vec<(MethodKind, &[u8])> = labels
+                .iter()
+                .copied()
+                .zip(panels.iter().map(Vec::as_slice))
+                .collect();
             strips.push(write_strip(dir, (r, k), &panels, (w, h), false)?);
         }
     }

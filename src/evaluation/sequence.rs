@@ -10,7 +10,7 @@ use serde::Serialize;
 use super::{EvalConfig, EvalError, Progress};
 use crate::{
     image::{write_png_rgb8_fast, ImageFormat},
-    methods::{MethodContext, MethodKind},
+    methods::{Method, MethodContext, MethodKind},
     output::OutputDir,
     scene::{CameraPath, Scene},
     trace::{TextureFilter, TraceOptions, Tracer},
@@ -98,21 +98,25 @@ impl SequenceConfig {
     /// Check the settings: the ranges, and the same checks as an evaluation of this
     /// method (e.g. a rate too low for a framed method to finish one frame).
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::Config { option, why });
-        if let Err(why) = crate::limits::check_duration(self.duration) {
-            return bad("--duration", why);
+        use crate::{limits, settings::Setting};
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
+        if let Err(why) = limits::check_duration(self.duration) {
+            return bad(Setting::Duration, why.to_string());
         }
-        if let Err(why) = crate::limits::check_warmup(self.warmup) {
-            return bad("--warmup", why);
+        if let Err(why) = limits::check_warmup(self.warmup) {
+            return bad(Setting::Warmup, why.to_string());
         }
-        if let Err(why) = crate::limits::check_refresh_hz(self.refresh_hz) {
-            return bad("--refresh-hz", why);
+        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+            return bad(Setting::RefreshHz, why.to_string());
         }
         let frames = self.frames();
         if frames > MAX_FRAMES {
             return bad(
-                "--duration",
-                format!("gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower --refresh-hz"),
+                Setting::Duration,
+                format!(
+                    "gives {frames} frames, more than {MAX_FRAMES}: shorten it or lower the \
+                     refresh rate"
+                ),
             );
         }
         EvalConfig {
@@ -128,7 +132,7 @@ impl SequenceConfig {
             ideal_spp: 1,
             warmup: self.warmup,
             refresh_hz: self.refresh_hz,
-            max_depth: 5,
+            max_depth: crate::settings::MAX_DEPTH,
             texture_filter: self.texture_filter,
             cache_dir: None,
             strip_frames: Vec::new(),
@@ -151,60 +155,11 @@ pub fn render_sequence(
 ) -> Result<SequenceStats, EvalError> {
     cfg.validate()?;
     let (w, h) = (cfg.width, cfg.height);
-    let tracer = Arc::new(
-        Tracer::new(
-            scene,
-            w,
-            h,
-            TraceOptions {
-                texture_filter: cfg.texture_filter,
-                ..TraceOptions::default()
-            },
-        )
-        .with_camera_path(cfg.camera_path.clone()),
-    );
-    let ctx = MethodContext {
-        tracer,
-        clock: crate::clock::Clock {
-            start: cfg.start - cfg.warmup,
-            rate: cfg.rate,
-            first_refresh: cfg.start,
-            refresh_hz: cfg.refresh_hz,
-        },
-        seed: cfg.seed,
-        ideal_spp: 16,
-        ideal_cache: None,
-        gpu: cfg.gpu.clone(),
-    };
-    let mut m = cfg.method.build(&ctx)?;
+    let mut m = cfg.method.build(&method_context(scene, cfg))?;
     let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;
     let frames = cfg.frames();
-    // Progress in samples (the first refresh traces the whole warm-up), at least one a
-    // refresh.
-    let budget = (cfg.rate * (cfg.warmup + cfg.duration)) as u64;
-    progress.total(budget.max(frames));
     let t0 = Instant::now();
-    let mut ages = 0.0;
-    let (mut used, mut counted) = (0, 0);
-    for k in 0..frames {
-        let t = cfg.start + k as f64 / cfg.refresh_hz;
-        let shown = m.display(t);
-        ages += shown.mean_age;
-        let p = staging
-            .path()
-            .join(format!("frame_{k:05}.{}", cfg.format.extension()));
-        match cfg.format {
-            ImageFormat::Png => write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()),
-            ImageFormat::Exr => shown.image.save_exr(&p),
-        }
-        .map_err(|e| EvalError::io(&p, e))?;
-        let now = m.samples_used();
-        let units = now.saturating_sub(used).max(1);
-        used = now;
-        counted += units;
-        progress.advance("rendering", units);
-    }
-    progress.advance("rendering", budget.saturating_sub(counted));
+    let ages = write_frames(cfg, m.as_mut(), staging.path(), progress)?;
     let stats = SequenceStats {
         scene: cfg.scene_name.clone(),
         method: cfg.method,
@@ -232,4 +187,69 @@ pub fn render_sequence(
     std::fs::write(&p, json).map_err(|e| EvalError::io(&p, e))?;
     staging.commit().map_err(|e| EvalError::io(out, e))?;
     Ok(stats)
+}
+
+/// What the method of a sequence runs with: the tracer and the simulated clock.
+fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext {
+    let tracer = Arc::new(
+        Tracer::new(
+            scene,
+            cfg.width,
+            cfg.height,
+            TraceOptions {
+                texture_filter: cfg.texture_filter,
+                ..TraceOptions::default()
+            },
+        )
+        .with_camera_path(cfg.camera_path.clone()),
+    );
+    MethodContext {
+        tracer,
+        clock: crate::clock::Clock {
+            start: cfg.start - cfg.warmup,
+            rate: cfg.rate,
+            first_refresh: cfg.start,
+            refresh_hz: cfg.refresh_hz,
+        },
+        seed: cfg.seed,
+        ideal_spp: crate::settings::IDEAL_SPP,
+        ideal_cache: None,
+        gpu: cfg.gpu.clone(),
+    }
+}
+
+/// Write what `m` displays at every refresh into `dir`; the sum of the displayed
+/// images' mean ages.
+fn write_frames(
+    cfg: &SequenceConfig,
+    m: &mut dyn Method,
+    dir: &Path,
+    progress: &dyn Progress,
+) -> Result<f64, EvalError> {
+    let (w, h) = (cfg.width, cfg.height);
+    let frames = cfg.frames();
+    // Progress in samples (the first refresh traces the whole warm-up), at least one a
+    // refresh.
+    let budget = (cfg.rate * (cfg.warmup + cfg.duration)) as u64;
+    progress.total(budget.max(frames));
+    let mut ages = 0.0;
+    let (mut used, mut counted) = (0, 0);
+    for k in 0..frames {
+        let t = cfg.start + k as f64 / cfg.refresh_hz;
+        let shown = m.display(t);
+        ages += shown.mean_age;
+        let p = dir.join(format!("frame_{k:05}.{}", cfg.format.extension()));
+        match cfg.format {
+            ImageFormat::Png => write_png_rgb8_fast(&p, w, h, &shown.image.to_rgb8()),
+            ImageFormat::Exr => shown.image.save_exr(&p),
+        }
+        .map_err(|e| EvalError::io(&p, e))?;
+        let now = m.samples_used();
+        let units = now.saturating_sub(used).max(1);
+        used = now;
+        counted += units;
+        progress.advance("rendering", units);
+    }
+    progress.advance("rendering", budget.saturating_sub(counted));
+    Ok(ages)
 }

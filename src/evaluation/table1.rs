@@ -193,7 +193,32 @@ fn cell(s: &Summary, method: MethodKind, rate: f64) -> Option<&super::ResultRow>
 /// The measured table beside the paper's: one Markdown table per metric, rows are
 /// methods, columns animation × rate; RMS cells read `ours (paper)`.
 pub fn markdown(t: &TableSummary) -> String {
-    let mut cols: Vec<(&str, f64, &Summary)> = Vec::new();
+    let cols = columns(t);
+    let mut methods: Vec<MethodKind> = Vec::new();
+    for a in &t.animations {
+        for r in &a.summary.results {
+            if !methods.contains(&r.method) {
+                methods.push(r.method);
+            }
+        }
+    }
+    let mut out = String::new();
+    for metric in METRICS {
+        metric_table(&mut out, &metric, &cols, &methods);
+    }
+    out
+}
+
+/// A column of the table: an animation at one rate, with the animation's summary.
+struct Column<'a> {
+    animation: &'a str,
+    rate: f64,
+    summary: &'a Summary,
+}
+
+/// The columns, animation × rate, in the table's order.
+fn columns(t: &TableSummary) -> Vec<Column<'_>> {
+    let mut cols = Vec::new();
     for a in &t.animations {
         let mut rates: Vec<f64> = a.summary.results.iter().map(|r| r.rate).collect();
         rates.sort_by(f64::total_cmp);
@@ -205,76 +230,79 @@ pub fn markdown(t: &TableSummary) -> String {
                 .iter()
                 .any(|x| x.rate == r && !x.method.rate_independent())
         });
-        for r in rates {
-            cols.push((&a.name, r, &a.summary));
+        for rate in rates {
+            cols.push(Column {
+                animation: &a.name,
+                rate,
+                summary: &a.summary,
+            });
         }
     }
-    let mut methods: Vec<MethodKind> = Vec::new();
-    for a in &t.animations {
-        for r in &a.summary.results {
-            if !methods.contains(&r.method) {
-                methods.push(r.method);
-            }
-        }
+    cols
+}
+
+/// One metric of the Markdown table.
+struct Metric {
+    title: &'static str,
+    /// The row's value.
+    value: fn(&super::ResultRow) -> f64,
+    decimals: usize,
+    /// Whether the paper's value is shown beside ours.
+    with_paper: bool,
+}
+
+const METRICS: [Metric; 3] = [
+    Metric {
+        title: "Mean RMS error, 0–255 (paper's in parentheses)",
+        value: |r| r.rms_mean,
+        decimals: 1,
+        with_paper: true,
+    },
+    Metric {
+        title: "Mean FLIP (the paper reports none)",
+        value: |r| r.flip_mean,
+        decimals: 3,
+        with_paper: false,
+    },
+    Metric {
+        title: "Temporal instability, 0–255",
+        value: |r| r.instability_mean,
+        decimals: 2,
+        with_paper: false,
+    },
+];
+
+/// Append the table of `metric`: a row per method, a cell per column.
+fn metric_table(out: &mut String, metric: &Metric, cols: &[Column<'_>], methods: &[MethodKind]) {
+    let _ = writeln!(out, "### {}\n", metric.title);
+    out.push_str("| method |");
+    for c in cols {
+        let _ = write!(out, " {} {} |", c.animation, rate_label(c.rate));
     }
-    let mut out = String::new();
-    let header = |out: &mut String| {
-        out.push_str("| method |");
-        for (a, r, _) in &cols {
-            let _ = write!(out, " {a} {} |", rate_label(*r));
-        }
-        out.push_str("\n|---|");
-        for _ in &cols {
-            out.push_str("---:|");
-        }
-        out.push('\n');
-    };
-    // Title, the value of a row, decimals, whether the paper's value is shown beside.
-    type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize, bool);
-    let metrics: [Metric; 3] = [
-        (
-            "Mean RMS error, 0–255 (paper's in parentheses)",
-            |r| r.rms_mean,
-            1,
-            true,
-        ),
-        (
-            "Mean FLIP (the paper reports none)",
-            |r| r.flip_mean,
-            3,
-            false,
-        ),
-        (
-            "Temporal instability, 0–255",
-            |r| r.instability_mean,
-            2,
-            false,
-        ),
-    ];
-    for (title, f, prec, with_paper) in metrics {
-        let _ = writeln!(out, "### {title}\n");
-        header(&mut out);
-        for m in &methods {
-            let _ = write!(out, "| {m} |");
-            for (a, r, s) in &cols {
-                match cell(s, *m, *r) {
-                    Some(x) => {
-                        let _ = write!(out, " {:.*}", prec, f(x));
-                        if with_paper {
-                            if let Some(p) = paper_value(*m, a, *r) {
-                                let _ = write!(out, " ({p})");
-                            }
+    out.push_str("\n|---|");
+    for _ in cols {
+        out.push_str("---:|");
+    }
+    out.push('\n');
+    for m in methods {
+        let _ = write!(out, "| {m} |");
+        for c in cols {
+            match cell(c.summary, *m, c.rate) {
+                Some(x) => {
+                    let _ = write!(out, " {:.*}", metric.decimals, (metric.value)(x));
+                    if metric.with_paper {
+                        if let Some(p) = paper_value(*m, c.animation, c.rate) {
+                            let _ = write!(out, " ({p})");
                         }
-                        out.push_str(" |");
                     }
-                    None => out.push_str(" – |"),
+                    out.push_str(" |");
                 }
+                None => out.push_str(" – |"),
             }
-            out.push('\n');
         }
         out.push('\n');
     }
-    out
+    out.push('\n');
 }
 
 /// How adaptive stands in the table, one line per animation and rate: its RMS against

@@ -371,7 +371,6 @@ impl TaaHistory {
             camera: cam,
             dt,
         } = frame;
-        let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
         let low_depth: Vec<f32> = low
             .iter()
             .map(|s| {
@@ -382,183 +381,27 @@ impl TaaHistory {
                 }
             })
             .collect();
-        let cell_in = |(gw, gh): (u32, u32), i: i64, j: i64| -> usize {
-            (j.clamp(0, gh as i64 - 1) * gw as i64 + i.clamp(0, gw as i64 - 1)) as usize
+        let fold = Fold {
+            p,
+            size: (w, h),
+            low,
+            grid: (gw, gh),
+            jitter: (jx, jy),
+            scale: (w as f32 / gw as f32, h as f32 / gh as f32),
+            t,
+            cam,
+            dt,
+            cut_motion: p.cut_motion * w.max(h) as f32,
+            inv_2s2: 1.0 / (2.0 * p.kernel_sigma * p.kernel_sigma),
+            history: &self.history,
+            hist_weight: &self.weight,
+            hist_time: &self.info_time,
         };
-        let cell = |i: i64, j: i64| cell_in((gw, gh), i, j);
-        let cut_motion = p.cut_motion * w.max(h) as f32;
-        let inv_2s2 = 1.0 / (2.0 * p.kernel_sigma * p.kernel_sigma);
-        let history = &self.history;
-        let hist_weight = &self.weight;
-        let hist_time = &self.info_time;
-
-        struct Px {
-            hist: Vec3,
-            weight: f32,
-            time: f64,
-            shown: Vec3,
-            shown_time: f64,
-            rejected: bool,
-            cut_like: bool,
-        }
         let compute = |prev: Option<&LowFrame>| -> Vec<Px> {
-        (0..w * h)
-            .into_par_iter()
-            .map(|q| {
-                let (x, y) = ((q % w) as f32 + 0.5, (q / w) as f32 + 0.5);
-                // Grid coordinates of the pixel centre: sample (i, j) sits at (i, j).
-                let (u, v) = (x / sx - jx, y / sy - jy);
-                // This frame's samples under the kernel.
-                let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
-                let r = p.kernel_radius;
-                let (i0, i1) = (
-                    ((x - r) / sx - jx).ceil() as i64,
-                    ((x + r) / sx - jx).floor() as i64,
-                );
-                let (j0, j1) = (
-                    ((y - r) / sy - jy).ceil() as i64,
-                    ((y + r) / sy - jy).floor() as i64,
-                );
-                for gj in j0.max(0)..=j1.min(gh as i64 - 1) {
-                    for gi in i0.max(0)..=i1.min(gw as i64 - 1) {
-                        let (dx, dy) = (
-                            (gi as f32 + jx) * sx - x,
-                            (gj as f32 + jy) * sy - y,
-                        );
-                        let d2 = dx * dx + dy * dy;
-                        if d2 <= r * r {
-                            let g = (-d2 * inv_2s2).exp();
-                            sum += low[(gj * gw as i64 + gi) as usize].color * g;
-                            wsum += g;
-                        }
-                    }
-                }
-                // Bilinear upsampling of this frame: the fallback where little is known.
-                let (uc, vc) = (u.clamp(0.0, gw as f32 - 1.0), v.clamp(0.0, gh as f32 - 1.0));
-                let (x0, y0) = (uc.floor() as i64, vc.floor() as i64);
-                let (fx, fy) = (uc - x0 as f32, vc - y0 as f32);
-                let c = |i, j| low[cell(i, j)].color;
-                let up = c(x0, y0)
-                    .lerp(c(x0 + 1, y0), fx)
-                    .lerp(c(x0, y0 + 1).lerp(c(x0 + 1, y0 + 1), fx), fy);
-                let (ni, nj) = (u.round() as i64, v.round() as i64);
-                let near = &low[cell(ni, nj)];
-
-                // History: where this pixel's surface was in the previous frame.
-                let mut rejected = false;
-                let reprojected = prev.and_then(|pf| {
-                    let (cx, cy, _) = cam.project(near.hit_point)?;
-                    let (ox, oy, pd) = pf.camera.project(near.hit_point - near.velocity * dt)?;
-                    // The nearest sample's displacement, not its position, applies to
-                    // the pixel.
-                    let (px, py) = (x + ox - cx, y + oy - cy);
-                    if !(px >= 0.0 && py >= 0.0 && px < w as f32 && py < h as f32) {
-                        return None;
-                    }
-                    // Disoccluded unless some previous sample around where the point was saw
-                    // it (any of 3×3: at an edge the nearest one may lie across it, and a
-                    // still view must not reject; only 2×2 rejected sphere rims every few
-                    // frames). What slips through at a cut is caught by the cut test below.
-                    // The previous frame's own grid: a real-time run resizes it.
-                    let pgrid = pf.gbuffer.grid;
-                    let (psx, psy) = (w as f32 / pgrid.0 as f32, h as f32 / pgrid.1 as f32);
-                    let (pu, pv) = (
-                        (ox / psx - pf.jitter.0).round() as i64,
-                        (oy / psy - pf.jitter.1).round() as i64,
-                    );
-                    let pd = if near.hit { pd } else { f32::INFINITY };
-                    let (mut lo_d, mut hi_d, mut seen) = (f32::INFINITY, 0.0f32, false);
-                    for dj in -1..=1 {
-                        for di in -1..=1 {
-                            let d = pf.depth[cell_in(pgrid, pu + di, pv + dj)];
-                            seen |= if pd.is_finite() {
-                                (d - pd).abs() <= p.depth_tolerance * pd.max(1e-6)
-                            } else {
-                                !d.is_finite()
-                            };
-                            if d.is_finite() {
-                                lo_d = lo_d.min(d);
-                                hi_d = hi_d.max(d);
-                            }
-                        }
-                    }
-                    // A surface seen edge-on (a table's front edge, the floor far off)
-                    // changes depth faster than any tolerance from one sample to the
-                    // next: between the depths around it, the point was on screen too.
-                    seen |= pd >= lo_d && pd <= hi_d;
-                    if !seen {
-                        return None;
-                    }
-                    let motion = (ox - cx).hypot(oy - cy);
-                    Some((px, py, motion))
-                });
-                if prev.is_some() && reprojected.is_none() {
-                    rejected = true;
-                }
-                let (mut hist_c, mut w_hist, mut t_hist) = (Vec3::ZERO, 0.0f32, t);
-                if let Some((px, py, motion)) = reprojected {
-                    let (bx, by) = (
-                        ((px - 0.5).round() as u32).min(w - 1),
-                        ((py - 0.5).round() as u32).min(h - 1),
-                    );
-                    let b = (by * w + bx) as usize;
-                    let raw = catmull_rom(history, px, py);
-                    // Rectify: clamp to the YCoCg box of this frame's 3×3 samples around
-                    // the pixel (the samples, not their interpolation, which moves with
-                    // the jitter).
-                    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
-                    for dj in -1..=1 {
-                        for di in -1..=1 {
-                            let n = to_ycocg(low[cell(ni + di, nj + dj)].color);
-                            lo = lo.min(n);
-                            hi = hi.max(n);
-                        }
-                    }
-                    let s = (motion / p.motion_full_px).clamp(0.0, 1.0);
-                    let scale = p.still_box_scale + (1.0 - p.still_box_scale) * s;
-                    let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5 * scale);
-                    let (lo, hi) = (mid - half, mid + half);
-                    let y_raw = to_ycocg(raw);
-                    let y_clamped = y_raw.clamp(lo, hi);
-                    hist_c = from_ycocg(y_clamped);
-                    let mut cap = p.max_weight + (p.moving_weight - p.max_weight) * s;
-                    if (y_raw - y_clamped).length() > p.clip_distance {
-                        cap = cap.min(p.clip_weight);
-                    }
-                    w_hist = hist_weight[b].min(cap);
-                    t_hist = hist_time[b];
-                }
-                let total = w_hist + wsum;
-                let (hist, time) = if total > 0.0 {
-                    (
-                        (hist_c * w_hist + sum) / total,
-                        (t_hist * w_hist as f64 + t * wsum as f64) / total as f64,
-                    )
-                } else {
-                    (up, t)
-                };
-                // Too little accumulated: lean on the upsampled frame for the display.
-                let fill = (p.display_min_weight - total).max(0.0);
-                let (shown, shown_time) = if fill > 0.0 {
-                    let all = total + fill;
-                    (
-                        (hist * total + up * fill) / all,
-                        (time * total as f64 + t * fill as f64) / all as f64,
-                    )
-                } else {
-                    (hist, time)
-                };
-                Px {
-                    hist,
-                    weight: total.min(p.max_weight),
-                    time,
-                    shown,
-                    shown_time,
-                    rejected,
-                    cut_like: rejected || reprojected.is_some_and(|r| r.2 > cut_motion),
-                }
-            })
-            .collect()
+            (0..w * h)
+                .into_par_iter()
+                .map(|q| fold.pixel(q, prev))
+                .collect()
         };
         let mut results = compute(self.prev.as_ref());
         // A camera cut (or a jump as good as one): most of the screen lost its history
@@ -592,6 +435,243 @@ impl TaaHistory {
                 camera: cam,
             },
         });
+    }
+}
+
+/// One display pixel after a frame is folded in.
+struct Px {
+    hist: Vec3,
+    weight: f32,
+    time: f64,
+    shown: Vec3,
+    shown_time: f64,
+    rejected: bool,
+    cut_like: bool,
+}
+
+/// Where a pixel's surface was in the previous frame's display, and how far it moved.
+#[derive(Clone, Copy)]
+struct Reprojected {
+    x: f32,
+    y: f32,
+    motion: f32,
+}
+
+/// One frame being folded into the history: the frame, and the history as it was
+/// before it (read by every pixel at once).
+struct Fold<'a> {
+    p: TaaParams,
+    size: (u32, u32),
+    low: &'a [Sample],
+    grid: (u32, u32),
+    jitter: (f32, f32),
+    /// Display pixels per grid cell, across and down.
+    scale: (f32, f32),
+    t: f64,
+    cam: CameraFrame,
+    dt: f32,
+    /// Motion, in pixels, past which a pixel counts towards a camera cut.
+    cut_motion: f32,
+    /// 1 / (2σ²) of the splat kernel.
+    inv_2s2: f32,
+    history: &'a Image,
+    hist_weight: &'a [f32],
+    hist_time: &'a [f64],
+}
+
+/// Index of grid cell `(i, j)` of a `gw × gh` grid, clamped to the grid.
+fn cell_in((gw, gh): (u32, u32), i: i64, j: i64) -> usize {
+    (j.clamp(0, gh as i64 - 1) * gw as i64 + i.clamp(0, gw as i64 - 1)) as usize
+}
+
+impl Fold<'_> {
+    fn cell(&self, i: i64, j: i64) -> usize {
+        cell_in(self.grid, i, j)
+    }
+
+    /// Display pixel `q` with this frame folded in, reprojecting from `prev` if any.
+    fn pixel(&self, q: u32, prev: Option<&LowFrame>) -> Px {
+        let (p, t) = (self.p, self.t);
+        let (w, _) = self.size;
+        let ((sx, sy), (jx, jy)) = (self.scale, self.jitter);
+        let (x, y) = ((q % w) as f32 + 0.5, (q / w) as f32 + 0.5);
+        // Grid coordinates of the pixel centre: sample (i, j) sits at (i, j).
+        let (u, v) = (x / sx - jx, y / sy - jy);
+        let (sum, wsum) = self.kernel(x, y);
+        let up = self.upsampled(u, v);
+        let (ni, nj) = (u.round() as i64, v.round() as i64);
+        let near = &self.low[self.cell(ni, nj)];
+
+        // History: where this pixel's surface was in the previous frame.
+        let mut rejected = false;
+        let reprojected = prev.and_then(|pf| self.reproject(near, (x, y), pf));
+        if prev.is_some() && reprojected.is_none() {
+            rejected = true;
+        }
+        let (mut hist_c, mut w_hist, mut t_hist) = (Vec3::ZERO, 0.0f32, t);
+        if let Some(r) = reprojected {
+            (hist_c, w_hist, t_hist) = self.rectified_history(r, (ni, nj));
+        }
+        let total = w_hist + wsum;
+        let (hist, time) = if total > 0.0 {
+            (
+                (hist_c * w_hist + sum) / total,
+                (t_hist * w_hist as f64 + t * wsum as f64) / total as f64,
+            )
+        } else {
+            (up, t)
+        };
+        // Too little accumulated: lean on the upsampled frame for the display.
+        let fill = (p.display_min_weight - total).max(0.0);
+        let (shown, shown_time) = if fill > 0.0 {
+            let all = total + fill;
+            (
+                (hist * total + up * fill) / all,
+                (time * total as f64 + t * fill as f64) / all as f64,
+            )
+        } else {
+            (hist, time)
+        };
+        Px {
+            hist,
+            weight: total.min(p.max_weight),
+            time,
+            shown,
+            shown_time,
+            rejected,
+            cut_like: rejected || reprojected.is_some_and(|r| r.motion > self.cut_motion),
+        }
+    }
+
+    /// This frame's samples under the kernel around display point `(x, y)`: the
+    /// weighted colour sum and the weight.
+    fn kernel(&self, x: f32, y: f32) -> (Vec3, f32) {
+        let ((sx, sy), (jx, jy), (gw, gh)) = (self.scale, self.jitter, self.grid);
+        let (mut sum, mut wsum) = (Vec3::ZERO, 0.0f32);
+        let r = self.p.kernel_radius;
+        let (i0, i1) = (
+            ((x - r) / sx - jx).ceil() as i64,
+            ((x + r) / sx - jx).floor() as i64,
+        );
+        let (j0, j1) = (
+            ((y - r) / sy - jy).ceil() as i64,
+            ((y + r) / sy - jy).floor() as i64,
+        );
+        for gj in j0.max(0)..=j1.min(gh as i64 - 1) {
+            for gi in i0.max(0)..=i1.min(gw as i64 - 1) {
+                let (dx, dy) = ((gi as f32 + jx) * sx - x, (gj as f32 + jy) * sy - y);
+                let d2 = dx * dx + dy * dy;
+                if d2 <= r * r {
+                    let g = (-d2 * self.inv_2s2).exp();
+                    sum += self.low[(gj * gw as i64 + gi) as usize].color * g;
+                    wsum += g;
+                }
+            }
+        }
+        (sum, wsum)
+    }
+
+    /// Bilinear upsampling of this frame at grid point `(u, v)`: the fallback where
+    /// little is known.
+    fn upsampled(&self, u: f32, v: f32) -> Vec3 {
+        let (gw, gh) = self.grid;
+        let (uc, vc) = (u.clamp(0.0, gw as f32 - 1.0), v.clamp(0.0, gh as f32 - 1.0));
+        let (x0, y0) = (uc.floor() as i64, vc.floor() as i64);
+        let (fx, fy) = (uc - x0 as f32, vc - y0 as f32);
+        let c = |i, j| self.low[self.cell(i, j)].color;
+        c(x0, y0)
+            .lerp(c(x0 + 1, y0), fx)
+            .lerp(c(x0, y0 + 1).lerp(c(x0 + 1, y0 + 1), fx), fy)
+    }
+
+    /// Where the surface of `near`, the sample nearest display point `(x, y)`, was in
+    /// the previous frame `pf`; `None` when off screen or disoccluded.
+    fn reproject(&self, near: &Sample, (x, y): (f32, f32), pf: &LowFrame) -> Option<Reprojected> {
+        let p = self.p;
+        let (w, h) = self.size;
+        let (cx, cy, _) = self.cam.project(near.hit_point)?;
+        let (ox, oy, pd) = pf.camera.project(near.hit_point - near.velocity * self.dt)?;
+        // The nearest sample's displacement, not its position, applies to
+        // the pixel.
+        let (px, py) = (x + ox - cx, y + oy - cy);
+        if !(px >= 0.0 && py >= 0.0 && px < w as f32 && py < h as f32) {
+            return None;
+        }
+        // Disoccluded unless some previous sample around where the point was saw
+        // it (any of 3×3: at an edge the nearest one may lie across it, and a
+        // still view must not reject; only 2×2 rejected sphere rims every few
+        // frames). What slips through at a cut is caught by the cut test below.
+        // The previous frame's own grid: a real-time run resizes it.
+        let pgrid = pf.gbuffer.grid;
+        let (psx, psy) = (w as f32 / pgrid.0 as f32, h as f32 / pgrid.1 as f32);
+        let (pu, pv) = (
+            (ox / psx - pf.jitter.0).round() as i64,
+            (oy / psy - pf.jitter.1).round() as i64,
+        );
+        let pd = if near.hit { pd } else { f32::INFINITY };
+        let (mut lo_d, mut hi_d, mut seen) = (f32::INFINITY, 0.0f32, false);
+        for dj in -1..=1 {
+            for di in -1..=1 {
+                let d = pf.depth[cell_in(pgrid, pu + di, pv + dj)];
+                seen |= if pd.is_finite() {
+                    (d - pd).abs() <= p.depth_tolerance * pd.max(1e-6)
+                } else {
+                    !d.is_finite()
+                };
+                if d.is_finite() {
+                    lo_d = lo_d.min(d);
+                    hi_d = hi_d.max(d);
+                }
+            }
+        }
+        // A surface seen edge-on (a table's front edge, the floor far off)
+        // changes depth faster than any tolerance from one sample to the
+        // next: between the depths around it, the point was on screen too.
+        seen |= pd >= lo_d && pd <= hi_d;
+        if !seen {
+            return None;
+        }
+        Some(Reprojected {
+            x: px,
+            y: py,
+            motion: (ox - cx).hypot(oy - cy),
+        })
+    }
+
+    /// The history at `r`, clamped to this frame's samples around grid cell
+    /// `(ni, nj)`: its colour, its weight (capped by how much the pixel moved) and its
+    /// time.
+    fn rectified_history(&self, r: Reprojected, (ni, nj): (i64, i64)) -> (Vec3, f32, f64) {
+        let p = self.p;
+        let (w, h) = self.size;
+        let (bx, by) = (
+            ((r.x - 0.5).round() as u32).min(w - 1),
+            ((r.y - 0.5).round() as u32).min(h - 1),
+        );
+        let b = (by * w + bx) as usize;
+        let raw = catmull_rom(self.history, r.x, r.y);
+        // Rectify: clamp to the YCoCg box of this frame's 3×3 samples around
+        // the pixel (the samples, not their interpolation, which moves with
+        // the jitter).
+        let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+        for dj in -1..=1 {
+            for di in -1..=1 {
+                let n = to_ycocg(self.low[self.cell(ni + di, nj + dj)].color);
+                lo = lo.min(n);
+                hi = hi.max(n);
+            }
+        }
+        let s = (r.motion / p.motion_full_px).clamp(0.0, 1.0);
+        let scale = p.still_box_scale + (1.0 - p.still_box_scale) * s;
+        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * 0.5 * scale);
+        let (lo, hi) = (mid - half, mid + half);
+        let y_raw = to_ycocg(raw);
+        let y_clamped = y_raw.clamp(lo, hi);
+        let mut cap = p.max_weight + (p.moving_weight - p.max_weight) * s;
+        if (y_raw - y_clamped).length() > p.clip_distance {
+            cap = cap.min(p.clip_weight);
+        }
+        (from_ycocg(y_clamped), self.hist_weight[b].min(cap), self.hist_time[b])
     }
 }
 

@@ -23,7 +23,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Shared, Spawner},
+    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Shared, Shown, Spawner},
 };
 use crate::{
     image::Image,
@@ -43,7 +43,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, false),
+    start: |sp| start_with(sp, Shown::AsBuilt),
 };
 
 /// The late-warp method's description.
@@ -53,7 +53,7 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, true),
+    start: |sp| start_with(sp, Shown::Warped),
 };
 
 /// One frame being traced: the scene state at its start, rows handed out in order.
@@ -91,7 +91,8 @@ struct Row {
 /// A frame being assembled: scene time, camera, image, hits.
 type Building = (f64, CameraFrame, Image, Vec<GSample>);
 
-fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+    let warp = shown == Shown::Warped;
     let s = sp.shared().clone();
     let job = Arc::new(Mutex::new(Arc::new(FrameJob::new(
         0,
@@ -102,7 +103,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
     // growing memory; ~100 ms of rows.
     let (tx, rx) = bounded(1024);
     let s1 = s.clone();
-    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx, warp))?;
+    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx, shown))?;
     let (w, h) = s.tracer.size();
     Ok(Box::new(Builder {
         s: s.clone(),
@@ -118,7 +119,8 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
 }
 
 /// A sampling thread: rows of the current frame until stopped.
-fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, warp: bool) {
+fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, shown: Shown) {
+    let warp = shown == Shown::Warped;
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     while !s.stopped() {

@@ -108,18 +108,7 @@ pub fn run_headless(
     config: RtConfig,
     opts: &HeadlessOptions,
 ) -> Result<HeadlessStats, RealtimeError> {
-    if !(opts.seconds.is_finite() && opts.seconds > 0.0 && opts.seconds <= 86400.0) {
-        return Err(RealtimeError::Config(format!(
-            "seconds {} out of range (0, 86400]",
-            opts.seconds
-        )));
-    }
-    if opts.images > MAX_IMAGES {
-        return Err(RealtimeError::Config(format!(
-            "images {} out of range [0, {MAX_IMAGES}]",
-            opts.images
-        )));
-    }
+    check_options(opts)?;
     // The folder is built beside `out` and swapped in whole at the end: `out` holds
     // this run or the previous one, never files of both.
     let staging =
@@ -132,28 +121,132 @@ pub fn run_headless(
     let cpu0 = process_cpu_seconds();
     let t_start = Instant::now();
     let pipeline = Pipeline::start(tracer, config.clone())?;
+    let shown = display_loop(&pipeline, &config, opts);
+    let pipeline_stats = pipeline.stop()?;
+    let wall_s = t_start.elapsed().as_secs_f64();
+    let process_cpu_s = cpu0.zip(process_cpu_seconds()).map(|(a, b)| b - a);
+    let machine_share = process_cpu_s.map(|c| c / (wall_s * pipeline_stats.cores as f64));
+    let images = write_images(&shown.kept, staging.path())?;
+    let stats = HeadlessStats {
+        scene: opts.scene.clone(),
+        width: w,
+        height: h,
+        start: config.start,
+        seconds_requested: opts.seconds,
+        wall_s,
+        samples_per_s: pipeline_stats.samples_per_s,
+        display_fps: shown.display.display_fps,
+        pipeline: pipeline_stats,
+        display: shown.display,
+        images,
+        process_cpu_s,
+        machine_share,
+        load_average_before,
+        camera_step: shown.step.map(|s| s.figures),
+    };
+    let p = staging.path().join("stats.json");
+    let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");
+    std::fs::write(&p, text).map_err(|source| RealtimeError::Io { path: p, source })?;
+    staging.commit().map_err(|source| RealtimeError::Io {
+        path: opts.out.clone(),
+        source,
+    })?;
+    Ok(stats)
+}
+
+fn check_options(opts: &HeadlessOptions) -> Result<(), RealtimeError> {
+    if let Err(e) = crate::limits::check_view_seconds(opts.seconds) {
+        return Err(RealtimeError::Config(format!("seconds {e}")));
+    }
+    if opts.images > MAX_IMAGES {
+        return Err(RealtimeError::Config(format!(
+            "images {} out of range [0, {MAX_IMAGES}]",
+            opts.images
+        )));
+    }
+    Ok(())
+}
+
+/// What the display loop of a headless run saw.
+struct DisplayRun {
+    /// The display's figures.
+    display: DisplayStats,
+    /// The images kept for writing, spread over the run.
+    kept: Vec<Arc<Frame>>,
+    /// The camera step, once taken.
+    step: Option<StepWatch>,
+}
+
+/// The scripted camera step once taken: when, and what the display has shown since.
+struct StepWatch {
+    /// Wall seconds into the run.
+    wall: f64,
+    /// Scene time of the step.
+    scene_t: f64,
+    /// The figures so far.
+    figures: CameraStep,
+}
+
+impl StepWatch {
+    /// Turn the pipeline's camera now.
+    fn take(pipeline: &Pipeline, wall: f64) -> StepWatch {
+        let tracer = pipeline.tracer();
+        let now = pipeline.clock().now();
+        tracer.set_live_camera(Some(yawed(tracer.camera_at(now), STEP_YAW_DEG)));
+        StepWatch {
+            wall,
+            scene_t: now,
+            figures: CameraStep {
+                at_s: wall,
+                yaw_deg: STEP_YAW_DEG,
+                first_image_ms: None,
+                view_ms: None,
+                half_new_ms: None,
+            },
+        }
+    }
+
+    /// Record what the image displayed `elapsed` wall seconds into the run shows of
+    /// the step.
+    fn observe(&mut self, f: &Frame, elapsed: f64) {
+        let (scene_t, figures) = (self.scene_t, &mut self.figures);
+        let shown_ms = (elapsed - self.wall) * 1e3;
+        if f.time >= scene_t && figures.first_image_ms.is_none() {
+            figures.first_image_ms = Some(shown_ms);
+        }
+        if f.view_time >= scene_t && figures.view_ms.is_none() {
+            figures.view_ms = Some(shown_ms);
+        }
+        if figures.half_new_ms.is_none() && f.time >= scene_t {
+            let since = f.time - scene_t;
+            let (informed, new) = f
+                .ages
+                .iter()
+                .filter(|a| a.is_finite())
+                .fold((0, 0), |(i, n), &a| {
+                    (i + 1, n + (a as f64 <= since) as usize)
+                });
+            if new * 2 >= informed.max(1) {
+                figures.half_new_ms = Some(shown_ms);
+            }
+        }
+    }
+}
+
+/// Present the newest image at every refresh for `opts.seconds`, as a display that
+/// draws nowhere, keeping `opts.images` of them and taking the camera step if asked.
+fn display_loop(pipeline: &Pipeline, config: &RtConfig, opts: &HeadlessOptions) -> DisplayRun {
     let clock = pipeline.clock();
     let mut pacer = Pacer::new(clock, config.refresh_hz);
     let n_images = opts.images;
     let mut kept: Vec<Arc<Frame>> = Vec::new();
     let mut last_seq = 0;
-    // (wall seconds into the run, scene time) of the step once taken, and its figures.
-    let mut step: Option<(f64, f64, CameraStep)> = None;
+    let mut step: Option<StepWatch> = None;
     while clock.elapsed() < opts.seconds {
         pacer.wait();
         if let (Some(at), None) = (opts.camera_step_s, &step) {
             if clock.elapsed() >= at {
-                let tracer = pipeline.tracer();
-                let now = clock.now();
-                tracer.set_live_camera(Some(yawed(tracer.camera_at(now), STEP_YAW_DEG)));
-                let figures = CameraStep {
-                    at_s: clock.elapsed(),
-                    yaw_deg: STEP_YAW_DEG,
-                    first_image_ms: None,
-                    view_ms: None,
-                    half_new_ms: None,
-                };
-                step = Some((clock.elapsed(), now, figures));
+                step = Some(StepWatch::take(pipeline, clock.elapsed()));
             }
         }
         let frame = pipeline.latest();
@@ -172,67 +265,27 @@ pub fn run_headless(
             }
         }
         pacer.present(seq);
-        if let (Some((wall, scene_t, figures)), Some(f)) = (&mut step, &frame) {
-            let shown_ms = (clock.elapsed() - *wall) * 1e3;
-            if f.time >= *scene_t && figures.first_image_ms.is_none() {
-                figures.first_image_ms = Some(shown_ms);
-            }
-            if f.view_time >= *scene_t && figures.view_ms.is_none() {
-                figures.view_ms = Some(shown_ms);
-            }
-            if figures.half_new_ms.is_none() && f.time >= *scene_t {
-                let since = f.time - *scene_t;
-                let (informed, new) = f
-                    .ages
-                    .iter()
-                    .filter(|a| a.is_finite())
-                    .fold((0, 0), |(i, n), &a| {
-                        (i + 1, n + (a as f64 <= since) as usize)
-                    });
-                if new * 2 >= informed.max(1) {
-                    figures.half_new_ms = Some(shown_ms);
-                }
-            }
+        if let (Some(watch), Some(f)) = (&mut step, &frame) {
+            watch.observe(f, clock.elapsed());
         }
     }
-    let seconds = clock.elapsed();
-    let display = pacer.stats(seconds);
-    let pipeline_stats = pipeline.stop()?;
-    let wall_s = t_start.elapsed().as_secs_f64();
-    let process_cpu_s = cpu0.zip(process_cpu_seconds()).map(|(a, b)| b - a);
-    let machine_share = process_cpu_s.map(|c| c / (wall_s * pipeline_stats.cores as f64));
+    DisplayRun {
+        display: pacer.stats(clock.elapsed()),
+        kept,
+        step,
+    }
+}
+
+/// Write the kept images into `dir`; their file names.
+fn write_images(kept: &[Arc<Frame>], dir: &std::path::Path) -> Result<Vec<String>, RealtimeError> {
     let mut images = Vec::new();
     for (i, f) in kept.iter().enumerate() {
         let name = format!("display_{i}_t{:.2}.png", f.time);
-        let p = staging.path().join(&name);
+        let p = dir.join(&name);
         f.image
             .save_png(&p)
             .map_err(|source| RealtimeError::Io { path: p, source })?;
         images.push(name);
     }
-    let stats = HeadlessStats {
-        scene: opts.scene.clone(),
-        width: w,
-        height: h,
-        start: config.start,
-        seconds_requested: opts.seconds,
-        wall_s,
-        samples_per_s: pipeline_stats.samples_per_s,
-        display_fps: display.display_fps,
-        pipeline: pipeline_stats,
-        display,
-        images,
-        process_cpu_s,
-        machine_share,
-        load_average_before,
-        camera_step: step.map(|s| s.2),
-    };
-    let p = staging.path().join("stats.json");
-    let text = serde_json::to_string_pretty(&stats).expect("plain data serialises");
-    std::fs::write(&p, text).map_err(|source| RealtimeError::Io { path: p, source })?;
-    staging.commit().map_err(|source| RealtimeError::Io {
-        path: opts.out.clone(),
-        source,
-    })?;
-    Ok(stats)
+    Ok(images)
 }

@@ -72,8 +72,8 @@ pub struct PipelineStats {
     /// or the GPU and its adapter.
     pub recon: ReconUsed,
     /// The method's own figures, each named by its method and listed in `stats.json`
-    /// beside the figures every method has (the README's `view` section says what
-    /// each is).
+    /// beside the figures every method has (the `view` section of `docs/usage.md`
+    /// says what each is).
     #[serde(flatten)]
     pub method_stats: std::collections::BTreeMap<&'static str, serde_json::Value>,
 }

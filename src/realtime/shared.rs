@@ -234,6 +234,16 @@ pub(crate) struct MethodInfo {
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
 }
 
+/// What a framed method shows at a refresh: its newest image as built, or that image
+/// warped to the camera of the refresh (the late warps).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Shown {
+    /// The newest image as built.
+    AsBuilt,
+    /// The newest image reprojected to the camera at every refresh.
+    Warped,
+}
+
 /// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.
 pub(crate) fn display_only(_: &RtConfig, width: u32, height: u32) -> Result<(), String> {
     crate::limits::check_display(width, height)

@@ -22,7 +22,9 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 
 use super::{
     config::RealtimeError,
-    shared::{lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Shared, Spawner},
+    shared::{
+        lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Shared, Shown, Spawner,
+    },
 };
 use crate::{
     methods::{
@@ -45,7 +47,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, false),
+    start: |sp| start_with(sp, Shown::AsBuilt),
 };
 
 /// `taa-warp`'s description.
@@ -55,7 +57,7 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, true),
+    start: |sp| start_with(sp, Shown::Warped),
 };
 
 /// Share of the frame budget by which the measured throughput must move before the
@@ -140,7 +142,7 @@ struct Row {
     samples: Vec<Sample>,
 }
 
-fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     let params = TaaParams::default();
     let size = s.tracer.size();
@@ -176,7 +178,7 @@ fn start_with(sp: &mut Spawner<'_>, warp: bool) -> Result<Box<dyn ImageBuilder>,
         folded: None,
         fold_s,
         history,
-        warp: warp.then(|| Warp::new(size.0, size.1)),
+        warp: (shown == Shown::Warped).then(|| Warp::new(size.0, size.1)),
         dropped_frames: 0,
     }))
 }

@@ -56,7 +56,7 @@ pub fn run_viewer(
 ) -> Result<(), RealtimeError> {
     let event_loop = EventLoop::new().map_err(|e| {
         RealtimeError::Window(format!(
-            "cannot open a window ({e}); is DISPLAY or WAYLAND_DISPLAY set? `--headless` needs neither"
+            "cannot open a window ({e}); is DISPLAY or WAYLAND_DISPLAY set? A headless run needs neither"
         ))
     })?;
     let pipeline = Pipeline::start(tracer, config.clone())?;

@@ -188,23 +188,7 @@ pub fn scene_fingerprint(scene: &Scene) -> u64 {
     h.str(name);
     h.tag(nodes.len());
     for n in nodes {
-        let crate::scene::Node { parent, kind } = n;
-        h.opt(*parent, Words::u32);
-        match kind {
-            NodeKind::Static(m) => {
-                h.tag(0);
-                h.mat4(m);
-            }
-            NodeKind::Animated { name, track } => {
-                h.tag(1);
-                h.str(name);
-                h.opt(*track, Words::u32);
-            }
-            NodeKind::Sampled(a) => {
-                h.tag(2);
-                node_animation(&mut h, a);
-            }
-        }
+        node(&mut h, n);
     }
     h.tag(tracks.len());
     for t in tracks {
@@ -212,64 +196,11 @@ pub fn scene_fingerprint(scene: &Scene) -> u64 {
     }
     h.tag(groups.len());
     for g in groups {
-        let crate::scene::Group {
-            node,
-            triangles,
-            spheres,
-            cones,
-        } = g;
-        h.opt(*node, Words::u32);
-        h.tag(triangles.len());
-        for t in triangles {
-            let crate::scene::Triangle { p, n, uv, material } = t;
-            h.vec3s(p);
-            h.opt(n.as_ref(), |h, n| h.vec3s(n));
-            h.opt(uv.as_ref(), |h, uv| uv.iter().for_each(|v| h.vec2(*v)));
-            h.u32(*material);
-        }
-        h.tag(spheres.len());
-        for s in spheres {
-            let crate::scene::Sphere {
-                center,
-                radius,
-                material,
-            } = s;
-            h.vec3(*center);
-            h.f32(*radius);
-            h.u32(*material);
-        }
-        h.tag(cones.len());
-        for c in cones {
-            let crate::scene::Cone {
-                base,
-                base_radius,
-                apex,
-                apex_radius,
-                material,
-            } = c;
-            h.vec3(*base);
-            h.f32(*base_radius);
-            h.vec3(*apex);
-            h.f32(*apex_radius);
-            h.u32(*material);
-        }
+        group(&mut h, g);
     }
     h.tag(animated_triangles.len());
     for a in animated_triangles {
-        let crate::scene::AnimatedTriangle {
-            times,
-            positions,
-            normals,
-            material,
-            node,
-        } = a;
-        h.f32s(times);
-        h.tag(positions.len());
-        positions.iter().for_each(|p| h.vec3s(p));
-        h.tag(normals.len());
-        normals.iter().for_each(|n| h.vec3s(n));
-        h.u32(*material);
-        h.opt(*node, Words::u32);
+        animated_triangle(&mut h, a);
     }
     h.tag(materials.len());
     for m in materials {
@@ -281,16 +212,7 @@ pub fn scene_fingerprint(scene: &Scene) -> u64 {
     }
     h.tag(lights.len());
     for l in lights {
-        let crate::scene::Light {
-            position,
-            color,
-            track,
-            name,
-        } = l;
-        h.vec3(*position);
-        h.vec3(*color);
-        h.opt(*track, Words::u32);
-        h.opt(name.as_deref(), Words::str);
+        light(&mut h, l);
     }
     camera_track(&mut h, camera);
     h.vec3(*background);
@@ -302,6 +224,100 @@ pub fn scene_fingerprint(scene: &Scene) -> u64 {
         h.u32(*frames);
     });
     h.0
+}
+
+fn node(h: &mut Words, n: &crate::scene::Node) {
+    let crate::scene::Node { parent, kind } = n;
+    h.opt(*parent, Words::u32);
+    match kind {
+        NodeKind::Static(m) => {
+            h.tag(0);
+            h.mat4(m);
+        }
+        NodeKind::Animated { name, track } => {
+            h.tag(1);
+            h.str(name);
+            h.opt(*track, Words::u32);
+        }
+        NodeKind::Sampled(a) => {
+            h.tag(2);
+            node_animation(h, a);
+        }
+    }
+}
+
+fn group(h: &mut Words, g: &crate::scene::Group) {
+    let crate::scene::Group {
+        node,
+        triangles,
+        spheres,
+        cones,
+    } = g;
+    h.opt(*node, Words::u32);
+    h.tag(triangles.len());
+    for t in triangles {
+        let crate::scene::Triangle { p, n, uv, material } = t;
+        h.vec3s(p);
+        h.opt(n.as_ref(), |h, n| h.vec3s(n));
+        h.opt(uv.as_ref(), |h, uv| uv.iter().for_each(|v| h.vec2(*v)));
+        h.u32(*material);
+    }
+    h.tag(spheres.len());
+    for s in spheres {
+        let crate::scene::Sphere {
+            center,
+            radius,
+            material,
+        } = s;
+        h.vec3(*center);
+        h.f32(*radius);
+        h.u32(*material);
+    }
+    h.tag(cones.len());
+    for c in cones {
+        let crate::scene::Cone {
+            base,
+            base_radius,
+            apex,
+            apex_radius,
+            material,
+        } = c;
+        h.vec3(*base);
+        h.f32(*base_radius);
+        h.vec3(*apex);
+        h.f32(*apex_radius);
+        h.u32(*material);
+    }
+}
+
+fn animated_triangle(h: &mut Words, a: &crate::scene::AnimatedTriangle) {
+    let crate::scene::AnimatedTriangle {
+        times,
+        positions,
+        normals,
+        material,
+        node,
+    } = a;
+    h.f32s(times);
+    h.tag(positions.len());
+    positions.iter().for_each(|p| h.vec3s(p));
+    h.tag(normals.len());
+    normals.iter().for_each(|n| h.vec3s(n));
+    h.u32(*material);
+    h.opt(*node, Words::u32);
+}
+
+fn light(h: &mut Words, l: &crate::scene::Light) {
+    let crate::scene::Light {
+        position,
+        color,
+        track,
+        name,
+    } = l;
+    h.vec3(*position);
+    h.vec3(*color);
+    h.opt(*track, Words::u32);
+    h.opt(name.as_deref(), Words::str);
 }
 
 fn node_animation(h: &mut Words, a: &NodeAnimation) {

@@ -1080,42 +1080,14 @@ impl Parser {
         let (_, nf) = lx.count("the triangle count")?;
         let material = self.material_id(lx, t, texture)?;
         let g = self.group_index();
-        let mut out = Vec::with_capacity(nf.min(PREALLOC_CAP));
-        for _ in 0..nf {
-            let mut tri_index = |what: &str, len: usize| -> Res<[usize; 3]> {
-                Ok([
-                    lx.index(what, len)?,
-                    lx.index(what, len)?,
-                    lx.index(what, len)?,
-                ])
-            };
-            let vi = tri_index("vertex index", verts.len())?;
-            let ni = match &normals {
-                Some(ns) => Some(tri_index("normal index", ns.len())?),
-                None => None,
-            };
-            let ti = match &texcoords {
-                Some(ts) => Some(tri_index("texture coordinate index", ts.len())?),
-                None => None,
-            };
-            let mut tri = Triangle {
-                p: vi.map(|i| verts[i]),
-                n: None,
-                uv: None,
-                material,
-            };
-            if let (Some(ns), Some(ni)) = (&normals, ni) {
-                let n = ni.map(|i| ns[i]);
-                tri.n = n.iter().all(|v| *v != Vec3::ZERO).then_some(n);
-            }
-            if let (Some(ts), Some(ti)) = (&texcoords, ti) {
-                tri.uv = Some(ti.map(|i| ts[i]));
-            }
-            if xf.flip {
-                swap_winding(&mut tri);
-            }
-            out.push(tri);
-        }
+        let mesh = MeshData {
+            verts,
+            normals,
+            texcoords,
+            material,
+            flip: xf.flip,
+        };
+        let mut out = mesh.triangles(lx, nf)?;
         if let Some(grp) = self.scene.groups.get_mut(g) {
             grp.triangles.append(&mut out);
         }
@@ -1304,6 +1276,60 @@ fn tcb<T>(lx: &mut Lexer, time: f32, value: T) -> Res<TcbKey<T>> {
         continuity: lx.number("a continuity")?,
         bias: lx.number("a bias")?,
     })
+}
+
+/// A mesh's vertex data as read, in world space, before its triangles.
+struct MeshData {
+    verts: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    texcoords: Option<Vec<Vec2>>,
+    material: MaterialId,
+    /// The baking transform has a negative determinant: the winding must be swapped.
+    flip: bool,
+}
+
+impl MeshData {
+    /// Read the `nf` triangles of the mesh's `triangles` section, each as indices
+    /// into the vertex data it has.
+    fn triangles(&self, lx: &mut Lexer, nf: usize) -> Res<Vec<Triangle>> {
+        let mut out = Vec::with_capacity(nf.min(PREALLOC_CAP));
+        for _ in 0..nf {
+            let mut tri_index = |what: &str, len: usize| -> Res<[usize; 3]> {
+                Ok([
+                    lx.index(what, len)?,
+                    lx.index(what, len)?,
+                    lx.index(what, len)?,
+                ])
+            };
+            let vi = tri_index("vertex index", self.verts.len())?;
+            let ni = match &self.normals {
+                Some(ns) => Some(tri_index("normal index", ns.len())?),
+                None => None,
+            };
+            let ti = match &self.texcoords {
+                Some(ts) => Some(tri_index("texture coordinate index", ts.len())?),
+                None => None,
+            };
+            let mut tri = Triangle {
+                p: vi.map(|i| self.verts[i]),
+                n: None,
+                uv: None,
+                material: self.material,
+            };
+            if let (Some(ns), Some(ni)) = (&self.normals, ni) {
+                let n = ni.map(|i| ns[i]);
+                tri.n = n.iter().all(|v| *v != Vec3::ZERO).then_some(n);
+            }
+            if let (Some(ts), Some(ti)) = (&self.texcoords, ti) {
+                tri.uv = Some(ti.map(|i| ts[i]));
+            }
+            if self.flip {
+                swap_winding(&mut tri);
+            }
+            out.push(tri);
+        }
+        Ok(out)
+    }
 }
 
 fn swap_winding(tri: &mut Triangle) {

@@ -28,6 +28,83 @@ fn err(path: &str, line: usize, column: usize, message: impl Into<String>) -> Sc
     }
 }
 
+/// One row of a camera path, `fields` as written on line `ln` of `name`: its time and
+/// camera, checked (finite numbers, a field of view in (0, 180), eye and at apart and in
+/// range, an up vector that defines the image's horizontal axis).
+fn parse_row(name: &str, ln: usize, fields: &[&str]) -> Result<(f32, Camera), SceneError> {
+    if fields.len() != 11 {
+        return Err(err(
+            name,
+            ln,
+            1,
+            format!("expected 11 comma-separated values, found {}", fields.len()),
+        ));
+    }
+    // 1-based column where field `i` starts.
+    let column = |i: usize| fields[..i].iter().map(|f| f.len() + 1).sum::<usize>() + 1;
+    let not_a_number = |i: usize| {
+        err(
+            name,
+            ln,
+            column(i),
+            format!("`{}` is not a finite number", fields[i].trim()),
+        )
+    };
+    let trimmed: csv::StringRecord = fields.iter().map(|f| f.trim()).collect();
+    let row: PathRow = trimmed.deserialize(None).map_err(|e| {
+        let i = match e.kind() {
+            csv::ErrorKind::Deserialize { err, .. } => err.field().unwrap_or(0) as usize,
+            _ => 0,
+        };
+        not_a_number(i.min(10))
+    })?;
+    let vals = row.values();
+    if let Some(i) = vals.iter().position(|v| !v.is_finite()) {
+        return Err(not_a_number(i));
+    }
+    let v = |i: usize| Vec3::new(vals[i], vals[i + 1], vals[i + 2]);
+    let cam = Camera {
+        eye: v(1),
+        at: v(4),
+        up: v(7),
+        fov_y_deg: vals[10],
+        hither: 1e-3,
+    };
+    if !(vals[10] > 0.0 && vals[10] < 180.0) {
+        return Err(err(name, ln, column(10), "fov_y_deg must be in (0, 180)"));
+    }
+    if (cam.at - cam.eye).length_squared() == 0.0 {
+        return Err(err(name, ln, 1, "eye and at coincide"));
+    }
+    if let Some(&p) = [cam.eye, cam.at]
+        .iter()
+        .find(|&&p| !super::limits::coordinate_ok(p))
+    {
+        return Err(err(
+            name,
+            ln,
+            1,
+            super::limits::coordinate_message("eye or at", p),
+        ));
+    }
+    // The view's frame is built from the up vector: a zero one, or one along the
+    // view direction, leaves the image's horizontal axis undefined.
+    let up_col = column(7);
+    let dir = (cam.at - cam.eye).normalize();
+    if cam.up.length_squared() == 0.0 || !cam.up.is_finite() {
+        return Err(err(name, ln, up_col, "the up vector is zero"));
+    }
+    if dir.cross(cam.up.normalize()).length() < 1e-4 {
+        return Err(err(
+            name,
+            ln,
+            up_col,
+            "the up vector is parallel to the view direction (at − eye)",
+        ));
+    }
+    Ok((vals[0], cam))
+}
+
 impl CameraPath {
     /// Read a camera path file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
@@ -76,90 +153,18 @@ impl CameraPath {
             let rec = rec.map_err(csv_err)?;
             let ln = line_of(&rec);
             let fields: Vec<&str> = rec.iter().collect();
-            if fields.len() != 11 {
-                return Err(err(
-                    name,
-                    ln,
-                    1,
-                    format!("expected 11 comma-separated values, found {}", fields.len()),
-                ));
-            }
-            // 1-based column where field `i` starts.
-            let column = |i: usize| fields[..i].iter().map(|f| f.len() + 1).sum::<usize>() + 1;
-            let trimmed: csv::StringRecord = fields.iter().map(|f| f.trim()).collect();
-            let row: PathRow = trimmed.deserialize(None).map_err(|e| {
-                let i = match e.kind() {
-                    csv::ErrorKind::Deserialize { err, .. } => err.field().unwrap_or(0) as usize,
-                    _ => 0,
-                }
-                .min(10);
-                err(
-                    name,
-                    ln,
-                    column(i),
-                    format!("`{}` is not a finite number", fields[i].trim()),
-                )
-            })?;
-            let vals = row.values();
-            if let Some(i) = vals.iter().position(|v| !v.is_finite()) {
-                return Err(err(
-                    name,
-                    ln,
-                    column(i),
-                    format!("`{}` is not a finite number", fields[i].trim()),
-                ));
-            }
-            let v = |i: usize| Vec3::new(vals[i], vals[i + 1], vals[i + 2]);
-            let cam = Camera {
-                eye: v(1),
-                at: v(4),
-                up: v(7),
-                fov_y_deg: vals[10],
-                hither: 1e-3,
-            };
-            if !(vals[10] > 0.0 && vals[10] < 180.0) {
-                return Err(err(name, ln, column(10), "fov_y_deg must be in (0, 180)"));
-            }
-            if (cam.at - cam.eye).length_squared() == 0.0 {
-                return Err(err(name, ln, 1, "eye and at coincide"));
-            }
-            if let Some(&p) = [cam.eye, cam.at]
-                .iter()
-                .find(|&&p| !super::limits::coordinate_ok(p))
-            {
-                return Err(err(
-                    name,
-                    ln,
-                    1,
-                    super::limits::coordinate_message("eye or at", p),
-                ));
-            }
-            // The view's frame is built from the up vector: a zero one, or one along the
-            // view direction, leaves the image's horizontal axis undefined.
-            let up_col = column(7);
-            let dir = (cam.at - cam.eye).normalize();
-            if cam.up.length_squared() == 0.0 || !cam.up.is_finite() {
-                return Err(err(name, ln, up_col, "the up vector is zero"));
-            }
-            if dir.cross(cam.up.normalize()).length() < 1e-4 {
-                return Err(err(
-                    name,
-                    ln,
-                    up_col,
-                    "the up vector is parallel to the view direction (at − eye)",
-                ));
-            }
+            let (t, cam) = parse_row(name, ln, &fields)?;
             if let Some((pt, _)) = keys.last() {
-                if vals[0] <= *pt {
+                if t <= *pt {
                     return Err(err(
                         name,
                         ln,
                         1,
-                        format!("time {} does not increase (previous {pt})", vals[0]),
+                        format!("time {t} does not increase (previous {pt})"),
                     ));
                 }
             }
-            keys.push((vals[0], cam));
+            keys.push((t, cam));
         }
         if keys.is_empty() {
             return Err(err(name, hl, 1, "camera path has a header but no rows"));

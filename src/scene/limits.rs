@@ -1,5 +1,5 @@
 //! The input budgets every loader enforces, in one place so that they are documented
-//! once (README, "Input limits") and a scene that passes them can always be built and
+//! once (`docs/usage.md`, "Input limits") and a scene that passes them can always be built and
 //! traced: no overflow in the BVH builder's surface areas, no allocation the machine
 //! cannot make.
 //!
@@ -103,6 +103,17 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             .map_or_else(|| scene.name.clone(), |p| p.display().to_string()),
         message,
     };
+    check_counts(scene, &bad)?;
+    check_coordinates(scene, &bad)?;
+    check_colors(scene, &bad)?;
+    if let Some((what, p)) = camera_out_of_limit(&scene.camera.base) {
+        return Err(bad(coordinate_message(what, p)));
+    }
+    Ok(())
+}
+
+/// The scene's triangles, spheres and cones against their budgets.
+fn check_counts(scene: &Scene, bad: &dyn Fn(String) -> SceneError) -> Result<(), SceneError> {
     let triangles: usize = scene
         .groups
         .iter()
@@ -124,6 +135,11 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             "{analytic} spheres and cones exceed the limit of {MAX_ANALYTIC}"
         )));
     }
+    Ok(())
+}
+
+/// Every vertex, centre, radius and light position against [`MAX_COORDINATE`].
+fn check_coordinates(scene: &Scene, bad: &dyn Fn(String) -> SceneError) -> Result<(), SceneError> {
     for (gi, g) in scene.groups.iter().enumerate() {
         for (ti, t) in g.triangles.iter().enumerate() {
             if let Some(&p) = t.p.iter().find(|&&p| !coordinate_ok(p)) {
@@ -172,6 +188,11 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
             )));
         }
     }
+    Ok(())
+}
+
+/// Every material, light, background and texel colour against the colour limit.
+fn check_colors(scene: &Scene, bad: &dyn Fn(String) -> SceneError) -> Result<(), SceneError> {
     for (mi, m) in scene.materials.iter().enumerate() {
         if let Some((what, c)) = material_out_of_limit(m) {
             return Err(bad(color_message(&format!("material {mi}: {what}"), c)));
@@ -197,9 +218,6 @@ pub fn check(scene: &Scene) -> Result<(), SceneError> {
                 c,
             )));
         }
-    }
-    if let Some((what, p)) = camera_out_of_limit(&scene.camera.base) {
-        return Err(bad(coordinate_message(what, p)));
     }
     Ok(())
 }

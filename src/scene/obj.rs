@@ -162,9 +162,9 @@ fn prescan(file: &str, bytes: &[u8]) -> Result<Vec<FaceInfo>, SceneError> {
     }
     let mut seen = [0i64; 3];
     let mut faces = Vec::new();
-    const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     for l in text_lines(file, bytes) {
         let (ln, l) = l?;
+        let at = |column: usize, message: String| err(ln, column, message);
         let mut w = words(l);
         let Some((_, key)) = w.next() else { continue };
         let (slot, needed) = match key {
@@ -172,93 +172,112 @@ fn prescan(file: &str, bytes: &[u8]) -> Result<Vec<FaceInfo>, SceneError> {
             "vt" => (1, 2),
             "vn" => (2, 3),
             "f" | "l" => {
-                let mut info = FaceInfo {
-                    triangles: 0,
-                    keep: key == "f",
-                    uv: true,
-                    normal: true,
-                };
-                let mut vertices = 0usize;
-                for (col, tok) in w {
-                    vertices += 1;
-                    let parts: Vec<&str> = tok.split('/').collect();
-                    if parts.len() > 3 {
-                        return Err(err(ln, col, format!("`{tok}` has more than three indices")));
-                    }
-                    info.uv &= parts.get(1).is_some_and(|p| !p.is_empty());
-                    info.normal &= parts.get(2).is_some_and(|p| !p.is_empty());
-                    for (k, part) in parts.iter().enumerate() {
-                        if part.is_empty() {
-                            if k == 0 {
-                                return Err(err(ln, col, format!("`{tok}` has no vertex index")));
-                            }
-                            continue;
-                        }
-                        let x: i64 = part
-                            .parse()
-                            .map_err(|_| err(ln, col, format!("`{part}` is not an index")))?;
-                        let ok = match x {
-                            0 => {
-                                return Err(err(
-                                    ln,
-                                    col,
-                                    "index 0 is invalid (OBJ indices start at 1)".into(),
-                                ))
-                            }
-                            x if x > 0 => x <= total[k],
-                            x => x.checked_add(seen[k]).is_some_and(|i| i >= 0),
-                        };
-                        if !ok {
-                            let (have, when) = if x > 0 {
-                                (total[k], "in the file")
-                            } else {
-                                (seen[k], "so far")
-                            };
-                            return Err(err(
-                                ln,
-                                col,
-                                format!(
-                                    "{} index {x} is out of range ({have} defined {when})",
-                                    KIND[k]
-                                ),
-                            ));
-                        }
-                    }
-                }
-                if vertices == 0 {
-                    return Err(err(ln, 1, format!("`{key}` without vertices")));
-                }
-                info.triangles = vertices.saturating_sub(2);
-                faces.push(info);
+                faces.push(scan_face(key, w, (&total, &seen), &at)?);
                 continue;
             }
             _ => continue,
         };
         seen[slot] += 1;
-        let mut count = 0;
-        for (col, tok) in w {
-            match tok.parse::<f32>() {
-                Ok(v) if v.abs() <= MAX_COORDINATE => count += 1,
-                Ok(v) if v.is_finite() => {
-                    return Err(err(
-                        ln,
-                        col,
-                        format!("`{tok}` exceeds the coordinate limit of ±{MAX_COORDINATE:e}"),
-                    ))
-                }
-                Ok(_) => return Err(err(ln, col, format!("`{tok}` is not a finite number"))),
-                Err(_) => return Err(err(ln, col, format!("`{tok}` is not a number"))),
-            }
-        }
+        let count = scan_numbers(w, &at)?;
         if count < needed {
-            return Err(err(
-                ln,
+            return Err(at(
                 l.len().max(1),
                 format!("`{key}` needs {needed} numbers, found {count}"),
             ));
         }
     }
     Ok(faces)
+}
+
+/// The indices of an `f` or `l` statement (`key`), given the vertex lines of each kind
+/// in the file (`total`) and before this line (`seen`); `at` makes an error at a column
+/// of the line.
+fn scan_face<'a>(
+    key: &str,
+    words: impl Iterator<Item = (usize, &'a str)>,
+    (total, seen): (&[i64; 3], &[i64; 3]),
+    at: &dyn Fn(usize, String) -> SceneError,
+) -> Result<FaceInfo, SceneError> {
+    const KIND: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let mut info = FaceInfo {
+        triangles: 0,
+        keep: key == "f",
+        uv: true,
+        normal: true,
+    };
+    let mut vertices = 0usize;
+    for (col, tok) in words {
+        vertices += 1;
+        let parts: Vec<&str> = tok.split('/').collect();
+        if parts.len() > 3 {
+            return Err(at(col, format!("`{tok}` has more than three indices")));
+        }
+        info.uv &= parts.get(1).is_some_and(|p| !p.is_empty());
+        info.normal &= parts.get(2).is_some_and(|p| !p.is_empty());
+        for (k, part) in parts.iter().enumerate() {
+            if part.is_empty() {
+                if k == 0 {
+                    return Err(at(col, format!("`{tok}` has no vertex index")));
+                }
+                continue;
+            }
+            let x: i64 = part
+                .parse()
+                .map_err(|_| at(col, format!("`{part}` is not an index")))?;
+            let ok = match x {
+                0 => {
+                    return Err(at(
+                        col,
+                        "index 0 is invalid (OBJ indices start at 1)".into(),
+                    ))
+                }
+                x if x > 0 => x <= total[k],
+                x => x.checked_add(seen[k]).is_some_and(|i| i >= 0),
+            };
+            if !ok {
+                let (have, when) = if x > 0 {
+                    (total[k], "in the file")
+                } else {
+                    (seen[k], "so far")
+                };
+                return Err(at(
+                    col,
+                    format!(
+                        "{} index {x} is out of range ({have} defined {when})",
+                        KIND[k]
+                    ),
+                ));
+            }
+        }
+    }
+    if vertices == 0 {
+        return Err(at(1, format!("`{key}` without vertices")));
+    }
+    info.triangles = vertices.saturating_sub(2);
+    Ok(info)
+}
+
+/// How many numbers a `v`, `vt` or `vn` statement gives, each checked against the
+/// coordinate limit.
+fn scan_numbers<'a>(
+    words: impl Iterator<Item = (usize, &'a str)>,
+    at: &dyn Fn(usize, String) -> SceneError,
+) -> Result<usize, SceneError> {
+    let mut count = 0;
+    for (col, tok) in words {
+        match tok.parse::<f32>() {
+            Ok(v) if v.abs() <= MAX_COORDINATE => count += 1,
+            Ok(v) if v.is_finite() => {
+                return Err(at(
+                    col,
+                    format!("`{tok}` exceeds the coordinate limit of ±{MAX_COORDINATE:e}"),
+                ))
+            }
+            Ok(_) => return Err(at(col, format!("`{tok}` is not a finite number"))),
+            Err(_) => return Err(at(col, format!("`{tok}` is not a number"))),
+        }
+    }
+    Ok(count)
 }
 
 /// Expand MTL colors given as one value (`Kd 0.8`, which the MTL format defines as grey)
@@ -352,80 +371,11 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let dir = path
         .parent()
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-
-    // Material libraries in load order, each with the number of materials it added, so
-    // a material index tells which library (and directory) it came from.
-    let libraries: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
-    let mtl_error: RefCell<Option<SceneError>> = RefCell::new(None);
-    // tobj's optional features (merging, reordering) add fields; the update keeps this
-    // compiling should another crate in the build enable them.
-    #[allow(clippy::needless_update)]
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-        ..Default::default()
-    };
-    let mut reader = LineReader::new(&bytes);
-    let result = tobj::load_obj_buf(&mut reader, &options, |name| {
-        let mtl = dir.join(name);
-        let data = match crate::scene::limits::read_bounded(&mtl) {
-            Ok(d) => d,
-            // A library that is missing is common in downloaded models and only costs
-            // materials; one that exists but is no regular file or is too large is a
-            // broken input.
-            Err(e) if mtl.exists() => {
-                mtl_error.borrow_mut().get_or_insert(SceneError::Io {
-                    path: mtl.clone(),
-                    message: format!("{e} (material library of {file})"),
-                });
-                return Err(tobj::LoadError::OpenFileFailed);
-            }
-            Err(e) => {
-                eprintln!(
-                    "warning: {file}: material library {} cannot be read ({e}); its materials fall back to the default",
-                    mtl.display()
-                );
-                return Err(tobj::LoadError::OpenFileFailed);
-            }
-        };
-        let data = match normalize_mtl(&mtl.display().to_string(), &data) {
-            Ok(d) => d,
-            Err(e) => {
-                mtl_error.borrow_mut().get_or_insert(e);
-                return Err(tobj::LoadError::MaterialParseError);
-            }
-        };
-        let mut r = LineReader::new(&data);
-        match tobj::load_mtl_buf(&mut r) {
-            Ok(m) => {
-                libraries.borrow_mut().push((mtl, m.0.len()));
-                Ok(m)
-            }
-            Err(e) => {
-                mtl_error.borrow_mut().get_or_insert(SceneError::Parse {
-                    file: mtl.display().to_string(),
-                    line: r.line(),
-                    column: 1,
-                    message: e.to_string(),
-                });
-                Err(e)
-            }
-        }
-    });
-    if let Some(e) = mtl_error.into_inner() {
-        return Err(e);
-    }
-    let (models, materials) = result.map_err(|e| SceneError::Parse {
-        file: file.clone(),
-        line: reader.line(),
-        column: 1,
-        message: e.to_string(),
-    })?;
-    // Errors of missing libraries were reported as warnings above.
-    let materials = materials.unwrap_or_default();
-    let libraries = libraries.into_inner();
+    let Parsed {
+        models,
+        materials,
+        libraries,
+    } = parse(&file, &bytes, &dir)?;
 
     let mut scene = empty_scene(path);
     let mut b = Build {
@@ -436,79 +386,22 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         textures: HashMap::new(),
         scene: &mut scene,
     };
-    // Per output triangle of tobj: (keep, has uv, has normals). tobj substitutes some
-    // other index for a missing `vt`/`vn`, so its attributes are only used where the
-    // face named them. Should the counts ever disagree, tobj's data are used as given.
-    let flags: Vec<(bool, bool, bool)> = faces
+    // One entry per output triangle of tobj. tobj substitutes some other index for a
+    // missing `vt`/`vn`, so its attributes are only used where the face named them.
+    // Should the counts ever disagree, tobj's data are used as given.
+    let flags: Vec<FaceInfo> = faces
         .iter()
-        .flat_map(|f| std::iter::repeat_n((f.keep, f.uv, f.normal), f.triangles))
+        .flat_map(|f| std::iter::repeat_n(*f, f.triangles))
         .collect();
     let produced: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
     let flags = (flags.len() == produced).then_some(flags);
-    let mut next = 0usize;
     let mut triangles = Vec::new();
+    // tobj's triangles before this model's, kept or not.
+    let mut first = 0;
     for model in &models {
-        let m = &model.mesh;
-        let invalid = |message: String| SceneError::Invalid {
-            name: file.clone(),
-            message,
-        };
-        let material = b.material(m.material_id)?;
-        let has_uv = !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len();
-        let has_n = !m.normals.is_empty() && m.normal_indices.len() == m.indices.len();
-        if triangles.len() + m.indices.len() / 3 > MAX_TRIANGLES {
-            return Err(invalid(format!("more than {MAX_TRIANGLES} triangles")));
-        }
-        let get3 = |data: &[f32], i: u32, what: &str| -> Result<Vec3, SceneError> {
-            let i = i as usize;
-            data.get(3 * i..3 * i + 3)
-                .map(Vec3::from_slice)
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| {
-                    invalid(format!(
-                        "object `{}`: {what} {i} is missing or not finite",
-                        model.name
-                    ))
-                })
-        };
-        for k in 0..m.indices.len() / 3 {
-            let (keep, face_uv, face_n) = flags.as_ref().map_or((true, true, true), |f| f[next]);
-            next += 1;
-            if !keep {
-                continue;
-            }
-            let idx = |list: &[u32], j: usize| list[3 * k + j];
-            let mut p = [Vec3::ZERO; 3];
-            for (j, pj) in p.iter_mut().enumerate() {
-                *pj = get3(&m.positions, idx(&m.indices, j), "vertex")?;
-            }
-            let n = if has_n && face_n {
-                let mut n = [Vec3::ZERO; 3];
-                for (j, nj) in n.iter_mut().enumerate() {
-                    *nj = get3(&m.normals, idx(&m.normal_indices, j), "normal")?;
-                }
-                Some(n)
-            } else {
-                None
-            };
-            let uv = if has_uv && face_uv {
-                let mut uv = [Vec2::ZERO; 3];
-                for (j, t) in uv.iter_mut().enumerate() {
-                    let i = idx(&m.texcoord_indices, j) as usize;
-                    let c = m.texcoords.get(2 * i..2 * i + 2).ok_or_else(|| {
-                        invalid(format!(
-                            "object `{}`: texture coordinate {i} is missing",
-                            model.name
-                        ))
-                    })?;
-                    *t = Vec2::new(c[0], c[1]);
-                }
-                Some(uv)
-            } else {
-                None
-            };
-            triangles.push(Triangle { p, n, uv, material });
-        }
+        let faces = flags.as_ref().map(|f| &f[first..]);
+        model_triangles(&mut b, model, faces, &mut triangles)?;
+        first += model.mesh.indices.len() / 3;
     }
     scene.groups.push(Group {
         node: None,
@@ -524,6 +417,174 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     };
     crate::scene::limits::check(&scene)?;
     Ok(scene)
+}
+
+/// What `tobj` made of an OBJ file.
+struct Parsed {
+    models: Vec<tobj::Model>,
+    materials: Vec<tobj::Material>,
+    /// Material libraries in load order, each with the number of materials it added,
+    /// so a material index tells which library (and directory) it came from.
+    libraries: Vec<(PathBuf, usize)>,
+}
+
+/// Parse the OBJ text `bytes` of `file` with `tobj`, reading its material libraries
+/// from `dir`.
+fn parse(file: &str, bytes: &[u8], dir: &Path) -> Result<Parsed, SceneError> {
+    let libraries: RefCell<Vec<(PathBuf, usize)>> = RefCell::new(Vec::new());
+    let mtl_error: RefCell<Option<SceneError>> = RefCell::new(None);
+    // tobj's optional features (merging, reordering) add fields; the update keeps this
+    // compiling should another crate in the build enable them.
+    #[allow(clippy::needless_update)]
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let mut reader = LineReader::new(bytes);
+    let result = tobj::load_obj_buf(&mut reader, &options, |name| {
+        let mtl = dir.join(name);
+        let loaded = load_library(file, &mtl, &mtl_error);
+        if let Ok(m) = &loaded {
+            libraries.borrow_mut().push((mtl, m.0.len()));
+        }
+        loaded
+    });
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
+    let (models, materials) = result.map_err(|e| SceneError::Parse {
+        file: file.to_string(),
+        line: reader.line(),
+        column: 1,
+        message: e.to_string(),
+    })?;
+    Ok(Parsed {
+        models,
+        // Errors of missing libraries were reported as warnings.
+        materials: materials.unwrap_or_default(),
+        libraries: libraries.into_inner(),
+    })
+}
+
+/// Read the material library `mtl` of `file`. Where the input is broken rather than
+/// incomplete, the first such error goes to `error` besides `tobj`'s.
+fn load_library(
+    file: &str,
+    mtl: &Path,
+    error: &RefCell<Option<SceneError>>,
+) -> tobj::MTLLoadResult {
+    let data = match crate::scene::limits::read_bounded(mtl) {
+        Ok(d) => d,
+        // A library that is missing is common in downloaded models and only costs
+        // materials; one that exists but is no regular file or is too large is a
+        // broken input.
+        Err(e) if mtl.exists() => {
+            error.borrow_mut().get_or_insert(SceneError::Io {
+                path: mtl.to_path_buf(),
+                message: format!("{e} (material library of {file})"),
+            });
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+        Err(e) => {
+            eprintln!(
+                "warning: {file}: material library {} cannot be read ({e}); its materials fall back to the default",
+                mtl.display()
+            );
+            return Err(tobj::LoadError::OpenFileFailed);
+        }
+    };
+    let data = match normalize_mtl(&mtl.display().to_string(), &data) {
+        Ok(d) => d,
+        Err(e) => {
+            error.borrow_mut().get_or_insert(e);
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    };
+    let mut r = LineReader::new(&data);
+    tobj::load_mtl_buf(&mut r).inspect_err(|e| {
+        error.borrow_mut().get_or_insert(SceneError::Parse {
+            file: mtl.display().to_string(),
+            line: r.line(),
+            column: 1,
+            message: e.to_string(),
+        });
+    })
+}
+
+/// Append the triangles of `model` to `triangles`. `faces`, when the scan's count
+/// matched `tobj`'s, says per triangle from this model's first on whether to keep it
+/// and which of its attributes the file named.
+fn model_triangles(
+    b: &mut Build<'_>,
+    model: &tobj::Model,
+    faces: Option<&[FaceInfo]>,
+    triangles: &mut Vec<Triangle>,
+) -> Result<(), SceneError> {
+    let m = &model.mesh;
+    let invalid = |message: String| SceneError::Invalid {
+        name: b.file.to_string(),
+        message,
+    };
+    let material = b.material(m.material_id)?;
+    let has_uv = !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len();
+    let has_n = !m.normals.is_empty() && m.normal_indices.len() == m.indices.len();
+    if triangles.len() + m.indices.len() / 3 > MAX_TRIANGLES {
+        return Err(invalid(format!("more than {MAX_TRIANGLES} triangles")));
+    }
+    let get3 = |data: &[f32], i: u32, what: &str| -> Result<Vec3, SceneError> {
+        let i = i as usize;
+        data.get(3 * i..3 * i + 3)
+            .map(Vec3::from_slice)
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| {
+                invalid(format!(
+                    "object `{}`: {what} {i} is missing or not finite",
+                    model.name
+                ))
+            })
+    };
+    for k in 0..m.indices.len() / 3 {
+        let (keep, face_uv, face_n) =
+            faces.map_or((true, true, true), |f| (f[k].keep, f[k].uv, f[k].normal));
+        if !keep {
+            continue;
+        }
+        let idx = |list: &[u32], j: usize| list[3 * k + j];
+        let mut p = [Vec3::ZERO; 3];
+        for (j, pj) in p.iter_mut().enumerate() {
+            *pj = get3(&m.positions, idx(&m.indices, j), "vertex")?;
+        }
+        let n = if has_n && face_n {
+            let mut n = [Vec3::ZERO; 3];
+            for (j, nj) in n.iter_mut().enumerate() {
+                *nj = get3(&m.normals, idx(&m.normal_indices, j), "normal")?;
+            }
+            Some(n)
+        } else {
+            None
+        };
+        let uv = if has_uv && face_uv {
+            let mut uv = [Vec2::ZERO; 3];
+            for (j, t) in uv.iter_mut().enumerate() {
+                let i = idx(&m.texcoord_indices, j) as usize;
+                let c = m.texcoords.get(2 * i..2 * i + 2).ok_or_else(|| {
+                    invalid(format!(
+                        "object `{}`: texture coordinate {i} is missing",
+                        model.name
+                    ))
+                })?;
+                *t = Vec2::new(c[0], c[1]);
+            }
+            Some(uv)
+        } else {
+            None
+        };
+        triangles.push(Triangle { p, n, uv, material });
+    }
+    Ok(())
 }
 
 /// Material and texture conversion, shared across the file's objects.

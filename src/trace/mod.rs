@@ -174,7 +174,7 @@ pub struct TraceOptions {
 impl Default for TraceOptions {
     fn default() -> Self {
         Self {
-            max_depth: 5,
+            max_depth: crate::settings::MAX_DEPTH,
             texture_filter: TextureFilter::None,
         }
     }
@@ -272,6 +272,37 @@ pub struct Tracer {
 
 const CACHE_STATES: usize = 8;
 
+/// `triangles` moved to world space by the static transform `m`.
+fn baked_triangles(m: Mat4, triangles: &[Triangle]) -> impl Iterator<Item = Triangle> + '_ {
+    let nm = Mat3::from_mat4(m).inverse().transpose();
+    triangles.iter().map(move |t| Triangle {
+        p: t.p.map(|p| m.transform_point3(p)),
+        n: t.n.map(|n| n.map(|v| (nm * v).normalize_or(Vec3::Y))),
+        ..*t
+    })
+}
+
+/// Analytic shapes under a static node moved by its transform `m`: what is exact for
+/// similarity transforms is baked.
+fn baked_analytic(m: Mat4, analytic: Vec<Analytic>) -> impl Iterator<Item = Analytic> {
+    let s = Mat3::from_mat4(m).to_cols_array();
+    let scale = Vec3::new(s[0], s[1], s[2]).length();
+    analytic.into_iter().map(move |a| match a {
+        Analytic::Sphere(mut sp) => {
+            sp.center = m.transform_point3(sp.center);
+            sp.radius *= scale;
+            Analytic::Sphere(sp)
+        }
+        Analytic::Cone(mut c) => {
+            c.base = m.transform_point3(c.base);
+            c.apex = m.transform_point3(c.apex);
+            c.base_radius *= scale;
+            c.apex_radius *= scale;
+            Analytic::Cone(c)
+        }
+    })
+}
+
 impl Tracer {
     /// Build acceleration structures for `scene`, rendering `width × height` images.
     pub fn new(scene: Arc<Scene>, width: u32, height: u32, options: TraceOptions) -> Self {
@@ -296,30 +327,8 @@ impl Tracer {
                         static_tris.extend_from_slice(&g.triangles);
                         static_analytic.extend(analytic);
                     } else {
-                        let nm = Mat3::from_mat4(m).inverse().transpose();
-                        static_tris.extend(g.triangles.iter().map(|t| Triangle {
-                            p: t.p.map(|p| m.transform_point3(p)),
-                            n: t.n.map(|n| n.map(|v| (nm * v).normalize_or(Vec3::Y))),
-                            ..*t
-                        }));
-                        // Analytic shapes under a static node: bake what is exact for
-                        // similarity transforms.
-                        let s = Mat3::from_mat4(m).to_cols_array();
-                        let scale = Vec3::new(s[0], s[1], s[2]).length();
-                        static_analytic.extend(analytic.into_iter().map(|a| match a {
-                            Analytic::Sphere(mut sp) => {
-                                sp.center = m.transform_point3(sp.center);
-                                sp.radius *= scale;
-                                Analytic::Sphere(sp)
-                            }
-                            Analytic::Cone(mut c) => {
-                                c.base = m.transform_point3(c.base);
-                                c.apex = m.transform_point3(c.apex);
-                                c.base_radius *= scale;
-                                c.apex_radius *= scale;
-                                Analytic::Cone(c)
-                            }
-                        }));
+                        static_tris.extend(baked_triangles(m, &g.triangles));
+                        static_analytic.extend(baked_analytic(m, analytic));
                     }
                 }
             }

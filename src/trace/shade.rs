@@ -25,6 +25,22 @@ fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
     (k >= 0.0).then(|| (eta * d + (eta * cos_i - k.sqrt()) * n).normalize())
 }
 
+/// A shaded point as its lights see it.
+#[derive(Clone, Copy)]
+struct Lit {
+    /// The hit pushed off the surface, where shadow rays start.
+    p_out: Vec3,
+    /// The self-intersection offset there.
+    eps: f32,
+    /// Shading and geometric normals, facing the viewer.
+    n: Vec3,
+    ng: Vec3,
+    /// The incoming ray's direction.
+    d: Vec3,
+    /// Diffuse colour, texture applied.
+    diffuse: Vec3,
+}
+
 impl Tracer {
     /// Shade a hit; `fp` is the ray cone's footprint there when filtering textures by
     /// ray cones (`None`: unfiltered lookups). Also says whether anything moving took
@@ -64,33 +80,15 @@ impl Tracer {
         let mut color = scene.ambient * m.ambient * tex;
         let eps = self.epsilon(s.p);
         let p_out = s.p + ng * eps;
-        let diffuse = m.diffuse * tex;
-        for &(lp, lc) in &state.lights {
-            let l = lp - p_out;
-            let dist = l.length();
-            if dist <= eps {
-                continue;
-            }
-            let l = l / dist;
-            let ndl = n.dot(l);
-            if ndl <= 0.0 || ng.dot(l) <= 0.0 {
-                continue;
-            }
-            let sray = Ray::new(Vec3A::from(p_out), Vec3A::from(l), 0.0, dist * (1.0 - 1e-5));
-            let (vis, moving_blocker) = self.shadow(state, &sray);
-            dynamic |= moving_blocker;
-            if vis <= 0.0 {
-                continue;
-            }
-            let mut c = diffuse * ndl;
-            if m.specular.max_element() > 0.0 {
-                let rv = reflect(-l, n).dot(-d);
-                if rv > 0.0 {
-                    c += m.specular * rv.powf(m.shininess.max(0.0));
-                }
-            }
-            color += lc * vis * c;
-        }
+        let lit = Lit {
+            p_out,
+            eps,
+            n,
+            ng,
+            d,
+            diffuse: m.diffuse * tex,
+        };
+        dynamic |= self.add_direct_light(state, m, &lit, &mut color);
         if depth >= self.options.max_depth {
             return (color, dynamic);
         }
@@ -122,6 +120,53 @@ impl Tracer {
             dynamic |= d;
         }
         (color, dynamic)
+    }
+
+    /// Add each light's diffuse and specular contribution at `lit` to `color`, in the
+    /// lights' order; whether a moving object shadowed any.
+    fn add_direct_light(
+        &self,
+        state: &SceneState,
+        m: &crate::scene::Material,
+        lit: &Lit,
+        color: &mut Vec3,
+    ) -> bool {
+        let Lit {
+            p_out,
+            eps,
+            n,
+            ng,
+            d,
+            diffuse,
+        } = *lit;
+        let mut dynamic = false;
+        for &(lp, lc) in &state.lights {
+            let l = lp - p_out;
+            let dist = l.length();
+            if dist <= eps {
+                continue;
+            }
+            let l = l / dist;
+            let ndl = n.dot(l);
+            if ndl <= 0.0 || ng.dot(l) <= 0.0 {
+                continue;
+            }
+            let sray = Ray::new(Vec3A::from(p_out), Vec3A::from(l), 0.0, dist * (1.0 - 1e-5));
+            let (vis, moving_blocker) = self.shadow(state, &sray);
+            dynamic |= moving_blocker;
+            if vis <= 0.0 {
+                continue;
+            }
+            let mut c = diffuse * ndl;
+            if m.specular.max_element() > 0.0 {
+                let rv = reflect(-l, n).dot(-d);
+                if rv > 0.0 {
+                    c += m.specular * rv.powf(m.shininess.max(0.0));
+                }
+            }
+            *color += lc * vis * c;
+        }
+        dynamic
     }
 
     fn radiance(

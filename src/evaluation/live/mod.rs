@@ -32,6 +32,7 @@ use crate::{
     reconstruction::device::{GpuContext, ReconUsed},
     render::{cache::IdealCache, cache::Lookup, still},
     scene::{CameraPath, Scene},
+    settings::{self, Setting},
     trace::{TextureFilter, TraceOptions, Tracer},
 };
 
@@ -91,15 +92,15 @@ impl LiveConfig {
             start: 0.0,
             seconds: 3.0,
             warmup: 1.0,
-            width: 256,
-            height: 256,
-            refresh_hz: 60.0,
+            width: settings::SIZE.0,
+            height: settings::SIZE.1,
+            refresh_hz: settings::REFRESH_HZ,
             methods: RtMethod::ALL.to_vec(),
             repeat: 1,
             cores: machine::cores(),
-            seed: 1,
-            ideal_spp: 16,
-            max_depth: 5,
+            seed: settings::SEED,
+            ideal_spp: settings::IDEAL_SPP,
+            max_depth: settings::MAX_DEPTH,
             texture_filter: TextureFilter::RayCones,
             cache_dir: None,
             gpu: None,
@@ -139,40 +140,42 @@ impl LiveConfig {
 
     /// Check the settings before any work; the error names the option.
     pub fn validate(&self) -> Result<(), EvalError> {
-        let bad = |option, why: String| Err(EvalError::Config { option, why });
+        let bad = |setting, why: String| Err(EvalError::config(setting, why));
         let checks = [
-            ("--warmup", limits::check_warmup(self.warmup)),
-            ("--seconds", limits::check_duration(self.seconds)),
+            (Setting::Warmup, limits::check_warmup(self.warmup)),
+            (Setting::Seconds, limits::check_duration(self.seconds)),
             (
-                "--start",
+                Setting::Start,
                 limits::check_start(self.start, self.warmup, self.seconds),
             ),
-            ("--size", limits::check_display(self.width, self.height)),
         ];
-        for (option, check) in checks {
+        for (setting, check) in checks {
             if let Err(why) = check {
-                return bad(option, why);
+                return bad(setting, why.to_string());
             }
         }
+        if let Err(why) = limits::check_display(self.width, self.height) {
+            return bad(Setting::Size, why);
+        }
         if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
-            return bad("--refresh-hz", why);
+            return bad(Setting::RefreshHz, why.to_string());
         }
         if self.methods.is_empty() {
-            return bad("--method", "lists no method".into());
+            return bad(Setting::Methods, "lists no method".into());
         }
         for (i, m) in self.methods.iter().enumerate() {
             if self.methods[..i].contains(m) {
-                return bad("--method", format!("lists {} twice", m.name()));
+                return bad(Setting::Methods, format!("lists {} twice", m.name()));
             }
         }
         if !(1..=MAX_REPEAT).contains(&self.repeat) {
             return bad(
-                "--repeat",
+                Setting::Repeat,
                 format!("{} must be in 1..={MAX_REPEAT}", self.repeat),
             );
         }
         if self.ideal_spp == 0 {
-            return bad("--ideal-spp", "must be at least 1".into());
+            return bad(Setting::IdealSpp, "must be at least 1".into());
         }
         for &m in &self.methods {
             let c = self.rt_config(m);
@@ -180,13 +183,13 @@ impl LiveConfig {
                 .validate()
                 .and_then(|()| c.check_size(self.width, self.height));
             if let Err(e) = check {
-                return bad("--method", format!("{}: {e}", m.name()));
+                return bad(Setting::Methods, format!("{}: {e}", m.name()));
             }
         }
         let why = "a run holds the images it shows and the ideal images of its window; \
-                   shorten --seconds or lower --refresh-hz or --size";
+                   record fewer seconds or lower the refresh rate or the size";
         if let Err(e) = limits::check_buffer("live recording", self.run_bytes(), why) {
-            return bad("--seconds", e);
+            return bad(Setting::Seconds, e.to_string());
         }
         Ok(())
     }
@@ -397,13 +400,15 @@ pub struct LiveSummary {
     pub timing: LiveTiming,
 }
 
-/// Strip images at one refresh: the ideal image first, then each method's as its
+/// Strip images at one refresh, 8-bit RGB: the ideal image, and each method's as its
 /// median run (by mean RMS) showed it.
 pub struct LiveStrip {
     /// Refresh index in the window.
     pub frame: usize,
-    /// `(label, 8-bit RGB)`.
-    pub panels: Vec<(String, Vec<u8>)>,
+    /// The ideal image at the refresh's scan-out time.
+    pub ideal: Vec<u8>,
+    /// Each method's image, in the evaluation's method order.
+    pub shown: Vec<(RtMethod, Vec<u8>)>,
 }
 
 /// Everything a live evaluation produced.
@@ -655,7 +660,8 @@ fn assemble(
         .iter()
         .map(|&j| LiveStrip {
             frame: j,
-            panels: vec![("ideal".into(), ideal[j].clone())],
+            ideal: ideal[j].clone(),
+            shown: Vec::new(),
         })
         .collect();
     for &m in &cfg.methods {
@@ -675,7 +681,7 @@ fn assemble(
         by_rms.sort_by(|a, b| a.run.scores.rms.total_cmp(&b.run.scores.rms));
         let typical = by_rms[(by_rms.len() - 1) / 2];
         for (strip, image) in strips.iter_mut().zip(&typical.strip_images) {
-            strip.panels.push((m.name().to_string(), image.clone()));
+            strip.shown.push((m, image.clone()));
         }
     }
     let mut runs = Vec::new();

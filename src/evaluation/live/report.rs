@@ -18,6 +18,7 @@ use crate::{
     },
     image::read_png_rgb8,
     limits,
+    methods::MethodKind,
     output::{self, OutputDir},
 };
 
@@ -195,8 +196,11 @@ fn write_into(out: &mut LiveOutput, dir: &Path) -> Result<(), EvalError> {
     let mut strips = Vec::new();
     for st in &out.strips {
         let names = tagged_strip_names("live", st.frame);
-        write_strip_files(dir, &names, &st.panels, (s.width, s.height), true)?;
-        let labels: Vec<String> = st.panels.iter().map(|(l, _)| l.clone()).collect();
+        let mut images = vec![st.ideal.as_slice()];
+        images.extend(st.shown.iter().map(|(_, rgb)| rgb.as_slice()));
+        write_strip_files(dir, &names, &images, (s.width, s.height), true)?;
+        let mut labels = vec![MethodKind::Ideal.name()];
+        labels.extend(st.shown.iter().map(|(m, _)| m.name()));
         strips.push((st.frame, names, labels));
     }
     out.summary.timing.output_s = t0.elapsed().as_secs_f64();
@@ -256,8 +260,8 @@ pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
     let s = read_summary(&dir.join("summary.json"))?;
     let frames = read_frames_csv(&dir.join("frames.csv"))?;
     plot(&s, &frames, &dir.join("rms.svg"))?;
-    let mut labels = vec!["ideal".to_string()];
-    labels.extend(s.results.iter().map(|r| r.method.name().to_string()));
+    let mut labels = vec![MethodKind::Ideal.name()];
+    labels.extend(s.results.iter().map(|r| r.method.name()));
     let mut found: Vec<usize> = std::fs::read_dir(dir)
         .map_err(|e| EvalError::io(dir, e))?
         .filter_map(|e| e.ok()?.file_name().into_string().ok())
@@ -279,8 +283,8 @@ pub fn rewrite(dir: &Path) -> Result<PathBuf, EvalError> {
         else {
             continue;
         };
-        let panels: Vec<(String, Vec<u8>)> = labels.iter().cloned().zip(panels).collect();
-        write_strip_files(dir, &names, &panels, (s.width, s.height), false)?;
+        let images: Vec<&[u8]> = panels.iter().map(Vec::as_slice).collect();
+        write_strip_files(dir, &names, &images, (s.width, s.height), false)?;
         strips.push((frame, names, labels.clone()));
     }
     let p = dir.join("summary.md");
@@ -344,7 +348,7 @@ fn median_run(s: &LiveSummary, row: &LiveRow) -> usize {
         .map_or(1, |r| r.repeat)
 }
 
-type StripEntry = (usize, (String, String), Vec<String>);
+type StripEntry = (usize, (String, String), Vec<&'static str>);
 
 fn html(s: &LiveSummary, strips: &[StripEntry]) -> String {
     let mut h = format!(

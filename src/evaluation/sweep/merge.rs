@@ -107,6 +107,30 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Merged, SweepError> {
         .into_iter()
         .map(|p| JobResult::read(&p).map(|r| (p, r)))
         .collect::<Result<Vec<_>, _>>()?;
+    check_same_sweep(&results)?;
+    let (p0, r0) = &results[0];
+    let sweep = Sweep::parse(
+        &r0.sweep_text,
+        &format!("the sweep file inside {}", p0.display()),
+    )?;
+    let (found, shard_counts) = each_job_once(&sweep, &results)?;
+    let mut instances = Vec::new();
+    for inst in sweep.instances() {
+        let output = assemble(&sweep, &inst, &results, &found)?;
+        instances.push((inst, output));
+    }
+    Ok(Merged {
+        sweep_hash: r0.sweep_hash.clone(),
+        renderer_version: r0.renderer_version,
+        jobs: results.len(),
+        shard_counts,
+        sweep,
+        instances,
+    })
+}
+
+/// Check that every result comes from the first one's sweep file and renderer version.
+fn check_same_sweep(results: &[(PathBuf, JobResult)]) -> Result<(), SweepError> {
     let (p0, r0) = &results[0];
     for (p, r) in &results[1..] {
         let mismatch = |what, found: String, expected: String| SweepError::Mismatch {
@@ -131,10 +155,15 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Merged, SweepError> {
             ));
         }
     }
-    let sweep = Sweep::parse(
-        &r0.sweep_text,
-        &format!("the sweep file inside {}", p0.display()),
-    )?;
+    Ok(())
+}
+
+/// Check that `results` hold each of the sweep's jobs exactly once and nothing else;
+/// each job's index in `results`, and the shard counts the results were run with.
+fn each_job_once(
+    sweep: &Sweep,
+    results: &[(PathBuf, JobResult)],
+) -> Result<(HashMap<String, usize>, Vec<u32>), SweepError> {
     let expected = sweep.jobs();
     let expected_ids: HashSet<String> = expected.iter().map(|j| j.id()).collect();
     let mut found: HashMap<String, usize> = HashMap::new();
@@ -178,19 +207,7 @@ pub fn merge(dirs: &[PathBuf]) -> Result<Merged, SweepError> {
             total: expected.len(),
         });
     }
-    let mut instances = Vec::new();
-    for inst in sweep.instances() {
-        let output = assemble(&sweep, &inst, &results, &found)?;
-        instances.push((inst, output));
-    }
-    Ok(Merged {
-        sweep_hash: r0.sweep_hash.clone(),
-        renderer_version: r0.renderer_version,
-        jobs: results.len(),
-        shard_counts,
-        sweep,
-        instances,
-    })
+    Ok((found, shard_counts))
 }
 
 /// One instance's outputs from its jobs, in the order [`crate::evaluation::run`]
@@ -206,7 +223,7 @@ fn assemble(
     let mut strips: Vec<Strip> = Vec::new();
     for &rate in &cfg.rates {
         for &k in cfg.strip_frames.iter().filter(|&&k| k < n) {
-            strips.push((rate, k, vec![("ideal".to_string(), Vec::new())]));
+            strips.push(Strip::new(rate, k, Vec::new()));
         }
     }
     let mut ideal_from: Vec<Option<String>> = vec![None; strips.len()];
@@ -244,44 +261,17 @@ fn assemble(
         rows.extend(r.results.iter().cloned());
         frames.extend(r.frames.iter().cloned());
         add_timing(&mut timing, &r.timing);
-        for strip in r.decoded_strips(path)? {
-            let (rate, frame, ideal, shown) = (strip.rate, strip.frame, strip.ideal, strip.shown);
-            let Some(i) = strips.iter().position(|s| s.0 == rate && s.1 == frame) else {
-                return Err(not(format!(
-                    "a strip at {} frame {frame}, which the sweep does not make",
-                    rate_label(rate)
-                )));
-            };
-            let slot = &mut strips[i].2;
-            match &ideal_from[i] {
-                None => {
-                    slot[0].1 = ideal;
-                    ideal_from[i] = Some(r.job.clone());
-                }
-                Some(first) if slot[0].1 != ideal => {
-                    return Err(SweepError::Inconsistent {
-                        first: first.clone(),
-                        second: r.job.clone(),
-                        why: format!(
-                            "have different ideal images at {} frame {frame}: they were \
-                             rendered by different builds or from different inputs",
-                            rate_label(rate)
-                        ),
-                    });
-                }
-                Some(_) => {}
-            }
-            slot.push((job.method.name().to_string(), shown));
-        }
+        add_strips(&mut strips, &mut ideal_from, (path, r), &job)?;
     }
     // Each strip holds the ideal image and one image per method.
-    if let Some((rate, k, _)) = strips.iter().find(|s| s.2.len() != 1 + cfg.methods.len()) {
+    if let Some(s) = strips.iter().find(|s| s.shown.len() != cfg.methods.len()) {
         return Err(SweepError::NotAResult {
             path: results[found[&sweep.instance_jobs(inst)[0].id()]].0.clone(),
             why: format!(
-                "the jobs of {} lack image strips at {} frame {k}",
+                "the jobs of {} lack image strips at {} frame {}",
                 sweep.folder(inst),
-                rate_label(*rate)
+                rate_label(s.rate),
+                s.frame
             ),
         });
     }
@@ -294,6 +284,54 @@ fn assemble(
         // Sweeps keep display-quantized strips only (no HDR strips in job results).
         linear: Vec::new(),
     })
+}
+
+/// Put the strip images of the job result `r` (read from `path`) into `strips`: its
+/// method's image beside the others', and the ideal image, which every job of a strip
+/// must agree on (`ideal_from` names the job each strip's ideal image came from).
+fn add_strips(
+    strips: &mut [Strip],
+    ideal_from: &mut [Option<String>],
+    (path, r): (&PathBuf, &JobResult),
+    job: &JobKey,
+) -> Result<(), SweepError> {
+    let not = |why: String| SweepError::NotAResult {
+        path: path.clone(),
+        why,
+    };
+    for strip in r.decoded_strips(path)? {
+        let (rate, frame, ideal, shown) = (strip.rate, strip.frame, strip.ideal, strip.shown);
+        let Some(i) = strips
+            .iter()
+            .position(|s| s.rate == rate && s.frame == frame)
+        else {
+            return Err(not(format!(
+                "a strip at {} frame {frame}, which the sweep does not make",
+                rate_label(rate)
+            )));
+        };
+        let slot = &mut strips[i];
+        match &ideal_from[i] {
+            None => {
+                slot.ideal = ideal;
+                ideal_from[i] = Some(r.job.clone());
+            }
+            Some(first) if slot.ideal != ideal => {
+                return Err(SweepError::Inconsistent {
+                    first: first.clone(),
+                    second: r.job.clone(),
+                    why: format!(
+                        "have different ideal images at {} frame {frame}: they were \
+                         rendered by different builds or from different inputs",
+                        rate_label(rate)
+                    ),
+                });
+            }
+            Some(_) => {}
+        }
+        slot.shown.push((job.method, shown));
+    }
+    Ok(())
 }
 
 /// Check that a job's result rows, frame rows and strips are those of `job`: its

@@ -85,6 +85,15 @@ pub enum SweepError {
         /// Why.
         why: String,
     },
+    /// A scene named `bart:<path>`, and no BART folder to find it in (the binary says
+    /// how to give one).
+    #[error("evaluation '{evaluation}': scene '{scene}' names a BART scene, and no BART folder was given")]
+    NoBartFolder {
+        /// The evaluation.
+        evaluation: String,
+        /// The scene as the sweep names it.
+        scene: String,
+    },
     /// A shard is not `i/N` with `i < N`.
     #[error("`{0}` is not a shard: expected i/N with 0 <= i < N <= 100000, e.g. 0/4")]
     Shard(String),
@@ -286,16 +295,16 @@ impl<'de> Deserialize<'de> for Size {
 }
 
 fn default_ideal_spp() -> u32 {
-    16
+    crate::settings::IDEAL_SPP
 }
 fn default_max_depth() -> u32 {
-    5
+    crate::settings::MAX_DEPTH
 }
 fn default_flip_every() -> u32 {
     1
 }
 fn default_refresh_hz() -> f64 {
-    60.0
+    crate::settings::REFRESH_HZ
 }
 
 /// The file as written; checked and turned into a [`Sweep`] by [`Sweep::parse`].
@@ -627,7 +636,7 @@ impl Sweep {
             (methods_at, "methods", methods.len()),
             (rates_at, "rates", rates.len()),
         ];
-        if let Some(&(at, key, _)) = lists.iter().find(|l| l.2 == 0) {
+        if let Some(&(at, key, _)) = lists.iter().find(|&&(_, _, len)| len == 0) {
             return Err(invalid(at, key, "lists nothing".into()));
         }
         // Job names are built from these; a repeat would be one job run twice.
@@ -677,12 +686,9 @@ impl Sweep {
         for inst in self.instances() {
             let e = &self.evaluations[inst.evaluation];
             if let Err(err) = self.config(&inst, None, None).validate() {
-                // The evaluation's checks name command-line options; here they are keys.
                 let (key, why) = match err {
-                    EvalError::Config { option, why } => {
-                        (option.trim_start_matches("--").replace('-', "_"), why)
-                    }
-                    other => ("settings".into(), other.to_string()),
+                    EvalError::Config { setting, why } => (setting.key(), why),
+                    other => ("settings", other.to_string()),
                 };
                 return Err(SweepError::Invalid {
                     file: file.to_string(),
@@ -905,9 +911,10 @@ impl SweepFile {
             Some(rel) => match bart {
                 Some(dir) => dir.join(rel),
                 None => {
-                    return Err(err(
-                        "names a BART scene: give --bart DIR or set FRAMELESS_BART_DIR".into(),
-                    ))
+                    return Err(SweepError::NoBartFolder {
+                        evaluation: e.name.clone(),
+                        scene: e.scene.clone(),
+                    })
                 }
             },
             None => self.path.parent().unwrap_or(Path::new("")).join(&e.scene),

@@ -341,53 +341,7 @@ pub fn run_shard(
             let fingerprint = format!("{:016x}", scene_fingerprint(&scene));
             scenes.insert(src.clone(), (Arc::new(scene), fingerprint));
         }
-        let (scene, fingerprint) = &scenes[src];
-        let cfg = sweep.job_config(
-            inst,
-            job,
-            file.camera_paths[inst.evaluation].clone(),
-            opts.cache_dir.clone(),
-        );
-        // Shards that reach this evaluation together render different refreshes'
-        // ideal images first, and read the others' from a shared cache.
-        let first_ideal = shard.index as usize * cfg.frames() / shard.count as usize;
-        let out_job =
-            evaluation::run_from(scene.clone(), &cfg, progress, first_ideal).map_err(|source| {
-                SweepError::Job {
-                    job: job.id(),
-                    source: Box::new(source),
-                }
-            })?;
-        let (w, h) = (cfg.width, cfg.height);
-        let strips = out_job
-            .strips
-            .iter()
-            .map(|(rate, frame, list)| StripImages {
-                rate: *rate,
-                frame: *frame,
-                // A job's strips hold the ideal image and its one method's.
-                ideal_png: encode_png(&list[0].1, w, h),
-                shown_png: encode_png(&list[1].1, w, h),
-            })
-            .collect();
-        let result = JobResult {
-            format: RESULT_FORMAT.into(),
-            format_version: RESULT_VERSION,
-            job: job.id(),
-            key: job.clone(),
-            sweep_name: sweep.name.clone(),
-            sweep_hash: hash.clone(),
-            cameras_hash: format!("{:016x}", file.cameras_hash),
-            sweep_text: file.text.clone(),
-            renderer_version: RENDERER_VERSION,
-            frameless_version: env!("CARGO_PKG_VERSION").into(),
-            shard,
-            scene_fingerprint: fingerprint.clone(),
-            results: out_job.summary.results,
-            frames: out_job.frames,
-            strips,
-            timing: out_job.summary.timing,
-        };
+        let result = run_job(file, shard, opts, (inst, job), &scenes[src], progress)?;
         // Numbers and strings always serialise.
         let json = serde_json::to_string(&result).expect("job result serialises");
         output::write_atomic(&path, json.as_bytes())
@@ -399,4 +353,66 @@ pub fn run_shard(
         });
     }
     Ok(run)
+}
+
+/// Run one job of the shard on its loaded scene; its result, to be written.
+fn run_job(
+    file: &SweepFile,
+    shard: Shard,
+    opts: &ShardOptions,
+    (inst, job): (&Instance, &JobKey),
+    (scene, fingerprint): &(Arc<Scene>, String),
+    progress: &dyn Progress,
+) -> Result<JobResult, SweepError> {
+    let sweep = &file.sweep;
+    let cfg = sweep.job_config(
+        inst,
+        job,
+        file.camera_paths[inst.evaluation].clone(),
+        opts.cache_dir.clone(),
+    );
+    // Shards that reach this evaluation together render different refreshes'
+    // ideal images first, and read the others' from a shared cache.
+    let first_ideal = shard.index as usize * cfg.frames() / shard.count as usize;
+    let options = evaluation::RunOptions {
+        first_ideal,
+        ..evaluation::RunOptions::default()
+    };
+    let out_job =
+        evaluation::run_with(scene.clone(), &cfg, progress, options).map_err(|source| {
+            SweepError::Job {
+                job: job.id(),
+                source: Box::new(source),
+            }
+        })?;
+    let (w, h) = (cfg.width, cfg.height);
+    let strips = out_job
+        .strips
+        .iter()
+        .map(|s| StripImages {
+            rate: s.rate,
+            frame: s.frame,
+            ideal_png: encode_png(&s.ideal, w, h),
+            // A job runs one method.
+            shown_png: encode_png(&s.shown[0].1, w, h),
+        })
+        .collect();
+    Ok(JobResult {
+        format: RESULT_FORMAT.into(),
+        format_version: RESULT_VERSION,
+        job: job.id(),
+        key: job.clone(),
+        sweep_name: sweep.name.clone(),
+        sweep_hash: format!("{:016x}", file.hash),
+        cameras_hash: format!("{:016x}", file.cameras_hash),
+        sweep_text: file.text.clone(),
+        renderer_version: RENDERER_VERSION,
+        frameless_version: env!("CARGO_PKG_VERSION").into(),
+        shard,
+        scene_fingerprint: fingerprint.clone(),
+        results: out_job.summary.results,
+        frames: out_job.frames,
+        strips,
+        timing: out_job.summary.timing,
+    })
 }

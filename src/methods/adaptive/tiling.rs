@@ -418,12 +418,6 @@ impl Tiling {
         stats_of: Option<&dyn Fn(Rect) -> TileStats>,
         tol: f64,
     ) -> Result<(), MethodError> {
-        let bad = |why: String| {
-            Err(MethodError::Inconsistent {
-                what: "tiling",
-                why,
-            })
-        };
         let mut covered = vec![0u8; (self.width * self.height) as usize];
         let mut stack = vec![0u32];
         let mut leaf_count = 0;
@@ -436,94 +430,130 @@ impl Tiling {
                     y1: self.height,
                 })
         {
-            return bad("root must cover the image and have no parent".into());
+            return Err(inconsistent(
+                "root must cover the image and have no parent".into(),
+            ));
         }
         while let Some(i) = stack.pop() {
             let n = &self.nodes[i as usize];
             if n.rect.area() == 0 {
-                return bad(format!("node {i} has an empty rectangle"));
+                return Err(inconsistent(format!("node {i} has an empty rectangle")));
             }
             if n.children == NONE {
                 leaf_count += 1;
-                let slot = n.leaf_slot as usize;
-                if self.leaves.get(slot) != Some(&i) {
-                    return bad(format!("leaf {i} not at its slot {slot}"));
-                }
-                for y in n.rect.y0..n.rect.y1 {
-                    for x in n.rect.x0..n.rect.x1 {
-                        let p = (y * self.width + x) as usize;
-                        covered[p] += 1;
-                        if self.leaf_of[p] != i {
-                            return bad(format!("pixel ({x}, {y}) of tile {i} is mapped to tile {}", self.leaf_of[p]));
-                        }
-                    }
-                }
-                if let Some(p) = n.pending {
-                    if !n.rect.contains(p.x as u32, p.y as u32) {
-                        return bad(format!("tile {i} holds a pending crosshair outside it"));
-                    }
-                }
-                if let Some(f) = stats_of {
-                    let want = f(n.rect);
-                    if !n.stats.approx_eq(&want, tol) {
-                        return bad(format!(
-                            "tile {i} statistics {:?} differ from the buffer's {want:?}",
-                            n.stats
-                        ));
-                    }
-                }
+                self.validate_tile(i, &mut covered, stats_of, tol)?;
             } else {
-                let (a, b) = (
-                    &self.nodes[n.children as usize],
-                    &self.nodes[n.children as usize + 1],
-                );
-                if a.parent != i || b.parent != i {
-                    return bad(format!("children of {i} do not point back"));
-                }
-                if n.leaf_slot != NONE || n.pending.is_some() {
-                    return bad(format!("inner node {i} is marked as a tile"));
-                }
-                let (ra, rb, r) = (a.rect, b.rect, n.rect);
-                let vertical = ra.x1 == rb.x0
-                    && ra.y0 == r.y0
-                    && rb.y0 == r.y0
-                    && ra.y1 == r.y1
-                    && rb.y1 == r.y1;
-                let horizontal = ra.y1 == rb.y0
-                    && ra.x0 == r.x0
-                    && rb.x0 == r.x0
-                    && ra.x1 == r.x1
-                    && rb.x1 == r.x1;
-                let spans = if vertical {
-                    ra.x0 == r.x0 && rb.x1 == r.x1
-                } else {
-                    ra.y0 == r.y0 && rb.y1 == r.y1
-                };
-                if !(vertical || horizontal) || !spans {
-                    return bad(format!("children of {i} do not split it exactly"));
-                }
-                let mut sum = a.stats;
-                sum.add(&b.stats, 1.0);
-                if !n.stats.approx_eq(&sum, tol) {
-                    return bad(format!(
-                        "node {i} statistics are not the sum of its children's"
-                    ));
-                }
+                self.validate_split(i, tol)?;
                 stack.push(n.children);
                 stack.push(n.children + 1);
             }
         }
         if leaf_count != self.leaves.len() {
-            return bad(format!(
+            return Err(inconsistent(format!(
                 "{} tiles reachable, {} listed",
                 leaf_count,
                 self.leaves.len()
-            ));
+            )));
         }
         if let Some(p) = covered.iter().position(|&c| c != 1) {
-            return bad(format!("pixel {p} covered {} times", covered[p]));
+            return Err(inconsistent(format!(
+                "pixel {p} covered {} times",
+                covered[p]
+            )));
         }
         Ok(())
+    }
+
+    /// [`Self::validate`] of the tile `i`: its slot, the pixels it maps (counted in
+    /// `covered`), its pending crosshair and, with `stats_of`, its statistics.
+    fn validate_tile(
+        &self,
+        i: u32,
+        covered: &mut [u8],
+        stats_of: Option<&dyn Fn(Rect) -> TileStats>,
+        tol: f64,
+    ) -> Result<(), MethodError> {
+        let n = &self.nodes[i as usize];
+        let slot = n.leaf_slot as usize;
+        if self.leaves.get(slot) != Some(&i) {
+            return Err(inconsistent(format!("leaf {i} not at its slot {slot}")));
+        }
+        for y in n.rect.y0..n.rect.y1 {
+            for x in n.rect.x0..n.rect.x1 {
+                let p = (y * self.width + x) as usize;
+                covered[p] += 1;
+                if self.leaf_of[p] != i {
+                    return Err(inconsistent(format!(
+                        "pixel ({x}, {y}) of tile {i} is mapped to tile {}",
+                        self.leaf_of[p]
+                    )));
+                }
+            }
+        }
+        if let Some(p) = n.pending {
+            if !n.rect.contains(p.x as u32, p.y as u32) {
+                return Err(inconsistent(format!(
+                    "tile {i} holds a pending crosshair outside it"
+                )));
+            }
+        }
+        if let Some(f) = stats_of {
+            let want = f(n.rect);
+            if !n.stats.approx_eq(&want, tol) {
+                return Err(inconsistent(format!(
+                    "tile {i} statistics {:?} differ from the buffer's {want:?}",
+                    n.stats
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// [`Self::validate`] of the inner node `i`: its children point back, split it
+    /// exactly in two, and their statistics sum to its own.
+    fn validate_split(&self, i: u32, tol: f64) -> Result<(), MethodError> {
+        let n = &self.nodes[i as usize];
+        let (a, b) = (
+            &self.nodes[n.children as usize],
+            &self.nodes[n.children as usize + 1],
+        );
+        if a.parent != i || b.parent != i {
+            return Err(inconsistent(format!("children of {i} do not point back")));
+        }
+        if n.leaf_slot != NONE || n.pending.is_some() {
+            return Err(inconsistent(format!("inner node {i} is marked as a tile")));
+        }
+        let (ra, rb, r) = (a.rect, b.rect, n.rect);
+        let vertical =
+            ra.x1 == rb.x0 && ra.y0 == r.y0 && rb.y0 == r.y0 && ra.y1 == r.y1 && rb.y1 == r.y1;
+        let horizontal =
+            ra.y1 == rb.y0 && ra.x0 == r.x0 && rb.x0 == r.x0 && ra.x1 == r.x1 && rb.x1 == r.x1;
+        let spans = if vertical {
+            ra.x0 == r.x0 && rb.x1 == r.x1
+        } else {
+            ra.y0 == r.y0 && rb.y1 == r.y1
+        };
+        if !(vertical || horizontal) || !spans {
+            return Err(inconsistent(format!(
+                "children of {i} do not split it exactly"
+            )));
+        }
+        let mut sum = a.stats;
+        sum.add(&b.stats, 1.0);
+        if !n.stats.approx_eq(&sum, tol) {
+            return Err(inconsistent(format!(
+                "node {i} statistics are not the sum of its children's"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The error of a broken tiling invariant.
+fn inconsistent(why: String) -> MethodError {
+    MethodError::Inconsistent {
+        what: "tiling",
+        why,
     }
 }
 

@@ -98,46 +98,9 @@ impl Doc {
             )));
         }
         let comps = ty.multiplicity();
-        let size = component_size(ct);
-        let elem = (size * comps) as u64;
         let count = acc.count.0;
         let mut values = match acc.buffer_view {
-            Some(view) => {
-                let vi = view.value();
-                let bytes = self.view_bytes(vi, &ctx)?;
-                let stride = match self.root.buffer_views.get(vi).and_then(|v| v.byte_stride) {
-                    Some(s) if (s.0 as u64) < elem => {
-                        return Err(self.invalid(format!(
-                            "{ctx}: byteStride {} is smaller than an element ({elem} bytes)",
-                            s.0
-                        )))
-                    }
-                    Some(s) => s.0 as u64,
-                    None => elem,
-                };
-                let off = acc.byte_offset.map_or(0, |o| o.0);
-                if count > 0 {
-                    let need = (count - 1)
-                        .checked_mul(stride)
-                        .and_then(|x| x.checked_add(elem))
-                        .and_then(|x| x.checked_add(off));
-                    if need.is_none_or(|n| n > bytes.len() as u64) {
-                        return Err(self.invalid(format!(
-                            "{ctx}: {count} elements at offset {off} (stride {stride}) do not fit in bufferView {vi} ({} bytes)",
-                            bytes.len()
-                        )));
-                    }
-                }
-                let mut values = Vec::with_capacity(count as usize * comps);
-                for i in 0..count as usize {
-                    let start = off as usize + i * stride as usize;
-                    for c in 0..comps {
-                        let at = start + c * size;
-                        values.push(component(&bytes[at..at + size], ct));
-                    }
-                }
-                values
-            }
+            Some(view) => self.view_values(acc, view.value(), (ct, comps), &ctx)?,
             None => {
                 if count > MAX_ZERO_ELEMENTS {
                     return Err(self.invalid(format!(
@@ -156,6 +119,53 @@ impl Doc {
             }
         }
         Ok(Elements { values, comps })
+    }
+
+    /// The `comps` components of type `ct` of each of the elements of accessor `acc`,
+    /// read from its bufferView `vi`.
+    fn view_values(
+        &self,
+        acc: &json::Accessor,
+        vi: usize,
+        (ct, comps): (json::accessor::ComponentType, usize),
+        ctx: &str,
+    ) -> Result<Vec<f64>, SceneError> {
+        let size = component_size(ct);
+        let elem = (size * comps) as u64;
+        let count = acc.count.0;
+        let bytes = self.view_bytes(vi, ctx)?;
+        let stride = match self.root.buffer_views.get(vi).and_then(|v| v.byte_stride) {
+            Some(s) if (s.0 as u64) < elem => {
+                return Err(self.invalid(format!(
+                    "{ctx}: byteStride {} is smaller than an element ({elem} bytes)",
+                    s.0
+                )))
+            }
+            Some(s) => s.0 as u64,
+            None => elem,
+        };
+        let off = acc.byte_offset.map_or(0, |o| o.0);
+        if count > 0 {
+            let need = (count - 1)
+                .checked_mul(stride)
+                .and_then(|x| x.checked_add(elem))
+                .and_then(|x| x.checked_add(off));
+            if need.is_none_or(|n| n > bytes.len() as u64) {
+                return Err(self.invalid(format!(
+                    "{ctx}: {count} elements at offset {off} (stride {stride}) do not fit in bufferView {vi} ({} bytes)",
+                    bytes.len()
+                )));
+            }
+        }
+        let mut values = Vec::with_capacity(count as usize * comps);
+        for i in 0..count as usize {
+            let start = off as usize + i * stride as usize;
+            for c in 0..comps {
+                let at = start + c * size;
+                values.push(component(&bytes[at..at + size], ct));
+            }
+        }
+        Ok(values)
     }
 
     fn apply_sparse(

@@ -11,6 +11,7 @@ use glam::{Mat4, Quat, Vec3, Vec4};
 
 use super::{
     animation::{self, NodeAnimation},
+    camera::CameraNode,
     container::Doc,
 };
 use crate::scene::{
@@ -60,7 +61,7 @@ impl<'a> Build<'a> {
 
         // Depth-first, parents before children; glTF node index → scene node id.
         let mut ids: Vec<Option<NodeId>> = vec![None; root.nodes.len()];
-        let mut cameras: Vec<(NodeId, usize, usize)> = Vec::new();
+        let mut cameras: Vec<CameraNode> = Vec::new();
         let mut lights: Vec<(NodeId, usize)> = Vec::new();
         let mut range: Option<(f32, f32)> = None;
         let mut stack: Vec<(usize, Option<NodeId>)> =
@@ -78,39 +79,7 @@ impl<'a> Build<'a> {
                     doc.node_name(gi)
                 )));
             }
-            let check = |what: &str, m: &[f32]| {
-                if m.iter().all(|v| v.is_finite()) {
-                    Ok(())
-                } else {
-                    Err(doc.invalid(format!("node {gi}: {what} is not finite")))
-                }
-            };
-            check("matrix", &node.matrix.unwrap_or([0.0; 16]))?;
-            check("translation", &node.translation.unwrap_or([0.0; 3]))?;
-            check("rotation", &node.rotation.map_or([0.0; 4], |q| q.0))?;
-            check("scale", &node.scale.unwrap_or([0.0; 3]))?;
-            let kind = match channels.remove(&gi) {
-                Some(ch) => {
-                    let (translation, rotation, scale) = node_trs(node);
-                    for s in [&ch.translation, &ch.rotation, &ch.scale]
-                        .into_iter()
-                        .flatten()
-                    {
-                        let (a, b) = (s.times()[0], s.times()[s.times().len() - 1]);
-                        range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
-                    }
-                    NodeKind::Sampled(Box::new(NodeAnimation {
-                        name: doc.node_name(gi),
-                        translation,
-                        rotation,
-                        scale,
-                        translation_sampler: ch.translation,
-                        rotation_sampler: ch.rotation,
-                        scale_sampler: ch.scale,
-                    }))
-                }
-                None => NodeKind::Static(node_matrix(node)),
-            };
+            let kind = node_kind(doc, gi, node, channels.remove(&gi), &mut range)?;
             let id = self.scene.nodes.len() as NodeId;
             self.scene.nodes.push(Node { parent, kind });
             ids[gi] = Some(id);
@@ -125,7 +94,11 @@ impl<'a> Build<'a> {
                 }
             }
             if let Some(c) = node.camera {
-                cameras.push((id, gi, c.value()));
+                cameras.push(CameraNode {
+                    id,
+                    node: gi,
+                    camera: c.value(),
+                });
             }
             if let Some(l) = node
                 .extensions
@@ -187,6 +160,50 @@ impl<'a> Build<'a> {
             }
         })
     }
+}
+
+/// The transform of glTF node `gi`, checked finite: sampled where `channels` animate
+/// it (widening `range` to their keys), else static.
+fn node_kind(
+    doc: &Doc,
+    gi: usize,
+    node: &json::Node,
+    channels: Option<animation::Channels>,
+    range: &mut Option<(f32, f32)>,
+) -> Result<NodeKind, SceneError> {
+    let check = |what: &str, m: &[f32]| {
+        if m.iter().all(|v| v.is_finite()) {
+            Ok(())
+        } else {
+            Err(doc.invalid(format!("node {gi}: {what} is not finite")))
+        }
+    };
+    check("matrix", &node.matrix.unwrap_or([0.0; 16]))?;
+    check("translation", &node.translation.unwrap_or([0.0; 3]))?;
+    check("rotation", &node.rotation.map_or([0.0; 4], |q| q.0))?;
+    check("scale", &node.scale.unwrap_or([0.0; 3]))?;
+    Ok(match channels {
+        Some(ch) => {
+            let (translation, rotation, scale) = node_trs(node);
+            for s in [&ch.translation, &ch.rotation, &ch.scale]
+                .into_iter()
+                .flatten()
+            {
+                let (a, b) = (s.times()[0], s.times()[s.times().len() - 1]);
+                *range = Some(range.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+            }
+            NodeKind::Sampled(Box::new(NodeAnimation {
+                name: doc.node_name(gi),
+                translation,
+                rotation,
+                scale,
+                translation_sampler: ch.translation,
+                rotation_sampler: ch.rotation,
+                scale_sampler: ch.scale,
+            }))
+        }
+        None => NodeKind::Static(node_matrix(node)),
+    })
 }
 
 /// A node's local transform as written (matrix, or TRS with defaults).

@@ -9,63 +9,28 @@ use json::validation::Checked;
 use super::build::Build;
 use crate::scene::{loader::default_camera, Camera, CameraTrack, NodeId, SceneError};
 
+/// A node that holds a camera.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CameraNode {
+    /// The scene node made of it.
+    pub id: NodeId,
+    /// Its glTF node index.
+    pub node: usize,
+    /// Its glTF camera index.
+    pub camera: usize,
+}
+
 impl Build<'_> {
     pub(super) fn camera(
         &mut self,
-        cameras: &[(NodeId, usize, usize)],
+        cameras: &[CameraNode],
         wanted: Option<&str>,
         bounds: Option<(Vec3, Vec3)>,
     ) -> Result<(), SceneError> {
         let doc = self.doc;
-        let mut chosen = None;
-        for &(id, gi, ci) in cameras {
-            let cam = doc.root.cameras.get(ci).ok_or_else(|| {
-                doc.invalid(format!(
-                    "node {gi}: camera {ci} does not exist ({} defined)",
-                    doc.root.cameras.len()
-                ))
-            })?;
-            let label = cam.name.clone().unwrap_or_else(|| format!("camera {ci}"));
+        let Some((c, p)) = self.choose_camera(cameras, wanted)? else {
             if let Some(w) = wanted {
-                if doc.root.nodes[gi].name.as_deref() != Some(w) && cam.name.as_deref() != Some(w) {
-                    continue;
-                }
-            }
-            match (&cam.perspective, cam.type_) {
-                (Some(p), Checked::Valid(json::camera::Type::Perspective) | Checked::Invalid) => {
-                    chosen = Some((id, gi, p.clone()));
-                    break;
-                }
-                _ if wanted.is_some() => {
-                    return Err(doc.invalid(format!(
-                        "camera `{label}` is not a perspective camera (only pinhole cameras are supported)"
-                    )));
-                }
-                _ => self.warn(format!(
-                    "{label} is not a perspective camera and is ignored"
-                )),
-            }
-        }
-        let Some((id, gi, p)) = chosen else {
-            if let Some(w) = wanted {
-                let names: Vec<String> = cameras
-                    .iter()
-                    .map(|&(_, gi, ci)| {
-                        let node = doc.node_name(gi);
-                        match doc.root.cameras.get(ci).and_then(|c| c.name.clone()) {
-                            Some(c) => format!("{node} ({c})"),
-                            None => node,
-                        }
-                    })
-                    .collect();
-                return Err(doc.invalid(format!(
-                    "no camera named `{w}` in the scene (cameras: {})",
-                    if names.is_empty() {
-                        "none".to_string()
-                    } else {
-                        names.join(", ")
-                    }
-                )));
+                return Err(no_camera_named(self, cameras, w));
             }
             self.scene.camera = CameraTrack {
                 base: default_camera(bounds),
@@ -74,6 +39,7 @@ impl Build<'_> {
             };
             return Ok(());
         };
+        let (id, gi) = (c.id, c.node);
         if !(p.yfov.is_finite() && p.yfov > 0.0) {
             return Err(doc.invalid(format!(
                 "node {gi}: camera yfov {} is not a positive angle",
@@ -106,6 +72,69 @@ impl Build<'_> {
         };
         Ok(())
     }
+
+    /// The first perspective camera of `cameras` (the one named `wanted`, if given)
+    /// with its projection; others are skipped with a warning.
+    fn choose_camera(
+        &mut self,
+        cameras: &[CameraNode],
+        wanted: Option<&str>,
+    ) -> Result<Option<(CameraNode, json::camera::Perspective)>, SceneError> {
+        let doc = self.doc;
+        for &c in cameras {
+            let (gi, ci) = (c.node, c.camera);
+            let cam = doc.root.cameras.get(ci).ok_or_else(|| {
+                doc.invalid(format!(
+                    "node {gi}: camera {ci} does not exist ({} defined)",
+                    doc.root.cameras.len()
+                ))
+            })?;
+            let label = cam.name.clone().unwrap_or_else(|| format!("camera {ci}"));
+            if let Some(w) = wanted {
+                if doc.root.nodes[gi].name.as_deref() != Some(w) && cam.name.as_deref() != Some(w) {
+                    continue;
+                }
+            }
+            match (&cam.perspective, cam.type_) {
+                (Some(p), Checked::Valid(json::camera::Type::Perspective) | Checked::Invalid) => {
+                    return Ok(Some((c, p.clone())));
+                }
+                _ if wanted.is_some() => {
+                    return Err(doc.invalid(format!(
+                        "camera `{label}` is not a perspective camera (only pinhole cameras are supported)"
+                    )));
+                }
+                _ => self.warn(format!(
+                    "{label} is not a perspective camera and is ignored"
+                )),
+            }
+        }
+        Ok(None)
+    }
+}
+
+/// The error of a camera asked for by name that the scene does not have; it lists the
+/// cameras there are.
+fn no_camera_named(b: &Build<'_>, cameras: &[CameraNode], w: &str) -> SceneError {
+    let doc = b.doc;
+    let names: Vec<String> = cameras
+        .iter()
+        .map(|c| {
+            let node = doc.node_name(c.node);
+            match doc.root.cameras.get(c.camera).and_then(|c| c.name.clone()) {
+                Some(c) => format!("{node} ({c})"),
+                None => node,
+            }
+        })
+        .collect();
+    doc.invalid(format!(
+        "no camera named `{w}` in the scene (cameras: {})",
+        if names.is_empty() {
+            "none".to_string()
+        } else {
+            names.join(", ")
+        }
+    ))
 }
 
 /// Eye, look-at point and up of a camera node's world matrix (looking down −Z, up +Y).
