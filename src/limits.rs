@@ -146,24 +146,22 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), LimitError> {
 pub const MAX_BUFFER_BYTES: u64 = 2 << 30;
 
 /// Check a buffer's size against [`MAX_BUFFER_BYTES`] before it is allocated; the error
-/// names the buffer, its size and what makes it that large. The message is text because
-/// the reconstructor's and the methods' budget checks pass it on as text.
-pub fn check_buffer(what: &str, bytes: u64, because: &str) -> Result<(), String> {
+/// names the buffer, its size and what makes it that large.
+pub fn check_buffer(what: &str, bytes: u64, because: &str) -> Result<(), LimitError> {
     if bytes > MAX_BUFFER_BYTES {
         return Err(LimitError::Buffer {
             what: what.to_string(),
             bytes,
             because: because.to_string(),
-        }
-        .to_string());
+        });
     }
     Ok(())
 }
 
 /// Check a display size against [`MAX_DISPLAY_PIXELS`] (text, as [`check_buffer`]).
-pub fn check_display(width: u32, height: u32) -> Result<(), String> {
+pub fn check_display(width: u32, height: u32) -> Result<(), LimitError> {
     if width as u64 * height as u64 > MAX_DISPLAY_PIXELS {
-        return Err(LimitError::Display { width, height }.to_string());
+        return Err(LimitError::Display { width, height });
     }
     Ok(())
 }
@@ -386,6 +384,7 @@ mod tests {
         assert!(check_buffer("ring", MAX_BUFFER_BYTES, "x").is_ok());
         assert!(check_buffer("ring", MAX_BUFFER_BYTES + 1, "x")
             .unwrap_err()
+            .to_string()
             .contains("ring"));
     }
 }

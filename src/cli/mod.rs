@@ -223,7 +223,8 @@ fn print_bench(report: &bench::BenchReport) {
 /// The GPU `choice` asks for, acquired once for the whole command, with one line on
 /// stderr saying where the reconstructor runs when that is not the CPU asked for.
 fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
-    let gpu = device::acquire(choice).with_context(|| format!("--recon {choice}"))?;
+    let gpu = device::acquire(choice)
+        .with_context(|| format!("--recon {choice} (--recon cpu reconstructs on the CPU)"))?;
     match &gpu {
         Some(g) => eprintln!("reconstructing on {}", g.describe()),
         None if choice == ReconDevice::Auto => {

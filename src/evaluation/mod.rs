@@ -612,7 +612,7 @@ impl Summary {
     pub fn check(&self) -> Result<(), DataError> {
         let setting = |key: &'static str| move |why: String| DataError::Setting { key, why };
         let limit = |key| move |e: limits::LimitError| setting(key)(e.to_string());
-        limits::check_display(self.width, self.height).map_err(setting("size"))?;
+        limits::check_display(self.width, self.height).map_err(limit("size"))?;
         limits::check_refresh_hz(self.refresh_hz).map_err(limit("refresh_hz"))?;
         limits::check_warmup(self.warmup).map_err(limit("warmup"))?;
         limits::check_duration(self.duration).map_err(limit("duration"))?;

@@ -162,8 +162,8 @@ pub enum MethodError {
         why: &'static str,
     },
     /// A buffer or size over its budget ([`crate::limits`]).
-    #[error("{0}")]
-    Budget(String),
+    #[error(transparent)]
+    Budget(#[from] crate::limits::LimitError),
     /// A consistency check of a method's data failed (a bug).
     #[error("inconsistent {what}: {why}")]
     Inconsistent {

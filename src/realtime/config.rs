@@ -81,7 +81,8 @@ impl RtConfig {
     /// Check that a `width × height` display fits the run budgets ([`crate::limits`])
     /// with this method's buffers, before any thread allocates them.
     pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
-        (self.method.info().check_size)(self, width, height).map_err(RealtimeError::Config)
+        (self.method.info().check_size)(self, width, height)
+            .map_err(|e| RealtimeError::Config(e.to_string()))
     }
 
     /// Check ranges.

@@ -229,7 +229,7 @@ pub(crate) struct MethodInfo {
     pub extra_threads: fn(usize) -> usize,
     /// Check that a `width × height` display fits the run budgets with its buffers
     /// under `config` ([`display_only`] for a method with no buffer beyond the image).
-    pub check_size: fn(&RtConfig, u32, u32) -> Result<(), String>,
+    pub check_size: fn(&RtConfig, u32, u32) -> Result<(), crate::limits::LimitError>,
     /// Start its threads; the image thread then calls the builder it returns.
     pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
 }
@@ -245,7 +245,11 @@ pub(crate) enum Shown {
 }
 
 /// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.
-pub(crate) fn display_only(_: &RtConfig, width: u32, height: u32) -> Result<(), String> {
+pub(crate) fn display_only(
+    _: &RtConfig,
+    width: u32,
+    height: u32,
+) -> Result<(), crate::limits::LimitError> {
     crate::limits::check_display(width, height)
 }
 

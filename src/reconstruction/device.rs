@@ -104,7 +104,7 @@ impl GpuContext {
 pub enum GpuError {
     /// This build has no GPU reconstructor.
     #[error(
-        "this build has no GPU reconstructor (built without the 'gpu' feature); use --recon cpu"
+        "this build has no GPU reconstructor (built without the 'gpu' feature); reconstruct on the CPU"
     )]
     NotBuilt,
 }

@@ -215,7 +215,11 @@ pub struct Reconstructor {
 impl Reconstructor {
     /// Check that a reconstructor for a `width × height` display with `params` fits the
     /// run budgets ([`crate::limits`]) before any of it is allocated.
-    pub fn check_budget(width: u32, height: u32, params: &ReconParams) -> Result<(), String> {
+    pub fn check_budget(
+        width: u32,
+        height: u32,
+        params: &ReconParams,
+    ) -> Result<(), crate::limits::LimitError> {
         crate::limits::check_display(width, height)?;
         let n = width as u64 * height as u64;
         let capacity = (params.ring_factor * n as f64).round().max(1.0);

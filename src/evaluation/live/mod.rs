@@ -155,7 +155,7 @@ impl LiveConfig {
             }
         }
         if let Err(why) = limits::check_display(self.width, self.height) {
-            return bad(Setting::Size, why);
+            return bad(Setting::Size, why.to_string());
         }
         if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
             return bad(Setting::RefreshHz, why.to_string());

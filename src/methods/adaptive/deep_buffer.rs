@@ -45,7 +45,11 @@ impl DeepBuffer {
 
     /// Check that a buffer for a `width × height` display of `depth` crosshairs per pixel
     /// fits the run budgets ([`crate::limits`]) before it is allocated.
-    pub fn check_budget(width: u32, height: u32, depth: usize) -> Result<(), String> {
+    pub fn check_budget(
+        width: u32,
+        height: u32,
+        depth: usize,
+    ) -> Result<(), crate::limits::LimitError> {
         crate::limits::check_display(width, height)?;
         crate::limits::check_buffer(
             "adaptive sampler's deep buffer",

@@ -27,7 +27,7 @@ pub fn check_budget(
     height: u32,
     sampler: &SamplerParams,
     recon: &ReconParams,
-) -> Result<(), String> {
+) -> Result<(), crate::limits::LimitError> {
     deep_buffer::DeepBuffer::check_budget(width, height, sampler.depth)?;
     Reconstructor::check_budget(width, height, recon)
 }

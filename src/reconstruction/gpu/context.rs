@@ -13,7 +13,7 @@ use super::super::device::{ReconDevice, ReconUsed};
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
     /// No adapter at all (or none matching `WGPU_ADAPTER_NAME`).
-    #[error("no GPU adapter found{0} (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1; or use --recon cpu)")]
+    #[error("no GPU adapter found{0} (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1; or reconstruct on the CPU)")]
     NoAdapter(String),
     /// The adapter refused a device.
     #[error("the GPU adapter {adapter} gave no device: {why}")]
