@@ -227,7 +227,7 @@ fn an_image_budget_limits_the_samples_an_image_places() {
     let run = |budget: f64| {
         let mut cfg = RtConfig::new(RtMethod::Adaptive);
         cfg.sampling_threads = 1;
-        cfg.image_budget = budget;
+        cfg.adaptive.image_budget = budget;
         let opts = HeadlessOptions {
             seconds: 1.0,
             out: tmp_dir(&format!("budget-{budget}")),
@@ -249,7 +249,7 @@ fn an_image_budget_limits_the_samples_an_image_places() {
         "{placed_tight} placed under the budget, {placed_none} without"
     );
     let mut cfg = RtConfig::new(RtMethod::Adaptive);
-    cfg.image_budget = 1.5;
+    cfg.adaptive.image_budget = 1.5;
     assert!(cfg.validate().is_err(), "a budget over one period");
 }
 

@@ -609,7 +609,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     }
     let Size(w, h) = a.size;
     cfg.check_size(w, h)?;
-    cfg.gpu = acquire_recon(a.recon.recon)?;
+    cfg.adaptive.gpu = acquire_recon(a.recon.recon)?;
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(
@@ -651,23 +651,23 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
         cfg.recon_threads = n as usize;
     }
     cfg.refresh_hz = a.refresh_hz;
-    cfg.image_budget = a.image_budget;
+    cfg.adaptive.image_budget = a.image_budget;
     cfg.start = a.start;
     cfg.seed = a.seed;
     if a.no_reprojection {
-        cfg.sampler.reprojection = false;
+        cfg.adaptive.sampler.reprojection = false;
     }
     if let Some(f) = a.ring_factor {
         if !(f > 0.0 && f <= 64.0) {
             bail!("--ring-factor {f} must be in (0, 64]");
         }
-        cfg.recon.ring_factor = f;
+        cfg.adaptive.recon.ring_factor = f;
     }
     if let Some(r) = a.max_radius {
         if !(1.0..=64.0).contains(&r) {
             bail!("--max-radius {r} must be in [1, 64] pixels");
         }
-        cfg.recon.max_radius = r as f32;
+        cfg.adaptive.recon.max_radius = r as f32;
     }
     cfg.validate()?;
     Ok(cfg)

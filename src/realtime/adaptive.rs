@@ -78,7 +78,9 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: controllers,
     // Its buffers (deep buffer, ring) include the display check.
-    check_size: |c, w, h| crate::methods::adaptive::check_budget(w, h, &c.sampler, &c.recon),
+    check_size: |c, w, h| {
+        crate::methods::adaptive::check_budget(w, h, &c.adaptive.sampler, &c.adaptive.recon)
+    },
     start,
 };
 
@@ -164,7 +166,7 @@ impl Published {
     fn new(s: &Shared) -> Self {
         let (w, h) = s.tracer.size();
         let c = &s.config;
-        let bands = bands(w, h, controllers(c.sampling_threads), &c.sampler);
+        let bands = bands(w, h, controllers(c.sampling_threads), &c.adaptive.sampler);
         Self {
             bands: bands
                 .into_iter()
@@ -180,7 +182,7 @@ impl Published {
             reprojected_visits: AtomicU64::new(0),
             skipped_reprojections: AtomicU64::new(0),
             history_maps: AtomicU64::new(0),
-            pixel_draws: if s.config.sampler.stratified_positions {
+            pixel_draws: if s.config.adaptive.sampler.stratified_positions {
                 (0..w as usize * h as usize)
                     .map(|_| AtomicU32::new(0))
                     .collect()
@@ -263,8 +265,8 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
 fn reconstructor(s: &Shared) -> Result<Box<Reconstructor>, RealtimeError> {
     let (w, h) = s.tracer.size();
     // The filters' rate is measured and set at every image ([`Builder::build`]).
-    let mut r = Box::new(Reconstructor::new(w, h, 1.0, s.config.recon));
-    if let Some(gpu) = &s.config.gpu {
+    let mut r = Box::new(Reconstructor::new(w, h, 1.0, s.config.adaptive.recon));
+    if let Some(gpu) = &s.config.adaptive.gpu {
         r.use_gpu(gpu.clone()).map_err(|e| RealtimeError::Gpu {
             method: METHOD.name,
             why: e.to_string(),
@@ -404,7 +406,7 @@ fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>
         view.refresh(published);
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
-        let choices = s.config.sampler.tile_choices;
+        let choices = s.config.adaptive.sampler.tile_choices;
         let k = choose_tile(view.len() as u32, choices, &mut rng, |k| {
             let (b, i) = view.locate(k);
             view.last[b][i]
@@ -441,7 +443,7 @@ fn complete(
 ) -> bool {
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
-    let sampler = &s.config.sampler;
+    let sampler = &s.config.adaptive.sampler;
     let at = p.follow(state, now);
     let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
     let arms = sampler.arms(rect);
@@ -584,7 +586,7 @@ fn controller_sampler(s: &Shared, band: Rect) -> Option<Sampler> {
     };
     let (w, h) = s.tracer.size();
     let share = band.area() as f64 / (w as f64 * h as f64);
-    let mut params = s.config.sampler;
+    let mut params = s.config.adaptive.sampler;
     let part = |n: usize| ((n as f64 * share).ceil() as usize).max(1);
     params.min_tiles = part(params.min_tiles);
     params.fixed_tiles = part(params.fixed_tiles);
@@ -817,7 +819,7 @@ impl ImageBuilder for Builder {
     /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
     /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
     /// most the live limit); `limited_share` of images built under a live limit
-    /// ([`super::RtConfig::image_budget`]); `gpu_failure`, why the GPU reconstructor
+    /// ([`super::AdaptiveSettings::image_budget`]); `gpu_failure`, why the GPU reconstructor
     /// was given up, if it was (the images after it were built on the CPU).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         let p = &*self.published;
@@ -883,7 +885,7 @@ impl ImageBuilder for Builder {
         r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
         let image = r.reconstruct(t, &camera, &tiling).clone();
-        if s.config.sampler.discount_converged {
+        if s.config.adaptive.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
                 // Each controller reads the newest; an older map none has read is
                 // replaced (its buffer reused).
@@ -895,7 +897,7 @@ impl ImageBuilder for Builder {
         }
         let ages = r.pixel_ages();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
-        let budget_ms = s.config.image_budget * 1e3 / s.config.refresh_hz;
+        let budget_ms = s.config.adaptive.image_budget * 1e3 / s.config.refresh_hz;
         // A floor of half a sample per pixel keeps an image where the build's
         // per-pixel work alone exceeds the budget.
         let floor = (w as usize * h as usize / 2).max(1);

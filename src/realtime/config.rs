@@ -2,13 +2,8 @@
 //! real-time mode shares, below the methods and the pipeline. Which methods exist and
 //! what each needs is the registry's business (the parent module), not this file's.
 
-use std::sync::Arc;
-
+use super::adaptive_settings::AdaptiveSettings;
 pub use super::RtMethod;
-use crate::{
-    methods::adaptive::SamplerParams,
-    reconstruction::{device::GpuContext, ReconParams},
-};
 
 /// Errors of the real-time mode.
 #[derive(Debug, thiserror::Error)]
@@ -64,17 +59,8 @@ pub struct RtConfig {
     pub start: f64,
     /// Seed of the threads' random choices.
     pub seed: u64,
-    /// The adaptive sampler's parameters.
-    pub sampler: SamplerParams,
-    /// The reconstructor's parameters.
-    pub recon: ReconParams,
-    /// Adaptive: the share of a refresh period an image's build aims to take. When a
-    /// build takes longer, the next places only the newest samples of the ring, as
-    /// many as fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the
-    /// whole ring always.
-    pub image_budget: f64,
-    /// The GPU the adaptive reconstructor runs on (`None`: the CPU, the reference).
-    pub gpu: Option<Arc<GpuContext>>,
+    /// The adaptive method's own settings (read by it alone).
+    pub adaptive: AdaptiveSettings,
 }
 
 impl RtConfig {
@@ -105,17 +91,6 @@ impl RtConfig {
         if !self.start.is_finite() {
             return Err(RealtimeError::Config("start time must be finite".into()));
         }
-        if !(self.image_budget.is_finite() && (0.0..=1.0).contains(&self.image_budget)) {
-            return Err(RealtimeError::Config(format!(
-                "image budget {} out of range 0..=1 (a share of the refresh period)",
-                self.image_budget
-            )));
-        }
-        if !(self.recon.ring_factor.is_finite() && self.recon.ring_factor > 0.0) {
-            return Err(RealtimeError::Config("ring factor must be positive".into()));
-        }
-        self.sampler
-            .validate()
-            .map_err(|e| RealtimeError::Config(e.to_string()))
+        self.adaptive.validate()
     }
 }

@@ -27,6 +27,7 @@
 //! the machine and on scheduling.
 
 pub mod adaptive;
+pub mod adaptive_settings;
 pub mod camera;
 pub mod clock;
 pub mod config;
@@ -44,6 +45,7 @@ mod shared;
 pub mod taa;
 pub mod viewer;
 
+pub use adaptive_settings::AdaptiveSettings;
 pub use camera::{CameraRecorder, FlyCamera};
 pub use clock::WallClock;
 pub use config::{RealtimeError, RtConfig};
@@ -54,7 +56,6 @@ pub use viewer::{run_viewer, ViewerOptions};
 
 use clap::builder::PossibleValue;
 
-use crate::{methods::adaptive::SamplerParams, reconstruction::ReconParams};
 use shared::MethodInfo;
 
 /// Declares [`RtMethod`], a variant per registered method, and the registry that maps
@@ -265,10 +266,7 @@ impl RtConfig {
             refresh_hz: crate::settings::REFRESH_HZ,
             start: 0.0,
             seed: crate::settings::SEED,
-            sampler: SamplerParams::ours(),
-            recon: ReconParams::realtime(),
-            image_budget: 0.8,
-            gpu: None,
+            adaptive: AdaptiveSettings::default(),
         }
     }
 }

@@ -128,7 +128,7 @@ impl LiveConfig {
         c.refresh_hz = self.refresh_hz;
         c.seed = self.seed;
         c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
-        c.gpu = self.gpu.clone();
+        c.adaptive.gpu = self.gpu.clone();
         c
     }
 

@@ -1,0 +1,58 @@
+//! The adaptive method's own settings of a real-time run: its sampler, its
+//! reconstructor and where that runs, and how long a build may take. The generic
+//! [`RtConfig`](super::RtConfig) holds them as one field and never reads them.
+
+use std::sync::Arc;
+
+use super::config::RealtimeError;
+use crate::{
+    methods::adaptive::SamplerParams,
+    reconstruction::{device::GpuContext, ReconParams},
+};
+
+/// What adaptive reads of a real-time run's settings.
+#[derive(Clone, Debug)]
+pub struct AdaptiveSettings {
+    /// The adaptive sampler's parameters.
+    pub sampler: SamplerParams,
+    /// The reconstructor's parameters.
+    pub recon: ReconParams,
+    /// The share of a refresh period an image's build aims to take. When a build
+    /// takes longer, the next places only the newest samples of the ring, as many as
+    /// fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the whole
+    /// ring always.
+    pub image_budget: f64,
+    /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
+    pub gpu: Option<Arc<GpuContext>>,
+}
+
+impl Default for AdaptiveSettings {
+    /// The paper's sampler, the real-time reconstructor ([`ReconParams::realtime`]) on
+    /// the CPU, builds within 0.8 of a refresh period.
+    fn default() -> Self {
+        Self {
+            sampler: SamplerParams::ours(),
+            recon: ReconParams::realtime(),
+            image_budget: 0.8,
+            gpu: None,
+        }
+    }
+}
+
+impl AdaptiveSettings {
+    /// Check ranges.
+    pub fn validate(&self) -> Result<(), RealtimeError> {
+        if !(self.image_budget.is_finite() && (0.0..=1.0).contains(&self.image_budget)) {
+            return Err(RealtimeError::Config(format!(
+                "image budget {} out of range 0..=1 (a share of the refresh period)",
+                self.image_budget
+            )));
+        }
+        if !(self.recon.ring_factor.is_finite() && self.recon.ring_factor > 0.0) {
+            return Err(RealtimeError::Config("ring factor must be positive".into()));
+        }
+        self.sampler
+            .validate()
+            .map_err(|e| RealtimeError::Config(e.to_string()))
+    }
+}
