@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use super::config::RealtimeError;
+use super::error::RealtimeError;
 use crate::{
     methods::adaptive::SamplerParams,
     reconstruction::{device::GpuContext, ReconParams},

@@ -31,6 +31,7 @@ pub mod adaptive_settings;
 pub mod camera;
 pub mod clock;
 pub mod config;
+mod error;
 pub mod framed;
 pub mod frameless;
 pub mod headless;

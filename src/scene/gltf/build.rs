@@ -11,13 +11,23 @@ use glam::{Mat4, Quat, Vec3, Vec4};
 
 use super::{
     animation::{self, NodeAnimation},
-    camera::CameraNode,
     container::Doc,
 };
 use crate::scene::{
     loader::{default_light, empty_scene, world_bounds},
     AnimationRange, Group, MaterialId, Node, NodeId, NodeKind, Scene, SceneError, TextureId,
 };
+
+/// A node that holds a camera.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct CameraNode {
+    /// The scene node made of it.
+    pub id: NodeId,
+    /// Its glTF node index.
+    pub node: usize,
+    /// Its glTF camera index.
+    pub camera: usize,
+}
 
 /// Scene construction from a parsed document.
 pub(super) struct Build<'a> {

@@ -6,19 +6,8 @@ use ::gltf::json;
 use glam::{Mat4, Vec3};
 use json::validation::Checked;
 
-use super::build::Build;
-use crate::scene::{loader::default_camera, Camera, CameraTrack, NodeId, SceneError};
-
-/// A node that holds a camera.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct CameraNode {
-    /// The scene node made of it.
-    pub id: NodeId,
-    /// Its glTF node index.
-    pub node: usize,
-    /// Its glTF camera index.
-    pub camera: usize,
-}
+use super::build::{Build, CameraNode};
+use crate::scene::{loader::default_camera, Camera, CameraTrack, SceneError};
 
 impl Build<'_> {
     pub(super) fn camera(
