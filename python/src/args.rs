@@ -13,7 +13,7 @@ use crate::errors::{message, value};
 
 /// `WxH`, as `--size` takes it.
 pub fn size(s: &str) -> PyResult<(u32, u32)> {
-    frameless::limits::parse_size(s).map_err(value)
+    frameless::limits::parse_size(s).map_err(|e| value(e.to_string()))
 }
 
 /// Sample rates as `--rate` takes them (`100k`, `1.5M`, `400000`).
