@@ -73,6 +73,26 @@ impl Setting {
         }
     }
 
+    /// The command-line option that sets it, which the binary and the Python module put
+    /// before a configuration error's reason. The lists take their plural spellings,
+    /// which every command accepts.
+    pub fn option(self) -> &'static str {
+        match self {
+            Setting::Warmup => "--warmup",
+            Setting::Duration => "--duration",
+            Setting::Seconds => "--seconds",
+            Setting::Start => "--start",
+            Setting::RefreshHz => "--refresh-hz",
+            Setting::Rates => "--rates",
+            Setting::Methods => "--methods",
+            Setting::FlipEvery => "--flip-every",
+            Setting::IdealSpp => "--ideal-spp",
+            Setting::MaxDepth => "--max-depth",
+            Setting::Size => "--size",
+            Setting::Repeat => "--repeat",
+        }
+    }
+
     /// The setting in words, for messages that reach neither a command line nor a file.
     pub fn words(self) -> &'static str {
         match self {

@@ -14,7 +14,11 @@ pub fn message(e: &(dyn std::error::Error + 'static)) -> String {
     let mut msg = String::new();
     let mut cause = Some(e);
     while let Some(c) = cause {
-        let text = c.to_string();
+        // A bad setting is named by its option, as the command line names it.
+        let text = match c.downcast_ref::<EvalError>() {
+            Some(EvalError::Config { setting, why }) => format!("{} {why}", setting.option()),
+            _ => c.to_string(),
+        };
         if !msg.ends_with(&text) {
             if !msg.is_empty() {
                 msg.push_str(": ");

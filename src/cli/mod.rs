@@ -20,7 +20,7 @@ use frameless::{
     reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
     scene::{self, builtin, CameraPath, Scene},
-    settings::{self, Setting},
+    settings,
     trace::{TraceOptions, Tracer},
 };
 
@@ -43,7 +43,7 @@ fn message(e: &anyhow::Error) -> String {
     let mut msg = String::new();
     for cause in e.chain() {
         let text = match cause.downcast_ref::<EvalError>() {
-            Some(EvalError::Config { setting, why }) => format!("{} {why}", option(*setting)),
+            Some(EvalError::Config { setting, why }) => format!("{} {why}", setting.option()),
             _ => cause.to_string(),
         };
         if msg.ends_with(&text) {
@@ -55,25 +55,6 @@ fn message(e: &anyhow::Error) -> String {
         msg.push_str(&text);
     }
     msg
-}
-
-/// The option that sets `setting`, as the library's errors leave it to the binary to
-/// name. The lists take their plural spellings, which every command accepts.
-fn option(setting: Setting) -> &'static str {
-    match setting {
-        Setting::Warmup => "--warmup",
-        Setting::Duration => "--duration",
-        Setting::Seconds => "--seconds",
-        Setting::Start => "--start",
-        Setting::RefreshHz => "--refresh-hz",
-        Setting::Rates => "--rates",
-        Setting::Methods => "--methods",
-        Setting::FlipEvery => "--flip-every",
-        Setting::IdealSpp => "--ideal-spp",
-        Setting::MaxDepth => "--max-depth",
-        Setting::Size => "--size",
-        Setting::Repeat => "--repeat",
-    }
 }
 
 /// Run one parsed command.
