@@ -7,11 +7,8 @@ use std::{sync::Arc, time::Duration};
 use crossbeam_channel as mpsc;
 
 use frameless::{
-    clock::Clock,
-    evaluation::sequence::SequenceConfig,
+    evaluation::sequence::{self, SequenceConfig},
     image::{Image, ImageFormat},
-    methods::MethodContext,
-    trace::{TraceOptions, Tracer},
 };
 use numpy::PyArray3;
 use pyo3::{exceptions::PyRuntimeError, prelude::*};
@@ -33,29 +30,7 @@ pub struct NativeRender {
 /// Trace the method refresh by refresh, sending each image (as `render_sequence`
 /// builds the method and steps it, without the files).
 fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::Sender<Frame>) {
-    let tracer = Tracer::new(
-        scene,
-        cfg.width,
-        cfg.height,
-        TraceOptions {
-            texture_filter: cfg.texture_filter,
-            ..TraceOptions::default()
-        },
-    )
-    .with_camera_path(cfg.camera_path.clone());
-    let ctx = MethodContext {
-        tracer: Arc::new(tracer),
-        clock: Clock {
-            start: cfg.start - cfg.warmup,
-            rate: cfg.rate,
-            first_refresh: cfg.start,
-            refresh_hz: cfg.refresh_hz,
-        },
-        seed: cfg.seed,
-        ideal_spp: 16,
-        ideal_cache: None,
-        gpu: None,
-    };
+    let ctx = sequence::method_context(scene, &cfg);
     let mut method = match cfg.method.build(&ctx) {
         Ok(m) => m,
         Err(e) => {

@@ -190,7 +190,7 @@ pub fn render_sequence(
 }
 
 /// What the method of a sequence runs with: the tracer and the simulated clock.
-fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext {
+pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext {
     let tracer = Arc::new(
         Tracer::new(
             scene,
