@@ -111,10 +111,9 @@ impl NativeScene {
 }
 
 /// `still::render`'s image, each row started only if the caller has not cancelled, so
-/// that Ctrl-C stops a long render within one row's time.
-/// `still::render` with a checkpoint before each row, not only a report after it: a
-/// cancelled run then starts no new row (a panic in a rayon job does not stop the
-/// rows queued beside it, so stopping only after rows took the whole image).
+/// that Ctrl-C stops a long render within one row's time. `still::render` reports only
+/// after a row, and a panic in a rayon job does not stop the rows queued beside it:
+/// stopping there still rendered the whole image.
 fn render_still(tracer: &Tracer, time: f64, spp: u32, seed: u64, work: &work::Work) -> Image {
     use rayon::prelude::*;
     let (w, h) = tracer.size();
