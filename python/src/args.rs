@@ -116,3 +116,19 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(defaults, m)?)
 }
+
+/// `--ideal-spp` and `--max-depth` in the ranges the command line takes.
+pub fn ideal_spp_and_depth(ideal_spp: u64, max_depth: u64) -> PyResult<()> {
+    in_range(
+        "--ideal-spp",
+        ideal_spp,
+        1,
+        frameless::limits::MAX_IDEAL_SPP as u64,
+    )?;
+    in_range(
+        "--max-depth",
+        max_depth,
+        0,
+        frameless::limits::MAX_DEPTH as u64,
+    )
+}

@@ -43,18 +43,7 @@ fn evaluate(
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String)> {
     let (width, height) = args::size(size)?;
-    args::in_range(
-        "--ideal-spp",
-        ideal_spp,
-        1,
-        frameless::limits::MAX_IDEAL_SPP as u64,
-    )?;
-    args::in_range(
-        "--max-depth",
-        max_depth,
-        0,
-        frameless::limits::MAX_DEPTH as u64,
-    )?;
+    args::ideal_spp_and_depth(ideal_spp, max_depth)?;
     args::in_range("--flip-every", flip_every, 1, u32::MAX as u64)?;
     let mut cfg = EvalConfig {
         scene_name: scene.name.clone(),
@@ -116,18 +105,7 @@ fn live(
 ) -> PyResult<(String, String)> {
     let (w, h) = args::size(size)?;
     args::in_range("--repeat", repeat, 1, 100)?;
-    args::in_range(
-        "--ideal-spp",
-        ideal_spp,
-        1,
-        frameless::limits::MAX_IDEAL_SPP as u64,
-    )?;
-    args::in_range(
-        "--max-depth",
-        max_depth,
-        0,
-        frameless::limits::MAX_DEPTH as u64,
-    )?;
+    args::ideal_spp_and_depth(ideal_spp, max_depth)?;
     let mut cfg = live_eval::LiveConfig::new(&scene.name);
     cfg.camera_path = scene.camera_path.clone();
     cfg.start = args::finite("--start", start)?;
