@@ -123,6 +123,9 @@ pub fn run(cli: Cli) -> Result<()> {
 /// `frameless bench`: throughput of the tracer, the reconstructor (on `--recon`'s
 /// device) and the real-time controllers.
 fn bench(a: args::BenchArgs) -> Result<()> {
+    if a.live_recon {
+        return bench_live_recon(a.json);
+    }
     let gpu = acquire_recon(a.recon.recon)?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
@@ -144,6 +147,47 @@ fn bench(a: args::BenchArgs) -> Result<()> {
     } else {
         print_bench(&report);
     }
+    Ok(())
+}
+
+/// Timed images per figure of `frameless bench --live-recon`.
+const LIVE_RECON_IMAGES: usize = 15;
+
+/// `frameless bench --live-recon`: the reconstructor's cost per image at live rates.
+fn bench_live_recon(json: bool) -> Result<()> {
+    let report = bench::live_report(LIVE_RECON_IMAGES, |what| eprintln!("measuring {what}"));
+    if json {
+        println!("{}", serde_json::to_string(&report)?);
+        return Ok(());
+    }
+    let table = |title: &str, rows: &[bench::LiveFigure]| {
+        println!("{title}");
+        println!("  size        rate/s   Hz  ring spp  new/image  placed/image  ms/image");
+        for f in rows {
+            let c = &f.case;
+            println!(
+                "  {:>4}x{:<5} {:>6.2}M {:>4} {:>9} {:>10} {:>13.0} {:>9.2}",
+                c.width,
+                c.height,
+                c.rate / 1e6,
+                c.refresh_hz,
+                f.ring_spp,
+                f.new_per_image,
+                f.placed_per_image,
+                f.ms_median
+            );
+        }
+    };
+    table(
+        "carried accumulators (the real-time reconstructor), 1 thread",
+        &report.sizes,
+    );
+    table(
+        "re-splatting the ring (carry off), 1 thread",
+        &report.sizes_resplat,
+    );
+    table("ring growing, carried", &report.ring_growth);
+    table("ring growing, re-splatted", &report.ring_growth_resplat);
     Ok(())
 }
 

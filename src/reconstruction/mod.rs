@@ -84,6 +84,9 @@ pub mod filter;
 pub mod gpu;
 pub mod ring;
 
+mod carry;
+#[cfg(test)]
+mod carry_tests;
 mod filter_table;
 #[cfg(all(test, feature = "gpu"))]
 mod gpu_tests;
@@ -184,6 +187,11 @@ pub struct Reconstructor {
     cs: usize,
     /// Per-row coverage differences, rows of `width + 1`.
     cov: Vec<i32>,
+    /// With [`ReconParams::carry`]: each pixel's coverage decayed over the refreshes
+    /// (unused otherwise).
+    cover: Vec<f32>,
+    /// With [`ReconParams::carry`]: the accumulators' state between refreshes.
+    carried: Option<Box<carry::Carried>>,
     /// Front depths of the visibility pass, one per pixel (empty without it).
     front: Vec<f32>,
     /// Rows per band of the splat at the last refresh.
@@ -267,6 +275,10 @@ impl Reconstructor {
             acc: vec![0.0; height as usize * CHANNELS * cs],
             cs,
             cov: vec![0; height as usize * (width as usize + 1)],
+            cover: vec![0.0; n],
+            carried: params
+                .carry
+                .then(|| Box::new(carry::Carried::new(n, height as usize * CHANNELS * cs))),
             front: Vec::new(),
             band_rows: BAND_ROWS,
             binned: Vec::new(),
@@ -376,6 +388,9 @@ impl Reconstructor {
         if let Some(h) = &mut self.history {
             h.push(&s, dynamic || s.velocity != Vec3::ZERO);
         }
+        if let Some(c) = &mut self.carried {
+            c.pending += 1;
+        }
         self.ring.push(&s);
     }
 
@@ -470,6 +485,10 @@ impl Reconstructor {
             return &self.image;
         }
         self.prepare_splats(t, camera);
+        if self.carried.is_some() {
+            let start = self.ring.len() - self.placed;
+            self.carry_over(t, camera, start);
+        }
         self.splat();
         self.resolve();
         let front = self.visibility_keep().map(|k| (&self.front[..], k));

@@ -64,6 +64,17 @@ pub struct ReconParams {
     /// then stay on it however old, where extrapolated ones drift off along tangents.
     /// Needs the scene at each refresh ([`super::Reconstructor::set_motion`]).
     pub exact_motion: bool,
+    /// Carry the accumulators from one refresh to the next, decayed and moved with
+    /// the surfaces they show, and splat each sample once, at the first refresh after
+    /// it arrives (`carry.rs`): a refresh then costs the new samples and the pixels,
+    /// not the ring. Off: the paper's reconstructor, which splats the whole ring within
+    /// the temporal cutoff at every refresh with a Gaussian temporal weight.
+    pub carry: bool,
+    /// With [`ReconParams::carry`]: the time constant of the carried sums' exponential
+    /// decay as a multiple of the tile's temporal extent `e_t`. Ours: 0.6, the best of
+    /// 0.35–1.4 on `toycar` (docs/performance.md, session 19); the ring's Gaussian
+    /// weights have a mean age of 0.8 `e_t`.
+    pub decay_scale: f32,
 }
 
 /// The visibility pass of the splat: reprojected samples are a point cloud seen from a
@@ -127,12 +138,16 @@ impl ReconParams {
             filter_volume: 1.0,
             visibility: None,
             exact_motion: false,
+            carry: false,
+            decay_scale: 1.0,
         }
     }
 
     /// Ours: the paper's reconstructor with the still-region history
     /// ([`HistoryParams::default`]), the pull-push fill of sparsely covered pixels,
-    /// half the filter volume, the visibility pass and exact motion.
+    /// half the filter volume, the visibility pass, exact motion, and accumulators
+    /// carried between refreshes ([`ReconParams::carry`]), so that each sample is
+    /// splatted once.
     pub fn converging() -> Self {
         Self {
             history: Some(HistoryParams::default()),
@@ -140,16 +155,16 @@ impl ReconParams {
             filter_volume: 0.5,
             visibility: Some(Visibility::default()),
             exact_motion: true,
+            carry: true,
+            decay_scale: 0.6,
             ..Self::paper()
         }
     }
 
-    /// The real-time reconstructor (`frameless view`): [`ReconParams::converging`] with
-    /// a ring of 2 × pixels samples. The reconstructor's cost is linear in the ring; at
-    /// the 6 × pixels of the paper (sized for 400K samples/s) one refresh costs 20–35 ms
-    /// on this project's 2-core machine, more than a 60 Hz refresh, while at the
-    /// 0.1–0.25 M samples/s reached in real time 2 × pixels still holds the last
-    /// 0.5–1.5 s of samples at 256×256. Splats are at most 8 px in radius (paper: 24):
+    /// The real-time reconstructor (`frameless view`, `frameless live`):
+    /// [`ReconParams::converging`] with a ring of 2 × pixels samples (it only holds the
+    /// samples until their first refresh, and an image thread that falls behind may
+    /// take in that many at once). Splats are at most 8 px in radius (paper: 24):
     /// sparse early samples otherwise grow huge footprints through the coverage-driven
     /// splat size.
     pub fn realtime() -> Self {

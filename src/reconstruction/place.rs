@@ -30,17 +30,17 @@ pub(super) const STALE_MARGIN: f64 = 1e-3;
 /// `camera.project` with the per-view constants hoisted: `x = (d·u)/z − corner·u` with
 /// `u = du/|du|²` (the same map, rounded differently).
 #[derive(Clone, Copy, Debug)]
-struct Projector {
-    eye: Vec3,
-    forward: Vec3,
-    u: Vec3,
-    v: Vec3,
-    ou: f32,
-    ov: f32,
+pub(super) struct Projector {
+    pub(super) eye: Vec3,
+    pub(super) forward: Vec3,
+    pub(super) u: Vec3,
+    pub(super) v: Vec3,
+    pub(super) ou: f32,
+    pub(super) ov: f32,
 }
 
 impl Projector {
-    fn new(c: &CameraFrame) -> Self {
+    pub(super) fn new(c: &CameraFrame) -> Self {
         let u = c.du / c.du.length_squared();
         let v = c.dv / c.dv.length_squared();
         Self {
@@ -56,7 +56,7 @@ impl Projector {
     /// Pixel coordinates and depth along the view direction (the coordinates are
     /// meaningful only in front of the eye, `z > 1e-6`).
     #[inline(always)]
-    fn project(&self, p: Vec3) -> (f32, f32, f32) {
+    pub(super) fn project(&self, p: Vec3) -> (f32, f32, f32) {
         let d = p - self.eye;
         let z = d.dot(self.forward);
         let iz = 1.0 / z;
@@ -548,7 +548,7 @@ impl Reconstructor {
     /// The first logical ring index a refresh at `t` places (past the stale part and
     /// within the live limit), counting the samples placed.
     pub(super) fn live_range(&mut self, t: f64) -> usize {
-        let stale = self.live_start(t);
+        let stale = self.live_start(t).max(self.pending_start().unwrap_or(0));
         let start = match self.live_limit {
             Some(k) => stale.max(self.ring.len().saturating_sub(k)),
             None => stale,

@@ -20,6 +20,8 @@ impl Reconstructor {
         let (w, h) = (self.width as usize, self.height as usize);
         let (rs, cs, cstride) = (CHANNELS * self.cs, self.cs, w + 1);
         let p = self.params;
+        // Carried coverage (decayed) adds to this refresh's (unread without carrying).
+        let carrying = self.carried.is_some();
         let per_band: Vec<(usize, usize, f64)> = self
             .image
             .pixels
@@ -29,13 +31,15 @@ impl Reconstructor {
             .zip(self.age.par_chunks_mut(BAND_ROWS * w))
             .zip(self.acc.par_chunks(BAND_ROWS * rs))
             .zip(self.cov.par_chunks(BAND_ROWS * cstride))
-            .map(|(((((px, coverage), scale), ages), acc), cov)| {
+            .zip(self.cover.par_chunks_mut(BAND_ROWS * w))
+            .map(|((((((px, coverage), scale), ages), acc), cov), cover)| {
                 let (mut holes, mut thin, mut age) = (0usize, 0usize, 0f64);
-                for (r, (((px, coverage), scale), ages)) in px
+                for (r, ((((px, coverage), scale), ages), cover)) in px
                     .chunks_mut(w)
                     .zip(coverage.chunks_mut(w))
                     .zip(scale.chunks_mut(w))
                     .zip(ages.chunks_mut(w))
+                    .zip(cover.chunks_mut(w))
                     .enumerate()
                 {
                     let sums = &acc[r * rs..(r + 1) * rs];
@@ -46,11 +50,17 @@ impl Reconstructor {
                     for x in 0..w {
                         let (cr, cg, cb, cw, ca) = (sr[x], sg[x], sb[x], sw[x], sa[x]);
                         count += cov[x];
-                        coverage[x] = count as u32;
+                        let n = if carrying {
+                            cover[x] += count as f32;
+                            cover[x].round() as u32
+                        } else {
+                            count as u32
+                        };
+                        coverage[x] = n;
                         let s = &mut scale[x];
-                        if (count as u32) < p.undersampled {
+                        if n < p.undersampled {
                             *s *= p.grow;
-                        } else if count as u32 > p.oversampled {
+                        } else if n > p.oversampled {
                             *s *= p.shrink;
                         }
                         *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);

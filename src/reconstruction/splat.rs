@@ -241,8 +241,9 @@ fn front_band(binned: &[Vec<Vec<Splat>>], b: usize, by0: usize, w: usize, front:
 }
 
 /// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
-/// ring order; with `front` (the image's front depths and `1 / (1 + tolerance)`),
-/// only the splats [`visible`] there.
+/// ring order, over what `acc` holds when `carried` (else from zero); with `front`
+/// (the image's front depths and `1 / (1 + tolerance)`), only the splats [`visible`]
+/// there.
 #[inline(never)]
 #[allow(clippy::too_many_arguments)]
 fn splat_band(
@@ -255,8 +256,11 @@ fn splat_band(
     cstride: usize,
     cov: &mut [i32],
     front: Option<(&[f32], f32)>,
+    carried: bool,
 ) {
-    acc.fill(0.0);
+    if !carried {
+        acc.fill(0.0);
+    }
     cov.fill(0);
     let by0 = b * band_rows;
     let by1 = (by0 + band_rows).min(h);
@@ -297,14 +301,18 @@ impl Reconstructor {
                 .par_chunks_mut(rows * w)
                 .enumerate()
                 .for_each(|(b, front)| front_band(binned, b, b * rows, w, front));
+            if let Some(c) = &self.carried {
+                super::carry::carried_front(&mut self.front, &self.acc, cs, w, c);
+            }
         }
         let front = keep.map(|k| (&self.front[..], k));
+        let carried = self.carried.is_some();
         self.acc
             .par_chunks_mut(rows * CHANNELS * cs)
             .zip(self.cov.par_chunks_mut(rows * cstride))
             .enumerate()
             .for_each(|(b, (acc, cov))| {
-                splat_band(binned, b, rows, h, cs, acc, cstride, cov, front)
+                splat_band(binned, b, rows, h, cs, acc, cstride, cov, front, carried)
             });
     }
 

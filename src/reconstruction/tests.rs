@@ -200,11 +200,12 @@ fn fast_path_matches_direct_evaluation() {
         ReconParams::no_reprojection(),
         ReconParams::fixed_filter(),
     ] {
-        // The splats' sums; the pull-push fill of thin pixels and the history's blend
-        // are tested on their own.
+        // The splats' sums of a whole ring; the pull-push fill of thin pixels, the
+        // history's blend and the carried accumulators are tested on their own.
         let params = ReconParams {
             fill_weight: 0.0,
             history: None,
+            carry: false,
             ..params
         };
         for (w, h) in [(40, 30), (67, 41)] {

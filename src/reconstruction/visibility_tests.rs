@@ -107,10 +107,19 @@ fn reconstruct(
     r.reconstruct(1.0, &camera_at(1.0), &tiling).pixels.clone()
 }
 
+/// The reconstructor that splats the whole ring at every refresh, with the pass.
+fn resplat() -> ReconParams {
+    ReconParams {
+        carry: false,
+        ..ReconParams::converging()
+    }
+}
+
+/// The same without the pass: every sample reaches every pixel of its footprint.
 fn without_visibility() -> ReconParams {
     ReconParams {
         visibility: None,
-        ..ReconParams::converging()
+        ..resplat()
     }
 }
 
@@ -150,18 +159,28 @@ fn a_moving_square_keeps_its_silhouette() {
     let (truth, cover) = scene.truth(&c, 1.0);
     let edge = near_edge(&cover, 1);
     let n = (W * H * 6) as usize;
-    let with = reconstruct(&scene, |_| c, ReconParams::converging(), n);
-    let without = reconstruct(&scene, |_| c, without_visibility(), n);
-    let (e_with, e_without) = (
-        mean_error(&with, &truth, |i| edge[i]),
-        mean_error(&without, &truth, |i| edge[i]),
+    let error = |p: ReconParams| mean_error(&reconstruct(&scene, |_| c, p, n), &truth, |i| edge[i]);
+    let (e_carried, e_with, e_without) = (
+        error(ReconParams::converging()),
+        error(resplat()),
+        error(without_visibility()),
     );
-    eprintln!("edge error: {e_with} with the visibility pass, {e_without} without");
-    // Measured (session 13): 0.086 with the pass, 0.125 without (0.69×).
-    assert!(
-        e_with < 0.8 * e_without,
-        "edge error {e_with} with the visibility pass, {e_without} without"
+    eprintln!(
+        "edge error: {e_carried} carried, {e_with} re-splatted with the visibility pass, \
+         {e_without} without"
     );
+    // Measured (session 13): 0.086 with the pass, 0.125 without (0.69×). Carried
+    // accumulators cut what a nearer new sample covers, and still carried sums hide
+    // what lies behind them (session 19: 0.102, 0.82× the error without the pass).
+    for (what, e, bar) in [
+        ("re-splatted with the pass", e_with, 0.8),
+        ("carried", e_carried, 0.85),
+    ] {
+        assert!(
+            e < bar * e_without,
+            "edge error {e} {what}, {e_without} without the pass"
+        );
+    }
 }
 
 #[test]
@@ -175,24 +194,35 @@ fn a_fast_camera_move_shows_no_wall_through_the_square() {
     // The square's inside, away from its outline.
     let inside = |i: usize| cover[i] == 1.0 && !edge[i];
     let n = (W * H * 6) as usize;
-    let with = reconstruct(&scene, eye_at, ReconParams::converging(), n);
-    let without = reconstruct(&scene, eye_at, without_visibility(), n);
-    let worst = |img: &[Vec3]| {
+    let worst = |p: ReconParams| {
+        let img = reconstruct(&scene, eye_at, p, n);
         (0..img.len())
             .filter(|&i| inside(i))
             .map(|i| (img[i] - truth[i]).abs().max_element())
             .fold(0f32, f32::max)
     };
-    let (w_with, w_without) = (worst(&with), worst(&without));
-    eprintln!("largest error inside: {w_with} with the visibility pass, {w_without} without");
+    let (w_carried, w_with, w_without) = (
+        worst(ReconParams::converging()),
+        worst(resplat()),
+        worst(without_visibility()),
+    );
+    eprintln!(
+        "largest error inside: {w_carried} carried, {w_with} re-splatted with the visibility \
+         pass, {w_without} without"
+    );
     // Measured (session 13): 0.075 with the pass, 0.53 without. What is left comes
     // from the few pixels no sample of the square has landed in yet.
     assert!(
         w_without > 0.3,
         "the case should bleed without the pass: {w_without}"
     );
-    assert!(
-        w_with < 0.25 * w_without,
-        "the wall shows through the square: error up to {w_with} (without the pass {w_without})"
-    );
+    for (what, w) in [
+        ("re-splatted with the pass", w_with),
+        ("carried", w_carried),
+    ] {
+        assert!(
+            w < 0.25 * w_without,
+            "the wall shows through the square {what}: error up to {w} (without the pass {w_without})"
+        );
+    }
 }

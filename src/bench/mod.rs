@@ -9,6 +9,10 @@ use std::{collections::BTreeMap, sync::Arc, time::Instant};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod live_recon;
+
+pub use live_recon::{live_image_ms, live_report, LiveCase, LiveFigure, LiveReport, LIVE_CASES};
+
 use crate::{
     reconstruction::device::{GpuContext, ReconUsed},
     sampling::Rng,
@@ -152,7 +156,6 @@ pub fn reconstruct_fixture_with(
     crate::tiles::TilingSnapshot,
 ) {
     use crate::{
-        methods::adaptive::tiling::{TileStats, Tiling},
         reconstruction::{ReconParams, Reconstructor, RingSample},
         scene::Camera,
     };
@@ -191,6 +194,19 @@ pub fn reconstruct_fixture_with(
             anchor: Default::default(),
         });
     }
+    let tiling = fixture_tiling(width, height, &mut rng);
+    (r, camera, tiling)
+}
+
+/// The bench fixture's tiling with its own random stream (seed `seed`).
+pub fn synthetic_tiling(width: u32, height: u32, seed: u64) -> crate::tiles::TilingSnapshot {
+    fixture_tiling(width, height, &mut Rng::new(&[seed, 0x711e]))
+}
+
+/// A tiling of `width × height` split evenly into tiles of about 256 pixels, each with
+/// its own synthetic gradients drawn from `rng` (see [`reconstruct_fixture`]).
+fn fixture_tiling(width: u32, height: u32, rng: &mut Rng) -> crate::tiles::TilingSnapshot {
+    use crate::methods::adaptive::tiling::{TileStats, Tiling};
     let mut tiling = Tiling::new(width, height);
     let target = ((width * height) / 256).max(1) as usize;
     // Split the largest tile first, so that tiles are all about the same size.
@@ -220,7 +236,7 @@ pub fn reconstruct_fixture_with(
             ..TileStats::default()
         };
     }
-    (r, camera, tiling.snapshot())
+    tiling.snapshot()
 }
 
 /// Milliseconds of one reconstructor refresh on the [`reconstruct_fixture`] (best of

@@ -1,0 +1,28 @@
+//! One figure of `frameless bench --live-recon`, for profiling:
+//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat]`.
+
+use frameless::{bench, reconstruction::ReconParams};
+
+fn main() {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    if a.len() < 5 {
+        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat]");
+        std::process::exit(2);
+    }
+    let num = |i: usize| -> f64 { a[i].parse().expect("a number") };
+    let case = bench::LiveCase {
+        width: num(0) as u32,
+        height: num(1) as u32,
+        rate: num(2),
+        refresh_hz: num(3),
+    };
+    let params = ReconParams {
+        carry: a.get(5).map(String::as_str) != Some("resplat"),
+        ..ReconParams::realtime()
+    };
+    let f = bench::live_image_ms(case, num(4), params, 30);
+    println!(
+        "{:.2} ms per image, {:.0} placed",
+        f.ms_median, f.placed_per_image
+    );
+}

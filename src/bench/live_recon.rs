@@ -1,0 +1,221 @@
+//! The reconstructor's cost per image at live sample rates: a stream of new samples
+//! between refreshes, as the real-time image thread feeds it, with the camera turning
+//! so that every refresh moves what it carries.
+
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::{
+    reconstruction::{ReconParams, Reconstructor, RingSample},
+    sampling::Rng,
+    scene::{Camera, CameraFrame},
+};
+
+/// A display size with the sample rate and refresh rate it is measured at.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct LiveCase {
+    /// Display width.
+    pub width: u32,
+    /// Display height.
+    pub height: u32,
+    /// Samples per second: about what traditional frameless traces at this size on
+    /// this project's 2-core machine (docs/results/live), the most a live image
+    /// thread is fed there.
+    pub rate: f64,
+    /// Images per second.
+    pub refresh_hz: f64,
+}
+
+/// The sizes `frameless bench` measures: the live cases' sizes and rates, and 1080p.
+pub const LIVE_CASES: [LiveCase; 4] = [
+    LiveCase {
+        width: 256,
+        height: 256,
+        rate: 1.0e6,
+        refresh_hz: 60.0,
+    },
+    LiveCase {
+        width: 640,
+        height: 480,
+        rate: 3.0e6,
+        refresh_hz: 30.0,
+    },
+    LiveCase {
+        width: 1280,
+        height: 720,
+        rate: 4.0e6,
+        refresh_hz: 30.0,
+    },
+    LiveCase {
+        width: 1920,
+        height: 1080,
+        rate: 4.0e6,
+        refresh_hz: 30.0,
+    },
+];
+
+/// One measured case.
+#[derive(Clone, Debug, Serialize)]
+pub struct LiveFigure {
+    /// Size and rates.
+    #[serde(flatten)]
+    pub case: LiveCase,
+    /// Ring capacity, samples per pixel.
+    pub ring_spp: f64,
+    /// New samples per image.
+    pub new_per_image: usize,
+    /// Samples the reconstructor placed per timed image (mean).
+    pub placed_per_image: f64,
+    /// Median milliseconds of one image over the timed refreshes.
+    pub ms_median: f64,
+}
+
+/// Yaw per second of the bench camera, radians: about a quarter of a pixel per
+/// refresh at 640×480 and 30 Hz, so every carried pixel moves.
+const YAW_PER_S: f32 = 0.03;
+
+/// The bench camera at time `t`: looking at a plane from 5 units, turning slowly.
+fn camera_at(t: f64, width: u32, height: u32) -> CameraFrame {
+    let a = YAW_PER_S * t as f32;
+    Camera {
+        eye: Vec3::new(0.0, 0.0, 5.0),
+        at: Vec3::new(5.0 * a.sin(), 0.0, 5.0 - 5.0 * a.cos()),
+        up: Vec3::Y,
+        fov_y_deg: 60.0,
+        hither: 1e-3,
+    }
+    .frame(width, height)
+}
+
+/// Where the bench ray through `(x, y)` of `cam` meets the tilted plane `z = 0.2·x`.
+fn plane_hit(cam: &CameraFrame, x: f32, y: f32) -> Vec3 {
+    let d = cam.direction(x, y);
+    let n = Vec3::new(-0.2, 0.0, 1.0);
+    let s = -cam.eye.dot(n) / d.dot(n);
+    cam.eye + d * s.max(0.1)
+}
+
+/// Milliseconds per image of `params`' reconstructor at `case`, its ring holding
+/// `ring_spp` samples per pixel: one second of refreshes to warm up (filling the ring),
+/// then `images` timed refreshes, each after the samples traced since the previous
+/// one were pushed (pushing is not timed). The tiling is the bench fixture's.
+pub fn live_image_ms(
+    case: LiveCase,
+    ring_spp: f64,
+    params: ReconParams,
+    images: usize,
+) -> LiveFigure {
+    let (w, h) = (case.width, case.height);
+    let mut r = Reconstructor::new(
+        w,
+        h,
+        case.rate,
+        ReconParams {
+            ring_factor: ring_spp,
+            ..params
+        },
+    );
+    let tiling = super::synthetic_tiling(w, h, 1);
+    let mut rng = Rng::new(&[2, 0x11fe]);
+    let per = (case.rate / case.refresh_hz).round() as usize;
+    let warm = case.refresh_hz.ceil() as usize;
+    let mut times = Vec::with_capacity(images);
+    let mut placed = 0usize;
+    for i in 0..warm + images.max(1) {
+        let t1 = (i + 1) as f64 / case.refresh_hz;
+        for k in 0..per {
+            let t = (i as f64 + (k + 1) as f64 / per as f64) / case.refresh_hz;
+            let cam = camera_at(t, w, h);
+            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+            r.push(RingSample {
+                x,
+                y,
+                t,
+                color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+                hit_point: plane_hit(&cam, x, y),
+                velocity: Vec3::ZERO,
+                anchor: Default::default(),
+            });
+        }
+        let cam = camera_at(t1, w, h);
+        let t0 = Instant::now();
+        std::hint::black_box(r.reconstruct(t1, &cam, &tiling));
+        if i >= warm {
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+            placed += r.placed();
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    LiveFigure {
+        case,
+        ring_spp,
+        new_per_image: per,
+        placed_per_image: placed as f64 / times.len() as f64,
+        ms_median: times[times.len() / 2],
+    }
+}
+
+/// What `frameless bench --live-recon` measures, on one thread.
+#[derive(Clone, Debug, Serialize)]
+pub struct LiveReport {
+    /// Each live size with the real-time reconstructor (accumulators carried).
+    pub sizes: Vec<LiveFigure>,
+    /// The same sizes, up to 1280×720, re-splatting the ring at every image (the
+    /// design before carrying, `carry` off).
+    pub sizes_resplat: Vec<LiveFigure>,
+    /// 640×480 with the ring growing from 0.5 to 4 samples per pixel, new samples
+    /// fixed, carried.
+    pub ring_growth: Vec<LiveFigure>,
+    /// The same, re-splatted.
+    pub ring_growth_resplat: Vec<LiveFigure>,
+}
+
+/// Ring sizes of [`LiveReport::ring_growth`], samples per pixel.
+const RING_SPPS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
+
+/// Measure a [`LiveReport`] on a pool of one thread, `images` timed images per figure,
+/// calling `progress` with a line before each figure.
+pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport {
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("one-thread pool");
+    let carried = ReconParams::realtime();
+    let resplat = ReconParams {
+        carry: false,
+        ..carried
+    };
+    let spp = carried.ring_factor;
+    let mut run = |case: LiveCase, spp: f64, p: ReconParams, what: &str| {
+        progress(&format!(
+            "{}x{} {what}, ring {spp} per pixel",
+            case.width, case.height
+        ));
+        one.install(|| live_image_ms(case, spp, p, images))
+    };
+    let sizes = LIVE_CASES
+        .iter()
+        .map(|&c| run(c, spp, carried, "carried"))
+        .collect();
+    let sizes_resplat = LIVE_CASES[..3]
+        .iter()
+        .map(|&c| run(c, spp, resplat, "re-splatted"))
+        .collect();
+    let vga = LIVE_CASES[1];
+    let ring_growth = RING_SPPS
+        .iter()
+        .map(|&s| run(vga, s, carried, "carried"))
+        .collect();
+    let ring_growth_resplat = RING_SPPS
+        .iter()
+        .map(|&s| run(vga, s, resplat, "re-splatted"))
+        .collect();
+    LiveReport {
+        sizes,
+        sizes_resplat,
+        ring_growth,
+        ring_growth_resplat,
+    }
+}

@@ -1,0 +1,553 @@
+//! Accumulators carried from one refresh to the next, so that a refresh splats only
+//! the samples that arrived since the previous one.
+//!
+//! Re-splatting the ring at every refresh makes a refresh cost the ring times the
+//! footprints: each sample is splatted once per refresh for as long as its temporal
+//! weight lasts, about thirty times on the kitchen's windows. Here a sample is
+//! splatted once, at the first refresh after it arrives, with the footprint of that
+//! refresh's filter; what it added stays in the accumulators and is carried to later
+//! refreshes:
+//!
+//! - **decayed**: every sum is multiplied by `e^(−Δ/τ)` per `Δ` seconds, `τ` a multiple
+//!   ([`super::ReconParams::decay_scale`]) of the temporal extent `e_t` of the pixel's
+//!   tile, so the temporal filter is exponential in a sample's age instead of the
+//!   ring's Gaussian (the weighted age channel grows by `Δ·w` as well);
+//! - **moved**: each pixel's sums go to where the surface they show is seen at the new
+//!   refresh: its geometry (depth in the previous view, sub-pixel offset, velocity) is
+//!   unprojected by the previous camera, moved by its velocity and projected by the
+//!   new one. Pixels landing together keep the nearest (merged when within the
+//!   visibility tolerance);
+//! - **cut** where a new sample lands in front of them (something came in front), or
+//!   at another depth than moving ones (placed by extrapolation, they give way to what
+//!   a ray saw). A new sample behind still carried sums was seen through them (traced
+//!   from an earlier view): with the visibility pass, still carried sums are fronts
+//!   that hide it.
+//!
+//! The coverage that drives the splat scale is carried too, decayed over
+//! `temporal_cutoff · e_t`, so that it counts about the samples of the ring's window.
+//!
+//! A refresh then costs the new samples' splats plus a few passes over the pixels,
+//! whatever the ring's length: the ring only holds samples until their first refresh.
+
+use glam::Vec3;
+
+use super::{
+    lanes::fast_exp_neg,
+    place::Projector,
+    resolve::MIN_WEIGHT,
+    ring::field,
+    splat::{behind_front, CHANNELS},
+    Reconstructor,
+};
+use crate::scene::CameraFrame;
+
+/// Where a pixel's carried sums lie: the surface point they show.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Geo {
+    /// Depth along the view direction of the refresh it belongs to; infinite: none.
+    pub(super) z: f32,
+    /// Where the pixel's sums lie, from its centre, pixels: their sub-pixel position
+    /// survives moves to the nearest pixel, so that slow motion is not rounded away.
+    pub(super) ox: f32,
+    pub(super) oy: f32,
+    /// World velocity of the point.
+    pub(super) v: Vec3,
+}
+
+impl Geo {
+    pub(super) const NONE: Geo = Geo {
+        z: f32::INFINITY,
+        ox: 0.0,
+        oy: 0.0,
+        v: Vec3::ZERO,
+    };
+
+    fn is_some(&self) -> bool {
+        self.z.is_finite()
+    }
+}
+
+/// Neighbours searched for the geometry of a pixel that holds sums but got no sample
+/// of its own (a footprint reached it): rings up to this distance, pixels.
+const BORROW_RADIUS: i32 = 2;
+
+/// The state carried between refreshes.
+pub(super) struct Carried {
+    /// The accumulators of the previous refresh (the layout of `Reconstructor::acc`),
+    /// swapped with them at each refresh.
+    prev: Vec<f32>,
+    /// Each pixel's geometry after the previous refresh, and the one being built.
+    pub(super) geo: Vec<Geo>,
+    next_geo: Vec<Geo>,
+    /// The decayed coverage being moved (`Reconstructor::cover` holds the current).
+    next_cover: Vec<f32>,
+    /// Time and camera of the previous refresh.
+    last: Option<(f64, CameraFrame)>,
+    /// Samples pushed since the previous refresh.
+    pub(super) pending: usize,
+    /// Pixels whose geometry moved at the last refresh (some may no longer).
+    moving: Vec<u32>,
+}
+
+impl Carried {
+    pub(super) fn new(n: usize, acc_len: usize) -> Self {
+        Self {
+            prev: vec![0.0; acc_len],
+            geo: vec![Geo::NONE; n],
+            next_geo: vec![Geo::NONE; n],
+            next_cover: vec![0.0; n],
+            last: None,
+            pending: 0,
+            moving: Vec::new(),
+        }
+    }
+}
+
+/// Where one pixel's sums go at a refresh: the pixel its point is seen in now, with
+/// its geometry there.
+struct Move {
+    to: usize,
+    geo: Geo,
+}
+
+/// What moving the sums of one refresh needs: the map from a point seen through
+/// `(px, py)` of the previous view at depth `z` to the current view, as affine
+/// functions of `(px, py)` (the ray `corner + px·du + py·dv` dotted with the previous
+/// forward axis and the current projection's axes), so that a pixel costs a few
+/// multiply-adds and one division.
+struct Mover {
+    w: usize,
+    h: usize,
+    dt: f32,
+    /// The view is the previous one: still points stay where they are.
+    same_view: bool,
+    /// Rows: the previous forward axis, then the current forward, `u` and `v` axes;
+    /// each `[at corner, per px, per py]`.
+    aff: [[f32; 3]; 4],
+    /// The previous eye minus the current, and the axes it is dotted with.
+    eye_shift: Vec3,
+    axes: [Vec3; 3],
+    ou: f32,
+    ov: f32,
+}
+
+impl Mover {
+    fn new(w: usize, h: usize, dt: f32, cam0: &CameraFrame, camera: &CameraFrame) -> Self {
+        let p = Projector::new(camera);
+        let axes = [p.forward, p.u, p.v];
+        let row = |a: Vec3| [cam0.corner.dot(a), cam0.du.dot(a), cam0.dv.dot(a)];
+        Self {
+            w,
+            h,
+            dt,
+            same_view: cam0.same_view(camera),
+            aff: [row(cam0.forward), row(axes[0]), row(axes[1]), row(axes[2])],
+            eye_shift: cam0.eye - p.eye,
+            axes,
+            ou: p.ou,
+            ov: p.ov,
+        }
+    }
+
+    /// Where the sums of pixel `(x, y)` with geometry `g` land (`None`: behind the
+    /// eye, or off the image).
+    #[inline(always)]
+    fn target(&self, x: usize, y: usize, g: Geo) -> Option<Move> {
+        if self.same_view && g.v == Vec3::ZERO {
+            return Some(Move {
+                to: y * self.w + x,
+                geo: g,
+            });
+        }
+        let (px, py) = (x as f32 + 0.5 + g.ox, y as f32 + 0.5 + g.oy);
+        let a = |k: usize| {
+            let [c, dx, dy] = self.aff[k];
+            dy.mul_add(py, dx.mul_add(px, c))
+        };
+        let s = g.z / a(0);
+        // The eye's shift (and the point's motion) along each current axis.
+        let e = self.eye_shift + g.v * self.dt;
+        let [ef, eu, ev] = self.axes.map(|ax| e.dot(ax));
+        let nz = s.mul_add(a(1), ef);
+        let iz = 1.0 / nz;
+        let nx = s.mul_add(a(2), eu) * iz - self.ou;
+        let ny = s.mul_add(a(3), ev) * iz - self.ov;
+        let inside =
+            nz > 1e-6 && nx >= 0.0 && ny >= 0.0 && nx < self.w as f32 && ny < self.h as f32;
+        if !inside {
+            return None;
+        }
+        let (tx, ty) = (nx as usize, ny as usize);
+        Some(Move {
+            to: ty * self.w + tx,
+            geo: Geo {
+                z: nz,
+                ox: nx - tx as f32 - 0.5,
+                oy: ny - ty as f32 - 0.5,
+                v: g.v,
+            },
+        })
+    }
+}
+
+impl Reconstructor {
+    /// Samples placed at this refresh when carrying: those pushed since the previous
+    /// one (the ring holds at most its capacity of them).
+    pub(super) fn pending_start(&self) -> Option<usize> {
+        let c = self.carried.as_ref()?;
+        Some(self.ring.len() - c.pending.min(self.ring.len()))
+    }
+
+    /// Decay and move the previous refresh's accumulators, geometry and coverage into
+    /// place for a refresh at `t` seen by `camera`, then cut them where the new
+    /// samples (from logical ring index `start`) disagree.
+    pub(super) fn carry_over(&mut self, t: f64, camera: &CameraFrame, start: usize) {
+        let Some(mut c) = self.carried.take() else {
+            return;
+        };
+        if let Some((t0, cam0)) = c.last {
+            let dt = (t - t0).max(0.0) as f32;
+            let decay = self.tile_decay(dt);
+            if !self.params.reproject || cam0.same_view(camera) {
+                self.carry_in_place(&mut c, dt, &decay, camera);
+            } else {
+                self.carry_moved(&mut c, dt, &decay, &cam0, camera);
+            }
+        }
+        if self.params.reproject {
+            self.cut_and_place(&mut c, t, camera, start);
+        }
+        c.last = Some((t, *camera));
+        c.pending = 0;
+        self.carried = Some(c);
+    }
+
+    /// `[e^(−Δ/e_t), e^(−Δ/(temporal_cutoff · e_t))]` of every tile: the decay of the
+    /// sums and of the coverage over `dt`.
+    fn tile_decay(&self, dt: f32) -> Vec<[f32; 2]> {
+        let tc = self.params.temporal_cutoff;
+        let tau = self.params.decay_scale;
+        self.tiles
+            .iter()
+            .map(|f| {
+                [
+                    fast_exp_neg(-dt * f.inv_et / tau),
+                    fast_exp_neg(-dt * f.inv_et / tc),
+                ]
+            })
+            .collect()
+    }
+
+    /// The view is the previous refresh's: every pixel's sums decay where they are,
+    /// row by row, and only those of moving surfaces move.
+    #[inline(never)]
+    fn carry_in_place(
+        &mut self,
+        c: &mut Carried,
+        dt: f32,
+        decay: &[[f32; 2]],
+        camera: &CameraFrame,
+    ) {
+        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        let (mut k, mut kc) = (vec![0f32; w], vec![0f32; w]);
+        for y in 0..h {
+            for (x, l) in self.lookup[y * w..(y + 1) * w].iter().enumerate() {
+                [k[x], kc[x]] = decay[l.tile as usize];
+            }
+            let row = &mut self.acc[y * CHANNELS * cs..(y + 1) * CHANNELS * cs];
+            let (rgb, rest) = row.split_at_mut(3 * cs);
+            let (wp, ap) = rest.split_at_mut(cs);
+            for x in 0..w {
+                ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
+                wp[x] *= k[x];
+            }
+            for plane in rgb.chunks_exact_mut(cs) {
+                for x in 0..w {
+                    plane[x] *= k[x];
+                }
+            }
+            for (v, kc) in self.cover[y * w..(y + 1) * w].iter_mut().zip(&kc) {
+                *v *= kc;
+            }
+        }
+        if self.params.reproject {
+            self.move_listed(c, dt, camera);
+        }
+    }
+
+    /// With the view unchanged: the sums of the pixels listed as moving go where
+    /// their surfaces are now (all taken out first, so none moves twice).
+    fn move_listed(&mut self, c: &mut Carried, dt: f32, camera: &CameraFrame) {
+        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        let mut out = Vec::new();
+        for &q in &c.moving {
+            let q = q as usize;
+            let (x, y) = (q % w, q / w);
+            let g = c.geo[q];
+            if g.v == Vec3::ZERO || !(self.acc[(y * CHANNELS + 3) * cs + x] >= MIN_WEIGHT) {
+                continue;
+            }
+            let sums: [f32; CHANNELS] = std::array::from_fn(|ch| {
+                std::mem::take(&mut self.acc[(y * CHANNELS + ch) * cs + x])
+            });
+            out.push((x, y, g, sums, std::mem::take(&mut self.cover[q])));
+            c.geo[q] = Geo::NONE;
+        }
+        c.moving.clear();
+        let mover = Mover::new(w, h, dt, camera, camera);
+        let keep = self.carry_keep();
+        let mut into = Target {
+            acc: &mut self.acc,
+            cs,
+            w,
+            geo: &mut c.geo,
+            cover: &mut self.cover,
+        };
+        for (x, y, g, sums, cover) in out {
+            if let Some(m) = mover.target(x, y, g) {
+                into.land_move(&m, sums, cover, keep, &mut c.moving);
+            }
+        }
+    }
+
+    /// The view changed: every pixel's decayed sums move from the previous refresh's
+    /// accumulators to where their surface is seen now, in pixel order.
+    #[inline(never)]
+    fn carry_moved(
+        &mut self,
+        c: &mut Carried,
+        dt: f32,
+        decay: &[[f32; 2]],
+        cam0: &CameraFrame,
+        camera: &CameraFrame,
+    ) {
+        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        std::mem::swap(&mut self.acc, &mut c.prev);
+        self.acc.fill(0.0);
+        c.next_geo.fill(Geo::NONE);
+        c.next_cover.fill(0.0);
+        c.moving.clear();
+        let mover = Mover::new(w, h, dt, cam0, camera);
+        let keep = self.carry_keep();
+        let mut into = Target {
+            acc: &mut self.acc,
+            cs,
+            w,
+            geo: &mut c.next_geo,
+            cover: &mut c.next_cover,
+        };
+        for y in 0..h {
+            for x in 0..w {
+                let q = y * w + x;
+                if !(c.prev[(y * CHANNELS + 3) * cs + x] >= MIN_WEIGHT) {
+                    continue;
+                }
+                let g = c.geo[q];
+                let Some(g) = (if g.is_some() {
+                    Some(g)
+                } else {
+                    borrow(&c.geo, w, h, x, y, keep)
+                }) else {
+                    continue;
+                };
+                let Some(m) = mover.target(x, y, g) else {
+                    continue;
+                };
+                let [k, kc] = decay[self.lookup[q].tile as usize];
+                let sums = decayed(&c.prev, cs, x, y, k, dt);
+                into.land_move(&m, sums, self.cover[q] * kc, keep, &mut c.moving);
+            }
+        }
+        std::mem::swap(&mut c.geo, &mut c.next_geo);
+        std::mem::swap(&mut self.cover, &mut c.next_cover);
+    }
+
+    /// `1 / (1 + depth tolerance)` of the cuts and merges: the visibility pass's, or
+    /// its default without one.
+    fn carry_keep(&self) -> f32 {
+        let tol = self.params.visibility.unwrap_or_default().depth_tolerance;
+        1.0 / (1.0 + tol)
+    }
+
+    /// For each new sample (logical ring indices from `start`, in ring order): where
+    /// it lies in front of its pixel's carried sums beyond the tolerance, they are
+    /// cut; where behind, it is left to the visibility pass. The pixel's geometry
+    /// becomes that of its nearest new sample that is not behind.
+    #[inline(never)]
+    fn cut_and_place(&mut self, c: &mut Carried, t: f64, camera: &CameraFrame, start: usize) {
+        use field::*;
+        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        let proj = Projector::new(camera);
+        let keep = self.carry_keep();
+        let mut fresh: Vec<(usize, Geo)> = Vec::new();
+        let ring = &self.ring;
+        for i in start..ring.len() {
+            let p = ring.phys(i);
+            let dt = (t - ring.t[p]) as f32;
+            let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+            let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
+            let (x, y, z) = proj.project(hit + v * dt);
+            let inside = z > 1e-6 && x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+            if !inside {
+                continue;
+            }
+            let (px, py) = (x as usize, y as usize);
+            let q = py * w + px;
+            let g = c.geo[q];
+            let held = g.is_some() && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT;
+            // Carried sums of a moving surface were placed by extrapolation: a new
+            // sample at another depth wins over them either way. Still ones are
+            // exact: a new sample behind them was seen through them (traced from an
+            // earlier view, or what was in front has gone since), and is left to the
+            // visibility pass while they decay.
+            let still = g.v == Vec3::ZERO;
+            if held && still && behind_front(g.z, z, keep) {
+                continue;
+            }
+            if held && (behind_front(z, g.z, keep) || behind_front(g.z, z, keep)) {
+                // Something came in front.
+                for ch in 0..CHANNELS {
+                    self.acc[(py * CHANNELS + ch) * cs + px] = 0.0;
+                }
+                self.cover[q] = 0.0;
+            }
+            // Splats are centred on pixel centres; sums carried here keep their
+            // position. (The sample's own sub-pixel position would scatter
+            // neighbouring pixels' sums apart at the next move.)
+            let (ox, oy) = if held && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT {
+                (g.ox, g.oy)
+            } else {
+                (0.0, 0.0)
+            };
+            fresh.push((q, Geo { z, ox, oy, v }));
+            if v != Vec3::ZERO {
+                c.moving.push(q as u32);
+            }
+        }
+        // The nearest new sample of a pixel gives its geometry (the one the visibility
+        // pass keeps); `next_geo` is scratch until the next refresh.
+        for &(q, _) in &fresh {
+            c.next_geo[q] = Geo::NONE;
+        }
+        for &(q, g) in &fresh {
+            if g.z < c.next_geo[q].z {
+                c.next_geo[q] = g;
+            }
+        }
+        for &(q, _) in &fresh {
+            c.geo[q] = c.next_geo[q];
+        }
+    }
+}
+
+/// The geometry for a pixel at `(x, y)` that holds sums but got no sample of its own:
+/// that of the nearest pixel around it that has some (rings of growing distance, each
+/// in row order), with the offset of `(x, y)`'s own centre, if every geometry within
+/// [`BORROW_RADIUS`] lies within the depth tolerance (`keep`) of it. Beside a depth
+/// edge the sums may show either surface, and moving them with the wrong one would
+/// paint it over the other: they are dropped instead (`None`).
+fn borrow(geo: &[Geo], w: usize, h: usize, x: usize, y: usize, keep: f32) -> Option<Geo> {
+    let mut found: Option<Geo> = None;
+    let (mut near, mut far) = (f32::INFINITY, 0f32);
+    for r in 1..=BORROW_RADIUS {
+        for dy in -r..=r {
+            for dx in -r..=r {
+                if dx.abs().max(dy.abs()) != r {
+                    continue;
+                }
+                let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                if nx < 0 || ny < 0 || nx >= w as i32 || ny >= h as i32 {
+                    continue;
+                }
+                let g = geo[ny as usize * w + nx as usize];
+                if g.is_some() {
+                    found.get_or_insert(g);
+                    near = near.min(g.z);
+                    far = far.max(g.z);
+                }
+            }
+        }
+    }
+    let g = found?;
+    (!behind_front(near, far, keep)).then_some(Geo {
+        ox: 0.0,
+        oy: 0.0,
+        ..g
+    })
+}
+
+/// Sums of pixel `(x, y)` of accumulators `src` (channel stride `cs`) decayed by `k`
+/// over `dt` (the weighted age grows by `dt` per unit weight first).
+fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32; CHANNELS] {
+    let at = |ch: usize| src[(y * CHANNELS + ch) * cs + x];
+    let mut s: [f32; CHANNELS] = std::array::from_fn(|ch| k * at(ch));
+    s[4] = k * dt.mul_add(at(3), at(4));
+    s
+}
+
+/// The accumulators, geometry and coverage that carried sums land in.
+struct Target<'a> {
+    acc: &'a mut [f32],
+    cs: usize,
+    w: usize,
+    geo: &'a mut [Geo],
+    cover: &'a mut [f32],
+}
+
+impl Target<'_> {
+    /// [`Target::land`] the sums of move `m`; if they stayed and move, `m.to` is
+    /// listed in `moving`.
+    fn land_move(
+        &mut self,
+        m: &Move,
+        sums: [f32; CHANNELS],
+        cover: f32,
+        keep: f32,
+        moving: &mut Vec<u32>,
+    ) {
+        if self.land(m.to, m.geo, sums, cover, keep) && m.geo.v != Vec3::ZERO {
+            moving.push(m.to as u32);
+        }
+    }
+
+    /// Sums `sums` with coverage `cover` and geometry `g` arrive at pixel `to`: an
+    /// empty pixel takes them; otherwise the nearer wins, and both merge within the
+    /// depth tolerance (`keep`). Whether they stayed.
+    fn land(&mut self, to: usize, g: Geo, sums: [f32; CHANNELS], cover: f32, keep: f32) -> bool {
+        let (tx, ty) = (to % self.w, to / self.w);
+        let at = |ch: usize| (ty * CHANNELS + ch) * self.cs + tx;
+        let old = self.geo[to];
+        let mut merge = false;
+        if self.acc[at(3)] >= MIN_WEIGHT {
+            if behind_front(old.z, g.z, keep) {
+                return false;
+            }
+            merge = !behind_front(g.z, old.z, keep);
+        }
+        for (ch, &v) in sums.iter().enumerate() {
+            let d = &mut self.acc[at(ch)];
+            *d = if merge { *d + v } else { v };
+        }
+        let c = &mut self.cover[to];
+        *c = if merge { *c + cover } else { cover };
+        if !(merge && old.z <= g.z) {
+            self.geo[to] = g;
+        }
+        true
+    }
+}
+
+/// With the visibility pass: the carried geometry of still surfaces is a front too
+/// (`front`, rows of `w`, lowered to it where the accumulators `acc` hold sums; moving
+/// ones are placed by extrapolation, and do not hide what new samples show), so that a new sample
+/// seen through what is carried (traced from an earlier view) is not splatted over it.
+pub(super) fn carried_front(front: &mut [f32], acc: &[f32], cs: usize, w: usize, c: &Carried) {
+    for (y, row) in front.chunks_mut(w).enumerate() {
+        let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
+        for ((f, g), &wt) in row.iter_mut().zip(&c.geo[y * w..]).zip(weight) {
+            if wt >= MIN_WEIGHT && g.v == Vec3::ZERO {
+                *f = f.min(g.z);
+            }
+        }
+    }
+}

@@ -1,0 +1,243 @@
+//! Tests of the carried accumulators: each sample splatted once and decayed after,
+//! sums moved with the view, cuts where a new sample disagrees, a cost that does not
+//! follow the ring.
+
+use super::*;
+use crate::{scene::Camera, tiles::TilingSnapshot};
+
+/// A camera at `eye_x` on the x axis, 1 unit in front of the plane `z = −1`... looking
+/// down −z (a 90° vertical field of view).
+fn cam_at(eye_x: f32, w: u32, h: u32) -> CameraFrame {
+    Camera {
+        eye: Vec3::new(eye_x, 0.0, 1.0),
+        at: Vec3::new(eye_x, 0.0, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 90.0,
+        hither: 1e-3,
+    }
+    .frame(w, h)
+}
+
+/// A still sample of the plane `z = 0` seen through `(x, y)` of `c` at time `t`.
+fn on_plane(c: &CameraFrame, x: f32, y: f32, t: f64, color: Vec3) -> RingSample {
+    let d = c.direction(x, y);
+    RingSample {
+        x,
+        y,
+        t,
+        color,
+        hit_point: c.eye + d * (-c.eye.z / d.z),
+        velocity: Vec3::ZERO,
+        anchor: Default::default(),
+    }
+}
+
+/// Carried accumulators with a fixed filter and splat scale, and nothing else on top
+/// (no fill, no history), so that sums can be evaluated directly.
+fn bare(et: f64) -> ReconParams {
+    ReconParams {
+        fixed_filter: Some(Extents {
+            ex: 1.2,
+            ey: 0.9,
+            et,
+        }),
+        scale_bounds: (1.0, 1.0),
+        fill_weight: 0.0,
+        history: None,
+        visibility: None,
+        ..ReconParams::converging()
+    }
+}
+
+/// Batches of random samples on the plane, pushed between refreshes at `times`.
+fn batches(c: &CameraFrame, times: &[f64], per: usize, seed: u64) -> Vec<Vec<RingSample>> {
+    let mut rng = crate::sampling::Rng::new(&[seed]);
+    let mut prev = times[0] - 0.02;
+    times
+        .iter()
+        .map(|&t| {
+            let b = (0..per)
+                .map(|k| {
+                    let ts = prev + (t - prev) * (k + 1) as f64 / (per + 1) as f64;
+                    let (x, y) = (
+                        rng.uniform() * c.width as f32,
+                        rng.uniform() * c.height as f32,
+                    );
+                    let col = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+                    on_plane(c, x, y, ts, col)
+                })
+                .collect();
+            prev = t;
+            b
+        })
+        .collect()
+}
+
+#[test]
+fn each_sample_is_splatted_once_then_decays_exponentially() {
+    let (w, h) = (24, 18);
+    let c = cam_at(0.0, w, h);
+    let et = 0.03;
+    let times = [1.0, 1.016, 1.05, 1.07, 1.09];
+    let bs = batches(&c, &times, 60, 3);
+    let params = bare(et);
+    let tau = et * params.decay_scale as f64;
+    let mut r = Reconstructor::new(w, h, 3000.0, params);
+    let tiling = TilingSnapshot::whole(w, h);
+    for (b, &t) in bs.iter().zip(&times) {
+        for s in b {
+            r.push(*s);
+        }
+        r.reconstruct(t, &c, &tiling);
+        assert_eq!(r.placed(), b.len(), "only the new samples are placed");
+    }
+    // Direct: a sample's weight is its Gaussian at its first refresh, times
+    // e^(−Δ/τ) for the time since; its age grows with the clock.
+    let t_end = *times.last().unwrap();
+    let (ex, ey, tc) = (1.2f64, 0.9f64, 2.5f64);
+    let mut sums = vec![[0f64; 5]; (w * h) as usize];
+    for (b, &t1) in bs.iter().zip(&times) {
+        for s in b {
+            let a = (t1 - s.t) / et;
+            if a > tc {
+                continue;
+            }
+            let wt = (-0.5 * a * a).exp() * (-(t_end - t1) / tau).exp();
+            for y in 0..h as usize {
+                for x in 0..w as usize {
+                    let (dx, dy) = (x as f64 + 0.5 - s.x as f64, y as f64 + 0.5 - s.y as f64);
+                    if dx.abs() > tc * ex || dy.abs() > tc * ey {
+                        continue;
+                    }
+                    let g = wt * (-0.5 * ((dx / ex).powi(2) + (dy / ey).powi(2))).exp();
+                    let o = &mut sums[y * w as usize + x];
+                    let col = s.color.as_dvec3();
+                    for (k, v) in [col.x, col.y, col.z, 1.0, t_end - s.t].iter().enumerate() {
+                        o[k] += g * v;
+                    }
+                }
+            }
+        }
+    }
+    let mut compared = 0;
+    for (i, s) in sums.iter().enumerate() {
+        if s[3] < 1e-6 {
+            continue;
+        }
+        compared += 1;
+        let px = r.image().pixels[i].to_array();
+        for k in 0..3 {
+            let want = s[k] / s[3];
+            assert!(
+                (px[k] as f64 - want).abs() < 1e-4,
+                "pixel {i} channel {k}: {} vs {want}",
+                px[k]
+            );
+        }
+        let age = s[4] / s[3];
+        assert!(
+            (r.pixel_ages()[i] as f64 - age).abs() < 1e-4,
+            "pixel {i} age"
+        );
+    }
+    assert!(
+        compared > sums.len() * 3 / 4,
+        "only {compared} pixels compared"
+    );
+}
+
+#[test]
+fn carried_sums_follow_the_view() {
+    // The view slides right by exactly 3 pixels at the plane's depth: what was at
+    // pixel x + 3 is now at pixel x, sums decayed alike (so the same colours).
+    let (w, h) = (24, 18);
+    let c0 = cam_at(0.0, w, h);
+    let step = 3.0 * c0.du.length() * 1.0;
+    let c1 = cam_at(step, w, h);
+    let tiling = TilingSnapshot::whole(w, h);
+    let mut r = Reconstructor::new(w, h, 3000.0, bare(0.05));
+    for s in &batches(&c0, &[1.0], 800, 5)[0] {
+        r.push(*s);
+    }
+    let before = r.reconstruct(1.0, &c0, &tiling).clone();
+    let after = r.reconstruct(1.02, &c1, &tiling).clone();
+    let mut compared = 0;
+    for y in 0..h as usize {
+        for x in 0..w as usize - 3 {
+            let (a, b) = (
+                after.pixels[y * w as usize + x],
+                before.pixels[y * w as usize + x + 3],
+            );
+            assert!((a - b).abs().max_element() < 1e-4, "({x}, {y}): {a} vs {b}");
+            compared += 1;
+        }
+    }
+    assert!(compared > 300);
+}
+
+#[test]
+fn a_nearer_new_sample_cuts_what_was_carried_at_its_pixel() {
+    let (w, h) = (16, 12);
+    let c = cam_at(0.0, w, h);
+    let tiling = TilingSnapshot::whole(w, h);
+    let mut r = Reconstructor::new(w, h, 3000.0, bare(0.2));
+    for s in &batches(&c, &[1.0], 400, 7)[0] {
+        r.push(RingSample {
+            color: Vec3::splat(0.2),
+            ..*s
+        });
+    }
+    r.reconstruct(1.0, &c, &tiling);
+    // Half the way to the eye, at pixel (8, 6): something arrived in front.
+    let (x, y) = (8.5, 6.5);
+    let red = Vec3::new(1.0, 0.0, 0.0);
+    r.push(RingSample {
+        hit_point: c.eye + c.direction(x, y) * 0.5,
+        color: red,
+        ..on_plane(&c, x, y, 1.01, red)
+    });
+    let img = r.reconstruct(1.016, &c, &tiling);
+    let at = img.pixels[6 * w as usize + 8];
+    assert!(
+        (at - red).abs().max_element() < 1e-5,
+        "the cut pixel shows {at}"
+    );
+    // Its neighbours keep the plane, mixed with the new sample's splat.
+    let next = img.pixels[6 * w as usize + 10];
+    assert!(next.y > 0.05, "a neighbour lost the carried plane: {next}");
+}
+
+#[test]
+fn images_do_not_depend_on_the_ring_size() {
+    // Only the samples since the previous refresh are placed: a ring that holds them
+    // gives the same images however long it is.
+    let (w, h) = (20, 16);
+    let c = cam_at(0.0, w, h);
+    let tiling = TilingSnapshot::whole(w, h);
+    let times: Vec<f64> = (0..6).map(|k| 1.0 + k as f64 / 60.0).collect();
+    let bs = batches(&c, &times, 150, 9);
+    let images: Vec<Vec<Vec3>> = [0.5, 1.0, 4.0]
+        .iter()
+        .map(|&ring_factor| {
+            let mut r = Reconstructor::new(
+                w,
+                h,
+                9000.0,
+                ReconParams {
+                    ring_factor,
+                    ..ReconParams::converging()
+                },
+            );
+            for (b, &t) in bs.iter().zip(&times) {
+                for s in b {
+                    r.push(*s);
+                }
+                r.reconstruct(t, &c, &tiling);
+                assert_eq!(r.placed(), b.len());
+            }
+            r.image().pixels.clone()
+        })
+        .collect();
+    assert_eq!(images[0], images[1]);
+    assert_eq!(images[1], images[2]);
+}
