@@ -50,6 +50,10 @@ pub(super) struct Geo {
     /// survives moves to the nearest pixel, so that slow motion is not rounded away.
     pub(super) ox: f32,
     pub(super) oy: f32,
+    /// Weight of the sums when they took that position: splats added since are
+    /// centred on the pixel, so the position moves towards the centre by the share
+    /// of the weight they brought.
+    pub(super) w: f32,
     /// World velocity of the point.
     pub(super) v: Vec3,
 }
@@ -59,6 +63,7 @@ impl Geo {
         z: f32::INFINITY,
         ox: 0.0,
         oy: 0.0,
+        w: 0.0,
         v: Vec3::ZERO,
     };
 
@@ -152,14 +157,22 @@ impl Mover {
     /// Where the sums of pixel `(x, y)` with geometry `g` land (`None`: behind the
     /// eye, or off the image).
     #[inline(always)]
-    fn target(&self, x: usize, y: usize, g: Geo) -> Option<Move> {
+    fn target(&self, x: usize, y: usize, g: Geo, weight: f32) -> Option<Move> {
         if self.same_view && g.v == Vec3::ZERO {
             return Some(Move {
                 to: y * self.w + x,
                 geo: g,
             });
         }
-        let (px, py) = (x as f32 + 0.5 + g.ox, y as f32 + 0.5 + g.oy);
+        let kept = if g.w > 0.0 {
+            (g.w / weight).min(1.0)
+        } else {
+            0.0
+        };
+        let (px, py) = (
+            kept.mul_add(g.ox, x as f32 + 0.5),
+            kept.mul_add(g.oy, y as f32 + 0.5),
+        );
         let a = |k: usize| {
             let [c, dx, dy] = self.aff[k];
             dy.mul_add(py, dx.mul_add(px, c))
@@ -184,6 +197,7 @@ impl Mover {
                 z: nz,
                 ox: nx - tx as f32 - 0.5,
                 oy: ny - ty as f32 - 0.5,
+                w: 0.0,
                 v: g.v,
             },
         })
@@ -304,7 +318,7 @@ impl Reconstructor {
             cover: &mut self.cover,
         };
         for (x, y, g, sums, cover) in out {
-            if let Some(m) = mover.target(x, y, g) {
+            if let Some(m) = mover.target(x, y, g, sums[3]) {
                 into.land_move(&m, sums, cover, keep, &mut c.moving);
             }
         }
@@ -350,7 +364,8 @@ impl Reconstructor {
                 }) else {
                     continue;
                 };
-                let Some(m) = mover.target(x, y, g) else {
+                let wsum = c.prev[(y * CHANNELS + 3) * cs + x];
+                let Some(m) = mover.target(x, y, g, wsum) else {
                     continue;
                 };
                 let [k, kc] = decay[self.lookup[q].tile as usize];
@@ -414,12 +429,12 @@ impl Reconstructor {
             // Splats are centred on pixel centres; sums carried here keep their
             // position. (The sample's own sub-pixel position would scatter
             // neighbouring pixels' sums apart at the next move.)
-            let (ox, oy) = if held && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT {
-                (g.ox, g.oy)
+            let (ox, oy, w) = if held && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT {
+                (g.ox, g.oy, g.w)
             } else {
-                (0.0, 0.0)
+                (0.0, 0.0, 0.0)
             };
-            fresh.push((q, Geo { z, ox, oy, v }));
+            fresh.push((q, Geo { z, ox, oy, w, v }));
             if v != Vec3::ZERO {
                 c.moving.push(q as u32);
             }
@@ -472,6 +487,7 @@ fn borrow(geo: &[Geo], w: usize, h: usize, x: usize, y: usize, keep: f32) -> Opt
     (!behind_front(near, far, keep)).then_some(Geo {
         ox: 0.0,
         oy: 0.0,
+        w: 0.0,
         ..g
     })
 }
@@ -533,6 +549,7 @@ impl Target<'_> {
         if !(merge && old.z <= g.z) {
             self.geo[to] = g;
         }
+        self.geo[to].w = self.acc[at(3)];
         true
     }
 }
