@@ -348,4 +348,19 @@ mod tests {
             .to_string();
         assert!(e.contains("p.csv:7:5"), "{e}");
     }
+
+    /// A time that rounds to the previous one in f32 is quoted as the file writes it,
+    /// not as the rounded number the file never says.
+    #[test]
+    fn a_time_that_does_not_increase_is_quoted_as_written() {
+        let tiny = GOOD.replace("\n2,2,", "\n1e-300,2,");
+        let e = CameraPath::parse("p.csv", &tiny).unwrap_err().to_string();
+        assert!(e.contains("p.csv:3:1"), "{e}");
+        assert!(e.contains("time 1e-300 does not increase (previous 0)"), "{e}");
+        assert!(e.contains("32-bit"), "{e}");
+        let same = GOOD.replace("\n2,2,", "\n0.0,2,");
+        let e = CameraPath::parse("p.csv", &same).unwrap_err().to_string();
+        assert!(e.contains("time 0.0 does not increase (previous 0)"), "{e}");
+        assert!(!e.contains("32-bit"), "{e}");
+    }
 }
