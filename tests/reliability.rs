@@ -21,9 +21,9 @@ fn frameless(cwd: &Path, args: &[&str], env: &[(&str, &str)]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_frameless"))
         .current_dir(cwd)
         .args(args)
-        .envs(env.iter().copied())
         .env_remove("WGPU_BACKEND")
         .env_remove("WGPU_ADAPTER_NAME")
+        .envs(env.iter().copied())
         .output()
         .unwrap()
 }
