@@ -105,6 +105,23 @@ fn parse_row(name: &str, ln: usize, fields: &[&str]) -> Result<(f32, Camera), Sc
     Ok((vals[0], cam))
 }
 
+/// Why a row's time `written` is refused after the previous row's `previous`, both
+/// quoted as the file has them: times are kept as 32-bit floats, so two that differ in
+/// the file (`1e-300` and `0`) may be one time, and the rounded values would name
+/// numbers the file never says.
+fn not_increasing(written: &str, previous: &str) -> String {
+    let differ = match (written.parse::<f64>(), previous.parse::<f64>()) {
+        (Ok(a), Ok(b)) => a > b,
+        _ => false,
+    };
+    let why = if differ {
+        " (times are kept to 32-bit float precision, where the two are equal)"
+    } else {
+        ""
+    };
+    format!("time {written} does not increase (previous {previous}){why}")
+}
+
 impl CameraPath {
     /// Read a camera path file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
@@ -149,21 +166,19 @@ impl CameraPath {
             return Err(err(name, hl, 1, format!("header must be `{HEADER}`")));
         }
         let mut keys: Vec<(f32, Camera)> = Vec::new();
+        let mut previous = String::new();
         for rec in records {
             let rec = rec.map_err(csv_err)?;
             let ln = line_of(&rec);
             let fields: Vec<&str> = rec.iter().collect();
             let (t, cam) = parse_row(name, ln, &fields)?;
+            let written = fields[0].trim();
             if let Some((pt, _)) = keys.last() {
                 if t <= *pt {
-                    return Err(err(
-                        name,
-                        ln,
-                        1,
-                        format!("time {t} does not increase (previous {pt})"),
-                    ));
+                    return Err(err(name, ln, 1, not_increasing(written, &previous)));
                 }
             }
+            previous = written.to_string();
             keys.push((t, cam));
         }
         if keys.is_empty() {
