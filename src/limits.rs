@@ -213,7 +213,8 @@ pub const MAX_DATA_FILE_BYTES: u64 = 1 << 30;
 /// otherwise be read until memory runs out.
 pub fn read_file(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
     use std::io::Read;
-    let not_regular = || std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file");
+    let not_regular =
+        || std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file");
     // Asked before opening too: opening a FIFO waits for a writer, which may never come.
     if !std::fs::metadata(path)?.is_file() {
         return Err(not_regular());

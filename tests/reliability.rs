@@ -11,7 +11,10 @@ use proptest::prelude::*;
 
 /// A fresh, empty folder for one test (or one case of a property).
 fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("frameless-reliability-{}-{name}", std::process::id()));
+    let d = std::env::temp_dir().join(format!(
+        "frameless-reliability-{}-{name}",
+        std::process::id()
+    ));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -40,18 +43,55 @@ const OBJ: &str = "v -1 -1 0\nv 1 -1 0\nv 0 1 0\nf 1 2 3\n";
 
 /// The smallest run of each command that writes a folder: a few refreshes of 16×16.
 const EVAL: &[&str] = &[
-    "eval", "--size", "16x16", "--duration", "0.05", "--warmup", "0", "--rate", "10k",
-    "--method", "framed-60hz", "--ideal-spp", "1",
+    "eval",
+    "--size",
+    "16x16",
+    "--duration",
+    "0.05",
+    "--warmup",
+    "0",
+    "--rate",
+    "10k",
+    "--method",
+    "framed-60hz",
+    "--ideal-spp",
+    "1",
 ];
 const RENDER: &[&str] = &[
-    "render", "--size", "16x16", "--duration", "0.05", "--warmup", "0", "--rate", "10k",
-    "--method", "framed-60hz",
+    "render",
+    "--size",
+    "16x16",
+    "--duration",
+    "0.05",
+    "--warmup",
+    "0",
+    "--rate",
+    "10k",
+    "--method",
+    "framed-60hz",
 ];
 const LIVE: &[&str] = &[
-    "live", "--size", "16x16", "--seconds", "0.05", "--warmup", "0", "--method", "framed",
-    "--ideal-spp", "1",
+    "live",
+    "--size",
+    "16x16",
+    "--seconds",
+    "0.05",
+    "--warmup",
+    "0",
+    "--method",
+    "framed",
+    "--ideal-spp",
+    "1",
 ];
-const SAMPLER: &[&str] = &["sampler", "--size", "16x16", "--duration", "0.05", "--rate", "10k"];
+const SAMPLER: &[&str] = &[
+    "sampler",
+    "--size",
+    "16x16",
+    "--duration",
+    "0.05",
+    "--rate",
+    "10k",
+];
 const VIEW: &[&str] = &["view", "--headless", "--seconds", "0.05", "--size", "16x16"];
 
 /// `out` made an earlier output folder, which every command may replace whole.
@@ -91,7 +131,10 @@ fn an_input_inside_the_output_folder_is_refused_and_kept() {
         let o = frameless(&root, &args, &[]);
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(1), "{args:?} was not refused: {err}");
-        assert!(err.contains("holds the input") && err.contains(name), "{args:?}: {err}");
+        assert!(
+            err.contains("holds the input") && err.contains(name),
+            "{args:?}: {err}"
+        );
         assert!(input.exists(), "{args:?} lost its input");
     }
 }
@@ -297,7 +340,10 @@ fn report_refuses_a_summary_that_is_a_device() {
     let o = report_bounded(&d);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("summary.json") && err.contains("not a regular file"), "{err}");
+    assert!(
+        err.contains("summary.json") && err.contains("not a regular file"),
+        "{err}"
+    );
 }
 
 /// A Table 1 `summary.json` naming its animation `../victim` or an absolute path:
@@ -323,8 +369,14 @@ fn report_never_writes_outside_its_folder() {
         let o = frameless(&root, &["report", d.to_str().unwrap()], &[]);
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(1), "{name}: {err}");
-        assert!(err.contains("is not a folder name") && err.contains(&name), "{err}");
-        assert!(!victim.join("report.html").exists(), "{name}: wrote outside");
+        assert!(
+            err.contains("is not a folder name") && err.contains(&name),
+            "{err}"
+        );
+        assert!(
+            !victim.join("report.html").exists(),
+            "{name}: wrote outside"
+        );
     }
     // The same folder under a plain name is reported.
     let d = root.join("table-ok");
@@ -345,7 +397,11 @@ fn report_never_writes_outside_its_folder() {
 fn merge_refuses_values_no_run_of_the_job_gives() {
     let root = dir("merge-values");
     std::fs::write(root.join("s.toml"), SWEEP).unwrap();
-    let o = frameless(&root, &["sweep", "s.toml", "--out", "results", "--no-cache"], &[]);
+    let o = frameless(
+        &root,
+        &["sweep", "s.toml", "--out", "results", "--no-cache"],
+        &[],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let file = std::fs::read_dir(root.join("results"))
         .unwrap()
@@ -355,12 +411,28 @@ fn merge_refuses_values_no_run_of_the_job_gives() {
     let original: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
     let o = frameless(&root, &["merge", "results", "--out", "merged"], &[]);
-    assert!(o.status.success(), "the unedited result merges: {}", stderr(&o));
+    assert!(
+        o.status.success(),
+        "the unedited result merges: {}",
+        stderr(&o)
+    );
     type Edit = fn(&mut serde_json::Value);
     let edits: [(&str, Edit, &str); 5] = [
-        ("rms_mean 1e308", |v| v["results"][0]["rms_mean"] = 1e308.into(), "rms_mean"),
-        ("frames 1e9", |v| v["results"][0]["frames"] = 1_000_000_000u64.into(), "frames 1000000000"),
-        ("a negative RMS", |v| v["frames"][0]["rms"] = (-1.0).into(), "RMS"),
+        (
+            "rms_mean 1e308",
+            |v| v["results"][0]["rms_mean"] = 1e308.into(),
+            "rms_mean",
+        ),
+        (
+            "frames 1e9",
+            |v| v["results"][0]["frames"] = 1_000_000_000u64.into(),
+            "frames 1000000000",
+        ),
+        (
+            "a negative RMS",
+            |v| v["frames"][0]["rms"] = (-1.0).into(),
+            "RMS",
+        ),
         (
             "a frame 100 s past the window",
             |v| {
@@ -369,7 +441,11 @@ fn merge_refuses_values_no_run_of_the_job_gives() {
             },
             "is not that frame's refresh",
         ),
-        ("a PSNR of 1e308", |v| v["frames"][0]["psnr"] = 1e308.into(), "PSNR"),
+        (
+            "a PSNR of 1e308",
+            |v| v["frames"][0]["psnr"] = 1e308.into(),
+            "PSNR",
+        ),
     ];
     for (what, edit, needle) in edits {
         let mut v = original.clone();
@@ -378,7 +454,10 @@ fn merge_refuses_values_no_run_of_the_job_gives() {
         let o = frameless(&root, &["merge", "results", "--out", "merged"], &[]);
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(1), "{what} was merged: {err}");
-        assert!(err.contains(file.file_name().unwrap().to_str().unwrap()), "{what}: {err}");
+        assert!(
+            err.contains(file.file_name().unwrap().to_str().unwrap()),
+            "{what}: {err}"
+        );
         assert!(err.contains(needle), "{what}: `{needle}` not in {err}");
     }
 }
@@ -399,12 +478,18 @@ fn a_bad_wgpu_backend_is_named_with_its_valid_values() {
     let o = run("gpu");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("WGPU_BACKEND=nonsense") && err.contains("vulkan"), "{err}");
+    assert!(
+        err.contains("WGPU_BACKEND=nonsense") && err.contains("vulkan"),
+        "{err}"
+    );
     assert!(!err.contains("install a Vulkan driver"), "{err}");
     let o = run("auto");
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("WGPU_BACKEND") && err.contains("on the CPU"), "{err}");
+    assert!(
+        err.contains("WGPU_BACKEND") && err.contains("on the CPU"),
+        "{err}"
+    );
 }
 
 /// `--recon auto` stays on the CPU whatever keeps it from a GPU, a
@@ -429,7 +514,16 @@ fn too_many_threads_for_live_blame_threads() {
     let root = dir("threads");
     let o = frameless(
         &root,
-        &["--threads", "1024", "live", "--method", "adaptive", "--no-cache", "--out", "out"],
+        &[
+            "--threads",
+            "1024",
+            "live",
+            "--method",
+            "adaptive",
+            "--no-cache",
+            "--out",
+            "out",
+        ],
         &[],
     );
     let err = stderr(&o);

@@ -67,7 +67,12 @@ fn to_display<'py>(
 /// The error of `to_display` for anything but an `H×W×3` float32 array, saying what it
 /// was given: numpy's own says only that an `ndarray` cannot be cast as an `ndarray`.
 fn not_an_image(given: &Bound<'_, PyAny>) -> PyErr {
-    let text = |name: &str| given.getattr(name).and_then(|v| v.str()).map(|s| s.to_string());
+    let text = |name: &str| {
+        given
+            .getattr(name)
+            .and_then(|v| v.str())
+            .map(|s| s.to_string())
+    };
     let given = match (text("shape"), text("dtype")) {
         (Ok(shape), Ok(dtype)) => format!("an array of shape {shape} and dtype {dtype}"),
         _ => match given.get_type().name() {

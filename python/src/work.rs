@@ -16,8 +16,8 @@
 //! finalises, waits until every thread inside this module has let go of the GIL.
 
 use std::{
-    panic::{self, AssertUnwindSafe},
     cell::Cell,
+    panic::{self, AssertUnwindSafe},
     sync::{
         atomic::{AtomicBool, AtomicU64, Ordering},
         Condvar, Mutex, Once, PoisonError,

@@ -128,21 +128,33 @@ pub fn run(cli: Cli) -> Result<()> {
 /// would delete an input inside it, after the input was read and with the command
 /// succeeding, so every such command is checked here, before any work.
 fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> {
-    let scene = |s: &str| -> Option<std::path::PathBuf> { (!builtin::NAMES.contains(&s)).then(|| s.into()) };
+    let scene = |s: &str| -> Option<std::path::PathBuf> {
+        (!builtin::NAMES.contains(&s)).then(|| s.into())
+    };
     let cache = |dir: &Option<std::path::PathBuf>, off: bool| {
         (!off).then(|| dir.clone().unwrap_or_else(default_cache_dir))
     };
     let (out, inputs) = match cmd {
         Command::Eval(a) => (
             &a.out,
-            [a.camera_path.clone(), scene(&a.scene), cache(&a.cache_dir, a.no_cache)].into(),
+            [
+                a.camera_path.clone(),
+                scene(&a.scene),
+                cache(&a.cache_dir, a.no_cache),
+            ]
+            .into(),
         ),
         Command::Render(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
         Command::Sampler(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
         Command::View(a) if a.headless => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
         Command::Live(a) => (
             &a.out,
-            [a.camera_path.clone(), scene(&a.scene), cache(&a.cache_dir, a.no_cache)].into(),
+            [
+                a.camera_path.clone(),
+                scene(&a.scene),
+                cache(&a.cache_dir, a.no_cache),
+            ]
+            .into(),
         ),
         Command::Table1(a) => {
             let bart = a
@@ -260,12 +272,15 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
             Ok(None)
         }
         Err(e) if choice == ReconDevice::Auto => {
-            eprintln!("note: --recon auto: {}; reconstructing on the CPU", message(&e));
+            eprintln!(
+                "note: --recon auto: {}; reconstructing on the CPU",
+                message(&e)
+            );
             Ok(None)
         }
-        Err(e) => {
-            Err(e.context(format!("--recon {choice} (--recon cpu reconstructs on the CPU)")))
-        }
+        Err(e) => Err(e.context(format!(
+            "--recon {choice} (--recon cpu reconstructs on the CPU)"
+        ))),
     }
 }
 

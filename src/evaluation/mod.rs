@@ -571,7 +571,8 @@ pub struct Summary {
     pub timing: Timing,
 }
 
-/// The largest RMS or instability of 0–255 RGB images, 255·√3, with room for rounding.
+/// The largest RMS or instability of 0–255 RGB images, 255·√3 (√3 written out: `sqrt`
+/// is not `const`), with room for rounding.
 const MOST_RMS: f64 = 255.0 * 1.732_050_807_568_877_2 + 1e-6;
 
 impl FrameRow {
@@ -581,7 +582,6 @@ impl FrameRow {
     /// those RMS values give, or an age that is neither NaN (nothing shown yet) nor a
     /// finite time.
     pub fn out_of_range(&self) -> Option<String> {
-        let most = MOST_RMS;
         let within = |v: f64, hi: f64| v.is_finite() && (0.0..=hi).contains(&v);
         if !(self.time.is_finite() && self.time.abs() <= limits::MAX_SCENE_TIME_S) {
             return Some(format!(
@@ -589,7 +589,7 @@ impl FrameRow {
                 self.time
             ));
         }
-        if !within(self.rms, most) || !self.instability.is_none_or(|v| within(v, most)) {
+        if !within(self.rms, MOST_RMS) || !self.instability.is_none_or(|v| within(v, MOST_RMS)) {
             return Some("an RMS or instability outside [0, 255·√3]".into());
         }
         if !self.flip.is_none_or(|v| within(v, 1.0)) {
@@ -658,7 +658,11 @@ impl ResultRow {
             ("rms_mean", self.rms_mean, m.rms_mean),
             ("psnr_mean", self.psnr_mean, m.psnr_mean),
             ("flip_mean", self.flip_mean, m.flip_mean),
-            ("instability_mean", self.instability_mean, m.instability_mean),
+            (
+                "instability_mean",
+                self.instability_mean,
+                m.instability_mean,
+            ),
             ("age_mean_s", self.age_mean_s, m.age_mean_s),
         ];
         let (key, said, is) = means.into_iter().find(|&(_, a, b)| !same(a, b))?;
@@ -1315,9 +1319,11 @@ pub fn rewrite_reports(dir: &std::path::Path) -> Result<Vec<PathBuf>, EvalError>
     let folders = table
         .animations
         .iter()
-        .map(|a| match plain_folder_name(&a.name) {
-            true => Ok(dir.join(&a.name)),
-            false => Err(EvalError::Data {
+        .map(|a| {
+            if plain_folder_name(&a.name) {
+                return Ok(dir.join(&a.name));
+            }
+            Err(EvalError::Data {
                 path: path.clone(),
                 why: format!(
                     "animation name `{}` is not a folder name (one name, without `/` or \
@@ -1325,7 +1331,7 @@ pub fn rewrite_reports(dir: &std::path::Path) -> Result<Vec<PathBuf>, EvalError>
                     a.name,
                     dir.display()
                 ),
-            }),
+            })
         })
         .collect::<Result<Vec<_>, _>>()?;
     folders.iter().map(|d| report::rewrite(d)).collect()

@@ -371,7 +371,10 @@ mod tests {
         let tiny = GOOD.replace("\n2,2,", "\n1e-300,2,");
         let e = CameraPath::parse("p.csv", &tiny).unwrap_err().to_string();
         assert!(e.contains("p.csv:3:1"), "{e}");
-        assert!(e.contains("time 1e-300 does not increase (previous 0)"), "{e}");
+        assert!(
+            e.contains("time 1e-300 does not increase (previous 0)"),
+            "{e}"
+        );
         assert!(e.contains("32-bit"), "{e}");
         let same = GOOD.replace("\n2,2,", "\n0.0,2,");
         let e = CameraPath::parse("p.csv", &same).unwrap_err().to_string();

@@ -181,7 +181,10 @@ impl LiveConfig {
             // Only the thread counts of a method's defaults depend on the cores, so an
             // error of these is the cores' (`--threads`), not the method's.
             if let Err(e) = RtConfig::for_cores(m, self.cores).validate() {
-                return bad(Setting::Threads, format!("{}: for {}, {e}", self.cores, m.name()));
+                return bad(
+                    Setting::Threads,
+                    format!("{}: for {}, {e}", self.cores, m.name()),
+                );
             }
             let c = self.rt_config(m);
             let check = c

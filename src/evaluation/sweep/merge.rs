@@ -404,8 +404,12 @@ fn check_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
         }
     }
     for row in &r.results {
-        let mut frames: Vec<FrameRow> =
-            r.frames.iter().filter(|f| f.rate == row.rate).cloned().collect();
+        let mut frames: Vec<FrameRow> = r
+            .frames
+            .iter()
+            .filter(|f| f.rate == row.rate)
+            .cloned()
+            .collect();
         frames.sort_by_key(|f| f.frame);
         if let Some(why) = row.disagrees_with(&frames) {
             return Err(format!("the result row at {}: {why}", row.rate));
