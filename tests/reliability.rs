@@ -307,8 +307,10 @@ fn eval_folder(at: &Path) {
 }
 
 /// `report` under an address-space limit, so that a read without bounds fails at once
-/// instead of taking the machine's memory.
-#[cfg(unix)]
+/// instead of taking the machine's memory (4 GiB: far more than the command maps to
+/// start, threads and GPU libraries included). A report still running after a minute
+/// is killed: it is waiting on something it should not have opened.
+#[cfg(target_os = "linux")]
 fn report_bounded(d: &Path) -> Output {
     use std::os::unix::process::CommandExt;
     let mut c = Command::new(env!("CARGO_BIN_EXE_frameless"));
@@ -327,10 +329,41 @@ fn report_bounded(d: &Path) -> Output {
             Ok(())
         });
     }
-    c.output().unwrap()
+    let mut child = c
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() && t0.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let _ = child.kill();
+    child.wait_with_output().unwrap()
 }
 
-#[cfg(unix)]
+/// A strip image that is a FIFO: refused as not a regular file, without opening it
+/// (an open would wait for a writer that never comes).
+#[cfg(target_os = "linux")]
+#[test]
+fn report_refuses_a_strip_that_is_a_fifo() {
+    let d = dir("report-fifo");
+    eval_folder(&d);
+    let strip = d.join("strip_400K_0060.png");
+    std::fs::remove_file(&strip).unwrap();
+    let name = std::ffi::CString::new(strip.to_str().unwrap()).unwrap();
+    // SAFETY: a valid C string; mkfifo only creates the file.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o644) }, 0);
+    let o = report_bounded(&d);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("strip_400K_0060.png") && err.contains("not a regular file"),
+        "{err}"
+    );
+}
+
+#[cfg(target_os = "linux")]
 #[test]
 fn report_refuses_a_summary_that_is_a_device() {
     let d = dir("report-device");
