@@ -450,7 +450,7 @@ fn merge_refuses_values_no_run_of_the_job_gives() {
         stderr(&o)
     );
     type Edit = fn(&mut serde_json::Value);
-    let edits: [(&str, Edit, &str); 5] = [
+    let edits: [(&str, Edit, &str); 7] = [
         (
             "rms_mean 1e308",
             |v| v["results"][0]["rms_mean"] = 1e308.into(),
@@ -478,6 +478,16 @@ fn merge_refuses_values_no_run_of_the_job_gives() {
             "a PSNR of 1e308",
             |v| v["frames"][0]["psnr"] = 1e308.into(),
             "PSNR",
+        ),
+        (
+            "another effective rate",
+            |v| v["results"][0]["effective_rate"] = 1e308.into(),
+            "effective_rate",
+        ),
+        (
+            "samples past the budget",
+            |v| v["results"][0]["samples"] = 1_000_000_000u64.into(),
+            "over the",
         ),
     ];
     for (what, edit, needle) in edits {
