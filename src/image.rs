@@ -1,7 +1,7 @@
 //! Linear RGB images and their display form (clamped to [0, 1], quantized to 8 bits),
 //! written as PNG (the display form) or OpenEXR (the linear values, unclamped: HDR).
 
-use std::{fs::File, path::Path};
+use std::path::Path;
 
 use glam::Vec3;
 
@@ -256,9 +256,12 @@ pub struct StoredPng {
     pub text: Vec<(String, String)>,
 }
 
-/// Read a PNG exactly as stored (no expansion of palettes, depths or alpha).
+/// Read a PNG exactly as stored (no expansion of palettes, depths or alpha). Only a
+/// regular file within the data-file limit is read ([`crate::limits::read_file`]): a
+/// strip or cache entry may be a link to a device.
 pub fn read_png(path: &Path) -> std::io::Result<StoredPng> {
-    let dec = png::Decoder::new(std::io::BufReader::new(File::open(path)?));
+    let bytes = crate::limits::read_file(path, crate::limits::MAX_DATA_FILE_BYTES)?;
+    let dec = png::Decoder::new(std::io::Cursor::new(bytes));
     let mut reader = dec.read_info().map_err(std::io::Error::other)?;
     let text = reader
         .info()

@@ -203,8 +203,8 @@ pub const MAX_RATES: usize = 64;
 /// Most jobs (method × rate runs over all evaluations, sizes and seeds) in one sweep.
 pub const MAX_SWEEP_JOBS: usize = 100_000;
 
-/// Largest data file `report` and `merge` read (`summary.json`, `frames.csv`, a job
-/// result): a window of an hour at the fastest refresh, every method and rate, is
+/// Largest data file `report` and `merge` read (`summary.json`, `frames.csv`, a strip
+/// image, a job result): a window of an hour at the fastest refresh, every method and rate, is
 /// well under it.
 pub const MAX_DATA_FILE_BYTES: u64 = 1 << 30;
 
@@ -213,13 +213,16 @@ pub const MAX_DATA_FILE_BYTES: u64 = 1 << 30;
 /// otherwise be read until memory runs out.
 pub fn read_file(path: &std::path::Path, max_bytes: u64) -> std::io::Result<Vec<u8>> {
     use std::io::Read;
+    let not_regular =
+        || std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file");
+    // Asked before opening too: opening a FIFO waits for a writer, which may never come.
+    if !std::fs::metadata(path)?.is_file() {
+        return Err(not_regular());
+    }
     let file = std::fs::File::open(path)?;
     let meta = file.metadata()?;
     if !meta.is_file() {
-        return Err(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            "not a regular file",
-        ));
+        return Err(not_regular());
     }
     let too_big = || {
         std::io::Error::new(

@@ -55,8 +55,8 @@ pub enum OutputError {
         /// What is there and what was expected.
         why: &'static str,
     },
-    /// The output folder is, holds or lies inside a folder the command reads.
-    #[error("{}: the output folder {how} the input folder {}; writing it would replace what is read", path.display(), input.display())]
+    /// The output folder is, holds or lies inside a file or folder the command reads.
+    #[error("{}: the output folder {how} the input {}; writing it would replace what is read", path.display(), input.display())]
     Overlaps {
         /// The output asked for.
         path: PathBuf,
@@ -234,8 +234,8 @@ pub fn check_folder_target(path: &Path) -> Result<(), OutputError> {
     Ok(())
 }
 
-/// Check that the output folder `out` is not one of `inputs`, does not hold one and
-/// does not lie inside one (compared as absolute paths with links resolved, as far as
+/// Check that the output folder `out` is not one of `inputs` (files or folders), does
+/// not hold one and does not lie inside one (compared as absolute paths with links resolved, as far as
 /// they exist): an output folder is replaced whole.
 pub fn check_apart(out: &Path, inputs: &[PathBuf]) -> Result<(), OutputError> {
     let o = resolved(out);

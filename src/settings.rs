@@ -52,6 +52,8 @@ pub enum Setting {
     Size,
     /// How many times each live method runs.
     Repeat,
+    /// The cores the real-time pipeline's threads are sized for.
+    Threads,
 }
 
 impl Setting {
@@ -70,6 +72,7 @@ impl Setting {
             Setting::MaxDepth => "max_depth",
             Setting::Size => "size",
             Setting::Repeat => "repeat",
+            Setting::Threads => "threads",
         }
     }
 
@@ -90,6 +93,7 @@ impl Setting {
             Setting::MaxDepth => "--max-depth",
             Setting::Size => "--size",
             Setting::Repeat => "--repeat",
+            Setting::Threads => "--threads",
         }
     }
 
@@ -108,6 +112,7 @@ impl Setting {
             Setting::MaxDepth => "depth limit",
             Setting::Size => "size",
             Setting::Repeat => "repeat count",
+            Setting::Threads => "threads",
         }
     }
 }

@@ -464,7 +464,7 @@ fn results_that_contradict_their_key_or_hash_are_refused() {
         let o = merge_with(&f.shards[2], out);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(
-            o.status.code() == Some(1) && err.contains("input folder"),
+            o.status.code() == Some(1) && err.contains("the input"),
             "{}: {err}",
             out.display()
         );

@@ -13,7 +13,7 @@ mod sequence;
 mod work;
 
 use numpy::{ndarray::Array3, IntoPyArray, PyArray3, PyReadonlyArray3};
-use pyo3::prelude::*;
+use pyo3::{exceptions::PyTypeError, prelude::*};
 
 /// A linear image as an `H×W×3` float32 array.
 fn to_array<'py>(py: Python<'py>, img: &frameless::image::Image) -> Bound<'py, PyArray3<f32>> {
@@ -52,10 +52,11 @@ fn from_array(a: &PyReadonlyArray3<'_, f32>) -> PyResult<frameless::image::Image
 #[pyfunction]
 fn to_display<'py>(
     py: Python<'py>,
-    image: PyReadonlyArray3<'py, f32>,
+    image: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let image: PyReadonlyArray3<'py, f32> = image.extract().map_err(|_| not_an_image(image))?;
     let img = from_array(&image)?;
-    let rgb = py.detach(|| img.to_rgb8());
+    let rgb = work::detach(py, || img.to_rgb8());
     Ok(
         Array3::from_shape_vec((img.height as usize, img.width as usize, 3), rgb)
             .expect("three bytes a pixel")
@@ -63,9 +64,35 @@ fn to_display<'py>(
     )
 }
 
+/// The error of `to_display` for anything but an `H×W×3` float32 array, saying what it
+/// was given: numpy's own says only that an `ndarray` cannot be cast as an `ndarray`.
+fn not_an_image(given: &Bound<'_, PyAny>) -> PyErr {
+    let text = |name: &str| {
+        given
+            .getattr(name)
+            .and_then(|v| v.str())
+            .map(|s| s.to_string())
+    };
+    let given = match (text("shape"), text("dtype")) {
+        (Ok(shape), Ok(dtype)) => format!("an array of shape {shape} and dtype {dtype}"),
+        _ => match given.get_type().name() {
+            Ok(name) => format!("a {name}"),
+            Err(_) => "something else".into(),
+        },
+    };
+    PyTypeError::new_err(format!(
+        "to_display takes a linear image, an H×W×3 float32 array (as Scene.still returns); \
+         it was given {given} (numpy converts the type with image.astype(numpy.float32))"
+    ))
+}
+
 #[pymodule]
 fn _frameless(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    // Before the interpreter finalises, no thread of ours may still want the GIL back.
+    m.py()
+        .import("atexit")?
+        .call_method1("register", (wrap_pyfunction!(work::at_exit, m)?,))?;
     m.add_function(wrap_pyfunction!(to_display, m)?)?;
     scene::register(m)?;
     eval::register(m)?;

@@ -49,7 +49,7 @@ impl NativeScene {
     #[staticmethod]
     #[pyo3(signature = (name, camera_path=None))]
     fn load(py: Python<'_>, name: String, camera_path: Option<PathBuf>) -> PyResult<Self> {
-        py.detach(|| load(&name, camera_path))
+        crate::work::detach(py, || load(&name, camera_path))
     }
 
     /// The scene's animation range, seconds.

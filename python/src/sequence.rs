@@ -108,7 +108,7 @@ impl NativeRender {
     ) -> PyResult<Option<(f64, Bound<'py, PyArray3<f32>>)>> {
         loop {
             let rx = &self.frames;
-            match py.detach(|| rx.recv_timeout(Duration::from_millis(100))) {
+            match crate::work::detach(py, || rx.recv_timeout(Duration::from_millis(100))) {
                 Ok(frame) => {
                     let (t, image) = frame?;
                     return Ok(Some((t, crate::to_array(py, &image))));

@@ -6,12 +6,21 @@
 //! stopped at its next report by unwinding from inside it (the `Cancelled` payload,
 //! silenced in the panic hook), so the library needs no cancellation of its own and
 //! every thread it uses returns before the call does.
+//!
+//! At exit, CPython ends a daemon thread that asks for the GIL back by unwinding its
+//! stack with a forced unwind (`pthread_exit`). Through our frames that unwind reaches
+//! PyO3's `catch_unwind`, which cannot stop it, and the process aborts (`FATAL:
+//! exception not rethrown`). So no thread of ours asks for the GIL back once exit has
+//! begun: every release of the GIL goes through [`detach`], which parks the thread for
+//! good instead, and an `atexit` hook ([`at_exit`]), which runs before the interpreter
+//! finalises, waits until every thread inside this module has let go of the GIL.
 
 use std::{
+    cell::Cell,
     panic::{self, AssertUnwindSafe},
     sync::{
         atomic::{AtomicBool, AtomicU64, Ordering},
-        Mutex, Once,
+        Condvar, Mutex, Once, PoisonError,
     },
     time::Duration,
 };
@@ -25,6 +34,102 @@ const SLICE: Duration = Duration::from_millis(100);
 
 /// The unwinding payload of a cancelled run.
 struct Cancelled;
+
+/// Whether the interpreter is exiting, and how many threads are inside this module
+/// holding (or waiting for) the GIL.
+struct GateState {
+    exiting: bool,
+    attached: usize,
+}
+
+static GATE: Mutex<GateState> = Mutex::new(GateState {
+    exiting: false,
+    attached: 0,
+});
+static GATE_CHANGED: Condvar = Condvar::new();
+
+fn gate() -> std::sync::MutexGuard<'static, GateState> {
+    GATE.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+fn attached_less_one() {
+    gate().attached -= 1;
+    GATE_CHANGED.notify_all();
+}
+
+thread_local! {
+    /// This thread's calls into the module under way (a progress callback may call in
+    /// again); the thread counts as attached once, at the first.
+    static DEPTH: Cell<u32> = const { Cell::new(0) };
+}
+
+/// Marks this thread as inside the module, holding the GIL, while it lives.
+pub struct Inside(());
+
+impl Inside {
+    pub fn new() -> Inside {
+        if DEPTH.get() == 0 {
+            gate().attached += 1;
+        }
+        DEPTH.set(DEPTH.get() + 1);
+        Inside(())
+    }
+}
+
+impl Drop for Inside {
+    fn drop(&mut self) {
+        DEPTH.set(DEPTH.get() - 1);
+        if DEPTH.get() == 0 {
+            attached_less_one();
+        }
+    }
+}
+
+/// `py.detach(f)`, except that once the interpreter is exiting the thread never takes
+/// the GIL back: it parks for good, and the process's exit ends it.
+pub fn detach<T, F>(py: Python<'_>, f: F) -> T
+where
+    F: Send + FnOnce() -> T,
+    T: Send,
+{
+    let _inside = Inside::new();
+    attached_less_one();
+    py.detach(move || {
+        let _back = Reattach;
+        f()
+    })
+}
+
+/// Counts the thread as attached again as it leaves a [`detach`] (also when unwinding
+/// from it), or parks it for good once the interpreter is exiting.
+struct Reattach;
+
+impl Drop for Reattach {
+    fn drop(&mut self) {
+        let mut g = gate();
+        if g.exiting {
+            drop(g);
+            loop {
+                std::thread::park();
+            }
+        }
+        g.attached += 1;
+    }
+}
+
+/// The `atexit` hook: from now on no thread takes the GIL back through [`detach`];
+/// wait, with the GIL released, until no thread is inside the module holding or
+/// waiting for it (a thread in a progress callback returns to its next wait).
+#[pyfunction]
+pub fn at_exit(py: Python<'_>) {
+    gate().exiting = true;
+    py.detach(|| {
+        let mut g = gate();
+        while g.attached > 0 {
+            g = GATE_CHANGED.wait(g).unwrap_or_else(PoisonError::into_inner);
+        }
+    });
+}
 
 /// Progress shared between the working thread and the waiting one.
 #[derive(Default)]
@@ -94,6 +199,8 @@ pub fn run<T: Send + 'static>(
     job: impl FnOnce(&Work) -> PyResult<T> + Send + 'static,
 ) -> PyResult<T> {
     quiet_cancellation();
+    // Counted for the whole call: the progress callback runs Python code between waits.
+    let _inside = Inside::new();
     let work = std::sync::Arc::new(Work::default());
     let (tx, rx) = mpsc::unbounded::<Outcome<T>>();
     let shared = work.clone();
@@ -112,7 +219,7 @@ pub fn run<T: Send + 'static>(
         }
     };
     loop {
-        match py.detach(|| rx.recv_timeout(SLICE)) {
+        match detach(py, || rx.recv_timeout(SLICE)) {
             Ok(outcome) => {
                 let value = finish(outcome)?;
                 report(&work)?;
@@ -126,7 +233,7 @@ pub fn run<T: Send + 'static>(
         if let Err(e) = py.check_signals().and_then(|()| report(&work)) {
             // Ctrl-C, or the callback failed: stop the run, wait for its threads.
             work.cancel.store(true, Ordering::Relaxed);
-            let _ = py.detach(|| rx.recv());
+            let _ = detach(py, || rx.recv());
             return Err(e);
         }
     }

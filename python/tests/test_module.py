@@ -12,6 +12,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -252,3 +253,60 @@ def test_long_work_releases_the_gil(toycar):
     t.join()
     assert seconds > 0.2, "the render is too short to tell"
     assert ticks[0] > 10 * seconds, (ticks[0], seconds)
+
+
+@pytest.mark.parametrize(
+    "image",
+    [
+        np.zeros((4, 6, 3), np.float64),
+        np.zeros((4, 6, 3), np.int64),
+        np.zeros((4, 6), np.float32),
+    ],
+    ids=["float64", "int64", "2-D"],
+)
+def test_to_display_names_the_array_it_takes(image):
+    with pytest.raises(TypeError) as e:
+        frameless.to_display(image)
+    message = str(e.value)
+    assert "H×W×3 float32" in message, message
+    assert str(image.shape) in message and str(image.dtype) in message, message
+    assert frameless.to_display(np.zeros((4, 6, 3), np.float32)).shape == (4, 6, 3)
+
+
+# Python exits while a daemon thread is inside a still. A C-level exit function that
+# reads stdin holds the interpreter at the end of its finalisation until the test
+# closes stdin, so the still's thread, whose waits end every tenth of a second, would
+# ask for the GIL back during finalisation every time, not only on a loaded machine.
+EXIT_INSIDE_A_STILL = """
+import ctypes, threading
+import frameless
+
+scene = frameless.Scene.load("toycar")
+inside = threading.Event()
+
+def still():
+    scene.still(size=(512, 384), spp=4096, progress=lambda done, total, what: inside.set())
+
+threading.Thread(target=still, daemon=True).start()
+assert inside.wait(60)
+ctypes.pythonapi.Py_AtExit(ctypes.cast(ctypes.CDLL(None).getchar, ctypes.c_void_p))
+print("inside", flush=True)
+"""
+
+
+def test_exit_with_a_thread_inside_a_still_is_clean():
+    p = subprocess.Popen(
+        [sys.executable, "-c", EXIT_INSIDE_A_STILL],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        assert p.stdout.readline().strip() == "inside", p.stderr.read()
+        # Ten of the thread's waits: it would have asked for the GIL by then.
+        time.sleep(1.0)
+        p.stdin.close()
+        p.wait(60)
+    finally:
+        p.kill()
+    err = p.stderr.read()
+    assert p.returncode == 0, (p.returncode, err)
+    assert "FATAL" not in err, err

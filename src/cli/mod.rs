@@ -65,6 +65,9 @@ pub fn run(cli: Cli) -> Result<()> {
             .build_global()
             .context("setting the thread count")?;
     }
+    if let Some((out, inputs)) = folder_and_inputs(&cli.command) {
+        frameless::output::check_apart(out, &inputs)?;
+    }
     match cli.command {
         Command::Scenes => {
             for (name, desc) in builtin::NAMES.iter().zip(builtin::DESCRIPTIONS) {
@@ -118,6 +121,52 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Report(a) => rewrite_report(&a.dir),
         Command::Bench(a) => bench(a),
     }
+}
+
+/// The output folder a command replaces whole and the paths it reads (scene file,
+/// camera path, ideal-image cache, BART folder, result folders): replacing the folder
+/// would delete an input inside it, after the input was read and with the command
+/// succeeding, so every such command is checked here, before any work.
+fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> {
+    let scene = |s: &str| -> Option<std::path::PathBuf> {
+        (!builtin::NAMES.contains(&s)).then(|| s.into())
+    };
+    let cache = |dir: &Option<std::path::PathBuf>, off: bool| {
+        (!off).then(|| dir.clone().unwrap_or_else(default_cache_dir))
+    };
+    let (out, inputs) = match cmd {
+        Command::Eval(a) => (
+            &a.out,
+            [
+                a.camera_path.clone(),
+                scene(&a.scene),
+                cache(&a.cache_dir, a.no_cache),
+            ]
+            .into(),
+        ),
+        Command::Render(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
+        Command::Sampler(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
+        Command::View(a) if a.headless => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
+        Command::Live(a) => (
+            &a.out,
+            [
+                a.camera_path.clone(),
+                scene(&a.scene),
+                cache(&a.cache_dir, a.no_cache),
+            ]
+            .into(),
+        ),
+        Command::Table1(a) => {
+            let bart = a
+                .bart
+                .clone()
+                .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into));
+            (&a.out, vec![bart, cache(&a.cache_dir, false)])
+        }
+        Command::Merge(a) => (&a.out, a.results.iter().cloned().map(Some).collect()),
+        _ => return None,
+    };
+    Some((out.as_path(), inputs.into_iter().flatten().collect()))
 }
 
 /// `frameless bench`: throughput of the tracer, the reconstructor (on `--recon`'s
@@ -247,17 +296,68 @@ fn print_bench(report: &bench::BenchReport) {
 
 /// The GPU `choice` asks for, acquired once for the whole command, with one line on
 /// stderr saying where the reconstructor runs when that is not the CPU asked for.
+/// `auto` stays on the CPU whenever no GPU can be had, for any reason: a machine's
+/// environment (`WGPU_BACKEND`, `WGPU_ADAPTER_NAME`, a driver) must not decide whether a
+/// run that accepts either device runs at all.
 fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
-    let gpu = device::acquire(choice)
-        .with_context(|| format!("--recon {choice} (--recon cpu reconstructs on the CPU)"))?;
-    match &gpu {
-        Some(g) => eprintln!("reconstructing on {}", g.describe()),
-        None if choice == ReconDevice::Auto => {
-            eprintln!("note: no hardware GPU adapter; reconstructing on the CPU")
-        }
-        None => {}
+    if choice == ReconDevice::Cpu {
+        return Ok(None);
     }
-    Ok(gpu)
+    let got = check_wgpu_backend()
+        .map_err(anyhow::Error::msg)
+        .and_then(|()| Ok(device::acquire(choice)?));
+    match got {
+        Ok(Some(g)) => {
+            eprintln!("reconstructing on {}", g.describe());
+            Ok(Some(g))
+        }
+        Ok(None) => {
+            eprintln!("note: no hardware GPU adapter; reconstructing on the CPU");
+            Ok(None)
+        }
+        Err(e) if choice == ReconDevice::Auto => {
+            eprintln!(
+                "note: --recon auto: {}; reconstructing on the CPU",
+                message(&e)
+            );
+            Ok(None)
+        }
+        Err(e) => Err(e.context(format!(
+            "--recon {choice} (--recon cpu reconstructs on the CPU)"
+        ))),
+    }
+}
+
+/// Check `WGPU_BACKEND` as wgpu reads it (comma-separated backend names). wgpu skips a
+/// name it does not know, and with no name left it lists no adapter, which the library
+/// can only report as a missing driver; so the variable is named here instead.
+#[cfg(feature = "gpu")]
+fn check_wgpu_backend() -> Result<(), String> {
+    let Some(value) = std::env::var_os("WGPU_BACKEND") else {
+        return Ok(());
+    };
+    let value = value.to_string_lossy();
+    let unknown: Vec<String> = value
+        .split(',')
+        .filter(|name| wgpu::Backends::from_comma_list(name).is_empty())
+        .map(|name| format!("`{}`", name.trim()))
+        .collect();
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    let valid: Vec<&str> = wgpu::Backend::ALL.iter().map(|b| b.to_str()).collect();
+    Err(format!(
+        "WGPU_BACKEND={value}: {} names no wgpu backend; its valid values are {}, \
+         comma-separated (or leave it unset for all of them)",
+        unknown.join(", "),
+        valid.join(", ")
+    ))
+}
+
+/// Without the `gpu` feature no GPU is ever asked for, so nothing reads `WGPU_BACKEND`.
+#[cfg(not(feature = "gpu"))]
+fn check_wgpu_backend() -> Result<(), String> {
+    Ok(())
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
@@ -822,24 +922,15 @@ pub fn load_scene(arg: &str) -> Result<Scene> {
 /// Table 1 folder's.
 fn rewrite_report(dir: &Path) -> Result<()> {
     let summary = dir.join("summary.json");
-    let text = std::fs::read_to_string(&summary).with_context(|| {
-        format!(
-            "{}: not an output folder of `frameless eval`, `frameless table1` or `frameless live`",
-            summary.display()
-        )
-    })?;
-    if serde_json::from_str::<evaluation::live::LiveSummary>(&text).is_ok() {
-        let p = evaluation::live::rewrite(dir)?;
-        println!("report: {}", p.display());
-        return Ok(());
+    if summary.symlink_metadata().is_err() {
+        bail!(
+            "{}: not found, so {} is not an output folder of `frameless eval`, `frameless \
+             table1` or `frameless live`",
+            summary.display(),
+            dir.display()
+        );
     }
-    let dirs: Vec<std::path::PathBuf> =
-        match serde_json::from_str::<evaluation::table1::TableSummary>(&text) {
-            Ok(t) => t.animations.iter().map(|a| dir.join(&a.name)).collect(),
-            Err(_) => vec![dir.to_path_buf()],
-        };
-    for d in dirs {
-        let p = report::rewrite(&d)?;
+    for p in evaluation::rewrite_reports(dir)? {
         println!("report: {}", p.display());
     }
     Ok(())

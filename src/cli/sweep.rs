@@ -105,7 +105,6 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
 }
 
 pub fn merge(a: MergeArgs) -> Result<()> {
-    frameless::output::check_apart(&a.out, &a.results)?;
     frameless::output::check_folder_target(&a.out)?;
     let mut merged = sweep::merge(&a.results)?;
     let report = sweep::write_merged(&mut merged, &a.out)

@@ -571,13 +571,17 @@ pub struct Summary {
     pub timing: Timing,
 }
 
+/// The largest RMS or instability of 0–255 RGB images, 255·√3 (√3 written out: `sqrt`
+/// is not `const`), with room for rounding.
+const MOST_RMS: f64 = 255.0 * 1.732_050_807_568_877_2 + 1e-6;
+
 impl FrameRow {
     /// What in the row no run writes: a time outside the scene times a run may touch,
     /// an error that is negative, not finite or past its largest value (RMS and
-    /// instability over 0–255 RGB: at most 255·√3; FLIP at most 1), a NaN PSNR, or an
-    /// age that is neither NaN (nothing shown yet) nor a finite time.
+    /// instability over 0–255 RGB: at most 255·√3; FLIP at most 1), a PSNR outside what
+    /// those RMS values give, or an age that is neither NaN (nothing shown yet) nor a
+    /// finite time.
     pub fn out_of_range(&self) -> Option<String> {
-        let most = 255.0 * 3f64.sqrt() + 1e-6;
         let within = |v: f64, hi: f64| v.is_finite() && (0.0..=hi).contains(&v);
         if !(self.time.is_finite() && self.time.abs() <= limits::MAX_SCENE_TIME_S) {
             return Some(format!(
@@ -585,19 +589,87 @@ impl FrameRow {
                 self.time
             ));
         }
-        if !within(self.rms, most) || !self.instability.is_none_or(|v| within(v, most)) {
+        if !within(self.rms, MOST_RMS) || !self.instability.is_none_or(|v| within(v, MOST_RMS)) {
             return Some("an RMS or instability outside [0, 255·√3]".into());
         }
         if !self.flip.is_none_or(|v| within(v, 1.0)) {
             return Some("a FLIP outside [0, 1]".into());
         }
-        if self.psnr.is_nan() {
-            return Some("a PSNR that is not a number".into());
+        // `frames.csv` rounds PSNR to 4 decimals, so a capped value may read a little over.
+        let psnr = metrics::psnr(MOST_RMS) - 1e-3..=metrics::PSNR_CAP_DB + 1e-3;
+        if !psnr.contains(&self.psnr) {
+            return Some(format!(
+                "PSNR {} outside the {:.2} to {} dB that RMS values give",
+                self.psnr,
+                psnr.start(),
+                metrics::PSNR_CAP_DB
+            ));
         }
         if !(self.age_s.is_nan() || (self.age_s.is_finite() && self.age_s.abs() <= 1e6)) {
             return Some(format!("age {} is not a time", self.age_s));
         }
         None
+    }
+}
+
+/// What a result row says of its frame rows, computed from them.
+struct FrameMeans {
+    frames: usize,
+    rms_mean: f64,
+    psnr_mean: f64,
+    flip_mean: f64,
+    flip_frames: usize,
+    instability_mean: f64,
+    age_mean_s: f64,
+}
+
+fn frame_means(rows: &[FrameRow]) -> FrameMeans {
+    let mean = |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
+    let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
+    let instabilities: Vec<f64> = rows.iter().filter_map(|r| r.instability).collect();
+    FrameMeans {
+        frames: rows.len(),
+        rms_mean: mean(|r| r.rms),
+        psnr_mean: mean(|r| r.psnr),
+        flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
+        flip_frames: flips.len(),
+        instability_mean: instabilities.iter().sum::<f64>() / instabilities.len().max(1) as f64,
+        age_mean_s: mean(|r| r.age_s),
+    }
+}
+
+impl ResultRow {
+    /// Where the row says other than its frame rows `rows` (a method at one rate): a
+    /// frame count or a mean that is not theirs. A file can be edited, so its
+    /// aggregates are only taken when its rows give them.
+    pub fn disagrees_with(&self, rows: &[FrameRow]) -> Option<String> {
+        let m = frame_means(rows);
+        if (self.frames, self.flip_frames) != (m.frames, m.flip_frames) {
+            return Some(format!(
+                "frames {} and flip_frames {}, but {} frame rows with {} FLIP values",
+                self.frames, self.flip_frames, m.frames, m.flip_frames
+            ));
+        }
+        // Summed in the same order, so equal but for a last bit where a mean is rounded.
+        let same = |a: f64, b: f64| {
+            (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+        };
+        let means = [
+            ("rms_mean", self.rms_mean, m.rms_mean),
+            ("psnr_mean", self.psnr_mean, m.psnr_mean),
+            ("flip_mean", self.flip_mean, m.flip_mean),
+            (
+                "instability_mean",
+                self.instability_mean,
+                m.instability_mean,
+            ),
+            ("age_mean_s", self.age_mean_s, m.age_mean_s),
+        ];
+        let (key, said, is) = means.into_iter().find(|&(_, a, b)| !same(a, b))?;
+        Some(format!(
+            "{key} {said} is not the mean of its {} frame rows ({is})",
+            m.frames
+        ))
     }
 }
 
@@ -1202,20 +1274,18 @@ fn measure(
 
 /// The means of one method's frames at one rate.
 fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> ResultRow {
-    let mean = |f: fn(&FrameRow) -> f64| rows.iter().map(f).sum::<f64>() / rows.len() as f64;
-    let flips: Vec<f64> = rows.iter().filter_map(|r| r.flip).collect();
-    let instabilities: Vec<f64> = rows.iter().filter_map(|r| r.instability).collect();
+    let m = frame_means(rows);
     ResultRow {
         method: kind,
         rate,
         effective_rate: shown.effective_rate,
-        frames: rows.len(),
-        rms_mean: mean(|r| r.rms),
-        psnr_mean: mean(|r| r.psnr),
-        flip_mean: flips.iter().sum::<f64>() / flips.len().max(1) as f64,
-        flip_frames: flips.len(),
-        instability_mean: instabilities.iter().sum::<f64>() / instabilities.len().max(1) as f64,
-        age_mean_s: mean(|r| r.age_s),
+        frames: m.frames,
+        rms_mean: m.rms_mean,
+        psnr_mean: m.psnr_mean,
+        flip_mean: m.flip_mean,
+        flip_frames: m.flip_frames,
+        instability_mean: m.instability_mean,
+        age_mean_s: m.age_mean_s,
         samples: shown.samples,
         extra: shown.extra.clone(),
     }
@@ -1229,6 +1299,49 @@ pub fn overhead_fraction(t: &Timing) -> f64 {
         return 0.0;
     }
     ((total - t.trace_s) / total).max(0.0)
+}
+
+/// Make the reports of an `eval`, `table1` or `live` output folder `dir` again
+/// ([`report::rewrite`], [`live::rewrite`]), each of a Table 1 folder's animations in
+/// its sub-folder; the reports' paths. The folder's `summary.json` names those
+/// sub-folders and anyone can edit it, so every name must be one plain folder name,
+/// checked before any report is written: `../x` or `/x` would put reports outside `dir`.
+pub fn rewrite_reports(dir: &std::path::Path) -> Result<Vec<PathBuf>, EvalError> {
+    let path = dir.join("summary.json");
+    let text = limits::read_text(&path, limits::MAX_DATA_FILE_BYTES)
+        .map_err(|e| EvalError::io(&path, e))?;
+    if serde_json::from_str::<live::LiveSummary>(&text).is_ok() {
+        return Ok(vec![live::rewrite(dir)?]);
+    }
+    let Ok(table) = serde_json::from_str::<table1::TableSummary>(&text) else {
+        return Ok(vec![report::rewrite(dir)?]);
+    };
+    let folders = table
+        .animations
+        .iter()
+        .map(|a| {
+            if plain_folder_name(&a.name) {
+                return Ok(dir.join(&a.name));
+            }
+            Err(EvalError::Data {
+                path: path.clone(),
+                why: format!(
+                    "animation name `{}` is not a folder name (one name, without `/` or \
+                     `..`), so it names no folder of {}",
+                    a.name,
+                    dir.display()
+                ),
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    folders.iter().map(|d| report::rewrite(d)).collect()
+}
+
+/// Whether `name` joined to a folder names an entry of that folder itself.
+fn plain_folder_name(name: &str) -> bool {
+    use std::path::Component;
+    let mut parts = std::path::Path::new(name).components();
+    matches!((parts.next(), parts.next()), (Some(Component::Normal(n)), None) if n == name)
 }
 
 #[cfg(test)]

@@ -105,6 +105,23 @@ fn parse_row(name: &str, ln: usize, fields: &[&str]) -> Result<(f32, Camera), Sc
     Ok((vals[0], cam))
 }
 
+/// Why a row's time `written` is refused after the previous row's `previous`, both
+/// quoted as the file has them: times are kept as 32-bit floats, so two that differ in
+/// the file (`1e-300` and `0`) may be one time, and the rounded values would name
+/// numbers the file never says.
+fn not_increasing(written: &str, previous: &str) -> String {
+    let differ = match (written.parse::<f64>(), previous.parse::<f64>()) {
+        (Ok(a), Ok(b)) => a > b,
+        _ => false,
+    };
+    let why = if differ {
+        " (times are kept to 32-bit float precision, where the two are equal)"
+    } else {
+        ""
+    };
+    format!("time {written} does not increase (previous {previous}){why}")
+}
+
 impl CameraPath {
     /// Read a camera path file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
@@ -149,21 +166,19 @@ impl CameraPath {
             return Err(err(name, hl, 1, format!("header must be `{HEADER}`")));
         }
         let mut keys: Vec<(f32, Camera)> = Vec::new();
+        let mut previous = String::new();
         for rec in records {
             let rec = rec.map_err(csv_err)?;
             let ln = line_of(&rec);
             let fields: Vec<&str> = rec.iter().collect();
             let (t, cam) = parse_row(name, ln, &fields)?;
+            let written = fields[0].trim();
             if let Some((pt, _)) = keys.last() {
                 if t <= *pt {
-                    return Err(err(
-                        name,
-                        ln,
-                        1,
-                        format!("time {t} does not increase (previous {pt})"),
-                    ));
+                    return Err(err(name, ln, 1, not_increasing(written, &previous)));
                 }
             }
+            previous = written.to_string();
             keys.push((t, cam));
         }
         if keys.is_empty() {
@@ -347,5 +362,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("p.csv:7:5"), "{e}");
+    }
+
+    /// A time that rounds to the previous one in f32 is quoted as the file writes it,
+    /// not as the rounded number the file never says.
+    #[test]
+    fn a_time_that_does_not_increase_is_quoted_as_written() {
+        let tiny = GOOD.replace("\n2,2,", "\n1e-300,2,");
+        let e = CameraPath::parse("p.csv", &tiny).unwrap_err().to_string();
+        assert!(e.contains("p.csv:3:1"), "{e}");
+        assert!(
+            e.contains("time 1e-300 does not increase (previous 0)"),
+            "{e}"
+        );
+        assert!(e.contains("32-bit"), "{e}");
+        let same = GOOD.replace("\n2,2,", "\n0.0,2,");
+        let e = CameraPath::parse("p.csv", &same).unwrap_err().to_string();
+        assert!(e.contains("time 0.0 does not increase (previous 0)"), "{e}");
+        assert!(!e.contains("32-bit"), "{e}");
     }
 }

@@ -178,6 +178,14 @@ impl LiveConfig {
             return bad(Setting::IdealSpp, "must be at least 1".into());
         }
         for &m in &self.methods {
+            // Only the thread counts of a method's defaults depend on the cores, so an
+            // error of these is the cores' (`--threads`), not the method's.
+            if let Err(e) = RtConfig::for_cores(m, self.cores).validate() {
+                return bad(
+                    Setting::Threads,
+                    format!("{}: for {}, {e}", self.cores, m.name()),
+                );
+            }
             let c = self.rt_config(m);
             let check = c
                 .validate()

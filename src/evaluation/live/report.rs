@@ -209,22 +209,10 @@ fn write_into(out: &mut LiveOutput, dir: &Path) -> Result<(), EvalError> {
     write("report.html", html(&out.summary, &strips).as_bytes())
 }
 
-/// Largest `summary.json` or `frames.csv` read back: far above what a run can write
-/// (10 minutes at 1000 Hz of six methods run 100 times is under 40 GB of rows, but
-/// such a run could not hold its images), so a file past it is not one of ours.
-const MAX_DATA_BYTES: u64 = 1 << 30;
-
-/// The bytes of a data file of `dir`, refused past [`MAX_DATA_BYTES`] or when not a
+/// The bytes of a data file of `dir`, refused past the data-file limit or when not a
 /// regular file.
 fn read_data(path: &Path) -> Result<Vec<u8>, EvalError> {
-    let meta = std::fs::metadata(path).map_err(|e| EvalError::io(path, e))?;
-    if !meta.is_file() || meta.len() > MAX_DATA_BYTES {
-        return Err(EvalError::Data {
-            path: path.to_path_buf(),
-            why: format!("not a regular file of at most {MAX_DATA_BYTES} bytes"),
-        });
-    }
-    std::fs::read(path).map_err(|e| EvalError::io(path, e))
+    limits::read_file(path, limits::MAX_DATA_FILE_BYTES).map_err(|e| EvalError::io(path, e))
 }
 
 /// Read a live evaluation's `summary.json`.

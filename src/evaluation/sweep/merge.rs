@@ -21,8 +21,9 @@ use crate::{
     evaluation::{
         report::{self, rate_label},
         table1::{AnimationResult, Table1Output, TableSummary},
-        EvalOutput, Strip, Summary, Timing,
+        EvalConfig, EvalOutput, FrameRow, ResultRow, Strip, Summary, Timing,
     },
+    methods::MethodKind,
     output::OutputDir,
 };
 
@@ -242,7 +243,8 @@ fn assemble(
             )));
         }
         let rates = job.rate.map_or(cfg.rates.clone(), |r| vec![r]);
-        check_rows(r, &job, &rates, n).map_err(not)?;
+        check_rows(r, &job, &rates, &cfg).map_err(not)?;
+        check_values(r, &cfg).map_err(not)?;
         match &scene {
             None => scene = Some((r.job.clone(), &r.scene_fingerprint)),
             Some((first, fp)) if *fp != r.scene_fingerprint => {
@@ -337,8 +339,8 @@ fn add_strips(
 /// Check that a job's result rows, frame rows and strips are those of `job`: its
 /// method, at its `rates`, each rate's row and each of its `n` frames once, and a strip
 /// at most once per rate and frame.
-fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], n: usize) -> Result<(), String> {
-    let columns = rates.len();
+fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], cfg: &EvalConfig) -> Result<(), String> {
+    let (columns, n) = (rates.len(), cfg.frames());
     if r.results.len() != columns || r.frames.len() != columns * n {
         return Err(format!(
             "{} result rows and {} frame rows; the job has {columns} and {}",
@@ -378,6 +380,70 @@ fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], n: usize) -> Result<()
             return Err(format!(
                 "a strip at {} frame {} that is not this job's, or is there twice",
                 s.rate, s.frame
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Check the values of a job result whose rows [`check_rows`] found to be the job's:
+/// each frame row's measurements in their ranges and its time the refresh its frame
+/// index is in the job's window, and each result row the aggregate of its frame rows,
+/// at the rate its method runs at for the job's key and within that rate's budget.
+fn check_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
+    check_frame_values(r, cfg)?;
+    for row in &r.results {
+        let mut frames: Vec<FrameRow> = r
+            .frames
+            .iter()
+            .filter(|f| f.rate == row.rate)
+            .cloned()
+            .collect();
+        frames.sort_by_key(|f| f.frame);
+        let why = row
+            .disagrees_with(&frames)
+            .or_else(|| over_budget(row, r.key.method, cfg));
+        if let Some(why) = why {
+            return Err(format!("the result row at {}: {why}", row.rate));
+        }
+    }
+    Ok(())
+}
+
+/// Where a result row's rate or samples are not what its method may have at its rate
+/// column in the run `cfg` describes.
+fn over_budget(row: &ResultRow, method: MethodKind, cfg: &EvalConfig) -> Option<String> {
+    let budget = method.info().budget;
+    let rate = budget.effective_rate(&cfg.shape(), row.rate);
+    if (row.effective_rate - rate).abs() > 1e-9 * rate.abs() {
+        return Some(format!(
+            "effective_rate {}, but {method} at {} runs at {rate}",
+            row.effective_rate, row.rate
+        ));
+    }
+    let last = cfg.refresh(cfg.frames() - 1);
+    let most = cfg.clock(rate).samples_until(last);
+    if budget.enforced() && row.samples > most {
+        return Some(format!(
+            "{} samples, over the {most} its rate allows by the last refresh",
+            row.samples
+        ));
+    }
+    None
+}
+
+fn check_frame_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
+    for f in &r.frames {
+        let at = || format!("the frame row at {} frame {}", f.rate, f.frame);
+        if let Some(why) = f.out_of_range() {
+            return Err(format!("{}: {why}", at()));
+        }
+        let time = cfg.refresh(f.frame);
+        if (f.time - time).abs() > 1e-6 * time.abs().max(1.0) {
+            return Err(format!(
+                "{}: time {} is not that frame's refresh, {time} s",
+                at(),
+                f.time
             ));
         }
     }

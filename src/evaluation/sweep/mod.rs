@@ -510,9 +510,20 @@ pub fn stable_hash(bytes: &[u8]) -> u64 {
     mix64(h)
 }
 
-/// 1-based line of byte offset `at` in `text`.
-fn line_of(text: &str, at: usize) -> usize {
-    text[..at.min(text.len())].matches('\n').count() + 1
+/// The 1-based line of any byte offset of a text: the line starts are found once, so
+/// that naming the line of each of a file's tables costs a search, not a scan from
+/// the top (which made checking many tables quadratic).
+struct Lines(Vec<usize>);
+
+impl Lines {
+    fn of(text: &str) -> Lines {
+        Lines(text.match_indices('\n').map(|(i, _)| i).collect())
+    }
+
+    /// The line of byte offset `at`.
+    fn line(&self, at: usize) -> usize {
+        self.0.partition_point(|&newline| newline < at) + 1
+    }
 }
 
 /// Whether the relative path `rel` names something inside the folder it is joined to:
@@ -570,7 +581,7 @@ fn check_job_count(
 /// The evaluations as written, names checked (valid, distinct).
 fn evaluations(
     raw: Vec<RawEvaluation>,
-    text: &str,
+    lines: &Lines,
     invalid: &dyn Fn(usize, &str, String) -> SweepError,
 ) -> Result<Vec<Evaluation>, SweepError> {
     let mut evaluations: Vec<Evaluation> = Vec::with_capacity(raw.len());
@@ -595,7 +606,7 @@ fn evaluations(
             start: e.start,
             duration: e.duration,
             warmup: e.warmup,
-            line: line_of(text, at),
+            line: lines.line(at),
         });
     }
     Ok(evaluations)
@@ -609,9 +620,10 @@ impl Sweep {
             file: file.to_string(),
             message: e.to_string().trim_end().to_string(),
         })?;
+        let lines = Lines::of(text);
         let invalid = |at: usize, key: &str, why: String| SweepError::Invalid {
             file: file.to_string(),
-            line: line_of(text, at),
+            line: lines.line(at),
             key: key.to_string(),
             why,
         };
@@ -661,7 +673,7 @@ impl Sweep {
                     .into(),
             ));
         }
-        let evaluations = evaluations(raw.evaluations, text, &invalid)?;
+        let evaluations = evaluations(raw.evaluations, &lines, &invalid)?;
         let sweep = Sweep {
             name,
             report: raw.report,

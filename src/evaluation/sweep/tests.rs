@@ -194,3 +194,49 @@ fn a_method_that_ignores_the_rate_is_one_job_filling_every_column() {
         (vec![MethodKind::Adaptive], vec![t.rates[1]])
     );
 }
+
+/// A sweep of `n` evaluation tables.
+fn evaluations_text(n: usize) -> String {
+    use std::fmt::Write;
+    let mut text = minimal("");
+    for i in 0..n {
+        let _ = write!(
+            text,
+            "[[evaluation]]\nname = \"e{i}\"\nscene = \"toycar\"\nstart = 0.2\n\
+             duration = 0.1\nwarmup = 0.1\n"
+        );
+    }
+    text
+}
+
+/// Every evaluation's line is named from an index of the line starts built once; a scan
+/// from the top for each table made a file of 40,000 tables take minutes to check.
+#[test]
+fn checking_a_sweep_takes_time_about_linear_in_its_tables() {
+    let text = evaluations_text(50);
+    let s = parse(&text).unwrap();
+    for e in &s.evaluations {
+        let key = format!("name = \"{}\"", e.name);
+        let line = text.lines().position(|l| l == key).unwrap() + 1;
+        assert_eq!(e.line, line, "{}", e.name);
+    }
+    // The best of three runs, so that another process's burst does not decide. Four
+    // times the tables take about four times as long when the check is linear and
+    // sixteen times when it is quadratic; the bound lies between them.
+    let best = |n: usize| {
+        let text = evaluations_text(n);
+        (0..3)
+            .map(|_| {
+                let t0 = std::time::Instant::now();
+                parse(&text).unwrap();
+                t0.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (small, large) = (best(4_000), best(16_000));
+    assert!(
+        large / small < 8.0,
+        "4,000 tables {small:.3} s, 16,000 tables {large:.3} s: {:.1} times",
+        large / small
+    );
+}
