@@ -518,7 +518,7 @@ impl Reconstructor {
     }
 
     /// [`Reconstructor::reconstruct`]'s splat, resolve, fill and history on the GPU,
-    /// after the filter table is built.
+    /// after the filter table is built (when carrying, the carry step stays here).
     #[cfg(feature = "gpu")]
     fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
         let start = self.live_range(t);
@@ -543,17 +543,13 @@ impl Reconstructor {
             step.as_ref(),
             carried.as_ref(),
         );
-        let back = match back {
-            Ok(b) => b,
-            Err(e) => {
-                // The CPU redoes this refresh: its new samples are pending again (the
-                // sums already carried to `t` carry on over no time).
-                if let (Some(c), Some(n)) = (&mut self.carried, pending) {
-                    c.pending = n;
-                }
-                return Err(e);
+        let back = back.inspect_err(|_| {
+            // The CPU redoes this refresh: its new samples are pending again (the sums
+            // already carried to `t` carry on over no time).
+            if let (Some(c), Some(n)) = (&mut self.carried, pending) {
+                c.pending = n;
             }
-        };
+        })?;
         if let Some(sums) = &back.sums {
             let w = self.width as usize;
             gpu::carried::unpack(sums, &mut self.acc, self.cs, w, &mut self.cover);

@@ -501,15 +501,15 @@ impl GpuRecon {
     /// again).
     fn upload_carried(&self, c: &CarriedIn) -> Result<(), GpuError> {
         let n = self.width as usize * self.height as usize;
-        if self.buffers.read_acc.is_none() || c.sums.len() != n * PER_PIXEL {
+        if self.buffers.read_acc.is_none() {
+            return Err(GpuError::Failed(
+                "carried sums for a GPU side made without carrying".into(),
+            ));
+        }
+        if c.sums.len() != n * PER_PIXEL {
             return Err(GpuError::Failed(format!(
-                "carried sums of {} floats for {n} pixels on a GPU side made {} carrying",
-                c.sums.len(),
-                if self.buffers.read_acc.is_some() {
-                    "for"
-                } else {
-                    "without"
-                }
+                "carried sums of {} floats for {n} pixels",
+                c.sums.len()
             )));
         }
         self.ctx
