@@ -279,3 +279,111 @@ fn gpu_history_matches_the_cpu_through_view_changes() {
         );
     }
 }
+
+/// The camera of refresh `k` of the carrying test: still for the first refreshes
+/// (carried sums decay in place), then moving sideways and turning (they move).
+fn carry_camera(k: usize, (w, h): (u32, u32)) -> CameraFrame {
+    let m = k.saturating_sub(2) as f32;
+    crate::scene::Camera {
+        eye: Vec3::new(0.03 * m, 0.01 * m, 1.0),
+        at: Vec3::new(0.05 * m, 0.0, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 90.0,
+        hither: 1e-3,
+    }
+    .frame(w, h)
+}
+
+/// `per` samples traced through `c` over the 0.05 s before `t`: a square at `z` = 0.5
+/// moving along x before a still plane at `z` = 0, so that with the view and the
+/// square moving new samples land in front of carried sums and behind them; some
+/// marked as dynamic.
+fn carry_batch(
+    rng: &mut crate::sampling::Rng,
+    c: &CameraFrame,
+    t: f64,
+    per: usize,
+) -> Vec<(RingSample, bool)> {
+    let v = Vec3::new(0.2, 0.0, 0.0);
+    (0..per)
+        .map(|i| {
+            let (x, y) = (
+                rng.uniform() * c.width as f32,
+                rng.uniform() * c.height as f32,
+            );
+            let ts = t - 0.05 + 0.05 * (i + 1) as f64 / per as f64;
+            let d = c.direction(x, y);
+            let on_square = c.eye + d * ((0.5 - c.eye.z) / d.z);
+            let centre = v * (ts - 1.0) as f32;
+            let near = (on_square - centre).x.abs() < 0.25 && on_square.y.abs() < 0.2;
+            let (hit_point, velocity, grey) = if near {
+                (on_square, v, 0.8)
+            } else {
+                (c.eye + d * (-c.eye.z / d.z), Vec3::ZERO, 0.2)
+            };
+            let s = RingSample {
+                x,
+                y,
+                t: ts,
+                color: Vec3::new(grey, 0.5, 1.0 - grey) + Vec3::splat(0.2 * rng.uniform()),
+                hit_point,
+                velocity,
+                anchor: Default::default(),
+            };
+            (s, i % 7 == 0)
+        })
+        .collect()
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_carried_refreshes_match_the_cpu() {
+    // The carrying presets over several refreshes, with new samples between them:
+    // each GPU refresh adds its splats to sums carried (and read back) from the last.
+    let ctx = context();
+    let converging = ReconParams::converging();
+    for params in [
+        converging,
+        ReconParams::realtime(),
+        ReconParams {
+            history: None,
+            ..converging
+        },
+        ReconParams {
+            visibility: None,
+            history: None,
+            ..converging
+        },
+    ] {
+        assert!(params.carry);
+        for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {
+            let (mut cpu, _, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+            let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+            gpu.use_gpu(ctx.clone()).expect("carrying runs on the GPU");
+            let mut rng = crate::sampling::Rng::new(&[13, per as u64]);
+            for k in 0..8 {
+                let t = 1.0 + 0.05 * k as f64;
+                let cam = carry_camera(k, (w, h));
+                if k > 0 {
+                    for (s, dynamic) in carry_batch(&mut rng, &cam, t, per) {
+                        cpu.push_marked(s, dynamic);
+                        gpu.push_marked(s, dynamic);
+                    }
+                }
+                cpu.reconstruct(t, &cam, &tiling);
+                gpu.reconstruct(t, &cam, &tiling);
+                assert_eq!(gpu.gpu_failure(), None);
+                assert_eq!(cpu.placed(), gpu.placed());
+                if k > 0 {
+                    assert!(cpu.placed() <= per, "only the new samples are placed");
+                }
+                let what = format!(
+                    "{w}x{h}, {per} per refresh, visibility {}, history {}, refresh {k}",
+                    params.visibility.is_some(),
+                    params.history.is_some()
+                );
+                check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+            }
+        }
+    }
+}

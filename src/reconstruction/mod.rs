@@ -308,6 +308,7 @@ impl Reconstructor {
             self.capacity,
             scale0,
             self.history.as_ref().map(|h| *h.params()),
+            self.carried.is_some(),
         )?));
         Ok(())
     }
@@ -517,11 +518,13 @@ impl Reconstructor {
     }
 
     /// [`Reconstructor::reconstruct`]'s splat, resolve, fill and history on the GPU,
-    /// after the filter table is built.
+    /// after the filter table is built (when carrying, the carry step stays here).
     #[cfg(feature = "gpu")]
     fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
+        let pending = self.carried.as_ref().map(|c| c.pending);
+        let carried = self.carry_for_gpu(t, camera, start);
         let max_r = self.max_footprint_radius();
         let step = self.history.as_mut().map(|h| h.plan(t, camera));
         let Some(g) = self.gpu.as_mut() else {
@@ -538,7 +541,19 @@ impl Reconstructor {
             &self.params,
             max_r,
             step.as_ref(),
-        )?;
+            carried.as_ref(),
+        );
+        let back = back.inspect_err(|_| {
+            // The CPU redoes this refresh: its new samples are pending again (the sums
+            // already carried to `t` carry on over no time).
+            if let (Some(c), Some(n)) = (&mut self.carried, pending) {
+                c.pending = n;
+            }
+        })?;
+        if let Some(sums) = &back.sums {
+            let w = self.width as usize;
+            gpu::carried::unpack(sums, &mut self.acc, self.cs, w, &mut self.cover);
+        }
         back.unpack(
             &mut self.image.pixels,
             &mut self.age,
@@ -552,5 +567,34 @@ impl Reconstructor {
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;
         Ok(())
+    }
+
+    /// With carried accumulators: carry them to this refresh on the CPU, from logical
+    /// ring index `start` on (as [`Reconstructor::reconstruct`] does), and pack what
+    /// the GPU adds the new splats to. The initial front depths are the CPU's rule
+    /// ([`carry::carried_front`]) over no new splat (`front` is scratch here).
+    #[cfg(feature = "gpu")]
+    fn carry_for_gpu(
+        &mut self,
+        t: f64,
+        camera: &CameraFrame,
+        start: usize,
+    ) -> Option<gpu::carried::CarriedIn> {
+        self.carried.as_ref()?;
+        self.carry_over(t, camera, start);
+        let (w, cs) = (self.width as usize, self.cs);
+        let front = match (self.visibility_keep(), &self.carried) {
+            (Some(_), Some(c)) => {
+                self.front.clear();
+                self.front.resize(self.cover.len(), f32::INFINITY);
+                carry::carried_front(&mut self.front, &self.acc, cs, w, c);
+                Some(gpu::carried::front_bits(&self.front))
+            }
+            _ => None,
+        };
+        Some(gpu::carried::CarriedIn {
+            sums: gpu::carried::pack(&self.acc, cs, w, &self.cover),
+            front,
+        })
     }
 }

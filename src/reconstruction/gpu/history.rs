@@ -305,7 +305,14 @@ impl Pipelines {
     fn new(device: &wgpu::Device) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("history.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("history.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                format!(
+                    "const IMAGE: u32 = {}u;\n{}",
+                    super::PER_PIXEL,
+                    include_str!("history.wgsl")
+                )
+                .into(),
+            ),
         });
         // The fresh samples, cut pixels, image and front depths are only read.
         let layout = uniform_and_storage(device, "history", BUFFERS, &[5, 6, 7, 8]);

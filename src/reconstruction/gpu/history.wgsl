@@ -54,9 +54,8 @@ const HELD: u32 = 8u;
 // Floats per fresh sample: pixel (bits), still flag, colour (3), time, hit point (3),
 // padding.
 const FRESH: u32 = 10u;
-// Floats per pixel of the reconstruction and of what is shown: red, green, blue, age,
-// coverage (bits), splat scale.
-const IMAGE: u32 = 6u;
+// `IMAGE`, floats per pixel of the reconstruction and of what is shown (red, green,
+// blue, age, coverage (bits), splat scale), is prepended by the Rust side.
 const OUTSIDE: u32 = 0xffffffffu;
 
 @group(0) @binding(0) var<uniform> P: H;

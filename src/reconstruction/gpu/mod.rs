@@ -18,7 +18,12 @@
 //! hole-filling pyramid and the pull-push fill, and the still-region history
 //! ([`history`]), whose per-pixel arrays stay here too: the CPU only plans each of its
 //! refreshes from the samples pushed since the last.
+//!
+//! With [`ReconParams::carry`] the accumulators are carried between refreshes
+//! ([`carried`]): the CPU decays, moves and cuts them as it would for itself, the GPU
+//! adds only the new samples' splats onto them, and they come back for the next.
 
+pub(super) mod carried;
 mod context;
 mod history;
 
@@ -31,10 +36,12 @@ use glam::Vec3;
 use super::{
     filter_table::{Lookup, TileFilter},
     history::Step,
+    resolve::MIN_WEIGHT,
     ring::{field, Ring},
     HistoryParams, ReconParams,
 };
 use crate::scene::CameraFrame;
+use carried::CarriedIn;
 
 /// Storage buffers the shaders bind at once.
 pub(super) const STORAGE_BUFFERS: u32 = 12;
@@ -48,6 +55,15 @@ const PER_PIXEL: usize = 6;
 const PER_BLOCK: usize = 5;
 /// Workgroup size of the one-dimensional passes.
 const GROUP: u32 = 256;
+
+/// `recon.wgsl` after the constants it shares with this side.
+fn recon_source() -> String {
+    format!(
+        "const BIN: u32 = {BIN}u;\nconst MIN_WEIGHT: f32 = {MIN_WEIGHT:e};\n\
+         const PER_PIXEL: u32 = {PER_PIXEL}u;\n{}",
+        include_str!("recon.wgsl")
+    )
+}
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -80,6 +96,8 @@ struct Params {
     keep: f32,
     setter_age: f32,
     fill_weight: f32,
+    carry: u32,
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -117,6 +135,9 @@ pub(super) struct Readback {
     pub(super) holes: usize,
     /// The history's counts and cuts, with one.
     pub(super) history: Option<history::HistoryBack>,
+    /// When carrying: the final accumulators before any fill, per pixel as
+    /// [`carried::pack`] lays them out.
+    pub(super) sums: Option<Vec<f32>>,
 }
 
 impl Readback {
@@ -193,6 +214,8 @@ struct Buffers {
     front: wgpu::Buffer,
     read_out: wgpu::Buffer,
     read_counts: wgpu::Buffer,
+    /// Where the accumulators are read back to, when carrying.
+    read_acc: Option<wgpu::Buffer>,
     /// Tiles and items the buffers hold.
     tiles_cap: usize,
     items_cap: usize,
@@ -253,13 +276,15 @@ struct Sizes {
     /// Blocks of all pyramid levels together.
     blocks: u64,
     history: bool,
+    carry: bool,
 }
 
 impl Sizes {
-    fn new(width: u32, height: u32, cap: usize, history: bool) -> Self {
+    fn new(width: u32, height: u32, cap: usize, history: bool, carry: bool) -> Self {
         let levels = pyramid_levels(width, height);
         Self {
             history,
+            carry,
             pixels: width as u64 * height as u64,
             cap: cap as u64,
             bins: (width.div_ceil(BIN), height.div_ceil(BIN)),
@@ -305,15 +330,16 @@ impl Sizes {
 impl GpuRecon {
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
     /// every pixel's splat scale starting at `scale0`, and a still-region history with
-    /// `history`.
+    /// `history`; `carry`: refreshes carry their accumulators ([`ReconParams::carry`]).
     pub(super) fn new(
         ctx: Arc<GpuContext>,
         (width, height): (u32, u32),
         cap: usize,
         scale0: f32,
         history: Option<HistoryParams>,
+        carry: bool,
     ) -> Result<Self, GpuError> {
-        let sizes = Sizes::new(width, height, cap, history.is_some());
+        let sizes = Sizes::new(width, height, cap, history.is_some(), carry);
         sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);
         let level_stride = (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(32);
@@ -420,7 +446,9 @@ impl GpuRecon {
     /// One refresh at time `t` seen by `camera` (`None`: no reprojection) of the ring's
     /// logical samples `start..len`, with this refresh's filter table, and the
     /// history's `step` with one. `moved`: the hit points and velocities of live
-    /// samples were rewritten since the last upload (exact motion).
+    /// samples were rewritten since the last upload (exact motion). `carried`: the
+    /// sums the new splats add to, when carrying (the GPU side must have been made
+    /// with `carry`).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn refresh(
         &mut self,
@@ -434,6 +462,7 @@ impl GpuRecon {
         params: &ReconParams,
         max_r: f32,
         step: Option<&Step>,
+        carried: Option<&CarriedIn>,
     ) -> Result<Readback, GpuError> {
         self.upload_ring(ring);
         if moved {
@@ -448,18 +477,45 @@ impl GpuRecon {
             0
         };
         p.count = count as u32;
+        if let Some(c) = carried {
+            self.upload_carried(c)?;
+            p.carry = 1;
+        }
+        let front = carried.and_then(|c| c.front.as_deref());
         loop {
             p.items_cap = self.buffers.items_cap as u32;
             self.ctx
                 .queue
                 .write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&p));
-            let total = self.bin_pass(count)?;
+            let total = self.bin_pass(count, front)?;
             if total <= self.buffers.items_cap {
                 break;
             }
             self.grow_items(total);
         }
         self.splat_pass(params.fill_weight > 0.0, step, p.keep)
+    }
+
+    /// Write the carried sums and coverage into the accumulators, which only the
+    /// gather reads (the front depths are written at each bin pass, which may run
+    /// again).
+    fn upload_carried(&self, c: &CarriedIn) -> Result<(), GpuError> {
+        let n = self.width as usize * self.height as usize;
+        if self.buffers.read_acc.is_none() {
+            return Err(GpuError::Failed(
+                "carried sums for a GPU side made without carrying".into(),
+            ));
+        }
+        if c.sums.len() != n * PER_PIXEL {
+            return Err(GpuError::Failed(format!(
+                "carried sums of {} floats for {n} pixels",
+                c.sums.len()
+            )));
+        }
+        self.ctx
+            .queue
+            .write_buffer(&self.buffers.acc, 0, bytemuck::cast_slice(&c.sums));
+        Ok(())
     }
 
     /// Upload the hit points and velocities of the live samples `start..` again.
@@ -555,13 +611,23 @@ impl GpuRecon {
         pass.dispatch_workgroups(groups.0, groups.1, 1);
     }
 
-    /// Place, count, scan and list the splats by bin; returns the items listed.
-    fn bin_pass(&self, count: usize) -> Result<usize, GpuError> {
+    /// Place, count, scan and list the splats by bin, the front depths starting from
+    /// `front` (as [`carried::front_bits`] gives them; `None`: from none); returns the
+    /// items listed.
+    fn bin_pass(&self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         let d = &self.ctx.device;
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         enc.clear_buffer(&self.buffers.bins, 0, Some(nb * 4));
-        enc.clear_buffer(&self.buffers.front, 0, None);
+        match front {
+            // Written before this encoder's work runs: queue writes go ahead of the
+            // next submission.
+            Some(f) => self
+                .ctx
+                .queue
+                .write_buffer(&self.buffers.front, 0, bytemuck::cast_slice(f)),
+            None => enc.clear_buffer(&self.buffers.front, 0, None),
+        }
         let groups = (count as u32).div_ceil(GROUP);
         let pl = &self.pipelines;
         self.dispatch(&mut enc, &pl.place, (groups, 1), None);
@@ -615,6 +681,10 @@ impl GpuRecon {
             shown = &h.shown;
         }
         enc.copy_buffer_to_buffer(shown, 0, &self.buffers.read_out, 0, bytes);
+        // The fills write only the image, so the accumulators are still the sums.
+        if let Some(r) = &self.buffers.read_acc {
+            enc.copy_buffer_to_buffer(&self.buffers.acc, 0, r, 0, bytes);
+        }
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
             (2 * nb + 1) * 4,
@@ -629,10 +699,15 @@ impl GpuRecon {
             (Some(h), Some(_)) => Some(h.read(&self.ctx)?),
             _ => None,
         };
+        let sums = match &self.buffers.read_acc {
+            Some(r) => Some(self.read(r, bytes)?),
+            None => None,
+        };
         Ok(Readback {
             pixels,
             holes,
             history,
+            sums,
         })
     }
 
@@ -711,13 +786,14 @@ impl Buffers {
             bins: storage(d, "bins", (2 * nb + 2) * 4, src),
             bin_start: storage(d, "bin starts", (nb + 1) * 4, none),
             items: storage(d, "bin items", cap * 4, none),
-            acc: storage(d, "accumulators", image, none),
+            acc: storage(d, "accumulators", image, src),
             out: storage(d, "image", image, src),
             pyramid: storage(d, "pyramid", z.blocks * PER_BLOCK as u64 * 4, none),
             levels: uniform("levels", level_stride * z.levels.len().max(1) as u64),
             front: storage(d, "front depths", n * 4, src),
             read_out: readback(d, "image readback", image),
             read_counts: readback(d, "count readback", 8),
+            read_acc: z.carry.then(|| readback(d, "accumulator readback", image)),
             tiles_cap: 64,
             items_cap: cap as usize,
         }
@@ -847,7 +923,7 @@ impl Pipelines {
     fn new(device: &wgpu::Device) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("recon.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("recon.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(recon_source().into()),
         });
         // The ring, the tile filters and the pixel → tile map are only read.
         let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2, 3]);

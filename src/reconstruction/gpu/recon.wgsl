@@ -9,8 +9,11 @@
 // sort    one workgroup per bin: the bin's splat indices in ring order, so that every
 //         pixel adds its splats in the order the CPU does, whatever order the atomic
 //         counters handed out the slots in (the image is the same at every run).
-// gather  one thread per pixel: the Gaussian weights of its bin's splats.
+// gather  one thread per pixel: the Gaussian weights of its bin's splats, added to the
+//         sums carried from the previous refresh when carrying.
 // resolve one thread per pixel: quotients, coverage, the next splat scale.
+//
+// `BIN`, `MIN_WEIGHT` and `PER_PIXEL` are prepended by the Rust side, which shares them.
 // pull    one thread per block of a pyramid level: 2×2 sums of the level below.
 // holes   one thread per pixel: a pixel no splat reached takes the mean of the
 //         smallest pyramid block around it that has samples.
@@ -48,6 +51,12 @@ struct Params {
     setter_age: f32,
     // Weight below which the pull-push fill completes a pixel, 0 without it.
     fill_weight: f32,
+    // Nonzero: `acc` holds the sums carried from the previous refresh, and its last
+    // float per pixel the carried coverage (a float) instead of this refresh's count.
+    carry: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 struct TileFilter {
@@ -95,9 +104,7 @@ struct Level {
     pad0: u32,
 }
 
-const BIN: u32 = 16u;
 const OUTSIDE: u32 = 0xffffffffu;
-const MIN_WEIGHT: f32 = 1e-24;
 // Fields of the ring, one run of `cap` floats each (as the CPU ring's arrays).
 const X: u32 = 0u;
 const Y: u32 = 1u;
@@ -116,7 +123,8 @@ const T: u32 = 11u;
 @group(0) @binding(6) var<storage, read_write> bins: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> bin_start: array<u32>;
 @group(0) @binding(8) var<storage, read_write> items: array<u32>;
-// Per pixel: weighted red, green, blue, weight, weighted age, coverage (bits).
+// Per pixel: weighted red, green, blue, weight, weighted age, then this refresh's
+// coverage (bits), or when carrying the carried coverage plus it (a float).
 @group(0) @binding(9) var<storage, read_write> acc: array<f32>;
 // Per pixel: red, green, blue, age, coverage (bits), splat scale.
 @group(0) @binding(10) var<storage, read_write> out: array<f32>;
@@ -124,7 +132,8 @@ const T: u32 = 11u;
 @group(0) @binding(11) var<storage, read_write> pyramid: array<f32>;
 // Per pixel: the nearest depth a front-setting sample gives it, as the complement of
 // its bits (depths are positive, so the largest complement is the nearest depth, and
-// a cleared buffer, 0, means none).
+// a cleared buffer, 0, means none). When carrying it starts from the depths of the
+// still carried sums, so that new samples behind them are hidden as on the CPU.
 @group(0) @binding(12) var<storage, read_write> front: array<atomic<u32>>;
 @group(1) @binding(0) var<uniform> L: Level;
 
@@ -374,9 +383,14 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) 
     let cy = f32(gid.y) + 0.5;
     let xi = i32(gid.x);
     let yi = i32(gid.y);
+    let q = (gid.y * P.width + gid.x) * PER_PIXEL;
     var sum = vec4<f32>(0.0);
     var age = 0.0;
     var cov = 0u;
+    if P.carry != 0u {
+        sum = vec4<f32>(acc[q], acc[q + 1u], acc[q + 2u], acc[q + 3u]);
+        age = acc[q + 4u];
+    }
     for (var k = o; k < e; k++) {
         let s = splats[items[k]];
         if xi >= s.x0 && xi <= s.x1 && yi >= s.y0 && yi <= s.y1 {
@@ -389,13 +403,30 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) 
             cov += 1u;
         }
     }
-    let q = (gid.y * P.width + gid.x) * 6u;
     acc[q] = sum.x;
     acc[q + 1u] = sum.y;
     acc[q + 2u] = sum.z;
     acc[q + 3u] = sum.w;
     acc[q + 4u] = age;
-    acc[q + 5u] = bitcast<f32>(cov);
+    if P.carry != 0u {
+        acc[q + 5u] += f32(cov);
+    } else {
+        acc[q + 5u] = bitcast<f32>(cov);
+    }
+}
+
+// Coverage of the pixel at `q` in `acc` after `gather`: this refresh's count, or the
+// carried coverage plus it rounded half away from zero (Rust's `round`; WGSL's rounds
+// half to even). `c - floor(c)` is exact, so halves are found exactly.
+fn coverage(q: u32) -> u32 {
+    if P.carry == 0u {
+        return bitcast<u32>(acc[q + 5u]);
+    }
+    let c = acc[q + 5u];
+    if c - floor(c) == 0.5 {
+        return u32(floor(c) + 1.0);
+    }
+    return u32(round(c));
 }
 
 @compute @workgroup_size(256)
@@ -404,9 +435,9 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     if pix >= P.width * P.height {
         return;
     }
-    let q = pix * 6u;
+    let q = pix * PER_PIXEL;
     let w = acc[q + 3u];
-    let cov = bitcast<u32>(acc[q + 5u]);
+    let cov = coverage(q);
     var s = scale[pix];
     if cov < P.undersampled {
         s *= P.grow;
@@ -438,7 +469,7 @@ fn below(x: u32, y: u32) -> array<f32, 5> {
     if L.from_acc != 0u && P.fill_weight > 0.0 {
         r = premultiplied(x, y);
     } else if L.from_acc != 0u {
-        let q = (y * L.src_w + x) * 6u;
+        let q = (y * L.src_w + x) * PER_PIXEL;
         if acc[q + 3u] >= MIN_WEIGHT {
             for (var c = 0u; c < 5u; c++) {
                 r[c] = acc[q + c];
@@ -488,7 +519,7 @@ fn pull(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(256)
 fn holes(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pix = gid.x;
-    if pix >= P.width * P.height || acc[pix * 6u + 3u] >= MIN_WEIGHT {
+    if pix >= P.width * P.height || acc[pix * PER_PIXEL + 3u] >= MIN_WEIGHT {
         return;
     }
     let x = pix % P.width;
@@ -503,7 +534,7 @@ fn holes(@builtin(global_invocation_id) gid: vec3<u32>) {
         let sw = pyramid[q + 3u];
         if sw > 0.0 {
             let inv = 1.0 / sw;
-            let o = pix * 6u;
+            let o = pix * PER_PIXEL;
             out[o] = pyramid[q] * inv;
             out[o + 1u] = pyramid[q + 1u] * inv;
             out[o + 2u] = pyramid[q + 2u] * inv;
@@ -523,7 +554,7 @@ fn holes(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // The full-resolution level at pixel (x, y): α = min(W / W₀, 1); zero for a hole.
 fn premultiplied(x: u32, y: u32) -> array<f32, 5> {
-    let q = (y * P.width + x) * 6u;
+    let q = (y * P.width + x) * PER_PIXEL;
     var r: array<f32, 5>;
     let cw = acc[q + 3u];
     if cw >= MIN_WEIGHT {
@@ -626,7 +657,7 @@ fn pp_final(@builtin(global_invocation_id) gid: vec3<u32>) {
     let a = v[4];
     if a < 1.0 {
         let up = bilinear(x, y);
-        let q = pix * 6u;
+        let q = pix * PER_PIXEL;
         for (var c = 0u; c < 4u; c++) {
             out[q + c] = v[c] + (1.0 - a) * up[c];
         }
