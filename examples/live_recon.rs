@@ -20,7 +20,7 @@ fn main() {
         carry: a.get(5).map(String::as_str) != Some("resplat"),
         ..ReconParams::realtime()
     };
-    let f = bench::live_image_ms(case, num(4), params, 30);
+    let f = bench::live_image_ms(case, num(4), params, 30, true);
     println!(
         "{:.2} ms per image, {:.0} placed",
         f.ms_median, f.placed_per_image

@@ -70,15 +70,18 @@ pub struct LiveFigure {
     pub placed_per_image: f64,
     /// Median milliseconds of one image over the timed refreshes.
     pub ms_median: f64,
+    /// Whether the camera turned between images (every carried pixel moves).
+    pub turning: bool,
 }
 
 /// Yaw per second of the bench camera, radians: about a quarter of a pixel per
 /// refresh at 640×480 and 30 Hz, so every carried pixel moves.
 const YAW_PER_S: f32 = 0.03;
 
-/// The bench camera at time `t`: looking at a plane from 5 units, turning slowly.
-fn camera_at(t: f64, width: u32, height: u32) -> CameraFrame {
-    let a = YAW_PER_S * t as f32;
+/// The bench camera at time `t`: looking at a plane from 5 units, turning slowly if
+/// `turning`.
+fn camera_at(t: f64, width: u32, height: u32, turning: bool) -> CameraFrame {
+    let a = if turning { YAW_PER_S * t as f32 } else { 0.0 };
     Camera {
         eye: Vec3::new(0.0, 0.0, 5.0),
         at: Vec3::new(5.0 * a.sin(), 0.0, 5.0 - 5.0 * a.cos()),
@@ -100,12 +103,14 @@ fn plane_hit(cam: &CameraFrame, x: f32, y: f32) -> Vec3 {
 /// Milliseconds per image of `params`' reconstructor at `case`, its ring holding
 /// `ring_spp` samples per pixel: one second of refreshes to warm up (filling the ring),
 /// then `images` timed refreshes, each after the samples traced since the previous
-/// one were pushed (pushing is not timed). The tiling is the bench fixture's.
+/// one were pushed (pushing is not timed), the camera turning if `turning`. The tiling
+/// is the bench fixture's.
 pub fn live_image_ms(
     case: LiveCase,
     ring_spp: f64,
     params: ReconParams,
     images: usize,
+    turning: bool,
 ) -> LiveFigure {
     let (w, h) = (case.width, case.height);
     let mut r = Reconstructor::new(
@@ -127,7 +132,7 @@ pub fn live_image_ms(
         let t1 = (i + 1) as f64 / case.refresh_hz;
         for k in 0..per {
             let t = (i as f64 + (k + 1) as f64 / per as f64) / case.refresh_hz;
-            let cam = camera_at(t, w, h);
+            let cam = camera_at(t, w, h, turning);
             let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
             r.push(RingSample {
                 x,
@@ -139,7 +144,7 @@ pub fn live_image_ms(
                 anchor: Default::default(),
             });
         }
-        let cam = camera_at(t1, w, h);
+        let cam = camera_at(t1, w, h, turning);
         let t0 = Instant::now();
         std::hint::black_box(r.reconstruct(t1, &cam, &tiling));
         if i >= warm {
@@ -154,14 +159,18 @@ pub fn live_image_ms(
         new_per_image: per,
         placed_per_image: placed as f64 / times.len() as f64,
         ms_median: times[times.len() / 2],
+        turning,
     }
 }
 
 /// What `frameless bench --live-recon` measures, on one thread.
 #[derive(Clone, Debug, Serialize)]
 pub struct LiveReport {
-    /// Each live size with the real-time reconstructor (accumulators carried).
+    /// Each live size with the real-time reconstructor (accumulators carried), the
+    /// camera turning.
     pub sizes: Vec<LiveFigure>,
+    /// The same with a still camera (only moving things move what is carried).
+    pub sizes_still: Vec<LiveFigure>,
     /// The same sizes, up to 1280×720, re-splatting the ring at every image (the
     /// design before carrying, `carry` off).
     pub sizes_resplat: Vec<LiveFigure>,
@@ -188,32 +197,39 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
         ..carried
     };
     let spp = carried.ring_factor;
-    let mut run = |case: LiveCase, spp: f64, p: ReconParams, what: &str| {
+    let mut run = |case: LiveCase, spp: f64, p: ReconParams, what: &str, turning: bool| {
         progress(&format!(
-            "{}x{} {what}, ring {spp} per pixel",
-            case.width, case.height
+            "{}x{} {what}, ring {spp} per pixel, camera {}",
+            case.width,
+            case.height,
+            if turning { "turning" } else { "still" }
         ));
-        one.install(|| live_image_ms(case, spp, p, images))
+        one.install(|| live_image_ms(case, spp, p, images, turning))
     };
     let sizes = LIVE_CASES
         .iter()
-        .map(|&c| run(c, spp, carried, "carried"))
+        .map(|&c| run(c, spp, carried, "carried", true))
+        .collect();
+    let sizes_still = LIVE_CASES
+        .iter()
+        .map(|&c| run(c, spp, carried, "carried", false))
         .collect();
     let sizes_resplat = LIVE_CASES[..3]
         .iter()
-        .map(|&c| run(c, spp, resplat, "re-splatted"))
+        .map(|&c| run(c, spp, resplat, "re-splatted", true))
         .collect();
     let vga = LIVE_CASES[1];
     let ring_growth = RING_SPPS
         .iter()
-        .map(|&s| run(vga, s, carried, "carried"))
+        .map(|&s| run(vga, s, carried, "carried", true))
         .collect();
     let ring_growth_resplat = RING_SPPS
         .iter()
-        .map(|&s| run(vga, s, resplat, "re-splatted"))
+        .map(|&s| run(vga, s, resplat, "re-splatted", true))
         .collect();
     LiveReport {
         sizes,
+        sizes_still,
         sizes_resplat,
         ring_growth,
         ring_growth_resplat,

@@ -228,15 +228,19 @@ fn bench_live_recon(json: bool) -> Result<()> {
         }
     };
     table(
-        "carried accumulators (the real-time reconstructor), 1 thread",
+        "carried accumulators (the real-time reconstructor), camera turning, 1 thread",
         &report.sizes,
     );
+    table("carried, camera still", &report.sizes_still);
     table(
-        "re-splatting the ring (carry off), 1 thread",
+        "re-splatting the ring (carry off), camera turning",
         &report.sizes_resplat,
     );
-    table("ring growing, carried", &report.ring_growth);
-    table("ring growing, re-splatted", &report.ring_growth_resplat);
+    table("ring growing, carried, camera turning", &report.ring_growth);
+    table(
+        "ring growing, re-splatted, camera turning",
+        &report.ring_growth_resplat,
+    );
     Ok(())
 }
 
