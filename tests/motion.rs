@@ -229,14 +229,32 @@ fn a_spinning_bar_keeps_its_silhouette_with_exact_motion() {
     // along its velocity leaves the bar (by 4 pixels after 0.1 s), one placed by the
     // bar's rotation stays on it. Measured: 0.0465 against 0.0725 (1.56×; 1.55× at
     // 720°/s); what is left is the blur of any 100K budget on so fast a motion.
-    let exact = silhouette_error(ReconParams::converging());
+    //
+    // That is the ring's reconstructor, which places every sample anew at every
+    // refresh. Carried accumulators (ours since session 19) place a sample exactly only
+    // at its first refresh and then move its pixel's sums by their velocity, so exact
+    // motion no longer helps them here (0.0544 exact, 0.0540 extrapolated): the loss
+    // is measured below and listed in docs/performance.md.
+    let ring = ReconParams {
+        carry: false,
+        ..ReconParams::converging()
+    };
+    let exact = silhouette_error(ring);
     let extrapolated = silhouette_error(ReconParams {
         exact_motion: false,
-        ..ReconParams::converging()
+        ..ring
     });
-    eprintln!("silhouette error: exact {exact:.4}, extrapolated {extrapolated:.4}");
+    let carried = silhouette_error(ReconParams::converging());
+    eprintln!(
+        "silhouette error: exact {exact:.4}, extrapolated {extrapolated:.4}, carried {carried:.4}"
+    );
     assert!(
         exact * 1.3 < extrapolated,
         "exact {exact} extrapolated {extrapolated}"
+    );
+    // Carried sums must not do worse than a ring that extrapolates.
+    assert!(
+        carried < extrapolated * 1.05,
+        "carried {carried} extrapolated ring {extrapolated}"
     );
 }
