@@ -286,7 +286,7 @@ impl Reconstructor {
             let q = q as usize;
             let (x, y) = (q % w, q / w);
             let g = c.geo[q];
-            if g.v == Vec3::ZERO || !(self.acc[(y * CHANNELS + 3) * cs + x] >= MIN_WEIGHT) {
+            if g.v == Vec3::ZERO || !holds(self.acc[(y * CHANNELS + 3) * cs + x]) {
                 continue;
             }
             let sums: [f32; CHANNELS] = std::array::from_fn(|ch| {
@@ -341,7 +341,7 @@ impl Reconstructor {
         for y in 0..h {
             for x in 0..w {
                 let q = y * w + x;
-                if !(c.prev[(y * CHANNELS + 3) * cs + x] >= MIN_WEIGHT) {
+                if !holds(c.prev[(y * CHANNELS + 3) * cs + x]) {
                     continue;
                 }
                 let g = c.geo[q];
@@ -552,4 +552,9 @@ pub(super) fn carried_front(front: &mut [f32], acc: &[f32], cs: usize, w: usize,
             }
         }
     }
+}
+
+/// Whether an accumulated weight holds sums (a NaN weight does not).
+fn holds(weight: f32) -> bool {
+    weight >= MIN_WEIGHT
 }
