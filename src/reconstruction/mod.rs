@@ -34,6 +34,12 @@
 //!    each pixel): fewer than `undersampled` → ×`grow`, more than `oversampled` →
 //!    ×`shrink`, clamped to `scale_bounds`.
 //!
+//! With [`ReconParams::carry`] (ours) only the samples pushed since the previous refresh
+//! go through steps 1–3, onto the accumulators of the previous refresh, decayed and moved
+//! with the surfaces they show (`carry.rs`): a refresh then costs the new samples and the
+//! pixels, not the ring. The rest of this comment describes the ring's refresh, which
+//! the paper's preset keeps and which places the new samples when carrying.
+//!
 //! How a refresh stays cheap (the same images as evaluating the above directly, up to
 //! f32 rounding: `tests::fast_path_matches_direct_evaluation`):
 //!
