@@ -174,12 +174,7 @@ impl Mover {
         let iz = 1.0 / nz;
         let nx = s.mul_add(a(2), eu) * iz - self.ou;
         let ny = s.mul_add(a(3), ev) * iz - self.ov;
-        let inside =
-            nz > 1e-6 && nx >= 0.0 && ny >= 0.0 && nx < self.w as f32 && ny < self.h as f32;
-        if !inside {
-            return None;
-        }
-        let (tx, ty) = (nx as usize, ny as usize);
+        let (tx, ty) = pixel_at(nx, ny, nz, self.w, self.h)?;
         Some(Move {
             to: ty * self.w + tx,
             geo: Geo {
@@ -389,14 +384,12 @@ impl Reconstructor {
             let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
             let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
             let (x, y, z) = proj.project(hit + v * dt);
-            let inside = z > 1e-6 && x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
-            if !inside {
+            let Some((px, py)) = pixel_at(x, y, z, w, h) else {
                 continue;
-            }
-            let (px, py) = (x as usize, y as usize);
+            };
             let q = py * w + px;
             let g = c.geo[q];
-            let held = g.is_some() && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT;
+            let held = g.is_some() && holds(self.acc[(py * CHANNELS + 3) * cs + px]);
             // Carried sums of a moving surface were placed by extrapolation: a new
             // sample at another depth wins over them either way. Still ones are
             // exact: a new sample behind them was seen through them (traced from an
@@ -406,7 +399,8 @@ impl Reconstructor {
             if held && still && behind_front(g.z, z, keep) {
                 continue;
             }
-            if held && (behind_front(z, g.z, keep) || behind_front(g.z, z, keep)) {
+            let cut = held && (behind_front(z, g.z, keep) || behind_front(g.z, z, keep));
+            if cut {
                 // Something came in front.
                 for ch in 0..CHANNELS {
                     self.acc[(py * CHANNELS + ch) * cs + px] = 0.0;
@@ -416,7 +410,7 @@ impl Reconstructor {
             // Splats are centred on pixel centres; sums carried here keep their
             // position. (The sample's own sub-pixel position would scatter
             // neighbouring pixels' sums apart at the next move.)
-            let (ox, oy) = if held && self.acc[(py * CHANNELS + 3) * cs + px] >= MIN_WEIGHT {
+            let (ox, oy) = if held && !cut {
                 (g.ox, g.oy)
             } else {
                 (0.0, 0.0)
@@ -444,7 +438,7 @@ impl Reconstructor {
 
 /// The geometry for a pixel at `(x, y)` that holds sums but got no sample of its own:
 /// that of the nearest pixel around it that has some (rings of growing distance, each
-/// in row order), with the offset of `(x, y)`'s own centre, if every geometry within
+/// in row order), its offset that of `(x, y)`'s own centre, if every geometry within
 /// [`BORROW_RADIUS`] lies within the depth tolerance (`keep`) of it. Beside a depth
 /// edge the sums may show either surface, and moving them with the wrong one would
 /// paint it over the other: they are dropped instead (`None`).
@@ -520,7 +514,7 @@ impl Target<'_> {
         let at = |ch: usize| (ty * CHANNELS + ch) * self.cs + tx;
         let old = self.geo[to];
         let mut merge = false;
-        if self.acc[at(3)] >= MIN_WEIGHT {
+        if holds(self.acc[at(3)]) {
             if behind_front(old.z, g.z, keep) {
                 return false;
             }
@@ -539,16 +533,23 @@ impl Target<'_> {
     }
 }
 
-/// With the visibility pass: the carried geometry of still surfaces is a front too
-/// (`front`, rows of `w`, lowered to it where the accumulators `acc` hold sums; moving
-/// ones are placed by extrapolation, and do not hide what new samples show), so that a new sample
-/// seen through what is carried (traced from an earlier view) is not splatted over it.
-pub(super) fn carried_front(front: &mut [f32], acc: &[f32], cs: usize, w: usize, c: &Carried) {
-    for (y, row) in front.chunks_mut(w).enumerate() {
-        let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
-        for ((f, g), &wt) in row.iter_mut().zip(&c.geo[y * w..]).zip(weight) {
-            if wt >= MIN_WEIGHT && g.v == Vec3::ZERO {
-                *f = f.min(g.z);
+impl Reconstructor {
+    /// With the visibility pass: the carried geometry of still surfaces is a front too
+    /// (the front depths lowered to it where the accumulators hold sums; moving ones
+    /// are placed by extrapolation, and do not hide what new samples show), so that a
+    /// new sample seen through what is carried (traced from an earlier view) is not
+    /// splatted over it.
+    pub(super) fn carried_front(&mut self) {
+        let (Some(c), Some(_)) = (&self.carried, self.visibility_keep()) else {
+            return;
+        };
+        let (w, cs) = (self.width as usize, self.cs);
+        for (y, row) in self.front.chunks_mut(w).enumerate() {
+            let weight = &self.acc[(y * CHANNELS + 3) * cs..][..w];
+            for ((f, g), &wt) in row.iter_mut().zip(&c.geo[y * w..]).zip(weight) {
+                if holds(wt) && g.v == Vec3::ZERO {
+                    *f = f.min(g.z);
+                }
             }
         }
     }
@@ -557,4 +558,11 @@ pub(super) fn carried_front(front: &mut [f32], acc: &[f32], cs: usize, w: usize,
 /// Whether an accumulated weight holds sums (a NaN weight does not).
 fn holds(weight: f32) -> bool {
     weight >= MIN_WEIGHT
+}
+
+/// The pixel a point at `(x, y)` and depth `z` in front of the eye lies in, on a
+/// `w × h` image.
+fn pixel_at(x: f32, y: f32, z: f32, w: usize, h: usize) -> Option<(usize, usize)> {
+    let inside = z > 1e-6 && x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+    inside.then_some((x as usize, y as usize))
 }

@@ -492,9 +492,11 @@ impl Reconstructor {
             return &self.image;
         }
         self.prepare_splats(t, camera);
+        self.front_depths();
         if self.carried.is_some() {
             let start = self.ring.len() - self.placed;
             self.carry_over(t, camera, start);
+            self.carried_front();
         }
         self.splat();
         self.resolve();
@@ -578,7 +580,7 @@ impl Reconstructor {
     /// With carried accumulators: carry them to this refresh on the CPU, from logical
     /// ring index `start` on (as [`Reconstructor::reconstruct`] does), and pack what
     /// the GPU adds the new splats to. The initial front depths are the CPU's rule
-    /// ([`carry::carried_front`]) over no new splat (`front` is scratch here).
+    /// ([`Reconstructor::carried_front`]) over no new splat (`front` is scratch here).
     #[cfg(feature = "gpu")]
     fn carry_for_gpu(
         &mut self,
@@ -589,15 +591,12 @@ impl Reconstructor {
         self.carried.as_ref()?;
         self.carry_over(t, camera, start);
         let (w, cs) = (self.width as usize, self.cs);
-        let front = match (self.visibility_keep(), &self.carried) {
-            (Some(_), Some(c)) => {
-                self.front.clear();
-                self.front.resize(self.cover.len(), f32::INFINITY);
-                carry::carried_front(&mut self.front, &self.acc, cs, w, c);
-                Some(gpu::carried::front_bits(&self.front))
-            }
-            _ => None,
-        };
+        let front = self.visibility_keep().map(|_| {
+            self.front.clear();
+            self.front.resize(self.cover.len(), f32::INFINITY);
+            self.carried_front();
+            gpu::carried::front_bits(&self.front)
+        });
         Some(gpu::carried::CarriedIn {
             sums: gpu::carried::pack(&self.acc, cs, w, &self.cover),
             front,

@@ -287,25 +287,30 @@ fn splat_band(
 }
 
 impl Reconstructor {
-    /// Accumulate every band from the splats binned at this refresh, bands in parallel.
+    /// With the visibility pass: each pixel's front depth, the nearest `z_front` of the
+    /// splats binned at this refresh that land in it, bands in parallel.
+    pub(super) fn front_depths(&mut self) {
+        if self.visibility_keep().is_none() {
+            return;
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (binned, rows) = (&self.binned[..self.pieces], self.band_rows);
+        self.front.resize(h * w, f32::INFINITY);
+        self.front
+            .par_chunks_mut(rows * w)
+            .enumerate()
+            .for_each(|(b, front)| front_band(binned, b, b * rows, w, front));
+    }
+
+    /// Accumulate every band from the splats binned at this refresh, bands in parallel,
+    /// behind the front depths of [`Reconstructor::front_depths`] with the visibility
+    /// pass.
     pub(super) fn splat(&mut self) {
         let h = self.height as usize;
         let (cs, cstride) = (self.cs, self.width as usize + 1);
         let binned = &self.binned[..self.pieces];
         let rows = self.band_rows;
-        let w = self.width as usize;
-        let keep = self.visibility_keep();
-        if keep.is_some() {
-            self.front.resize(h * w, f32::INFINITY);
-            self.front
-                .par_chunks_mut(rows * w)
-                .enumerate()
-                .for_each(|(b, front)| front_band(binned, b, b * rows, w, front));
-            if let Some(c) = &self.carried {
-                super::carry::carried_front(&mut self.front, &self.acc, cs, w, c);
-            }
-        }
-        let front = keep.map(|k| (&self.front[..], k));
+        let front = self.visibility_keep().map(|k| (&self.front[..], k));
         let carried = self.carried.is_some();
         self.acc
             .par_chunks_mut(rows * CHANNELS * cs)
