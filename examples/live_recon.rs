@@ -1,15 +1,17 @@
 //! One figure of `frameless bench --live-recon`, for profiling:
-//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat]`.
+//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat] [still]`.
+//! The image hash it prints tells whether two builds make the same images.
 
 use frameless::{bench, reconstruction::ReconParams};
 
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     if a.len() < 5 {
-        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat]");
+        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat] [still]");
         std::process::exit(2);
     }
     let num = |i: usize| -> f64 { a[i].parse().expect("a number") };
+    let flag = |f: &str| a[5..].iter().any(|x| x == f);
     let case = bench::LiveCase {
         width: num(0) as u32,
         height: num(1) as u32,
@@ -17,12 +19,12 @@ fn main() {
         refresh_hz: num(3),
     };
     let params = ReconParams {
-        carry: a.get(5).map(String::as_str) != Some("resplat"),
+        carry: !flag("resplat"),
         ..ReconParams::realtime()
     };
-    let f = bench::live_image_ms(case, num(4), params, 30, true);
+    let f = bench::live_image_ms(case, num(4), params, 30, !flag("still"));
     println!(
-        "{:.2} ms per image, {:.0} placed",
-        f.ms_median, f.placed_per_image
+        "{:.2} ms per image, {:.0} placed, image {}",
+        f.ms_median, f.placed_per_image, f.image_hash
     );
 }

@@ -72,6 +72,20 @@ pub struct LiveFigure {
     pub ms_median: f64,
     /// Whether the camera turned between images (every carried pixel moves).
     pub turning: bool,
+    /// FNV-1a hash of the last image's pixel bits: two builds that make the same
+    /// images print the same hash.
+    pub image_hash: String,
+}
+
+/// FNV-1a over the bits of every pixel's channels.
+fn image_hash(image: &crate::image::Image) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for c in image.pixels.iter().flat_map(|p| p.to_array()) {
+        for b in c.to_bits().to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    format!("{h:016x}")
 }
 
 /// Yaw per second of the bench camera, radians: about a quarter of a pixel per
@@ -160,6 +174,7 @@ pub fn live_image_ms(
         placed_per_image: placed as f64 / times.len() as f64,
         ms_median: times[times.len() / 2],
         turning,
+        image_hash: image_hash(r.image()),
     }
 }
 

@@ -34,7 +34,7 @@
 use glam::Vec3;
 
 use super::{
-    lanes::fast_exp_neg,
+    lanes::{fast_exp_neg, prefetch},
     place::Projector,
     resolve::MIN_WEIGHT,
     ring::field,
@@ -73,6 +73,9 @@ impl Geo {
 /// of its own (a footprint reached it): rings up to this distance, pixels.
 const BORROW_RADIUS: i32 = 2;
 
+/// How many samples or pixels ahead passes that visit pixels at random ask for them.
+const PREFETCH_AHEAD: usize = 16;
+
 /// The state carried between refreshes.
 pub(super) struct Carried {
     /// The accumulators of the previous refresh (the layout of `Reconstructor::acc`),
@@ -89,6 +92,13 @@ pub(super) struct Carried {
     pub(super) pending: usize,
     /// Pixels whose geometry moved at the last refresh (some may no longer).
     moving: Vec<u32>,
+    /// The pixels new samples landed on at this refresh, each once (reused).
+    touched: Vec<u32>,
+    /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
+    stamp: Vec<u32>,
+    epoch: u32,
+    /// The pixel and weight index of each new sample (reused).
+    ahead: Vec<[u32; 2]>,
 }
 
 impl Carried {
@@ -101,6 +111,10 @@ impl Carried {
             last: None,
             pending: 0,
             moving: Vec::new(),
+            touched: Vec::new(),
+            stamp: vec![0; n],
+            epoch: 0,
+            ahead: Vec::new(),
         }
     }
 }
@@ -108,7 +122,10 @@ impl Carried {
 /// Where one pixel's sums go at a refresh: the pixel its point is seen in now, with
 /// its geometry there.
 struct Move {
+    /// The pixel, and its column and row.
     to: usize,
+    tx: usize,
+    ty: usize,
     geo: Geo,
 }
 
@@ -158,6 +175,8 @@ impl Mover {
         if self.same_view && g.v == Vec3::ZERO {
             return Some(Move {
                 to: y * self.w + x,
+                tx: x,
+                ty: y,
                 geo: g,
             });
         }
@@ -177,6 +196,8 @@ impl Mover {
         let (tx, ty) = pixel_at(nx, ny, nz, self.w, self.h)?;
         Some(Move {
             to: ty * self.w + tx,
+            tx,
+            ty,
             geo: Geo {
                 z: nz,
                 ox: nx - tx as f32 - 0.5,
@@ -296,7 +317,6 @@ impl Reconstructor {
         let mut into = Target {
             acc: &mut self.acc,
             cs,
-            w,
             geo: &mut c.geo,
             cover: &mut self.cover,
         };
@@ -329,7 +349,6 @@ impl Reconstructor {
         let mut into = Target {
             acc: &mut self.acc,
             cs,
-            w,
             geo: &mut c.next_geo,
             cover: &mut c.next_cover,
         };
@@ -376,15 +395,34 @@ impl Reconstructor {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let proj = Projector::new(camera);
         let keep = self.carry_keep();
-        let mut fresh: Vec<(usize, Geo)> = Vec::new();
+        let epoch = c.next_epoch();
         let ring = &self.ring;
-        for i in start..ring.len() {
+        let sample = |i: usize| {
             let p = ring.phys(i);
             let dt = (t - ring.t[p]) as f32;
             let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
             let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
             let (x, y, z) = proj.project(hit + v * dt);
-            let Some((px, py)) = pixel_at(x, y, z, w, h) else {
+            (pixel_at(x, y, z, w, h), z, v)
+        };
+        // Each sample's pixel first, so that the loop below can ask for the pixels
+        // of samples ahead of it (they are at random: one miss after another
+        // otherwise).
+        c.ahead.clear();
+        c.ahead.extend((start..ring.len()).map(|i| match sample(i).0 {
+            Some((px, py)) => [(py * w + px) as u32, ((py * CHANNELS + 3) * cs + px) as u32],
+            None => [u32::MAX; 2],
+        }));
+        for i in start..ring.len() {
+            if let Some(&[q, a]) = c.ahead.get(i - start + PREFETCH_AHEAD) {
+                let q = q as usize;
+                prefetch(&c.geo, q);
+                prefetch(&c.stamp, q);
+                prefetch(&c.next_geo, q);
+                prefetch(&self.acc, a as usize);
+            }
+            let (at, z, v) = sample(i);
+            let Some((px, py)) = at else {
                 continue;
             };
             let q = py * w + px;
@@ -415,24 +453,37 @@ impl Reconstructor {
             } else {
                 (0.0, 0.0)
             };
-            fresh.push((q, Geo { z, ox, oy, v }));
+            // The nearest new sample of a pixel gives its geometry (the one the
+            // visibility pass keeps), set below once every sample has been tested
+            // against the carried one; `next_geo` is scratch until the next refresh.
+            let g = Geo { z, ox, oy, v };
+            if c.stamp[q] != epoch {
+                c.stamp[q] = epoch;
+                c.touched.push(q as u32);
+                c.next_geo[q] = if g.z < Geo::NONE.z { g } else { Geo::NONE };
+            } else if g.z < c.next_geo[q].z {
+                c.next_geo[q] = g;
+            }
             if v != Vec3::ZERO {
                 c.moving.push(q as u32);
             }
         }
-        // The nearest new sample of a pixel gives its geometry (the one the visibility
-        // pass keeps); `next_geo` is scratch until the next refresh.
-        for &(q, _) in &fresh {
-            c.next_geo[q] = Geo::NONE;
+        for &q in &c.touched {
+            c.geo[q as usize] = c.next_geo[q as usize];
         }
-        for &(q, g) in &fresh {
-            if g.z < c.next_geo[q].z {
-                c.next_geo[q] = g;
-            }
+        c.touched.clear();
+    }
+}
+
+impl Carried {
+    /// A new refresh's stamp: every pixel's stamp is then older.
+    fn next_epoch(&mut self) -> u32 {
+        if self.epoch == u32::MAX {
+            self.stamp.fill(0);
+            self.epoch = 0;
         }
-        for &(q, _) in &fresh {
-            c.geo[q] = c.next_geo[q];
-        }
+        self.epoch += 1;
+        self.epoch
     }
 }
 
@@ -443,29 +494,32 @@ impl Reconstructor {
 /// edge the sums may show either surface, and moving them with the wrong one would
 /// paint it over the other: they are dropped instead (`None`).
 fn borrow(geo: &[Geo], w: usize, h: usize, x: usize, y: usize, keep: f32) -> Option<Geo> {
-    let mut found: Option<Geo> = None;
+    let r = BORROW_RADIUS as usize;
+    let around = |r: usize| (x.saturating_sub(r)..=(x + r).min(w - 1), y.saturating_sub(r)..=(y + r).min(h - 1));
+    // The depth range over every neighbour first: straight loops over the rows.
     let (mut near, mut far) = (f32::INFINITY, 0f32);
-    for r in 1..=BORROW_RADIUS {
-        for dy in -r..=r {
-            for dx in -r..=r {
-                if dx.abs().max(dy.abs()) != r {
-                    continue;
-                }
-                let (nx, ny) = (x as i32 + dx, y as i32 + dy);
-                if nx < 0 || ny < 0 || nx >= w as i32 || ny >= h as i32 {
-                    continue;
-                }
-                let g = geo[ny as usize * w + nx as usize];
-                if g.is_some() {
-                    found.get_or_insert(g);
-                    near = near.min(g.z);
-                    far = far.max(g.z);
-                }
+    let (xs, ys) = around(r);
+    for ny in ys {
+        for g in &geo[ny * w + xs.start()..=ny * w + xs.end()] {
+            if g.is_some() {
+                near = near.min(g.z);
+                far = far.max(g.z);
             }
         }
     }
-    let g = found?;
-    (!behind_front(near, far, keep)).then_some(Geo {
+    if near == f32::INFINITY || behind_front(near, far, keep) {
+        return None;
+    }
+    // Then the nearest: the first of each ring in row order (the centre has none).
+    let ring = |r: usize| {
+        let (xs, ys) = around(r);
+        ys.flat_map(move |ny| xs.clone().map(move |nx| (nx, ny)))
+            .filter(move |&(nx, ny)| nx.abs_diff(x).max(ny.abs_diff(y)) == r)
+            .map(|(nx, ny)| geo[ny * w + nx])
+            .find(Geo::is_some)
+    };
+    let g = (1..=r).find_map(ring)?;
+    Some(Geo {
         ox: 0.0,
         oy: 0.0,
         ..g
@@ -485,7 +539,6 @@ fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32;
 struct Target<'a> {
     acc: &'a mut [f32],
     cs: usize,
-    w: usize,
     geo: &'a mut [Geo],
     cover: &'a mut [f32],
 }
@@ -501,16 +554,16 @@ impl Target<'_> {
         keep: f32,
         moving: &mut Vec<u32>,
     ) {
-        if self.land(m.to, m.geo, sums, cover, keep) && m.geo.v != Vec3::ZERO {
+        if self.land(m, sums, cover, keep) && m.geo.v != Vec3::ZERO {
             moving.push(m.to as u32);
         }
     }
 
-    /// Sums `sums` with coverage `cover` and geometry `g` arrive at pixel `to`: an
+    /// Sums `sums` with coverage `cover` arrive by move `m`: an
     /// empty pixel takes them; otherwise the nearer wins, and both merge within the
     /// depth tolerance (`keep`). Whether they stayed.
-    fn land(&mut self, to: usize, g: Geo, sums: [f32; CHANNELS], cover: f32, keep: f32) -> bool {
-        let (tx, ty) = (to % self.w, to / self.w);
+    fn land(&mut self, m: &Move, sums: [f32; CHANNELS], cover: f32, keep: f32) -> bool {
+        let (to, tx, ty, g) = (m.to, m.tx, m.ty, m.geo);
         let at = |ch: usize| (ty * CHANNELS + ch) * self.cs + tx;
         let old = self.geo[to];
         let mut merge = false;

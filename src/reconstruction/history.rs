@@ -34,6 +34,10 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::{image::Image, scene::CameraFrame, trace::luminance};
+use super::lanes::prefetch;
+
+/// How many samples ahead the history asks for what they will read.
+const PREFETCH_AHEAD: usize = 16;
 
 /// Parameters of the still-region history.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -140,54 +144,70 @@ impl HistoryParams {
 
 const EMPTY_RANGE: (f32, f32) = (f32::INFINITY, f32::NEG_INFINITY);
 
-/// Each pixel's accumulated history, one array per field.
+/// One pixel's history but its count: what a sample that joins it reads and writes,
+/// together in one cache line.
+#[derive(Clone, Copy, Debug)]
+struct Cell {
+    /// Sum of the samples' times, for the age of what is shown.
+    time_sum: f64,
+    sum: Vec3,
+    /// Range of the luminances in the pixel's history (empty: `lo > hi`).
+    range: (f32, f32),
+    /// The hit point of the pixel's newest sample (for reprojection).
+    point: Vec3,
+}
+
+impl Cell {
+    const EMPTY: Cell = Cell {
+        time_sum: 0.0,
+        sum: Vec3::ZERO,
+        range: EMPTY_RANGE,
+        point: Vec3::ZERO,
+    };
+}
+
+/// Each pixel's accumulated history: its count (what most passes test first, and
+/// what the sampler reads), and the rest in one [`Cell`].
 #[derive(Clone)]
 struct Accum {
-    sum: Vec<Vec3>,
-    /// Sum of the samples' times, for the age of what is shown.
-    time_sum: Vec<f64>,
+    cell: Vec<Cell>,
     count: Vec<f32>,
-    /// Range of the luminances in each pixel's history (empty: `lo > hi`).
-    lum_range: Vec<(f32, f32)>,
-    /// The hit point of each pixel's newest sample (for reprojection).
-    point: Vec<Vec3>,
 }
 
 impl Accum {
     fn new(n: usize) -> Self {
         Self {
-            sum: vec![Vec3::ZERO; n],
-            time_sum: vec![0.0; n],
+            cell: vec![Cell::EMPTY; n],
             count: vec![0.0; n],
-            lum_range: vec![EMPTY_RANGE; n],
-            point: vec![Vec3::ZERO; n],
         }
     }
 
     /// Every pixel empty.
     fn reset(&mut self) {
-        self.sum.fill(Vec3::ZERO);
-        self.time_sum.fill(0.0);
+        self.cell.fill(Cell::EMPTY);
         self.count.fill(0.0);
-        self.lum_range.fill(EMPTY_RANGE);
     }
 
-    /// Pixel `q` empty.
+    /// Pixel `q` empty (its point stays: it is read only where the count is not 0).
     fn clear(&mut self, q: usize) {
-        self.sum[q] = Vec3::ZERO;
-        self.time_sum[q] = 0.0;
+        let c = &mut self.cell[q];
+        c.sum = Vec3::ZERO;
+        c.time_sum = 0.0;
+        c.range = EMPTY_RANGE;
         self.count[q] = 0.0;
-        self.lum_range[q] = EMPTY_RANGE;
     }
 
     /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
     fn take(&mut self, d: usize, from: &Accum, q: usize, cap: f32) {
         let k = from.count[q].min(cap) / from.count[q];
-        self.sum[d] = from.sum[q] * k;
-        self.time_sum[d] = from.time_sum[q] * k as f64;
+        let f = &from.cell[q];
+        self.cell[d] = Cell {
+            sum: f.sum * k,
+            time_sum: f.time_sum * k as f64,
+            range: f.range,
+            point: f.point,
+        };
         self.count[d] = from.count[q] * k;
-        self.lum_range[d] = from.lum_range[q];
-        self.point[d] = from.point[q];
     }
 }
 
@@ -490,6 +510,9 @@ struct Pixels {
     /// A still sample outside its pixel's range, held back until the next one says
     /// whether it was a rare part of the pixel (kept) or the start of a change.
     held: Vec<Option<(Vec3, f64, Vec3)>>,
+    /// The pixels that may hold a sample back (`None`: too many to list, every
+    /// pixel may), so that dropping them all costs what was held, not the image.
+    held_at: Option<Vec<u32>>,
     /// Per pixel, the lowest and highest colour of the reconstruction before blending
     /// over the pixel and its two neighbours in the row (reused).
     row_lo: Vec<Vec3>,
@@ -505,6 +528,7 @@ impl Pixels {
             scratch: Accum::new(n),
             depth: vec![f32::INFINITY; n],
             held: vec![None; n],
+            held_at: Some(Vec::new()),
             row_lo: Vec::new(),
             row_hi: Vec::new(),
             cuts: 0,
@@ -529,10 +553,16 @@ impl Pixels {
             }
             ViewChange::Reset => {
                 self.acc.reset();
-                self.held.fill(None);
+                self.drop_held();
             }
         }
-        for &(q, i) in &step.order {
+        for (k, &(q, i)) in step.order.iter().enumerate() {
+            if let Some(&(qa, ia)) = step.order.get(k + PREFETCH_AHEAD) {
+                // Samples are visited in pixel order, but read at random.
+                prefetch(&step.fresh, ia as usize);
+                prefetch(&self.acc.cell, qa as usize);
+                prefetch(&self.held, qa as usize);
+            }
             self.take_in(q as usize, &step.fresh[i as usize], step.slack, p);
         }
         for &q in &step.cuts {
@@ -559,7 +589,7 @@ impl Pixels {
             if self.acc.count[q] <= 0.0 {
                 continue;
             }
-            let Some((d, z)) = pixel_at(camera, self.acc.point[q], width, height) else {
+            let Some((d, z)) = pixel_at(camera, self.acc.cell[q].point, width, height) else {
                 continue;
             };
             if hidden(front, d, z) {
@@ -571,7 +601,7 @@ impl Pixels {
             }
         }
         std::mem::swap(&mut self.acc, &mut self.scratch);
-        self.held.fill(None);
+        self.drop_held();
     }
 
     /// A still sample joins pixel `q` if it agrees with what the pixel showed; two in
@@ -583,7 +613,7 @@ impl Pixels {
             return;
         }
         let l = luminance(f.color);
-        let (lo, hi) = self.acc.lum_range[q];
+        let (lo, hi) = self.acc.cell[q].range;
         let outside =
             self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
         match (outside, self.held[q].take()) {
@@ -594,13 +624,41 @@ impl Pixels {
                 }
                 self.add(q, f.color, f.t, f.hit_point, p.max_count);
             }
-            (true, None) => self.held[q] = Some((f.color, f.t, f.hit_point)),
+            (true, None) => self.hold(q, (f.color, f.t, f.hit_point)),
             (true, Some((c, t, hit))) => {
                 // Two in a row outside what the pixel showed: it changed (a surface
                 // uncovered, a shadow gone); start over from them.
                 self.cut(q);
                 self.add(q, c, t, hit, p.max_count);
                 self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+        }
+    }
+
+    /// Hold sample `s` back at pixel `q`.
+    fn hold(&mut self, q: usize, s: (Vec3, f64, Vec3)) {
+        self.held[q] = Some(s);
+        if let Some(at) = &mut self.held_at {
+            if at.len() < self.held.len() / 8 {
+                at.push(q as u32);
+            } else {
+                self.held_at = None;
+            }
+        }
+    }
+
+    /// No pixel holds a sample back.
+    fn drop_held(&mut self) {
+        match &mut self.held_at {
+            Some(at) => {
+                for &q in at.iter() {
+                    self.held[q as usize] = None;
+                }
+                at.clear();
+            }
+            None => {
+                self.held.fill(None);
+                self.held_at = Some(Vec::new());
             }
         }
     }
@@ -612,19 +670,19 @@ impl Pixels {
     }
 
     fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
-        let a = &mut self.acc;
-        a.point[q] = hit;
-        a.sum[q] += c;
-        a.time_sum[q] += t;
-        a.count[q] += 1.0;
+        let (a, count) = (&mut self.acc.cell[q], &mut self.acc.count[q]);
+        a.point = hit;
+        a.sum += c;
+        a.time_sum += t;
+        *count += 1.0;
         let l = luminance(c);
-        let r = &mut a.lum_range[q];
+        let r = &mut a.range;
         *r = (r.0.min(l), r.1.max(l));
-        if a.count[q] > max {
-            let k = max / a.count[q];
-            a.sum[q] *= k;
-            a.time_sum[q] *= k as f64;
-            a.count[q] = max;
+        if *count > max {
+            let k = max / *count;
+            a.sum *= k;
+            a.time_sum *= k as f64;
+            *count = max;
         }
     }
 
@@ -660,13 +718,11 @@ impl Pixels {
         let rows: Vec<(u64, f64)> = image
             .pixels
             .par_chunks_mut(w)
-            .zip(acc.sum.par_chunks_mut(w))
-            .zip(acc.time_sum.par_chunks_mut(w))
+            .zip(acc.cell.par_chunks_mut(w))
             .zip(acc.count.par_chunks_mut(w))
-            .zip(acc.lum_range.par_chunks_mut(w))
             .zip(age.par_chunks_mut(w))
             .enumerate()
-            .map(|(y, (((((out, sum), time_sum), count), range), age))| {
+            .map(|(y, (((out, cell), count), age))| {
                 let (above, below) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
                 let [lo_a, lo_m, lo_b] = [above, y * w, below].map(|k| &row_lo[k..k + w]);
                 let [hi_a, hi_m, hi_b] = [above, y * w, below].map(|k| &row_hi[k..k + w]);
@@ -675,11 +731,12 @@ impl Pixels {
                     let shown_age = if count[x] > 0.0 {
                         let lo = lo_a[x].min(lo_m[x]).min(lo_b[x]);
                         let hi = hi_a[x].max(hi_m[x]).max(hi_b[x]);
+                        let c = &mut cell[x];
                         let mut px = PixelHistory {
-                            sum: &mut sum[x],
-                            time_sum: &mut time_sum[x],
+                            sum: &mut c.sum,
+                            time_sum: &mut c.time_sum,
                             count: &mut count[x],
-                            range: &mut range[x],
+                            range: &mut c.range,
                         };
                         cuts += px.clamp_to(lo, hi, p) as u64;
                         px.blend_over(&mut out[x], age[x], t, p.recon_weight)
