@@ -513,10 +513,11 @@ struct Pixels {
     /// The pixels that may hold a sample back (`None`: too many to list, every
     /// pixel may), so that dropping them all costs what was held, not the image.
     held_at: Option<Vec<u32>>,
-    /// Per pixel, the lowest and highest colour of the reconstruction before blending
-    /// over the pixel and its two neighbours in the row (reused).
-    row_lo: Vec<Vec3>,
-    row_hi: Vec<Vec3>,
+    /// The lowest and highest colour of the reconstruction before blending over each
+    /// pixel and its two neighbours in the row: of the first and last row of every
+    /// band, and three rows a band as it goes (reused).
+    edges: Vec<(Vec3, Vec3)>,
+    rolling: Vec<(Vec3, Vec3)>,
     /// Pixels cut during the step under way.
     cuts: u64,
 }
@@ -529,8 +530,8 @@ impl Pixels {
             depth: vec![f32::INFINITY; n],
             held: vec![None; n],
             held_at: Some(Vec::new()),
-            row_lo: Vec::new(),
-            row_hi: Vec::new(),
+            edges: Vec::new(),
+            rolling: Vec::new(),
             cuts: 0,
         }
     }
@@ -583,7 +584,6 @@ impl Pixels {
         width: u32,
     ) {
         let height = (self.acc.count.len() / width.max(1) as usize) as u32;
-        self.scratch.reset();
         self.depth.fill(f32::INFINITY);
         for q in 0..self.acc.count.len() {
             if self.acc.count[q] <= 0.0 {
@@ -599,6 +599,12 @@ impl Pixels {
                 self.depth[d] = z;
                 self.scratch.take(d, &self.acc, q, cap);
             }
+        }
+        // What nothing landed on is empty (cheaper than emptying everything first:
+        // most pixels are landed on).
+        for (d, _) in self.depth.iter().enumerate().filter(|(_, z)| **z == f32::INFINITY) {
+            self.scratch.cell[d] = Cell::EMPTY;
+            self.scratch.count[d] = 0.0;
         }
         std::mem::swap(&mut self.acc, &mut self.scratch);
         self.drop_held();
@@ -697,61 +703,124 @@ impl Pixels {
         age: &mut [f32],
     ) -> (u64, f64) {
         let (w, h) = (image.width as usize, image.height as usize);
+        let bands = h.div_ceil(BLEND_ROWS);
         // The 3×3 neighbourhood's range, separably: each pixel's range over its row
-        // neighbours here, over the rows' ranges below (the same minima and maxima).
-        self.row_lo.resize(w * h, Vec3::ZERO);
-        self.row_hi.resize(w * h, Vec3::ZERO);
-        image
-            .pixels
-            .par_chunks(w)
-            .zip(self.row_lo.par_chunks_mut(w))
-            .zip(self.row_hi.par_chunks_mut(w))
-            .for_each(|((px, lo), hi)| {
-                for x in 0..w {
-                    let (a, b) = (px[x.saturating_sub(1)], px[(x + 1).min(w - 1)]);
-                    lo[x] = px[x].min(a).min(b);
-                    hi[x] = px[x].max(a).max(b);
-                }
-            });
-        let (row_lo, row_hi) = (&self.row_lo, &self.row_hi);
-        let acc = &mut self.acc;
-        let rows: Vec<(u64, f64)> = image
-            .pixels
-            .par_chunks_mut(w)
-            .zip(acc.cell.par_chunks_mut(w))
-            .zip(acc.count.par_chunks_mut(w))
-            .zip(age.par_chunks_mut(w))
+        // neighbours, then over the ranges of the rows above, at and below (the same
+        // minima and maxima). A band computes its rows' ranges as it goes, before
+        // blending them; the rows next to it are blended by other bands, so their
+        // ranges are taken first.
+        self.edges.resize(2 * bands * w, (Vec3::ZERO, Vec3::ZERO));
+        let px = &image.pixels;
+        self.edges
+            .par_chunks_mut(2 * w)
             .enumerate()
-            .map(|(y, (((out, cell), count), age))| {
-                let (above, below) = (y.saturating_sub(1) * w, (y + 1).min(h - 1) * w);
-                let [lo_a, lo_m, lo_b] = [above, y * w, below].map(|k| &row_lo[k..k + w]);
-                let [hi_a, hi_m, hi_b] = [above, y * w, below].map(|k| &row_hi[k..k + w]);
-                let (mut cuts, mut age_sum) = (0u64, 0f64);
-                for x in 0..w {
-                    let shown_age = if count[x] > 0.0 {
-                        let lo = lo_a[x].min(lo_m[x]).min(lo_b[x]);
-                        let hi = hi_a[x].max(hi_m[x]).max(hi_b[x]);
-                        let c = &mut cell[x];
-                        let mut px = PixelHistory {
-                            sum: &mut c.sum,
-                            time_sum: &mut c.time_sum,
-                            count: &mut count[x],
-                            range: &mut c.range,
-                        };
-                        cuts += px.clamp_to(lo, hi, p) as u64;
-                        px.blend_over(&mut out[x], age[x], t, p.recon_weight)
-                    } else {
-                        age[x] as f64
+            .for_each(|(b, e)| {
+                let (first, last) = e.split_at_mut(w);
+                let y0 = b * BLEND_ROWS;
+                let y1 = (y0 + BLEND_ROWS).min(h) - 1;
+                row_range(&px[y0 * w..][..w], first);
+                row_range(&px[y1 * w..][..w], last);
+            });
+        self.rolling.resize(3 * bands * w, (Vec3::ZERO, Vec3::ZERO));
+        let (edges, acc) = (&self.edges, &mut self.acc);
+        let rows: Vec<Vec<(u64, f64)>> = image
+            .pixels
+            .par_chunks_mut(BLEND_ROWS * w)
+            .zip(acc.cell.par_chunks_mut(BLEND_ROWS * w))
+            .zip(acc.count.par_chunks_mut(BLEND_ROWS * w))
+            .zip(age.par_chunks_mut(BLEND_ROWS * w))
+            .zip(self.rolling.par_chunks_mut(3 * w))
+            .enumerate()
+            .map(|(b, ((((out, cell), count), age), rolling))| {
+                let edge = |k: usize| &edges[k * w..][..w];
+                let rows = out.len() / w;
+                let mut slots: Vec<&mut [(Vec3, Vec3)]> = rolling.chunks_mut(w).collect();
+                // Slot 1 holds this row's ranges, 2 the next row's; the row above's is
+                // slot 0 or, for a band's first row, the previous band's edge.
+                row_range(&out[..w], slots[1]);
+                let mut per_row = Vec::with_capacity(rows);
+                for r in 0..rows {
+                    let next_own = r + 1 < rows;
+                    if next_own {
+                        row_range(&out[(r + 1) * w..][..w], slots[2]);
+                    }
+                    let above: &[(Vec3, Vec3)] = match (r, b) {
+                        (0, 0) => slots[1],
+                        (0, _) => edge(2 * b - 1),
+                        _ => slots[0],
                     };
-                    age[x] = shown_age as f32;
-                    age_sum += shown_age;
+                    let below: &[(Vec3, Vec3)] = match (next_own, b + 1 < bands) {
+                        (true, _) => slots[2],
+                        (false, true) => edge(2 * b + 2),
+                        (false, false) => slots[1],
+                    };
+                    let row = r * w..(r + 1) * w;
+                    per_row.push(blend_row(
+                        [above, slots[1], below],
+                        &mut out[row.clone()],
+                        &mut cell[row.clone()],
+                        &mut count[row.clone()],
+                        &mut age[row],
+                        t,
+                        p,
+                    ));
+                    slots.rotate_left(1);
                 }
-                (cuts, age_sum)
+                per_row
             })
             .collect();
-        let cuts = rows.iter().map(|r| r.0).sum::<u64>();
-        (cuts, rows.iter().map(|r| r.1).sum())
+        let rows = rows.iter().flatten();
+        let cuts = rows.clone().map(|r| r.0).sum::<u64>();
+        (cuts, rows.map(|r| r.1).sum())
     }
+}
+
+/// Rows of a band of the history's blend.
+const BLEND_ROWS: usize = 16;
+
+/// Each pixel's lowest and highest colour over itself and its two neighbours in the
+/// row `px`.
+fn row_range(px: &[Vec3], out: &mut [(Vec3, Vec3)]) {
+    let w = px.len();
+    for x in 0..w {
+        let (a, b) = (px[x.saturating_sub(1)], px[(x + 1).min(w - 1)]);
+        out[x] = (px[x].min(a).min(b), px[x].max(a).max(b));
+    }
+}
+
+/// Clamp and blend one row's history over the reconstruction `out`, given the row
+/// ranges of the rows above, at and below it; returns the pixels cut and the sum of
+/// the shown ages.
+fn blend_row(
+    [ra, rm, rb]: [&[(Vec3, Vec3)]; 3],
+    out: &mut [Vec3],
+    cell: &mut [Cell],
+    count: &mut [f32],
+    age: &mut [f32],
+    t: f64,
+    p: &HistoryParams,
+) -> (u64, f64) {
+    let (mut cuts, mut age_sum) = (0u64, 0f64);
+    for x in 0..out.len() {
+        let shown_age = if count[x] > 0.0 {
+            let lo = ra[x].0.min(rm[x].0).min(rb[x].0);
+            let hi = ra[x].1.max(rm[x].1).max(rb[x].1);
+            let c = &mut cell[x];
+            let mut px = PixelHistory {
+                sum: &mut c.sum,
+                time_sum: &mut c.time_sum,
+                count: &mut count[x],
+                range: &mut c.range,
+            };
+            cuts += px.clamp_to(lo, hi, p) as u64;
+            px.blend_over(&mut out[x], age[x], t, p.recon_weight)
+        } else {
+            age[x] as f64
+        };
+        age[x] = shown_age as f32;
+        age_sum += shown_age;
+    }
+    (cuts, age_sum)
 }
 
 /// One pixel's history, borrowed from the arrays.
