@@ -178,25 +178,43 @@ pub fn live_image_ms(
     }
 }
 
-/// What `frameless bench --live-recon` measures, on one thread.
+/// What `frameless bench --live-recon` measures, on one thread, with the real-time
+/// reconstructor ([`ReconParams::realtime`]): it carries its sums while the view holds
+/// and re-splats the ring while the view moves, so both are measured; and, for
+/// comparison, sums carried (moved) with the moving view too.
 #[derive(Clone, Debug, Serialize)]
 pub struct LiveReport {
-    /// Each live size with the real-time reconstructor (accumulators carried), the
-    /// camera turning.
-    pub sizes: Vec<LiveFigure>,
-    /// The same with a still camera (only moving things move what is carried).
+    /// Each live size, the camera still (only moving things move what is carried).
     pub sizes_still: Vec<LiveFigure>,
-    /// The same sizes, up to 1280×720, re-splatting the ring at every image (the
-    /// design before carrying, `carry` off).
-    pub sizes_resplat: Vec<LiveFigure>,
+    /// Each live size, the camera turning: the ring is re-splatted at every image.
+    pub sizes_turning: Vec<LiveFigure>,
+    /// Each live size, the camera turning, the sums moved with the view
+    /// (`resplat_moving_view` off).
+    pub sizes_turning_carried: Vec<LiveFigure>,
     /// 640×480 with the ring growing from 0.5 to 4 samples per pixel, new samples
-    /// fixed, carried.
-    pub ring_growth: Vec<LiveFigure>,
-    /// The same, re-splatted.
-    pub ring_growth_resplat: Vec<LiveFigure>,
+    /// fixed, the camera still.
+    pub ring_growth_still: Vec<LiveFigure>,
+    /// The same, the camera turning (re-splatted).
+    pub ring_growth_turning: Vec<LiveFigure>,
+    /// The same, the camera turning, the sums moved with the view.
+    pub ring_growth_turning_carried: Vec<LiveFigure>,
 }
 
-/// Ring sizes of [`LiveReport::ring_growth`], samples per pixel.
+impl LiveReport {
+    /// Each table with its title, in the order `frameless bench` prints them.
+    pub fn sections(&self) -> [(&'static str, &[LiveFigure]); 6] {
+        [
+            ("real-time reconstructor, camera still (carried), 1 thread", &self.sizes_still),
+            ("camera turning (the ring re-splatted)", &self.sizes_turning),
+            ("camera turning, sums moved with the view (resplat_moving_view off)", &self.sizes_turning_carried),
+            ("ring growing, camera still (carried)", &self.ring_growth_still),
+            ("ring growing, camera turning (re-splatted)", &self.ring_growth_turning),
+            ("ring growing, camera turning, sums moved with the view", &self.ring_growth_turning_carried),
+        ]
+    }
+}
+
+/// Ring sizes of the ring-growth tables, samples per pixel.
 const RING_SPPS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 
 /// Measure a [`LiveReport`] on a pool of one thread, `images` timed images per figure,
@@ -206,47 +224,38 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
         .num_threads(1)
         .build()
         .expect("one-thread pool");
-    let carried = ReconParams::realtime();
-    let resplat = ReconParams {
-        carry: false,
-        ..carried
+    let realtime = ReconParams::realtime();
+    let carried = ReconParams {
+        resplat_moving_view: false,
+        ..realtime
     };
-    let spp = carried.ring_factor;
-    let mut run = |case: LiveCase, spp: f64, p: ReconParams, what: &str, turning: bool| {
+    let spp = realtime.ring_factor;
+    let mut run = |case: LiveCase, spp: f64, p: ReconParams, turning: bool| {
         progress(&format!(
-            "{}x{} {what}, ring {spp} per pixel, camera {}",
+            "{}x{}, ring {spp} per pixel, camera {}{}",
             case.width,
             case.height,
-            if turning { "turning" } else { "still" }
+            if turning { "turning" } else { "still" },
+            if p.resplat_moving_view { "" } else { ", sums moved with the view" },
         ));
         one.install(|| live_image_ms(case, spp, p, images, turning))
     };
-    let sizes = LIVE_CASES
-        .iter()
-        .map(|&c| run(c, spp, carried, "carried", true))
-        .collect();
-    let sizes_still = LIVE_CASES
-        .iter()
-        .map(|&c| run(c, spp, carried, "carried", false))
-        .collect();
-    let sizes_resplat = LIVE_CASES[..3]
-        .iter()
-        .map(|&c| run(c, spp, resplat, "re-splatted", true))
-        .collect();
+    let mut sizes = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
+        LIVE_CASES.iter().map(|&c| run(c, spp, p, turning)).collect()
+    };
+    let sizes_still = sizes(realtime, false);
+    let sizes_turning = sizes(realtime, true);
+    let sizes_turning_carried = sizes(carried, true);
     let vga = LIVE_CASES[1];
-    let ring_growth = RING_SPPS
-        .iter()
-        .map(|&s| run(vga, s, carried, "carried", true))
-        .collect();
-    let ring_growth_resplat = RING_SPPS
-        .iter()
-        .map(|&s| run(vga, s, resplat, "re-splatted", true))
-        .collect();
+    let mut growth = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
+        RING_SPPS.iter().map(|&s| run(vga, s, p, turning)).collect()
+    };
     LiveReport {
-        sizes,
         sizes_still,
-        sizes_resplat,
-        ring_growth,
-        ring_growth_resplat,
+        sizes_turning,
+        sizes_turning_carried,
+        ring_growth_still: growth(realtime, false),
+        ring_growth_turning: growth(realtime, true),
+        ring_growth_turning_carried: growth(carried, true),
     }
 }

@@ -227,20 +227,9 @@ fn bench_live_recon(json: bool) -> Result<()> {
             );
         }
     };
-    table(
-        "carried accumulators (the real-time reconstructor), camera turning, 1 thread",
-        &report.sizes,
-    );
-    table("carried, camera still", &report.sizes_still);
-    table(
-        "re-splatting the ring (carry off), camera turning",
-        &report.sizes_resplat,
-    );
-    table("ring growing, carried, camera turning", &report.ring_growth);
-    table(
-        "ring growing, re-splatted, camera turning",
-        &report.ring_growth_resplat,
-    );
+    for (title, rows) in report.sections() {
+        table(title, rows);
+    }
     Ok(())
 }
 

@@ -99,6 +99,11 @@ pub(super) struct Carried {
     epoch: u32,
     /// The pixel and weight index of each new sample (reused).
     ahead: Vec<[u32; 2]>,
+    /// The previous refresh re-splatted the ring: the next carried refresh starts
+    /// from nothing and places the whole live ring as new.
+    restart: bool,
+    /// The view of the previous refresh, carried or not.
+    view: Option<CameraFrame>,
 }
 
 impl Carried {
@@ -115,6 +120,8 @@ impl Carried {
             stamp: vec![0; n],
             epoch: 0,
             ahead: Vec::new(),
+            restart: false,
+            view: None,
         }
     }
 }
@@ -213,6 +220,9 @@ impl Reconstructor {
     /// one (the ring holds at most its capacity of them).
     pub(super) fn pending_start(&self) -> Option<usize> {
         let c = self.carried.as_ref()?;
+        if c.restart {
+            return Some(0);
+        }
         Some(self.ring.len() - c.pending.min(self.ring.len()))
     }
 
@@ -223,6 +233,13 @@ impl Reconstructor {
         let Some(mut c) = self.carried.take() else {
             return;
         };
+        if std::mem::take(&mut c.restart) {
+            self.acc.fill(0.0);
+            self.cover.fill(0.0);
+            c.geo.fill(Geo::NONE);
+            c.moving.clear();
+            c.last = None;
+        }
         if let Some((t0, cam0)) = c.last {
             let dt = (t - t0).max(0.0) as f32;
             let decay = self.tile_decay(dt);
@@ -233,7 +250,7 @@ impl Reconstructor {
             }
         }
         if self.params.reproject {
-            self.cut_and_place(&mut c, t, camera, start);
+            self.cut_and_place(&mut c, t, camera, start..self.ring.len());
         }
         c.last = Some((t, *camera));
         c.pending = 0;
@@ -390,8 +407,15 @@ impl Reconstructor {
     /// cut; where behind, it is left to the visibility pass. The pixel's geometry
     /// becomes that of its nearest new sample that is not behind.
     #[inline(never)]
-    fn cut_and_place(&mut self, c: &mut Carried, t: f64, camera: &CameraFrame, start: usize) {
+    fn cut_and_place(
+        &mut self,
+        c: &mut Carried,
+        t: f64,
+        camera: &CameraFrame,
+        samples: std::ops::Range<usize>,
+    ) {
         use field::*;
+        let start = samples.start;
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let proj = Projector::new(camera);
         let keep = self.carry_keep();
@@ -409,11 +433,11 @@ impl Reconstructor {
         // of samples ahead of it (they are at random: one miss after another
         // otherwise).
         c.ahead.clear();
-        c.ahead.extend((start..ring.len()).map(|i| match sample(i).0 {
+        c.ahead.extend(samples.clone().map(|i| match sample(i).0 {
             Some((px, py)) => [(py * w + px) as u32, ((py * CHANNELS + 3) * cs + px) as u32],
             None => [u32::MAX; 2],
         }));
-        for i in start..ring.len() {
+        for i in samples {
             if let Some(&[q, a]) = c.ahead.get(i - start + PREFETCH_AHEAD) {
                 let q = q as usize;
                 prefetch(&c.geo, q);
@@ -472,6 +496,34 @@ impl Reconstructor {
             c.geo[q as usize] = c.next_geo[q as usize];
         }
         c.touched.clear();
+    }
+}
+
+impl Reconstructor {
+    /// Whether this refresh carries the previous one's sums.
+    pub(super) fn carries_now(&self) -> bool {
+        self.carried.is_some() && !self.resplat
+    }
+
+    /// Whether a refresh seen by `camera` re-splats the ring instead of carrying: with
+    /// [`super::ReconParams::resplat_moving_view`], when the view is not the previous
+    /// refresh's. Notes the view for the next refresh.
+    pub(super) fn resplats_at(&mut self, camera: &CameraFrame) -> bool {
+        let p = self.params;
+        let Some(c) = &mut self.carried else {
+            return false;
+        };
+        let moved = c.view.is_some_and(|v| !v.same_view(camera));
+        c.view = Some(*camera);
+        p.resplat_moving_view && p.reproject && moved
+    }
+
+    /// After a refresh that re-splatted the ring: the next carried refresh starts
+    /// from nothing, placing the whole live ring (a re-splat whose sums it carries on).
+    pub(super) fn restart_carry(&mut self) {
+        if let Some(c) = &mut self.carried {
+            c.restart = true;
+        }
     }
 }
 

@@ -45,6 +45,8 @@ fn bare(et: f64) -> ReconParams {
         fill_weight: 0.0,
         history: None,
         visibility: None,
+        // What is tested here is the carried sums' move with the view.
+        resplat_moving_view: false,
         ..ReconParams::converging()
     }
 }
@@ -240,4 +242,50 @@ fn images_do_not_depend_on_the_ring_size() {
         .collect();
     assert_eq!(images[0], images[1]);
     assert_eq!(images[1], images[2]);
+}
+
+#[test]
+fn a_moving_view_resplats_the_ring_and_carrying_resumes_once_it_holds() {
+    // While the view moves the refresh is the ring's (the same images as without
+    // carrying); the first refresh after the view stops re-splats the ring too, onto
+    // nothing, and carries on from there: only the new samples are placed after.
+    let (w, h) = (24, 18);
+    let tiling = TilingSnapshot::whole(w, h);
+    let times: Vec<f64> = (0..7).map(|k| 1.0 + k as f64 / 60.0).collect();
+    // The view moves for the first four refreshes, then holds.
+    let eye = |k: usize| 0.02 * k.min(3) as f32;
+    let bs: Vec<Vec<RingSample>> = times
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| batches(&cam_at(eye(k), w, h), &[t - 1.0 / 60.0, t], 80, 20 + k as u64).remove(1))
+        .collect();
+    let hybrid = ReconParams {
+        resplat_moving_view: true,
+        ..bare(0.03)
+    };
+    let ring = ReconParams {
+        carry: false,
+        ..hybrid
+    };
+    let mut a = Reconstructor::new(w, h, 5000.0, hybrid);
+    let mut b = Reconstructor::new(w, h, 5000.0, ring);
+    for (k, (batch, &t)) in bs.iter().zip(&times).enumerate() {
+        for s in batch {
+            a.push(*s);
+            b.push(*s);
+        }
+        let c = cam_at(eye(k), w, h);
+        a.reconstruct(t, &c, &tiling);
+        b.reconstruct(t, &c, &tiling);
+        match k {
+            // The first refresh carries from nothing: a re-splat as well.
+            0..=4 => {
+                assert_eq!(a.placed(), b.placed(), "refresh {k} places the live ring");
+                assert_eq!(a.image().pixels, b.image().pixels, "refresh {k}");
+            }
+            _ => assert_eq!(a.placed(), batch.len(), "refresh {k} carries"),
+        }
+    }
+    // And carrying changed the image from the ring's (its temporal weight differs).
+    assert_ne!(a.image().pixels, b.image().pixels);
 }

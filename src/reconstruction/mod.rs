@@ -198,6 +198,9 @@ pub struct Reconstructor {
     cover: Vec<f32>,
     /// With [`ReconParams::carry`]: the accumulators' state between refreshes.
     carried: Option<Box<carry::Carried>>,
+    /// This refresh re-splats the ring although the reconstructor carries
+    /// ([`ReconParams::resplat_moving_view`]).
+    resplat: bool,
     /// Front depths of the visibility pass, one per pixel (empty without it).
     front: Vec<f32>,
     /// Rows per band of the splat at the last refresh.
@@ -285,6 +288,7 @@ impl Reconstructor {
             carried: params
                 .carry
                 .then(|| Box::new(carry::Carried::new(n, height as usize * CHANNELS * cs))),
+            resplat: false,
             front: Vec::new(),
             band_rows: BAND_ROWS,
             binned: Vec::new(),
@@ -488,18 +492,22 @@ impl Reconstructor {
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
         self.update_filters(tiling);
+        self.resplat = self.resplats_at(camera);
         if self.refresh_on_gpu(t, camera) {
             return &self.image;
         }
         self.prepare_splats(t, camera);
         self.front_depths();
-        if self.carried.is_some() {
+        if self.carries_now() {
             let start = self.ring.len() - self.placed;
             self.carry_over(t, camera, start);
             self.carried_front();
         }
         self.splat();
         self.resolve();
+        if self.resplat {
+            self.restart_carry();
+        }
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let Some(h) = &mut self.history {
             let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
@@ -532,7 +540,11 @@ impl Reconstructor {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
         let pending = self.carried.as_ref().map(|c| c.pending);
-        let carried = self.carry_for_gpu(t, camera, start);
+        let carried = if self.resplat {
+            None
+        } else {
+            self.carry_for_gpu(t, camera, start)
+        };
         let max_r = self.max_footprint_radius();
         let step = self.history.as_mut().map(|h| h.plan(t, camera));
         let Some(g) = self.gpu.as_mut() else {
@@ -561,6 +573,9 @@ impl Reconstructor {
         if let Some(sums) = &back.sums {
             let w = self.width as usize;
             gpu::carried::unpack(sums, &mut self.acc, self.cs, w, &mut self.cover);
+        }
+        if self.resplat {
+            self.restart_carry();
         }
         back.unpack(
             &mut self.image.pixels,

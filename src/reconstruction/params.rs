@@ -75,6 +75,11 @@ pub struct ReconParams {
     /// 0.35–1.4 on `toycar` (docs/performance.md, session 19); the ring's Gaussian
     /// weights have a mean age of 0.8 `e_t`.
     pub decay_scale: f32,
+    /// With [`ReconParams::carry`]: a refresh whose view is not the previous
+    /// refresh's re-splats the ring as without carrying (its cost is then the ring's),
+    /// and carrying starts again from that refresh's sums once the view holds. Off:
+    /// the sums are moved with the view at every refresh.
+    pub resplat_moving_view: bool,
 }
 
 /// The visibility pass of the splat: reprojected samples are a point cloud seen from a
@@ -140,14 +145,16 @@ impl ReconParams {
             exact_motion: false,
             carry: false,
             decay_scale: 1.0,
+            resplat_moving_view: false,
         }
     }
 
     /// Ours: the paper's reconstructor with the still-region history
     /// ([`HistoryParams::default`]), the pull-push fill of sparsely covered pixels,
     /// half the filter volume, the visibility pass, exact motion, and accumulators
-    /// carried between refreshes ([`ReconParams::carry`]), so that each sample is
-    /// splatted once.
+    /// carried between refreshes while the view holds ([`ReconParams::carry`],
+    /// [`ReconParams::resplat_moving_view`]), so that each sample is splatted once
+    /// there.
     pub fn converging() -> Self {
         Self {
             history: Some(HistoryParams::default()),
@@ -157,6 +164,7 @@ impl ReconParams {
             exact_motion: true,
             carry: true,
             decay_scale: 0.6,
+            resplat_moving_view: true,
             ..Self::paper()
         }
     }

@@ -548,7 +548,8 @@ impl Reconstructor {
     /// The first logical ring index a refresh at `t` places (past the stale part and
     /// within the live limit), counting the samples placed.
     pub(super) fn live_range(&mut self, t: f64) -> usize {
-        let stale = self.live_start(t).max(self.pending_start().unwrap_or(0));
+        let pending = self.pending_start().filter(|_| !self.resplat);
+        let stale = self.live_start(t).max(pending.unwrap_or(0));
         let start = match self.live_limit {
             Some(k) => stale.max(self.ring.len().saturating_sub(k)),
             None => stale,

@@ -21,7 +21,7 @@ impl Reconstructor {
         let (rs, cs, cstride) = (CHANNELS * self.cs, self.cs, w + 1);
         let p = self.params;
         // Carried coverage (decayed) adds to this refresh's (unread without carrying).
-        let carrying = self.carried.is_some();
+        let carrying = self.carries_now();
         let per_band: Vec<(usize, usize, f64)> = self
             .image
             .pixels

@@ -311,7 +311,7 @@ impl Reconstructor {
         let binned = &self.binned[..self.pieces];
         let rows = self.band_rows;
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
-        let carried = self.carried.is_some();
+        let carried = self.carries_now();
         self.acc
             .par_chunks_mut(rows * CHANNELS * cs)
             .zip(self.cov.par_chunks_mut(rows * cstride))
