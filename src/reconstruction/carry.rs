@@ -31,6 +31,8 @@
 //! A refresh then costs the new samples' splats plus a few passes over the pixels,
 //! whatever the ring's length: the ring only holds samples until their first refresh.
 
+use std::collections::HashMap;
+
 use glam::Vec3;
 
 use super::{
@@ -41,7 +43,10 @@ use super::{
     splat::{behind_front, CHANNELS},
     Reconstructor,
 };
-use crate::scene::CameraFrame;
+use crate::{
+    scene::CameraFrame,
+    trace::{Anchor, SceneState},
+};
 
 /// Where a pixel's carried sums lie: the surface point they show.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -92,6 +97,12 @@ pub(super) struct Carried {
     pub(super) pending: usize,
     /// Pixels whose geometry moved at the last refresh (some may no longer).
     moving: Vec<u32>,
+    /// What the surface a moving pixel's sums show is fixed to (where it is known),
+    /// so that with exact motion the sums go where that point is, not where its
+    /// velocity takes it.
+    anchor: HashMap<u32, Anchor>,
+    /// The anchors of this refresh's nearest new samples, pixel by pixel (reused).
+    next_anchor: HashMap<u32, Anchor>,
     /// The pixels new samples landed on at this refresh, each once (reused).
     touched: Vec<u32>,
     /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
@@ -116,6 +127,8 @@ impl Carried {
             last: None,
             pending: 0,
             moving: Vec::new(),
+            anchor: HashMap::new(),
+            next_anchor: HashMap::new(),
             touched: Vec::new(),
             stamp: vec![0; n],
             epoch: 0,
@@ -238,6 +251,7 @@ impl Reconstructor {
             self.cover.fill(0.0);
             c.geo.fill(Geo::NONE);
             c.moving.clear();
+            c.anchor.clear();
             c.last = None;
         }
         if let Some((t0, cam0)) = c.last {
@@ -311,7 +325,9 @@ impl Reconstructor {
     }
 
     /// With the view unchanged: the sums of the pixels listed as moving go where
-    /// their surfaces are now (all taken out first, so none moves twice).
+    /// their surfaces are now (all taken out first, so none moves twice): where the
+    /// point they show is fixed to something and the scene of this refresh is given
+    /// (exact motion), exactly there; otherwise along their velocity.
     fn move_listed(&mut self, c: &mut Carried, dt: f32, camera: &CameraFrame) {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let mut out = Vec::new();
@@ -325,11 +341,14 @@ impl Reconstructor {
             let sums: [f32; CHANNELS] = std::array::from_fn(|ch| {
                 std::mem::take(&mut self.acc[(y * CHANNELS + ch) * cs + x])
             });
-            out.push((x, y, g, sums, std::mem::take(&mut self.cover[q])));
+            let anchor = c.anchor.remove(&(q as u32));
+            out.push((x, y, g, anchor, sums, std::mem::take(&mut self.cover[q])));
             c.geo[q] = Geo::NONE;
         }
         c.moving.clear();
         let mover = Mover::new(w, h, dt, camera, camera);
+        let exact = self.motion.as_deref().filter(|_| self.params.exact_motion);
+        let proj = Projector::new(camera);
         let keep = self.carry_keep();
         let mut into = Target {
             acc: &mut self.acc,
@@ -337,9 +356,19 @@ impl Reconstructor {
             geo: &mut c.geo,
             cover: &mut self.cover,
         };
-        for (x, y, g, sums, cover) in out {
-            if let Some(m) = mover.target(x, y, g) {
-                into.land_move(&m, sums, cover, keep, &mut c.moving);
+        for (x, y, g, anchor, sums, cover) in out {
+            let m = match (anchor, exact) {
+                (Some(a), Some(state)) => exact_target(state, &proj, a, g, w, h),
+                _ => mover.target(x, y, g),
+            };
+            let Some(m) = m else {
+                continue;
+            };
+            if into.land(&m, sums, cover, keep) == Some(true) {
+                c.moving.push(m.to as u32);
+                if let Some(a) = anchor {
+                    c.anchor.insert(m.to as u32, a);
+                }
             }
         }
     }
@@ -361,6 +390,8 @@ impl Reconstructor {
         c.next_geo.fill(Geo::NONE);
         c.next_cover.fill(0.0);
         c.moving.clear();
+        // Moved with the view, moving sums follow their velocity.
+        c.anchor.clear();
         let mover = Mover::new(w, h, dt, cam0, camera);
         let keep = self.carry_keep();
         let mut into = Target {
@@ -481,12 +512,19 @@ impl Reconstructor {
             // visibility pass keeps), set below once every sample has been tested
             // against the carried one; `next_geo` is scratch until the next refresh.
             let g = Geo { z, ox, oy, v };
-            if c.stamp[q] != epoch {
+            let first = c.stamp[q] != epoch;
+            if first {
                 c.stamp[q] = epoch;
                 c.touched.push(q as u32);
-                c.next_geo[q] = if g.z < Geo::NONE.z { g } else { Geo::NONE };
-            } else if g.z < c.next_geo[q].z {
+                c.next_geo[q] = Geo::NONE;
+            }
+            if g.z < c.next_geo[q].z {
                 c.next_geo[q] = g;
+                if v != Vec3::ZERO {
+                    c.next_anchor.insert(q as u32, ring.anchor_of(i));
+                } else if !first {
+                    c.next_anchor.remove(&(q as u32));
+                }
             }
             if v != Vec3::ZERO {
                 c.moving.push(q as u32);
@@ -494,6 +532,10 @@ impl Reconstructor {
         }
         for &q in &c.touched {
             c.geo[q as usize] = c.next_geo[q as usize];
+            match c.next_anchor.remove(&q) {
+                Some(a) => c.anchor.insert(q, a),
+                None => c.anchor.remove(&q),
+            };
         }
         c.touched.clear();
     }
@@ -537,6 +579,32 @@ impl Carried {
         self.epoch += 1;
         self.epoch
     }
+}
+
+/// Where the sums of geometry `g`, showing the point fixed by `anchor`, land in the
+/// view of `proj` (`w × h` pixels) with the scene `state`: where that point is seen
+/// (`None`: its instance left the scene, it is behind the eye or off the image).
+fn exact_target(
+    state: &SceneState,
+    proj: &Projector,
+    anchor: Anchor,
+    g: Geo,
+    w: usize,
+    h: usize,
+) -> Option<Move> {
+    let (x, y, z) = proj.project(state.anchor_position(&anchor)?);
+    let (tx, ty) = pixel_at(x, y, z, w, h)?;
+    Some(Move {
+        to: ty * w + tx,
+        tx,
+        ty,
+        geo: Geo {
+            z,
+            ox: x - tx as f32 - 0.5,
+            oy: y - ty as f32 - 0.5,
+            v: g.v,
+        },
+    })
 }
 
 /// The geometry for a pixel at `(x, y)` that holds sums but got no sample of its own:
@@ -606,22 +674,23 @@ impl Target<'_> {
         keep: f32,
         moving: &mut Vec<u32>,
     ) {
-        if self.land(m, sums, cover, keep) && m.geo.v != Vec3::ZERO {
+        if self.land(m, sums, cover, keep).is_some() && m.geo.v != Vec3::ZERO {
             moving.push(m.to as u32);
         }
     }
 
     /// Sums `sums` with coverage `cover` arrive by move `m`: an
     /// empty pixel takes them; otherwise the nearer wins, and both merge within the
-    /// depth tolerance (`keep`). Whether they stayed.
-    fn land(&mut self, m: &Move, sums: [f32; CHANNELS], cover: f32, keep: f32) -> bool {
+    /// depth tolerance (`keep`). Whether they stayed (`None`: not), and if so whether
+    /// the pixel took their geometry.
+    fn land(&mut self, m: &Move, sums: [f32; CHANNELS], cover: f32, keep: f32) -> Option<bool> {
         let (to, tx, ty, g) = (m.to, m.tx, m.ty, m.geo);
         let at = |ch: usize| (ty * CHANNELS + ch) * self.cs + tx;
         let old = self.geo[to];
         let mut merge = false;
         if holds(self.acc[at(3)]) {
             if behind_front(old.z, g.z, keep) {
-                return false;
+                return None;
             }
             merge = !behind_front(g.z, old.z, keep);
         }
@@ -631,10 +700,11 @@ impl Target<'_> {
         }
         let c = &mut self.cover[to];
         *c = if merge { *c + cover } else { cover };
-        if !(merge && old.z <= g.z) {
+        let takes = !(merge && old.z <= g.z);
+        if takes {
             self.geo[to] = g;
         }
-        true
+        Some(takes)
     }
 }
 

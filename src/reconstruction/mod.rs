@@ -491,10 +491,18 @@ impl Reconstructor {
     /// Reconstruct the image at display time `t` seen by `camera`, with filters from
     /// `tiling` (the sampler's current tiling).
     pub fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) -> &Image {
+        self.refresh(t, camera, tiling);
+        // The scene given for this refresh is never applied to a later one.
+        self.motion = None;
+        &self.image
+    }
+
+    /// [`Reconstructor::reconstruct`]'s steps.
+    fn refresh(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {
         self.update_filters(tiling);
         self.resplat = self.resplats_at(camera);
         if self.refresh_on_gpu(t, camera) {
-            return &self.image;
+            return;
         }
         self.prepare_splats(t, camera);
         self.front_depths();
@@ -513,7 +521,6 @@ impl Reconstructor {
             let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
-        &self.image
     }
 
     /// A refresh on the GPU, if there is one; false if it is still to be done (no GPU,

@@ -478,7 +478,7 @@ impl Reconstructor {
     /// ([`Reconstructor::set_motion`]), [`Reconstructor::follow_motion`] from logical
     /// index `start`; whether it did (the scene is used by this refresh only).
     pub(super) fn follow_motion_if_asked(&mut self, t: f64, start: usize) -> bool {
-        match self.motion.take().filter(|_| self.params.exact_motion) {
+        match self.motion.clone().filter(|_| self.params.exact_motion) {
             Some(state) => {
                 self.follow_motion(t, &state, start);
                 true

@@ -136,6 +136,15 @@ impl Ring {
         self.pushed - self.len as u64 + i as u64
     }
 
+    /// What the `i`-th oldest sample is fixed to.
+    pub(crate) fn anchor_of(&self, i: usize) -> Anchor {
+        let k = self.push_index(i);
+        match self.moving.binary_search_by_key(&k, |m| m.0) {
+            Ok(j) => self.moving[j].1,
+            Err(_) => Anchor::Still,
+        }
+    }
+
     /// What the sample at physical index `p` is fixed to.
     fn anchor_at(&self, p: usize) -> Anchor {
         let i = (p + self.capacity - self.head) % self.capacity;
