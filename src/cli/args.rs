@@ -302,7 +302,7 @@ pub struct ViewArgs {
     /// Adaptive: share of a refresh period an image may take to build; when one takes
     /// longer, the next reconstructs from only the newest samples that fit (0: always
     /// the whole ring).
-    #[arg(long, default_value = "0.8", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = frameless::realtime::adaptive_settings::IMAGE_BUDGET, value_parser = finite_f64, allow_negative_numbers = true)]
     pub image_budget: f64,
     /// Scene time at start, seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]

@@ -786,16 +786,11 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
     if a.no_reprojection {
         cfg.adaptive.sampler.reprojection = false;
     }
+    // Their ranges are the library's: `RtConfig::validate` checks them below.
     if let Some(f) = a.ring_factor {
-        if !(f > 0.0 && f <= 64.0) {
-            bail!("--ring-factor {f} must be in (0, 64]");
-        }
         cfg.adaptive.recon.ring_factor = f;
     }
     if let Some(r) = a.max_radius {
-        if !(1.0..=64.0).contains(&r) {
-            bail!("--max-radius {r} must be in [1, 64] pixels");
-        }
         cfg.adaptive.recon.max_radius = r as f32;
     }
     cfg.validate()?;

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use super::{
     framed::{reduced_grid, GBuffer, GSample},
-    sixty_per_second,
+    sixty_per_second, FRAME_HZ,
     Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
 };
 use crate::{
@@ -693,7 +693,7 @@ impl Taa {
         let size = ctx.tracer.size();
         let history = TaaHistory::new(size, params, ctx.clock.start)?;
         sixty_per_second("taa", ctx.clock.rate)?;
-        let per_frame = (ctx.clock.rate / 60.0).floor();
+        let per_frame = (ctx.clock.rate / FRAME_HZ).floor();
         let grid = reduced_grid(size.0, size.1, per_frame as u64);
         Ok(Self {
             ctx: ctx.clone(),
@@ -707,7 +707,7 @@ impl Taa {
     }
 
     fn frame_start(&self, j: u64) -> f64 {
-        self.ctx.clock.start + j as f64 / 60.0
+        self.ctx.clock.start + j as f64 / FRAME_HZ
     }
 
     /// Trace frame `j` at time `t` and fold it into the history.
@@ -733,7 +733,7 @@ impl Taa {
             jitter,
             time: t,
             camera: state.camera,
-            dt: (1.0 / 60.0) as f32,
+            dt: (1.0 / FRAME_HZ) as f32,
         });
     }
 
@@ -844,7 +844,7 @@ mod tests {
                 jitter,
                 time: 0.5,
                 camera: state.camera,
-                dt: 1.0 / 60.0,
+                dt: (1.0 / crate::methods::FRAME_HZ) as f32,
             });
             assert_eq!(h.shown_gbuffer().map(|g| g.grid), Some(grid));
         }

@@ -10,6 +10,16 @@ use crate::{
     reconstruction::{device::GpuContext, ReconParams},
 };
 
+/// The share of a refresh period an image's build aims to take, unless another is
+/// asked for.
+pub const IMAGE_BUDGET: f64 = 0.8;
+
+/// The largest reconstructor ring, in multiples of the pixel count.
+pub const RING_FACTOR_MAX: f64 = 64.0;
+
+/// The range of the reconstructor's largest splat radius, pixels.
+pub const MAX_RADIUS_RANGE: std::ops::RangeInclusive<f32> = 1.0..=64.0;
+
 /// What adaptive reads of a real-time run's settings.
 #[derive(Clone, Debug)]
 pub struct AdaptiveSettings {
@@ -28,12 +38,12 @@ pub struct AdaptiveSettings {
 
 impl Default for AdaptiveSettings {
     /// The paper's sampler, the real-time reconstructor ([`ReconParams::realtime`]) on
-    /// the CPU, builds within 0.8 of a refresh period.
+    /// the CPU, builds within [`IMAGE_BUDGET`] of a refresh period.
     fn default() -> Self {
         Self {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
-            image_budget: 0.8,
+            image_budget: IMAGE_BUDGET,
             gpu: None,
         }
     }
@@ -48,8 +58,19 @@ impl AdaptiveSettings {
                 self.image_budget
             )));
         }
-        if !(self.recon.ring_factor.is_finite() && self.recon.ring_factor > 0.0) {
-            return Err(RealtimeError::Config("ring factor must be positive".into()));
+        let f = self.recon.ring_factor;
+        if !(f.is_finite() && f > 0.0 && f <= RING_FACTOR_MAX) {
+            return Err(RealtimeError::Config(format!(
+                "ring factor {f} out of range (0, {RING_FACTOR_MAX}] (multiples of the pixel count)"
+            )));
+        }
+        let r = self.recon.max_radius;
+        if !MAX_RADIUS_RANGE.contains(&r) {
+            return Err(RealtimeError::Config(format!(
+                "largest splat radius {r} out of range [{}, {}] pixels",
+                MAX_RADIUS_RANGE.start(),
+                MAX_RADIUS_RANGE.end()
+            )));
         }
         self.sampler
             .validate()

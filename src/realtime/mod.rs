@@ -251,8 +251,8 @@ impl clap::ValueEnum for Visualisation {
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
     /// machine, reconstruction on half the cores, the paper's sampler, and the
-    /// real-time reconstructor ([`ReconParams::realtime`]), builds within 0.8 of a refresh
-    /// period.
+    /// real-time reconstructor ([`ReconParams::realtime`]), builds within
+    /// [`adaptive_settings::IMAGE_BUDGET`] of a refresh period.
     pub fn new(method: RtMethod) -> Self {
         Self::for_cores(method, machine::cores())
     }
