@@ -23,6 +23,26 @@ pub const WARMUP_S: f64 = 1.0;
 /// Sample budgets, samples per second, an evaluation runs at unless told otherwise.
 pub const RATES: [f64; 3] = [100_000.0, 400_000.0, 800_000.0];
 
+/// A number that is not finite where a setting needs one ([`finite_f64`]).
+#[derive(Debug, thiserror::Error)]
+pub enum NotFinite {
+    /// It does not parse as a number.
+    #[error("`{0}` is not a number")]
+    NotANumber(String),
+    /// It is infinite or NaN.
+    #[error("`{0}` is not finite")]
+    Infinite(String),
+}
+
+/// A finite number: the parser of every command-line option that takes one.
+pub fn finite_f64(s: &str) -> Result<f64, NotFinite> {
+    let v: f64 = s.parse().map_err(|_| NotFinite::NotANumber(s.into()))?;
+    if !v.is_finite() {
+        return Err(NotFinite::Infinite(s.into()));
+    }
+    Ok(v)
+}
+
 /// A run setting, as an error names it. The library says which setting is wrong; the
 /// command line and sweep files each spell it their own way ([`Setting::key`] for
 /// sweep files, the option name in the binary).

@@ -8,7 +8,7 @@ use frameless::{
     methods::MethodKind,
     realtime::{RtMethod, Visualisation},
     reconstruction::device::ReconDevice,
-    settings,
+    settings::{self, finite_f64},
     trace::TextureFilter,
 };
 
@@ -299,11 +299,8 @@ pub struct ViewArgs {
     /// Display refresh rate, Hz.
     #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
     pub refresh_hz: f64,
-    /// Adaptive: share of a refresh period an image may take to build; when one takes
-    /// longer, the next reconstructs from only the newest samples that fit (0: always
-    /// the whole ring).
-    #[arg(long, default_value_t = frameless::realtime::adaptive_settings::IMAGE_BUDGET, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub image_budget: f64,
+    #[command(flatten)]
+    pub adaptive: frameless::realtime::AdaptiveArgs,
     /// Scene time at start, seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
@@ -332,16 +329,6 @@ pub struct ViewArgs {
     /// Visualisation shown at start (key V cycles).
     #[arg(long, default_value = "image")]
     pub vis: Visualisation,
-    /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub ring_factor: Option<f64>,
-    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub max_radius: Option<f64>,
-    /// No reprojection in the sampler's controller (already off in ours, which the
-    /// real-time adaptive method uses).
-    #[arg(long)]
-    pub no_reprojection: bool,
     /// Seed of the threads' random choices.
     #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
     pub seed: u64,
@@ -520,13 +507,6 @@ pub struct LiveArgs {
     pub out: PathBuf,
 }
 
-fn finite_f64(s: &str) -> Result<f64, String> {
-    let v: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
-    if !v.is_finite() {
-        return Err(format!("`{s}` is not finite"));
-    }
-    Ok(v)
-}
 
 /// Arguments of `frameless still`.
 #[derive(Args, Debug)]

@@ -656,7 +656,14 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     bar.finish();
     let wall = t0.elapsed().as_secs_f64();
     let end = a.start + frames as f64 / a.refresh_hz;
-    let stats = write_sampler_outputs(&a, m.sampler(), &display, end, wall)?;
+    let run = frameless::methods::adaptive::outputs::SamplerRun {
+        scene: &a.scene,
+        rate: a.rate,
+        start: a.start,
+        end,
+        wall_s: wall,
+    };
+    let stats = frameless::methods::adaptive::outputs::write(&a.out, m.sampler(), &display, &run)?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     println!("images: {}", a.out.display());
     Ok(())
@@ -676,52 +683,6 @@ fn sampler_params(a: &args::SamplerArgs) -> frameless::methods::adaptive::Sample
     params.occlusion_term = !a.no_occlusion_term;
     params.uniform_tiling = a.uniform_tiling;
     params
-}
-
-/// Write what the sampler `s` saw after its run up to scene time `end` into `--out`:
-/// the pictures and `stats.json`, whose contents it returns.
-fn write_sampler_outputs(
-    a: &args::SamplerArgs,
-    s: &frameless::methods::adaptive::Sampler,
-    display: &frameless::image::Image,
-    end: f64,
-    wall: f64,
-) -> Result<serde_json::Value> {
-    use frameless::methods::adaptive::vis;
-    let Size(w, h) = a.size;
-    let staging = frameless::output::OutputDir::begin(&a.out)
-        .with_context(|| format!("creating {}", a.out.display()))?;
-    let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
-        let p = staging.path().join(name);
-        img.save_png(&p)
-            .with_context(|| format!("writing {}", p.display()))
-    };
-    save("display.png", display)?;
-    save("tiling.png", &vis::tiling_overlay(s, display))?;
-    save("gradients.png", &vis::gradient_map(s))?;
-    save("density.png", &vis::density_map(s))?;
-    save("occlusion.png", &vis::occlusion_map(s, end))?;
-    let (trace_s, total_s) = s.timing();
-    let gain_inputs = {
-        let (gs, gt, age) = s.gain_inputs(end);
-        serde_json::json!({"gs": gs, "gt": gt, "age_s": age})
-    };
-    let stats = serde_json::json!({
-        "scene": a.scene, "width": w, "height": h, "rate": a.rate, "start": a.start, "end": end,
-        "tiles": s.tiling().len(), "target_tiles": s.target_tiles(),
-        "gain_inputs": gain_inputs,
-        "counters": s.counters(),
-        "sampler_s": total_s, "trace_s": trace_s,
-        "control_overhead": if total_s > 0.0 { (total_s - trace_s) / total_s } else { 0.0 },
-        "wall_s": wall,
-    });
-    let p = staging.path().join("stats.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&stats)?)
-        .with_context(|| format!("writing {}", p.display()))?;
-    staging
-        .commit()
-        .with_context(|| format!("replacing {}", a.out.display()))?;
-    Ok(stats)
 }
 
 fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
@@ -780,19 +741,10 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
         cfg.recon_threads = n as usize;
     }
     cfg.refresh_hz = a.refresh_hz;
-    cfg.adaptive.image_budget = a.image_budget;
     cfg.start = a.start;
     cfg.seed = a.seed;
-    if a.no_reprojection {
-        cfg.adaptive.sampler.reprojection = false;
-    }
     // Their ranges are the library's: `RtConfig::validate` checks them below.
-    if let Some(f) = a.ring_factor {
-        cfg.adaptive.recon.ring_factor = f;
-    }
-    if let Some(r) = a.max_radius {
-        cfg.adaptive.recon.max_radius = r as f32;
-    }
+    a.adaptive.apply(&mut cfg.adaptive);
     cfg.validate()?;
     Ok(cfg)
 }

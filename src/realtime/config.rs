@@ -2,7 +2,7 @@
 //! real-time mode shares, below the methods and the pipeline. Which methods exist and
 //! what each needs is the registry's business (the parent module), not this file's.
 
-use super::adaptive_settings::AdaptiveSettings;
+use super::adaptive::settings::AdaptiveSettings;
 pub use super::{error::RealtimeError, RtMethod};
 
 /// Settings of one pipeline run.

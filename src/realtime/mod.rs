@@ -27,7 +27,6 @@
 //! the machine and on scheduling.
 
 pub mod adaptive;
-pub mod adaptive_settings;
 pub mod camera;
 pub mod clock;
 pub mod config;
@@ -46,7 +45,7 @@ mod shared;
 pub mod taa;
 pub mod viewer;
 
-pub use adaptive_settings::AdaptiveSettings;
+pub use adaptive::{AdaptiveArgs, AdaptiveSettings};
 pub use camera::{CameraRecorder, FlyCamera};
 pub use clock::WallClock;
 pub use config::{RealtimeError, RtConfig};
@@ -252,7 +251,7 @@ impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
     /// machine, reconstruction on half the cores, the paper's sampler, and the
     /// real-time reconstructor ([`ReconParams::realtime`]), builds within
-    /// [`adaptive_settings::IMAGE_BUDGET`] of a refresh period.
+    /// [`adaptive::settings::IMAGE_BUDGET`] of a refresh period.
     pub fn new(method: RtMethod) -> Self {
         Self::for_cores(method, machine::cores())
     }

@@ -368,9 +368,8 @@ impl<F> Assembly<F> {
 
 /// Niceness of the sampling threads on Linux: below the controller and image threads,
 /// so that where they all share too few cores, the latter get a core when they need one
-/// (an image late by a time slice is a missed refresh) and sampling takes the rest. On
-/// 2 cores this lifts `toycar` at 640×480 from 11 to 17 images per second
-/// (docs/results/realtime).
+/// (an image late by a time slice is a missed refresh) and sampling takes the rest
+/// (measured: docs/performance.md, tuning records).
 const SAMPLING_NICE: i32 = 10;
 
 /// Give the calling thread [`SAMPLING_NICE`] (Linux; elsewhere nothing changes).

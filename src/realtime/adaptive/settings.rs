@@ -1,14 +1,19 @@
 //! The adaptive method's own settings of a real-time run: its sampler, its
-//! reconstructor and where that runs, and how long a build may take. The generic
-//! [`RtConfig`](super::RtConfig) holds them as one field and never reads them.
+//! reconstructor and where that runs, and how long a build may take; their defaults,
+//! their range checks, and the command-line options that set them
+//! ([`AdaptiveArgs`], flattened into `frameless view`).
 
 use std::sync::Arc;
 
-use super::error::RealtimeError;
 use crate::{
     methods::adaptive::SamplerParams,
+    realtime::error::RealtimeError,
     reconstruction::{device::GpuContext, ReconParams},
+    settings::finite_f64,
 };
+
+/// The method's command-line name.
+pub const NAME: &str = "adaptive";
 
 /// The share of a refresh period an image's build aims to take, unless another is
 /// asked for.
@@ -75,5 +80,43 @@ impl AdaptiveSettings {
         self.sampler
             .validate()
             .map_err(|e| RealtimeError::Config(e.to_string()))
+    }
+}
+
+/// The command-line options of the adaptive method's settings; the binary flattens them
+/// into `view`, and [`AdaptiveArgs::apply`] sets them, leaving the range checks to
+/// [`AdaptiveSettings::validate`].
+#[derive(clap::Args, Clone, Debug)]
+pub struct AdaptiveArgs {
+    /// Adaptive: share of a refresh period an image may take to build; when one takes
+    /// longer, the next reconstructs from only the newest samples that fit (0: always
+    /// the whole ring).
+    #[arg(long, default_value_t = IMAGE_BUDGET, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub image_budget: f64,
+    /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub ring_factor: Option<f64>,
+    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub max_radius: Option<f64>,
+    /// No reprojection in the sampler's controller (already off in ours, which the
+    /// real-time adaptive method uses).
+    #[arg(long)]
+    pub no_reprojection: bool,
+}
+
+impl AdaptiveArgs {
+    /// Set what was asked for in `settings`.
+    pub fn apply(&self, settings: &mut AdaptiveSettings) {
+        settings.image_budget = self.image_budget;
+        if self.no_reprojection {
+            settings.sampler.reprojection = false;
+        }
+        if let Some(f) = self.ring_factor {
+            settings.recon.ring_factor = f;
+        }
+        if let Some(r) = self.max_radius {
+            settings.recon.max_radius = r as f32;
+        }
     }
 }
