@@ -693,13 +693,15 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     if let Some(p) = &a.screenshot {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
-    let mut cfg = view_config(&a, threads)?;
+    let cfg = view_config(&a, threads)?;
+    let mut settings = view_settings(&a, a.method)?;
     if let Some(s) = a.seconds {
         frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--seconds {e}"))?;
     }
     let Size(w, h) = a.size;
-    cfg.check_size(w, h)?;
-    cfg.adaptive.gpu = acquire_recon(a.recon.recon)?;
+    settings.check_size(&cfg, w, h)?;
+    let gpu = acquire_recon(a.recon.recon)?;
+    settings.use_gpu(gpu.clone());
     let scene = Arc::new(load_scene(&a.scene)?);
     let tracer = Arc::new(
         Tracer::new(
@@ -714,15 +716,23 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
         .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
     );
     if a.headless {
-        return view_headless(&a, tracer, cfg);
+        return view_headless(&a, tracer, cfg, settings);
+    }
+    // The other methods' settings, for the keys that switch to them.
+    let mut others = Vec::new();
+    for m in realtime::RtMethod::ALL {
+        let mut s = view_settings(&a, m)?;
+        s.use_gpu(gpu.clone());
+        others.push(s);
     }
     let opts = realtime::ViewerOptions {
         seconds: a.seconds,
         record: a.record.clone(),
         screenshot: a.screenshot.clone(),
         visualisation: a.vis,
+        others,
     };
-    realtime::run_viewer(tracer, cfg, opts)?;
+    realtime::run_viewer(tracer, cfg, settings, opts)?;
     Ok(())
 }
 
@@ -743,10 +753,23 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
     cfg.refresh_hz = a.refresh_hz;
     cfg.start = a.start;
     cfg.seed = a.seed;
-    // Their ranges are the library's: `RtConfig::validate` checks them below.
-    a.adaptive.apply(&mut cfg.adaptive);
     cfg.validate()?;
     Ok(cfg)
+}
+
+/// `method`'s own settings from `view`'s options (the adaptive method's from
+/// `AdaptiveArgs`), checked by the library.
+fn view_settings(
+    a: &args::ViewArgs,
+    method: frameless::realtime::RtMethod,
+) -> Result<frameless::realtime::RtSettings> {
+    use frameless::realtime::RtSettings;
+    let mut settings = method.settings();
+    if let RtSettings::Adaptive(s) = &mut settings {
+        a.adaptive.apply(s);
+    }
+    settings.validate()?;
+    Ok(settings)
 }
 
 /// `view --headless`: run the pipeline for `--seconds`, write its outputs and print
@@ -755,6 +778,7 @@ fn view_headless(
     a: &args::ViewArgs,
     tracer: Arc<Tracer>,
     cfg: frameless::realtime::RtConfig,
+    settings: frameless::realtime::RtSettings,
 ) -> Result<()> {
     use frameless::realtime;
     let Some(seconds) = a.seconds else {
@@ -772,10 +796,11 @@ fn view_headless(
         scene: a.scene.clone(),
         camera_step_s: a.camera_step,
     };
-    let st = realtime::run_headless(tracer, cfg.clone(), &opts)?;
+    let method = settings.method();
+    let st = realtime::run_headless(tracer, cfg, settings, &opts)?;
     println!(
         "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
-        cfg.method.name(),
+        method.name(),
         st.samples_per_s,
         st.display_fps,
         st.display.present_hz,

@@ -27,7 +27,7 @@ use crate::{
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
-        RtConfig, RtMethod,
+        RtConfig, RtMethod, RtSettings,
     },
     reconstruction::device::{GpuContext, ReconUsed},
     render::{cache::IdealCache, cache::Lookup, still},
@@ -128,8 +128,14 @@ impl LiveConfig {
         c.refresh_hz = self.refresh_hz;
         c.seed = self.seed;
         c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
-        c.adaptive.gpu = self.gpu.clone();
         c
+    }
+
+    /// `method`'s own settings: its defaults, with the run's GPU.
+    pub fn rt_settings(&self, method: RtMethod) -> RtSettings {
+        let mut s = method.settings();
+        s.use_gpu(self.gpu.clone());
+        s
     }
 
     /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
@@ -186,10 +192,11 @@ impl LiveConfig {
                     format!("{}: for {}, {e}", self.cores, m.name()),
                 );
             }
-            let c = self.rt_config(m);
+            let (c, s) = (self.rt_config(m), self.rt_settings(m));
             let check = c
                 .validate()
-                .and_then(|()| c.check_size(self.width, self.height));
+                .and_then(|()| s.validate())
+                .and_then(|()| s.check_size(&c, self.width, self.height));
             if let Err(e) = check {
                 return bad(Setting::Methods, format!("{}: {e}", m.name()));
             }
@@ -557,13 +564,13 @@ fn record_run(
         warmup: cfg.warmup_refreshes(),
         refreshes: cfg.frames(),
     };
-    let rec =
-        record::record(tracer(scene, cfg), cfg.rt_config(method), window).map_err(|source| {
-            EvalError::Live {
-                method: method.name(),
-                source,
-            }
-        })?;
+    let (config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
+    let rec = record::record(tracer(scene, cfg), config, settings, window).map_err(|source| {
+        EvalError::Live {
+            method: method.name(),
+            source,
+        }
+    })?;
     let cores = machine::cores();
     let mut warnings = Vec::new();
     if let Some(l) = rec.figures.others_load_before.filter(|&l| l > cores as f64) {

@@ -12,10 +12,14 @@ use super::{
     controller::{controller_sampler, ingest},
     published::Published,
     sampling::{sample, Batch},
+    settings::AdaptiveSettings,
 };
 use crate::{
     methods::adaptive::Sampler,
-    realtime::{config::RealtimeError, shared::Shared},
+    realtime::{
+        config::{RealtimeError, RtConfig},
+        shared::Shared,
+    },
 };
 
 /// A fresh controller sampler for every band.
@@ -23,7 +27,7 @@ pub(super) fn band_samplers(s: &Shared, published: &Published) -> Result<Vec<Sam
     let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
     let bands = published.bands.iter();
     bands
-        .map(|b| controller_sampler(s, b.rect).ok_or_else(invalid))
+        .map(|b| controller_sampler(s, &published.settings.sampler, b.rect).ok_or_else(invalid))
         .collect()
 }
 
@@ -85,16 +89,18 @@ impl ControllerBench {
 /// Record what one sampling thread sends the controllers for `seconds` of wall time
 /// (the controllers taking it in as it comes, as live), then feed each band's recorded
 /// batches in order to a fresh controller, all bands at once on threads of their own,
-/// and time only that. Real-time adaptive with `config` on `tracer`'s scene and image,
-/// with the controllers `config.sampling_threads` would have. The replay does every
-/// visit's reprojection step (live, a controller that falls behind skips it).
+/// and time only that. Real-time adaptive with `config` and `settings` on `tracer`'s
+/// scene and image, with the controllers `config.sampling_threads` would have. The
+/// replay does every visit's reprojection step (live, a controller that falls behind
+/// skips it).
 pub fn controller_bench(
     tracer: Arc<crate::trace::Tracer>,
-    config: crate::realtime::RtConfig,
+    config: RtConfig,
+    settings: AdaptiveSettings,
     seconds: f64,
 ) -> Result<ControllerBench, RealtimeError> {
     let s = Arc::new(Shared::new(tracer, config));
-    let published = Arc::new(Published::new(&s));
+    let published = Arc::new(Published::new(&s, settings));
     let replay = band_samplers(&s, &published)?;
     let (_, recorded) = record(&s, &published, band_samplers(&s, &published)?, seconds);
     let samples = s.samples.load(Ordering::Relaxed);

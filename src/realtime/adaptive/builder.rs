@@ -10,7 +10,7 @@ use std::{
 
 use crossbeam_channel::Receiver;
 
-use super::published::Published;
+use super::{overlays::TilingOverlays, published::Published, settings::AdaptiveSettings};
 use crate::{
     realtime::{
         config::RealtimeError,
@@ -22,11 +22,14 @@ use crate::{
 
 /// The image builder's reconstructor, on the run's GPU when it has one: refused before
 /// any thread starts where the adapter is too small for the display's buffers.
-pub(super) fn reconstructor(s: &Shared) -> Result<Box<Reconstructor>, RealtimeError> {
+pub(super) fn reconstructor(
+    s: &Shared,
+    settings: &AdaptiveSettings,
+) -> Result<Box<Reconstructor>, RealtimeError> {
     let (w, h) = s.tracer.size();
     // The filters' rate is measured and set at every image ([`Builder::build`]).
-    let mut r = Box::new(Reconstructor::new(w, h, 1.0, s.config.adaptive.recon));
-    if let Some(gpu) = &s.config.adaptive.gpu {
+    let mut r = Box::new(Reconstructor::new(w, h, 1.0, settings.recon));
+    if let Some(gpu) = &settings.gpu {
         r.use_gpu(gpu.clone()).map_err(|e| RealtimeError::Gpu {
             method: super::settings::NAME,
             why: e.to_string(),
@@ -134,7 +137,7 @@ impl ImageBuilder for Builder {
     /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
     /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
     /// most the live limit); `limited_share` of images built under a live limit
-    /// ([`super::AdaptiveSettings::image_budget`]); `gpu_failure`, why the GPU reconstructor
+    /// ([`AdaptiveSettings::image_budget`]); `gpu_failure`, why the GPU reconstructor
     /// was given up, if it was (the images after it were built on the CPU).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         let p = &*self.published;
@@ -200,7 +203,8 @@ impl ImageBuilder for Builder {
         r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
         let image = r.reconstruct(t, &camera, &tiling).clone();
-        if s.config.adaptive.sampler.discount_converged {
+        let settings = &self.published.settings;
+        if settings.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
                 // Each controller reads the newest; an older map none has read is
                 // replaced (its buffer reused).
@@ -212,7 +216,7 @@ impl ImageBuilder for Builder {
         }
         let ages = r.pixel_ages();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
-        let budget_ms = s.config.adaptive.image_budget * 1e3 / s.config.refresh_hz;
+        let budget_ms = settings.image_budget * 1e3 / s.config.refresh_hz;
         // A floor of half a sample per pixel keeps an image where the build's
         // per-pixel work alone exceeds the budget.
         let floor = (w as usize * h as usize / 2).max(1);
@@ -234,7 +238,7 @@ impl ImageBuilder for Builder {
         Some(Built {
             image,
             mean_age: r.mean_age(),
-            tiling: Some(tiling),
+            overlays: Some(Arc::new(TilingOverlays(tiling))),
             ages: crate::realtime::shared::sampled_ages(ages.len(), |i| ages[i]),
             // Samples are reprojected to the camera of `t`.
             view_time: t,

@@ -15,7 +15,7 @@ use super::{
 };
 use crate::{
     clock::Clock,
-    methods::adaptive::{tiling::Rect, Sampler},
+    methods::adaptive::{tiling::Rect, Sampler, SamplerParams},
     realtime::shared::{lock, Shared},
     trace::StreamSample,
 };
@@ -29,7 +29,11 @@ pub(super) const PASS_ON_EVERY: Duration = Duration::from_millis(2);
 /// The controller's sampler for `band` of the image: fed by the sampling threads,
 /// never run on its own. The tile count's floor and fixed size are the band's share
 /// of the image's.
-pub(super) fn controller_sampler(s: &Shared, band: Rect) -> Option<Sampler> {
+pub(super) fn controller_sampler(
+    s: &Shared,
+    sampler: &SamplerParams,
+    band: Rect,
+) -> Option<Sampler> {
     // The sampler takes its clock's start as the origin of its decay weights; the rate
     // and the refresh only pace `run_until`, the sequential budget, which is never
     // called here (the sampling threads feed the sampler). Hence no rate.
@@ -41,7 +45,7 @@ pub(super) fn controller_sampler(s: &Shared, band: Rect) -> Option<Sampler> {
     };
     let (w, h) = s.tracer.size();
     let share = band.area() as f64 / (w as f64 * h as f64);
-    let mut params = s.config.adaptive.sampler;
+    let mut params = *sampler;
     let part = |n: usize| ((n as f64 * share).ceil() as usize).max(1);
     params.min_tiles = part(params.min_tiles);
     params.fixed_tiles = part(params.fixed_tiles);
@@ -116,7 +120,7 @@ pub(super) fn control(
     rx: Receiver<Batch>,
     tx: Sender<Vec<StreamSample>>,
 ) {
-    let Some(mut sampler) = controller_sampler(s, published.bands[b].rect) else {
+    let Some(mut sampler) = controller_sampler(s, &published.settings.sampler, published.bands[b].rect) else {
         return;
     };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);

@@ -41,6 +41,7 @@
 mod bench;
 mod builder;
 mod controller;
+mod overlays;
 mod published;
 mod sampling;
 pub mod settings;
@@ -59,11 +60,11 @@ use builder::Builder;
 use published::Published;
 use crate::realtime::{
     config::RealtimeError,
-    shared::{ImageBuilder, MethodInfo, Spawner},
+    shared::{ImageBuilder, MethodInfo, Pooled, Spawner},
 };
 
 /// The adaptive method's description.
-pub(crate) const METHOD: MethodInfo = MethodInfo {
+pub(crate) const METHOD: MethodInfo<AdaptiveSettings> = MethodInfo {
     name: settings::NAME,
     about: "adaptive sampler + adaptive space-time reconstructor",
     // One sampling thread per core, as the other methods: sampling threads run below
@@ -72,19 +73,21 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     // image rate; docs/performance.md).
     default_sampling_threads: |cores| cores,
     extra_threads: controllers,
+    overlays: overlays::OVERLAYS,
     // Its buffers (deep buffer, ring) include the display check.
-    check_size: |c, w, h| {
-        crate::methods::adaptive::check_budget(w, h, &c.adaptive.sampler, &c.adaptive.recon)
-    },
+    check_size: |_, a, w, h| crate::methods::adaptive::check_budget(w, h, &a.sampler, &a.recon),
     start,
 };
 
-fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+fn start(
+    sp: &mut Spawner<'_>,
+    settings: &AdaptiveSettings,
+) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     // The reconstructor first: a GPU too small for the display is refused before any
     // thread starts.
-    let recon = builder::reconstructor(&s)?;
-    let published = Arc::new(Published::new(&s));
+    let recon = builder::reconstructor(&s, settings)?;
+    let published = Arc::new(Published::new(&s, settings.clone()));
     // Channels are bounded so that a slow consumer slows its producers instead of
     // growing memory without limit. A controller's holds about 32 ms of batches from
     // every sampling thread; the image thread's about half a second of every
@@ -102,5 +105,8 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
         let (s2, p2, tx) = (s.clone(), published.clone(), to_img.clone());
         sp.spawn("controller", move || controller::control(&s2, &p2, b, rx, tx))?;
     }
-    Ok(Box::new(Builder::new(s, published, img_rx, recon)))
+    // The builder owns its reconstructor, on the settings' device, and the pool the
+    // reconstructor splats on.
+    let builder = Builder::new(s.clone(), published, img_rx, recon);
+    Ok(Box::new(Pooled::new(&s.config, builder)))
 }

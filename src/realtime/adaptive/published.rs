@@ -7,6 +7,7 @@ use std::sync::{
     Arc, Mutex,
 };
 
+use super::settings::AdaptiveSettings;
 use crate::{
     methods::adaptive::{
         tiling::{Pending, Rect},
@@ -65,6 +66,8 @@ pub(super) struct BandPublished {
 
 /// What the controllers publish for the other threads of the method.
 pub(super) struct Published {
+    /// The method's settings, which every thread of it reads.
+    pub(super) settings: AdaptiveSettings,
     pub(super) bands: Vec<BandPublished>,
     /// Bumped with every new snapshot of any band, so that readers lock only when one
     /// changed.
@@ -89,10 +92,10 @@ pub(super) struct Published {
 
 impl Published {
     /// Nothing published yet: one tile per band, nothing pending.
-    pub(super) fn new(s: &Shared) -> Self {
+    pub(super) fn new(s: &Shared, settings: AdaptiveSettings) -> Self {
         let (w, h) = s.tracer.size();
         let c = &s.config;
-        let bands = bands(w, h, controllers(c.sampling_threads), &c.adaptive.sampler);
+        let bands = bands(w, h, controllers(c.sampling_threads), &settings.sampler);
         Self {
             bands: bands
                 .into_iter()
@@ -108,13 +111,14 @@ impl Published {
             reprojected_visits: AtomicU64::new(0),
             skipped_reprojections: AtomicU64::new(0),
             history_maps: AtomicU64::new(0),
-            pixel_draws: if s.config.adaptive.sampler.stratified_positions {
+            pixel_draws: if settings.sampler.stratified_positions {
                 (0..w as usize * h as usize)
                     .map(|_| AtomicU32::new(0))
                     .collect()
             } else {
                 Vec::new()
             },
+            settings,
         }
     }
 

@@ -15,6 +15,7 @@ use crate::{
         deep_buffer::Crosshair,
         sampler::{choose_tile, completion_point, crosshair_points, crosshair_with, stratified_in},
         tiling::{Pending, Rect},
+        SamplerParams,
     },
     realtime::shared::{lock, Shared, BATCH_S},
     sampling::Rng,
@@ -118,7 +119,7 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
         view.refresh(published);
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
-        let choices = s.config.adaptive.sampler.tile_choices;
+        let choices = published.settings.sampler.tile_choices;
         let k = choose_tile(view.len() as u32, choices, &mut rng, |k| {
             let (b, i) = view.locate(k);
             view.last[b][i]
@@ -129,7 +130,7 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
         let batch = &mut out.batches[b];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[i] {
-            if !complete(s, &state, p, rect, now, batch) {
+            if !complete(s, &published.settings.sampler, &state, p, rect, now, batch) {
                 continue; // another thread is at this crosshair: visit another tile
             }
         }
@@ -147,6 +148,7 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
 /// at `now`, into `batch`; `false` if another thread holds one of its pixels.
 pub(super) fn complete(
     s: &Shared,
+    sampler: &SamplerParams,
     state: &SceneState,
     p: Pending,
     rect: Rect,
@@ -155,7 +157,6 @@ pub(super) fn complete(
 ) -> bool {
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
-    let sampler = &s.config.adaptive.sampler;
     let at = p.follow(state, now);
     let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
     let arms = sampler.arms(rect);

@@ -1,13 +1,14 @@
 //! The adaptive method's own settings of a real-time run: its sampler, its
 //! reconstructor and where that runs, and how long a build may take; their defaults,
 //! their range checks, and the command-line options that set them
-//! ([`AdaptiveArgs`], flattened into `frameless view`).
+//! ([`AdaptiveArgs`], flattened into `frameless view`). The registry holds them as the
+//! payload of `RtSettings::Adaptive`; the shared `RtConfig` never sees them.
 
 use std::sync::Arc;
 
 use crate::{
     methods::adaptive::SamplerParams,
-    realtime::error::RealtimeError,
+    realtime::{config::RealtimeError, shared::MethodSettings},
     reconstruction::{device::GpuContext, ReconParams},
     settings::finite_f64,
 };
@@ -54,9 +55,12 @@ impl Default for AdaptiveSettings {
     }
 }
 
-impl AdaptiveSettings {
-    /// Check ranges.
-    pub fn validate(&self) -> Result<(), RealtimeError> {
+impl MethodSettings for AdaptiveSettings {
+    fn use_gpu(&mut self, gpu: Option<Arc<GpuContext>>) {
+        self.gpu = gpu;
+    }
+
+    fn validate(&self) -> Result<(), RealtimeError> {
         if !(self.image_budget.is_finite() && (0.0..=1.0).contains(&self.image_budget)) {
             return Err(RealtimeError::Config(format!(
                 "image budget {} out of range 0..=1 (a share of the refresh period)",

@@ -8,6 +8,7 @@ use super::{
     builder::{next_live_limit, push_newest},
     controllers,
     published::{Published, MIN_BAND_ROWS},
+    settings::AdaptiveSettings,
     sampling::Visit,
     THREADS_PER_CONTROLLER,
 };
@@ -16,7 +17,7 @@ use crate::{
     realtime::shared::Shared,
     reconstruction::Reconstructor,
     trace::StreamSample,
-    realtime::{RtConfig, RtMethod},
+    realtime::{config::RtConfig, registry::RtMethod},
     scene::builtin,
     trace::{TraceOptions, Tracer},
 };
@@ -98,7 +99,7 @@ fn each_controller_adapts_its_own_band() {
     config.sampling_threads = 2 * THREADS_PER_CONTROLLER; // two controllers
     config.start = 1.0;
     let s = Arc::new(Shared::new(tracer, config));
-    let published = Arc::new(Published::new(&s));
+    let published = Arc::new(Published::new(&s, AdaptiveSettings::default()));
     assert_eq!(published.bands.len(), 2);
     let samplers = band_samplers(&s, &published).unwrap();
     let (samplers, recorded) = record(&s, &published, samplers, 0.5);
