@@ -23,6 +23,17 @@ pub struct RtConfig {
 }
 
 impl RtConfig {
+    /// Take the settings every run shares from their groups: the refresh rate and the
+    /// seed (the size is the tracer's; the tracer takes the rest of `quality`).
+    pub fn set_groups(
+        &mut self,
+        display: &crate::settings::DisplayGroup,
+        quality: &crate::settings::QualityGroup,
+    ) {
+        self.refresh_hz = display.refresh_hz;
+        self.seed = quality.seed;
+    }
+
     /// Check ranges.
     pub fn validate(&self) -> Result<(), RealtimeError> {
         if !(1..=256).contains(&self.sampling_threads) {

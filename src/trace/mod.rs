@@ -180,6 +180,16 @@ impl Default for TraceOptions {
     }
 }
 
+impl From<&crate::settings::QualityGroup> for TraceOptions {
+    /// The tracer's settings of a run's quality group.
+    fn from(q: &crate::settings::QualityGroup) -> Self {
+        Self {
+            max_depth: q.max_depth,
+            texture_filter: q.texture_filter,
+        }
+    }
+}
+
 /// Animated triangles at one time: positions, normals and velocities in world space.
 struct AnimState {
     bvh: Bvh2,

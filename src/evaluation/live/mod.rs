@@ -101,10 +101,28 @@ impl LiveConfig {
             seed: settings::SEED,
             ideal_spp: settings::IDEAL_SPP,
             max_depth: settings::MAX_DEPTH,
-            texture_filter: TextureFilter::RayCones,
+            texture_filter: TextureFilter::default(),
             cache_dir: None,
             gpu: None,
         }
+    }
+
+    /// Take the settings every run shares from their groups (as
+    /// [`EvalConfig::set_groups`](crate::evaluation::EvalConfig::set_groups)).
+    pub fn set_groups(
+        &mut self,
+        display: &settings::DisplayGroup,
+        quality: &settings::QualityGroup,
+        reference: &settings::ReferenceGroup,
+    ) {
+        let settings::Size(w, h) = display.size;
+        (self.width, self.height) = (w, h);
+        self.refresh_hz = display.refresh_hz;
+        self.seed = quality.seed;
+        self.max_depth = quality.max_depth;
+        self.texture_filter = quality.texture_filter;
+        self.ideal_spp = reference.ideal_spp;
+        self.cache_dir = reference.cache();
     }
 
     /// Refreshes recorded per run.
