@@ -671,6 +671,35 @@ mod tests {
     }
 
     #[test]
+    fn the_shared_groups_are_on_every_command_that_flattens_them() {
+        let shared = [
+            "--scene", "room", "--size", "32x16", "--refresh-hz", "30", "--seed", "2",
+            "--max-depth", "3", "--texture-filter", "none",
+        ];
+        let groups = |cmd: &str| {
+            let args = ["frameless", cmd].into_iter().chain(shared);
+            match Cli::try_parse_from(args).expect("parses").command {
+                Command::Eval(a) => (a.scene, a.display, a.quality),
+                Command::Live(a) => (a.scene, a.display, a.quality),
+                Command::View(a) => (a.scene, a.display, a.quality),
+                Command::Render(a) => (a.scene, a.display, a.quality),
+                Command::Sampler(a) => (a.scene, a.display, a.quality),
+                c => panic!("no groups on {c:?}"),
+            }
+        };
+        for cmd in ["eval", "live", "view", "render", "sampler"] {
+            let (scene, display, quality) = groups(cmd);
+            assert_eq!(scene.scene, "room", "{cmd}");
+            assert_eq!((display.size, display.refresh_hz), (Size(32, 16), 30.0), "{cmd}");
+            assert_eq!(
+                (quality.seed, quality.max_depth, quality.texture_filter),
+                (2, 3, TextureFilter::None),
+                "{cmd}"
+            );
+        }
+    }
+
+    #[test]
     fn eval_defaults_are_the_librarys() {
         let Command::Eval(a) = Cli::try_parse_from(["frameless", "eval"]).unwrap().command else {
             panic!("eval expected")
