@@ -234,14 +234,19 @@ impl fmt::Display for ReconDevice {
     }
 }
 
+/// A name that is no [`ReconDevice`].
+#[derive(Debug, thiserror::Error)]
+#[error("unknown reconstructor '{0}': expected cpu, gpu or auto")]
+pub struct UnknownDevice(pub String);
+
 impl FromStr for ReconDevice {
-    type Err = String;
+    type Err = UnknownDevice;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         Self::ALL
             .into_iter()
             .find(|d| d.name() == s)
-            .ok_or_else(|| format!("unknown reconstructor '{s}': expected cpu, gpu or auto"))
+            .ok_or_else(|| UnknownDevice(s.into()))
     }
 }
 

@@ -445,12 +445,12 @@ pub struct BenchArgs {
     pub devices: settings::DevicesGroup,
 }
 
-fn parse_rays(s: &str) -> Result<usize, String> {
+fn parse_rays(s: &str) -> anyhow::Result<usize> {
     let n: usize = s
         .parse()
-        .map_err(|_| format!("`{s}` is not a whole number"))?;
+        .map_err(|_| anyhow::anyhow!("`{s}` is not a whole number"))?;
     if !(1024..=1 << 28).contains(&n) {
-        return Err(format!("rays {n} out of range 1024..=268435456"));
+        anyhow::bail!("rays {n} out of range 1024..=268435456");
     }
     Ok(n)
 }

@@ -293,9 +293,7 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
     if choice == ReconDevice::Cpu {
         return Ok(None);
     }
-    let got = check_wgpu_backend()
-        .map_err(anyhow::Error::msg)
-        .and_then(|()| Ok(device::acquire(choice)?));
+    let got = check_wgpu_backend().and_then(|()| Ok(device::acquire(choice)?));
     match got {
         Ok(Some(g)) => {
             eprintln!("reconstructing on {}", g.describe());
@@ -322,7 +320,7 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
 /// name it does not know, and with no name left it lists no adapter, which the library
 /// can only report as a missing driver; so the variable is named here instead.
 #[cfg(feature = "gpu")]
-fn check_wgpu_backend() -> Result<(), String> {
+fn check_wgpu_backend() -> Result<()> {
     let Some(value) = std::env::var_os("WGPU_BACKEND") else {
         return Ok(());
     };
@@ -336,17 +334,17 @@ fn check_wgpu_backend() -> Result<(), String> {
         return Ok(());
     }
     let valid: Vec<&str> = wgpu::Backend::ALL.iter().map(|b| b.to_str()).collect();
-    Err(format!(
+    bail!(
         "WGPU_BACKEND={value}: {} names no wgpu backend; its valid values are {}, \
          comma-separated (or leave it unset for all of them)",
         unknown.join(", "),
         valid.join(", ")
-    ))
+    )
 }
 
 /// Without the `gpu` feature no GPU is ever asked for, so nothing reads `WGPU_BACKEND`.
 #[cfg(not(feature = "gpu"))]
-fn check_wgpu_backend() -> Result<(), String> {
+fn check_wgpu_backend() -> Result<()> {
     Ok(())
 }
 

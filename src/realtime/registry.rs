@@ -43,6 +43,9 @@ macro_rules! registry {
         }
 
         /// A method with its own settings: what a real-time run renders and how.
+        // A run holds one, made once: the adaptive method's few hundred bytes beside
+        // the others' none are not worth a box.
+        #[allow(clippy::large_enum_variant)]
         #[derive(Clone, Debug)]
         pub enum RtSettings {
             $($(#[doc = $doc])* $(#[cfg($cfg)])? $variant(settings_type!($($settings)?)),)*

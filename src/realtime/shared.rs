@@ -273,8 +273,12 @@ pub(crate) struct MethodInfo<S: 'static = NoSettings> {
     pub check_size: fn(&RtConfig, &S, u32, u32) -> Result<(), crate::limits::LimitError>,
     /// Start its threads with its settings; the image thread then calls the builder it
     /// returns.
-    pub start: fn(&mut Spawner<'_>, &S) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
+    pub start: Start<S>,
 }
+
+/// How a method with settings `S` starts ([`MethodInfo::start`]).
+pub(crate) type Start<S> =
+    fn(&mut Spawner<'_>, &S) -> Result<Box<dyn ImageBuilder>, RealtimeError>;
 
 /// What a framed method shows at a refresh: its newest image as built, or that image
 /// warped to the camera of the refresh (the late warps).
