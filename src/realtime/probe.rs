@@ -1,8 +1,8 @@
 //! The smallest real-time method, compiled for the tests only: its sampling threads
 //! trace nothing and count batches, and every image is a flat grey of the level its one
 //! setting asks for. It is what adding a method takes (this file, its settings type
-//! included, and its line in the registry) and shows that the pipeline runs a method
-//! it knows nothing about.
+//! included, its line in the registry and its `mod` line) and shows that the pipeline
+//! runs a method it knows nothing about.
 
 use std::{sync::atomic::Ordering, time::Duration};
 

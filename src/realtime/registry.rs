@@ -131,7 +131,8 @@ macro_rules! registry {
 }
 
 // Adding a method: its file (a `MethodInfo`, its threads and its image builder, and the
-// type of its own settings if it has any) and a line here.
+// type of its own settings if it has any), a line here, and the file's `mod` line in
+// `realtime/mod.rs`.
 registry! {
     /// Adaptive sampler + adaptive space-time reconstructor.
     Adaptive(AdaptiveSettings) => adaptive::METHOD,

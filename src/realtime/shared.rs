@@ -40,8 +40,8 @@ pub struct Frame {
     pub time: f64,
     /// Mean age of the information in it, seconds.
     pub mean_age: f64,
-    /// What draws the method's overlays of it ([`MethodInfo::overlays`]), if it offers
-    /// any.
+    /// What draws the method's overlays of it
+    /// ([`RtMethod::overlays`](super::registry::RtMethod::overlays)), if it offers any.
     pub overlays: Option<Arc<dyn Overlays>>,
     /// Ages of the information in an evenly spaced subset of its pixels, seconds (NaN:
     /// none yet), for latency percentiles and for telling when a change shows.

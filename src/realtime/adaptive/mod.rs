@@ -13,12 +13,14 @@
 //!
 //! A sampling thread visits a tile of the published snapshots (the bands' tiles taken
 //! together): it completes the crosshair the tile's pending sample initiated, where its
-//! surface point is now ([`completion_point`], as the sequential sampler; taking its
-//! five pixels) and initiates the next one at a random location in the tile (taking that
-//! pixel). A taken pixel means another thread is there: it picks another tile or
-//! location.
+//! surface point is now
+//! ([`completion_point`](crate::methods::adaptive::sampler::completion_point), as the
+//! sequential sampler; taking its five pixels) and initiates the next one at a random
+//! location in the tile (taking that pixel). A taken pixel means another thread is
+//! there: it picks another tile or location.
 //!
-//! A controller holds an ordinary [`Sampler`] for its band ([`Sampler::for_region`])
+//! A controller holds an ordinary [`Sampler`](crate::methods::adaptive::Sampler) for
+//! its band ([`Sampler::for_region`](crate::methods::adaptive::Sampler::for_region))
 //! and feeds it what the sampling threads traced there: completed crosshairs (inserted,
 //! with tile statistics updated and the tiling adjusted after every chunk, exactly as
 //! in a sequential visit) and initiating samples (which become their tile's pending
