@@ -1,6 +1,14 @@
 //! The settings every command, the evaluation, sweeps and the real-time pipeline share:
-//! their defaults, in one place, and the names errors give them ([`Setting`]). Their
-//! ranges are checked by [`crate::limits`].
+//! their defaults, in one place, the names errors give them ([`Setting`]), and the
+//! groups of options the commands share ([`SceneGroup`], [`DisplayGroup`],
+//! [`QualityGroup`], [`ReferenceGroup`], [`DevicesGroup`]): each declared once, with its
+//! default and range, and flattened into every command that takes it; the Python module
+//! builds the same groups. Ranges beyond the command line's are checked by
+//! [`crate::limits`].
+
+use std::{fmt, path::PathBuf, str::FromStr};
+
+use serde::{Deserialize, Serialize};
 
 /// Display refresh rate, Hz, unless one is asked for.
 pub const REFRESH_HZ: f64 = 60.0;
@@ -17,11 +25,34 @@ pub const SEED: u64 = 1;
 /// Display size, unless one is asked for.
 pub const SIZE: (u32, u32) = (256, 256);
 
+/// The scene, unless another is asked for.
+pub const SCENE: &str = "toycar";
+
 /// Seconds of scene time each method runs before an evaluated window.
 pub const WARMUP_S: f64 = 1.0;
 
 /// Sample budgets, samples per second, an evaluation runs at unless told otherwise.
 pub const RATES: [f64; 3] = [100_000.0, 400_000.0, 800_000.0];
+
+/// A number that is not finite where a setting needs one ([`finite_f64`]).
+#[derive(Debug, thiserror::Error)]
+pub enum NotFinite {
+    /// It does not parse as a number.
+    #[error("`{0}` is not a number")]
+    NotANumber(String),
+    /// It is infinite or NaN.
+    #[error("`{0}` is not finite")]
+    Infinite(String),
+}
+
+/// A finite number: the parser of every command-line option that takes one.
+pub fn finite_f64(s: &str) -> Result<f64, NotFinite> {
+    let v: f64 = s.parse().map_err(|_| NotFinite::NotANumber(s.into()))?;
+    if !v.is_finite() {
+        return Err(NotFinite::Infinite(s.into()));
+    }
+    Ok(v)
+}
 
 /// A run setting, as an error names it. The library says which setting is wrong; the
 /// command line and sweep files each spell it their own way ([`Setting::key`] for
@@ -122,3 +153,214 @@ impl std::fmt::Display for Setting {
         f.write_str(self.words())
     }
 }
+
+/// An image size `WxH`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Size(pub u32, pub u32);
+
+impl Size {
+    /// The display size every command defaults to.
+    pub const DEFAULT: Size = Size(SIZE.0, SIZE.1);
+}
+
+impl fmt::Display for Size {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}x{}", self.0, self.1)
+    }
+}
+
+impl FromStr for Size {
+    type Err = crate::limits::LimitError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let (w, h) = crate::limits::parse_size(s)?;
+        Ok(Size(w, h))
+    }
+}
+
+/// How the tracer filters texture lookups.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum TextureFilter {
+    /// Bilinear lookup in the full-resolution texture, no footprint (the paper's
+    /// setting; aliases on far and grazing surfaces).
+    None,
+    /// Trilinear mip-mapped lookup at the level a ray cone's footprint asks for.
+    #[default]
+    RayCones,
+}
+
+/// Which reconstructor a run asks for.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReconDevice {
+    /// The CPU reconstructor, the reference.
+    #[default]
+    Cpu,
+    /// The compute-shader reconstructor on any adapter, a software one included; an
+    /// error where there is none.
+    Gpu,
+    /// A hardware GPU adapter where there is one, the CPU otherwise.
+    Auto,
+}
+
+impl ReconDevice {
+    /// Every choice, in the order the help lists them.
+    pub const ALL: [ReconDevice; 3] = [Self::Cpu, Self::Gpu, Self::Auto];
+
+    /// The name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Cpu => "cpu",
+            Self::Gpu => "gpu",
+            Self::Auto => "auto",
+        }
+    }
+}
+
+impl fmt::Display for ReconDevice {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A name that is no [`ReconDevice`].
+#[derive(Debug, thiserror::Error)]
+#[error("unknown reconstructor '{0}': expected cpu, gpu or auto")]
+pub struct UnknownDevice(pub String);
+
+impl FromStr for ReconDevice {
+    type Err = UnknownDevice;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Self::ALL
+            .into_iter()
+            .find(|d| d.name() == s)
+            .ok_or_else(|| UnknownDevice(s.into()))
+    }
+}
+
+/// The parser of `--recon`: its values and what each means, for `--help` and for the
+/// error that lists them.
+fn recon_parser() -> impl clap::builder::TypedValueParser<Value = ReconDevice> {
+    let values = ReconDevice::ALL.map(|d| {
+        clap::builder::PossibleValue::new(d.name()).help(match d {
+            ReconDevice::Cpu => "the CPU reconstructor, the reference",
+            ReconDevice::Gpu => "compute shaders on any GPU adapter, a software one included",
+            ReconDevice::Auto => "a hardware GPU where there is one, else the CPU",
+        })
+    });
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<ReconDevice>())
+}
+
+/// Scene and camera: what is rendered, and from where.
+#[derive(clap::Args, Clone, Debug, PartialEq)]
+pub struct SceneGroup {
+    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
+    #[arg(long, default_value = SCENE)]
+    pub scene: String,
+    /// Camera path CSV overriding the scene's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
+}
+
+/// The display: its size and refresh rate.
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
+pub struct DisplayGroup {
+    /// Display size WxH.
+    #[arg(long, default_value_t = Size::DEFAULT)]
+    pub size: Size,
+    /// Display refresh rate, Hz: what is shown is asked for at each refresh.
+    #[arg(long, alias = "fps", default_value_t = REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub refresh_hz: f64,
+}
+
+/// How samples are traced: the seed of every random choice, the recursion depth and
+/// the texture filter.
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
+pub struct QualityGroup {
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = SEED, allow_negative_numbers = true)]
+    pub seed: u64,
+    /// Reflection/refraction depth limit.
+    #[arg(long, default_value_t = MAX_DEPTH, value_parser = clap::value_parser!(u32).range(0..=crate::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
+    pub max_depth: u32,
+    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
+    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
+    /// lookups, the paper's setting).
+    #[arg(long, value_enum, default_value_t = TextureFilter::default())]
+    pub texture_filter: TextureFilter,
+}
+
+/// The ideal images a run is scored against: their samples per pixel and their cache.
+#[derive(clap::Args, Clone, Debug, PartialEq)]
+pub struct ReferenceGroup {
+    /// Samples per pixel of the ideal images.
+    #[arg(long, default_value_t = IDEAL_SPP, value_parser = clap::value_parser!(u32).range(1..=crate::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
+    pub ideal_spp: u32,
+    /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
+    /// ~/.cache/frameless/ideal].
+    #[arg(long)]
+    pub cache_dir: Option<PathBuf>,
+    /// Do not read or write the ideal-image cache.
+    #[arg(long)]
+    pub no_cache: bool,
+}
+
+impl ReferenceGroup {
+    /// The cache folder a run uses: `--cache-dir`, else `$FRAMELESS_CACHE`, else
+    /// `~/.cache/frameless/ideal`; `None` with `--no-cache`.
+    pub fn cache(&self) -> Option<PathBuf> {
+        (!self.no_cache).then(|| self.cache_dir.clone().unwrap_or_else(default_cache_dir))
+    }
+}
+
+/// `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`, else `.frameless-cache/ideal`.
+pub fn default_cache_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("FRAMELESS_CACHE") {
+        return d.into();
+    }
+    match std::env::var_os("HOME") {
+        Some(h) => PathBuf::from(h).join(".cache/frameless/ideal"),
+        None => ".frameless-cache/ideal".into(),
+    }
+}
+
+/// Where the work runs: the reconstructor's device.
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
+pub struct DevicesGroup {
+    /// Where the adaptive reconstructor runs: cpu (the reference; committed results
+    /// come from it), gpu (compute shaders on any adapter, a software one such as
+    /// Mesa's lavapipe included; an error where there is none) or auto (a hardware GPU
+    /// where there is one, else the CPU). WGPU_BACKEND and WGPU_ADAPTER_NAME narrow
+    /// the choice of adapter. Parameters the GPU reconstructor cannot run yet are an
+    /// error, not a silent fallback.
+    #[arg(long, value_name = "DEVICE", default_value = "cpu", value_parser = recon_parser())]
+    pub recon: ReconDevice,
+}
+
+/// A group's defaults are its command-line defaults.
+macro_rules! defaults_from_clap {
+    ($($group:ty),*) => {$(
+        impl Default for $group {
+            fn default() -> Self {
+                use clap::{Args, FromArgMatches};
+                let cmd = <$group>::augment_args(clap::Command::new("defaults"));
+                let m = cmd.get_matches_from(["defaults"]);
+                <$group>::from_arg_matches(&m).expect("the defaults parse")
+            }
+        }
+    )*};
+}
+defaults_from_clap!(SceneGroup, DisplayGroup, QualityGroup, ReferenceGroup, DevicesGroup);

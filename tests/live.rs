@@ -146,7 +146,13 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
         warmup: 18,
         refreshes: 30,
     };
-    let rec = record(tracer.clone(), config.clone(), window).expect("records");
+    let rec = record(
+        tracer.clone(),
+        config.clone(),
+        RtMethod::Framed.settings(),
+        window,
+    )
+    .expect("records");
     assert_eq!(rec.shown.len(), 30);
     let period = 1.0 / config.refresh_hz;
     let images: Vec<(f64, Vec<u8>)> = rec

@@ -13,7 +13,8 @@ use std::{
 
 use frameless::{
     realtime::{
-        run_headless, CameraRecorder, FlyCamera, HeadlessOptions, PixelLocks, RtConfig, RtMethod,
+        run_headless, AdaptiveSettings, CameraRecorder, FlyCamera, HeadlessOptions, PixelLocks,
+        RtConfig, RtMethod, RtSettings,
     },
     sampling::Rng,
     scene::{builtin, CameraPath},
@@ -192,7 +193,7 @@ fn headless_runs_stop_on_time_and_write_stats() {
             camera_step_s: None,
         };
         let t0 = Instant::now();
-        let st = run_headless(tracer, cfg, &opts).unwrap();
+        let st = run_headless(tracer, cfg, method.settings(), &opts).unwrap();
         let wall = t0.elapsed().as_secs_f64();
         // Generous: this is about stopping, not speed (CI machines are shared).
         assert!(wall < 0.6 + 5.0, "{}: took {wall} s", method.name());
@@ -227,7 +228,10 @@ fn an_image_budget_limits_the_samples_an_image_places() {
     let run = |budget: f64| {
         let mut cfg = RtConfig::new(RtMethod::Adaptive);
         cfg.sampling_threads = 1;
-        cfg.adaptive.image_budget = budget;
+        let settings = AdaptiveSettings {
+            image_budget: budget,
+            ..AdaptiveSettings::default()
+        };
         let opts = HeadlessOptions {
             seconds: 1.0,
             out: tmp_dir(&format!("budget-{budget}")),
@@ -235,7 +239,9 @@ fn an_image_budget_limits_the_samples_an_image_places() {
             scene: "toycar".into(),
             camera_step_s: None,
         };
-        run_headless(toycar(48, 32), cfg, &opts).unwrap().pipeline
+        run_headless(toycar(48, 32), cfg, RtSettings::Adaptive(settings), &opts)
+            .unwrap()
+            .pipeline
     };
     let (tight, none) = (run(0.001), run(0.0));
     let figure =
@@ -248,9 +254,11 @@ fn an_image_budget_limits_the_samples_an_image_places() {
         placed_tight < 2.0 * floor && placed_tight < placed_none,
         "{placed_tight} placed under the budget, {placed_none} without"
     );
-    let mut cfg = RtConfig::new(RtMethod::Adaptive);
-    cfg.adaptive.image_budget = 1.5;
-    assert!(cfg.validate().is_err(), "a budget over one period");
+    let settings = RtSettings::Adaptive(AdaptiveSettings {
+        image_budget: 1.5,
+        ..AdaptiveSettings::default()
+    });
+    assert!(settings.validate().is_err(), "a budget over one period");
 }
 
 #[test]
@@ -267,7 +275,7 @@ fn headless_runs_report_latency_and_show_a_camera_step_within_a_second() {
             scene: "toycar".into(),
             camera_step_s: Some(0.8),
         };
-        let st = run_headless(tracer, cfg, &opts).unwrap();
+        let st = run_headless(tracer, cfg, method.settings(), &opts).unwrap();
         let name = method.name();
         let p = &st.pipeline;
         assert!(
@@ -443,7 +451,8 @@ fn threads_size_the_viewers_pipeline() {
 #[test]
 fn the_controller_bench_replays_what_a_sampling_thread_sent() {
     use frameless::realtime::adaptive::controller_bench;
-    let b = controller_bench(toycar(64, 48), RtConfig::new(RtMethod::Adaptive), 0.3).unwrap();
+    let config = RtConfig::new(RtMethod::Adaptive);
+    let b = controller_bench(toycar(64, 48), config, Default::default(), 0.3).unwrap();
     // A third of a second of one thread's crosshairs, measured both ways.
     assert!(b.samples > 1000, "{b:?}");
     assert!(

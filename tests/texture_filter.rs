@@ -124,8 +124,11 @@ fn ray_cones_converge_to_the_supersampled_image_and_beat_one_unfiltered_sample()
 
 #[test]
 fn none_filter_is_the_unfiltered_lookup() {
-    // The default must be `None`: committed results were made without filtering.
-    assert_eq!(TraceOptions::default().texture_filter, TextureFilter::None);
+    // One default: every tracer filters as the commands' `--texture-filter` default does.
+    assert_eq!(
+        TraceOptions::default().texture_filter,
+        TextureFilter::default()
+    );
     let scene = Arc::new(grazing_floor());
     let a = render(&scene, TextureFilter::None, 1, 3);
     let b = render(&scene, TextureFilter::RayCones, 1, 3);

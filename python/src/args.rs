@@ -5,7 +5,7 @@
 
 use frameless::{
     clock::parse_rate, evaluation::live::LiveConfig, evaluation::EvalConfig, methods::MethodKind,
-    realtime::RtMethod, trace::TextureFilter,
+    realtime::RtMethod, settings, trace::TextureFilter,
 };
 use pyo3::{prelude::*, types::PyDict};
 
@@ -131,4 +131,44 @@ pub fn ideal_spp_and_depth(ideal_spp: u64, max_depth: u64) -> PyResult<()> {
         0,
         frameless::limits::MAX_DEPTH as u64,
     )
+}
+
+/// The settings groups of a run from the Python keywords, in the ranges the command
+/// line takes; each unset field at the command line's default. `cache_dir` is the
+/// folder itself (`None`: no cache), as the Python side resolves `--cache-dir` and
+/// `--no-cache`.
+// The struct updates are there for the fields these keywords do not set: a field a
+// group gains takes its default here without a change to this function.
+#[allow(clippy::too_many_arguments, clippy::needless_update)]
+pub fn groups(
+    size: &str,
+    refresh_hz: f64,
+    seed: u64,
+    ideal_spp: u64,
+    max_depth: u64,
+    filter: &str,
+    cache_dir: Option<std::path::PathBuf>,
+) -> PyResult<(
+    settings::DisplayGroup,
+    settings::QualityGroup,
+    settings::ReferenceGroup,
+)> {
+    ideal_spp_and_depth(ideal_spp, max_depth)?;
+    let display = settings::DisplayGroup {
+        size: size.parse().map_err(|e: frameless::limits::LimitError| value(e.to_string()))?,
+        refresh_hz: finite("--refresh-hz", refresh_hz)?,
+        ..Default::default()
+    };
+    let quality = settings::QualityGroup {
+        seed,
+        max_depth: max_depth as u32,
+        texture_filter: texture_filter(filter)?,
+        ..Default::default()
+    };
+    let reference = settings::ReferenceGroup {
+        ideal_spp: ideal_spp as u32,
+        no_cache: cache_dir.is_none(),
+        cache_dir,
+    };
+    Ok((display, quality, reference))
 }

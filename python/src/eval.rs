@@ -42,32 +42,27 @@ fn evaluate(
     cache_dir: Option<PathBuf>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String)> {
-    let (width, height) = args::size(size)?;
-    args::ideal_spp_and_depth(ideal_spp, max_depth)?;
     args::in_range("--flip-every", flip_every, 1, u32::MAX as u64)?;
-    let mut cfg = EvalConfig {
-        scene_name: scene.name.clone(),
-        camera_path: scene.camera_path.clone(),
-        start: args::finite("--start", start)?,
-        duration: args::finite("--duration", duration)?,
-        width,
-        height,
-        rates: args::rates(&rates)?,
-        methods: args::methods(&methods)?,
+    let (display, quality, reference) = args::groups(
+        size,
+        refresh_hz,
         seed,
-        ideal_spp: ideal_spp as u32,
-        warmup: args::finite("--warmup", warmup)?,
-        refresh_hz: args::finite("--refresh-hz", refresh_hz)?,
-        max_depth: max_depth as u32,
-        texture_filter: args::texture_filter(texture_filter)?,
+        ideal_spp,
+        max_depth,
+        texture_filter,
         cache_dir,
-        strip_frames: Vec::new(),
-        flip_every: flip_every as usize,
-        gpu: None,
-    };
-    // As the command line: image strips at the quartiles (they cost little and the
-    // run's ideal-image order does not depend on them).
-    cfg.strip_frames = cfg.quartile_frames();
+    )?;
+    let mut cfg = EvalConfig::new(&scene.name);
+    cfg.camera_path = scene.camera_path.clone();
+    cfg.start = args::finite("--start", start)?;
+    cfg.duration = args::finite("--duration", duration)?;
+    cfg.rates = args::rates(&rates)?;
+    cfg.methods = args::methods(&methods)?;
+    cfg.warmup = args::finite("--warmup", warmup)?;
+    cfg.flip_every = flip_every as usize;
+    // As the command line: the groups set last (image strips at the quartiles of the
+    // window).
+    cfg.set_groups(&display, &quality, &reference);
     cfg.validate().map_err(errors::eval)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
@@ -103,16 +98,22 @@ fn live(
     cache_dir: Option<PathBuf>,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String)> {
-    let (w, h) = args::size(size)?;
     args::in_range("--repeat", repeat, 1, 100)?;
-    args::ideal_spp_and_depth(ideal_spp, max_depth)?;
+    let (display, quality, reference) = args::groups(
+        size,
+        refresh_hz,
+        seed,
+        ideal_spp,
+        max_depth,
+        texture_filter,
+        cache_dir,
+    )?;
     let mut cfg = live_eval::LiveConfig::new(&scene.name);
     cfg.camera_path = scene.camera_path.clone();
     cfg.start = args::finite("--start", start)?;
     cfg.seconds = args::finite("--seconds", seconds)?;
     cfg.warmup = args::finite("--warmup", warmup)?;
-    (cfg.width, cfg.height) = (w, h);
-    cfg.refresh_hz = args::finite("--refresh-hz", refresh_hz)?;
+    cfg.set_groups(&display, &quality, &reference);
     if let Some(m) = methods {
         cfg.methods = args::rt_methods(&m)?;
     }
@@ -121,11 +122,6 @@ fn live(
         args::in_range("--threads", n, 1, 1024)?;
         cfg.cores = n as usize;
     }
-    cfg.seed = seed;
-    cfg.ideal_spp = ideal_spp as u32;
-    cfg.max_depth = max_depth as u32;
-    cfg.texture_filter = args::texture_filter(texture_filter)?;
-    cfg.cache_dir = cache_dir;
     cfg.validate().map_err(errors::eval)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {

@@ -81,6 +81,7 @@ impl NativeRender {
             width,
             height,
             seed,
+            max_depth: frameless::settings::MAX_DEPTH,
             texture_filter: args::texture_filter(texture_filter)?,
             format: ImageFormat::Exr,
             gpu: None,

@@ -596,10 +596,11 @@ pub fn controller_throughput(
     tracer: &std::sync::Arc<Tracer>,
     time: f64,
 ) -> Option<crate::realtime::adaptive::ControllerBench> {
-    use crate::realtime::{RtConfig, RtMethod};
+    use crate::realtime::{adaptive, RtConfig, RtMethod};
     let mut config = RtConfig::for_cores(RtMethod::Adaptive, rayon::current_num_threads());
     config.start = time;
-    crate::realtime::adaptive::controller_bench(tracer.clone(), config, CONTROLLER_RECORD_S).ok()
+    let settings = adaptive::AdaptiveSettings::default();
+    adaptive::controller_bench(tracer.clone(), config, settings, CONTROLLER_RECORD_S).ok()
 }
 
 /// Wall seconds of sampling the controller bench records.

@@ -1,39 +1,15 @@
 //! Command-line arguments (clap derive) and their validation.
 
-use std::{path::PathBuf, str::FromStr};
+use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand};
 use frameless::{
     clock::parse_rate,
     methods::MethodKind,
     realtime::{RtMethod, Visualisation},
-    reconstruction::device::ReconDevice,
-    settings,
+    settings::{self, finite_f64, Size},
     trace::TextureFilter,
 };
-
-/// An image size `WxH`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Size(pub u32, pub u32);
-
-impl Size {
-    /// The display size every command defaults to.
-    pub const DEFAULT: Size = Size(settings::SIZE.0, settings::SIZE.1);
-}
-
-impl std::fmt::Display for Size {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}x{}", self.0, self.1)
-    }
-}
-
-impl FromStr for Size {
-    type Err = frameless::limits::LimitError;
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        let (w, h) = frameless::limits::parse_size(s)?;
-        Ok(Size(w, h))
-    }
-}
 
 /// `--ideal-spp`, shared by the commands that make ideal images.
 #[derive(Args, Clone, Copy, Debug)]
@@ -59,33 +35,6 @@ pub struct TextureFilterArg {
     /// lookups, the paper's setting).
     #[arg(long, value_enum, default_value = "ray-cones")]
     pub texture_filter: TextureFilter,
-}
-
-/// `--recon`, shared by the commands that run the adaptive reconstructor.
-#[derive(Args, Clone, Copy, Debug)]
-pub struct ReconArg {
-    /// Where the adaptive reconstructor runs: cpu (the reference; committed results
-    /// come from it), gpu (compute shaders on any adapter, a software one such as
-    /// Mesa's lavapipe included; an error where there is none) or auto (a hardware GPU
-    /// where there is one, else the CPU). WGPU_BACKEND and WGPU_ADAPTER_NAME narrow
-    /// the choice of adapter. Parameters the GPU reconstructor cannot run yet are an
-    /// error, not a silent fallback.
-    #[arg(long, value_name = "DEVICE", default_value = "cpu", value_parser = recon_parser())]
-    pub recon: ReconDevice,
-}
-
-/// The parser of `--recon`: its values and what each means, for `--help` and for the
-/// error that lists them.
-fn recon_parser() -> impl clap::builder::TypedValueParser<Value = ReconDevice> {
-    let values = ReconDevice::ALL.map(|d| {
-        clap::builder::PossibleValue::new(d.name()).help(match d {
-            ReconDevice::Cpu => "the CPU reconstructor, the reference",
-            ReconDevice::Gpu => "compute shaders on any GPU adapter, a software one included",
-            ReconDevice::Auto => "a hardware GPU where there is one, else the CPU",
-        })
-    });
-    use clap::builder::TypedValueParser;
-    clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<ReconDevice>())
 }
 
 /// `frameless`: adaptive frameless rendering.
@@ -151,12 +100,14 @@ pub struct ReportArgs {
 /// Arguments of `frameless render`.
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera.
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
+    #[command(flatten)]
+    pub display: settings::DisplayGroup,
+    #[command(flatten)]
+    pub quality: settings::QualityGroup,
+    #[command(flatten)]
+    pub devices: settings::DevicesGroup,
     /// The method (any of `frameless eval --help`'s).
     #[arg(long, default_value = "adaptive", value_parser = method_parser())]
     pub method: MethodKind,
@@ -172,23 +123,10 @@ pub struct RenderArgs {
     /// Sampling before the first refresh (seconds).
     #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    /// Display refresh rate, Hz.
-    #[arg(long, alias = "fps", default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub refresh_hz: f64,
-    /// Display size.
-    #[arg(long, default_value_t = Size::DEFAULT)]
-    pub size: Size,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
-    #[command(flatten)]
-    pub filter: TextureFilterArg,
     /// File format of the frames: png (as displayed: clamped, 8-bit) or exr (OpenEXR,
     /// linear HDR, 32-bit float).
     #[arg(long, value_enum, default_value = "png")]
     pub format: FrameFormat,
-    #[command(flatten)]
-    pub recon: ReconArg,
     /// Output folder for `frame_NNNNN.png` (or `.exr`) and `stats.json`.
     #[arg(long, default_value = "render-out")]
     pub out: PathBuf,
@@ -246,7 +184,7 @@ pub struct Table1Args {
     #[arg(long = "strip-rate", alias = "strip-rates", value_name = "RATE", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub strip_rates: Option<Vec<f64>>,
     #[command(flatten)]
-    pub recon: ReconArg,
+    pub devices: settings::DevicesGroup,
     /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
     /// animation.
     #[arg(long, default_value = "table1-out")]
@@ -276,15 +214,14 @@ pub enum Strips {
 /// Arguments of `frameless view`.
 #[derive(Args, Debug)]
 pub struct ViewArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera (the input of a headless run).
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
-    /// Image size WxH.
-    #[arg(long, default_value_t = Size::DEFAULT)]
-    pub size: Size,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
+    #[command(flatten)]
+    pub display: settings::DisplayGroup,
+    #[command(flatten)]
+    pub quality: settings::QualityGroup,
+    #[command(flatten)]
+    pub devices: settings::DevicesGroup,
     /// The real-time method.
     #[arg(long, default_value = "adaptive", value_parser = RtMethodParser)]
     pub method: RtMethod,
@@ -295,15 +232,7 @@ pub struct ViewArgs {
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
     #[command(flatten)]
-    pub recon: ReconArg,
-    /// Display refresh rate, Hz.
-    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub refresh_hz: f64,
-    /// Adaptive: share of a refresh period an image may take to build; when one takes
-    /// longer, the next reconstructs from only the newest samples that fit (0: always
-    /// the whole ring).
-    #[arg(long, default_value = "0.8", value_parser = finite_f64, allow_negative_numbers = true)]
-    pub image_budget: f64,
+    pub adaptive: frameless::realtime::AdaptiveArgs,
     /// Scene time at start, seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
@@ -332,32 +261,17 @@ pub struct ViewArgs {
     /// Visualisation shown at start (key V cycles).
     #[arg(long, default_value = "image")]
     pub vis: Visualisation,
-    /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub ring_factor: Option<f64>,
-    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub max_radius: Option<f64>,
-    /// No reprojection in the sampler's controller (already off in ours, which the
-    /// real-time adaptive method uses).
-    #[arg(long)]
-    pub no_reprojection: bool,
-    /// Seed of the threads' random choices.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
-    #[command(flatten)]
-    pub filter: TextureFilterArg,
 }
 
 /// Arguments of `frameless sampler`.
 #[derive(Args, Debug)]
 pub struct SamplerArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera.
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
+    #[command(flatten)]
+    pub display: settings::DisplayGroup,
+    #[command(flatten)]
+    pub quality: settings::QualityGroup,
     /// Time the sampler starts, seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
@@ -367,15 +281,6 @@ pub struct SamplerArgs {
     /// Sample budget, samples per second of scene time; suffixes k and M.
     #[arg(long, default_value = "400k", value_parser = parse_rate, allow_negative_numbers = true)]
     pub rate: f64,
-    /// Display refresh rate, Hz: the sampler is run up to each refresh in turn.
-    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub refresh_hz: f64,
-    /// Image size WxH.
-    #[arg(long, default_value_t = Size::DEFAULT)]
-    pub size: Size,
-    /// Seed.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
     /// Sampler parameters: ours (`adaptive`) or the paper's (`adaptive-paper`); the
     /// ablation flags below apply on top.
     #[arg(long, value_enum, default_value = "ours")]
@@ -400,28 +305,26 @@ pub struct SamplerArgs {
 /// Arguments of `frameless eval`.
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera.
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
+    #[command(flatten)]
+    pub display: settings::DisplayGroup,
+    #[command(flatten)]
+    pub quality: settings::QualityGroup,
+    #[command(flatten)]
+    pub reference: settings::ReferenceGroup,
+    #[command(flatten)]
+    pub devices: settings::DevicesGroup,
     /// First evaluated refresh, seconds of scene time.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Length of the evaluated window, seconds.
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
-    /// Display size WxH.
-    #[arg(long, default_value_t = Size::DEFAULT)]
-    pub size: Size,
     /// Sample budgets, samples per second of scene time, comma-separated; suffixes k and
     /// M (e.g. 100k,400k,800k).
     #[arg(long = "rate", alias = "rates", value_name = "RATE", default_value = "100k,400k,800k", value_delimiter = ',', value_parser = parse_rate, allow_hyphen_values = true)]
     pub rates: Vec<f64>,
-    /// Display refresh rate, Hz: every method is asked what it shows at each refresh.
-    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub refresh_hz: f64,
     /// Methods to evaluate, comma-separated.
     #[arg(
         long = "method",
@@ -432,35 +335,17 @@ pub struct EvalArgs {
         default_value = "framed-60hz,framed-full,full-res-60hz,traditional-frameless,point-tracking,taa,late-warp,taa-warp,adaptive"
     )]
     pub methods: Vec<MethodKind>,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
-    #[command(flatten)]
-    pub filter: TextureFilterArg,
-    #[command(flatten)]
-    pub ideal: IdealSppArg,
     /// Seconds every method runs before the first evaluated refresh.
     #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    #[command(flatten)]
-    pub depth: MaxDepthArg,
-    /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
-    /// ~/.cache/frameless/ideal].
-    #[arg(long)]
-    pub cache_dir: Option<PathBuf>,
     /// Compute FLIP on every n-th frame only (1: every frame; RMS, PSNR and temporal
     /// instability are always computed on every frame).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
-    /// Do not read or write the ideal-image cache.
-    #[arg(long)]
-    pub no_cache: bool,
     /// Also write the strip frames as OpenEXR (linear HDR, before the display clamps
     /// and quantizes) under `exr/`: the ideal image and every method's.
     #[arg(long)]
     pub exr: bool,
-    #[command(flatten)]
-    pub recon: ReconArg,
     /// Output folder.
     #[arg(long, default_value = "eval-out")]
     pub out: PathBuf,
@@ -469,12 +354,16 @@ pub struct EvalArgs {
 /// Arguments of `frameless live`.
 #[derive(Args, Debug)]
 pub struct LiveArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera.
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
+    #[command(flatten)]
+    pub display: settings::DisplayGroup,
+    #[command(flatten)]
+    pub quality: settings::QualityGroup,
+    #[command(flatten)]
+    pub reference: settings::ReferenceGroup,
+    #[command(flatten)]
+    pub devices: settings::DevicesGroup,
     /// Scene time of the first recorded refresh, seconds (the warm-up runs before it).
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
@@ -484,12 +373,6 @@ pub struct LiveArgs {
     /// Wall seconds each run goes before its recorded window (whole refreshes).
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    /// Display size WxH.
-    #[arg(long, default_value_t = Size::DEFAULT)]
-    pub size: Size,
-    /// Display refresh rate, Hz.
-    #[arg(long, default_value_t = settings::REFRESH_HZ, value_parser = finite_f64, allow_negative_numbers = true)]
-    pub refresh_hz: f64,
     /// Real-time methods to run, comma-separated [default: all of them].
     #[arg(long = "method", alias = "methods", value_name = "METHOD", value_delimiter = ',', value_parser = RtMethodParser)]
     pub methods: Option<Vec<RtMethod>>,
@@ -497,36 +380,11 @@ pub struct LiveArgs {
     /// the range.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
     pub repeat: u32,
-    /// Seed of the methods' random choices and of the ideal images.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
-    #[command(flatten)]
-    pub ideal: IdealSppArg,
-    #[command(flatten)]
-    pub filter: TextureFilterArg,
-    #[command(flatten)]
-    pub depth: MaxDepthArg,
-    /// Ideal-image cache folder [default: $FRAMELESS_CACHE, else
-    /// ~/.cache/frameless/ideal].
-    #[arg(long)]
-    pub cache_dir: Option<PathBuf>,
-    /// Do not read or write the ideal-image cache.
-    #[arg(long)]
-    pub no_cache: bool,
-    #[command(flatten)]
-    pub recon: ReconArg,
     /// Output folder.
     #[arg(long, default_value = "live-out")]
     pub out: PathBuf,
 }
 
-fn finite_f64(s: &str) -> Result<f64, String> {
-    let v: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
-    if !v.is_finite() {
-        return Err(format!("`{s}` is not finite"));
-    }
-    Ok(v)
-}
 
 /// Arguments of `frameless still`.
 #[derive(Args, Debug)]
@@ -584,15 +442,15 @@ pub struct BenchArgs {
     #[arg(long)]
     pub live_recon: bool,
     #[command(flatten)]
-    pub recon: ReconArg,
+    pub devices: settings::DevicesGroup,
 }
 
-fn parse_rays(s: &str) -> Result<usize, String> {
+fn parse_rays(s: &str) -> anyhow::Result<usize> {
     let n: usize = s
         .parse()
-        .map_err(|_| format!("`{s}` is not a whole number"))?;
+        .map_err(|_| anyhow::anyhow!("`{s}` is not a whole number"))?;
     if !(1024..=1 << 28).contains(&n) {
-        return Err(format!("rays {n} out of range 1024..=268435456"));
+        anyhow::bail!("rays {n} out of range 1024..=268435456");
     }
     Ok(n)
 }
@@ -765,7 +623,7 @@ mod tests {
         else {
             panic!("render expected")
         };
-        assert_eq!(r.refresh_hz, 30.0);
+        assert_eq!(r.display.refresh_hz, 30.0);
     }
 
     #[test]
@@ -813,6 +671,35 @@ mod tests {
     }
 
     #[test]
+    fn the_shared_groups_are_on_every_command_that_flattens_them() {
+        let shared = [
+            "--scene", "room", "--size", "32x16", "--refresh-hz", "30", "--seed", "2",
+            "--max-depth", "3", "--texture-filter", "none",
+        ];
+        let groups = |cmd: &str| {
+            let args = ["frameless", cmd].into_iter().chain(shared);
+            match Cli::try_parse_from(args).expect("parses").command {
+                Command::Eval(a) => (a.scene, a.display, a.quality),
+                Command::Live(a) => (a.scene, a.display, a.quality),
+                Command::View(a) => (a.scene, a.display, a.quality),
+                Command::Render(a) => (a.scene, a.display, a.quality),
+                Command::Sampler(a) => (a.scene, a.display, a.quality),
+                c => panic!("no groups on {c:?}"),
+            }
+        };
+        for cmd in ["eval", "live", "view", "render", "sampler"] {
+            let (scene, display, quality) = groups(cmd);
+            assert_eq!(scene.scene, "room", "{cmd}");
+            assert_eq!((display.size, display.refresh_hz), (Size(32, 16), 30.0), "{cmd}");
+            assert_eq!(
+                (quality.seed, quality.max_depth, quality.texture_filter),
+                (2, 3, TextureFilter::None),
+                "{cmd}"
+            );
+        }
+    }
+
+    #[test]
     fn eval_defaults_are_the_librarys() {
         let Command::Eval(a) = Cli::try_parse_from(["frameless", "eval"]).unwrap().command else {
             panic!("eval expected")
@@ -820,31 +707,37 @@ mod tests {
         let cfg = frameless::evaluation::EvalConfig::new("toycar");
         assert_eq!(a.methods, cfg.methods);
         assert_eq!(a.rates, cfg.rates);
-        let Size(w, h) = a.size;
+        let Size(w, h) = a.display.size;
         assert_eq!(
-            (w, h, a.seed, a.ideal.ideal_spp),
+            (w, h, a.quality.seed, a.reference.ideal_spp),
             (cfg.width, cfg.height, cfg.seed, cfg.ideal_spp)
         );
         assert_eq!(
-            (a.start, a.duration, a.warmup, a.refresh_hz),
+            (a.start, a.duration, a.warmup, a.display.refresh_hz),
             (cfg.start, cfg.duration, cfg.warmup, cfg.refresh_hz)
         );
         assert_eq!(
-            (a.depth.max_depth, a.filter.texture_filter),
+            (a.quality.max_depth, a.quality.texture_filter),
             (cfg.max_depth, cfg.texture_filter)
         );
+        // The groups' defaults are the library's too.
+        use frameless::settings::{DisplayGroup, QualityGroup, ReferenceGroup};
+        assert_eq!(a.display, DisplayGroup::default());
+        assert_eq!(a.quality, QualityGroup::default());
+        assert_eq!(a.reference, ReferenceGroup::default());
     }
 
     #[test]
     fn recon_is_one_option_on_every_command_that_reconstructs_cpu_by_default() {
+        use frameless::settings::ReconDevice;
         let parse = |args: &[&str]| Cli::try_parse_from(args.iter().copied());
         let recon = |args: &[&str]| -> ReconDevice {
             match parse(args).expect("parses").command {
-                Command::Eval(a) => a.recon.recon,
-                Command::Table1(a) => a.recon.recon,
-                Command::View(a) => a.recon.recon,
-                Command::Live(a) => a.recon.recon,
-                Command::Bench(a) => a.recon.recon,
+                Command::Eval(a) => a.devices.recon,
+                Command::Table1(a) => a.devices.recon,
+                Command::View(a) => a.devices.recon,
+                Command::Live(a) => a.devices.recon,
+                Command::Bench(a) => a.devices.recon,
                 c => panic!("no --recon on {c:?}"),
             }
         };

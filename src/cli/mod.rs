@@ -10,7 +10,8 @@ use std::{path::Path, sync::Arc, time::Instant};
 use anyhow::{bail, Context, Result};
 use clap::Parser;
 
-pub use args::{Cli, Command, Size};
+pub use args::{Cli, Command};
+use frameless::settings::Size;
 use progress::Meter;
 
 use frameless::{
@@ -132,30 +133,15 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
         (!builtin::NAMES.contains(&s)).then(|| s.into())
     };
     let cache = |dir: &Option<std::path::PathBuf>, off: bool| {
-        (!off).then(|| dir.clone().unwrap_or_else(default_cache_dir))
+        (!off).then(|| dir.clone().unwrap_or_else(settings::default_cache_dir))
     };
+    let input = |s: &frameless::settings::SceneGroup| vec![s.camera_path.clone(), scene(&s.scene)];
     let (out, inputs) = match cmd {
-        Command::Eval(a) => (
-            &a.out,
-            [
-                a.camera_path.clone(),
-                scene(&a.scene),
-                cache(&a.cache_dir, a.no_cache),
-            ]
-            .into(),
-        ),
-        Command::Render(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
-        Command::Sampler(a) => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
-        Command::View(a) if a.headless => (&a.out, vec![a.camera_path.clone(), scene(&a.scene)]),
-        Command::Live(a) => (
-            &a.out,
-            [
-                a.camera_path.clone(),
-                scene(&a.scene),
-                cache(&a.cache_dir, a.no_cache),
-            ]
-            .into(),
-        ),
+        Command::Eval(a) => (&a.out, [input(&a.scene), vec![a.reference.cache()]].concat()),
+        Command::Render(a) => (&a.out, input(&a.scene)),
+        Command::Sampler(a) => (&a.out, input(&a.scene)),
+        Command::View(a) if a.headless => (&a.out, input(&a.scene)),
+        Command::Live(a) => (&a.out, [input(&a.scene), vec![a.reference.cache()]].concat()),
         Command::Table1(a) => {
             let bart = a
                 .bart
@@ -175,7 +161,7 @@ fn bench(a: args::BenchArgs) -> Result<()> {
     if a.live_recon {
         return bench_live_recon(a.json);
     }
-    let gpu = acquire_recon(a.recon.recon)?;
+    let gpu = acquire_recon(a.devices.recon)?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -296,9 +282,7 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
     if choice == ReconDevice::Cpu {
         return Ok(None);
     }
-    let got = check_wgpu_backend()
-        .map_err(anyhow::Error::msg)
-        .and_then(|()| Ok(device::acquire(choice)?));
+    let got = check_wgpu_backend().and_then(|()| Ok(device::acquire(choice)?));
     match got {
         Ok(Some(g)) => {
             eprintln!("reconstructing on {}", g.describe());
@@ -325,7 +309,7 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
 /// name it does not know, and with no name left it lists no adapter, which the library
 /// can only report as a missing driver; so the variable is named here instead.
 #[cfg(feature = "gpu")]
-fn check_wgpu_backend() -> Result<(), String> {
+fn check_wgpu_backend() -> Result<()> {
     let Some(value) = std::env::var_os("WGPU_BACKEND") else {
         return Ok(());
     };
@@ -339,52 +323,34 @@ fn check_wgpu_backend() -> Result<(), String> {
         return Ok(());
     }
     let valid: Vec<&str> = wgpu::Backend::ALL.iter().map(|b| b.to_str()).collect();
-    Err(format!(
+    bail!(
         "WGPU_BACKEND={value}: {} names no wgpu backend; its valid values are {}, \
          comma-separated (or leave it unset for all of them)",
         unknown.join(", "),
         valid.join(", ")
-    ))
+    )
 }
 
 /// Without the `gpu` feature no GPU is ever asked for, so nothing reads `WGPU_BACKEND`.
 #[cfg(not(feature = "gpu"))]
-fn check_wgpu_backend() -> Result<(), String> {
+fn check_wgpu_backend() -> Result<()> {
     Ok(())
 }
 
 fn eval(a: args::EvalArgs) -> Result<()> {
     frameless::output::check_folder_target(&a.out)?;
-    let Size(w, h) = a.size;
-    let cache_dir = if a.no_cache {
-        None
-    } else {
-        Some(a.cache_dir.clone().unwrap_or_else(default_cache_dir))
-    };
-    let mut cfg = EvalConfig {
-        scene_name: a.scene.clone(),
-        camera_path: load_camera_path(a.camera_path.as_deref())?,
-        start: a.start,
-        duration: a.duration,
-        width: w,
-        height: h,
-        rates: a.rates.clone(),
-        methods: a.methods.clone(),
-        seed: a.seed,
-        ideal_spp: a.ideal.ideal_spp,
-        warmup: a.warmup,
-        refresh_hz: a.refresh_hz,
-        max_depth: a.depth.max_depth,
-        texture_filter: a.filter.texture_filter,
-        cache_dir,
-        strip_frames: Vec::new(),
-        flip_every: a.flip_every as usize,
-        gpu: None,
-    };
-    cfg.strip_frames = cfg.quartile_frames();
+    let mut cfg = EvalConfig::new(&a.scene.scene);
+    cfg.camera_path = load_camera_path(a.scene.camera_path.as_deref())?;
+    cfg.start = a.start;
+    cfg.duration = a.duration;
+    cfg.rates = a.rates.clone();
+    cfg.methods = a.methods.clone();
+    cfg.warmup = a.warmup;
+    cfg.flip_every = a.flip_every as usize;
+    cfg.set_groups(&a.display, &a.quality, &a.reference);
     cfg.validate()?;
-    cfg.gpu = acquire_recon(a.recon.recon)?;
-    let scene = Arc::new(load_scene(&a.scene)?);
+    cfg.gpu = acquire_recon(a.devices.recon)?;
+    let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
         linear_strips: a.exr,
@@ -413,20 +379,21 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 fn render(a: args::RenderArgs) -> Result<()> {
     use frameless::evaluation::sequence::{render_sequence, SequenceConfig};
     frameless::output::check_folder_target(&a.out)?;
-    let Size(w, h) = a.size;
+    let Size(w, h) = a.display.size;
     let cfg = SequenceConfig {
-        scene_name: a.scene.clone(),
-        camera_path: load_camera_path(a.camera_path.as_deref())?,
+        scene_name: a.scene.scene.clone(),
+        camera_path: load_camera_path(a.scene.camera_path.as_deref())?,
         method: a.method,
         rate: a.rate,
         start: a.start,
         duration: a.duration,
         warmup: a.warmup,
-        refresh_hz: a.refresh_hz,
+        refresh_hz: a.display.refresh_hz,
         width: w,
         height: h,
-        seed: a.seed,
-        texture_filter: a.filter.texture_filter,
+        seed: a.quality.seed,
+        max_depth: a.quality.max_depth,
+        texture_filter: a.quality.texture_filter,
         format: match a.format {
             args::FrameFormat::Png => ImageFormat::Png,
             args::FrameFormat::Exr => ImageFormat::Exr,
@@ -435,10 +402,10 @@ fn render(a: args::RenderArgs) -> Result<()> {
     };
     cfg.validate()?;
     let cfg = SequenceConfig {
-        gpu: acquire_recon(a.recon.recon)?,
+        gpu: acquire_recon(a.devices.recon)?,
         ..cfg
     };
-    let scene = Arc::new(load_scene(&a.scene)?);
+    let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("rendering", "rays");
     let stats = render_sequence(scene, &cfg, &a.out, &bar)?;
     bar.finish();
@@ -471,7 +438,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
         .map(|anim| table1_config(&a, anim))
         .collect::<Result<Vec<_>>>()?;
     // One GPU for every animation's evaluation.
-    let gpu = acquire_recon(a.recon.recon)?;
+    let gpu = acquire_recon(a.devices.recon)?;
     for cfg in &mut cfgs {
         cfg.gpu = gpu.clone();
     }
@@ -550,7 +517,7 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
         refresh_hz: settings::REFRESH_HZ,
         max_depth: settings::MAX_DEPTH,
         texture_filter: a.filter.texture_filter,
-        cache_dir: Some(a.cache_dir.clone().unwrap_or_else(default_cache_dir)),
+        cache_dir: Some(a.cache_dir.clone().unwrap_or_else(settings::default_cache_dir)),
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
         gpu: None,
@@ -610,42 +577,49 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
-    limits::check_refresh_hz(a.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
+    limits::check_refresh_hz(a.display.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
     let params = sampler_params(&a);
-    let Size(w, h) = a.size;
-    let scene = Arc::new(load_scene(&a.scene)?);
+    let Size(w, h) = a.display.size;
+    let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
-        Tracer::new(scene, w, h, TraceOptions::default())
-            .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+        Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
+            .with_camera_path(load_camera_path(a.scene.camera_path.as_deref())?),
     );
     let clock = frameless::clock::Clock {
         start: a.start,
         rate,
         first_refresh: a.start,
-        refresh_hz: a.refresh_hz,
+        refresh_hz: a.display.refresh_hz,
     };
     let ctx = MethodContext {
         tracer,
         clock,
-        seed: a.seed,
+        seed: a.quality.seed,
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
     };
     let mut m = Adaptive::new(&ctx, params)?;
-    let frames = (a.duration * a.refresh_hz).ceil() as u64;
+    let frames = (a.duration * a.display.refresh_hz).ceil() as u64;
     let bar = Meter::new("sampling", "refreshes");
     bar.set_total(frames);
     let t0 = Instant::now();
     let mut display = frameless::image::Image::new(w, h);
     for k in 1..=frames {
-        display = m.display(a.start + k as f64 / a.refresh_hz).image.clone();
+        display = m.display(a.start + k as f64 / a.display.refresh_hz).image.clone();
         bar.inc(1);
     }
     bar.finish();
     let wall = t0.elapsed().as_secs_f64();
-    let end = a.start + frames as f64 / a.refresh_hz;
-    let stats = write_sampler_outputs(&a, m.sampler(), &display, end, wall)?;
+    let end = a.start + frames as f64 / a.display.refresh_hz;
+    let run = frameless::methods::adaptive::outputs::SamplerRun {
+        scene: &a.scene.scene,
+        rate: a.rate,
+        start: a.start,
+        end,
+        wall_s: wall,
+    };
+    let stats = frameless::methods::adaptive::outputs::write(&a.out, m.sampler(), &display, &run)?;
     println!("{}", serde_json::to_string_pretty(&stats)?);
     println!("images: {}", a.out.display());
     Ok(())
@@ -667,52 +641,6 @@ fn sampler_params(a: &args::SamplerArgs) -> frameless::methods::adaptive::Sample
     params
 }
 
-/// Write what the sampler `s` saw after its run up to scene time `end` into `--out`:
-/// the pictures and `stats.json`, whose contents it returns.
-fn write_sampler_outputs(
-    a: &args::SamplerArgs,
-    s: &frameless::methods::adaptive::Sampler,
-    display: &frameless::image::Image,
-    end: f64,
-    wall: f64,
-) -> Result<serde_json::Value> {
-    use frameless::methods::adaptive::vis;
-    let Size(w, h) = a.size;
-    let staging = frameless::output::OutputDir::begin(&a.out)
-        .with_context(|| format!("creating {}", a.out.display()))?;
-    let save = |name: &str, img: &frameless::image::Image| -> Result<()> {
-        let p = staging.path().join(name);
-        img.save_png(&p)
-            .with_context(|| format!("writing {}", p.display()))
-    };
-    save("display.png", display)?;
-    save("tiling.png", &vis::tiling_overlay(s, display))?;
-    save("gradients.png", &vis::gradient_map(s))?;
-    save("density.png", &vis::density_map(s))?;
-    save("occlusion.png", &vis::occlusion_map(s, end))?;
-    let (trace_s, total_s) = s.timing();
-    let gain_inputs = {
-        let (gs, gt, age) = s.gain_inputs(end);
-        serde_json::json!({"gs": gs, "gt": gt, "age_s": age})
-    };
-    let stats = serde_json::json!({
-        "scene": a.scene, "width": w, "height": h, "rate": a.rate, "start": a.start, "end": end,
-        "tiles": s.tiling().len(), "target_tiles": s.target_tiles(),
-        "gain_inputs": gain_inputs,
-        "counters": s.counters(),
-        "sampler_s": total_s, "trace_s": trace_s,
-        "control_overhead": if total_s > 0.0 { (total_s - trace_s) / total_s } else { 0.0 },
-        "wall_s": wall,
-    });
-    let p = staging.path().join("stats.json");
-    std::fs::write(&p, serde_json::to_string_pretty(&stats)?)
-        .with_context(|| format!("writing {}", p.display()))?;
-    staging
-        .commit()
-        .with_context(|| format!("replacing {}", a.out.display()))?;
-    Ok(stats)
-}
-
 fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     use frameless::realtime;
     if a.headless {
@@ -721,36 +649,38 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     if let Some(p) = &a.screenshot {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
-    let mut cfg = view_config(&a, threads)?;
+    let cfg = view_config(&a, threads)?;
+    let mut settings = view_settings(&a, a.method)?;
     if let Some(s) = a.seconds {
         frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--seconds {e}"))?;
     }
-    let Size(w, h) = a.size;
-    cfg.check_size(w, h)?;
-    cfg.adaptive.gpu = acquire_recon(a.recon.recon)?;
-    let scene = Arc::new(load_scene(&a.scene)?);
+    let Size(w, h) = a.display.size;
+    settings.check_size(&cfg, w, h)?;
+    let gpu = acquire_recon(a.devices.recon)?;
+    settings.use_gpu(gpu.clone());
+    let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
-        Tracer::new(
-            scene,
-            w,
-            h,
-            TraceOptions {
-                texture_filter: a.filter.texture_filter,
-                ..TraceOptions::default()
-            },
-        )
-        .with_camera_path(load_camera_path(a.camera_path.as_deref())?),
+        Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
+            .with_camera_path(load_camera_path(a.scene.camera_path.as_deref())?),
     );
     if a.headless {
-        return view_headless(&a, tracer, cfg);
+        return view_headless(&a, tracer, cfg, settings);
+    }
+    // The other methods' settings, for the keys that switch to them.
+    let mut others = Vec::new();
+    for m in realtime::RtMethod::ALL {
+        let mut s = view_settings(&a, m)?;
+        s.use_gpu(gpu.clone());
+        others.push(s);
     }
     let opts = realtime::ViewerOptions {
         seconds: a.seconds,
         record: a.record.clone(),
         screenshot: a.screenshot.clone(),
         visualisation: a.vis,
+        others,
     };
-    realtime::run_viewer(tracer, cfg, opts)?;
+    realtime::run_viewer(tracer, cfg, settings, opts)?;
     Ok(())
 }
 
@@ -768,27 +698,25 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
     if let Some(n) = a.recon_threads {
         cfg.recon_threads = n as usize;
     }
-    cfg.refresh_hz = a.refresh_hz;
-    cfg.adaptive.image_budget = a.image_budget;
+    cfg.set_groups(&a.display, &a.quality);
     cfg.start = a.start;
-    cfg.seed = a.seed;
-    if a.no_reprojection {
-        cfg.adaptive.sampler.reprojection = false;
-    }
-    if let Some(f) = a.ring_factor {
-        if !(f > 0.0 && f <= 64.0) {
-            bail!("--ring-factor {f} must be in (0, 64]");
-        }
-        cfg.adaptive.recon.ring_factor = f;
-    }
-    if let Some(r) = a.max_radius {
-        if !(1.0..=64.0).contains(&r) {
-            bail!("--max-radius {r} must be in [1, 64] pixels");
-        }
-        cfg.adaptive.recon.max_radius = r as f32;
-    }
     cfg.validate()?;
     Ok(cfg)
+}
+
+/// `method`'s own settings from `view`'s options (the adaptive method's from
+/// `AdaptiveArgs`), checked by the library.
+fn view_settings(
+    a: &args::ViewArgs,
+    method: frameless::realtime::RtMethod,
+) -> Result<frameless::realtime::RtSettings> {
+    use frameless::realtime::RtSettings;
+    let mut settings = method.settings();
+    if let RtSettings::Adaptive(s) = &mut settings {
+        a.adaptive.apply(s);
+    }
+    settings.validate()?;
+    Ok(settings)
 }
 
 /// `view --headless`: run the pipeline for `--seconds`, write its outputs and print
@@ -797,6 +725,7 @@ fn view_headless(
     a: &args::ViewArgs,
     tracer: Arc<Tracer>,
     cfg: frameless::realtime::RtConfig,
+    settings: frameless::realtime::RtSettings,
 ) -> Result<()> {
     use frameless::realtime;
     let Some(seconds) = a.seconds else {
@@ -811,13 +740,14 @@ fn view_headless(
         seconds,
         out: a.out.clone(),
         images: a.images as usize,
-        scene: a.scene.clone(),
+        scene: a.scene.scene.clone(),
         camera_step_s: a.camera_step,
     };
-    let st = realtime::run_headless(tracer, cfg.clone(), &opts)?;
+    let method = settings.method();
+    let st = realtime::run_headless(tracer, cfg, settings, &opts)?;
     println!(
         "{}: {:.0} samples/s, {:.1} images/s displayed ({:.0} Hz refresh, {} late), reconstruction {:.1} ms, information age mean {:.0} ms (p50 {:.0}, p95 {:.0}, p99 {:.0}), {} sampling thread{}",
-        cfg.method.name(),
+        method.name(),
         st.samples_per_s,
         st.display_fps,
         st.display.present_hz,
@@ -855,14 +785,12 @@ fn view_headless(
 fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     use evaluation::live::{self, LiveConfig};
     frameless::output::check_folder_target(&a.out)?;
-    let Size(w, h) = a.size;
-    let mut cfg = LiveConfig::new(&a.scene);
-    cfg.camera_path = load_camera_path(a.camera_path.as_deref())?;
+    let mut cfg = LiveConfig::new(&a.scene.scene);
+    cfg.camera_path = load_camera_path(a.scene.camera_path.as_deref())?;
     cfg.start = a.start;
     cfg.seconds = a.seconds;
     cfg.warmup = a.warmup;
-    (cfg.width, cfg.height) = (w, h);
-    cfg.refresh_hz = a.refresh_hz;
+    cfg.set_groups(&a.display, &a.quality, &a.reference);
     if let Some(m) = a.methods {
         cfg.methods = m;
     }
@@ -870,16 +798,11 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     if let Some(n) = threads {
         cfg.cores = n as usize;
     }
-    cfg.seed = a.seed;
-    cfg.ideal_spp = a.ideal.ideal_spp;
-    cfg.max_depth = a.depth.max_depth;
-    cfg.texture_filter = a.filter.texture_filter;
-    cfg.cache_dir = (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir));
     cfg.validate()?;
-    cfg.gpu = acquire_recon(a.recon.recon)?;
+    cfg.gpu = acquire_recon(a.devices.recon)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
-    let scene = Arc::new(load_scene(&a.scene)?);
+    let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("live", "refreshes");
     let mut out = live::run(scene, &cfg, &bar)?;
     bar.finish();
@@ -887,17 +810,6 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     print!("{}", live::markdown(&out.summary));
     println!("report: {}", report.display());
     Ok(())
-}
-
-/// `$FRAMELESS_CACHE`, else `~/.cache/frameless`, else `.frameless-cache`.
-fn default_cache_dir() -> std::path::PathBuf {
-    if let Some(d) = std::env::var_os("FRAMELESS_CACHE") {
-        return d.into();
-    }
-    match std::env::var_os("HOME") {
-        Some(h) => std::path::PathBuf::from(h).join(".cache/frameless/ideal"),
-        None => ".frameless-cache/ideal".into(),
-    }
 }
 
 /// Load a scene from a built-in name or a path, with a helpful error.

@@ -12,7 +12,7 @@ use frameless::evaluation::{
     table1,
 };
 
-use super::{default_cache_dir, progress::Meter};
+use super::{progress::Meter};
 
 /// Arguments of `frameless sweep`.
 #[derive(Args, Debug)]
@@ -68,7 +68,7 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
             .bart
             .clone()
             .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)),
-        cache_dir: (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(default_cache_dir)),
+        cache_dir: (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(frameless::settings::default_cache_dir)),
     };
     let t0 = std::time::Instant::now();
     // One meter for the shard; each job's evaluation sets its total and counts up.
@@ -129,7 +129,8 @@ mod tests {
     use clap::Parser;
     use frameless::evaluation::sweep::{StripFrames, Sweep, SweepReport};
 
-    use super::super::args::{Cli, Command, Size, Strips};
+    use super::super::args::{Cli, Command, Strips};
+    use frameless::settings::Size;
 
     /// `assets/sweeps/table1.toml` runs what `frameless table1` runs by default: the
     /// same rates, size, seed, ideal samples, FLIP frequency, texture filter and strips

@@ -280,7 +280,7 @@ impl EvalConfig {
             warmup: settings::WARMUP_S,
             refresh_hz: settings::REFRESH_HZ,
             max_depth: settings::MAX_DEPTH,
-            texture_filter: TextureFilter::RayCones,
+            texture_filter: TextureFilter::default(),
             cache_dir: None,
             strip_frames: Vec::new(),
             flip_every: 1,
@@ -288,6 +288,26 @@ impl EvalConfig {
         };
         cfg.strip_frames = cfg.quartile_frames();
         cfg
+    }
+
+    /// Take the settings every run shares from their groups: the display, how samples
+    /// are traced, the ideal images (the one place the command line and the Python
+    /// module set them).
+    pub fn set_groups(
+        &mut self,
+        display: &settings::DisplayGroup,
+        quality: &settings::QualityGroup,
+        reference: &settings::ReferenceGroup,
+    ) {
+        let settings::Size(w, h) = display.size;
+        (self.width, self.height) = (w, h);
+        self.refresh_hz = display.refresh_hz;
+        self.seed = quality.seed;
+        self.max_depth = quality.max_depth;
+        self.texture_filter = quality.texture_filter;
+        self.ideal_spp = reference.ideal_spp;
+        self.cache_dir = reference.cache();
+        self.strip_frames = self.quartile_frames();
     }
 
     /// The reconstructor the run's results come from.

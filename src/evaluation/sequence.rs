@@ -44,6 +44,8 @@ pub struct SequenceConfig {
     pub height: u32,
     /// Seed of every random choice.
     pub seed: u64,
+    /// Reflection/refraction depth limit.
+    pub max_depth: u32,
     /// Texture filtering.
     pub texture_filter: TextureFilter,
     /// File format of the frames.
@@ -132,7 +134,7 @@ impl SequenceConfig {
             ideal_spp: 1,
             warmup: self.warmup,
             refresh_hz: self.refresh_hz,
-            max_depth: crate::settings::MAX_DEPTH,
+            max_depth: self.max_depth,
             texture_filter: self.texture_filter,
             cache_dir: None,
             strip_frames: Vec::new(),
@@ -197,8 +199,8 @@ pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext 
             cfg.width,
             cfg.height,
             TraceOptions {
+                max_depth: cfg.max_depth,
                 texture_filter: cfg.texture_filter,
-                ..TraceOptions::default()
             },
         )
         .with_camera_path(cfg.camera_path.clone()),

@@ -18,7 +18,7 @@
 use rayon::prelude::*;
 
 use super::{
-    any_rate, one_frame_in_run, sixty_per_second, Budget, Displayed, Method, MethodContext,
+    any_rate, one_frame_in_run, sixty_per_second, Budget, FRAME_HZ, Displayed, Method, MethodContext,
     MethodError, MethodInfo,
 };
 use crate::{
@@ -87,7 +87,7 @@ pub const FRAMED_FULL: MethodInfo = MethodInfo {
 pub const FULL_RES_60HZ: MethodInfo = MethodInfo {
     name: "full-res-60hz",
     description: "double-buffered full resolution at 60 Hz; budget W*H*60 regardless of the rate",
-    budget: Budget::Own(|s| s.pixels() * 60.0),
+    budget: Budget::Own(|s| s.pixels() * FRAME_HZ),
     check_rate: any_rate,
     build: |ctx| Ok(Box::new(Framed::full_res_60hz(ctx)?)),
 };
@@ -150,8 +150,8 @@ impl Framed {
     pub fn sixty_hz(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
         sixty_per_second("framed-60hz", ctx.clock.rate)?;
-        let per_frame = (ctx.clock.rate / 60.0).floor();
-        Self::new(ctx, reduced_grid(w, h, per_frame as u64), 1.0 / 60.0)
+        let per_frame = (ctx.clock.rate / FRAME_HZ).floor();
+        Self::new(ctx, reduced_grid(w, h, per_frame as u64), 1.0 / FRAME_HZ)
     }
 
     /// `framed-full`: one sample per pixel, frame time W·H/R.
@@ -163,7 +163,7 @@ impl Framed {
     /// `full-res-60hz`: one sample per pixel at 60 Hz (budget W·H·60).
     pub fn full_res_60hz(ctx: &MethodContext) -> Result<Self, MethodError> {
         let (w, h) = ctx.tracer.size();
-        Self::new(ctx, (w, h), 1.0 / 60.0)
+        Self::new(ctx, (w, h), 1.0 / FRAME_HZ)
     }
 
     /// Samples in one frame.

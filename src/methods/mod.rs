@@ -208,13 +208,18 @@ pub fn one_frame_in_run(
     Ok(())
 }
 
-/// The check of a method that renders a frame every 1/60 s and needs a sample in each.
+/// The frame rate of the framed methods that render at a fixed rate (`framed-60hz`,
+/// `full-res-60hz`, `taa`), Hz: their names say it, so it is not a setting.
+pub const FRAME_HZ: f64 = 60.0;
+
+/// The check of a method that renders a frame every 1/[`FRAME_HZ`] s and needs a sample
+/// in each.
 pub fn sixty_per_second(method: &'static str, rate: f64) -> Result<(), MethodError> {
-    if rate < 60.0 {
+    if rate < FRAME_HZ {
         return Err(MethodError::RateTooLow {
             method,
             rate: rate_label(rate),
-            why: "it needs at least 60 samples/s (one per frame)".into(),
+            why: format!("it needs at least {FRAME_HZ} samples/s (one per frame)"),
         });
     }
     Ok(())

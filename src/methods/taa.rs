@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use super::{
     framed::{reduced_grid, GBuffer, GSample},
-    sixty_per_second,
+    sixty_per_second, FRAME_HZ,
     Budget, Displayed, Method, MethodContext, MethodError, MethodInfo,
 };
 use crate::{
@@ -104,7 +104,7 @@ pub struct TaaParams {
     /// image is a box average over each pixel (σ ≈ 0.29 px); 0.3 px matches that spread
     /// (a converged pixel is no blurrier than the ideal) while every position in the
     /// pixel, corners included (weight ≈ 0.06), still gets weight, so Halton jitter
-    /// covers the pixel. Still `room` view: 0.4 px gave RMS 2.0, 0.3 px 1.9.
+    /// covers the pixel.
     pub kernel_sigma: f32,
     /// Kernel cut-off radius, display pixels: 1 px, beyond 3σ, where the Gaussian is below 1 %.
     pub kernel_radius: f32,
@@ -125,8 +125,8 @@ pub struct TaaParams {
     /// (a disocclusion): 5 %, as `taa`. A depth between those of the previous samples
     /// around the point also passes: a surface seen edge-on changes depth by more than
     /// any tolerance from one sample to the next, and testing only against the nearest
-    /// depths rejected ~250 pixels of a still `room` view every frame (RMS 3.4; 2.0 with
-    /// the bracket).
+    /// depths rejected pixels of a still view every frame (docs/performance.md, tuning
+    /// records).
     pub depth_tolerance: f32,
     /// YCoCg distance the neighbourhood clamp may move the history before the history is
     /// taken for stale (lighting changed, a cut that passed the depth test): beyond it
@@ -141,9 +141,10 @@ pub struct TaaParams {
     /// How much the clamp box (the YCoCg min/max of this frame's 3×3 samples around the
     /// pixel) is widened about its centre where nothing moves; it narrows linearly to the
     /// plain box at `motion_full_px`. Nine samples three pixels apart cannot bound a
-    /// converged pixel of sub-Nyquist detail (the checkered floor, refractions): with the
-    /// plain box a still `room` view stays at RMS 6.3, 8× gives 3.4 (no clamp: 3.3) while
-    /// a gross change (a light, a cut that passes the depth test) is still caught.
+    /// converged pixel of sub-Nyquist detail (the checkered floor, refractions), so a
+    /// still view never converged with the plain box (docs/performance.md, tuning
+    /// records); widened, a gross change (a light, a cut that passes the depth test) is
+    /// still caught.
     pub still_box_scale: f32,
     /// Jitter phases per display pixel: the Halton sequence repeats after
     /// `ceil(this · (W·H)/(grid))` frames. FSR 2 suggests 8 per pixel for motion; a still
@@ -693,7 +694,7 @@ impl Taa {
         let size = ctx.tracer.size();
         let history = TaaHistory::new(size, params, ctx.clock.start)?;
         sixty_per_second("taa", ctx.clock.rate)?;
-        let per_frame = (ctx.clock.rate / 60.0).floor();
+        let per_frame = (ctx.clock.rate / FRAME_HZ).floor();
         let grid = reduced_grid(size.0, size.1, per_frame as u64);
         Ok(Self {
             ctx: ctx.clone(),
@@ -707,7 +708,7 @@ impl Taa {
     }
 
     fn frame_start(&self, j: u64) -> f64 {
-        self.ctx.clock.start + j as f64 / 60.0
+        self.ctx.clock.start + j as f64 / FRAME_HZ
     }
 
     /// Trace frame `j` at time `t` and fold it into the history.
@@ -733,7 +734,7 @@ impl Taa {
             jitter,
             time: t,
             camera: state.camera,
-            dt: (1.0 / 60.0) as f32,
+            dt: (1.0 / FRAME_HZ) as f32,
         });
     }
 
@@ -844,7 +845,7 @@ mod tests {
                 jitter,
                 time: 0.5,
                 camera: state.camera,
-                dt: 1.0 / 60.0,
+                dt: (1.0 / crate::methods::FRAME_HZ) as f32,
             });
             assert_eq!(h.shown_gbuffer().map(|g| g.grid), Some(grid));
         }

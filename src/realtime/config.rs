@@ -1,36 +1,37 @@
-//! The settings of one pipeline run (and its errors, from `error.rs`): the vocabulary every file of the
-//! real-time mode shares, below the methods and the pipeline. Which methods exist and
-//! what each needs is the registry's business (the parent module), not this file's.
+//! The settings every method of one pipeline run shares (and its errors, from
+//! `error.rs`): the vocabulary every file of the real-time mode reads, below the
+//! methods and the pipeline. Which methods exist, and the settings of each, are the
+//! registry's business (`registry.rs`), not this file's.
 
-use super::adaptive_settings::AdaptiveSettings;
-pub use super::{error::RealtimeError, RtMethod};
+pub use super::error::RealtimeError;
 
-/// Settings of one pipeline run.
+/// The settings of one pipeline run that every method shares.
 #[derive(Clone, Debug)]
 pub struct RtConfig {
-    /// What to render.
-    pub method: RtMethod,
     /// Sampling threads (besides the method's other threads and the image thread).
     pub sampling_threads: usize,
-    /// Threads the reconstructor's parallel splatting may use (its own pool, so that
-    /// reconstruction cannot take every core from sampling and the display).
+    /// Threads a method's image builds may use in parallel (the reconstructor's
+    /// splatting, a warp, a fold: a pool of their own, so that building cannot take
+    /// every core from sampling and the display).
     pub recon_threads: usize,
-    /// Display refresh rate, Hz: the image thread reconstructs at most this often.
+    /// Display refresh rate, Hz: the image thread builds at most this often.
     pub refresh_hz: f64,
     /// Scene time when the pipeline starts.
     pub start: f64,
     /// Seed of the threads' random choices.
     pub seed: u64,
-    /// The adaptive method's own settings (read by it alone).
-    pub adaptive: AdaptiveSettings,
 }
 
 impl RtConfig {
-    /// Check that a `width × height` display fits the run budgets ([`crate::limits`])
-    /// with this method's buffers, before any thread allocates them.
-    pub fn check_size(&self, width: u32, height: u32) -> Result<(), RealtimeError> {
-        (self.method.info().check_size)(self, width, height)
-            .map_err(|e| RealtimeError::Config(e.to_string()))
+    /// Take the settings every run shares from their groups: the refresh rate and the
+    /// seed (the size is the tracer's; the tracer takes the rest of `quality`).
+    pub fn set_groups(
+        &mut self,
+        display: &crate::settings::DisplayGroup,
+        quality: &crate::settings::QualityGroup,
+    ) {
+        self.refresh_hz = display.refresh_hz;
+        self.seed = quality.seed;
     }
 
     /// Check ranges.
@@ -53,6 +54,6 @@ impl RtConfig {
         if !self.start.is_finite() {
             return Err(RealtimeError::Config("start time must be finite".into()));
         }
-        self.adaptive.validate()
+        Ok(())
     }
 }

@@ -23,7 +23,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Shared, Shown, Spawner},
+    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown, Spawner},
 };
 use crate::{
     image::Image,
@@ -43,7 +43,8 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, Shown::AsBuilt),
+    overlays: &[],
+    start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
 /// The late-warp method's description.
@@ -53,7 +54,8 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, Shown::Warped),
+    overlays: &[],
+    start: |sp, _| start_with(sp, Shown::Warped),
 };
 
 /// One frame being traced: the scene state at its start, rows handed out in order.
@@ -105,7 +107,9 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     let s1 = s.clone();
     sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx, shown))?;
     let (w, h) = s.tracer.size();
-    Ok(Box::new(Builder {
+    // The warp runs on the builder's own pool.
+    let config = s.config.clone();
+    Ok(Box::new(Pooled::new(&config, Builder {
         s: s.clone(),
         size: (w, h),
         rx,
@@ -115,7 +119,7 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
         front_g: None,
         warp: warp.then(|| Warp::new(w, h)),
         dropped_frames: 0,
-    }))
+    })))
 }
 
 /// A sampling thread: rows of the current frame until stopped.
@@ -247,7 +251,7 @@ impl ImageBuilder for Builder {
         Some(Built {
             image,
             mean_age: t - self.front_time.1,
-            tiling: None,
+            overlays: None,
             ages: super::shared::sampled_ages(n, |_| age),
             view_time,
         })

@@ -23,7 +23,8 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start,
+    overlays: &[],
+    start: |sp, _| start(sp),
 };
 
 /// Traced pixels: index (row-major), colour, time.
@@ -105,7 +106,7 @@ impl ImageBuilder for Builder {
         Some(Built {
             image: self.newest.image.clone(),
             mean_age: self.newest.mean_age(t),
-            tiling: None,
+            overlays: None,
             ages: super::shared::sampled_ages(n, |i| (t - self.newest.info_time(i)) as f32),
             // Each pixel is seen from the camera of its own sample.
             view_time: f64::NAN,

@@ -6,9 +6,11 @@
 use std::{path::PathBuf, sync::Arc, time::Instant};
 
 use super::{
+    config::{RealtimeError, RtConfig},
     machine::{load_average, process_cpu_seconds},
     pacing::{DisplayStats, Pacer},
-    Frame, Pipeline, PipelineStats, RealtimeError, RtConfig,
+    pipeline::{Frame, Pipeline, PipelineStats},
+    registry::RtSettings,
 };
 use crate::trace::Tracer;
 
@@ -101,11 +103,13 @@ pub struct HeadlessStats {
 /// Most displayed images a headless run writes.
 pub const MAX_IMAGES: usize = 100;
 
-/// Run the pipeline for `opts.seconds`, then write images and `stats.json` to
-/// `opts.out` (replaced whole, as every command's output folder).
+/// Run the pipeline of the method `settings` are for for `opts.seconds`, then write
+/// images and `stats.json` to `opts.out` (replaced whole, as every command's output
+/// folder).
 pub fn run_headless(
     tracer: Arc<Tracer>,
     config: RtConfig,
+    settings: RtSettings,
     opts: &HeadlessOptions,
 ) -> Result<HeadlessStats, RealtimeError> {
     check_options(opts)?;
@@ -120,7 +124,7 @@ pub fn run_headless(
     let load_average_before = load_average();
     let cpu0 = process_cpu_seconds();
     let t_start = Instant::now();
-    let pipeline = Pipeline::start(tracer, config.clone())?;
+    let pipeline = Pipeline::start(tracer, config.clone(), settings)?;
     let shown = display_loop(&pipeline, &config, opts);
     let pipeline_stats = pipeline.stop()?;
     let wall_s = t_start.elapsed().as_secs_f64();

@@ -1,7 +1,7 @@
 //! The pipeline: it starts the method's threads, runs the image thread that calls the
 //! method's image builder at the display rate, and reports the statistics. It knows no
-//! method by name: it looks the configured one up in the registry
-//! ([`RtMethod`](super::RtMethod)'s description) and starts it.
+//! method by name: the registry's [`RtSettings`] starts the method they are the
+//! settings of.
 //!
 //! ```text
 //!  method's threads (sampling ×N, adaptive: controller) ──► image thread: the
@@ -18,6 +18,7 @@ use std::{
 use super::{
     clock::WallClock,
     config::{RealtimeError, RtConfig},
+    registry::RtSettings,
     shared::{lock, ImageBuilder, Shared, Spawner},
 };
 use crate::{reconstruction::device::ReconUsed, trace::Tracer};
@@ -81,22 +82,32 @@ pub struct PipelineStats {
 /// A running pipeline. Dropping it stops and joins its threads.
 pub struct Pipeline {
     shared: Arc<Shared>,
+    settings: RtSettings,
     handles: Vec<(&'static str, JoinHandle<()>)>,
 }
 
 impl Pipeline {
-    /// Start the threads; scene time `config.start` is now.
-    pub fn start(tracer: Arc<Tracer>, config: RtConfig) -> Result<Self, RealtimeError> {
+    /// Start the threads of the method `settings` are for; scene time `config.start`
+    /// is now.
+    pub fn start(
+        tracer: Arc<Tracer>,
+        config: RtConfig,
+        settings: RtSettings,
+    ) -> Result<Self, RealtimeError> {
         config.validate()?;
+        settings.validate()?;
         let (w, h) = tracer.size();
-        config.check_size(w, h)?;
-        let start = config.method.info().start;
+        settings.check_size(&config, w, h)?;
         let shared = Arc::new(Shared::new(tracer, config));
         let mut handles = Vec::new();
         let mut spawner = Spawner::new(&shared, &mut handles);
         // On an error here the handles go with `p`, whose drop stops and joins them.
-        let started = start(&mut spawner);
-        let mut p = Pipeline { shared, handles };
+        let started = settings.start(&mut spawner);
+        let mut p = Pipeline {
+            shared,
+            settings,
+            handles,
+        };
         let builder = started?;
         lock(&p.shared.image_stats).recon = Some(builder.recon());
         let s = p.shared.clone();
@@ -120,9 +131,14 @@ impl Pipeline {
         &self.shared.tracer
     }
 
-    /// The settings.
+    /// The settings every method shares.
     pub fn config(&self) -> &RtConfig {
         &self.shared.config
+    }
+
+    /// The method's own settings.
+    pub fn settings(&self) -> &RtSettings {
+        &self.settings
     }
 
     /// Statistics so far.
@@ -146,13 +162,13 @@ impl Pipeline {
             .copied()
             .unwrap_or(0.0);
         let cfg = &s.config;
-        let info = cfg.method.info();
+        let method = self.settings.method();
         PipelineStats {
-            method: info.name,
+            method: method.name(),
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
             // The image thread and the method's own.
-            other_threads: 1 + (info.extra_threads)(cfg.sampling_threads),
+            other_threads: 1 + method.extra_threads(cfg.sampling_threads),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
             samples,
@@ -270,13 +286,6 @@ impl Lead {
 /// images then come at a lower rate, while the display keeps refreshing on time with
 /// the newest one.
 fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
-    // The reconstructor splats in parallel with rayon; its own pool bounds how many
-    // cores that takes. Without a pool it runs on the calling thread.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(s.config.recon_threads)
-        .thread_name(|i| format!("frameless-recon-{i}"))
-        .build()
-        .ok();
     let period = 1.0 / s.config.refresh_hz;
     let mut lead = Lead::new(period);
     let mut k: u64 = 1;
@@ -295,11 +304,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         k = ((s.clock.elapsed() + ahead) / period).round().max(k as f64) as u64 + 1;
         let t0 = Instant::now();
         let t = s.clock.now();
-        let built = match &pool {
-            Some(p) => p.install(|| builder.build(t)),
-            None => builder.build(t),
-        };
-        let Some(built) = built else {
+        let Some(built) = builder.build(t) else {
             continue;
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -317,7 +322,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             image: built.image,
             time,
             mean_age,
-            tiling: built.tiling,
+            overlays: built.overlays,
             ages: ages.clone(),
             view_time: built.view_time,
             published_s: s.clock.elapsed(),

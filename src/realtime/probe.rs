@@ -1,6 +1,7 @@
 //! The smallest real-time method, compiled for the tests only: its sampling threads
-//! trace nothing and count batches, and every image is a flat grey. It is what adding
-//! a method takes (this file and its line in the registry) and shows that the pipeline
+//! trace nothing and count batches, and every image is a flat grey of the level its one
+//! setting asks for. It is what adding a method takes (this file, its settings type
+//! included, its line in the registry and its `mod` line) and shows that the pipeline
 //! runs a method it knows nothing about.
 
 use std::{sync::atomic::Ordering, time::Duration};
@@ -10,23 +11,49 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{display_only, Built, ImageBuilder, MethodInfo, Spawner},
+    shared::{display_only, Built, ImageBuilder, MethodInfo, MethodSettings, Spawner},
 };
 use crate::image::Image;
 
-/// The grey every image shows.
-const GREY: f32 = 0.25;
+/// The probe's own setting.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProbeSettings {
+    /// The grey every image shows, 0 to 1.
+    pub grey: f32,
+}
 
-pub(crate) const METHOD: MethodInfo = MethodInfo {
+impl Default for ProbeSettings {
+    fn default() -> Self {
+        Self { grey: 0.25 }
+    }
+}
+
+impl MethodSettings for ProbeSettings {
+    fn validate(&self) -> Result<(), RealtimeError> {
+        if !(0.0..=1.0).contains(&self.grey) {
+            return Err(RealtimeError::Config(format!(
+                "probe grey {} out of range 0..=1",
+                self.grey
+            )));
+        }
+        Ok(())
+    }
+}
+
+pub(crate) const METHOD: MethodInfo<ProbeSettings> = MethodInfo {
     name: "probe",
     about: "a flat grey image (tests only)",
     default_sampling_threads: |cores| cores.min(2),
     extra_threads: |_| 0,
+    overlays: &[],
     check_size: display_only,
     start,
 };
 
-fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+fn start(
+    sp: &mut Spawner<'_>,
+    settings: &ProbeSettings,
+) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     let (tx, rx) = bounded(64);
     let s1 = s.clone();
@@ -43,6 +70,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     Ok(Box::new(Builder {
         rx,
         size: (w, h),
+        grey: settings.grey,
         batches: 0,
     }))
 }
@@ -50,6 +78,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
 struct Builder {
     rx: Receiver<u64>,
     size: (u32, u32),
+    grey: f32,
     batches: u64,
 }
 
@@ -57,11 +86,11 @@ impl ImageBuilder for Builder {
     fn build(&mut self, t: f64) -> Option<Built> {
         self.batches += self.rx.try_iter().sum::<u64>();
         let mut image = Image::new(self.size.0, self.size.1);
-        image.pixels.fill(Vec3::splat(GREY));
+        image.pixels.fill(Vec3::splat(self.grey));
         Some(Built {
             image,
             mean_age: 0.0,
-            tiling: None,
+            overlays: None,
             ages: vec![0.0],
             view_time: t,
         })
@@ -78,26 +107,41 @@ mod tests {
 
     use super::*;
     use crate::{
-        realtime::{Pipeline, RtConfig, RtMethod},
+        realtime::{config::RtConfig, pipeline::Pipeline, registry::RtSettings},
         scene::builtin,
         trace::{TraceOptions, Tracer},
     };
 
+    fn tracer() -> Arc<Tracer> {
+        let scene = Arc::new(builtin::load("toycar").unwrap());
+        Arc::new(Tracer::new(scene, 16, 8, TraceOptions::default()))
+    }
+
+    fn config() -> RtConfig {
+        let mut config = RtConfig::new(crate::realtime::registry::RtMethod::Probe);
+        config.sampling_threads = 2;
+        config
+    }
+
     #[test]
     fn the_pipeline_runs_a_method_it_knows_nothing_about() {
-        let scene = Arc::new(builtin::load("toycar").unwrap());
-        let tracer = Arc::new(Tracer::new(scene, 16, 8, TraceOptions::default()));
-        let mut config = RtConfig::new(RtMethod::Probe);
-        config.sampling_threads = 2;
-        let p = Pipeline::start(tracer, config).unwrap();
+        let settings = RtSettings::Probe(ProbeSettings { grey: 0.5 });
+        let p = Pipeline::start(tracer(), config(), settings).unwrap();
         std::thread::sleep(Duration::from_millis(300));
         let frame = p.latest().expect("an image within 0.3 s");
-        assert!(frame.image.pixels.iter().all(|&c| c == Vec3::splat(GREY)));
+        assert!(frame.image.pixels.iter().all(|&c| c == Vec3::splat(0.5)));
         let stats = p.stop().unwrap();
         assert_eq!(stats.method, "probe");
         assert!(stats.samples > 0 && stats.images_per_s > 0.0, "{stats:?}");
         // Its own figure, under its own name, beside every method's.
         let batches = stats.method_stats["probe_batches"].as_u64().unwrap();
         assert!(batches > 0 && batches <= stats.samples, "{batches}");
+    }
+
+    #[test]
+    fn its_setting_is_checked_before_a_thread_starts() {
+        let settings = RtSettings::Probe(ProbeSettings { grey: 2.0 });
+        let err = Pipeline::start(tracer(), config(), settings).err().unwrap();
+        assert!(err.to_string().contains("probe grey 2 out of range"), "{err}");
     }
 }

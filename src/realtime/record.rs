@@ -12,9 +12,11 @@
 use std::sync::Arc;
 
 use super::{
+    config::{RealtimeError, RtConfig},
     machine::{load_average, others_load, CpuMark, CpuShares},
     pacing::Pacer,
-    Frame, Pipeline, PipelineStats, RealtimeError, RtConfig,
+    pipeline::{Frame, Pipeline, PipelineStats},
+    registry::RtSettings,
 };
 use crate::trace::Tracer;
 
@@ -96,11 +98,13 @@ struct Mark {
     late: u64,
 }
 
-/// Run `config`'s method on `tracer` and record the refreshes of `window`. The caller
-/// bounds the memory: at most `window.refreshes` images of `width × height × 3` bytes.
+/// Run the method `settings` are for with `config` on `tracer` and record the
+/// refreshes of `window`. The caller bounds the memory: at most `window.refreshes`
+/// images of `width × height × 3` bytes.
 pub fn record(
     tracer: Arc<Tracer>,
     config: RtConfig,
+    settings: RtSettings,
     window: Window,
 ) -> Result<Recording, RealtimeError> {
     if window.warmup == 0 || window.refreshes == 0 {
@@ -112,7 +116,7 @@ pub fn record(
         load_average: load_average(),
         others_load: others_load(BEFORE_SAMPLES, BEFORE_GAP),
     };
-    let pipeline = Pipeline::start(tracer, config.clone())?;
+    let pipeline = Pipeline::start(tracer, config.clone(), settings)?;
     let clock = pipeline.clock();
     let period = 1.0 / config.refresh_hz;
     let mut pacer = Pacer::new(clock, config.refresh_hz);
@@ -193,7 +197,7 @@ fn keep(s: &mut Seen, images: &mut Vec<ShownImage>) -> u32 {
     })
 }
 
-fn mark_now(pipeline: &Pipeline, pacer: &Pacer, clock: &super::WallClock) -> Mark {
+fn mark_now(pipeline: &Pipeline, pacer: &Pacer, clock: &super::clock::WallClock) -> Mark {
     let stats = pipeline.stats();
     Mark {
         cpu: CpuMark::now(),

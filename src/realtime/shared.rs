@@ -21,7 +21,9 @@ use super::{
     pixel_locks::PixelLocks,
 };
 use crate::{
-    image::Image, reconstruction::device::ReconUsed, tiles::TilingSnapshot, trace::Tracer,
+    image::Image,
+    reconstruction::device::{GpuContext, ReconUsed},
+    trace::Tracer,
 };
 
 /// Longest a sampling thread holds a batch before it sends it, seconds: long enough
@@ -38,8 +40,9 @@ pub struct Frame {
     pub time: f64,
     /// Mean age of the information in it, seconds.
     pub mean_age: f64,
-    /// The tiling it was reconstructed with (adaptive only; for visualisations).
-    pub tiling: Option<Arc<TilingSnapshot>>,
+    /// What draws the method's overlays of it
+    /// ([`RtMethod::overlays`](super::registry::RtMethod::overlays)), if it offers any.
+    pub overlays: Option<Arc<dyn Overlays>>,
     /// Ages of the information in an evenly spaced subset of its pixels, seconds (NaN:
     /// none yet), for latency percentiles and for telling when a change shows.
     pub ages: Arc<Vec<f32>>,
@@ -188,8 +191,8 @@ pub(crate) struct Built {
     pub image: Image,
     /// Mean age of the information in it, seconds (NaN: nothing in it yet).
     pub mean_age: f64,
-    /// The tiling it was reconstructed with, for the visualisations.
-    pub tiling: Option<Arc<TilingSnapshot>>,
+    /// What draws the method's overlays of it, if it offers any.
+    pub overlays: Option<Arc<dyn Overlays>>,
     /// Ages of a subset of its pixels ([`sampled_ages`]).
     pub ages: Vec<f32>,
     /// Scene time of the camera it shows the scene from (NaN: each pixel from the
@@ -215,9 +218,44 @@ pub(crate) trait ImageBuilder: Send {
     }
 }
 
+/// An image a method offers besides the displayed one (the adaptive method's tiling,
+/// say), which the viewer cycles through.
+#[derive(Debug, PartialEq, Eq)]
+pub struct Overlay {
+    /// Its name (`--vis`, the title bar).
+    pub name: &'static str,
+    /// The name with its colour key, for the title bar.
+    pub key: &'static str,
+}
+
+/// Draws a method's overlays of one image.
+pub trait Overlays: Send + Sync {
+    /// The overlay named `name` of `image` (`None`: not one of the method's).
+    fn draw(&self, name: &str, image: &Image) -> Option<Image>;
+}
+
+/// A method's own settings: their range checks, and where they take a GPU.
+pub trait MethodSettings: Clone + std::fmt::Debug + Default + Send + Sync + 'static {
+    /// Check ranges.
+    fn validate(&self) -> Result<(), RealtimeError> {
+        Ok(())
+    }
+
+    /// Take the GPU its reconstruction may run on (`None`: the CPU); a method that
+    /// reconstructs nothing ignores it.
+    fn use_gpu(&mut self, _gpu: Option<Arc<GpuContext>>) {}
+}
+
+/// The settings of a method that has none of its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NoSettings;
+
+impl MethodSettings for NoSettings {}
+
 /// The description of one real-time method, a `const` in the method's own file that
-/// the registry (the parent module) maps its [`RtMethod`](super::config::RtMethod) variant to.
-pub(crate) struct MethodInfo {
+/// the registry maps its [`RtMethod`](super::registry::RtMethod) variant to; `S`, its
+/// own settings.
+pub(crate) struct MethodInfo<S: 'static = NoSettings> {
     /// Command-line name.
     pub name: &'static str,
     /// One line for help texts.
@@ -227,12 +265,20 @@ pub(crate) struct MethodInfo {
     /// Threads it runs besides its sampling threads and the pipeline's image thread,
     /// given how many sampling threads it runs.
     pub extra_threads: fn(usize) -> usize,
+    /// The images it offers besides the displayed one ([`Built::overlays`] draws them).
+    pub overlays: &'static [Overlay],
     /// Check that a `width × height` display fits the run budgets with its buffers
-    /// under `config` ([`display_only`] for a method with no buffer beyond the image).
-    pub check_size: fn(&RtConfig, u32, u32) -> Result<(), crate::limits::LimitError>,
-    /// Start its threads; the image thread then calls the builder it returns.
-    pub start: fn(&mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError>,
+    /// under `config` and its settings ([`display_only`] for a method with no buffer
+    /// beyond the image).
+    pub check_size: fn(&RtConfig, &S, u32, u32) -> Result<(), crate::limits::LimitError>,
+    /// Start its threads with its settings; the image thread then calls the builder it
+    /// returns.
+    pub start: Start<S>,
 }
+
+/// How a method with settings `S` starts ([`MethodInfo::start`]).
+pub(crate) type Start<S> =
+    fn(&mut Spawner<'_>, &S) -> Result<Box<dyn ImageBuilder>, RealtimeError>;
 
 /// What a framed method shows at a refresh: its newest image as built, or that image
 /// warped to the camera of the refresh (the late warps).
@@ -245,8 +291,9 @@ pub(crate) enum Shown {
 }
 
 /// [`MethodInfo::check_size`] of a method whose per-pixel state is the display's.
-pub(crate) fn display_only(
+pub(crate) fn display_only<S>(
     _: &RtConfig,
+    _: &S,
     width: u32,
     height: u32,
 ) -> Result<(), crate::limits::LimitError> {
@@ -309,6 +356,43 @@ impl<'a> Spawner<'a> {
     }
 }
 
+/// A builder whose builds run their parallel loops (rayon) on a pool of their own of
+/// `config.recon_threads` threads, so that building cannot take every core from
+/// sampling and the display; without a pool (it could not be made) they run on the
+/// calling thread.
+pub(crate) struct Pooled<B> {
+    builder: B,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl<B: ImageBuilder> Pooled<B> {
+    pub fn new(config: &RtConfig, builder: B) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(config.recon_threads)
+            .thread_name(|i| format!("frameless-recon-{i}"))
+            .build()
+            .ok();
+        Self { builder, pool }
+    }
+}
+
+impl<B: ImageBuilder> ImageBuilder for Pooled<B> {
+    fn build(&mut self, t: f64) -> Option<Built> {
+        match &self.pool {
+            Some(p) => p.install(|| self.builder.build(t)),
+            None => self.builder.build(t),
+        }
+    }
+
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        self.builder.stats()
+    }
+
+    fn recon(&self) -> ReconUsed {
+        self.builder.recon()
+    }
+}
+
 /// Frames assembled on the image thread from rows that several sampling threads traced:
 /// a frame is complete once all its rows arrived, and then every older unfinished
 /// frame is given up (it could never be shown) and counted in `abandoned`. Used by the
@@ -368,9 +452,8 @@ impl<F> Assembly<F> {
 
 /// Niceness of the sampling threads on Linux: below the controller and image threads,
 /// so that where they all share too few cores, the latter get a core when they need one
-/// (an image late by a time slice is a missed refresh) and sampling takes the rest. On
-/// 2 cores this lifts `toycar` at 640×480 from 11 to 17 images per second
-/// (docs/results/realtime).
+/// (an image late by a time slice is a missed refresh) and sampling takes the rest
+/// (measured: docs/performance.md, tuning records).
 const SAMPLING_NICE: i32 = 10;
 
 /// Give the calling thread [`SAMPLING_NICE`] (Linux; elsewhere nothing changes).

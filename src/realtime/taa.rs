@@ -23,7 +23,8 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 use super::{
     config::RealtimeError,
     shared::{
-        lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Shared, Shown, Spawner,
+        lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown,
+        Spawner,
     },
 };
 use crate::{
@@ -47,7 +48,8 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, Shown::AsBuilt),
+    overlays: &[],
+    start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
 /// `taa-warp`'s description.
@@ -57,7 +59,8 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
-    start: |sp| start_with(sp, Shown::Warped),
+    overlays: &[],
+    start: |sp, _| start_with(sp, Shown::Warped),
 };
 
 /// Share of the frame budget by which the measured throughput must move before the
@@ -171,7 +174,9 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     let (tx, rx) = bounded(1024);
     let s1 = s.clone();
     sp.sampling_threads(tx, move |_, tx| sample(&s1, &frames, &params, tx))?;
-    Ok(Box::new(Builder {
+    // Folds and warps run on the builder's own pool.
+    let config = s.config.clone();
+    Ok(Box::new(Pooled::new(&config, Builder {
         s,
         rx,
         building: Assembly::default(),
@@ -180,7 +185,7 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
         history,
         warp: (shown == Shown::Warped).then(|| Warp::new(size.0, size.1)),
         dropped_frames: 0,
-    }))
+    })))
 }
 
 /// A sampling thread: rows of the current frame until stopped.
@@ -316,7 +321,7 @@ impl ImageBuilder for Builder {
         Some(Built {
             image,
             mean_age,
-            tiling: None,
+            overlays: None,
             ages,
             view_time,
         })
@@ -329,7 +334,7 @@ mod tests {
 
     use super::*;
     use crate::{
-        realtime::{RtConfig, RtMethod},
+        realtime::{config::RtConfig, registry::RtMethod},
         scene::builtin,
         trace::TraceOptions,
     };

@@ -4,8 +4,8 @@
 //! Keys: W/S or ↑/↓ move forward/back, A/D strafe, ←/→ turn, Q/E down/up, Shift ×4
 //! speed, left mouse drag looks around; the digit keys switch methods in
 //! [`RtMethod::ALL`] order (1 adaptive, 2 traditional frameless, 3 framed, 4 late
-//! warp, 5 taa, 6 taa-warp); V cycles the visualisation (image, tiling, gradients,
-//! density); P writes a screenshot; Esc quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
+//! warp, 5 taa, 6 taa-warp); V cycles the visualisation (the image, then the overlays
+//! the method offers: adaptive's tiling, gradients and density); P writes a screenshot; Esc quits. The title bar shows samples/s, display FPS, the mean and 95th-percentile age
 //! of the information on screen, the visualisation with its colour key, and where the
 //! images are reconstructed (`recon: cpu`, or `recon: gpu (adapter)`). Neither X11 nor Wayland libraries are linked: winit and
 //! softbuffer load them at run time.
@@ -31,9 +31,11 @@ use winit::{
 use super::{
     camera::{CameraRecorder, FlyCamera},
     pacing::Pacer,
-    Pipeline, RealtimeError, RtConfig, RtMethod, Visualisation,
+    config::{RealtimeError, RtConfig},
+    pipeline::Pipeline,
+    registry::{RtMethod, RtSettings, Visualisation},
 };
-use crate::{image::Image, methods::adaptive::vis, trace::Tracer};
+use crate::{image::Image, trace::Tracer};
 
 /// Settings of the viewer.
 #[derive(Clone, Debug, Default)]
@@ -46,12 +48,16 @@ pub struct ViewerOptions {
     pub screenshot: Option<PathBuf>,
     /// Visualisation shown at start.
     pub visualisation: Visualisation,
+    /// The settings of methods the digit keys switch to; one not here starts with its
+    /// defaults.
+    pub others: Vec<RtSettings>,
 }
 
 /// Open the window and run until it is closed (or `opts.seconds` pass).
 pub fn run_viewer(
     tracer: Arc<Tracer>,
     config: RtConfig,
+    settings: RtSettings,
     opts: ViewerOptions,
 ) -> Result<(), RealtimeError> {
     let event_loop = EventLoop::new().map_err(|e| {
@@ -59,7 +65,7 @@ pub fn run_viewer(
             "cannot open a window ({e}); is DISPLAY or WAYLAND_DISPLAY set? A headless run needs neither"
         ))
     })?;
-    let pipeline = Pipeline::start(tracer, config.clone())?;
+    let pipeline = Pipeline::start(tracer, config.clone(), settings)?;
     let pacer = Pacer::new(pipeline.clock(), config.refresh_hz);
     let mut app = App {
         opened: Instant::now(),
@@ -166,22 +172,28 @@ impl App {
     }
 
     fn switch_method(&mut self, m: RtMethod) -> Result<(), RealtimeError> {
-        if m == self.config.method {
+        if m == self.method() {
             return Ok(());
         }
+        let settings = self.opts.others.iter().find(|s| s.method() == m);
+        let settings = settings.cloned().unwrap_or_else(|| m.settings());
         let old = self.pipeline.take().expect("pipeline runs");
         let tracer = old.tracer().clone();
         let now = old.clock().now();
         old.stop()?;
         // Scene time goes on where it was.
-        self.config.method = m;
         self.config.start = now;
-        let p = Pipeline::start(tracer, self.config.clone())?;
+        let p = Pipeline::start(tracer, self.config.clone(), settings)?;
         self.pacer = Pacer::new(p.clock(), self.config.refresh_hz);
         self.title_samples = 0;
         self.title_images = 0;
         self.pipeline = Some(p);
         Ok(())
+    }
+
+    /// The method running now.
+    fn method(&self) -> RtMethod {
+        self.pipeline().settings().method()
     }
 
     fn fly(&mut self) -> &mut FlyCamera {
@@ -231,16 +243,10 @@ impl App {
         self.recorder.record(now, p.tracer().camera_at(now));
         if let Some(f) = &frame {
             if f.seq != self.shown_seq {
-                self.shown = match (self.opts.visualisation, &f.tiling) {
-                    (Visualisation::Tiling, Some(t)) => vis::tiling_overlay_of(t, &f.image),
-                    (Visualisation::Gradients, Some(t)) => {
-                        vis::gradient_map_of(t, (f.image.width, f.image.height))
-                    }
-                    (Visualisation::Density, Some(t)) => {
-                        vis::density_map_of(t, (f.image.width, f.image.height))
-                    }
-                    _ => f.image.clone(),
-                };
+                let overlay = self.opts.visualisation.overlay().zip(f.overlays.as_ref());
+                self.shown = overlay
+                    .and_then(|(o, draw)| draw.draw(o.name, &f.image))
+                    .unwrap_or_else(|| f.image.clone());
                 self.shown_seq = f.seq;
             }
         }
@@ -288,7 +294,7 @@ impl App {
             let threads = self.config.sampling_threads;
             window.set_title(&format!(
                 "frameless · {} · {:.2} M samples/s · {:.0} fps · age {:.0} ms (p95 {:.0}) · {} · recon: {} · {} thread{}{}",
-                self.config.method.name(),
+                self.method().name(),
                 sps / 1e6,
                 fps,
                 age * 1e3,
@@ -379,7 +385,7 @@ impl ApplicationHandler for App {
                         Ok(())
                     }
                     KeyCode::KeyV => {
-                        self.opts.visualisation = self.opts.visualisation.next();
+                        self.opts.visualisation = self.opts.visualisation.next(self.method());
                         self.shown_seq = 0;
                         Ok(())
                     }

@@ -1,53 +1,10 @@
 //! Where the reconstructor runs: `--recon cpu|gpu|auto`.
 
-use std::{fmt, str::FromStr};
+use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
-/// Which reconstructor a run asks for.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ReconDevice {
-    /// The CPU reconstructor, the reference.
-    #[default]
-    Cpu,
-    /// The compute-shader reconstructor on any adapter, a software one included; an
-    /// error where there is none.
-    Gpu,
-    /// A hardware GPU adapter where there is one, the CPU otherwise.
-    Auto,
-}
-
-impl ReconDevice {
-    /// Every choice, in the order the help lists them.
-    pub const ALL: [ReconDevice; 3] = [Self::Cpu, Self::Gpu, Self::Auto];
-
-    /// The name on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Cpu => "cpu",
-            Self::Gpu => "gpu",
-            Self::Auto => "auto",
-        }
-    }
-}
-
-impl fmt::Display for ReconDevice {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for ReconDevice {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Self::ALL
-            .into_iter()
-            .find(|d| d.name() == s)
-            .ok_or_else(|| format!("unknown reconstructor '{s}': expected cpu, gpu or auto"))
-    }
-}
+pub use crate::settings::ReconDevice;
 
 /// The reconstructor a run used, as results record it.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]

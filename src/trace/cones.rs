@@ -26,28 +26,7 @@
 
 use crate::scene::CameraFrame;
 
-/// How the tracer filters texture lookups.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    Default,
-    PartialEq,
-    Eq,
-    Hash,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum TextureFilter {
-    /// Bilinear lookup in the full-resolution texture, no footprint (the paper's
-    /// setting; aliases on far and grazing surfaces).
-    None,
-    /// Trilinear mip-mapped lookup at the level a ray cone's footprint asks for.
-    #[default]
-    RayCones,
-}
+pub use crate::settings::TextureFilter;
 
 /// Smallest `|cos θ|` the level computation uses: at most `log2(1/MIN_COS)` ≈ 6.6
 /// levels are added for grazing incidence.

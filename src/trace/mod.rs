@@ -166,8 +166,8 @@ pub enum Held {
 pub struct TraceOptions {
     /// Maximum number of reflection/refraction bounces after the primary hit.
     pub max_depth: u32,
-    /// Texture filtering. `None` (the default for now) keeps the output of the tracer
-    /// before filtering existed, bit for bit, so committed results stay valid.
+    /// Texture filtering ([`TextureFilter::default`], ray cones, unless asked for:
+    /// every command traces with the same filter unless told otherwise).
     pub texture_filter: TextureFilter,
 }
 
@@ -175,7 +175,17 @@ impl Default for TraceOptions {
     fn default() -> Self {
         Self {
             max_depth: crate::settings::MAX_DEPTH,
-            texture_filter: TextureFilter::None,
+            texture_filter: TextureFilter::default(),
+        }
+    }
+}
+
+impl From<&crate::settings::QualityGroup> for TraceOptions {
+    /// The tracer's settings of a run's quality group.
+    fn from(q: &crate::settings::QualityGroup) -> Self {
+        Self {
+            max_depth: q.max_depth,
+            texture_filter: q.texture_filter,
         }
     }
 }

@@ -27,7 +27,7 @@ use crate::{
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
-        RtConfig, RtMethod,
+        RtConfig, RtMethod, RtSettings,
     },
     reconstruction::device::{GpuContext, ReconUsed},
     render::{cache::IdealCache, cache::Lookup, still},
@@ -101,10 +101,28 @@ impl LiveConfig {
             seed: settings::SEED,
             ideal_spp: settings::IDEAL_SPP,
             max_depth: settings::MAX_DEPTH,
-            texture_filter: TextureFilter::RayCones,
+            texture_filter: TextureFilter::default(),
             cache_dir: None,
             gpu: None,
         }
+    }
+
+    /// Take the settings every run shares from their groups (as
+    /// [`EvalConfig::set_groups`](crate::evaluation::EvalConfig::set_groups)).
+    pub fn set_groups(
+        &mut self,
+        display: &settings::DisplayGroup,
+        quality: &settings::QualityGroup,
+        reference: &settings::ReferenceGroup,
+    ) {
+        let settings::Size(w, h) = display.size;
+        (self.width, self.height) = (w, h);
+        self.refresh_hz = display.refresh_hz;
+        self.seed = quality.seed;
+        self.max_depth = quality.max_depth;
+        self.texture_filter = quality.texture_filter;
+        self.ideal_spp = reference.ideal_spp;
+        self.cache_dir = reference.cache();
     }
 
     /// Refreshes recorded per run.
@@ -128,8 +146,14 @@ impl LiveConfig {
         c.refresh_hz = self.refresh_hz;
         c.seed = self.seed;
         c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
-        c.adaptive.gpu = self.gpu.clone();
         c
+    }
+
+    /// `method`'s own settings: its defaults, with the run's GPU.
+    pub fn rt_settings(&self, method: RtMethod) -> RtSettings {
+        let mut s = method.settings();
+        s.use_gpu(self.gpu.clone());
+        s
     }
 
     /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
@@ -186,10 +210,11 @@ impl LiveConfig {
                     format!("{}: for {}, {e}", self.cores, m.name()),
                 );
             }
-            let c = self.rt_config(m);
+            let (c, s) = (self.rt_config(m), self.rt_settings(m));
             let check = c
                 .validate()
-                .and_then(|()| c.check_size(self.width, self.height));
+                .and_then(|()| s.validate())
+                .and_then(|()| s.check_size(&c, self.width, self.height));
             if let Err(e) = check {
                 return bad(Setting::Methods, format!("{}: {e}", m.name()));
             }
@@ -557,13 +582,13 @@ fn record_run(
         warmup: cfg.warmup_refreshes(),
         refreshes: cfg.frames(),
     };
-    let rec =
-        record::record(tracer(scene, cfg), cfg.rt_config(method), window).map_err(|source| {
-            EvalError::Live {
-                method: method.name(),
-                source,
-            }
-        })?;
+    let (config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
+    let rec = record::record(tracer(scene, cfg), config, settings, window).map_err(|source| {
+        EvalError::Live {
+            method: method.name(),
+            source,
+        }
+    })?;
     let cores = machine::cores();
     let mut warnings = Vec::new();
     if let Some(l) = rec.figures.others_load_before.filter(|&l| l > cores as f64) {

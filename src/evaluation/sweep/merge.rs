@@ -243,8 +243,8 @@ fn assemble(
             )));
         }
         let rates = job.rate.map_or(cfg.rates.clone(), |r| vec![r]);
-        check_rows(r, &job, &rates, &cfg).map_err(not)?;
-        check_values(r, &cfg).map_err(not)?;
+        check_rows(r, &job, &rates, &cfg).map_err(|e| not(e.to_string()))?;
+        check_values(r, &cfg).map_err(|e| not(e.to_string()))?;
         match &scene {
             None => scene = Some((r.job.clone(), &r.scene_fingerprint)),
             Some((first, fp)) if *fp != r.scene_fingerprint => {
@@ -339,48 +339,57 @@ fn add_strips(
 /// Check that a job's result rows, frame rows and strips are those of `job`: its
 /// method, at its `rates`, each rate's row and each of its `n` frames once, and a strip
 /// at most once per rate and frame.
-fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], cfg: &EvalConfig) -> Result<(), String> {
+fn check_rows(
+    r: &JobResult,
+    job: &JobKey,
+    rates: &[f64],
+    cfg: &EvalConfig,
+) -> Result<(), NotTheJobs> {
     let (columns, n) = (rates.len(), cfg.frames());
     if r.results.len() != columns || r.frames.len() != columns * n {
-        return Err(format!(
-            "{} result rows and {} frame rows; the job has {columns} and {}",
-            r.results.len(),
-            r.frames.len(),
-            columns * n
-        ));
+        return Err(NotTheJobs::Counts {
+            results: r.results.len(),
+            frames: r.frames.len(),
+            columns,
+            job_frames: columns * n,
+        });
     }
     let column = |rate: f64| rates.iter().position(|&x| x == rate);
     let mut rows = vec![false; columns];
     for row in &r.results {
         let Some(c) = column(row.rate).filter(|_| row.method == job.method) else {
-            return Err(format!(
-                "a result row of {} at {}, which is not this job's",
-                row.method, row.rate
-            ));
+            return Err(NotTheJobs::ForeignResult {
+                method: row.method,
+                rate: row.rate,
+            });
         };
         if std::mem::replace(&mut rows[c], true) {
-            return Err(format!("two result rows at {}", row.rate));
+            return Err(NotTheJobs::TwoResults { rate: row.rate });
         }
     }
     let mut frames = vec![false; columns * n];
     for f in &r.frames {
         let Some(c) = column(f.rate).filter(|_| f.method == job.method && f.frame < n) else {
-            return Err(format!(
-                "a frame row of {} at {} frame {}, which is not this job's",
-                f.method, f.rate, f.frame
-            ));
+            return Err(NotTheJobs::ForeignFrame {
+                method: f.method,
+                rate: f.rate,
+                frame: f.frame,
+            });
         };
         if std::mem::replace(&mut frames[c * n + f.frame], true) {
-            return Err(format!("two frame rows at {} frame {}", f.rate, f.frame));
+            return Err(NotTheJobs::TwoFrames {
+                rate: f.rate,
+                frame: f.frame,
+            });
         }
     }
     let mut strips = HashSet::new();
     for s in &r.strips {
         if column(s.rate).is_none() || !strips.insert((s.rate.to_bits(), s.frame)) {
-            return Err(format!(
-                "a strip at {} frame {} that is not this job's, or is there twice",
-                s.rate, s.frame
-            ));
+            return Err(NotTheJobs::ForeignStrip {
+                rate: s.rate,
+                frame: s.frame,
+            });
         }
     }
     Ok(())
@@ -390,7 +399,7 @@ fn check_rows(r: &JobResult, job: &JobKey, rates: &[f64], cfg: &EvalConfig) -> R
 /// each frame row's measurements in their ranges and its time the refresh its frame
 /// index is in the job's window, and each result row the aggregate of its frame rows,
 /// at the rate its method runs at for the job's key and within that rate's budget.
-fn check_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
+fn check_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), NotTheJobs> {
     check_frame_values(r, cfg)?;
     for row in &r.results {
         let mut frames: Vec<FrameRow> = r
@@ -404,7 +413,10 @@ fn check_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
             .disagrees_with(&frames)
             .or_else(|| over_budget(row, r.key.method, cfg));
         if let Some(why) = why {
-            return Err(format!("the result row at {}: {why}", row.rate));
+            return Err(NotTheJobs::ResultRow {
+                rate: row.rate,
+                why,
+            });
         }
     }
     Ok(())
@@ -432,22 +444,60 @@ fn over_budget(row: &ResultRow, method: MethodKind, cfg: &EvalConfig) -> Option<
     None
 }
 
-fn check_frame_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), String> {
+fn check_frame_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), NotTheJobs> {
     for f in &r.frames {
-        let at = || format!("the frame row at {} frame {}", f.rate, f.frame);
+        let wrong = |why| NotTheJobs::FrameRow {
+            rate: f.rate,
+            frame: f.frame,
+            why,
+        };
         if let Some(why) = f.out_of_range() {
-            return Err(format!("{}: {why}", at()));
+            return Err(wrong(why));
         }
         let time = cfg.refresh(f.frame);
         if (f.time - time).abs() > 1e-6 * time.abs().max(1.0) {
-            return Err(format!(
-                "{}: time {} is not that frame's refresh, {time} s",
-                at(),
+            return Err(wrong(format!(
+                "time {} is not that frame's refresh, {time} s",
                 f.time
-            ));
+            )));
         }
     }
     Ok(())
+}
+
+/// Why a result file's rows are not those of the job it names ([`check_rows`],
+/// [`check_values`]).
+#[derive(Debug, thiserror::Error)]
+enum NotTheJobs {
+    #[error("{results} result rows and {frames} frame rows; the job has {columns} and {job_frames}")]
+    Counts {
+        results: usize,
+        frames: usize,
+        columns: usize,
+        job_frames: usize,
+    },
+    #[error("a result row of {method} at {rate}, which is not this job's")]
+    ForeignResult { method: MethodKind, rate: f64 },
+    #[error("two result rows at {rate}")]
+    TwoResults { rate: f64 },
+    #[error("a frame row of {method} at {rate} frame {frame}, which is not this job's")]
+    ForeignFrame {
+        method: MethodKind,
+        rate: f64,
+        frame: usize,
+    },
+    #[error("two frame rows at {rate} frame {frame}")]
+    TwoFrames { rate: f64, frame: usize },
+    #[error("a strip at {rate} frame {frame} that is not this job's, or is there twice")]
+    ForeignStrip { rate: f64, frame: usize },
+    #[error("the result row at {rate}: {why}")]
+    ResultRow { rate: f64, why: String },
+    #[error("the frame row at {rate} frame {frame}: {why}")]
+    FrameRow {
+        rate: f64,
+        frame: usize,
+        why: String,
+    },
 }
 
 fn add_timing(sum: &mut Timing, t: &Timing) {

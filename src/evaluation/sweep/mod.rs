@@ -556,7 +556,7 @@ fn check_job_count(
     (evaluations, sizes, seeds): (usize, usize, usize),
     methods: &[MethodKind],
     rates: usize,
-) -> Result<(), String> {
+) -> Result<(), TooManyJobs> {
     let per_instance: u128 = methods
         .iter()
         .map(|m| {
@@ -570,12 +570,31 @@ fn check_job_count(
     let jobs = evaluations as u128 * sizes as u128 * seeds as u128 * per_instance;
     let most = crate::limits::MAX_SWEEP_JOBS;
     if jobs > most as u128 {
-        return Err(format!(
-            "{evaluations} evaluations × {sizes} sizes × {seeds} seeds × {per_instance} \
-             method and rate runs make {jobs} jobs, over the limit of {most} per sweep"
-        ));
+        return Err(TooManyJobs {
+            evaluations,
+            sizes,
+            seeds,
+            per_instance,
+            jobs,
+            most,
+        });
     }
     Ok(())
+}
+
+/// A sweep that would make more jobs than [`crate::limits::MAX_SWEEP_JOBS`].
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{evaluations} evaluations × {sizes} sizes × {seeds} seeds × {per_instance} \
+     method and rate runs make {jobs} jobs, over the limit of {most} per sweep"
+)]
+struct TooManyJobs {
+    evaluations: usize,
+    sizes: usize,
+    seeds: usize,
+    per_instance: u128,
+    jobs: u128,
+    most: usize,
 }
 
 /// The evaluations as written, names checked (valid, distinct).
@@ -664,7 +683,7 @@ impl Sweep {
         }
         let counts = (raw.evaluations.len(), sizes.len(), seeds.len());
         check_job_count(counts, &methods, rates.len())
-            .map_err(|why| invalid(name_at, "jobs", why))?;
+            .map_err(|e| invalid(name_at, "jobs", e.to_string()))?;
         if raw.report == SweepReport::Table1 && (sizes.len() > 1 || seeds.len() > 1) {
             return Err(invalid(
                 sizes_at,

@@ -186,27 +186,46 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> String {
 
 /// An 8-bit RGB PNG of exactly `w × h`, from base64; the size is checked before any
 /// pixel buffer is allocated.
-fn decode_png(b64: &str, w: u32, h: u32) -> Result<Vec<u8>, String> {
+fn decode_png(b64: &str, w: u32, h: u32) -> Result<Vec<u8>, StripError> {
     let bytes = base64::engine::general_purpose::STANDARD
         .decode(b64)
-        .map_err(|e| format!("not base64: {e}"))?;
+        .map_err(StripError::Base64)?;
     let dec = png::Decoder::new(std::io::Cursor::new(bytes));
-    let mut reader = dec.read_info().map_err(|e| format!("not a PNG: {e}"))?;
+    let mut reader = dec.read_info().map_err(StripError::NotPng)?;
     let info = reader.info();
     if (info.width, info.height) != (w, h)
         || info.color_type != png::ColorType::Rgb
         || info.bit_depth != png::BitDepth::Eight
     {
-        return Err(format!(
-            "a {}x{} {:?} {:?} PNG, not {w}x{h} 8-bit RGB",
-            info.width, info.height, info.bit_depth, info.color_type
-        ));
+        return Err(StripError::Shape {
+            found: format!(
+                "{}x{} {:?} {:?}",
+                info.width, info.height, info.bit_depth, info.color_type
+            ),
+            width: w,
+            height: h,
+        });
     }
     let mut buf = vec![0; w as usize * h as usize * 3];
-    reader
-        .next_frame(&mut buf)
-        .map_err(|e| format!("PNG data: {e}"))?;
+    reader.next_frame(&mut buf).map_err(StripError::Data)?;
     Ok(buf)
+}
+
+/// Why a result file's strip image is not one the merge can use.
+#[derive(Debug, thiserror::Error)]
+enum StripError {
+    #[error("not base64: {0}")]
+    Base64(base64::DecodeError),
+    #[error("not a PNG: {0}")]
+    NotPng(png::DecodingError),
+    #[error("a {found} PNG, not {width}x{height} 8-bit RGB")]
+    Shape {
+        found: String,
+        width: u32,
+        height: u32,
+    },
+    #[error("PNG data: {0}")]
+    Data(png::DecodingError),
 }
 
 /// What a shard run needs besides the sweep.

@@ -5,6 +5,7 @@
 //! weight-averaged sample age of the reconstruction.
 
 pub mod deep_buffer;
+pub mod outputs;
 pub mod params;
 pub mod sampler;
 pub mod tiling;

@@ -63,10 +63,8 @@ pub struct SamplerParams {
     /// where they are even while the camera moves, as without reprojection, and age
     /// out. Where the camera moves, reprojecting every crosshair spends an occlusion
     /// ray on each to move samples that the reconstructor reprojects anyway, and with
-    /// our reconstructor that budget pays more as new samples (session 13: the
-    /// ablation without any sampler reprojection had the lower error on five of six
-    /// windows, all but a fixed view of a moving toy car, where reprojecting the car's
-    /// crosshairs keeps samples on it). Not in the paper. On in [`SamplerParams::ours`].
+    /// our reconstructor that budget pays more as new samples (docs/performance.md,
+    /// tuning records). Not in the paper. On in [`SamplerParams::ours`].
     pub reproject_only_moving: bool,
     /// Complete a tile's pending crosshair where the initiating sample's surface point
     /// has moved to (camera and object motion) instead of at the same pixel position
@@ -74,26 +72,23 @@ pub struct SamplerParams {
     /// now, a moving one if it is still inside the tile. The temporal gradient then
     /// measures change on the surface rather than camera motion, which the
     /// reconstructor undoes by reprojecting samples, so filters stay longer and sharper
-    /// while the camera moves. Not in the paper. Kitchen, 400K, Interactive t =
-    /// 6.3–6.9 s (after a 125° turn): FLIP 0.175 with every point kept inside its tile
-    /// → 0.138 with still points followed anywhere (`adaptive-paper`: 0.229).
+    /// while the camera moves. Not in the paper (measured: docs/performance.md, tuning
+    /// records).
     pub follow_surface: bool,
     /// Give a reprojected crosshair a new temporal gradient only from the newest
     /// crosshair at its destination that saw the same surface point (both moved to
     /// now: within a pixel on screen and 5% in depth). The paper compares with that
     /// crosshair whatever it saw, which under a moving camera is usually another
     /// surface, so the gradient measured the camera's motion and kept temporal filters
-    /// short in a still scene. Not in the paper. Interactive t = 6.3–6.9 s, 400K, with
-    /// `follow_surface`: FLIP 0.138 → 0.122, RMS 15.5 → 14.9.
+    /// short in a still scene. Not in the paper (measured: docs/performance.md, tuning
+    /// records).
     pub same_surface_gradients: bool,
     /// Place each new crosshair's centre in its pixel by a per-pixel low-discrepancy
     /// sequence (the R2 sequence from a per-pixel random start, indexed by how many the
     /// pixel has had) instead of uniformly at random: the pixel stays a uniform choice
     /// within the tile, but the samples a still pixel gathers cover it evenly, so its
-    /// history converges faster on edges and textures. Not in the paper. Still `room`
-    /// (400K, 4 s warm-up, 64-spp ideal): RMS 1.7 → 1.3, FLIP 0.0141 → 0.0119; toycar
-    /// (2 s, 100K / 400K) FLIP 0.0571 / 0.0365 → 0.0564 / 0.0341; museum5 t = 4–5 s
-    /// (moving camera) unchanged (RMS 9.0, FLIP 0.0879 → 0.0880).
+    /// history converges faster on edges and textures. Not in the paper (measured:
+    /// docs/performance.md, tuning records).
     pub stratified_positions: bool,
     /// Weigh a tile's variance term by how far its pixels are from converged: by the
     /// tile's mean of `1 / (1 + n)`, `n` the samples in a pixel's still-region history
@@ -101,9 +96,7 @@ pub struct SamplerParams {
     /// [`super::Sampler::set_history_counts`]). The error of a pixel's mean falls as
     /// `1/n`; without this, a still view keeps concentrating samples on edges that have
     /// long converged while moving or newly seen regions, which have no history, wait.
-    /// Not in the paper. Toycar (`frameless eval --scene toycar`) RMS 8.84 / 5.93 /
-    /// 4.67 → 8.33 / 4.81 / 3.39; still `room` 400K FLIP 0.0119 → 0.0112; Interactive
-    /// t = 6.3–6.9 s at 400K RMS 14.9 → 14.7.
+    /// Not in the paper (measured: docs/performance.md, tuning records).
     pub discount_converged: bool,
     /// After a change of view, every tile's variance term is at least the image's mean
     /// tile variance × `exp(−(time since the view last changed) / new_view_prior_s)`
@@ -112,12 +105,9 @@ pub struct SamplerParams {
     /// variance yet, so the tiling would neither split it nor send it samples until
     /// chance did; with the prior it is treated as an average tile until its own
     /// samples say otherwise. The prior fades once the view stays put, so a still view
-    /// concentrates its samples as before. Not in the paper. Ours 0.25 s (the one value
-    /// tried): Interactive t = 6.3–6.9 s RMS 23.0 / 13.9 → 21.1 / 13.9 at 100K / 400K;
-    /// not tuned on: `kitchen_glance.csv` 12.7 / 7.2 → 10.6 / 6.5, museum5 t = 4–5 s
-    /// 11.9 / 7.4 → 10.8 / 6.9. Counting the run's start as a change too cost Table 1's
-    /// Still at 100K 4% of RMS; without the fading (a constant prior) the moving views
-    /// gained as much and still views lost 6–34%.
+    /// concentrates its samples as before; a run's start does not count as a change,
+    /// and the prior fades, because each alternative cost still views (measured:
+    /// docs/performance.md, tuning records). Not in the paper. Ours 0.25 s.
     pub new_view_prior_s: f64,
     /// Crosshair arm length as a fraction of the width (the ±x arms) and height (the ±y
     /// arms) of the tile the crosshair is traced for, at least one pixel (0: the

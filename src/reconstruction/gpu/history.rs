@@ -301,18 +301,20 @@ impl GpuHistory {
     }
 }
 
+/// `history.wgsl` after the constant it shares with the reconstruction's side.
+fn source() -> String {
+    format!(
+        "const IMAGE: u32 = {}u;\n{}",
+        super::PER_PIXEL,
+        include_str!("history.wgsl")
+    )
+}
+
 impl Pipelines {
     fn new(device: &wgpu::Device) -> Self {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("history.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                format!(
-                    "const IMAGE: u32 = {}u;\n{}",
-                    super::PER_PIXEL,
-                    include_str!("history.wgsl")
-                )
-                .into(),
-            ),
+            source: wgpu::ShaderSource::Wgsl(source().into()),
         });
         // The fresh samples, cut pixels, image and front depths are only read.
         let layout = uniform_and_storage(device, "history", BUFFERS, &[5, 6, 7, 8]);
@@ -332,5 +334,25 @@ impl Pipelines {
             blend: make("blend"),
             layout,
         }
+    }
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::{HParams, ACC, FRESH, HELD};
+    use crate::reconstruction::gpu::layout_tests::{check_struct, parse, rust_fields, wgsl_u32};
+
+    #[test]
+    fn history_wgsl_lays_out_the_params_and_arrays_as_the_rust_side() {
+        let m = parse(&super::source());
+        let p = rust_fields!(HParams {
+            eye, t, forward, n_fresh, corner, n_cuts, du, du2, dv, dv2, width, height, slack,
+            keep, recon_weight, max_count, box_scale, tolerance, clamped_count,
+            min_count_to_test, reprojected_count, pad,
+        });
+        check_struct(&m, "H", p, std::mem::size_of::<HParams>());
+        assert_eq!(wgsl_u32(&m, "ACC") as u64, ACC);
+        assert_eq!(wgsl_u32(&m, "HELD") as u64, HELD);
+        assert_eq!(wgsl_u32(&m, "FRESH") as usize, FRESH);
     }
 }

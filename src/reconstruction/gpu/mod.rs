@@ -10,7 +10,7 @@
 //! the 16×16-pixel bins it touches, each bin's list is sorted into ring order, and each
 //! pixel adds the weights of its bin's splats in that order. The arithmetic is the
 //! CPU's, but for `exp` and the pyramid sums (f32 here, f64 there), so images agree
-//! to rounding (`tests/gpu.rs` states the tolerance).
+//! to rounding (`MAX_DIFF` in `reconstruction/gpu_tests.rs` states the tolerance).
 //!
 //! Which steps run here: reprojection (by velocity; exact motion rewrites the
 //! velocities of the live moving samples on the CPU first, which are uploaded again),
@@ -26,6 +26,8 @@
 pub(super) mod carried;
 mod context;
 mod history;
+#[cfg(test)]
+mod layout_tests;
 
 use std::sync::Arc;
 

@@ -1,0 +1,247 @@
+//! The adaptive method's image builder on the image thread: the reconstructor, fed
+//! with what the controllers passed on, filtered with the bands' newest tilings, timed
+//! against its image budget.
+
+use std::{
+    collections::VecDeque,
+    sync::{atomic::Ordering, Arc},
+    time::Instant,
+};
+
+use crossbeam_channel::Receiver;
+
+use super::{overlays::TilingOverlays, published::Published, settings::AdaptiveSettings};
+use crate::{
+    realtime::{
+        config::RealtimeError,
+        shared::{lock, Built, ImageBuilder, Shared},
+    },
+    reconstruction::{device::ReconUsed, Reconstructor},
+    trace::StreamSample,
+};
+
+/// The image builder's reconstructor, on the run's GPU when it has one: refused before
+/// any thread starts where the adapter is too small for the display's buffers.
+pub(super) fn reconstructor(
+    s: &Shared,
+    settings: &AdaptiveSettings,
+) -> Result<Box<Reconstructor>, RealtimeError> {
+    let (w, h) = s.tracer.size();
+    // The filters' rate is measured and set at every image ([`Builder::build`]).
+    let mut r = Box::new(Reconstructor::new(w, h, 1.0, settings.recon));
+    if let Some(gpu) = &settings.gpu {
+        r.use_gpu(gpu.clone()).map_err(|e| RealtimeError::Gpu {
+            method: super::settings::NAME,
+            why: e.to_string(),
+        })?;
+    }
+    Ok(r)
+}
+
+/// The image thread's side: the reconstructor, fed with what the controllers passed
+/// on, filtered with the bands' newest tilings.
+pub(super) struct Builder {
+    s: Arc<Shared>,
+    published: Arc<Published>,
+    rx: Receiver<Vec<StreamSample>>,
+    recon: Box<Reconstructor>,
+    /// Ray counts at recent images, to measure the rate the filters assume.
+    rate_window: VecDeque<(f64, u64)>,
+    /// Newest samples the reconstructor places ([`next_live_limit`]).
+    live_limit: Option<usize>,
+    figures: ImageFigures,
+}
+
+impl Builder {
+    /// Nothing built yet: `recon` fed from `rx`, with the tilings of `published`.
+    pub(super) fn new(
+        s: Arc<Shared>,
+        published: Arc<Published>,
+        rx: Receiver<Vec<StreamSample>>,
+        recon: Box<Reconstructor>,
+    ) -> Self {
+        Self {
+            s,
+            published,
+            rx,
+            recon,
+            rate_window: VecDeque::new(),
+            live_limit: None,
+            figures: ImageFigures::default(),
+        }
+    }
+}
+
+/// What the image builder reports ([`ImageBuilder::stats`]).
+#[derive(Default)]
+pub(super) struct ImageFigures {
+    /// The sample rate the filters assume after the newest image, and the ring's
+    /// capacity.
+    recon_rate: f64,
+    ring_capacity: usize,
+    /// Images built, those built under a live limit, and the samples they placed.
+    images: u64,
+    limited_images: u64,
+    placed_sum: f64,
+}
+
+/// Push the newest samples of `batches` (oldest first) into `r`: as many as its ring
+/// holds, and no more than the live limit (the newest samples an image places) when
+/// there is one. The image thread takes samples in one at a time, and on many cores
+/// more arrive between two images than it can take in and still build an image in
+/// its budget; the older ones would not be placed. (They are lost to the still-region
+/// history too, which gathers every sample taken in.)
+pub(super) fn push_newest(r: &mut Reconstructor, batches: &[Vec<StreamSample>], limit: Option<usize>) {
+    let total: usize = batches.iter().map(Vec::len).sum();
+    let most = limit.map_or(r.capacity(), |l| l.min(r.capacity()));
+    let mut skip = total.saturating_sub(most);
+    for batch in batches {
+        let from = skip.min(batch.len());
+        skip -= from;
+        r.push_stream(&batch[from..]);
+    }
+}
+
+/// The live limit for the next image, after one that placed `placed` samples under
+/// `limit` and took `ms` to build, against a budget of `budget_ms` (0: no limit).
+///
+/// The build's cost is nearly linear in the samples placed, so the limit moves by the
+/// square root of budget / time (half the step in the logarithm, against overshoot
+/// from one slow image), at most halving or growing by a quarter per image; it is
+/// lifted once it would reach `capacity`, and never goes below `floor`.
+pub(super) fn next_live_limit(
+    limit: Option<usize>,
+    placed: usize,
+    ms: f64,
+    budget_ms: f64,
+    floor: usize,
+    capacity: usize,
+) -> Option<usize> {
+    if budget_ms.is_nan() || budget_ms <= 0.0 {
+        return None;
+    }
+    let step = (budget_ms / ms.max(1e-3)).sqrt().clamp(0.5, 1.25);
+    let from = match limit {
+        None if ms <= budget_ms => return None,
+        None => placed,
+        Some(k) => k,
+    };
+    let next = (from as f64 * step) as usize;
+    (next < capacity).then_some(next.max(floor))
+}
+
+impl ImageBuilder for Builder {
+    /// `tiles` now; `reprojected_share` of visits whose reprojection step ran (the
+    /// controllers skip it while behind their input); `history_maps` the controllers
+    /// received ([`crate::methods::adaptive::SamplerParams::discount_converged`]); the
+    /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
+    /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
+    /// most the live limit); `limited_share` of images built under a live limit
+    /// ([`AdaptiveSettings::image_budget`]); `gpu_failure`, why the GPU reconstructor
+    /// was given up, if it was (the images after it were built on the CPU).
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        let p = &*self.published;
+        let (rv, sv) = (
+            p.reprojected_visits.load(Ordering::Relaxed),
+            p.skipped_reprojections.load(Ordering::Relaxed),
+        );
+        let f = &self.figures;
+        let per_image = |x: f64| x / f.images.max(1) as f64;
+        let mut figures = vec![
+            ("tiles", p.tiles().into()),
+            (
+                "reprojected_share",
+                (rv as f64 / (rv + sv).max(1) as f64).into(),
+            ),
+            (
+                "history_maps",
+                p.history_maps.load(Ordering::Relaxed).into(),
+            ),
+            ("recon_rate", f.recon_rate.into()),
+            ("ring_capacity", f.ring_capacity.into()),
+            ("placed_mean", per_image(f.placed_sum).into()),
+            ("limited_share", per_image(f.limited_images as f64).into()),
+        ];
+        if let Some(why) = self.recon.gpu_failure() {
+            figures.push(("gpu_failure", why.into()));
+        }
+        figures
+    }
+
+    fn recon(&self) -> ReconUsed {
+        self.recon.used()
+    }
+
+    fn build(&mut self, t: f64) -> Option<Built> {
+        let t0 = Instant::now();
+        let s = &*self.s;
+        let (w, h) = s.tracer.size();
+        let tiling = Arc::new(self.published.whole_tiling()?);
+        let batches: Vec<Vec<StreamSample>> = self.rx.try_iter().collect();
+        // The filters need the sample rate R, measured over the last second; a new
+        // rate takes effect at the next refresh, keeping the ring, the splat scale and
+        // the still-region history.
+        let rays = s.rays.load(Ordering::Relaxed);
+        let el = s.clock.elapsed();
+        let window = &mut self.rate_window;
+        window.push_back((el, rays));
+        while window.len() > 2 && el - window[0].0 > 1.0 {
+            window.pop_front();
+        }
+        let (e0, r0) = window[0];
+        let rate = if el - e0 > 0.05 {
+            (rays - r0) as f64 / (el - e0)
+        } else {
+            rays as f64 / el.max(1e-3)
+        }
+        .max(1.0);
+        let r = &mut self.recon;
+        r.set_rate(rate);
+        push_newest(r, &batches, self.live_limit);
+        let state = s.tracer.state_at(t);
+        let camera = state.camera;
+        r.set_motion(Some(state));
+        r.set_live_limit(self.live_limit);
+        let image = r.reconstruct(t, &camera, &tiling).clone();
+        let settings = &self.published.settings;
+        if settings.sampler.discount_converged {
+            if let Some(counts) = r.history_counts() {
+                // Each controller reads the newest; an older map none has read is
+                // replaced (its buffer reused).
+                let mut maps = lock(&self.published.history_counts);
+                maps.0 += 1;
+                maps.1.clear();
+                maps.1.extend_from_slice(counts);
+            }
+        }
+        let ages = r.pixel_ages();
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let budget_ms = settings.image_budget * 1e3 / s.config.refresh_hz;
+        // A floor of half a sample per pixel keeps an image where the build's
+        // per-pixel work alone exceeds the budget.
+        let floor = (w as usize * h as usize / 2).max(1);
+        let limited = self.live_limit.is_some();
+        self.live_limit = next_live_limit(
+            self.live_limit,
+            r.placed(),
+            ms,
+            budget_ms,
+            floor,
+            r.capacity(),
+        );
+        let fig = &mut self.figures;
+        fig.recon_rate = rate;
+        fig.ring_capacity = r.capacity();
+        fig.images += 1;
+        fig.limited_images += limited as u64;
+        fig.placed_sum += r.placed() as f64;
+        Some(Built {
+            image,
+            mean_age: r.mean_age(),
+            overlays: Some(Arc::new(TilingOverlays(tiling))),
+            ages: crate::realtime::shared::sampled_ages(ages.len(), |i| ages[i]),
+            // Samples are reprojected to the camera of `t`.
+            view_time: t,
+        })
+    }
+}

@@ -1,0 +1,285 @@
+//! The adaptive method's sampling threads: each visits tiles of the published
+//! snapshots at the current time, completing and initiating crosshairs, and sends what
+//! it traced in batches to the controllers of the visited tiles' bands.
+
+use std::{
+    sync::{atomic::Ordering, Arc},
+    time::Instant,
+};
+
+use crossbeam_channel::Sender;
+
+use super::published::{Published, TileSnapshot};
+use crate::{
+    methods::adaptive::{
+        deep_buffer::Crosshair,
+        sampler::{choose_tile, completion_point, crosshair_points, crosshair_with, stratified_in},
+        tiling::{Pending, Rect},
+        SamplerParams,
+    },
+    realtime::shared::{lock, Shared, BATCH_S},
+    sampling::Rng,
+    trace::{SceneState, StateCache, StreamSample},
+};
+
+/// A sampling thread's copy of the bands' snapshots, with when it last initiated a
+/// crosshair in each tile (the snapshot's own pending crosshairs until then), for
+/// [`choose_tile`].
+pub(super) struct View {
+    snaps: Vec<Arc<TileSnapshot>>,
+    seqs: Vec<u64>,
+    last: Vec<Vec<Option<f64>>>,
+    /// Where each band's tiles start in the numbering of all tiles, and their count.
+    starts: Vec<usize>,
+    /// The `snapshot_seq` the copy is of.
+    seq: u64,
+}
+
+impl View {
+    fn new(published: &Published) -> Self {
+        let k = published.bands.len();
+        let mut v = Self {
+            snaps: Vec::with_capacity(k),
+            seqs: vec![u64::MAX; k],
+            last: vec![Vec::new(); k],
+            starts: vec![0; k + 1],
+            seq: u64::MAX,
+        };
+        for band in &published.bands {
+            v.snaps.push(lock(&band.snapshot).clone());
+        }
+        v.refresh(published);
+        v
+    }
+
+    /// Take in the bands' snapshots that changed since the last call.
+    fn refresh(&mut self, published: &Published) {
+        let seq = published.snapshot_seq.load(Ordering::Acquire);
+        if seq == self.seq {
+            return;
+        }
+        self.seq = seq;
+        for (b, band) in published.bands.iter().enumerate() {
+            let bseq = band.seq.load(Ordering::Acquire);
+            if bseq != self.seqs[b] {
+                self.seqs[b] = bseq;
+                self.snaps[b] = lock(&band.snapshot).clone();
+                let last = &mut self.last[b];
+                last.clear();
+                last.extend(self.snaps[b].pending.iter().map(|p| p.map(|p| p.t)));
+            }
+            self.starts[b + 1] = self.starts[b] + self.snaps[b].rects.len();
+        }
+    }
+
+    /// Tiles in all bands.
+    fn len(&self) -> usize {
+        self.starts[self.snaps.len()]
+    }
+
+    /// Band and index in it of tile `k` of all tiles.
+    fn locate(&self, k: usize) -> (usize, usize) {
+        let b = self.starts[1..].iter().position(|&e| k < e).unwrap_or(0);
+        (b, k - self.starts[b])
+    }
+}
+
+/// What a sampling thread did on one visit.
+#[derive(Clone)]
+pub(super) enum Visit {
+    /// It completed the crosshair `pending` initiated.
+    Completed {
+        crosshair: Crosshair,
+        rays: u32,
+        pending: Pending,
+    },
+    /// It initiated a crosshair.
+    Initiated(Pending),
+}
+
+/// A batch for the controller.
+#[derive(Clone, Default)]
+pub(super) struct Batch {
+    pub(super) visits: Vec<Visit>,
+    pub(super) stream: Vec<StreamSample>,
+}
+
+/// Visits in a batch before it is sent.
+pub(super) const BATCH_VISITS: usize = 256;
+
+/// A sampling thread: visits at the current time, batched for the controllers of
+/// the visited tiles' bands.
+pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>) {
+    let tracer = &s.tracer;
+    let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
+    let mut states = StateCache::new();
+    let mut view = View::new(published);
+    let mut out = Outbox::new(tx);
+    while !s.stopped() {
+        view.refresh(published);
+        let now = s.clock.now();
+        let state = states.at(tracer, now).0;
+        let choices = published.settings.sampler.tile_choices;
+        let k = choose_tile(view.len() as u32, choices, &mut rng, |k| {
+            let (b, i) = view.locate(k);
+            view.last[b][i]
+        });
+        let (b, i) = view.locate(k);
+        let snap = &view.snaps[b];
+        let rect = snap.rects[i];
+        let batch = &mut out.batches[b];
+        let t0 = Instant::now();
+        if let Some(p) = snap.pending[i] {
+            if !complete(s, &published.settings.sampler, &state, p, rect, now, batch) {
+                continue; // another thread is at this crosshair: visit another tile
+            }
+        }
+        if initiate(s, published, &state, rect, now, &mut rng, batch) {
+            view.last[b][i] = Some(now);
+        }
+        out.busy += t0.elapsed().as_secs_f64();
+        if !out.send_due(s, b) {
+            return;
+        }
+    }
+}
+
+/// Complete the crosshair `p` initiated in tile `rect`, where its surface point is
+/// at `now`, into `batch`; `false` if another thread holds one of its pixels.
+pub(super) fn complete(
+    s: &Shared,
+    sampler: &SamplerParams,
+    state: &SceneState,
+    p: Pending,
+    rect: Rect,
+    now: f64,
+    batch: &mut Batch,
+) -> bool {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let at = p.follow(state, now);
+    let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
+    let arms = sampler.arms(rect);
+    let cross = crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
+    let Some(guard) = s.locks.try_lock_many(&cross) else {
+        return false;
+    };
+    let mut rays = 0;
+    let stream = &mut batch.stream;
+    let c = crosshair_with(w, h, (px, py), arms, now, Some((p.lum, p.t)), |x, y| {
+        rays += 1;
+        let sample = tracer.sample(state, x, y);
+        stream.push(StreamSample {
+            x,
+            y,
+            t: now,
+            sample,
+        });
+        sample
+    });
+    drop(guard);
+    batch.visits.push(Visit::Completed {
+        crosshair: c,
+        rays,
+        pending: p,
+    });
+    true
+}
+
+/// Initiate a crosshair at a random place in tile `rect` into `batch` (a few tries
+/// for a pixel no other thread holds); whether it did.
+pub(super) fn initiate(
+    s: &Shared,
+    published: &Published,
+    state: &SceneState,
+    rect: Rect,
+    now: f64,
+    rng: &mut Rng,
+    batch: &mut Batch,
+) -> bool {
+    let (w, _) = s.tracer.size();
+    let draws = &published.pixel_draws;
+    for _ in 0..4 {
+        let (x, y) = if draws.is_empty() {
+            rect.random_point(rng)
+        } else {
+            stratified_in(rect, rng, s.config.seed, w, |p| {
+                draws[p].fetch_add(1, Ordering::Relaxed)
+            })
+        };
+        let Some(guard) = s.locks.try_lock(x as u32, y as u32) else {
+            continue;
+        };
+        let sample = s.tracer.sample(state, x, y);
+        drop(guard);
+        batch.stream.push(StreamSample {
+            x,
+            y,
+            t: now,
+            sample,
+        });
+        batch.visits.push(Visit::Initiated(Pending {
+            x,
+            y,
+            t: now,
+            lum: sample.luminance,
+            hit_point: sample.hit_point,
+            velocity: sample.velocity,
+            anchor: sample.anchor,
+        }));
+        return true;
+    }
+    false
+}
+
+/// A sampling thread's batches, one per band, and its tracing time since they last went.
+pub(super) struct Outbox {
+    tx: Vec<Sender<Batch>>,
+    batches: Vec<Batch>,
+    sent: Instant,
+    busy: f64,
+}
+
+impl Outbox {
+    fn new(tx: Vec<Sender<Batch>>) -> Self {
+        Self {
+            batches: vec![Batch::default(); tx.len()],
+            tx,
+            sent: Instant::now(),
+            busy: 0.0,
+        }
+    }
+
+    /// Send what is due after a visit to band `b`: its batch alone when full, every
+    /// band's when [`BATCH_S`] has passed. `false` once the controllers are gone.
+    fn send_due(&mut self, s: &Shared, b: usize) -> bool {
+        let full = self.batches[b].visits.len() >= BATCH_VISITS;
+        if !full && self.sent.elapsed().as_secs_f64() <= BATCH_S {
+            return true;
+        }
+        s.busy_ns
+            .fetch_add((self.busy * 1e9) as u64, Ordering::Relaxed);
+        self.busy = 0.0;
+        let due = if full {
+            b..b + 1
+        } else {
+            self.sent = Instant::now();
+            0..self.batches.len()
+        };
+        for d in due {
+            if self.batches[d].visits.is_empty() {
+                continue;
+            }
+            let n = self.batches[d].stream.len() as u64;
+            s.samples.fetch_add(n, Ordering::Relaxed);
+            s.rays.fetch_add(n, Ordering::Relaxed);
+            if self.tx[d]
+                .send(std::mem::take(&mut self.batches[d]))
+                .is_err()
+            {
+                return false;
+            }
+        }
+        true
+    }
+}

@@ -1,0 +1,126 @@
+//! The adaptive method's own settings of a real-time run: its sampler, its
+//! reconstructor and where that runs, and how long a build may take; their defaults,
+//! their range checks, and the command-line options that set them
+//! ([`AdaptiveArgs`], flattened into `frameless view`). The registry holds them as the
+//! payload of `RtSettings::Adaptive`; the shared `RtConfig` never sees them.
+
+use std::sync::Arc;
+
+use crate::{
+    methods::adaptive::SamplerParams,
+    realtime::{config::RealtimeError, shared::MethodSettings},
+    reconstruction::{device::GpuContext, ReconParams},
+    settings::finite_f64,
+};
+
+/// The method's command-line name.
+pub const NAME: &str = "adaptive";
+
+/// The share of a refresh period an image's build aims to take, unless another is
+/// asked for.
+pub const IMAGE_BUDGET: f64 = 0.8;
+
+/// The largest reconstructor ring, in multiples of the pixel count.
+pub const RING_FACTOR_MAX: f64 = 64.0;
+
+/// The range of the reconstructor's largest splat radius, pixels.
+pub const MAX_RADIUS_RANGE: std::ops::RangeInclusive<f32> = 1.0..=64.0;
+
+/// What adaptive reads of a real-time run's settings.
+#[derive(Clone, Debug)]
+pub struct AdaptiveSettings {
+    /// The adaptive sampler's parameters.
+    pub sampler: SamplerParams,
+    /// The reconstructor's parameters.
+    pub recon: ReconParams,
+    /// The share of a refresh period an image's build aims to take. When a build
+    /// takes longer, the next places only the newest samples of the ring, as many as
+    /// fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the whole
+    /// ring always.
+    pub image_budget: f64,
+    /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
+    pub gpu: Option<Arc<GpuContext>>,
+}
+
+impl Default for AdaptiveSettings {
+    /// The paper's sampler, the real-time reconstructor ([`ReconParams::realtime`]) on
+    /// the CPU, builds within [`IMAGE_BUDGET`] of a refresh period.
+    fn default() -> Self {
+        Self {
+            sampler: SamplerParams::ours(),
+            recon: ReconParams::realtime(),
+            image_budget: IMAGE_BUDGET,
+            gpu: None,
+        }
+    }
+}
+
+impl MethodSettings for AdaptiveSettings {
+    fn use_gpu(&mut self, gpu: Option<Arc<GpuContext>>) {
+        self.gpu = gpu;
+    }
+
+    fn validate(&self) -> Result<(), RealtimeError> {
+        if !(self.image_budget.is_finite() && (0.0..=1.0).contains(&self.image_budget)) {
+            return Err(RealtimeError::Config(format!(
+                "image budget {} out of range 0..=1 (a share of the refresh period)",
+                self.image_budget
+            )));
+        }
+        let f = self.recon.ring_factor;
+        if !(f.is_finite() && f > 0.0 && f <= RING_FACTOR_MAX) {
+            return Err(RealtimeError::Config(format!(
+                "ring factor {f} out of range (0, {RING_FACTOR_MAX}] (multiples of the pixel count)"
+            )));
+        }
+        let r = self.recon.max_radius;
+        if !MAX_RADIUS_RANGE.contains(&r) {
+            return Err(RealtimeError::Config(format!(
+                "largest splat radius {r} out of range [{}, {}] pixels",
+                MAX_RADIUS_RANGE.start(),
+                MAX_RADIUS_RANGE.end()
+            )));
+        }
+        self.sampler
+            .validate()
+            .map_err(|e| RealtimeError::Config(e.to_string()))
+    }
+}
+
+/// The command-line options of the adaptive method's settings; the binary flattens them
+/// into `view`, and [`AdaptiveArgs::apply`] sets them, leaving the range checks to
+/// [`AdaptiveSettings::validate`].
+#[derive(clap::Args, Clone, Debug)]
+pub struct AdaptiveArgs {
+    /// Adaptive: share of a refresh period an image may take to build; when one takes
+    /// longer, the next reconstructs from only the newest samples that fit (0: always
+    /// the whole ring).
+    #[arg(long, default_value_t = IMAGE_BUDGET, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub image_budget: f64,
+    /// Reconstructor ring as a multiple of the pixel count [default: 2; paper: 6].
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub ring_factor: Option<f64>,
+    /// Largest reconstruction splat radius, pixels [default: 8; paper reconstructor: 24].
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub max_radius: Option<f64>,
+    /// No reprojection in the sampler's controller (already off in ours, which the
+    /// real-time adaptive method uses).
+    #[arg(long)]
+    pub no_reprojection: bool,
+}
+
+impl AdaptiveArgs {
+    /// Set what was asked for in `settings`.
+    pub fn apply(&self, settings: &mut AdaptiveSettings) {
+        settings.image_budget = self.image_budget;
+        if self.no_reprojection {
+            settings.sampler.reprojection = false;
+        }
+        if let Some(f) = self.ring_factor {
+            settings.recon.ring_factor = f;
+        }
+        if let Some(r) = self.max_radius {
+            settings.recon.max_radius = r as f32;
+        }
+    }
+}

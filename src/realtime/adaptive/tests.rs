@@ -1,0 +1,180 @@
+//! Tests of the real-time adaptive method's parts.
+
+use std::sync::Arc;
+
+use super::{
+    bands,
+    bench::{band_samplers, record},
+    builder::{next_live_limit, push_newest},
+    controllers,
+    published::{Published, MIN_BAND_ROWS},
+    settings::AdaptiveSettings,
+    sampling::Visit,
+    THREADS_PER_CONTROLLER,
+};
+use crate::{
+    methods::adaptive::SamplerParams,
+    realtime::shared::Shared,
+    reconstruction::Reconstructor,
+    trace::StreamSample,
+    realtime::{config::RtConfig, registry::RtMethod},
+    scene::builtin,
+    trace::{TraceOptions, Tracer},
+};
+
+#[test]
+fn an_image_takes_in_only_the_samples_its_ring_holds() {
+    // 8×4 pixels, ring of 2 samples per pixel: 64.
+    let params = crate::reconstruction::ReconParams::realtime();
+    let mut r = Reconstructor::new(8, 4, 1000.0, params);
+    let cap = r.capacity();
+    let stream = |from: usize, n: usize| -> Vec<StreamSample> {
+        (from..from + n)
+            .map(|i| StreamSample {
+                x: (i % 8) as f32 + 0.5,
+                y: (i / 8 % 4) as f32 + 0.5,
+                t: i as f64,
+                sample: Default::default(),
+            })
+            .collect()
+    };
+    // More than a ring's worth, over three batches: the newest `cap` are in it.
+    let batches = vec![
+        stream(0, cap),
+        stream(cap, cap / 2),
+        stream(cap + cap / 2, cap),
+    ];
+    push_newest(&mut r, &batches, None);
+    let times: Vec<f64> = r.ring().iter().map(|s| s.t).collect();
+    let total = 2 * cap + cap / 2;
+    assert_eq!(
+        times,
+        ((total - cap)..total).map(|i| i as f64).collect::<Vec<_>>()
+    );
+    // Fewer than a ring's worth: all of them, after what was there.
+    push_newest(&mut r, &[stream(total, 3)], None);
+    assert_eq!(r.ring().back().unwrap().t, (total + 2) as f64);
+    assert_eq!(r.ring().len(), cap);
+    // Under a live limit, no more than it.
+    let before = r.ring().back().unwrap().t;
+    push_newest(&mut r, &[stream(total + 3, 10)], Some(4));
+    let newest: Vec<f64> = r.ring().iter().map(|s| s.t).skip(cap - 5).collect();
+    let from = (total + 3 + 6) as f64;
+    assert_eq!(newest, [before, from, from + 1.0, from + 2.0, from + 3.0]);
+}
+
+#[test]
+fn bands_are_whole_rows_that_cover_the_image_once() {
+    let ours = SamplerParams::ours();
+    for (w, h, n, expect) in [
+        (640, 480, 1, 1),
+        (640, 480, 4, 4),
+        (640, 481, 3, 3),
+        (256, 256, 16, 8), // bands of at least 32 rows
+        (64, 20, 4, 1),
+    ] {
+        let b = bands(w, h, n, &ours);
+        assert_eq!(b.len(), expect, "{w}x{h} for {n}");
+        assert_eq!((b[0].y0, b[b.len() - 1].y1), (0, h));
+        for (i, r) in b.iter().enumerate() {
+            assert_eq!((r.x0, r.x1), (0, w));
+            assert!(r.height() >= MIN_BAND_ROWS.min(h));
+            if i > 0 {
+                assert_eq!(r.y0, b[i - 1].y1);
+                assert!(r.height().abs_diff(b[i - 1].height()) <= 1);
+            }
+        }
+    }
+    // Crosshairs that reproject could leave any band.
+    assert_eq!(bands(640, 480, 4, &SamplerParams::paper()).len(), 1);
+    assert_eq!((controllers(1), controllers(4), controllers(15)), (1, 1, 4));
+}
+
+#[test]
+fn each_controller_adapts_its_own_band() {
+    let (w, h) = (64, 96);
+    let scene = Arc::new(builtin::toycar());
+    let tracer = Arc::new(Tracer::new(scene, w, h, TraceOptions::default()));
+    let mut config = RtConfig::new(RtMethod::Adaptive);
+    config.sampling_threads = 2 * THREADS_PER_CONTROLLER; // two controllers
+    config.start = 1.0;
+    let s = Arc::new(Shared::new(tracer, config));
+    let published = Arc::new(Published::new(&s, AdaptiveSettings::default()));
+    assert_eq!(published.bands.len(), 2);
+    let samplers = band_samplers(&s, &published).unwrap();
+    let (samplers, recorded) = record(&s, &published, samplers, 0.5);
+    for (b, sampler) in samplers.iter().enumerate() {
+        published.tiling(b, sampler);
+        sampler.validate().unwrap();
+        let band = published.bands[b].rect;
+        assert!(!recorded[b].is_empty(), "band {b} got no batch");
+        assert!(sampler.buffer().total() > 0, "band {b} holds no crosshair");
+        assert!(sampler.tiling().len() > 1, "band {b} never split a tile");
+        // Its crosshairs and pending samples were traced in its band.
+        for (batch, _) in &recorded[b] {
+            for v in &batch.visits {
+                let (x, y) = match v {
+                    Visit::Completed { pending, .. } | Visit::Initiated(pending) => {
+                        (pending.x, pending.y)
+                    }
+                };
+                assert!(band.contains_point(x, y), "{x}, {y} outside band {b}");
+            }
+        }
+    }
+    // The reconstructor's tiling covers every pixel exactly once.
+    let whole = published.whole_tiling().unwrap();
+    let mut covered = vec![0u8; (w * h) as usize];
+    for t in &whole.tiles {
+        for y in t.rect.y0..t.rect.y1 {
+            for x in t.rect.x0..t.rect.x1 {
+                covered[(y * w + x) as usize] += 1;
+            }
+        }
+    }
+    assert!(covered.iter().all(|&c| c == 1));
+    assert_eq!(
+        whole.tiles.len(),
+        samplers.iter().map(|s| s.tiling().len()).sum::<usize>()
+    );
+}
+
+#[test]
+fn the_live_limit_follows_the_build_time_budget() {
+    let (floor, cap) = (1000, 100_000);
+    // Within budget and unlimited: stays unlimited; no budget: never limited.
+    assert_eq!(next_live_limit(None, 50_000, 10.0, 13.0, floor, cap), None);
+    assert_eq!(
+        next_live_limit(Some(5000), 5000, 90.0, 0.0, floor, cap),
+        None
+    );
+    // Over budget: a limit below what was placed, by at most half.
+    let k = next_live_limit(None, 80_000, 26.0, 13.0, floor, cap).unwrap();
+    assert!((40_000..80_000).contains(&k), "{k}");
+    assert_eq!(
+        next_live_limit(None, 80_000, 1e6, 13.0, floor, cap),
+        Some(40_000)
+    );
+    // Never below the floor.
+    assert_eq!(
+        next_live_limit(Some(1500), 1500, 1e3, 13.0, floor, cap),
+        Some(floor)
+    );
+    // A cost linear in the samples settles near the budget: 2 ms fixed plus
+    // 0.2 µs per sample, budget 13 ms (55K samples).
+    let mut limit = None;
+    let mut placed = cap;
+    for _ in 0..60 {
+        let ms = 2.0 + placed as f64 * 2e-4;
+        limit = next_live_limit(limit, placed, ms, 13.0, floor, cap);
+        placed = limit.unwrap_or(cap).min(cap);
+    }
+    let ms = 2.0 + placed as f64 * 2e-4;
+    assert!((12.0..=13.5).contains(&ms), "{ms} ms with {placed}");
+    // Time to spare grows it back until the limit is lifted.
+    for _ in 0..60 {
+        limit = next_live_limit(limit, placed, 5.0, 13.0, floor, cap);
+        placed = limit.unwrap_or(cap).min(cap);
+    }
+    assert_eq!(limit, None);
+}
