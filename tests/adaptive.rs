@@ -506,14 +506,14 @@ fn a_region_revealed_by_a_turn_draws_samples_at_once() {
     // Every crosshair reprojected, as in the paper: with none or only moving ones
     // reprojected (ours), the left half's old crosshairs stay where they were and age
     // out, and the revealed half already draws most of the samples without the prior
-    // (with only moving ones reprojected 0.59 without it, 0.63 with it, session 13;
-    // with none 0.62 and 0.58, session 14), so the prior's own effect shows best with
+    // (with only moving ones reprojected 0.59 without it, 0.63 with it;
+    // with none 0.62 and 0.58), so the prior's own effect shows best with
     // the paper's reprojection. One-pixel arms, as in the paper, so that a visit's
     // samples stay in its tile: with ours (half the tile) the large tiles of the still
     // left half reach into the right one, and samples count where they land, not which
-    // tile drew them (0.41 with the prior against 0.38 without; session 14). One tile
+    // tile drew them (0.41 with the prior against 0.38 without). One tile
     // draw a visit, as in the paper: with ours (the least recently visited of four)
-    // 0.385 against 0.364 (session 15).
+    // 0.385 against 0.364.
     let base = SamplerParams {
         reprojection: true,
         reproject_only_moving: false,

@@ -380,7 +380,7 @@ fn unmutated_scene_is_valid() {
 
 #[test]
 fn an_include_naming_the_texture_fails_in_the_texture() {
-    // Found by the mutation test below in a CI run (session 14): `i 0 tex.ppm` parses
+    // Found by the mutation test below in a CI run: `i 0 tex.ppm` parses
     // the image as a scene, and the error names the image, line 1.
     let dir = case_dir(PART.as_bytes());
     // MAIN holds a byte that is not UTF-8 (a test of its own): splice bytes.

@@ -72,7 +72,7 @@ pub struct ReconParams {
     pub carry: bool,
     /// With [`ReconParams::carry`]: the time constant of the carried sums' exponential
     /// decay as a multiple of the tile's temporal extent `e_t`. Ours: 0.6, the best of
-    /// 0.35–1.4 on `toycar` (docs/performance.md, session 19); the ring's Gaussian
+    /// 0.35–1.4 on `toycar` (docs/performance.md, carried accumulators); the ring's Gaussian
     /// weights have a mean age of 0.8 `e_t`.
     pub decay_scale: f32,
     /// With [`ReconParams::carry`]: a refresh whose view is not the previous
@@ -91,7 +91,7 @@ pub struct ReconParams {
 /// pixel it lands in. The test is per sample, not
 /// per pixel of its footprint: a silhouette pixel that both surfaces partly cover
 /// keeps both surfaces' samples from the pixels around it, so edges stay
-/// anti-aliased (a per-pixel test, measured in session 13, widened every foreground
+/// anti-aliased (a per-pixel test, measured, widened every foreground
 /// object by its samples' footprints and raised the error of every window).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Visibility {

@@ -169,9 +169,9 @@ fn a_moving_square_keeps_its_silhouette() {
         "edge error: {e_carried} carried, {e_with} re-splatted with the visibility pass, \
          {e_without} without"
     );
-    // Measured (session 13): 0.086 with the pass, 0.125 without (0.69×). Carried
+    // Measured: 0.086 with the pass, 0.125 without (0.69×). Carried
     // accumulators cut what a nearer new sample covers, and still carried sums hide
-    // what lies behind them (session 19: 0.102, 0.82× the error without the pass).
+    // what lies behind them (0.102, 0.82× the error without the pass).
     for (what, e, bar) in [
         ("re-splatted with the pass", e_with, 0.8),
         ("carried", e_carried, 0.85),
@@ -210,7 +210,7 @@ fn a_fast_camera_move_shows_no_wall_through_the_square() {
         "largest error inside: {w_carried} carried, {w_with} re-splatted with the visibility \
          pass, {w_without} without"
     );
-    // Measured (session 13): 0.075 with the pass, 0.53 without. What is left comes
+    // Measured: 0.075 with the pass, 0.53 without. What is left comes
     // from the few pixels no sample of the square has landed in yet.
     assert!(
         w_without > 0.3,
