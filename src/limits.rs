@@ -35,7 +35,7 @@ pub const MAX_SIDE: u32 = 16384;
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum LimitError {
     /// Not of the form `WxH`.
-    #[error("`{0}` is not a size: expected WxH, e.g. 256x256")]
+    #[error("`{0}` is not a size: expected WxH (e.g. 640x480) or N for NxN (e.g. 256)")]
     NotASize(String),
     /// A side of a size is not a whole number.
     #[error("`{side}` in `{size}` is not a whole number")]
@@ -122,12 +122,16 @@ pub enum LimitError {
     },
 }
 
-/// Parse an image size `WxH` (or `WXH`): two whole numbers in `1..=MAX_SIDE`. The one
-/// parser of sizes, for the command line and sweep files alike.
+/// Parse an image size `WxH` (or `WXH`): two whole numbers in `1..=MAX_SIDE`; a single
+/// number `N` is the square `NxN`. The one parser of sizes, for the command line and
+/// sweep files alike.
 pub fn parse_size(s: &str) -> Result<(u32, u32), LimitError> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| LimitError::NotASize(s.to_string()))?;
+    // A single number is a square.
+    let (w, h) = match s.split_once(['x', 'X']) {
+        Some(wh) => wh,
+        None if !s.trim().is_empty() && s.trim().bytes().all(|b| b.is_ascii_digit()) => (s, s),
+        None => return Err(LimitError::NotASize(s.to_string())),
+    };
     let side = |v: &str| -> Result<u32, LimitError> {
         let n: u32 = v.trim().parse().map_err(|_| LimitError::NotASide {
             side: v.to_string(),
@@ -343,6 +347,17 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_size_is_wxh_or_one_side_for_a_square() {
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        assert_eq!(parse_size("64X32").unwrap(), (64, 32));
+        assert_eq!(parse_size("256").unwrap(), (256, 256));
+        for bad in ["", "x", "64x", "-64", "6 4", "64.5", "0"] {
+            assert!(parse_size(bad).is_err(), "{bad:?}");
+        }
+        assert!(parse_size("abc").unwrap_err().to_string().contains("N for NxN"));
+    }
+
+    #[test]
     fn each_budget_rejects_just_past_its_limit_and_accepts_at_it() {
         assert!(check_rate(MAX_RATE, 1.0).is_ok());
         assert!(check_rate(MAX_RATE * 1.01, 1.0).is_err());
@@ -377,7 +392,8 @@ mod tests {
         assert!(check_display(4097, 4096).is_err());
         assert_eq!(parse_size("640x480"), Ok((640, 480)));
         assert_eq!(parse_size(" 16 X 9 "), Ok((16, 9)));
-        for bad in ["640", "0x4", "4x0", "16385x1", "ax4", "4x-1", ""] {
+        // A single number is a square: 640 is 640x640.
+        for bad in ["0x4", "4x0", "16385x1", "ax4", "4x-1", ""] {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
         assert!(check_ideal_spp(MAX_IDEAL_SPP).is_ok() && check_ideal_spp(1).is_ok());

@@ -118,7 +118,7 @@ pub struct RenderArgs {
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Length of the sequence (seconds).
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, alias = "seconds", default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sampling before the first refresh (seconds).
     #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
@@ -128,7 +128,7 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value = "png")]
     pub format: FrameFormat,
     /// Output folder for `frame_NNNNN.png` (or `.exr`) and `stats.json`.
-    #[arg(long, default_value = "render-out")]
+    #[arg(short, long, default_value = "render-out")]
     pub out: PathBuf,
 }
 
@@ -158,7 +158,7 @@ pub struct Table1Args {
     #[arg(long = "method", alias = "methods", value_name = "METHOD", value_delimiter = ',', value_parser = method_parser())]
     pub methods: Option<Vec<MethodKind>>,
     /// Override every animation's window length (seconds), e.g. for a quick trial.
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, alias = "seconds", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// Display size.
     #[arg(long, default_value_t = Size::DEFAULT)]
@@ -187,7 +187,7 @@ pub struct Table1Args {
     pub devices: settings::DevicesGroup,
     /// Output folder: `summary.json`, `table.md`, `report.html`, one eval folder per
     /// animation.
-    #[arg(long, default_value = "table1-out")]
+    #[arg(short, long, default_value = "table1-out")]
     pub out: PathBuf,
 }
 
@@ -236,8 +236,9 @@ pub struct ViewArgs {
     /// Scene time at start, seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
-    /// Run this many wall-clock seconds, then stop (required with --headless).
-    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    /// Run this many wall-clock seconds, then stop (required with --headless;
+    /// `--seconds`, its old name, is accepted too).
+    #[arg(long = "duration", alias = "seconds", value_parser = finite_f64, allow_negative_numbers = true)]
     pub seconds: Option<f64>,
     /// No window: run the pipeline, write images and stats.json to --out.
     #[arg(long)]
@@ -247,7 +248,7 @@ pub struct ViewArgs {
     #[arg(long, value_parser = finite_f64, requires = "headless")]
     pub camera_step: Option<f64>,
     /// Output directory of --headless.
-    #[arg(long, default_value = "view-out")]
+    #[arg(short, long, default_value = "view-out")]
     pub out: PathBuf,
     /// Displayed images --headless writes, evenly spaced.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(0..=frameless::realtime::headless::MAX_IMAGES as i64), allow_negative_numbers = true)]
@@ -276,7 +277,7 @@ pub struct SamplerArgs {
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// How long it runs, seconds; the images show the state at the end.
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, alias = "seconds", default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sample budget, samples per second of scene time; suffixes k and M.
     #[arg(long, default_value = "400k", value_parser = parse_rate, allow_negative_numbers = true)]
@@ -298,7 +299,7 @@ pub struct SamplerArgs {
     #[arg(long)]
     pub uniform_tiling: bool,
     /// Output directory.
-    #[arg(long, default_value = "sampler-out")]
+    #[arg(short, long, default_value = "sampler-out")]
     pub out: PathBuf,
 }
 
@@ -319,7 +320,7 @@ pub struct EvalArgs {
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
     /// Length of the evaluated window, seconds.
-    #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
+    #[arg(long, alias = "seconds", default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: f64,
     /// Sample budgets, samples per second of scene time, comma-separated; suffixes k and
     /// M (e.g. 100k,400k,800k).
@@ -347,7 +348,7 @@ pub struct EvalArgs {
     #[arg(long)]
     pub exr: bool,
     /// Output folder.
-    #[arg(long, default_value = "eval-out")]
+    #[arg(short, long, default_value = "eval-out")]
     pub out: PathBuf,
 }
 
@@ -367,8 +368,9 @@ pub struct LiveArgs {
     /// Scene time of the first recorded refresh, seconds (the warm-up runs before it).
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub start: f64,
-    /// Wall seconds recorded per run; scene time runs with the wall clock.
-    #[arg(long, default_value = "3", value_parser = finite_f64, allow_negative_numbers = true)]
+    /// Wall seconds recorded per run; scene time runs with the wall clock
+    /// (`--seconds`, its old name, is accepted too).
+    #[arg(long = "duration", alias = "seconds", default_value = "3", value_parser = finite_f64, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Wall seconds each run goes before its recorded window (whole refreshes).
     #[arg(long, default_value = "1", value_parser = finite_f64, allow_negative_numbers = true)]
@@ -381,7 +383,7 @@ pub struct LiveArgs {
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
     pub repeat: u32,
     /// Output folder.
-    #[arg(long, default_value = "live-out")]
+    #[arg(short, long, default_value = "live-out")]
     pub out: PathBuf,
 }
 
@@ -413,7 +415,7 @@ pub struct StillArgs {
     pub depth: MaxDepthArg,
     /// Output file: `.png` (as displayed: clamped, 8-bit) or `.exr` (OpenEXR, linear
     /// HDR, 32-bit float).
-    #[arg(long, default_value = "still.png")]
+    #[arg(short, long, default_value = "still.png")]
     pub out: PathBuf,
 }
 

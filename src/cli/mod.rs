@@ -652,7 +652,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     let cfg = view_config(&a, threads)?;
     let mut settings = view_settings(&a, a.method)?;
     if let Some(s) = a.seconds {
-        frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--seconds {e}"))?;
+        frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
     }
     let Size(w, h) = a.display.size;
     settings.check_size(&cfg, w, h)?;
@@ -719,7 +719,7 @@ fn view_settings(
     Ok(settings)
 }
 
-/// `view --headless`: run the pipeline for `--seconds`, write its outputs and print
+/// `view --headless`: run the pipeline for `--duration`, write its outputs and print
 /// its figures.
 fn view_headless(
     a: &args::ViewArgs,
@@ -729,11 +729,11 @@ fn view_headless(
 ) -> Result<()> {
     use frameless::realtime;
     let Some(seconds) = a.seconds else {
-        bail!("--headless needs --seconds N");
+        bail!("--headless needs --duration N (seconds; --seconds N as before)");
     };
     if let Some(at) = a.camera_step {
         if !(at >= 0.0 && at < seconds) {
-            bail!("--camera-step {at} must be within the run: [0, --seconds {seconds})");
+            bail!("--camera-step {at} must be within the run: [0, --duration {seconds})");
         }
     }
     let opts = realtime::HeadlessOptions {

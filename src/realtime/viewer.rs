@@ -53,6 +53,25 @@ pub struct ViewerOptions {
     pub others: Vec<RtSettings>,
 }
 
+/// winit's message without the source file and line it names (`os error at
+/// <file>:<line>: <what>` becomes `<what>`): a user is told what is wrong, not where in
+/// a dependency.
+fn without_source_location(msg: &str) -> String {
+    let Some(rest) = msg.strip_prefix("os error at ") else {
+        return msg.trim_end_matches('.').to_string();
+    };
+    // `<file>:<line>: <what>`: the first `: ` after a run of digits.
+    let what = rest
+        .match_indices(": ")
+        .find(|(i, _)| {
+            let before = &rest[..*i];
+            let digits = before.len() - before.trim_end_matches(|c: char| c.is_ascii_digit()).len();
+            digits > 0 && before[..before.len() - digits].ends_with(':')
+        })
+        .map_or(rest, |(i, _)| &rest[i + 2..]);
+    what.trim_end_matches('.').to_string()
+}
+
 /// Open the window and run until it is closed (or `opts.seconds` pass).
 pub fn run_viewer(
     tracer: Arc<Tracer>,
@@ -62,7 +81,8 @@ pub fn run_viewer(
 ) -> Result<(), RealtimeError> {
     let event_loop = EventLoop::new().map_err(|e| {
         RealtimeError::Window(format!(
-            "cannot open a window ({e}); is DISPLAY or WAYLAND_DISPLAY set? A headless run needs neither"
+            "cannot open a window ({}); is DISPLAY or WAYLAND_DISPLAY set? A headless run (--headless) needs neither",
+            without_source_location(&e.to_string())
         ))
     })?;
     let pipeline = Pipeline::start(tracer, config.clone(), settings)?;
@@ -429,5 +449,20 @@ impl ApplicationHandler for App {
             }
         }
         el.set_control_flow(ControlFlow::WaitUntil(self.pacer.next_due()));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::without_source_location;
+
+    #[test]
+    fn window_errors_name_the_problem_not_the_source_file() {
+        let m = "os error at /root/.cargo/registry/src/x/winit-0.30.13/src/platform_impl/linux/mod.rs:765: neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set.";
+        assert_eq!(
+            without_source_location(m),
+            "neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set"
+        );
+        assert_eq!(without_source_location("the event loop was created twice"), "the event loop was created twice");
     }
 }
