@@ -13,7 +13,8 @@
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (issue 45's scaling: new images/s,
 #   samples/s, the image thread's share), one run each, 4-spp ideal images to keep the
-#   whole under the time limit.
+#   whole under the time limit;
+# - live_1920x1080_all/: the 1920x1080 live case at 30 Hz on every core.
 set -uo pipefail
 bin="${FRAMELESS:-target/release/frameless}"
 out="${OUT:-/tmp/device-out}"
@@ -44,4 +45,9 @@ for size in 640x480 1280x720; do
       --out "$out/live_${size}_${n}" > "$out/live_${size}_${n}.log" 2>&1
   done
 done
+# Issue 45's new live case: 1920x1080 at 30 Hz on every core, against the best others.
+timeout 150 "$bin" --threads "$(nproc)" live --scene toycar --size 1920x1080 --refresh-hz 30 \
+  --start 1 --duration 2 --repeat 1 --ideal-spp 4 \
+  --method adaptive,traditional-frameless,late-warp --cache-dir "$cache" \
+  --out "$out/live_1920x1080_all" > "$out/live_1920x1080_all.log" 2>&1
 echo "done: $out"
