@@ -80,7 +80,9 @@ fn every_file_the_report_names_is_there_and_every_panel_is_labelled() {
         "Mean RMS error",
         "Mean PSNR",
         "Mean FLIP",
-        "Temporal instability",
+        "Sustained error",
+        "Transient error",
+        "Instability",
     ] {
         assert!(html.contains(&format!("<h2>{table}")), "no {table} table");
     }
@@ -129,6 +131,43 @@ fn a_report_made_again_leaves_out_what_was_deleted() {
     assert!(!refs.iter().any(|r| r == gone || r == "summary.md"));
     assert!(refs.iter().any(|r| r == "strip_200K_0001.png"));
     assert!(html.contains("RMS "), "per-panel values from frames.csv");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_folder_written_before_the_sustained_and_transient_errors_still_makes_a_report() {
+    let dir = scratch("before-split");
+    write_report(&dir);
+    let fresh = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    let table = |html: &str| {
+        let at = html.find("<h2>Sustained error").expect("a sustained table");
+        html[at..at + html[at..].find("</table>").unwrap()].to_string()
+    };
+    assert!(!table(&fresh).contains("<td>–</td>"), "{}", table(&fresh));
+    // Drop the two columns from frames.csv and the two means from summary.json, as an
+    // earlier version wrote them.
+    let csv = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+    assert!(csv.lines().next().unwrap().ends_with(",sustained,transient"));
+    let old: String = csv
+        .lines()
+        .map(|l| {
+            let fields: Vec<&str> = l.split(',').collect();
+            fields[..fields.len() - 2].join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(dir.join("frames.csv"), old).unwrap();
+    let mut summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for r in summary["results"].as_array_mut().unwrap() {
+        let r = r.as_object_mut().unwrap();
+        assert!(r.remove("sustained_mean").is_some() && r.remove("transient_mean").is_some());
+    }
+    std::fs::write(dir.join("summary.json"), summary.to_string()).unwrap();
+    let p = report::rewrite(&dir).expect("report made again from the older files");
+    let html = std::fs::read_to_string(p).unwrap();
+    // Not measured then: a dash, not a zero.
+    assert!(table(&html).contains("<td>–</td>"), "{}", table(&html));
+    assert!(!table(&html).contains("0.00"), "{}", table(&html));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

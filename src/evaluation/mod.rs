@@ -8,6 +8,7 @@ pub mod report;
 pub mod sequence;
 pub mod sweep;
 pub mod table1;
+pub mod temporal;
 
 use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};
 
@@ -483,6 +484,15 @@ pub struct FrameRow {
     pub instability: Option<f64>,
     /// Mean age of the displayed information, seconds.
     pub age_s: f64,
+    /// Sustained error of the 100 ms ending here, 0–255: the averaged display against
+    /// the averaged ideal ([`temporal`]; `None` before a full window, and in files
+    /// written before it was measured).
+    #[serde(default)]
+    pub sustained: Option<f64>,
+    /// Transient error of the same 100 ms, 0–255: the error's fluctuation about that
+    /// average ([`temporal`]).
+    #[serde(default)]
+    pub transient: Option<f64>,
 }
 
 /// Aggregates of one method at one rate.
@@ -508,6 +518,13 @@ pub struct ResultRow {
     /// written as `flicker_mean` too.)
     #[serde(alias = "flicker_mean")]
     pub instability_mean: f64,
+    /// Mean sustained error over the frames that have one (see [`FrameRow::sustained`];
+    /// `None` where none has, as in summaries written before it was measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sustained_mean: Option<f64>,
+    /// Mean transient error (see [`FrameRow::transient`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transient_mean: Option<f64>,
     /// Mean information age, seconds.
     pub age_mean_s: f64,
     /// Samples traced over warm-up and window.
@@ -592,6 +609,9 @@ impl FrameRow {
         if !within(self.rms, MOST_RMS) || !self.instability.is_none_or(|v| within(v, MOST_RMS)) {
             return Some("an RMS or instability outside [0, 255·√3]".into());
         }
+        if ![self.sustained, self.transient].iter().all(|v| v.is_none_or(|v| within(v, 255.0))) {
+            return Some("a sustained or transient error outside [0, 255]".into());
+        }
         if !self.flip.is_none_or(|v| within(v, 1.0)) {
             return Some("a FLIP outside [0, 1]".into());
         }
@@ -621,6 +641,8 @@ struct FrameMeans {
     flip_frames: usize,
     instability_mean: f64,
     age_mean_s: f64,
+    sustained_mean: Option<f64>,
+    transient_mean: Option<f64>,
 }
 
 fn frame_means(rows: &[FrameRow]) -> FrameMeans {
@@ -635,6 +657,8 @@ fn frame_means(rows: &[FrameRow]) -> FrameMeans {
         flip_frames: flips.len(),
         instability_mean: instabilities.iter().sum::<f64>() / instabilities.len().max(1) as f64,
         age_mean_s: mean(|r| r.age_s),
+        sustained_mean: temporal::mean_of(rows.iter().map(|r| r.sustained)),
+        transient_mean: temporal::mean_of(rows.iter().map(|r| r.transient)),
     }
 }
 
@@ -665,7 +689,13 @@ impl ResultRow {
             ),
             ("age_mean_s", self.age_mean_s, m.age_mean_s),
         ];
-        let (key, said, is) = means.into_iter().find(|&(_, a, b)| !same(a, b))?;
+        let nan = f64::NAN;
+        let temporal = [
+            ("sustained_mean", self.sustained_mean, m.sustained_mean),
+            ("transient_mean", self.transient_mean, m.transient_mean),
+        ]
+        .map(|(k, a, b)| (k, a.unwrap_or(nan), b.unwrap_or(nan)));
+        let (key, said, is) = means.into_iter().chain(temporal).find(|&(_, a, b)| !same(a, b))?;
         Some(format!(
             "{key} {said} is not the mean of its {} frame rows ({is})",
             m.frames
@@ -1180,14 +1210,14 @@ fn frame_rows(
     kind: MethodKind,
     rate: f64,
     shown: &Shown,
-    metrics: &[(f64, Option<f64>, Option<f64>)],
+    metrics: &[(f64, Option<f64>, Option<f64>, Option<temporal::Split>)],
 ) -> Vec<FrameRow> {
     shown
         .frames
         .iter()
         .zip(metrics)
         .enumerate()
-        .map(|(k, ((_, age), (rms, flip, instability)))| FrameRow {
+        .map(|(k, ((_, age), (rms, flip, instability, split)))| FrameRow {
             method: kind,
             rate,
             frame: k,
@@ -1197,6 +1227,8 @@ fn frame_rows(
             flip: *flip,
             instability: *instability,
             age_s: *age,
+            sustained: split.map(|s| s.sustained),
+            transient: split.map(|s| s.transient),
         })
         .collect()
 }
@@ -1252,13 +1284,17 @@ fn show(
 }
 
 /// Per frame: RMS, FLIP (on every `flip_every`-th frame) and temporal instability
-/// (from the second frame on), computed in parallel.
+/// (from the second frame on), and the sustained and transient errors (from the first
+/// full eye window on), computed in parallel.
 fn measure(
     cfg: &EvalConfig,
     shown: &[(Vec<u8>, f64)],
     ideal: &[Vec<u8>],
-) -> Vec<(f64, Option<f64>, Option<f64>)> {
+) -> Vec<(f64, Option<f64>, Option<f64>, Option<temporal::Split>)> {
     let (w, h) = (cfg.width, cfg.height);
+    let images: Vec<&[u8]> = shown.iter().map(|(rgb, _)| &rgb[..]).collect();
+    let ideals: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
+    let splits = temporal::per_refresh(&images, &ideals, temporal::window_refreshes(cfg.refresh_hz));
     shown
         .par_iter()
         .zip(ideal.par_iter())
@@ -1269,6 +1305,8 @@ fn measure(
                 (k > 0).then(|| metrics::instability(&shown[k - 1].0, rgb, &ideal[k - 1], id));
             (metrics::rms(id, rgb), flip, instability)
         })
+        .zip(splits)
+        .map(|((rms, flip, instability), split)| (rms, flip, instability, split))
         .collect()
 }
 
@@ -1285,6 +1323,8 @@ fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> R
         flip_mean: m.flip_mean,
         flip_frames: m.flip_frames,
         instability_mean: m.instability_mean,
+        sustained_mean: m.sustained_mean,
+        transient_mean: m.transient_mean,
         age_mean_s: m.age_mean_s,
         samples: shown.samples,
         extra: shown.extra.clone(),
