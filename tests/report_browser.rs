@@ -171,6 +171,35 @@ fn a_folder_written_before_the_sustained_and_transient_errors_still_makes_a_repo
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+#[test]
+fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
+    let dir = scratch("vdp");
+    write_report(&dir);
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(!html.contains("Video JOD"), "no table without vdp.json");
+    // As `python -m frameless.vdp` writes it.
+    std::fs::write(
+        dir.join("vdp.json"),
+        r#"{"metric": "ColorVideoVDP", "version": "0.5.7", "display": "standard_fhd",
+            "frames_per_second": 60.0, "results": [
+            {"method": "traditional-frameless", "rate": 100000.0, "jod": 8.02},
+            {"method": "adaptive", "rate": 100000.0, "jod": 9.41},
+            {"method": "traditional-frameless", "rate": 200000.0, "jod": 8.5},
+            {"method": "adaptive", "rate": 200000.0, "jod": 8.25}]}"#,
+    )
+    .unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).expect("report made again")).unwrap();
+    let at = html.find("<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd").expect("a JOD table");
+    let table = &html[at..at + html[at..].find("</table>").unwrap()];
+    assert!(table.contains("<td class=\"best\">9.41</td>") && table.contains("<td>8.02</td>"), "{table}");
+    assert!(table.contains("<td class=\"best\">8.50</td>") && table.contains("<td>8.25</td>"), "{table}");
+    // A file that cannot be read is named, not taken.
+    std::fs::write(dir.join("vdp.json"), "{").unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
+    assert!(html.contains("vdp.json is there but could not be read") && !html.contains("Video JOD"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Chromium, where installed: `$FRAMELESS_CHROMIUM`, else the usual names on the PATH.
 fn chromium() -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("FRAMELESS_CHROMIUM") {

@@ -9,6 +9,7 @@ pub mod sequence;
 pub mod sweep;
 pub mod table1;
 pub mod temporal;
+pub mod video_metric;
 
 use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};
 

@@ -491,6 +491,7 @@ fn html(
     let mut h = String::new();
     html_heading(&mut h, s);
     html_tables(&mut h, s);
+    super::video_metric::html_table(&mut h, s, dir);
     html_plots(&mut h, plots, &present);
     html_strips(&mut h, s, frames, strips, &present);
     html_cost_and_data(&mut h, s, &present);
