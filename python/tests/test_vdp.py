@@ -41,7 +41,7 @@ def test_evaluate_gives_every_row_a_jod_of_the_images_it_scored():
                             rates=["100k"], duration=0.1, size=(48, 32), ideal_spp=2,
                             progress=False, video_metric="cvvdp")
     for r in ev.results:
-        assert 0.0 < r["jod"] <= 10.0, r
+        assert r["jod"] < 10.0, r  # no method shows exactly the ideal video
         assert r["jod_display"] == vdp.DEFAULT_DISPLAY
     with pytest.raises(ValueError, match="cvvdp"):
         frameless.evaluate("toycar", video_metric="vmaf")
@@ -58,7 +58,7 @@ def test_a_folder_gets_vdp_json_and_a_wrong_scene_is_refused(tmp_path):
                    check=True, capture_output=True)
     path = vdp.add_to_folder(out, "toycar")
     rows = json.loads(path.read_text())["results"]
-    assert [r["method"] for r in rows] == ["adaptive"] and 0.0 < rows[0]["jod"] <= 10.0
+    assert [r["method"] for r in rows] == ["adaptive"] and rows[0]["jod"] < 10.0
     report = subprocess.run([str(binary), "report", str(out)], check=True,
                             capture_output=True, text=True)
     assert "Video JOD" in (out / "report.html").read_text(), report.stderr

@@ -35,7 +35,8 @@ pub struct VideoRow {
     pub method: String,
     /// The rate column.
     pub rate: f64,
-    /// Just-objectionable differences: 10 is no visible difference.
+    /// Just-objectionable differences: 10 is no visible difference; far worse videos
+    /// score below 0.
     pub jod: f64,
 }
 
@@ -53,8 +54,10 @@ pub fn read(dir: &Path) -> Option<Result<VideoScores, String>> {
     Some(
         serde_json::from_str::<VideoScores>(&text)
             .map_err(|e| e.to_string())
-            .and_then(|v| match v.results.iter().find(|r| !(0.0..=10.0).contains(&r.jod)) {
-                Some(r) => Err(format!("{} at {}: JOD {} outside 0–10", r.method, r.rate, r.jod)),
+            // 10 is no visible difference, the most a JOD can be; a video far worse than
+            // its reference scores below 0.
+            .and_then(|v| match v.results.iter().find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3)) {
+                Some(r) => Err(format!("{} at {}: JOD {} is not a finite value of at most 10", r.method, r.rate, r.jod)),
                 None => Ok(v),
             }),
     )
@@ -164,15 +167,16 @@ mod tests {
         )
         .unwrap();
         let why = read(&d).unwrap().unwrap_err();
-        assert!(why.contains("outside 0–10"), "{why}");
+        assert!(why.contains("at most 10"), "{why}");
         std::fs::write(
             d.join(FILE),
             r#"{"metric":"ColorVideoVDP","version":"0.5.7","display":"standard_fhd",
-               "results":[{"method":"adaptive","rate":400000.0,"jod":9.41}]}"#,
+               "results":[{"method":"adaptive","rate":400000.0,"jod":9.41},
+                          {"method":"point-tracking","rate":400000.0,"jod":-1.21}]}"#,
         )
         .unwrap();
         let v = read(&d).unwrap().unwrap();
-        assert_eq!(v.results[0].jod, 9.41);
+        assert_eq!((v.results[0].jod, v.results[1].jod), (9.41, -1.21));
         let _ = std::fs::remove_dir_all(&d);
     }
 }
