@@ -147,7 +147,11 @@ fn a_folder_written_before_the_sustained_and_transient_errors_still_makes_a_repo
     // Drop the two columns from frames.csv and the two means from summary.json, as an
     // earlier version wrote them.
     let csv = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
-    assert!(csv.lines().next().unwrap().ends_with(",sustained,transient"));
+    assert!(csv
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",sustained,transient"));
     let old: String = csv
         .lines()
         .map(|l| {
@@ -189,14 +193,24 @@ fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
     )
     .unwrap();
     let html = std::fs::read_to_string(report::rewrite(&dir).expect("report made again")).unwrap();
-    let at = html.find("<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd").expect("a JOD table");
+    let at = html
+        .find("<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd")
+        .expect("a JOD table");
     let table = &html[at..at + html[at..].find("</table>").unwrap()];
-    assert!(table.contains("<td class=\"best\">9.41</td>") && table.contains("<td>8.02</td>"), "{table}");
-    assert!(table.contains("<td class=\"best\">8.50</td>") && table.contains("<td>8.25</td>"), "{table}");
+    assert!(
+        table.contains("<td class=\"best\">9.41</td>") && table.contains("<td>8.02</td>"),
+        "{table}"
+    );
+    assert!(
+        table.contains("<td class=\"best\">8.50</td>") && table.contains("<td>8.25</td>"),
+        "{table}"
+    );
     // A file that cannot be read is named, not taken.
     std::fs::write(dir.join("vdp.json"), "{").unwrap();
     let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
-    assert!(html.contains("vdp.json is there but could not be read") && !html.contains("Video JOD"));
+    assert!(
+        html.contains("vdp.json is there but could not be read") && !html.contains("Video JOD")
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -610,7 +610,10 @@ impl FrameRow {
         if !within(self.rms, MOST_RMS) || !self.instability.is_none_or(|v| within(v, MOST_RMS)) {
             return Some("an RMS or instability outside [0, 255·√3]".into());
         }
-        if ![self.sustained, self.transient].iter().all(|v| v.is_none_or(|v| within(v, 255.0))) {
+        if ![self.sustained, self.transient]
+            .iter()
+            .all(|v| v.is_none_or(|v| within(v, 255.0)))
+        {
             return Some("a sustained or transient error outside [0, 255]".into());
         }
         if !self.flip.is_none_or(|v| within(v, 1.0)) {
@@ -696,7 +699,10 @@ impl ResultRow {
             ("transient_mean", self.transient_mean, m.transient_mean),
         ]
         .map(|(k, a, b)| (k, a.unwrap_or(nan), b.unwrap_or(nan)));
-        let (key, said, is) = means.into_iter().chain(temporal).find(|&(_, a, b)| !same(a, b))?;
+        let (key, said, is) = means
+            .into_iter()
+            .chain(temporal)
+            .find(|&(_, a, b)| !same(a, b))?;
         Some(format!(
             "{key} {said} is not the mean of its {} frame rows ({is})",
             m.frames
@@ -1205,20 +1211,24 @@ fn ideal_images(
     ideal
 }
 
+/// A frame's RMS, FLIP, instability and sustained and transient errors, as `measure`
+/// gives them.
+type FrameMetrics = (f64, Option<f64>, Option<f64>, Option<temporal::Split>);
+
 /// One method's frames at rate column `rate`.
 fn frame_rows(
     cfg: &EvalConfig,
     kind: MethodKind,
     rate: f64,
     shown: &Shown,
-    metrics: &[(f64, Option<f64>, Option<f64>, Option<temporal::Split>)],
+    metrics: &[FrameMetrics],
 ) -> Vec<FrameRow> {
     shown
         .frames
         .iter()
         .zip(metrics)
         .enumerate()
-        .map(|(k, ((_, age), (rms, flip, instability, split)))| FrameRow {
+        .map(|(k, ((_, age), (rms, flip, unsteady, split)))| FrameRow {
             method: kind,
             rate,
             frame: k,
@@ -1226,7 +1236,7 @@ fn frame_rows(
             rms: *rms,
             psnr: metrics::psnr(*rms),
             flip: *flip,
-            instability: *instability,
+            instability: *unsteady,
             age_s: *age,
             sustained: split.map(|s| s.sustained),
             transient: split.map(|s| s.transient),
@@ -1287,15 +1297,12 @@ fn show(
 /// Per frame: RMS, FLIP (on every `flip_every`-th frame) and temporal instability
 /// (from the second frame on), and the sustained and transient errors (from the first
 /// full eye window on), computed in parallel.
-fn measure(
-    cfg: &EvalConfig,
-    shown: &[(Vec<u8>, f64)],
-    ideal: &[Vec<u8>],
-) -> Vec<(f64, Option<f64>, Option<f64>, Option<temporal::Split>)> {
+fn measure(cfg: &EvalConfig, shown: &[(Vec<u8>, f64)], ideal: &[Vec<u8>]) -> Vec<FrameMetrics> {
     let (w, h) = (cfg.width, cfg.height);
     let images: Vec<&[u8]> = shown.iter().map(|(rgb, _)| &rgb[..]).collect();
     let ideals: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
-    let splits = temporal::per_refresh(&images, &ideals, temporal::window_refreshes(cfg.refresh_hz));
+    let splits =
+        temporal::per_refresh(&images, &ideals, temporal::window_refreshes(cfg.refresh_hz));
     shown
         .par_iter()
         .zip(ideal.par_iter())

@@ -534,13 +534,28 @@ fn html_tables(h: &mut String, s: &Summary) {
     // Title, value, decimals, whether higher is better.
     type Column = (&'static str, fn(&super::ResultRow) -> f64, usize, bool);
     let tables: [Column; 7] = [
-        ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 2, false),
+        (
+            "Mean RMS error (0–255, lower is better)",
+            |r| r.rms_mean,
+            2,
+            false,
+        ),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2, true),
-        ("Mean FLIP (0–1, lower is better)", |r| r.flip_mean, 4, false),
+        (
+            "Mean FLIP (0–1, lower is better)",
+            |r| r.flip_mean,
+            4,
+            false,
+        ),
         (SUSTAINED_TITLE, sustained, 2, false),
         (TRANSIENT_TITLE, transient, 2, false),
         (INSTABILITY_TITLE, |r| r.instability_mean, 2, false),
-        ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1, false),
+        (
+            "Mean information age (ms)",
+            |r| r.age_mean_s * 1e3,
+            1,
+            false,
+        ),
     ];
     h.push_str(
         "<p class=\"note\">Columns are sample budgets (samples/s). Bold: the best of the \

@@ -86,8 +86,16 @@ pub fn split<S: AsRef<[u8]>>(shown: &[S], ideal: &[S]) -> Split {
 /// The split at every refresh of a run whose displayed images are `shown` and ideal
 /// images `ideal`, each over the `n` refreshes ending at it; `None` where fewer than
 /// `n` refreshes have been shown.
-pub fn per_refresh<S: AsRef<[u8]> + Sync>(shown: &[S], ideal: &[S], n: usize) -> Vec<Option<Split>> {
-    assert_eq!(shown.len(), ideal.len(), "a displayed image per ideal image");
+pub fn per_refresh<S: AsRef<[u8]> + Sync>(
+    shown: &[S],
+    ideal: &[S],
+    n: usize,
+) -> Vec<Option<Split>> {
+    assert_eq!(
+        shown.len(),
+        ideal.len(),
+        "a displayed image per ideal image"
+    );
     let n = n.max(1);
     (0..shown.len())
         .into_par_iter()
@@ -98,7 +106,9 @@ pub fn per_refresh<S: AsRef<[u8]> + Sync>(shown: &[S], ideal: &[S], n: usize) ->
 /// The mean of the values present, `None` if there are none (a run shorter than one
 /// window, or a file written before these errors were measured).
 pub fn mean_of(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
-    let (sum, count) = values.flatten().fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
+    let (sum, count) = values
+        .flatten()
+        .fold((0.0, 0usize), |(s, c), v| (s + v, c + 1));
     (count > 0).then(|| sum / count as f64)
 }
 
@@ -149,11 +159,21 @@ mod tests {
         // The lag grows, and so does the sustained part; the transient part is the
         // ideal's own change within 100 ms, which does not.
         assert!(last.sustained > 5.0 * first.sustained, "{first:?} {last:?}");
-        assert!((last.transient - first.transient).abs() < 0.1 * first.transient, "{first:?} {last:?}");
+        assert!(
+            (last.transient - first.transient).abs() < 0.1 * first.transient,
+            "{first:?} {last:?}"
+        );
         // `instability` counts this lag at the rate the scene moves, the same on the
         // last refresh as on the first.
-        let inst = |k: usize| super::super::metrics::instability(&shown[k - 1], &shown[k], &ideal[k - 1], &ideal[k]);
-        assert!((inst(59) - inst(n - 1)).abs() < 0.2 * inst(n - 1), "{} {}", inst(n - 1), inst(59));
+        let inst = |k: usize| {
+            super::super::metrics::instability(&shown[k - 1], &shown[k], &ideal[k - 1], &ideal[k])
+        };
+        assert!(
+            (inst(59) - inst(n - 1)).abs() < 0.2 * inst(n - 1),
+            "{} {}",
+            inst(n - 1),
+            inst(59)
+        );
     }
 
     #[test]
@@ -197,8 +217,12 @@ mod tests {
             .collect();
         let s = split(&shown, &ideal);
         assert!(s.transient > 2.0 * s.sustained, "{s:?}");
-        let mse: f64 =
-            shown.iter().zip(&ideal).map(|(d, i)| rms(i, d).powi(2)).sum::<f64>() / 6.0;
+        let mse: f64 = shown
+            .iter()
+            .zip(&ideal)
+            .map(|(d, i)| rms(i, d).powi(2))
+            .sum::<f64>()
+            / 6.0;
         let parts = s.sustained.powi(2) + s.transient.powi(2);
         assert!((parts - mse).abs() < 1e-9 * mse, "{parts} against {mse}");
     }
@@ -209,7 +233,13 @@ mod tests {
         let splits = per_refresh(&ideal, &ideal, 6);
         assert_eq!(splits.iter().flatten().count(), 5);
         for s in splits.into_iter().flatten() {
-            assert_eq!(s, Split { sustained: 0.0, transient: 0.0 });
+            assert_eq!(
+                s,
+                Split {
+                    sustained: 0.0,
+                    transient: 0.0
+                }
+            );
         }
     }
 }

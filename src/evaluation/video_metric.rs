@@ -56,9 +56,18 @@ pub fn read(dir: &Path) -> Option<Result<VideoScores, String>> {
             .map_err(|e| e.to_string())
             // 10 is no visible difference, the most a JOD can be; a video far worse than
             // its reference scores below 0.
-            .and_then(|v| match v.results.iter().find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3)) {
-                Some(r) => Err(format!("{} at {}: JOD {} is not a finite value of at most 10", r.method, r.rate, r.jod)),
-                None => Ok(v),
+            .and_then(|v| {
+                match v
+                    .results
+                    .iter()
+                    .find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3))
+                {
+                    Some(r) => Err(format!(
+                        "{} at {}: JOD {} is not a finite value of at most 10",
+                        r.method, r.rate, r.jod
+                    )),
+                    None => Ok(v),
+                }
             }),
     )
 }
