@@ -80,7 +80,9 @@ fn every_file_the_report_names_is_there_and_every_panel_is_labelled() {
         "Mean RMS error",
         "Mean PSNR",
         "Mean FLIP",
-        "Temporal instability",
+        "Sustained error",
+        "Transient error",
+        "Instability",
     ] {
         assert!(html.contains(&format!("<h2>{table}")), "no {table} table");
     }
@@ -129,6 +131,86 @@ fn a_report_made_again_leaves_out_what_was_deleted() {
     assert!(!refs.iter().any(|r| r == gone || r == "summary.md"));
     assert!(refs.iter().any(|r| r == "strip_200K_0001.png"));
     assert!(html.contains("RMS "), "per-panel values from frames.csv");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_folder_written_before_the_sustained_and_transient_errors_still_makes_a_report() {
+    let dir = scratch("before-split");
+    write_report(&dir);
+    let fresh = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    let table = |html: &str| {
+        let at = html.find("<h2>Sustained error").expect("a sustained table");
+        html[at..at + html[at..].find("</table>").unwrap()].to_string()
+    };
+    assert!(!table(&fresh).contains("<td>–</td>"), "{}", table(&fresh));
+    // Drop the two columns from frames.csv and the two means from summary.json, as an
+    // earlier version wrote them.
+    let csv = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+    assert!(csv
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with(",sustained,transient"));
+    let old: String = csv
+        .lines()
+        .map(|l| {
+            let fields: Vec<&str> = l.split(',').collect();
+            fields[..fields.len() - 2].join(",") + "\n"
+        })
+        .collect();
+    std::fs::write(dir.join("frames.csv"), old).unwrap();
+    let mut summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap()).unwrap();
+    for r in summary["results"].as_array_mut().unwrap() {
+        let r = r.as_object_mut().unwrap();
+        assert!(r.remove("sustained_mean").is_some() && r.remove("transient_mean").is_some());
+    }
+    std::fs::write(dir.join("summary.json"), summary.to_string()).unwrap();
+    let p = report::rewrite(&dir).expect("report made again from the older files");
+    let html = std::fs::read_to_string(p).unwrap();
+    // Not measured then: a dash, not a zero.
+    assert!(table(&html).contains("<td>–</td>"), "{}", table(&html));
+    assert!(!table(&html).contains("0.00"), "{}", table(&html));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
+    let dir = scratch("vdp");
+    write_report(&dir);
+    let html = std::fs::read_to_string(dir.join("report.html")).unwrap();
+    assert!(!html.contains("Video JOD"), "no table without vdp.json");
+    // As `python -m frameless.vdp` writes it.
+    std::fs::write(
+        dir.join("vdp.json"),
+        r#"{"metric": "ColorVideoVDP", "version": "0.5.7", "display": "standard_fhd",
+            "frames_per_second": 60.0, "results": [
+            {"method": "traditional-frameless", "rate": 100000.0, "jod": 8.02},
+            {"method": "adaptive", "rate": 100000.0, "jod": 9.41},
+            {"method": "traditional-frameless", "rate": 200000.0, "jod": 8.5},
+            {"method": "adaptive", "rate": 200000.0, "jod": 8.25}]}"#,
+    )
+    .unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).expect("report made again")).unwrap();
+    let at = html
+        .find("<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd")
+        .expect("a JOD table");
+    let table = &html[at..at + html[at..].find("</table>").unwrap()];
+    assert!(
+        table.contains("<td class=\"best\">9.41</td>") && table.contains("<td>8.02</td>"),
+        "{table}"
+    );
+    assert!(
+        table.contains("<td class=\"best\">8.50</td>") && table.contains("<td>8.25</td>"),
+        "{table}"
+    );
+    // A file that cannot be read is named, not taken.
+    std::fs::write(dir.join("vdp.json"), "{").unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
+    assert!(
+        html.contains("vdp.json is there but could not be read") && !html.contains("Video JOD")
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -269,12 +269,19 @@ def evaluate(
     cache_dir: Optional[PathLike] = None,
     no_cache: bool = False,
     progress: Progress = True,
+    video_metric: Optional[str] = None,
+    video_display: str = "standard_fhd",
 ) -> Evaluation:
     """``frameless eval``: every method at every rate against the ideal image at each
     refresh of the window ``[start, start + duration)``, after ``warmup`` seconds.
     Rates are samples per second (``"400k"``, ``1.5e6``). The ideal images are cached
     as the command line caches them (``cache_dir``, ``no_cache``). No files are
-    written; the numbers are those of the command's ``summary.json``."""
+    written; the numbers are those of the command's ``summary.json``.
+    ``video_metric="cvvdp"`` adds ColorVideoVDP's JOD for the display model
+    ``video_display`` to every result row (``jod``; the extra ``frameless[vdp]``, see
+    ``frameless.vdp``)."""
+    if video_metric not in (None, "cvvdp"):
+        raise ValueError(f"video_metric {video_metric!r}: the one video metric is 'cvvdp'")
     native = _scene(scene)._native
     with _Bar(progress, "evaluating", "rays") as cb:
         summary, frames = _frameless.evaluate(
@@ -282,7 +289,12 @@ def evaluate(
             _size(size), float(refresh_hz), seed, ideal_spp, float(warmup), max_depth,
             texture_filter, flip_every, _cache_dir(cache_dir, no_cache), cb,
         )
-    return Evaluation._from_json(summary, frames)
+    ev = Evaluation._from_json(summary, frames)
+    if video_metric == "cvvdp":
+        from . import vdp
+        vdp.evaluation_jod(ev, _scene(scene), max_depth=max_depth,
+                           texture_filter=texture_filter, display=video_display)
+    return ev
 
 
 def live(

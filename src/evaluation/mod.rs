@@ -8,6 +8,8 @@ pub mod report;
 pub mod sequence;
 pub mod sweep;
 pub mod table1;
+pub mod temporal;
+pub mod video_metric;
 
 use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};
 
@@ -503,6 +505,15 @@ pub struct FrameRow {
     pub instability: Option<f64>,
     /// Mean age of the displayed information, seconds.
     pub age_s: f64,
+    /// Sustained error of the 100 ms ending here, 0–255: the averaged display against
+    /// the averaged ideal ([`temporal`]; `None` before a full window, and in files
+    /// written before it was measured).
+    #[serde(default)]
+    pub sustained: Option<f64>,
+    /// Transient error of the same 100 ms, 0–255: the error's fluctuation about that
+    /// average ([`temporal`]).
+    #[serde(default)]
+    pub transient: Option<f64>,
 }
 
 /// Aggregates of one method at one rate.
@@ -528,6 +539,13 @@ pub struct ResultRow {
     /// written as `flicker_mean` too.)
     #[serde(alias = "flicker_mean")]
     pub instability_mean: f64,
+    /// Mean sustained error over the frames that have one (see [`FrameRow::sustained`];
+    /// `None` where none has, as in summaries written before it was measured).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sustained_mean: Option<f64>,
+    /// Mean transient error (see [`FrameRow::transient`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transient_mean: Option<f64>,
     /// Mean information age, seconds.
     pub age_mean_s: f64,
     /// Samples traced over warm-up and window.
@@ -612,6 +630,12 @@ impl FrameRow {
         if !within(self.rms, MOST_RMS) || !self.instability.is_none_or(|v| within(v, MOST_RMS)) {
             return Some("an RMS or instability outside [0, 255·√3]".into());
         }
+        if ![self.sustained, self.transient]
+            .iter()
+            .all(|v| v.is_none_or(|v| within(v, 255.0)))
+        {
+            return Some("a sustained or transient error outside [0, 255]".into());
+        }
         if !self.flip.is_none_or(|v| within(v, 1.0)) {
             return Some("a FLIP outside [0, 1]".into());
         }
@@ -641,6 +665,8 @@ struct FrameMeans {
     flip_frames: usize,
     instability_mean: f64,
     age_mean_s: f64,
+    sustained_mean: Option<f64>,
+    transient_mean: Option<f64>,
 }
 
 fn frame_means(rows: &[FrameRow]) -> FrameMeans {
@@ -655,6 +681,8 @@ fn frame_means(rows: &[FrameRow]) -> FrameMeans {
         flip_frames: flips.len(),
         instability_mean: instabilities.iter().sum::<f64>() / instabilities.len().max(1) as f64,
         age_mean_s: mean(|r| r.age_s),
+        sustained_mean: temporal::mean_of(rows.iter().map(|r| r.sustained)),
+        transient_mean: temporal::mean_of(rows.iter().map(|r| r.transient)),
     }
 }
 
@@ -685,7 +713,16 @@ impl ResultRow {
             ),
             ("age_mean_s", self.age_mean_s, m.age_mean_s),
         ];
-        let (key, said, is) = means.into_iter().find(|&(_, a, b)| !same(a, b))?;
+        let nan = f64::NAN;
+        let temporal = [
+            ("sustained_mean", self.sustained_mean, m.sustained_mean),
+            ("transient_mean", self.transient_mean, m.transient_mean),
+        ]
+        .map(|(k, a, b)| (k, a.unwrap_or(nan), b.unwrap_or(nan)));
+        let (key, said, is) = means
+            .into_iter()
+            .chain(temporal)
+            .find(|&(_, a, b)| !same(a, b))?;
         Some(format!(
             "{key} {said} is not the mean of its {} frame rows ({is})",
             m.frames
@@ -1194,20 +1231,24 @@ fn ideal_images(
     ideal
 }
 
+/// A frame's RMS, FLIP, instability and sustained and transient errors, as `measure`
+/// gives them.
+type FrameMetrics = (f64, Option<f64>, Option<f64>, Option<temporal::Split>);
+
 /// One method's frames at rate column `rate`.
 fn frame_rows(
     cfg: &EvalConfig,
     kind: MethodKind,
     rate: f64,
     shown: &Shown,
-    metrics: &[(f64, Option<f64>, Option<f64>)],
+    metrics: &[FrameMetrics],
 ) -> Vec<FrameRow> {
     shown
         .frames
         .iter()
         .zip(metrics)
         .enumerate()
-        .map(|(k, ((_, age), (rms, flip, instability)))| FrameRow {
+        .map(|(k, ((_, age), (rms, flip, unsteady, split)))| FrameRow {
             method: kind,
             rate,
             frame: k,
@@ -1215,8 +1256,10 @@ fn frame_rows(
             rms: *rms,
             psnr: metrics::psnr(*rms),
             flip: *flip,
-            instability: *instability,
+            instability: *unsteady,
             age_s: *age,
+            sustained: split.map(|s| s.sustained),
+            transient: split.map(|s| s.transient),
         })
         .collect()
 }
@@ -1272,13 +1315,14 @@ fn show(
 }
 
 /// Per frame: RMS, FLIP (on every `flip_every`-th frame) and temporal instability
-/// (from the second frame on), computed in parallel.
-fn measure(
-    cfg: &EvalConfig,
-    shown: &[(Vec<u8>, f64)],
-    ideal: &[Vec<u8>],
-) -> Vec<(f64, Option<f64>, Option<f64>)> {
+/// (from the second frame on), and the sustained and transient errors (from the first
+/// full eye window on), computed in parallel.
+fn measure(cfg: &EvalConfig, shown: &[(Vec<u8>, f64)], ideal: &[Vec<u8>]) -> Vec<FrameMetrics> {
     let (w, h) = (cfg.width, cfg.height);
+    let images: Vec<&[u8]> = shown.iter().map(|(rgb, _)| &rgb[..]).collect();
+    let ideals: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
+    let splits =
+        temporal::per_refresh(&images, &ideals, temporal::window_refreshes(cfg.refresh_hz));
     shown
         .par_iter()
         .zip(ideal.par_iter())
@@ -1289,6 +1333,8 @@ fn measure(
                 (k > 0).then(|| metrics::instability(&shown[k - 1].0, rgb, &ideal[k - 1], id));
             (metrics::rms(id, rgb), flip, instability)
         })
+        .zip(splits)
+        .map(|((rms, flip, instability), split)| (rms, flip, instability, split))
         .collect()
 }
 
@@ -1305,6 +1351,8 @@ fn aggregate(kind: MethodKind, rate: f64, rows: &[FrameRow], shown: &Shown) -> R
         flip_mean: m.flip_mean,
         flip_frames: m.flip_frames,
         instability_mean: m.instability_mean,
+        sustained_mean: m.sustained_mean,
+        transient_mean: m.transient_mean,
         age_mean_s: m.age_mean_s,
         samples: shown.samples,
         extra: shown.extra.clone(),

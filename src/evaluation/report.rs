@@ -23,6 +23,40 @@ use crate::{
 /// A table of one metric: title, the value of a row, decimals.
 type Metric = (&'static str, fn(&super::ResultRow) -> f64, usize);
 
+/// The tables of the errors that [`super::temporal`] tells apart, and of instability.
+pub const SUSTAINED_TITLE: &str =
+    "Sustained error (0–255: display and ideal each averaged over 100 ms, then compared; lag and smear; lower is better)";
+/// See [`SUSTAINED_TITLE`].
+pub const TRANSIENT_TITLE: &str =
+    "Transient error (0–255: the error's fluctuation within those 100 ms; flicker and dust; lower is better)";
+/// See [`SUSTAINED_TITLE`].
+pub const INSTABILITY_TITLE: &str =
+    "Instability (0–255: change of the error from one refresh to the next; lag counts in it at the rate the scene moves, as flicker does)";
+
+/// The report's definitions of the temporal columns, above its tables.
+const TEMPORAL_NOTE: &str = "<p class=\"note\">Sustained and transient errors judge the \
+    error over the 100 ms ending at each refresh (6 refreshes at 60 Hz), about how long the \
+    eye integrates light. <b>Sustained</b>: the displayed images averaged over those \
+    refreshes against the ideal images averaged over the same, as RMS on 0–255; a display \
+    that shows the scene late or smeared keeps its error from refresh to refresh, so it \
+    stays here. <b>Transient</b>: what the averaging removed, the RMS of each refresh's \
+    error about that average; flicker and pixel dust that change every refresh are here. \
+    The squares of the two add up to the mean squared RMS error of the 100 ms. A run's first \
+    refreshes, before a full 100 ms, have neither. <b>Instability</b> is the mean absolute \
+    change of the error between consecutive refreshes: a display that freezes while the \
+    scene moves scores the scene's own change per refresh, however far behind it falls, \
+    so a low value does not mean a stable picture; it is shown, not ranked.</p>";
+
+/// A row's mean sustained error (NaN: not measured, shown as a dash).
+fn sustained(r: &super::ResultRow) -> f64 {
+    r.sustained_mean.unwrap_or(f64::NAN)
+}
+
+/// A row's mean transient error (NaN: not measured, shown as a dash).
+fn transient(r: &super::ResultRow) -> f64 {
+    r.transient_mean.unwrap_or(f64::NAN)
+}
+
 fn methods_in_order(s: &Summary) -> Vec<MethodKind> {
     let mut m: Vec<MethodKind> = Vec::new();
     for r in &s.results {
@@ -55,15 +89,13 @@ pub fn markdown(s: &Summary) -> String {
         s.scene, s.width, s.height, s.refresh_hz, s.start, s.duration, s.warmup, s.seed, s.ideal_spp
     );
     let _ = writeln!(out, "Reconstructor: {}\n", s.recon);
-    let tables: [Metric; 5] = [
+    let tables: [Metric; 7] = [
         ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 1),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2),
         ("Mean FLIP (lower is better)", |r| r.flip_mean, 4),
-        (
-            "Temporal instability (0–255, change not in the ideal; lower is better)",
-            |r| r.instability_mean,
-            2,
-        ),
+        (SUSTAINED_TITLE, sustained, 2),
+        (TRANSIENT_TITLE, transient, 2),
+        (INSTABILITY_TITLE, |r| r.instability_mean, 2),
         ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1),
     ];
     for (title, f, prec) in tables {
@@ -81,10 +113,10 @@ pub fn markdown(s: &Summary) -> String {
             let _ = write!(out, "| {m} |");
             for r in &rates {
                 match s.results.iter().find(|x| &x.method == m && x.rate == *r) {
-                    Some(x) => {
+                    Some(x) if f(x).is_finite() => {
                         let _ = write!(out, " {:.*} |", prec, f(x));
                     }
-                    None => out.push_str(" – |"),
+                    _ => out.push_str(" – |"),
                 }
             }
             out.push('\n');
@@ -111,6 +143,8 @@ pub fn frames_csv(frames: &[FrameRow]) -> Result<Vec<u8>, csv::Error> {
             flip: f.flip.map(|v| round(v, 6)),
             instability: f.instability.map(|v| round(v, 4)),
             age_s: round(f.age_s, 6),
+            sustained: f.sustained.map(|v| round(v, 4)),
+            transient: f.transient.map(|v| round(v, 4)),
             ..f.clone()
         })?;
     }
@@ -457,6 +491,7 @@ fn html(
     let mut h = String::new();
     html_heading(&mut h, s);
     html_tables(&mut h, s);
+    super::video_metric::html_table(&mut h, s, dir);
     html_plots(&mut h, plots, &present);
     html_strips(&mut h, s, frames, strips, &present);
     html_cost_and_data(&mut h, s, &present);
@@ -498,27 +533,41 @@ fn html_tables(h: &mut String, s: &Summary) {
     let rates = rates_in_order(s);
     // Title, value, decimals, whether higher is better.
     type Column = (&'static str, fn(&super::ResultRow) -> f64, usize, bool);
-    let tables: [Column; 5] = [
-        ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 2, false),
-        ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2, true),
-        ("Mean FLIP (0–1, lower is better)", |r| r.flip_mean, 4, false),
+    let tables: [Column; 7] = [
         (
-            "Temporal instability (0–255: change on screen that the ideal does not have; lower is better)",
-            |r| r.instability_mean,
+            "Mean RMS error (0–255, lower is better)",
+            |r| r.rms_mean,
             2,
             false,
         ),
-        ("Mean information age (ms)", |r| r.age_mean_s * 1e3, 1, false),
+        ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2, true),
+        (
+            "Mean FLIP (0–1, lower is better)",
+            |r| r.flip_mean,
+            4,
+            false,
+        ),
+        (SUSTAINED_TITLE, sustained, 2, false),
+        (TRANSIENT_TITLE, transient, 2, false),
+        (INSTABILITY_TITLE, |r| r.instability_mean, 2, false),
+        (
+            "Mean information age (ms)",
+            |r| r.age_mean_s * 1e3,
+            1,
+            false,
+        ),
     ];
     h.push_str(
         "<p class=\"note\">Columns are sample budgets (samples/s). Bold: the best of the \
          methods that ran at that budget (methods with a budget of their own, such as \
          <code>full-res-60hz</code>, are not ranked).</p>",
     );
+    h.push_str(TEMPORAL_NOTE);
     let cell = |m: &MethodKind, r: f64| s.results.iter().find(|x| &x.method == m && x.rate == r);
     for (i, (title, f, prec, higher)) in tables.into_iter().enumerate() {
-        // Information age is a property, not a score: nothing is ranked.
-        let ranked = i < 4;
+        // Information age is a property, not a score, and instability mixes lag with
+        // flicker (see `TEMPORAL_NOTE`): neither is ranked.
+        let ranked = i < 5;
         let _ = write!(h, "<h2>{title}</h2><table><tr><th>method</th>");
         for r in &rates {
             let _ = write!(h, "<th>{}</th>", rate_label(*r));
@@ -544,13 +593,13 @@ fn html_tables(h: &mut String, s: &Summary) {
             let _ = write!(h, "<tr><td>{m}</td>");
             for (r, b) in rates.iter().zip(&best) {
                 match cell(m, *r) {
-                    Some(x) => {
+                    Some(x) if f(x).is_finite() => {
                         let v = f(x);
                         let is_best = ranked && x.effective_rate == *r && Some(v) == *b;
                         let class = if is_best { " class=\"best\"" } else { "" };
                         let _ = write!(h, "<td{class}>{v:.prec$}</td>");
                     }
-                    None => h.push_str("<td>–</td>"),
+                    _ => h.push_str("<td>–</td>"),
                 }
             }
             h.push_str("</tr>");

@@ -251,7 +251,7 @@ struct Metric {
     with_paper: bool,
 }
 
-const METRICS: [Metric; 3] = [
+const METRICS: [Metric; 5] = [
     Metric {
         title: "Mean RMS error, 0–255 (paper's in parentheses)",
         value: |r| r.rms_mean,
@@ -265,7 +265,19 @@ const METRICS: [Metric; 3] = [
         with_paper: false,
     },
     Metric {
-        title: "Temporal instability, 0–255",
+        title: "Sustained error, 0–255 (display and ideal averaged over 100 ms, then compared: lag, smear)",
+        value: |r| r.sustained_mean.unwrap_or(f64::NAN),
+        decimals: 2,
+        with_paper: false,
+    },
+    Metric {
+        title: "Transient error, 0–255 (the error's fluctuation within 100 ms: flicker, dust)",
+        value: |r| r.transient_mean.unwrap_or(f64::NAN),
+        decimals: 2,
+        with_paper: false,
+    },
+    Metric {
+        title: "Instability, 0–255 (change of the error per refresh: lag at the scene's speed, and flicker)",
         value: |r| r.instability_mean,
         decimals: 2,
         with_paper: false,
@@ -288,6 +300,8 @@ fn metric_table(out: &mut String, metric: &Metric, cols: &[Column<'_>], methods:
         let _ = write!(out, "| {m} |");
         for c in cols {
             match cell(c.summary, *m, c.rate) {
+                // Not measured by the version that wrote the summary.
+                Some(x) if (metric.value)(x).is_nan() => out.push_str(" – |"),
                 Some(x) => {
                     let _ = write!(out, " {:.*}", metric.decimals, (metric.value)(x));
                     if metric.with_paper {

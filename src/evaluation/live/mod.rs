@@ -21,7 +21,7 @@ use std::{path::PathBuf, sync::Arc, time::Instant};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::{metrics, EvalError, Progress};
+use super::{metrics, temporal, EvalError, Progress};
 use crate::{
     limits,
     realtime::{
@@ -254,6 +254,13 @@ pub struct LiveFrameRow {
     /// Mean age of the information on screen at scan-out, seconds: the image's age when
     /// built plus the time from its build to this refresh (`None`: no information).
     pub age_s: Option<f64>,
+    /// Sustained error of the 100 ms ending here, as `eval`'s (`None` before a full
+    /// window, and in files written before it was measured).
+    #[serde(default)]
+    pub sustained: Option<f64>,
+    /// Transient error of the same 100 ms, as `eval`'s.
+    #[serde(default)]
+    pub transient: Option<f64>,
 }
 
 /// A run's or a method's figures: image quality against the ideal, and what the run
@@ -270,12 +277,18 @@ pub struct Scores {
     pub instability: f64,
     /// Mean information age at scan-out, seconds (`None`: no information shown).
     pub age_s: Option<f64>,
+    /// Mean sustained error, 0–255 (`None`: not measured; see `evaluation::temporal`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sustained: Option<f64>,
+    /// Mean transient error, 0–255.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub transient: Option<f64>,
     /// The run's live figures.
     #[serde(flatten)]
     pub live: LiveFigures,
 }
 
-const SCORE_FIELDS: usize = 12;
+const SCORE_FIELDS: usize = 14;
 
 impl Scores {
     fn fields(&self) -> [Option<f64>; SCORE_FIELDS] {
@@ -293,6 +306,8 @@ impl Scores {
             l.others_share,
             l.load_average_before,
             l.others_load_before,
+            self.sustained,
+            self.transient,
         ]
     }
 
@@ -304,6 +319,8 @@ impl Scores {
             flip: v(2),
             instability: v(3),
             age_s: f[4],
+            sustained: f[12],
+            transient: f[13],
             live: LiveFigures {
                 samples_per_s: v(5),
                 images_per_s: v(6),
@@ -630,6 +647,11 @@ fn score(
     ideal: &[Vec<u8>],
 ) -> Vec<LiveFrameRow> {
     let (w, h) = (cfg.width, cfg.height);
+    let shown_all: Vec<_> = (0..cfg.frames()).map(|j| displayed(rec, j, cfg)).collect();
+    let shown_refs: Vec<&[u8]> = shown_all.iter().map(|s| &s[..]).collect();
+    let ideal_refs: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
+    let n = temporal::window_refreshes(cfg.refresh_hz);
+    let splits = temporal::per_refresh(&shown_refs, &ideal_refs[..shown_refs.len()], n);
     (0..cfg.frames())
         .into_par_iter()
         .map(|j| {
@@ -655,6 +677,8 @@ fn score(
                     metrics::instability(&prev, &shown, &ideal[j - 1], &ideal[j])
                 }),
                 age_s: age,
+                sustained: splits[j].map(|s| s.sustained),
+                transient: splits[j].map(|s| s.transient),
             }
         })
         .collect()
@@ -676,6 +700,8 @@ fn scores_of(rows: &[LiveFrameRow], live: LiveFigures) -> Scores {
         flip: all(|r| Some(r.flip)).unwrap_or(f64::NAN),
         instability: all(|r| r.instability).unwrap_or(0.0),
         age_s: all(|r| r.age_s),
+        sustained: temporal::mean_of(rows.iter().map(|r| r.sustained)),
+        transient: temporal::mean_of(rows.iter().map(|r| r.transient)),
         live,
     }
 }

@@ -32,16 +32,14 @@ type Column = (
 );
 
 /// Image quality against the ideal, at scan-out.
-const QUALITY: [Column; 5] = [
+const QUALITY: [Column; 7] = [
     ("RMS (0–255)", |s| Some(s.rms), 2, Some(false)),
     ("PSNR (dB)", |s| Some(s.psnr), 2, Some(true)),
     ("FLIP", |s| Some(s.flip), 4, Some(false)),
-    (
-        "instability (0–255)",
-        |s| Some(s.instability),
-        2,
-        Some(false),
-    ),
+    ("sustained (0–255)", |s| s.sustained, 2, Some(false)),
+    ("transient (0–255)", |s| s.transient, 2, Some(false)),
+    // Lag counts in it at the scene's speed, as flicker does: shown, not ranked.
+    ("instability (0–255)", |s| Some(s.instability), 2, None),
     (
         "age at scan-out (ms)",
         |s| s.age_s.map(|a| a * 1e3),
@@ -300,6 +298,8 @@ fn frames_csv(frames: &[LiveFrameRow], dir: &Path) -> Result<Vec<u8>, EvalError>
             flip: round(f.flip, 6),
             instability: f.instability.map(|v| round(v, 4)),
             age_s: f.age_s.map(|v| round(v, 6)),
+            sustained: f.sustained.map(|v| round(v, 4)),
+            transient: f.transient.map(|v| round(v, 4)),
             ..f.clone()
         })
         .map_err(|e| bad(e.to_string()))?;
