@@ -354,7 +354,10 @@ mod tests {
         for bad in ["", "x", "64x", "-64", "6 4", "64.5", "0"] {
             assert!(parse_size(bad).is_err(), "{bad:?}");
         }
-        assert!(parse_size("abc").unwrap_err().to_string().contains("N for NxN"));
+        assert!(parse_size("abc")
+            .unwrap_err()
+            .to_string()
+            .contains("N for NxN"));
     }
 
     #[test]

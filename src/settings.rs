@@ -363,4 +363,10 @@ macro_rules! defaults_from_clap {
         }
     )*};
 }
-defaults_from_clap!(SceneGroup, DisplayGroup, QualityGroup, ReferenceGroup, DevicesGroup);
+defaults_from_clap!(
+    SceneGroup,
+    DisplayGroup,
+    QualityGroup,
+    ReferenceGroup,
+    DevicesGroup
+);

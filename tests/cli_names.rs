@@ -35,10 +35,24 @@ fn summary(dir: &std::path::Path) -> serde_json::Value {
 fn eval_takes_a_square_size_the_old_time_flag_and_short_out() {
     let out = tmp("eval");
     let o = out.to_str().unwrap();
-    let common = ["--scene", "toycar", "--rate", "100k", "--method", "traditional-frameless"];
-    ok(&[&["eval", "--size", "16", "--seconds", "0.05", "-o", o][..], &common[..]].concat());
+    let common = [
+        "--scene",
+        "toycar",
+        "--rate",
+        "100k",
+        "--method",
+        "traditional-frameless",
+    ];
+    ok(&[
+        &["eval", "--size", "16", "--seconds", "0.05", "-o", o][..],
+        &common[..],
+    ]
+    .concat());
     let s = summary(&out);
-    assert_eq!((s["width"].as_u64(), s["height"].as_u64()), (Some(16), Some(16)));
+    assert_eq!(
+        (s["width"].as_u64(), s["height"].as_u64()),
+        (Some(16), Some(16))
+    );
     assert_eq!(s["duration"].as_f64(), Some(0.05));
     std::fs::remove_dir_all(&out).unwrap();
 }

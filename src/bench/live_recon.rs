@@ -204,12 +204,27 @@ impl LiveReport {
     /// Each table with its title, in the order `frameless bench` prints them.
     pub fn sections(&self) -> [(&'static str, &[LiveFigure]); 6] {
         [
-            ("real-time reconstructor, camera still (carried), 1 thread", &self.sizes_still),
+            (
+                "real-time reconstructor, camera still (carried), 1 thread",
+                &self.sizes_still,
+            ),
             ("camera turning (the ring re-splatted)", &self.sizes_turning),
-            ("camera turning, sums moved with the view (resplat_moving_view off)", &self.sizes_turning_carried),
-            ("ring growing, camera still (carried)", &self.ring_growth_still),
-            ("ring growing, camera turning (re-splatted)", &self.ring_growth_turning),
-            ("ring growing, camera turning, sums moved with the view", &self.ring_growth_turning_carried),
+            (
+                "camera turning, sums moved with the view (resplat_moving_view off)",
+                &self.sizes_turning_carried,
+            ),
+            (
+                "ring growing, camera still (carried)",
+                &self.ring_growth_still,
+            ),
+            (
+                "ring growing, camera turning (re-splatted)",
+                &self.ring_growth_turning,
+            ),
+            (
+                "ring growing, camera turning, sums moved with the view",
+                &self.ring_growth_turning_carried,
+            ),
         ]
     }
 }
@@ -236,12 +251,19 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
             case.width,
             case.height,
             if turning { "turning" } else { "still" },
-            if p.resplat_moving_view { "" } else { ", sums moved with the view" },
+            if p.resplat_moving_view {
+                ""
+            } else {
+                ", sums moved with the view"
+            },
         ));
         one.install(|| live_image_ms(case, spp, p, images, turning))
     };
     let mut sizes = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
-        LIVE_CASES.iter().map(|&c| run(c, spp, p, turning)).collect()
+        LIVE_CASES
+            .iter()
+            .map(|&c| run(c, spp, p, turning))
+            .collect()
     };
     let sizes_still = sizes(realtime, false);
     let sizes_turning = sizes(realtime, true);

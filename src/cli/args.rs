@@ -387,7 +387,6 @@ pub struct LiveArgs {
     pub out: PathBuf,
 }
 
-
 /// Arguments of `frameless still`.
 #[derive(Args, Debug)]
 pub struct StillArgs {
@@ -675,8 +674,18 @@ mod tests {
     #[test]
     fn the_shared_groups_are_on_every_command_that_flattens_them() {
         let shared = [
-            "--scene", "room", "--size", "32x16", "--refresh-hz", "30", "--seed", "2",
-            "--max-depth", "3", "--texture-filter", "none",
+            "--scene",
+            "room",
+            "--size",
+            "32x16",
+            "--refresh-hz",
+            "30",
+            "--seed",
+            "2",
+            "--max-depth",
+            "3",
+            "--texture-filter",
+            "none",
         ];
         let groups = |cmd: &str| {
             let args = ["frameless", cmd].into_iter().chain(shared);
@@ -692,7 +701,11 @@ mod tests {
         for cmd in ["eval", "live", "view", "render", "sampler"] {
             let (scene, display, quality) = groups(cmd);
             assert_eq!(scene.scene, "room", "{cmd}");
-            assert_eq!((display.size, display.refresh_hz), (Size(32, 16), 30.0), "{cmd}");
+            assert_eq!(
+                (display.size, display.refresh_hz),
+                (Size(32, 16), 30.0),
+                "{cmd}"
+            );
             assert_eq!(
                 (quality.seed, quality.max_depth, quality.texture_filter),
                 (2, 3, TextureFilter::None),

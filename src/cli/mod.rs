@@ -137,11 +137,17 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
     };
     let input = |s: &frameless::settings::SceneGroup| vec![s.camera_path.clone(), scene(&s.scene)];
     let (out, inputs) = match cmd {
-        Command::Eval(a) => (&a.out, [input(&a.scene), vec![a.reference.cache()]].concat()),
+        Command::Eval(a) => (
+            &a.out,
+            [input(&a.scene), vec![a.reference.cache()]].concat(),
+        ),
         Command::Render(a) => (&a.out, input(&a.scene)),
         Command::Sampler(a) => (&a.out, input(&a.scene)),
         Command::View(a) if a.headless => (&a.out, input(&a.scene)),
-        Command::Live(a) => (&a.out, [input(&a.scene), vec![a.reference.cache()]].concat()),
+        Command::Live(a) => (
+            &a.out,
+            [input(&a.scene), vec![a.reference.cache()]].concat(),
+        ),
         Command::Table1(a) => {
             let bart = a
                 .bart
@@ -517,7 +523,11 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
         refresh_hz: settings::REFRESH_HZ,
         max_depth: settings::MAX_DEPTH,
         texture_filter: a.filter.texture_filter,
-        cache_dir: Some(a.cache_dir.clone().unwrap_or_else(settings::default_cache_dir)),
+        cache_dir: Some(
+            a.cache_dir
+                .clone()
+                .unwrap_or_else(settings::default_cache_dir),
+        ),
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
         gpu: None,
@@ -577,7 +587,8 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     limits::check_duration(a.duration).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
     limits::check_start(a.start, 0.0, a.duration).map_err(|e| anyhow::anyhow!("--start {e}"))?;
     limits::check_rate(rate, a.duration).map_err(|e| anyhow::anyhow!("--rate {e}"))?;
-    limits::check_refresh_hz(a.display.refresh_hz).map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
+    limits::check_refresh_hz(a.display.refresh_hz)
+        .map_err(|e| anyhow::anyhow!("--refresh-hz {e}"))?;
     let params = sampler_params(&a);
     let Size(w, h) = a.display.size;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
@@ -606,7 +617,10 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
     let t0 = Instant::now();
     let mut display = frameless::image::Image::new(w, h);
     for k in 1..=frames {
-        display = m.display(a.start + k as f64 / a.display.refresh_hz).image.clone();
+        display = m
+            .display(a.start + k as f64 / a.display.refresh_hz)
+            .image
+            .clone();
         bar.inc(1);
     }
     bar.finish();

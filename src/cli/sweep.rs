@@ -12,7 +12,7 @@ use frameless::evaluation::{
     table1,
 };
 
-use super::{progress::Meter};
+use super::progress::Meter;
 
 /// Arguments of `frameless sweep`.
 #[derive(Args, Debug)]
@@ -68,7 +68,11 @@ pub fn sweep(a: SweepArgs) -> Result<()> {
             .bart
             .clone()
             .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into)),
-        cache_dir: (!a.no_cache).then(|| a.cache_dir.clone().unwrap_or_else(frameless::settings::default_cache_dir)),
+        cache_dir: (!a.no_cache).then(|| {
+            a.cache_dir
+                .clone()
+                .unwrap_or_else(frameless::settings::default_cache_dir)
+        }),
     };
     let t0 = std::time::Instant::now();
     // One meter for the shard; each job's evaluation sets its total and counts up.

@@ -109,17 +109,20 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     let (w, h) = s.tracer.size();
     // The warp runs on the builder's own pool.
     let config = s.config.clone();
-    Ok(Box::new(Pooled::new(&config, Builder {
-        s: s.clone(),
-        size: (w, h),
-        rx,
-        building: Assembly::default(),
-        front: Image::new(w, h),
-        front_time: (0, f64::NAN),
-        front_g: None,
-        warp: warp.then(|| Warp::new(w, h)),
-        dropped_frames: 0,
-    })))
+    Ok(Box::new(Pooled::new(
+        &config,
+        Builder {
+            s: s.clone(),
+            size: (w, h),
+            rx,
+            building: Assembly::default(),
+            front: Image::new(w, h),
+            front_time: (0, f64::NAN),
+            front_g: None,
+            warp: warp.then(|| Warp::new(w, h)),
+            dropped_frames: 0,
+        },
+    )))
 }
 
 /// A sampling thread: rows of the current frame until stopped.

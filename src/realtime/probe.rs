@@ -142,6 +142,9 @@ mod tests {
     fn its_setting_is_checked_before_a_thread_starts() {
         let settings = RtSettings::Probe(ProbeSettings { grey: 2.0 });
         let err = Pipeline::start(tracer(), config(), settings).err().unwrap();
-        assert!(err.to_string().contains("probe grey 2 out of range"), "{err}");
+        assert!(
+            err.to_string().contains("probe grey 2 out of range"),
+            "{err}"
+        );
     }
 }

@@ -7,6 +7,8 @@ use std::sync::{Arc, OnceLock};
 
 use clap::builder::PossibleValue;
 
+#[cfg(test)]
+use super::probe::{self, ProbeSettings};
 use super::{
     adaptive::{self, AdaptiveSettings},
     config::{RealtimeError, RtConfig},
@@ -14,8 +16,6 @@ use super::{
     shared::{ImageBuilder, MethodSettings, NoSettings, Overlay, Spawner},
     taa,
 };
-#[cfg(test)]
-use super::probe::{self, ProbeSettings};
 use crate::reconstruction::device::GpuContext;
 
 /// A method's settings type: the one named in its registry line, or [`NoSettings`].
@@ -259,8 +259,12 @@ impl Visualisation {
             .0
             .and_then(|o| overlays.iter().position(|x| x.name == o.name));
         match at {
-            None => overlays.first().map_or(Self::IMAGE, |o| Visualisation(Some(o))),
-            Some(i) => overlays.get(i + 1).map_or(Self::IMAGE, |o| Visualisation(Some(o))),
+            None => overlays
+                .first()
+                .map_or(Self::IMAGE, |o| Visualisation(Some(o))),
+            Some(i) => overlays
+                .get(i + 1)
+                .map_or(Self::IMAGE, |o| Visualisation(Some(o))),
         }
     }
 
@@ -380,8 +384,14 @@ mod tests {
             seen.push(v.name());
         }
         assert_eq!(seen, ["tiling", "gradients", "density", "image"]);
-        assert_eq!(Visualisation::IMAGE.next(RtMethod::Framed), Visualisation::IMAGE);
-        assert_eq!(Visualisation::all()[1].next(RtMethod::Taa), Visualisation::IMAGE);
+        assert_eq!(
+            Visualisation::IMAGE.next(RtMethod::Framed),
+            Visualisation::IMAGE
+        );
+        assert_eq!(
+            Visualisation::all()[1].next(RtMethod::Taa),
+            Visualisation::IMAGE
+        );
     }
 
     #[test]

@@ -277,8 +277,7 @@ pub(crate) struct MethodInfo<S: 'static = NoSettings> {
 }
 
 /// How a method with settings `S` starts ([`MethodInfo::start`]).
-pub(crate) type Start<S> =
-    fn(&mut Spawner<'_>, &S) -> Result<Box<dyn ImageBuilder>, RealtimeError>;
+pub(crate) type Start<S> = fn(&mut Spawner<'_>, &S) -> Result<Box<dyn ImageBuilder>, RealtimeError>;
 
 /// What a framed method shows at a refresh: its newest image as built, or that image
 /// warped to the camera of the refresh (the late warps).

@@ -176,16 +176,19 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     sp.sampling_threads(tx, move |_, tx| sample(&s1, &frames, &params, tx))?;
     // Folds and warps run on the builder's own pool.
     let config = s.config.clone();
-    Ok(Box::new(Pooled::new(&config, Builder {
-        s,
-        rx,
-        building: Assembly::default(),
-        folded: None,
-        fold_s,
-        history,
-        warp: (shown == Shown::Warped).then(|| Warp::new(size.0, size.1)),
-        dropped_frames: 0,
-    })))
+    Ok(Box::new(Pooled::new(
+        &config,
+        Builder {
+            s,
+            rx,
+            building: Assembly::default(),
+            folded: None,
+            fold_s,
+            history,
+            warp: (shown == Shown::Warped).then(|| Warp::new(size.0, size.1)),
+            dropped_frames: 0,
+        },
+    )))
 }
 
 /// A sampling thread: rows of the current frame until stopped.

@@ -30,8 +30,8 @@ use winit::{
 
 use super::{
     camera::{CameraRecorder, FlyCamera},
-    pacing::Pacer,
     config::{RealtimeError, RtConfig},
+    pacing::Pacer,
     pipeline::Pipeline,
     registry::{RtMethod, RtSettings, Visualisation},
 };
@@ -463,6 +463,9 @@ mod tests {
             without_source_location(m),
             "neither WAYLAND_DISPLAY nor WAYLAND_SOCKET nor DISPLAY is set"
         );
-        assert_eq!(without_source_location("the event loop was created twice"), "the event loop was created twice");
+        assert_eq!(
+            without_source_location("the event loop was created twice"),
+            "the event loop was created twice"
+        );
     }
 }

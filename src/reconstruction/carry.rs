@@ -615,7 +615,12 @@ fn exact_target(
 /// paint it over the other: they are dropped instead (`None`).
 fn borrow(geo: &[Geo], w: usize, h: usize, x: usize, y: usize, keep: f32) -> Option<Geo> {
     let r = BORROW_RADIUS as usize;
-    let around = |r: usize| (x.saturating_sub(r)..=(x + r).min(w - 1), y.saturating_sub(r)..=(y + r).min(h - 1));
+    let around = |r: usize| {
+        (
+            x.saturating_sub(r)..=(x + r).min(w - 1),
+            y.saturating_sub(r)..=(y + r).min(h - 1),
+        )
+    };
     // The depth range over every neighbour first: straight loops over the rows.
     let (mut near, mut far) = (f32::INFINITY, 0f32);
     let (xs, ys) = around(r);

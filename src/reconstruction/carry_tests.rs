@@ -257,7 +257,15 @@ fn a_moving_view_resplats_the_ring_and_carrying_resumes_once_it_holds() {
     let bs: Vec<Vec<RingSample>> = times
         .iter()
         .enumerate()
-        .map(|(k, &t)| batches(&cam_at(eye(k), w, h), &[t - 1.0 / 60.0, t], 80, 20 + k as u64).remove(1))
+        .map(|(k, &t)| {
+            batches(
+                &cam_at(eye(k), w, h),
+                &[t - 1.0 / 60.0, t],
+                80,
+                20 + k as u64,
+            )
+            .remove(1)
+        })
         .collect();
     let hybrid = ReconParams {
         resplat_moving_view: true,

@@ -33,8 +33,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::{image::Image, scene::CameraFrame, trace::luminance};
 use super::lanes::prefetch;
+use crate::{image::Image, scene::CameraFrame, trace::luminance};
 
 /// How many samples ahead the history asks for what they will read.
 const PREFETCH_AHEAD: usize = 16;
@@ -602,7 +602,12 @@ impl Pixels {
         }
         // What nothing landed on is empty (cheaper than emptying everything first:
         // most pixels are landed on).
-        for (d, _) in self.depth.iter().enumerate().filter(|(_, z)| **z == f32::INFINITY) {
+        for (d, _) in self
+            .depth
+            .iter()
+            .enumerate()
+            .filter(|(_, z)| **z == f32::INFINITY)
+        {
             self.scratch.cell[d] = Cell::EMPTY;
             self.scratch.count[d] = 0.0;
         }

@@ -469,7 +469,9 @@ fn check_frame_values(r: &JobResult, cfg: &EvalConfig) -> Result<(), NotTheJobs>
 /// [`check_values`]).
 #[derive(Debug, thiserror::Error)]
 enum NotTheJobs {
-    #[error("{results} result rows and {frames} frame rows; the job has {columns} and {job_frames}")]
+    #[error(
+        "{results} result rows and {frames} frame rows; the job has {columns} and {job_frames}"
+    )]
     Counts {
         results: usize,
         frames: usize,

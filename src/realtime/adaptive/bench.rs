@@ -23,7 +23,10 @@ use crate::{
 };
 
 /// A fresh controller sampler for every band.
-pub(super) fn band_samplers(s: &Shared, published: &Published) -> Result<Vec<Sampler>, RealtimeError> {
+pub(super) fn band_samplers(
+    s: &Shared,
+    published: &Published,
+) -> Result<Vec<Sampler>, RealtimeError> {
     let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
     let bands = published.bands.iter();
     bands

@@ -91,7 +91,11 @@ pub(super) struct ImageFigures {
 /// more arrive between two images than it can take in and still build an image in
 /// its budget; the older ones would not be placed. (They are lost to the still-region
 /// history too, which gathers every sample taken in.)
-pub(super) fn push_newest(r: &mut Reconstructor, batches: &[Vec<StreamSample>], limit: Option<usize>) {
+pub(super) fn push_newest(
+    r: &mut Reconstructor,
+    batches: &[Vec<StreamSample>],
+    limit: Option<usize>,
+) {
     let total: usize = batches.iter().map(Vec::len).sum();
     let most = limit.map_or(r.capacity(), |l| l.min(r.capacity()));
     let mut skip = total.saturating_sub(most);

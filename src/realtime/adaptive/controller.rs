@@ -120,7 +120,9 @@ pub(super) fn control(
     rx: Receiver<Batch>,
     tx: Sender<Vec<StreamSample>>,
 ) {
-    let Some(mut sampler) = controller_sampler(s, &published.settings.sampler, published.bands[b].rect) else {
+    let Some(mut sampler) =
+        controller_sampler(s, &published.settings.sampler, published.bands[b].rect)
+    else {
         return;
     };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);

@@ -58,12 +58,12 @@ pub use bench::{controller_bench, ControllerBench};
 pub use published::{bands, controllers, THREADS_PER_CONTROLLER};
 pub use settings::{AdaptiveArgs, AdaptiveSettings};
 
-use builder::Builder;
-use published::Published;
 use crate::realtime::{
     config::RealtimeError,
     shared::{ImageBuilder, MethodInfo, Pooled, Spawner},
 };
+use builder::Builder;
+use published::Published;
 
 /// The adaptive method's description.
 pub(crate) const METHOD: MethodInfo<AdaptiveSettings> = MethodInfo {
@@ -105,7 +105,9 @@ fn start(
     sp.sampling_threads(to_ctrl, move |i, tx| sampling::sample(&s1, &p1, i, tx))?;
     for (b, rx) in ctrl_rx.into_iter().enumerate() {
         let (s2, p2, tx) = (s.clone(), published.clone(), to_img.clone());
-        sp.spawn("controller", move || controller::control(&s2, &p2, b, rx, tx))?;
+        sp.spawn("controller", move || {
+            controller::control(&s2, &p2, b, rx, tx)
+        })?;
     }
     // The builder owns its reconstructor, on the settings' device, and the pool the
     // reconstructor splats on.

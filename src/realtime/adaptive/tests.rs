@@ -8,17 +8,17 @@ use super::{
     builder::{next_live_limit, push_newest},
     controllers,
     published::{Published, MIN_BAND_ROWS},
-    settings::AdaptiveSettings,
     sampling::Visit,
+    settings::AdaptiveSettings,
     THREADS_PER_CONTROLLER,
 };
 use crate::{
     methods::adaptive::SamplerParams,
     realtime::shared::Shared,
-    reconstruction::Reconstructor,
-    trace::StreamSample,
     realtime::{config::RtConfig, registry::RtMethod},
+    reconstruction::Reconstructor,
     scene::builtin,
+    trace::StreamSample,
     trace::{TraceOptions, Tracer},
 };
 

@@ -346,9 +346,28 @@ mod layout_tests {
     fn history_wgsl_lays_out_the_params_and_arrays_as_the_rust_side() {
         let m = parse(&super::source());
         let p = rust_fields!(HParams {
-            eye, t, forward, n_fresh, corner, n_cuts, du, du2, dv, dv2, width, height, slack,
-            keep, recon_weight, max_count, box_scale, tolerance, clamped_count,
-            min_count_to_test, reprojected_count, pad,
+            eye,
+            t,
+            forward,
+            n_fresh,
+            corner,
+            n_cuts,
+            du,
+            du2,
+            dv,
+            dv2,
+            width,
+            height,
+            slack,
+            keep,
+            recon_weight,
+            max_count,
+            box_scale,
+            tolerance,
+            clamped_count,
+            min_count_to_test,
+            reprojected_count,
+            pad,
         });
         check_struct(&m, "H", p, std::mem::size_of::<HParams>());
         assert_eq!(wgsl_u32(&m, "ACC") as u64, ACC);

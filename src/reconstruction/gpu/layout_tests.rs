@@ -60,13 +60,19 @@ pub(super) fn wgsl_fields(module: &Module, name: &str) -> (Fields, usize) {
 /// Check that the Rust struct of `rust` fields and `rust_size` bytes lays out as the
 /// WGSL struct `name` of `module`.
 pub(super) fn check_struct(module: &Module, name: &str, rust: Fields, rust_size: usize) {
-    let rust: Fields = rust.into_iter().filter(|(n, _, _)| !n.starts_with("pad")).collect();
+    let rust: Fields = rust
+        .into_iter()
+        .filter(|(n, _, _)| !n.starts_with("pad"))
+        .collect();
     let (wgsl, wgsl_size) = wgsl_fields(module, name);
     assert_eq!(
         rust, wgsl,
         "struct {name}: the Rust fields (left) are not the WGSL's (right), as (name, offset, size)"
     );
-    assert_eq!(rust_size, wgsl_size, "struct {name}: Rust and WGSL sizes differ");
+    assert_eq!(
+        rust_size, wgsl_size,
+        "struct {name}: Rust and WGSL sizes differ"
+    );
 }
 
 /// The value of the WGSL constant `name`, an unsigned integer.
@@ -87,18 +93,64 @@ pub(super) fn wgsl_u32(module: &Module, name: &str) -> u32 {
 fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
     let m = parse(&recon_source());
     let params = rust_fields!(Params {
-        eye, t, forward, reproject, u, ou, v, ov, width, height, cap, first, count, bins_x,
-        bins_y, items_cap, temporal_cutoff, max_r, grow, shrink, undersampled, oversampled,
-        scale_lo, scale_hi, levels, keep, setter_age, fill_weight, carry, pad,
+        eye,
+        t,
+        forward,
+        reproject,
+        u,
+        ou,
+        v,
+        ov,
+        width,
+        height,
+        cap,
+        first,
+        count,
+        bins_x,
+        bins_y,
+        items_cap,
+        temporal_cutoff,
+        max_r,
+        grow,
+        shrink,
+        undersampled,
+        oversampled,
+        scale_lo,
+        scale_hi,
+        levels,
+        keep,
+        setter_age,
+        fill_weight,
+        carry,
+        pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());
-    let tile = rust_fields!(GpuTile { inv_et, ax, ay, cx, cy, pad });
+    let tile = rust_fields!(GpuTile {
+        inv_et,
+        ax,
+        ay,
+        cx,
+        cy,
+        pad
+    });
     check_struct(&m, "TileFilter", tile, std::mem::size_of::<GpuTile>());
-    let level = rust_fields!(Level { src, dst, src_w, src_h, dst_w, dst_h, from_acc, pad });
+    let level = rust_fields!(Level {
+        src,
+        dst,
+        src_w,
+        src_h,
+        dst_w,
+        dst_h,
+        from_acc,
+        pad
+    });
     check_struct(&m, "Level", level, std::mem::size_of::<Level>());
     // The splats live on the GPU alone: only their size is the Rust side's.
     let (_, splat) = wgsl_fields(&m, "Splat");
-    assert_eq!(splat as u64, SPLAT_BYTES, "SPLAT_BYTES is not the WGSL Splat's size");
+    assert_eq!(
+        splat as u64, SPLAT_BYTES,
+        "SPLAT_BYTES is not the WGSL Splat's size"
+    );
 }
 
 #[test]
