@@ -11,7 +11,7 @@ use std::{
 
 use plotters::prelude::*;
 
-use super::{metrics, EvalError, EvalOutput, FrameRow, Summary};
+use super::{metrics, video_metric, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{
     image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
@@ -491,7 +491,7 @@ fn html(
     let mut h = String::new();
     html_heading(&mut h, s);
     html_tables(&mut h, s);
-    super::video_metric::html_table(&mut h, s, dir);
+    html_video_table(&mut h, s, dir);
     html_plots(&mut h, plots, &present);
     html_strips(&mut h, s, frames, strips, &present);
     html_cost_and_data(&mut h, s, &present);
@@ -606,6 +606,77 @@ fn html_tables(h: &mut String, s: &Summary) {
         }
         h.push_str("</table>");
     }
+}
+
+/// The report's JOD table (methods of `s` by its rates, the best of each rate at equal
+/// budget in bold), or a note saying why `vdp.json` could not be read; nothing when
+/// the folder has none.
+fn html_video_table(h: &mut String, s: &Summary, dir: &Path) {
+    let v = match video_metric::read(dir) {
+        None => return,
+        Some(Err(why)) => {
+            let _ = write!(
+                h,
+                "<p class=\"note\">{} is there but could not be read: {}</p>",
+                video_metric::FILE,
+                escape(&why)
+            );
+            return;
+        }
+        Some(Ok(v)) => v,
+    };
+    let _ = write!(
+        h,
+        "<h2>Video JOD ({} {}, display {}; 10 is no visible difference, higher is better)</h2>\
+         <p class=\"note\">The metric's prediction of how visibly each method's displayed \
+         video, every refresh of the window, differs from the ideal video, from {}.</p>\
+         <table><tr><th>method</th>",
+        escape(&v.metric),
+        escape(&v.version),
+        escape(&v.display),
+        video_metric::FILE
+    );
+    let rates = rates_in_order(s);
+    for r in &rates {
+        let _ = write!(h, "<th>{}</th>", rate_label(*r));
+    }
+    h.push_str("</tr>");
+    let jod = |m: &str, rate: f64| {
+        v.results
+            .iter()
+            .find(|x| x.method == m && x.rate == rate)
+            .map(|x| x.jod)
+    };
+    let equal_budget = |m: &str, rate: f64| {
+        s.results
+            .iter()
+            .any(|x| x.method.name() == m && x.rate == rate && x.effective_rate == rate)
+    };
+    let best: Vec<Option<f64>> = rates
+        .iter()
+        .map(|&r| {
+            s.results
+                .iter()
+                .filter(|x| x.rate == r && x.effective_rate == r)
+                .filter_map(|x| jod(x.method.name(), r))
+                .reduce(f64::max)
+        })
+        .collect();
+    for m in methods_in_order(s).iter().map(|m| m.name()) {
+        let _ = write!(h, "<tr><td>{}</td>", escape(m));
+        for (r, b) in rates.iter().zip(&best) {
+            match jod(m, *r) {
+                Some(j) => {
+                    let bold = equal_budget(m, *r) && Some(j) == *b;
+                    let class = if bold { " class=\"best\"" } else { "" };
+                    let _ = write!(h, "<td{class}>{j:.2}</td>");
+                }
+                None => h.push_str("<td>–</td>"),
+            }
+        }
+        h.push_str("</tr>");
+    }
+    h.push_str("</table>");
 }
 
 /// The RMS-over-time plots that are in the folder.

@@ -4,11 +4,10 @@
 //! one. The metric needs PyTorch, so it is computed outside this crate; the report
 //! shows its table when the file is there.
 
-use std::{fmt::Write as _, path::Path};
+use std::path::Path;
 
 use serde::Deserialize;
 
-use super::{report::rate_label, Summary};
 use crate::limits;
 
 /// The file in an output folder.
@@ -70,86 +69,6 @@ pub fn read(dir: &Path) -> Option<Result<VideoScores, String>> {
                 }
             }),
     )
-}
-
-/// The report's JOD table (methods of `s` by its rates, the best of each rate at equal
-/// budget in bold), or a note saying why `vdp.json` could not be read; nothing when
-/// the folder has none.
-pub fn html_table(h: &mut String, s: &Summary, dir: &Path) {
-    let v = match read(dir) {
-        None => return,
-        Some(Err(why)) => {
-            let _ = write!(
-                h,
-                "<p class=\"note\">{FILE} is there but could not be read: {}</p>",
-                super::report::escape(&why)
-            );
-            return;
-        }
-        Some(Ok(v)) => v,
-    };
-    let _ = write!(
-        h,
-        "<h2>Video JOD ({} {}, display {}; 10 is no visible difference, higher is better)</h2>\
-         <p class=\"note\">The metric's prediction of how visibly each method's displayed \
-         video, every refresh of the window, differs from the ideal video, from {FILE}.</p>\
-         <table><tr><th>method</th>",
-        super::report::escape(&v.metric),
-        super::report::escape(&v.version),
-        super::report::escape(&v.display)
-    );
-    let mut rates: Vec<f64> = Vec::new();
-    for r in &s.results {
-        if !rates.contains(&r.rate) {
-            rates.push(r.rate);
-        }
-    }
-    for r in &rates {
-        let _ = write!(h, "<th>{}</th>", rate_label(*r));
-    }
-    h.push_str("</tr>");
-    let jod = |m: &str, rate: f64| {
-        v.results
-            .iter()
-            .find(|x| x.method == m && x.rate == rate)
-            .map(|x| x.jod)
-    };
-    let equal_budget = |m: &str, rate: f64| {
-        s.results
-            .iter()
-            .any(|x| x.method.name() == m && x.rate == rate && x.effective_rate == rate)
-    };
-    let best: Vec<Option<f64>> = rates
-        .iter()
-        .map(|&r| {
-            s.results
-                .iter()
-                .filter(|x| x.rate == r && x.effective_rate == r)
-                .filter_map(|x| jod(x.method.name(), r))
-                .reduce(f64::max)
-        })
-        .collect();
-    let mut methods: Vec<&str> = Vec::new();
-    for r in &s.results {
-        if !methods.contains(&r.method.name()) {
-            methods.push(r.method.name());
-        }
-    }
-    for m in methods {
-        let _ = write!(h, "<tr><td>{}</td>", super::report::escape(m));
-        for (r, b) in rates.iter().zip(&best) {
-            match jod(m, *r) {
-                Some(j) => {
-                    let bold = equal_budget(m, *r) && Some(j) == *b;
-                    let class = if bold { " class=\"best\"" } else { "" };
-                    let _ = write!(h, "<td{class}>{j:.2}</td>");
-                }
-                None => h.push_str("<td>–</td>"),
-            }
-        }
-        h.push_str("</tr>");
-    }
-    h.push_str("</table>");
 }
 
 #[cfg(test)]

@@ -509,35 +509,66 @@ impl Reconstructor {
                 (0.0, 0.0)
             };
             // The nearest new sample of a pixel gives its geometry (the one the
-            // visibility pass keeps), set below once every sample has been tested
-            // against the carried one; `next_geo` is scratch until the next refresh.
-            let g = Geo { z, ox, oy, v };
-            let first = c.stamp[q] != epoch;
-            if first {
-                c.stamp[q] = epoch;
-                c.touched.push(q as u32);
-                c.next_geo[q] = Geo::NONE;
+            // visibility pass keeps), set once every sample has been tested against
+            // the carried one.
+            c.offer(q, Geo { z, ox, oy, v }, epoch, || ring.anchor_of(i));
+        }
+        c.settle();
+    }
+}
+
+impl Carried {
+    /// A new refresh's stamp: every pixel's stamp is then older.
+    fn next_epoch(&mut self) -> u32 {
+        if self.epoch == u32::MAX {
+            self.stamp.fill(0);
+            self.epoch = 0;
+        }
+        self.epoch += 1;
+        self.epoch
+    }
+
+    /// A new sample of geometry `g` lands in pixel `q` at the refresh of stamp `epoch`:
+    /// it becomes the pixel's next geometry if it is the nearest yet, with its anchor
+    /// where it moves (`next_geo` is scratch until the next refresh).
+    fn offer(&mut self, q: usize, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
+        if self.stamp[q] != epoch {
+            self.stamp[q] = epoch;
+            self.touched.push(q as u32);
+            self.next_geo[q] = Geo::NONE;
+        }
+        let nearest = self.next_geo[q];
+        if g.z < nearest.z {
+            // Anchors are kept for moving geometry only.
+            if nearest.v != Vec3::ZERO {
+                self.next_anchor.remove(&(q as u32));
             }
-            if g.z < c.next_geo[q].z {
-                c.next_geo[q] = g;
-                if v != Vec3::ZERO {
-                    c.next_anchor.insert(q as u32, ring.anchor_of(i));
-                } else if !first {
-                    c.next_anchor.remove(&(q as u32));
+            if g.v != Vec3::ZERO {
+                self.next_anchor.insert(q as u32, anchor());
+            }
+            self.next_geo[q] = g;
+        }
+        if g.v != Vec3::ZERO {
+            self.moving.push(q as u32);
+        }
+    }
+
+    /// Every pixel new samples landed on takes its nearest one's geometry and anchor.
+    fn settle(&mut self) {
+        for &q in &self.touched {
+            let i = q as usize;
+            if self.geo[i].v != Vec3::ZERO {
+                self.anchor.remove(&q);
+            }
+            let g = self.next_geo[i];
+            if g.v != Vec3::ZERO {
+                if let Some(a) = self.next_anchor.remove(&q) {
+                    self.anchor.insert(q, a);
                 }
             }
-            if v != Vec3::ZERO {
-                c.moving.push(q as u32);
-            }
+            self.geo[i] = g;
         }
-        for &q in &c.touched {
-            c.geo[q as usize] = c.next_geo[q as usize];
-            match c.next_anchor.remove(&q) {
-                Some(a) => c.anchor.insert(q, a),
-                None => c.anchor.remove(&q),
-            };
-        }
-        c.touched.clear();
+        self.touched.clear();
     }
 }
 
@@ -566,18 +597,6 @@ impl Reconstructor {
         if let Some(c) = &mut self.carried {
             c.restart = true;
         }
-    }
-}
-
-impl Carried {
-    /// A new refresh's stamp: every pixel's stamp is then older.
-    fn next_epoch(&mut self) -> u32 {
-        if self.epoch == u32::MAX {
-            self.stamp.fill(0);
-            self.epoch = 0;
-        }
-        self.epoch += 1;
-        self.epoch
     }
 }
 

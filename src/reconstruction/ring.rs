@@ -147,12 +147,7 @@ impl Ring {
 
     /// What the sample at physical index `p` is fixed to.
     fn anchor_at(&self, p: usize) -> Anchor {
-        let i = (p + self.capacity - self.head) % self.capacity;
-        let k = self.push_index(i);
-        match self.moving.binary_search_by_key(&k, |m| m.0) {
-            Ok(j) => self.moving[j].1,
-            Err(_) => Anchor::Still,
-        }
+        self.anchor_of((p + self.capacity - self.head) % self.capacity)
     }
 
     /// The `i`-th oldest sample.
