@@ -34,6 +34,7 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::{
     lanes::{fast_exp_neg, prefetch},
@@ -108,8 +109,10 @@ pub(super) struct Carried {
     /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
     stamp: Vec<u32>,
     epoch: u32,
-    /// The pixel and weight index of each new sample (reused).
-    ahead: Vec<[u32; 2]>,
+    /// Where each new sample lands (reused).
+    ahead: Vec<Ahead>,
+    /// Where each pixel's sums go when the view moves, in pixel order (reused).
+    moves: Vec<(u32, u32, Move)>,
     /// The previous refresh re-splatted the ring: the next carried refresh starts
     /// from nothing and places the whole live ring as new.
     restart: bool,
@@ -133,10 +136,30 @@ impl Carried {
             stamp: vec![0; n],
             epoch: 0,
             ahead: Vec::new(),
+            moves: Vec::new(),
             restart: false,
             view: None,
         }
     }
+}
+
+/// Where a new sample lands at a refresh: its pixel (`u32::MAX`: off the image or
+/// behind the eye), depth and velocity.
+#[derive(Clone, Copy, Debug)]
+struct Ahead {
+    px: u32,
+    py: u32,
+    z: f32,
+    v: Vec3,
+}
+
+impl Ahead {
+    const OFF: Ahead = Ahead {
+        px: u32::MAX,
+        py: u32::MAX,
+        z: 0.0,
+        v: Vec3::ZERO,
+    };
 }
 
 /// Where one pixel's sums go at a refresh: the pixel its point is seen in now, with
@@ -297,28 +320,21 @@ impl Reconstructor {
         decay: &[[f32; 2]],
         camera: &CameraFrame,
     ) {
-        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
-        let (mut k, mut kc) = (vec![0f32; w], vec![0f32; w]);
-        for y in 0..h {
-            for (x, l) in self.lookup[y * w..(y + 1) * w].iter().enumerate() {
-                [k[x], kc[x]] = decay[l.tile as usize];
-            }
-            let row = &mut self.acc[y * CHANNELS * cs..(y + 1) * CHANNELS * cs];
-            let (rgb, rest) = row.split_at_mut(3 * cs);
-            let (wp, ap) = rest.split_at_mut(cs);
-            for x in 0..w {
-                ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
-                wp[x] *= k[x];
-            }
-            for plane in rgb.chunks_exact_mut(cs) {
-                for x in 0..w {
-                    plane[x] *= k[x];
-                }
-            }
-            for (v, kc) in self.cover[y * w..(y + 1) * w].iter_mut().zip(&kc) {
-                *v *= kc;
-            }
-        }
+        let (w, cs) = (self.width as usize, self.cs);
+        // Rows are independent: in parallel, each row decayed as a whole.
+        self.acc
+            .par_chunks_mut(CHANNELS * cs)
+            .zip(self.cover.par_chunks_mut(w))
+            .zip(self.lookup.par_chunks(w))
+            .for_each_init(
+                || (vec![0f32; w], vec![0f32; w]),
+                |(k, kc), ((row, cover), lookup)| {
+                    for (x, l) in lookup.iter().enumerate() {
+                        [k[x], kc[x]] = decay[l.tile as usize];
+                    }
+                    decay_row(row, cover, cs, k, kc, dt);
+                },
+            );
         if self.params.reproject {
             self.move_listed(c, dt, camera);
         }
@@ -394,34 +410,41 @@ impl Reconstructor {
         c.anchor.clear();
         let mover = Mover::new(w, h, dt, cam0, camera);
         let keep = self.carry_keep();
+        // Where each pixel's sums go, in parallel row by row (the geometry read is
+        // the previous refresh's, which nothing changes here); then they land one
+        // after another in pixel order, as conflicts are settled in that order.
+        let (prev, geo) = (&c.prev, &c.geo);
+        let mut moves = std::mem::take(&mut c.moves);
+        moves.clear();
+        moves.par_extend((0..h).into_par_iter().flat_map_iter(|y| {
+            let mover = &mover;
+            (0..w).filter_map(move |x| {
+                if !holds(prev[(y * CHANNELS + 3) * cs + x]) {
+                    return None;
+                }
+                let g = geo[y * w + x];
+                let g = if g.is_some() {
+                    g
+                } else {
+                    borrow(geo, w, h, x, y, keep)?
+                };
+                mover.target(x, y, g).map(|m| (x as u32, y as u32, m))
+            })
+        }));
         let mut into = Target {
             acc: &mut self.acc,
             cs,
             geo: &mut c.next_geo,
             cover: &mut c.next_cover,
         };
-        for y in 0..h {
-            for x in 0..w {
-                let q = y * w + x;
-                if !holds(c.prev[(y * CHANNELS + 3) * cs + x]) {
-                    continue;
-                }
-                let g = c.geo[q];
-                let Some(g) = (if g.is_some() {
-                    Some(g)
-                } else {
-                    borrow(&c.geo, w, h, x, y, keep)
-                }) else {
-                    continue;
-                };
-                let Some(m) = mover.target(x, y, g) else {
-                    continue;
-                };
-                let [k, kc] = decay[self.lookup[q].tile as usize];
-                let sums = decayed(&c.prev, cs, x, y, k, dt);
-                into.land_move(&m, sums, self.cover[q] * kc, keep, &mut c.moving);
-            }
+        for &(x, y, ref m) in &moves {
+            let (x, y) = (x as usize, y as usize);
+            let q = y * w + x;
+            let [k, kc] = decay[self.lookup[q].tile as usize];
+            let sums = decayed(&c.prev, cs, x, y, k, dt);
+            into.land_move(m, sums, self.cover[q] * kc, keep, &mut c.moving);
         }
+        c.moves = moves;
         std::mem::swap(&mut c.geo, &mut c.next_geo);
         std::mem::swap(&mut self.cover, &mut c.next_cover);
     }
@@ -446,40 +469,45 @@ impl Reconstructor {
         samples: std::ops::Range<usize>,
     ) {
         use field::*;
-        let start = samples.start;
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let proj = Projector::new(camera);
         let keep = self.carry_keep();
         let epoch = c.next_epoch();
         let ring = &self.ring;
-        let sample = |i: usize| {
-            let p = ring.phys(i);
-            let dt = (t - ring.t[p]) as f32;
-            let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
-            let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
-            let (x, y, z) = proj.project(hit + v * dt);
-            (pixel_at(x, y, z, w, h), z, v)
-        };
-        // Each sample's pixel first, so that the loop below can ask for the pixels
-        // of samples ahead of it (they are at random: one miss after another
-        // otherwise).
-        c.ahead.clear();
-        c.ahead.extend(samples.clone().map(|i| match sample(i).0 {
-            Some((px, py)) => [(py * w + px) as u32, ((py * CHANNELS + 3) * cs + px) as u32],
-            None => [u32::MAX; 2],
-        }));
-        for i in samples {
-            if let Some(&[q, a]) = c.ahead.get(i - start + PREFETCH_AHEAD) {
-                let q = q as usize;
+        // Each sample's pixel, depth and velocity first, in parallel, so that the
+        // loop below can ask for the pixels of samples ahead of it (they are at
+        // random: one miss after another otherwise).
+        let mut ahead = std::mem::take(&mut c.ahead);
+        ahead.clear();
+        samples
+            .clone()
+            .into_par_iter()
+            .map(|i| {
+                let p = ring.phys(i);
+                let dt = (t - ring.t[p]) as f32;
+                let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+                let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
+                let (x, y, z) = proj.project(hit + v * dt);
+                match pixel_at(x, y, z, w, h) {
+                    Some((px, py)) => Ahead { px: px as u32, py: py as u32, z, v },
+                    None => Ahead::OFF,
+                }
+            })
+            .collect_into_vec(&mut ahead);
+        for (k, i) in samples.enumerate() {
+            if let Some(n) = ahead.get(k + PREFETCH_AHEAD).filter(|n| n.px != u32::MAX) {
+                let (px, py) = (n.px as usize, n.py as usize);
+                let q = py * w + px;
                 prefetch(&c.geo, q);
                 prefetch(&c.stamp, q);
                 prefetch(&c.next_geo, q);
-                prefetch(&self.acc, a as usize);
+                prefetch(&self.acc, (py * CHANNELS + 3) * cs + px);
             }
-            let (at, z, v) = sample(i);
-            let Some((px, py)) = at else {
+            let Ahead { px, py, z, v } = ahead[k];
+            if px == u32::MAX {
                 continue;
-            };
+            }
+            let (px, py) = (px as usize, py as usize);
             let q = py * w + px;
             let g = c.geo[q];
             let held = g.is_some() && holds(self.acc[(py * CHANNELS + 3) * cs + px]);
@@ -513,6 +541,7 @@ impl Reconstructor {
             // the carried one.
             c.offer(q, Geo { z, ox, oy, v }, epoch, || ring.anchor_of(i));
         }
+        c.ahead = ahead;
         c.settle();
     }
 }
@@ -679,6 +708,27 @@ fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32;
     s
 }
 
+/// One row of accumulators (`CHANNELS` runs of `cs` floats) and its coverage decayed
+/// by the per-pixel factors `k` (sums) and `kc` (coverage) over `dt` (the weighted age
+/// grows by `dt` per unit weight first).
+fn decay_row(row: &mut [f32], cover: &mut [f32], cs: usize, k: &[f32], kc: &[f32], dt: f32) {
+    let w = cover.len();
+    let (rgb, rest) = row.split_at_mut(3 * cs);
+    let (wp, ap) = rest.split_at_mut(cs);
+    for x in 0..w {
+        ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
+        wp[x] *= k[x];
+    }
+    for plane in rgb.chunks_exact_mut(cs) {
+        for x in 0..w {
+            plane[x] *= k[x];
+        }
+    }
+    for (v, kc) in cover.iter_mut().zip(kc) {
+        *v *= kc;
+    }
+}
+
 /// The accumulators, geometry and coverage that carried sums land in.
 struct Target<'a> {
     acc: &'a mut [f32],
@@ -743,14 +793,19 @@ impl Reconstructor {
             return;
         };
         let (w, cs) = (self.width as usize, self.cs);
-        for (y, row) in self.front.chunks_mut(w).enumerate() {
-            let weight = &self.acc[(y * CHANNELS + 3) * cs..][..w];
-            for ((f, g), &wt) in row.iter_mut().zip(&c.geo[y * w..]).zip(weight) {
-                if holds(wt) && g.v == Vec3::ZERO {
-                    *f = f.min(g.z);
+        let acc = &self.acc;
+        self.front
+            .par_chunks_mut(w)
+            .zip(c.geo.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, geo))| {
+                let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
+                for ((f, g), &wt) in row.iter_mut().zip(geo).zip(weight) {
+                    if holds(wt) && g.v == Vec3::ZERO {
+                        *f = f.min(g.z);
+                    }
                 }
-            }
-        }
+            });
     }
 }
 

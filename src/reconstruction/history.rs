@@ -279,6 +279,8 @@ pub(super) struct History {
     cut_pixels: Vec<u32>,
     buckets: Vec<u32>,
     sorted: Vec<(u32, u32)>,
+    /// The pixel each fresh sample is seen in now (`u32::MAX`: none), reused.
+    seen: Vec<u32>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -297,6 +299,7 @@ impl History {
             view_since: None,
             fresh: Vec::new(),
             order: Vec::new(),
+            seen: Vec::new(),
             cut_pixels: Vec::new(),
             buckets: Vec::new(),
             sorted: Vec::new(),
@@ -434,12 +437,23 @@ impl History {
         let w = self.width as usize;
         let mut order = std::mem::take(&mut self.order);
         order.clear();
+        // Where each sample's surface point is seen now, in parallel.
+        let mut seen = std::mem::take(&mut self.seen);
+        if self.params.reproject {
+            let (w, h) = (self.width, self.height);
+            self.fresh
+                .par_iter()
+                .map(|f| {
+                    pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32, w, h)
+                        .map_or(u32::MAX, |(q, _)| q as u32)
+                })
+                .collect_into_vec(&mut seen);
+        }
         for (i, f) in self.fresh.iter().enumerate() {
             let q = if self.params.reproject {
-                // Where the sample's surface point is seen now.
-                match self.pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32) {
-                    Some((q, _)) => q,
-                    None => continue,
+                match seen[i] {
+                    u32::MAX => continue,
+                    q => q as usize,
                 }
             } else {
                 if f.t < since {
@@ -454,6 +468,7 @@ impl History {
             }
             order.push((q as u32, i as u32));
         }
+        self.seen = seen;
         let pixels = w * self.height as usize;
         sort_by_pixel(&mut order, pixels, &mut self.buckets, &mut self.sorted);
         order
@@ -518,6 +533,8 @@ struct Pixels {
     /// band, and three rows a band as it goes (reused).
     edges: Vec<(Vec3, Vec3)>,
     rolling: Vec<(Vec3, Vec3)>,
+    /// Where each pixel's history lands when the view moves: from, to, depth (reused).
+    lands: Vec<(u32, u32, f32)>,
     /// Pixels cut during the step under way.
     cuts: u64,
 }
@@ -532,6 +549,7 @@ impl Pixels {
             held_at: Some(Vec::new()),
             edges: Vec::new(),
             rolling: Vec::new(),
+            lands: Vec::new(),
             cuts: 0,
         }
     }
@@ -585,21 +603,32 @@ impl Pixels {
     ) {
         let height = (self.acc.count.len() / width.max(1) as usize) as u32;
         self.depth.fill(f32::INFINITY);
-        for q in 0..self.acc.count.len() {
-            if self.acc.count[q] <= 0.0 {
-                continue;
-            }
-            let Some((d, z)) = pixel_at(camera, self.acc.cell[q].point, width, height) else {
-                continue;
-            };
-            if hidden(front, d, z) {
-                continue;
-            }
+        // Where each pixel's history lands, in parallel; then landed one after
+        // another in pixel order, the nearest winning as before.
+        let (count, cell) = (&self.acc.count, &self.acc.cell);
+        let mut lands = std::mem::take(&mut self.lands);
+        lands.clear();
+        lands.par_extend(
+            count
+                .par_iter()
+                .zip(cell.par_iter())
+                .enumerate()
+                .filter_map(|(q, (&n, c))| {
+                    if n <= 0.0 {
+                        return None;
+                    }
+                    let (d, z) = pixel_at(camera, c.point, width, height)?;
+                    (!hidden(front, d, z)).then_some((q as u32, d as u32, z))
+                }),
+        );
+        for &(q, d, z) in &lands {
+            let (q, d) = (q as usize, d as usize);
             if z < self.depth[d] {
                 self.depth[d] = z;
                 self.scratch.take(d, &self.acc, q, cap);
             }
         }
+        self.lands = lands;
         // What nothing landed on is empty (cheaper than emptying everything first:
         // most pixels are landed on).
         for (d, _) in self
