@@ -507,10 +507,11 @@ impl Reconstructor {
         let t0 = std::time::Instant::now();
         self.update_filters(tiling);
         self.resplat = self.resplats_at(camera);
+        let mut lap = self.passes.lap(0, t0);
         if self.refresh_on_gpu(t, camera) {
+            self.passes.count_refresh();
             return;
         }
-        let mut lap = self.passes.lap(0, t0);
         self.prepare_splats(t, camera);
         lap = self.passes.lap(1, lap);
         self.front_depths();
@@ -566,13 +567,16 @@ impl Reconstructor {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
         let pending = self.carried.as_ref().map(|c| c.pending);
+        let lap = std::time::Instant::now();
         let carried = if self.resplat {
             None
         } else {
             self.carry_for_gpu(t, camera, start)
         };
+        let lap = self.passes.lap(3, lap);
         let max_r = self.max_footprint_radius();
         let step = self.history.as_mut().map(|h| h.plan(t, camera));
+        let lap = self.passes.lap(6, lap);
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -615,6 +619,7 @@ impl Reconstructor {
         }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;
+        self.passes.lap(7, lap);
         Ok(())
     }
 

@@ -3,9 +3,11 @@
 
 use std::time::Instant;
 
-/// The steps of a CPU refresh, in the order they run.
-pub const PASSES: [&str; 7] = [
-    "filters", "place", "fronts", "carry", "splat", "resolve", "history",
+/// The steps of a refresh, in the order they run: on the GPU, the filters, the carry
+/// and the history's plan stay on the CPU, and `gpu` is the rest (uploads, the
+/// passes, read-back); on the CPU, `gpu` is zero.
+pub const PASSES: [&str; 8] = [
+    "filters", "place", "fronts", "carry", "splat", "resolve", "history", "gpu",
 ];
 
 /// Seconds spent in each of [`PASSES`] since the reconstructor was made, and the
@@ -71,7 +73,7 @@ mod tests {
         assert_eq!(ms[4].0, "splat");
         // Two or more milliseconds over two refreshes.
         assert!(ms[4].1 >= 1.0, "{ms:?}");
-        assert!(ms[0].1 == 0.0 && ms[6].1 >= 0.0);
+        assert!(ms[0].1 == 0.0 && ms[6].1 >= 0.0 && ms[7].1 == 0.0);
         assert_eq!(p.refreshes(), 2);
         let later = {
             let mut q = p.clone();

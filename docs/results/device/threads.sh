@@ -25,4 +25,5 @@ for split in 16:8 16:1 15:1 12:4 8:8; do
   echo "view headless 1280x720 30Hz sampling=$s recon=$r:"
   timeout 40 "$repo/$bin" view --headless --size 1280x720 --refresh-hz 30 --duration 3 \
     --method adaptive --sampling-threads "$s" --recon-threads "$r" 2>&1 | grep -v '^wrote'
+  python3 -c 'import json; p = json.load(open("view-out/stats.json")).get("pipeline", {}); print("  pass_ms:", {k: round(v, 1) for k, v in p.get("pass_ms", {}).items()}, "placed_mean:", round(p.get("placed_mean", 0)))' 2>&1
 done
