@@ -28,6 +28,10 @@ fn main() {
         "{:.2} ms per image, {:.0} placed, image {}",
         f.ms_median, f.placed_per_image, f.image_hash
     );
-    let passes: Vec<String> = f.pass_ms.iter().map(|(n, ms)| format!("{n} {ms:.1}")).collect();
+    let passes: Vec<String> = f
+        .pass_ms
+        .iter()
+        .map(|(n, ms)| format!("{n} {ms:.1}"))
+        .collect();
     println!("  per pass (ms, mean): {}", passes.join(", "));
 }

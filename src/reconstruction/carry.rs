@@ -489,7 +489,12 @@ impl Reconstructor {
                 let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
                 let (x, y, z) = proj.project(hit + v * dt);
                 match pixel_at(x, y, z, w, h) {
-                    Some((px, py)) => Ahead { px: px as u32, py: py as u32, z, v },
+                    Some((px, py)) => Ahead {
+                        px: px as u32,
+                        py: py as u32,
+                        z,
+                        v,
+                    },
                     None => Ahead::OFF,
                 }
             })

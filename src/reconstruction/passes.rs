@@ -83,6 +83,10 @@ mod tests {
         };
         let d = later.since(&p);
         assert_eq!(d.refreshes(), 1);
-        assert!(d.mean_ms()[4].1 >= 4.0 && d.mean_ms()[6].1 == 0.0, "{:?}", d.mean_ms());
+        assert!(
+            d.mean_ms()[4].1 >= 4.0 && d.mean_ms()[6].1 == 0.0,
+            "{:?}",
+            d.mean_ms()
+        );
     }
 }
