@@ -499,39 +499,137 @@ impl Reconstructor {
                 }
             })
             .collect_into_vec(&mut ahead);
-        for (k, i) in samples.enumerate() {
-            if let Some(n) = ahead.get(k + PREFETCH_AHEAD).filter(|n| n.px != u32::MAX) {
-                let (px, py) = (n.px as usize, n.py as usize);
+        // Then band by band of rows in parallel: a sample touches only its own pixel,
+        // and each pixel sees its samples in ring order.
+        let band_px = CUT_ROWS * w;
+        let bands = h.div_ceil(CUT_ROWS);
+        let by_band = bucket_by_band(&ahead, CUT_ROWS, bands);
+        let geo = &c.geo;
+        let ctx = CutContext {
+            ahead: &ahead,
+            geo,
+            keep,
+            epoch,
+            w,
+            cs,
+            start: samples.start,
+        };
+        let outs: Vec<BandOut> = self
+            .acc
+            .par_chunks_mut(CUT_ROWS * CHANNELS * cs)
+            .zip(self.cover.par_chunks_mut(band_px))
+            .zip(c.stamp.par_chunks_mut(band_px))
+            .zip(c.next_geo.par_chunks_mut(band_px))
+            .enumerate()
+            .map(|(b, (((acc, cover), stamp), next_geo))| {
+                let mut band = CutBand {
+                    y0: b * CUT_ROWS,
+                    base: b * band_px,
+                    acc,
+                    cover,
+                    stamp,
+                    next_geo,
+                    out: BandOut::default(),
+                };
+                band.cut_and_offer(&ctx, &by_band[b], ring);
+                band.out
+            })
+            .collect();
+        c.ahead = ahead;
+        c.merge_bands(outs);
+        c.settle();
+    }
+}
+
+/// Rows per band of the parallel cut.
+const CUT_ROWS: usize = 16;
+
+/// Indices of `ahead` grouped by band of `rows` rows (`bands` of them), in their
+/// order within each band; samples off the image are left out.
+fn bucket_by_band(ahead: &[Ahead], rows: usize, bands: usize) -> Vec<Vec<u32>> {
+    let mut by_band = vec![Vec::new(); bands];
+    for (k, a) in ahead.iter().enumerate() {
+        if a.px != u32::MAX {
+            by_band[a.py as usize / rows].push(k as u32);
+        }
+    }
+    by_band
+}
+
+/// What every band of the cut reads.
+struct CutContext<'a> {
+    ahead: &'a [Ahead],
+    /// The carried geometry (read only until [`Carried::settle`]).
+    geo: &'a [Geo],
+    keep: f32,
+    epoch: u32,
+    w: usize,
+    cs: usize,
+    /// Logical ring index of `ahead[0]`.
+    start: usize,
+}
+
+/// What a band of the cut leaves for [`Carried::merge_bands`].
+#[derive(Default)]
+struct BandOut {
+    touched: Vec<u32>,
+    /// `(index in ahead, pixel)` of each moving sample, in order.
+    moving: Vec<(u32, u32)>,
+    next_anchor: HashMap<u32, Anchor>,
+}
+
+/// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
+/// pixels' coverage, stamps and next geometry.
+struct CutBand<'a> {
+    y0: usize,
+    /// The band's first pixel.
+    base: usize,
+    acc: &'a mut [f32],
+    cover: &'a mut [f32],
+    stamp: &'a mut [u32],
+    next_geo: &'a mut [Geo],
+    out: BandOut,
+}
+
+impl CutBand<'_> {
+    /// The band's samples (indices of `ctx.ahead`, in ring order): where one lies in
+    /// front of its pixel's carried sums beyond the tolerance they are cut; where
+    /// behind, it is left to the visibility pass; the nearest not behind is offered as
+    /// the pixel's geometry.
+    fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[u32], ring: &super::ring::Ring) {
+        let (w, cs, base) = (ctx.w, ctx.cs, self.base);
+        for (j, &k) in ks.iter().enumerate() {
+            if let Some(&n) = ks.get(j + PREFETCH_AHEAD) {
+                let a = ctx.ahead[n as usize];
+                let (px, py) = (a.px as usize, a.py as usize);
                 let q = py * w + px;
-                prefetch(&c.geo, q);
-                prefetch(&c.stamp, q);
-                prefetch(&c.next_geo, q);
-                prefetch(&self.acc, (py * CHANNELS + 3) * cs + px);
+                prefetch(ctx.geo, q);
+                prefetch(self.stamp, q - base);
+                prefetch(self.next_geo, q - base);
+                prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
             }
-            let Ahead { px, py, z, v } = ahead[k];
-            if px == u32::MAX {
-                continue;
-            }
-            let (px, py) = (px as usize, py as usize);
-            let q = py * w + px;
-            let g = c.geo[q];
-            let held = g.is_some() && holds(self.acc[(py * CHANNELS + 3) * cs + px]);
+            let Ahead { px, py, z, v } = ctx.ahead[k as usize];
+            let (px, ry) = (px as usize, py as usize - self.y0);
+            let q = py as usize * w + px;
+            let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
+            let g = ctx.geo[q];
+            let held = g.is_some() && holds(self.acc[at(3)]);
             // Carried sums of a moving surface were placed by extrapolation: a new
             // sample at another depth wins over them either way. Still ones are
             // exact: a new sample behind them was seen through them (traced from an
             // earlier view, or what was in front has gone since), and is left to the
             // visibility pass while they decay.
             let still = g.v == Vec3::ZERO;
-            if held && still && behind_front(g.z, z, keep) {
+            if held && still && behind_front(g.z, z, ctx.keep) {
                 continue;
             }
-            let cut = held && (behind_front(z, g.z, keep) || behind_front(g.z, z, keep));
+            let cut = held && (behind_front(z, g.z, ctx.keep) || behind_front(g.z, z, ctx.keep));
             if cut {
                 // Something came in front.
                 for ch in 0..CHANNELS {
-                    self.acc[(py * CHANNELS + ch) * cs + px] = 0.0;
+                    self.acc[at(ch)] = 0.0;
                 }
-                self.cover[q] = 0.0;
+                self.cover[q - base] = 0.0;
             }
             // Splats are centred on pixel centres; sums carried here keep their
             // position. (The sample's own sub-pixel position would scatter
@@ -544,10 +642,36 @@ impl Reconstructor {
             // The nearest new sample of a pixel gives its geometry (the one the
             // visibility pass keeps), set once every sample has been tested against
             // the carried one.
-            c.offer(q, Geo { z, ox, oy, v }, epoch, || ring.anchor_of(i));
+            let i = ctx.start + k as usize;
+            self.offer(q, k, Geo { z, ox, oy, v }, ctx.epoch, || ring.anchor_of(i));
         }
-        c.ahead = ahead;
-        c.settle();
+    }
+
+    /// A new sample (index `k` of the cut) of geometry `g` lands in pixel `q` at the
+    /// refresh of stamp `epoch`: it becomes the pixel's next geometry if it is the
+    /// nearest yet, with its anchor where it moves (`next_geo` is scratch until the
+    /// next refresh).
+    fn offer(&mut self, q: usize, k: u32, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
+        let i = q - self.base;
+        if self.stamp[i] != epoch {
+            self.stamp[i] = epoch;
+            self.out.touched.push(q as u32);
+            self.next_geo[i] = Geo::NONE;
+        }
+        let nearest = self.next_geo[i];
+        if g.z < nearest.z {
+            // Anchors are kept for moving geometry only.
+            if nearest.v != Vec3::ZERO {
+                self.out.next_anchor.remove(&(q as u32));
+            }
+            if g.v != Vec3::ZERO {
+                self.out.next_anchor.insert(q as u32, anchor());
+            }
+            self.next_geo[i] = g;
+        }
+        if g.v != Vec3::ZERO {
+            self.out.moving.push((k, q as u32));
+        }
     }
 }
 
@@ -562,29 +686,17 @@ impl Carried {
         self.epoch
     }
 
-    /// A new sample of geometry `g` lands in pixel `q` at the refresh of stamp `epoch`:
-    /// it becomes the pixel's next geometry if it is the nearest yet, with its anchor
-    /// where it moves (`next_geo` is scratch until the next refresh).
-    fn offer(&mut self, q: usize, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
-        if self.stamp[q] != epoch {
-            self.stamp[q] = epoch;
-            self.touched.push(q as u32);
-            self.next_geo[q] = Geo::NONE;
+    /// The bands' pixels touched, anchors and moving pixels, the moving ones in the
+    /// order of their samples (as one pass over the samples lists them).
+    fn merge_bands(&mut self, outs: Vec<BandOut>) {
+        let mut moving = Vec::new();
+        for o in outs {
+            self.touched.extend(o.touched);
+            self.next_anchor.extend(o.next_anchor);
+            moving.extend(o.moving);
         }
-        let nearest = self.next_geo[q];
-        if g.z < nearest.z {
-            // Anchors are kept for moving geometry only.
-            if nearest.v != Vec3::ZERO {
-                self.next_anchor.remove(&(q as u32));
-            }
-            if g.v != Vec3::ZERO {
-                self.next_anchor.insert(q as u32, anchor());
-            }
-            self.next_geo[q] = g;
-        }
-        if g.v != Vec3::ZERO {
-            self.moving.push(q as u32);
-        }
+        moving.sort_unstable_by_key(|&(k, _)| k);
+        self.moving.extend(moving.into_iter().map(|(_, q)| q));
     }
 
     /// Every pixel new samples landed on takes its nearest one's geometry and anchor.

@@ -190,11 +190,7 @@ impl Accum {
 
     /// Pixel `q` empty (its point stays: it is read only where the count is not 0).
     fn clear(&mut self, q: usize) {
-        let c = &mut self.cell[q];
-        c.sum = Vec3::ZERO;
-        c.time_sum = 0.0;
-        c.range = EMPTY_RANGE;
-        self.count[q] = 0.0;
+        clear(&mut self.cell[q], &mut self.count[q]);
     }
 
     /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
@@ -209,6 +205,15 @@ impl Accum {
         };
         self.count[d] = from.count[q] * k;
     }
+}
+
+/// Empty one pixel's cell and count (its point stays: it is read only where the count
+/// is not 0).
+fn clear(cell: &mut Cell, count: &mut f32) {
+    cell.sum = Vec3::ZERO;
+    cell.time_sum = 0.0;
+    cell.range = EMPTY_RANGE;
+    *count = 0.0;
 }
 
 /// A sample waiting to enter the history at the next refresh.
@@ -575,15 +580,7 @@ impl Pixels {
                 self.drop_held();
             }
         }
-        for (k, &(q, i)) in step.order.iter().enumerate() {
-            if let Some(&(qa, ia)) = step.order.get(k + PREFETCH_AHEAD) {
-                // Samples are visited in pixel order, but read at random.
-                prefetch(&step.fresh, ia as usize);
-                prefetch(&self.acc.cell, qa as usize);
-                prefetch(&self.held, qa as usize);
-            }
-            self.take_in(q as usize, &step.fresh[i as usize], step.slack, p);
-        }
+        self.take_in_all(step, p, image.width as usize);
         for &q in &step.cuts {
             self.cut(q as usize);
         }
@@ -644,45 +641,46 @@ impl Pixels {
         self.drop_held();
     }
 
-    /// A still sample joins pixel `q` if it agrees with what the pixel showed; two in
-    /// a row that do not start the pixel over; a moving one cuts it.
-    fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
-        if !f.still {
-            // Something moving covers (part of) the pixel now.
-            self.cut(q);
-            return;
-        }
-        let l = luminance(f.color);
-        let (lo, hi) = self.acc.cell[q].range;
-        let outside =
-            self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
-        match (outside, self.held[q].take()) {
-            (false, held) => {
-                // In range: a held sample was a rare part of the pixel after all.
-                if let Some((c, t, hit)) = held {
-                    self.add(q, c, t, hit, p.max_count);
+    /// Every fresh sample of `step` in its pixel ([`Band::take_in`]), bands of
+    /// [`BLEND_ROWS`] rows of `width` pixels in parallel: a sample touches only its own
+    /// pixel and each pixel sees its samples in their order, so the outcome is the
+    /// same on any number of threads.
+    fn take_in_all(&mut self, step: &Step, p: &HistoryParams, width: usize) {
+        let band = BLEND_ROWS * width.max(1);
+        let order = &step.order;
+        let per_band: Vec<(u64, Vec<u32>)> = self
+            .acc
+            .cell
+            .par_chunks_mut(band)
+            .zip(self.acc.count.par_chunks_mut(band))
+            .zip(self.held.par_chunks_mut(band))
+            .enumerate()
+            .map(|(b, ((cell, count), held))| {
+                let base = b * band;
+                let lo = order.partition_point(|&(q, _)| (q as usize) < base);
+                let hi = order.partition_point(|&(q, _)| (q as usize) < base + cell.len());
+                let mut band = Band {
+                    base,
+                    cell,
+                    count,
+                    held,
+                    cuts: 0,
+                    held_at: Vec::new(),
+                };
+                band.take_in_run(&order[lo..hi], &step.fresh, step.slack, p);
+                (band.cuts, band.held_at)
+            })
+            .collect();
+        let limit = self.held.len() / 8;
+        for (cuts, held) in per_band {
+            self.cuts += cuts;
+            if let Some(at) = &mut self.held_at {
+                // Listed while there are few; past that every pixel may hold one.
+                if at.len() + held.len() <= limit {
+                    at.extend(held);
+                } else {
+                    self.held_at = None;
                 }
-                self.add(q, f.color, f.t, f.hit_point, p.max_count);
-            }
-            (true, None) => self.hold(q, (f.color, f.t, f.hit_point)),
-            (true, Some((c, t, hit))) => {
-                // Two in a row outside what the pixel showed: it changed (a surface
-                // uncovered, a shadow gone); start over from them.
-                self.cut(q);
-                self.add(q, c, t, hit, p.max_count);
-                self.add(q, f.color, f.t, f.hit_point, p.max_count);
-            }
-        }
-    }
-
-    /// Hold sample `s` back at pixel `q`.
-    fn hold(&mut self, q: usize, s: (Vec3, f64, Vec3)) {
-        self.held[q] = Some(s);
-        if let Some(at) = &mut self.held_at {
-            if at.len() < self.held.len() / 8 {
-                at.push(q as u32);
-            } else {
-                self.held_at = None;
             }
         }
     }
@@ -707,23 +705,6 @@ impl Pixels {
         self.cuts += (self.acc.count[q] > 0.0) as u64;
         self.acc.clear(q);
         self.held[q] = None;
-    }
-
-    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
-        let (a, count) = (&mut self.acc.cell[q], &mut self.acc.count[q]);
-        a.point = hit;
-        a.sum += c;
-        a.time_sum += t;
-        *count += 1.0;
-        let l = luminance(c);
-        let r = &mut a.range;
-        *r = (r.0.min(l), r.1.max(l));
-        if *count > max {
-            let k = max / *count;
-            a.sum *= k;
-            a.time_sum *= k as f64;
-            *count = max;
-        }
     }
 
     /// Clamp each pixel's history to the box of the reconstruction around it, then
@@ -810,6 +791,95 @@ impl Pixels {
 }
 
 /// Rows of a band of the history's blend.
+/// A band of consecutive pixels of the history (from pixel `base`) taking in its
+/// fresh samples; what it cut and the pixels it held a sample back in are merged after.
+struct Band<'a> {
+    base: usize,
+    cell: &'a mut [Cell],
+    count: &'a mut [f32],
+    held: &'a mut [Option<(Vec3, f64, Vec3)>],
+    cuts: u64,
+    held_at: Vec<u32>,
+}
+
+impl Band<'_> {
+    /// The `(pixel, index)` run `order` of `fresh`, in order.
+    fn take_in_run(
+        &mut self,
+        order: &[(u32, u32)],
+        fresh: &[Fresh],
+        slack: f32,
+        p: &HistoryParams,
+    ) {
+        for (k, &(q, i)) in order.iter().enumerate() {
+            if let Some(&(qa, ia)) = order.get(k + PREFETCH_AHEAD) {
+                // Samples are visited in pixel order, but read at random.
+                let qa = qa as usize - self.base;
+                prefetch(fresh, ia as usize);
+                prefetch(self.cell, qa);
+                prefetch(self.held, qa);
+            }
+            self.take_in(q as usize - self.base, &fresh[i as usize], slack, p);
+        }
+    }
+
+    /// A still sample joins pixel `q` (of the band) if it agrees with what the pixel
+    /// showed; two in a row that do not start the pixel over; a moving one cuts it.
+    fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
+        if !f.still {
+            // Something moving covers (part of) the pixel now.
+            self.cut(q);
+            return;
+        }
+        let l = luminance(f.color);
+        let (lo, hi) = self.cell[q].range;
+        let outside = self.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
+        match (outside, self.held[q].take()) {
+            (false, held) => {
+                // In range: a held sample was a rare part of the pixel after all.
+                if let Some((c, t, hit)) = held {
+                    self.add(q, c, t, hit, p.max_count);
+                }
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+            (true, None) => {
+                self.held[q] = Some((f.color, f.t, f.hit_point));
+                self.held_at.push((self.base + q) as u32);
+            }
+            (true, Some((c, t, hit))) => {
+                // Two in a row outside what the pixel showed: it changed (a surface
+                // uncovered, a shadow gone); start over from them.
+                self.cut(q);
+                self.add(q, c, t, hit, p.max_count);
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+        }
+    }
+
+    fn cut(&mut self, q: usize) {
+        self.cuts += (self.count[q] > 0.0) as u64;
+        clear(&mut self.cell[q], &mut self.count[q]);
+        self.held[q] = None;
+    }
+
+    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
+        let (a, count) = (&mut self.cell[q], &mut self.count[q]);
+        a.point = hit;
+        a.sum += c;
+        a.time_sum += t;
+        *count += 1.0;
+        let l = luminance(c);
+        let r = &mut a.range;
+        *r = (r.0.min(l), r.1.max(l));
+        if *count > max {
+            let k = max / *count;
+            a.sum *= k;
+            a.time_sum *= k as f64;
+            *count = max;
+        }
+    }
+}
+
 const BLEND_ROWS: usize = 16;
 
 /// Each pixel's lowest and highest colour over itself and its two neighbours in the
