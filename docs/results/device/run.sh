@@ -1,32 +1,46 @@
 #!/usr/bin/env bash
 # The figures the open issues ask of a machine with a GPU and 16 cores, in one run of
-# under 9 minutes, for a session that is lent one (the device tool). The machine has no
-# network and no Vulkan loader: build the release binary here, fetch the loaders once as
-# the device tool's README says (into .gl/, ignored), and carry both:
-#   cargo build --release --bin frameless && strip -o target/frameless-stripped target/release/frameless
-# then, on the device, with carry [".gl", "target/frameless-stripped"]:
+# about 5 minutes, for a session that is lent one (the device tool). The machine has no
+# network and no Vulkan loader: build here, fetch the loaders once as the device tool's
+# README says (into .gl/, ignored), and carry them with the stripped binaries:
+#   cargo build --release --bin frameless --example live_recon
+#   strip -o target/frameless-stripped target/release/frameless
+#   strip -o target/live_recon-stripped target/release/examples/live_recon
+# then, on the device, with carry [".gl", "target/frameless-stripped",
+# "target/live_recon-stripped"] (the tracked PNGs under docs/results may have to be
+# removed from the working tree for the call, and restored after, to fit its 64 MiB):
 #   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
-#   FRAMELESS=target/frameless-stripped bash docs/results/device/run.sh
+#   BUDGET_S=330 bash docs/results/device/run.sh 2>&1 | tee $OUT/run.log
 # Only eight files come back from the device, so everything is written under a work
-# folder and packed into $OUT/results.tar.gz (images left out), with run.log beside it:
-# - machine.txt: cores, memory, GPU, Vulkan loader;
+# folder and packed into $OUT/results.tar.gz (images left out). Steps, in order of
+# value, each cut to what is left of the time budget:
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
-#   640x480 and 1280x720 on 4, 8 and 16 cores (the scaling the image-cost issue asks for:
-#   new images/s, samples/s, the image thread's share), 4-spp ideals to fit the time;
+#   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
+#   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
-# - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU (`--recon gpu`),
-#   to tell whether the image thread stops being the first bottleneck;
-# - bench_gpu.json: `frameless bench --recon gpu`.
-# Steps run in order of value and each is cut to what is left of the time budget.
+# - bench_trace_gpu.log: the GPU tracer's rays/s at 1920x1080 (where `bench --trace`
+#   exists);
+# - live_1920x1080_gputrace/: adaptive and traditional frameless at 1920x1080, 60 Hz,
+#   traced and reconstructed on the GPU (where `live --trace` exists);
+# - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
+# - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU;
+# - view_2cores_recon<N>.log: 1280x720 on 2 cores, the image build on 1 or 2 threads;
+# - bench_gpu.log: `frameless bench --recon gpu`.
 set -uo pipefail
-bin="${FRAMELESS:-target/release/frameless}"
+bin="${FRAMELESS:-target/frameless-stripped}"
+ex="${LIVE_RECON:-target/live_recon-stripped}"
 out="${OUT:-/tmp/device-out}"
 work="$(mktemp -d)"
 cache="$work/ideal-cache"
-budget="${BUDGET_S:-500}"
+budget="${BUDGET_S:-330}"
 mkdir -p "$out" "$cache"
 [ -x "$bin" ] || { echo "error: $bin not found: build and carry the release binary" >&2; exit 1; }
+bin="$(realpath "$bin")"
+[ -x "$ex" ] && ex="$(realpath "$ex")"
 start=$SECONDS
+if [ -z "${VK_DRIVER_FILES:-}" ] && [ -e /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]; then
+  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+fi
 
 # step NAME MAX_SECONDS COMMAND...: run with a timeout of at most what is left.
 step() {
@@ -45,29 +59,46 @@ step() {
   free -g | head -2
   nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>&1 || echo "nvidia-smi: none"
   ldconfig -p | grep -i libvulkan || echo "no Vulkan loader"
-  ls /usr/share/vulkan/icd.d/ /usr/local/nvidia/share/vulkan/icd.d/ 2>&1
 } > "$work/machine.txt"
 
 live() { # live NAME CORES ARGS...
   local name="$1" n="$2"; shift 2
   step "$name" 110 taskset -c "0-$((n - 1))" "$bin" --threads "$n" live --scene toycar \
-    --refresh-hz 30 --start 1 --duration 2 --warmup 1 --repeat 1 --ideal-spp 4 \
+    --start 1 --duration 2 --warmup 1 --repeat 1 --ideal-spp 4 \
     --cache-dir "$cache" -o "$work/$name" "$@"
 }
 
+all=$(nproc)
 for size in 640x480 1280x720; do
   for n in 4 8 16; do
-    [ "$n" -le "$(nproc)" ] || continue
-    live "live_${size}_${n}" "$n" --size "$size" --method adaptive,traditional-frameless
+    [ "$n" -le "$all" ] || continue
+    live "live_${size}_${n}" "$n" --size "$size" --refresh-hz 30 \
+      --method adaptive,traditional-frameless
   done
 done
-all=$(nproc)
-live live_1920x1080_all "$all" --size 1920x1080 --method adaptive,traditional-frameless,late-warp
+live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
+  --method adaptive,traditional-frameless,late-warp
+if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
+  step bench_trace_gpu 60 "$bin" bench --trace gpu --size 1920x1080 --json
+fi
+if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
+  live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
+    --recon gpu --method adaptive,traditional-frameless
+fi
+if [ -x "$ex" ]; then
+  step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
+    echo \"1280x720 4M/s 30Hz 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' 1280 720 4e6 30 2 \$m; done; done"
+fi
 for size in 1280x720 1920x1080; do
-  live "live_${size}_gpurecon" "$all" --size "$size" --method adaptive --recon gpu
+  live "live_${size}_gpurecon" "$all" --size "$size" --refresh-hz 30 --method adaptive --recon gpu
 done
-step bench_gpu 90 "$bin" bench --recon gpu --json
-cp "$work/bench_gpu.log" "$work/bench_gpu.json" 2>/dev/null
+for r in 1 2; do
+  mkdir -p "$work/view_2cores_recon$r"
+  step "view_2cores_recon$r" 20 bash -c "cd '$work/view_2cores_recon$r' && taskset -c 0-1 '$bin' \
+    view --headless --size 1280x720 --refresh-hz 30 --duration 3 --method adaptive \
+    --recon-threads $r"
+done
+step bench_gpu 40 "$bin" bench --recon gpu --json
 
 tar -C "$work" --exclude='*.png' --exclude='ideal-cache' -czf "$out/results.tar.gz" .
 echo "done in $((SECONDS - start)) s: $out/results.tar.gz"
