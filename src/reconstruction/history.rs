@@ -790,7 +790,6 @@ impl Pixels {
     }
 }
 
-/// Rows of a band of the history's blend.
 /// A band of consecutive pixels of the history (from pixel `base`) taking in its
 /// fresh samples; what it cut and the pixels it held a sample back in are merged after.
 struct Band<'a> {
@@ -880,6 +879,7 @@ impl Band<'_> {
     }
 }
 
+/// Rows of a band of the history's blend.
 const BLEND_ROWS: usize = 16;
 
 /// Each pixel's lowest and highest colour over itself and its two neighbours in the
