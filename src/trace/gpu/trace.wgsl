@@ -314,11 +314,11 @@ fn cw_node_hits(k: u32, r: Ray, oct_inv4: u32) -> u32 {
     let adj_o = (p - r.o) * r.inv;
     var hit_mask = 0u;
     for (var half = 0u; half < 2u; half++) {
-        let meta = words[k + 6u + half];
-        let is_inner = (meta & (meta << 1u)) & 0x10101010u;
+        let meta4 = words[k + 6u + half];
+        let is_inner = (meta4 & (meta4 << 1u)) & 0x10101010u;
         let inner_mask = (is_inner >> 4u) * 0xffu;
-        let bit_index4 = (meta ^ (oct_inv4 & inner_mask)) & 0x1f1f1f1fu;
-        let child_bits4 = (meta >> 5u) & 0x07070707u;
+        let bit_index4 = (meta4 ^ (oct_inv4 & inner_mask)) & 0x1f1f1f1fu;
+        let child_bits4 = (meta4 >> 5u) & 0x07070707u;
         for (var j = 0u; j < 4u; j++) {
             let child = 4u * half + j;
             let lo = vec3<f32>(byte8(k + 8u, child), byte8(k + 12u, child), byte8(k + 16u, child));
