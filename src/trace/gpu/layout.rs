@@ -49,6 +49,9 @@ pub(super) struct Params {
     pub n_lights: u32,
     pub statics: StaticOffsets,
     pub state: StateOffsets,
+    /// 1: primary hits only, no shading.
+    pub primary_only: u32,
+    pub pad: [u32; 3],
 }
 
 /// Where each part of the static buffers starts (vec4s of `data`, words of `words`).
@@ -301,6 +304,7 @@ pub(super) fn params(
     count: u32,
     statics: StaticOffsets,
     at: StateOffsets,
+    primary_only: bool,
 ) -> Params {
     let cam = &state.camera;
     let cones = tracer.options.texture_filter == TextureFilter::RayCones;
@@ -322,5 +326,7 @@ pub(super) fn params(
         n_lights: state.lights.len() as u32,
         statics,
         state: at,
+        primary_only: primary_only as u32,
+        pad: [0; 3],
     }
 }

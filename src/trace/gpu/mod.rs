@@ -66,6 +66,8 @@ pub struct GpuSample {
     pub depth: f32,
     /// What the primary ray hit.
     pub hit: HitId,
+    /// Secondary rays traced for it: shadow rays, reflections, refractions.
+    pub secondary_rays: u32,
 }
 
 /// The tracer's GPU side: its static buffers and the state uploaded last.
@@ -154,18 +156,40 @@ impl GpuTracer {
         Ok(out.into_iter().flatten().collect())
     }
 
-    /// Trace the pixel positions `points` in `state` (one of `tracer`'s states).
+    /// Trace and shade the pixel positions `points` in `state` (one of `tracer`'s
+    /// states).
     pub fn trace(
         &mut self,
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
+        self.run(tracer, state, points, false)
+    }
+
+    /// Only the primary hits of `points` (colour: the background), as
+    /// [`Tracer::primary_hit`]: the cheapest query, for benchmarks.
+    pub fn primary_hits(
+        &mut self,
+        tracer: &Tracer,
+        state: &SceneState,
+        points: &[[f32; 2]],
+    ) -> Result<Vec<GpuSample>, GpuTraceError> {
+        self.run(tracer, state, points, true)
+    }
+
+    fn run(
+        &mut self,
+        tracer: &Tracer,
+        state: &SceneState,
+        points: &[[f32; 2]],
+        primary_only: bool,
+    ) -> Result<Vec<GpuSample>, GpuTraceError> {
         self.upload_state(tracer, state)?;
         let per_dispatch = (MAX_GROUPS * GROUP) as usize;
         let mut out = Vec::with_capacity(points.len());
         for chunk in points.chunks(per_dispatch) {
-            out.extend(self.dispatch(tracer, state, chunk)?);
+            out.extend(self.dispatch(tracer, state, chunk, primary_only)?);
         }
         Ok(out)
     }
@@ -186,12 +210,13 @@ impl GpuTracer {
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
+        primary_only: bool,
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
         let Some((_, state_buf, at)) = &self.state else {
             return Ok(Vec::new());
         };
         let n = points.len() as u32;
-        let params = layout::params(tracer, state, n, self.statics, *at);
+        let params = layout::params(tracer, state, n, self.statics, *at, primary_only);
         let device = &self.ctx.device;
         let uniform = init(device, "trace params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
         let pts = storage_init(&self.ctx, "trace points", bytemuck::cast_slice(points))?;
@@ -234,7 +259,8 @@ impl GpuTracer {
     }
 }
 
-/// One sample of the shader's output: (colour, t), (kind, group, primitive, 0).
+/// One sample of the shader's output: (colour, t), (kind, group, primitive, secondary
+/// rays).
 fn unpack(w: &[u32]) -> GpuSample {
     let color = Vec3::new(f32::from_bits(w[0]), f32::from_bits(w[1]), f32::from_bits(w[2]));
     let hit = HitId::from_parts(w[4], w[5], w[6]);
@@ -243,7 +269,12 @@ fn unpack(w: &[u32]) -> GpuSample {
     } else {
         f32::from_bits(w[3])
     };
-    GpuSample { color, depth, hit }
+    GpuSample {
+        color,
+        depth,
+        hit,
+        secondary_rays: w[7],
+    }
 }
 
 fn init(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {

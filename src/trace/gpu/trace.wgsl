@@ -33,6 +33,11 @@ struct Params {
     anim_tris_at: u32,
     anim_attr_at: u32,
     lights_at: u32,
+    // 1: primary hits only, no shading (the benchmark's primary rays).
+    primary_only: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> P: Params;
@@ -45,7 +50,7 @@ struct Params {
 // triangles and their attributes, lights.
 @group(0) @binding(3) var<storage, read> dyn_: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> points: array<vec2<f32>>;
-// Per sample: (colour, t), (hit kind, instance group, primitive, 0).
+// Per sample: (colour, t), (hit kind, instance group, primitive, secondary rays traced).
 @group(0) @binding(5) var<storage, read_write> out: array<vec4<u32>>;
 
 struct Ray {
@@ -943,7 +948,8 @@ struct Local {
     refl: Pending,
 }
 
-fn direct_light(mi: u32, p_out: vec3<f32>, eps: f32, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, diffuse: vec3<f32>) -> vec3<f32> {
+// Also counts the shadow rays it traces in `rays`.
+fn direct_light(mi: u32, p_out: vec3<f32>, eps: f32, n: vec3<f32>, ng: vec3<f32>, d: vec3<f32>, diffuse: vec3<f32>, rays: ptr<function, u32>) -> vec3<f32> {
     var color = vec3<f32>(0.0);
     let mk = P.materials_at + 4u * mi;
     let specular = data[mk + 2u].xyz;
@@ -962,6 +968,7 @@ fn direct_light(mi: u32, p_out: vec3<f32>, eps: f32, n: vec3<f32>, ng: vec3<f32>
             continue;
         }
         let vis = shadow(make_ray(p_out, l, 0.0, dist * (1.0 - 1e-5)));
+        *rays += 1u;
         if vis <= 0.0 {
             continue;
         }
@@ -979,7 +986,7 @@ fn direct_light(mi: u32, p_out: vec3<f32>, eps: f32, n: vec3<f32>, ng: vec3<f32>
 
 // Tracer::shade at a hit, without the recursion: the local colour and the secondary
 // rays it asks for (weights relative to this hit's).
-fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32) -> Local {
+fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32, rays: ptr<function, u32>) -> Local {
     var res: Local;
     res.refr.weight = vec3<f32>(0.0);
     res.refl.weight = vec3<f32>(0.0);
@@ -1012,7 +1019,7 @@ fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32) -> Local {
     var color = P.ambient.xyz * m_ambient * tex;
     let eps = epsilon(s.p);
     let p_out = s.p + ng * eps;
-    color += direct_light(s.material, p_out, eps, n, ng, d, m_diffuse * tex);
+    color += direct_light(s.material, p_out, eps, n, ng, d, m_diffuse * tex, rays);
     res.color = color;
     if depth >= P.max_depth {
         return res;
@@ -1049,8 +1056,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     if h.kind == INSTANCE {
         id.y = inst_cpu_group(h.inst);
     }
-    if h.kind == MISS {
-        out[2u * i] = vec4<u32>(bitcast<vec3<u32>>(P.background.xyz), bitcast<u32>(FAR));
+    if h.kind == MISS || P.primary_only != 0u {
+        out[2u * i] = vec4<u32>(bitcast<vec3<u32>>(P.background.xyz), bitcast<u32>(h.t));
         out[2u * i + 1u] = id;
         return;
     }
@@ -1063,13 +1070,14 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     var weight = vec3<f32>(1.0);
     var cone_width = 0.0;
     var depth = 0u;
+    var rays = 0u;
     loop {
         if hit.kind == MISS {
             color += weight * P.background.xyz;
         } else {
             let s = surface(ray, hit);
             let width = cone_width + P.corner.w * hit.t;
-            let local = shade(ray, s, width, depth);
+            let local = shade(ray, s, width, depth, &rays);
             color += weight * local.color;
             if max3(local.refl.weight) > 0.0 && sp < STACK {
                 stack[sp] = local.refl;
@@ -1089,10 +1097,12 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         let next = stack[sp];
         ray = make_ray(next.o, next.d, 0.0, FAR);
         hit = closest(ray);
+        rays += 1u;
         weight = next.weight;
         cone_width = next.cone_width;
         depth = next.depth;
     }
     out[2u * i] = vec4<u32>(bitcast<vec3<u32>>(color), bitcast<u32>(h.t));
+    id.w = rays;
     out[2u * i + 1u] = id;
 }
