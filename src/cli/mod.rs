@@ -275,10 +275,7 @@ fn print_bench(report: &bench::BenchReport) {
             ""
         };
         println!("tracer           {}{label}", report.trace);
-        println!(
-            "gpu primary      {:.2} M rays/s",
-            g.primary_mrays_per_s
-        );
+        println!("gpu primary      {:.2} M rays/s", g.primary_mrays_per_s);
         println!(
             "gpu shaded       {:.2} M samples/s, {:.2} M secondary rays/s ({:.2} per sample)",
             g.shaded_msamples_per_s, g.secondary_mrays_per_s, g.secondary_per_sample
@@ -366,9 +363,7 @@ fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>
             eprintln!("note: --trace auto: {}; tracing on the CPU", message(&e));
             Ok(None)
         }
-        Err(e) => Err(e.context(format!(
-            "--trace {choice} (--trace cpu traces on the CPU)"
-        ))),
+        Err(e) => Err(e.context(format!("--trace {choice} (--trace cpu traces on the CPU)"))),
     }
 }
 

@@ -841,7 +841,10 @@ impl Tracer {
     pub fn primary_hit_id(&self, state: &SceneState, x: f32, y: f32) -> (HitId, f32) {
         let ray = self.primary_ray(state, x, y);
         let hit = self.closest(state, &ray);
-        (HitId::of(state, hit.as_ref()), hit.map_or(f32::INFINITY, |h| h.t))
+        (
+            HitId::of(state, hit.as_ref()),
+            hit.map_or(f32::INFINITY, |h| h.t),
+        )
     }
 
     fn primary_ray(&self, state: &SceneState, x: f32, y: f32) -> Ray {

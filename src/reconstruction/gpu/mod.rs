@@ -30,8 +30,8 @@ mod layout_tests;
 
 use std::sync::Arc;
 
-use bytemuck::{Pod, Zeroable};
 pub use crate::gpu::{GpuContext, GpuError};
+use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
 use super::{

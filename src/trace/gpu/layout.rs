@@ -247,7 +247,12 @@ fn mat3_cols(m: Mat3) -> [V4; 3] {
 }
 
 fn mat4_cols(m: Mat4) -> [V4; 4] {
-    [m.x_axis.into(), m.y_axis.into(), m.z_axis.into(), m.w_axis.into()]
+    [
+        m.x_axis.into(),
+        m.y_axis.into(),
+        m.z_axis.into(),
+        m.w_axis.into(),
+    ]
 }
 
 /// One scene state (one 1 ms quantum): instances, the top level, the morphing
@@ -267,7 +272,12 @@ pub(super) fn state(tracer: &Tracer, state: &SceneState) -> (Vec<V4>, StateOffse
         out.extend(mat3_cols(inst.normal));
         out.extend(mat3_cols(Mat3::from_mat4(inst.world)));
         let gpu_group = inst.group + 1; // group 0 is the static world
-        out.push([f32::from_bits(gpu_group), f32::from_bits(inst.group), 0.0, 0.0]);
+        out.push([
+            f32::from_bits(gpu_group),
+            f32::from_bits(inst.group),
+            0.0,
+            0.0,
+        ]);
     }
     debug_assert_eq!(out.len(), state.instances.len() * INSTANCE_VEC4S);
     if let Some(top) = &state.top {

@@ -144,9 +144,9 @@ impl GpuTracer {
         let mut order: Vec<usize> = (0..samples.len()).collect();
         order.sort_by_key(|&i| Tracer::quantize(samples[i].2));
         let mut out = vec![None; samples.len()];
-        for run in order.chunk_by(|&a, &b| {
-            Tracer::quantize(samples[a].2) == Tracer::quantize(samples[b].2)
-        }) {
+        for run in order
+            .chunk_by(|&a, &b| Tracer::quantize(samples[a].2) == Tracer::quantize(samples[b].2))
+        {
             let state = tracer.state_at(samples[run[0]].2);
             let points: Vec<[f32; 2]> = run.iter().map(|&i| [samples[i].0, samples[i].1]).collect();
             for (&i, s) in run.iter().zip(self.trace(tracer, &state, &points)?) {
@@ -218,7 +218,12 @@ impl GpuTracer {
         let n = points.len() as u32;
         let params = layout::params(tracer, state, n, self.statics, *at, primary_only);
         let device = &self.ctx.device;
-        let uniform = init(device, "trace params", bytemuck::bytes_of(&params), wgpu::BufferUsages::UNIFORM);
+        let uniform = init(
+            device,
+            "trace params",
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        );
         let pts = storage_init(&self.ctx, "trace points", bytemuck::cast_slice(points))?;
         let out_bytes = points.len() as u64 * 32;
         let out = device.create_buffer(&wgpu::BufferDescriptor {
@@ -262,7 +267,11 @@ impl GpuTracer {
 /// One sample of the shader's output: (colour, t), (kind, group, primitive, secondary
 /// rays).
 fn unpack(w: &[u32]) -> GpuSample {
-    let color = Vec3::new(f32::from_bits(w[0]), f32::from_bits(w[1]), f32::from_bits(w[2]));
+    let color = Vec3::new(
+        f32::from_bits(w[0]),
+        f32::from_bits(w[1]),
+        f32::from_bits(w[2]),
+    );
     let hit = HitId::from_parts(w[4], w[5], w[6]);
     let depth = if hit == HitId::Miss {
         f32::INFINITY
@@ -277,7 +286,12 @@ fn unpack(w: &[u32]) -> GpuSample {
     }
 }
 
-fn init(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+fn init(
+    device: &wgpu::Device,
+    label: &str,
+    bytes: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
     use wgpu::util::DeviceExt;
     // wgpu refuses empty bindings: pad to one vec4.
     let padded;
@@ -295,7 +309,11 @@ fn init(device: &wgpu::Device, label: &str, bytes: &[u8], usage: wgpu::BufferUsa
 }
 
 /// A read-only storage buffer holding `bytes`, checked against the adapter's limit.
-fn storage_init(ctx: &GpuContext, label: &'static str, bytes: &[u8]) -> Result<wgpu::Buffer, GpuTraceError> {
+fn storage_init(
+    ctx: &GpuContext,
+    label: &'static str,
+    bytes: &[u8],
+) -> Result<wgpu::Buffer, GpuTraceError> {
     let limit = ctx
         .limits
         .max_storage_buffer_binding_size
@@ -354,7 +372,11 @@ fn bind_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
-fn pipeline(device: &wgpu::Device, layout: &wgpu::BindGroupLayout, max_depth: u32) -> wgpu::ComputePipeline {
+fn pipeline(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    max_depth: u32,
+) -> wgpu::ComputePipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("trace.wgsl"),
         source: wgpu::ShaderSource::Wgsl(shader_source(max_depth).into()),

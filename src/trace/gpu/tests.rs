@@ -39,7 +39,10 @@ fn points(w: u32, h: u32) -> Vec<[f32; 2]> {
         .map(|i| {
             let (x, y) = (i % w, i / w);
             let k = i as f32;
-            [x as f32 + (0.5 + a1 * k).fract(), y as f32 + (0.5 + a2 * k).fract()]
+            [
+                x as f32 + (0.5 + a1 * k).fract(),
+                y as f32 + (0.5 + a2 * k).fract(),
+            ]
         })
         .collect()
 }
@@ -134,15 +137,28 @@ fn builtin(name: &str) -> Scene {
 #[ignore = "needs a GPU adapter (lavapipe in CI)"]
 fn gpu_trace_toycar_matches_the_cpu() {
     // The car is a moving rigid instance; the floor textured, mirror and glass spheres.
-    let got = check(builtin("toycar"), TraceOptions::default(), &[0.0, 1.3, 4.7], (128, 96));
-    assert!(got.iter().all(|c| c.instance_hits > 0), "the car was never hit");
+    let got = check(
+        builtin("toycar"),
+        TraceOptions::default(),
+        &[0.0, 1.3, 4.7],
+        (128, 96),
+    );
+    assert!(
+        got.iter().all(|c| c.instance_hits > 0),
+        "the car was never hit"
+    );
 }
 
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe in CI)"]
 fn gpu_trace_room_and_terrain_match_the_cpu() {
     for name in ["room", "terrain"] {
-        check(builtin(name), TraceOptions::default(), &[0.0, 2.1], (128, 96));
+        check(
+            builtin(name),
+            TraceOptions::default(),
+            &[0.0, 2.1],
+            (128, 96),
+        );
     }
 }
 
@@ -173,7 +189,11 @@ fn gpu_trace_at_groups_samples_by_their_own_time() {
         .zip(&got)
         .filter(|((x, y, t), g)| tracer.primary_hit_id(&tracer.state_at(*t), *x, *y).0 == g.hit)
         .count();
-    assert!(same as f64 >= SAME_HIT * samples.len() as f64, "{same} of {}", samples.len());
+    assert!(
+        same as f64 >= SAME_HIT * samples.len() as f64,
+        "{same} of {}",
+        samples.len()
+    );
 }
 
 fn bart(file: &str) -> Scene {
@@ -190,13 +210,29 @@ fn bart_kitchen_and_museum_trace_alike_on_the_gpu() {
     let kitchen = bart("kitchen/kitchen.aff");
     let (t0, t1) = kitchen.time_range();
     let mid = 0.5 * (t0 + t1) as f64;
-    let depth0 = TraceOptions { max_depth: 0, ..TraceOptions::default() };
+    let depth0 = TraceOptions {
+        max_depth: 0,
+        ..TraceOptions::default()
+    };
     check(bart("kitchen/kitchen.aff"), depth0, &[t0 as f64], (96, 72));
-    check(kitchen, TraceOptions::default(), &[t0 as f64, mid], (96, 72));
+    check(
+        kitchen,
+        TraceOptions::default(),
+        &[t0 as f64, mid],
+        (96, 72),
+    );
     let museum = bart("museum/museum4.aff");
     let (t0, t1) = museum.time_range();
-    let got = check(museum, TraceOptions::default(), &[t0 as f64, 0.5 * (t0 + t1) as f64], (96, 72));
-    assert!(got.iter().any(|c| c.morphing_hits > 0), "no morphing triangle was hit");
+    let got = check(
+        museum,
+        TraceOptions::default(),
+        &[t0 as f64, 0.5 * (t0 + t1) as f64],
+        (96, 72),
+    );
+    assert!(
+        got.iter().any(|c| c.morphing_hits > 0),
+        "no morphing triangle was hit"
+    );
 }
 
 /// The shader parses and validates on the CPU (naga, as wgpu runs it), and its
