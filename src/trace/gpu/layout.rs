@@ -88,6 +88,72 @@ pub(super) struct Statics {
     pub words: Vec<u32>,
     pub data: Vec<V4>,
     pub at: StaticOffsets,
+    pub stacks: Stacks,
+}
+
+/// The traversal stack depths a tracer's trees need (the shader's `TRAVERSAL` and
+/// `STACK2`). A traversal keeps at most one entry per level of the path it is on, so a
+/// tree's depth is enough.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Stacks {
+    /// The deepest CwBvh.
+    pub cw: u32,
+    /// The deepest Bvh2: the analytic sets', the morphing triangles' (refits keep the
+    /// shape), and the top level's, which has one leaf per instance group at most and
+    /// so is no deeper than their number.
+    pub b2: u32,
+}
+
+impl Stacks {
+    fn of(tracer: &Tracer) -> Self {
+        let groups = std::iter::once(&tracer.static_geo)
+            .chain(tracer.instance_groups.iter().map(|(_, g)| g));
+        let mut s = Self { cw: 1, b2: 1 };
+        for g in groups {
+            if let Some(b) = g.cw_bvh() {
+                s.cw = s.cw.max(cw_depth(&b.nodes, 0));
+            }
+            if let Some(b) = g.analytic_bvh() {
+                s.b2 = s.b2.max(bvh2_depth(b));
+            }
+        }
+        if let Some(b) = &tracer.anim_base {
+            s.b2 = s.b2.max(bvh2_depth(b));
+        }
+        s.b2 = s.b2.max(tracer.instance_groups.len() as u32);
+        s
+    }
+}
+
+/// Levels of the CwBvh below and including node `i`.
+fn cw_depth(nodes: &[obvhs::cwbvh::node::CwBvhNode], i: usize) -> u32 {
+    let Some(n) = nodes.get(i) else {
+        return 0;
+    };
+    // A node's inner children are stored together from `child_base_idx`.
+    let first = n.child_base_idx as usize;
+    let below = (first..first + n.imask.count_ones() as usize)
+        .map(|c| cw_depth(nodes, c))
+        .max()
+        .unwrap_or(0);
+    1 + below
+}
+
+/// Levels of a Bvh2 (its `max_depth` is a stack size, not the depth).
+fn bvh2_depth(bvh: &Bvh2) -> u32 {
+    let mut deepest = 0;
+    let mut todo = vec![(0usize, 1u32)];
+    while let Some((i, depth)) = todo.pop() {
+        let Some(n) = bvh.nodes.get(i) else {
+            continue;
+        };
+        deepest = deepest.max(depth);
+        if !n.is_leaf() {
+            let c = n.first_index as usize;
+            todo.extend([(c, depth + 1), (c + 1, depth + 1)]);
+        }
+    }
+    deepest
 }
 
 /// The flat parts of the static buffers, filled group by group.
@@ -238,7 +304,12 @@ impl Statics {
             data.extend(part);
         }
         push_materials(&tracer.scene, &mut data, &mut words, &mut at);
-        Self { words, data, at }
+        Self {
+            words,
+            data,
+            at,
+            stacks: Stacks::of(tracer),
+        }
     }
 }
 

@@ -34,10 +34,6 @@ const GROUP: u32 = 64;
 const MAX_GROUPS: u32 = 65_535;
 /// Storage buffers the shader binds.
 const STORAGE_BUFFERS: u32 = 5;
-/// Depth of the CwBvh traversal stack (obvhs's `TRAVERSAL_STACK_SIZE`).
-const TRAVERSAL: u32 = 32;
-/// Depth of the Bvh2 traversal stacks (obvhs's smallest fast stack).
-const STACK2: u32 = 96;
 
 /// Why a batch could not be traced on the GPU.
 #[derive(Debug, thiserror::Error)]
@@ -90,13 +86,20 @@ impl std::fmt::Debug for GpuTracer {
     }
 }
 
-fn shader_source(max_depth: u32) -> String {
+/// The shader for Whitted trees `max_depth` deep and traversal stacks as deep as
+/// `stacks` says. Every private array costs each invocation its size (zero-filled at
+/// every call), so the stacks are as deep as this tracer's trees need, no deeper:
+/// on lavapipe, Bvh2 stacks of 24 instead of 96 entries traced toycar's primary rays
+/// 50% faster.
+fn shader_source(max_depth: u32, stacks: layout::Stacks) -> String {
     format!(
-        "const STACK: u32 = {}u;\nconst TRAVERSAL: u32 = {TRAVERSAL}u;\n\
-         const STACK2: u32 = {STACK2}u;\nconst NONE: u32 = {}u;\nconst FAR: f32 = 3.0e38;\n\
+        "const STACK: u32 = {}u;\nconst TRAVERSAL: u32 = {}u;\n\
+         const STACK2: u32 = {}u;\nconst NONE: u32 = {}u;\nconst FAR: f32 = 3.0e38;\n\
          const ANALYTIC_BIT: u32 = {}u;\nconst NODE_EPSILON: f32 = {:e};\n\
          const MIN_COS: f32 = {:e};\n{}",
         max_depth + 2,
+        stacks.cw,
+        stacks.b2,
         layout::NONE,
         layout::ANALYTIC_BIT,
         NODE_EPSILON,
@@ -117,7 +120,7 @@ impl GpuTracer {
         let words = storage_init(&ctx, "trace words", bytemuck::cast_slice(&statics.words))?;
         let data = storage_init(&ctx, "trace data", bytemuck::cast_slice(&statics.data))?;
         let layout = bind_layout(device);
-        let pipeline = pipeline(device, &layout, tracer.options.max_depth);
+        let pipeline = pipeline(device, &layout, tracer.options.max_depth, statics.stacks);
         Ok(Self {
             ctx,
             pipeline,
@@ -376,10 +379,11 @@ fn pipeline(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
     max_depth: u32,
+    stacks: layout::Stacks,
 ) -> wgpu::ComputePipeline {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("trace.wgsl"),
-        source: wgpu::ShaderSource::Wgsl(shader_source(max_depth).into()),
+        source: wgpu::ShaderSource::Wgsl(shader_source(max_depth, stacks).into()),
     });
     let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("trace"),

@@ -239,7 +239,8 @@ fn bart_kitchen_and_museum_trace_alike_on_the_gpu() {
 /// uniform is as large as the Rust side's: no adapter needed.
 #[test]
 fn trace_shader_validates_and_its_uniform_matches() {
-    let source = shader_source(crate::settings::MAX_DEPTH);
+    let stacks = layout::Stacks { cw: 32, b2: 96 };
+    let source = shader_source(crate::settings::MAX_DEPTH, stacks);
     let module = naga::front::wgsl::parse_str(&source)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
     let info = naga::valid::Validator::new(
