@@ -34,6 +34,7 @@
 pub mod bench;
 pub mod clock;
 pub mod evaluation;
+pub mod gpu;
 pub mod image;
 pub mod limits;
 pub mod methods;

@@ -350,6 +350,34 @@ pub struct DevicesGroup {
     pub recon: ReconDevice,
 }
 
+/// Where rays are traced: `--trace cpu|gpu|auto`, the same three choices as `--recon`.
+pub type TraceDevice = ReconDevice;
+
+/// The parser of `--trace`: `--recon`'s values, with what each means for the tracer.
+fn trace_parser() -> impl clap::builder::TypedValueParser<Value = TraceDevice> {
+    let values = TraceDevice::ALL.map(|d| {
+        clap::builder::PossibleValue::new(d.name()).help(match d {
+            ReconDevice::Cpu => "the CPU tracer, the reference",
+            ReconDevice::Gpu => "compute shaders on any GPU adapter, a software one included",
+            ReconDevice::Auto => "a hardware GPU where there is one, else the CPU",
+        })
+    });
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<TraceDevice>())
+}
+
+/// Where rays are traced. Declared once; flattened only into the commands that honour
+/// it, so that no command accepts `--trace gpu` and traces on the CPU.
+#[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
+pub struct TraceGroup {
+    /// Where rays are traced: cpu (the reference), gpu (wgpu compute shaders with
+    /// software BVH traversal, on any adapter, a software one such as Mesa's lavapipe
+    /// included; an error where there is none) or auto (a hardware GPU where there is
+    /// one, else the CPU). WGPU_BACKEND and WGPU_ADAPTER_NAME narrow the choice.
+    #[arg(long, value_name = "DEVICE", default_value = "cpu", value_parser = trace_parser())]
+    pub trace: TraceDevice,
+}
+
 /// A group's defaults are its command-line defaults.
 macro_rules! defaults_from_clap {
     ($($group:ty),*) => {$(
@@ -368,5 +396,6 @@ defaults_from_clap!(
     DisplayGroup,
     QualityGroup,
     ReferenceGroup,
-    DevicesGroup
+    DevicesGroup,
+    TraceGroup
 );

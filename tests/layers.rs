@@ -11,7 +11,7 @@ use std::{
 /// Layers from the bottom up; must match `docs/ARCHITECTURE.md`.
 const LAYERS: &[&[&str]] = &[
     &[
-        "image", "output", "limits", "settings", "sampling", "clock", "tiles",
+        "image", "output", "limits", "settings", "sampling", "clock", "tiles", "gpu",
     ],
     &["scene"],
     &["trace"],

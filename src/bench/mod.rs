@@ -14,6 +14,7 @@ mod live_recon;
 pub use live_recon::{live_image_ms, live_report, LiveCase, LiveFigure, LiveReport, LIVE_CASES};
 
 use crate::{
+    gpu::DeviceUsed,
     reconstruction::device::{GpuContext, ReconUsed},
     sampling::Rng,
     trace::Tracer,
@@ -110,6 +111,76 @@ pub struct BenchReport {
     /// `null`): why.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub recon_notes: BTreeMap<&'static str, String>,
+    /// Where `gpu_trace` was measured (`--trace`): the CPU (then there is no
+    /// `gpu_trace`), or the GPU and its adapter. The `primary_*` and `shaded_*`
+    /// figures above are the CPU tracer's either way.
+    pub trace: DeviceUsed,
+    /// The GPU tracer's figures, with `--trace gpu` (or `auto` on a hardware GPU).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_trace: Option<GpuTraceFigures>,
+}
+
+/// The GPU tracer's figures of `frameless bench --trace gpu`: each batch is uploaded,
+/// traced in one dispatch and read back, and all of that is timed.
+#[derive(Clone, Debug, Serialize)]
+pub struct GpuTraceFigures {
+    /// Primary rays (closest hit, no shading) per second, millions.
+    pub primary_mrays_per_s: f64,
+    /// Fully shaded samples (shadows, reflection, refraction) per second, millions;
+    /// each is one primary ray.
+    pub shaded_msamples_per_s: f64,
+    /// Secondary rays (shadow rays, reflections, refractions) traced per second while
+    /// shading, millions.
+    pub secondary_mrays_per_s: f64,
+    /// Secondary rays per shaded sample.
+    pub secondary_per_sample: f64,
+    /// Whether the adapter is a software one (such as lavapipe): the figures are then
+    /// the CPU's speed under a driver, not a GPU's.
+    pub software: bool,
+}
+
+/// Measure the GPU tracer on `tracer`'s scene at `time` with `opts`' rays and
+/// repetitions (the best is kept, after one untimed warm-up of each).
+#[cfg(feature = "gpu")]
+pub fn gpu_trace_figures(
+    tracer: &Tracer,
+    time: f64,
+    opts: &BenchOptions,
+    ctx: Arc<GpuContext>,
+) -> Result<GpuTraceFigures, crate::trace::gpu::GpuTraceError> {
+    let software = ctx.is_software();
+    let mut gpu = crate::trace::gpu::GpuTracer::new(ctx, tracer)?;
+    let (w, h) = tracer.size();
+    let state = tracer.state_at(time);
+    let pts: Vec<[f32; 2]> = random_pixel_order(w, h, opts.rays, opts.seed)
+        .into_iter()
+        .map(|(x, y)| [x, y])
+        .collect();
+    let shaded_pts = &pts[..pts.len() / 4];
+    let mut timed = |primary: bool, pts: &[[f32; 2]]| -> Result<(f64, u64), _> {
+        let mut best = f64::INFINITY;
+        let mut secondary = 0;
+        for _ in 0..opts.repeats.max(1) + 1 {
+            let t = Instant::now();
+            let got = if primary {
+                gpu.primary_hits(tracer, &state, pts)?
+            } else {
+                gpu.trace(tracer, &state, pts)?
+            };
+            best = best.min(t.elapsed().as_secs_f64());
+            secondary = got.iter().map(|s| s.secondary_rays as u64).sum();
+        }
+        Ok::<_, crate::trace::gpu::GpuTraceError>((best.max(1e-9), secondary))
+    };
+    let (primary_s, _) = timed(true, &pts)?;
+    let (shaded_s, secondary) = timed(false, shaded_pts)?;
+    Ok(GpuTraceFigures {
+        primary_mrays_per_s: pts.len() as f64 / primary_s / 1e6,
+        shaded_msamples_per_s: shaded_pts.len() as f64 / shaded_s / 1e6,
+        secondary_mrays_per_s: secondary as f64 / shaded_s / 1e6,
+        secondary_per_sample: secondary as f64 / shaded_pts.len().max(1) as f64,
+        software,
+    })
 }
 
 /// A reconstructor at `width × height` with a full ring of `n` synthetic samples:
@@ -518,6 +589,8 @@ pub fn run(
         controller_margin: ctrl.map_or(f64::NAN, |c| c.margin()),
         recon: opts.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used()),
         recon_notes: recon.notes,
+        trace: DeviceUsed::cpu(),
+        gpu_trace: None,
     }
 }
 

@@ -168,6 +168,7 @@ fn bench(a: args::BenchArgs) -> Result<()> {
         return bench_live_recon(a.json);
     }
     let gpu = acquire_recon(a.devices.recon)?;
+    let trace_gpu = acquire_trace(a.trace.trace)?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -182,7 +183,24 @@ fn bench(a: args::BenchArgs) -> Result<()> {
         ..Default::default()
     };
     let tracer = Arc::new(tracer);
-    let report = bench::run(&tracer, time, opts, load_s, build_s);
+    #[cfg(feature = "gpu")]
+    let gpu_trace = match trace_gpu {
+        Some(ctx) => {
+            let used = ctx.used();
+            let figures = bench::gpu_trace_figures(&tracer, time, &opts, ctx)
+                .context("--trace gpu (--trace cpu traces on the CPU)")?;
+            Some((used, figures))
+        }
+        None => None,
+    };
+    #[cfg(not(feature = "gpu"))]
+    let gpu_trace: Option<(frameless::gpu::DeviceUsed, bench::GpuTraceFigures)> =
+        trace_gpu.map(|c| match *c {});
+    let mut report = bench::run(&tracer, time, opts, load_s, build_s);
+    if let Some((used, figures)) = gpu_trace {
+        report.trace = used;
+        report.gpu_trace = Some(figures);
+    }
     if a.json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
@@ -250,6 +268,19 @@ fn print_bench(report: &bench::BenchReport) {
         "shaded all       {:.0} samples/s",
         report.shaded_samples_per_s_all
     );
+    if let Some(g) = &report.gpu_trace {
+        let label = if g.software {
+            " (a software driver on the CPU, not a GPU's speed)"
+        } else {
+            ""
+        };
+        println!("tracer           {}{label}", report.trace);
+        println!("gpu primary      {:.2} M rays/s", g.primary_mrays_per_s);
+        println!(
+            "gpu shaded       {:.2} M samples/s, {:.2} M secondary rays/s ({:.2} per sample)",
+            g.shaded_msamples_per_s, g.secondary_mrays_per_s, g.secondary_per_sample
+        );
+    }
     println!("reconstructor    {}", report.recon);
     println!(
         "reconstruct      {:.1} ms 1 thread, {:.1} ms all (400K, 256x256)",
@@ -308,6 +339,31 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
         Err(e) => Err(e.context(format!(
             "--recon {choice} (--recon cpu reconstructs on the CPU)"
         ))),
+    }
+}
+
+/// The GPU `--trace` asks for, as [`acquire_recon`] does for `--recon`: one line on
+/// stderr saying where rays are traced when that is not the CPU asked for; `auto`
+/// falls back to the CPU (and says so once) whenever no GPU can be had.
+fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>>> {
+    if choice == settings::TraceDevice::Cpu {
+        return Ok(None);
+    }
+    let got = check_wgpu_backend().and_then(|()| Ok(frameless::gpu::acquire(choice)?));
+    match got {
+        Ok(Some(g)) => {
+            eprintln!("tracing on {}", g.describe());
+            Ok(Some(g))
+        }
+        Ok(None) => {
+            eprintln!("note: no hardware GPU adapter; tracing on the CPU");
+            Ok(None)
+        }
+        Err(e) if choice == settings::TraceDevice::Auto => {
+            eprintln!("note: --trace auto: {}; tracing on the CPU", message(&e));
+            Ok(None)
+        }
+        Err(e) => Err(e.context(format!("--trace {choice} (--trace cpu traces on the CPU)"))),
     }
 }
 

@@ -298,6 +298,18 @@ impl GroupAccel {
         }
     }
 
+    /// The triangles' wide BVH (`None`: no triangles), for the GPU tracer's upload.
+    #[cfg(feature = "gpu")]
+    pub(super) fn cw_bvh(&self) -> Option<&CwBvh> {
+        self.bvh.as_ref()
+    }
+
+    /// The analytic primitives' BVH (`None`: tested one by one).
+    #[cfg(feature = "gpu")]
+    pub(super) fn analytic_bvh(&self) -> Option<&Bvh2> {
+        self.analytic_bvh.as_ref()
+    }
+
     /// Number of primitives.
     pub fn len(&self) -> usize {
         self.tris.len() + self.analytic.len()

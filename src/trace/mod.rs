@@ -9,6 +9,8 @@
 pub mod accel;
 mod build;
 pub mod cones;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod intersect;
 mod shade;
 
@@ -230,6 +232,59 @@ impl SceneState {
                 // `v0·(1 − u − v) + v1·u + v2·v` with `e1 = v0 − v1`, `e2 = v2 − v0`.
                 Some(Vec3::from(tri.v0 - tri.e1 * u + tri.e2 * v))
             }
+        }
+    }
+}
+
+/// Set in [`HitId`]'s primitive numbers for an analytic primitive (sphere, cone side);
+/// clear for a triangle.
+pub const ANALYTIC_BIT: u32 = 1 << 31;
+
+/// Which primitive a ray hit, named alike by the CPU and the GPU tracer: a triangle by
+/// its slot in its group's BVH order, an analytic primitive by its slot with
+/// [`ANALYTIC_BIT`] set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HitId {
+    /// Nothing.
+    Miss,
+    /// A primitive of the static world.
+    Static(u32),
+    /// A primitive of a rigid instance group.
+    Instance {
+        /// The group, as the tracer numbers its instance groups.
+        group: u32,
+        /// The primitive in the group.
+        primitive: u32,
+    },
+    /// A morphing triangle, by its slot in their BVH.
+    Morphing(u32),
+}
+
+impl HitId {
+    /// From the GPU tracer's words: kind (0 miss, 1 static, 2 instance, 3 morphing),
+    /// group, primitive.
+    pub fn from_parts(kind: u32, group: u32, primitive: u32) -> Self {
+        match kind {
+            1 => Self::Static(primitive),
+            2 => Self::Instance { group, primitive },
+            3 => Self::Morphing(primitive),
+            _ => Self::Miss,
+        }
+    }
+
+    fn of(state: &SceneState, hit: Option<&Hit>) -> Self {
+        let number = |p: PrimRef| match p {
+            PrimRef::Tri(i) => i,
+            PrimRef::Analytic(i) => ANALYTIC_BIT | i,
+        };
+        match hit.map(|h| h.at) {
+            None => Self::Miss,
+            Some(HitWhere::Static(p)) => Self::Static(number(p)),
+            Some(HitWhere::Instance(i, p)) => Self::Instance {
+                group: state.instances[i as usize].group,
+                primitive: number(p),
+            },
+            Some(HitWhere::Anim(i)) => Self::Morphing(i),
         }
     }
 }
@@ -779,6 +834,17 @@ impl Tracer {
     pub fn primary_hit(&self, state: &SceneState, x: f32, y: f32) -> Option<f32> {
         let ray = self.primary_ray(state, x, y);
         self.closest(state, &ray).map(|h| h.t)
+    }
+
+    /// What a primary ray through `(x, y)` hits, and at which distance (`INFINITY` on a
+    /// miss): what the GPU tracer's equivalence is judged by.
+    pub fn primary_hit_id(&self, state: &SceneState, x: f32, y: f32) -> (HitId, f32) {
+        let ray = self.primary_ray(state, x, y);
+        let hit = self.closest(state, &ray);
+        (
+            HitId::of(state, hit.as_ref()),
+            hit.map_or(f32::INFINITY, |h| h.t),
+        )
     }
 
     fn primary_ray(&self, state: &SceneState, x: f32, y: f32) -> Ray {

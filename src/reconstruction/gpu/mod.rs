@@ -24,15 +24,14 @@
 //! adds only the new samples' splats onto them, and they come back for the next.
 
 pub(super) mod carried;
-mod context;
 mod history;
 #[cfg(test)]
 mod layout_tests;
 
 use std::sync::Arc;
 
+pub use crate::gpu::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
-pub use context::{GpuContext, GpuError};
 use glam::Vec3;
 
 use super::{
@@ -46,7 +45,7 @@ use crate::scene::CameraFrame;
 use carried::CarriedIn;
 
 /// Storage buffers the shaders bind at once.
-pub(super) const STORAGE_BUFFERS: u32 = 12;
+const STORAGE_BUFFERS: u32 = 12;
 /// Side of a bin of pixels (the shaders' `BIN`).
 const BIN: u32 = 16;
 /// Floats per ring sample on the GPU: the CPU ring's fields and the time.
@@ -341,6 +340,7 @@ impl GpuRecon {
         history: Option<HistoryParams>,
         carry: bool,
     ) -> Result<Self, GpuError> {
+        ctx.require_storage_buffers(STORAGE_BUFFERS)?;
         let sizes = Sizes::new(width, height, cap, history.is_some(), carry);
         sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);

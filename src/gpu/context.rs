@@ -1,19 +1,20 @@
-//! The GPU device: which adapter a run gets for `--recon gpu|auto`.
+//! The GPU device: which adapter a run gets for `--recon gpu|auto` (and `--trace`).
 //!
 //! `gpu` takes the best adapter there is, a software one (Mesa's lavapipe) included;
 //! `auto` never takes a software adapter unless `WGPU_ADAPTER_NAME` names it, so that
-//! a machine without a GPU reconstructs on its own cores instead of emulating one on
+//! a machine without a GPU works on its own cores instead of emulating one on
 //! them. `WGPU_BACKEND` and `WGPU_ADAPTER_NAME` narrow the choice as wgpu documents.
 
 use std::sync::Arc;
 
-use super::super::device::{ReconDevice, ReconUsed};
+use super::DeviceUsed;
+use crate::settings::ReconDevice;
 
-/// Why no GPU reconstructor could be had.
+/// Why no GPU could be had, or GPU work failed.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
     /// No adapter at all (or none matching `WGPU_ADAPTER_NAME`).
-    #[error("no GPU adapter found{0} (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1; or reconstruct on the CPU)")]
+    #[error("no GPU adapter found{0} (install a Vulkan driver, e.g. Mesa's lavapipe: apt-get install mesa-vulkan-drivers libvulkan1; or run on the CPU)")]
     NoAdapter(String),
     /// The adapter refused a device.
     #[error("the GPU adapter {adapter} gave no device: {why}")]
@@ -23,8 +24,8 @@ pub enum GpuError {
         /// What wgpu said.
         why: String,
     },
-    /// The adapter's limits are below what the reconstructor needs.
-    #[error("the GPU adapter {adapter} is too small for this reconstructor: {why}")]
+    /// The adapter's limits are below what a GPU stage needs.
+    #[error("the GPU adapter {adapter} is too small for this work: {why}")]
     Limits {
         /// The adapter in words.
         adapter: String,
@@ -32,11 +33,11 @@ pub enum GpuError {
         why: String,
     },
     /// A GPU operation failed.
-    #[error("GPU reconstruction failed: {0}")]
+    #[error("GPU work failed: {0}")]
     Failed(String),
 }
 
-/// A device and its queue, shared by every reconstructor of a run.
+/// A device and its queue, shared by every GPU stage of a run (reconstructors, tracers).
 pub struct GpuContext {
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
@@ -103,18 +104,8 @@ impl GpuContext {
         let info = adapter.get_info();
         let limits = adapter.limits();
         let name = describe(&info);
-        if limits.max_storage_buffers_per_shader_stage < super::STORAGE_BUFFERS {
-            return Err(GpuError::Limits {
-                adapter: name,
-                why: format!(
-                    "{} storage buffers per shader stage, {} needed",
-                    limits.max_storage_buffers_per_shader_stage,
-                    super::STORAGE_BUFFERS
-                ),
-            });
-        }
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("frameless reconstructor"),
+            label: Some("frameless"),
             required_features: wgpu::Features::empty(),
             required_limits: limits.clone(),
             ..Default::default()
@@ -131,14 +122,33 @@ impl GpuContext {
         })
     }
 
+    /// Whether the adapter is a software one (such as Mesa's lavapipe): its speed is
+    /// the CPU's, not a GPU's.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// Fail with [`GpuError::Limits`] unless the adapter binds `needed` storage buffers
+    /// in one shader stage (what a stage's shaders bind at once).
+    pub fn require_storage_buffers(&self, needed: u32) -> Result<(), GpuError> {
+        let have = self.limits.max_storage_buffers_per_shader_stage;
+        if have < needed {
+            return Err(GpuError::Limits {
+                adapter: self.describe(),
+                why: format!("{have} storage buffers per shader stage, {needed} needed"),
+            });
+        }
+        Ok(())
+    }
+
     /// The adapter in words: name, driver, backend and kind.
     pub fn describe(&self) -> String {
         describe(&self.info)
     }
 
     /// What results record of it.
-    pub fn used(&self) -> ReconUsed {
-        ReconUsed {
+    pub fn used(&self) -> DeviceUsed {
+        DeviceUsed {
             device: "gpu".into(),
             adapter: Some(self.describe()),
         }

@@ -1,0 +1,95 @@
+//! The GPU device shared by every GPU stage: the reconstructor (`--recon`) and the
+//! tracer (`--trace`). A bottom-layer module, so that both `trace` and
+//! `reconstruction` reach it without importing each other.
+//!
+//! With the `gpu` feature (the default) this is wgpu's adapter and device
+//! ([`GpuContext`]); without it, a [`GpuContext`] that cannot exist and a
+//! [`GpuError::NotBuilt`], so that callers compile unchanged and `gpu` choices fail
+//! with a clear message.
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::settings::ReconDevice;
+
+#[cfg(feature = "gpu")]
+mod context;
+
+#[cfg(feature = "gpu")]
+pub use context::{GpuContext, GpuError};
+
+/// The device a GPU-capable stage used, as results record it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DeviceUsed {
+    /// `cpu` or `gpu`.
+    pub device: String,
+    /// The adapter's name, driver and kind (`None` on the CPU).
+    pub adapter: Option<String>,
+}
+
+impl DeviceUsed {
+    /// The CPU.
+    pub fn cpu() -> Self {
+        Self {
+            device: "cpu".into(),
+            adapter: None,
+        }
+    }
+}
+
+impl fmt::Display for DeviceUsed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.adapter {
+            Some(a) => write!(f, "{} ({a})", self.device),
+            None => f.write_str(&self.device),
+        }
+    }
+}
+
+/// A GPU device; this build has none (it was built without the `gpu` feature).
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug)]
+pub enum GpuContext {}
+
+#[cfg(not(feature = "gpu"))]
+impl GpuContext {
+    /// The adapter in words.
+    pub fn describe(&self) -> String {
+        match *self {}
+    }
+
+    /// Whether the adapter is a software one.
+    pub fn is_software(&self) -> bool {
+        match *self {}
+    }
+
+    /// What results record of it.
+    pub fn used(&self) -> DeviceUsed {
+        match *self {}
+    }
+}
+
+/// Why no GPU could be had.
+#[cfg(not(feature = "gpu"))]
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// This build has no GPU support.
+    #[error("this build has no GPU support (built without the 'gpu' feature); run on the CPU")]
+    NotBuilt,
+}
+
+/// The GPU device `choice` asks for: `Ok(None)` for `cpu`, and for `auto` where there
+/// is no hardware adapter (or, without the `gpu` feature, no GPU support); an error
+/// for `gpu` where there is no adapter at all.
+pub fn acquire(choice: ReconDevice) -> Result<Option<std::sync::Arc<GpuContext>>, GpuError> {
+    #[cfg(feature = "gpu")]
+    {
+        GpuContext::acquire(choice)
+    }
+    #[cfg(not(feature = "gpu"))]
+    match choice {
+        ReconDevice::Gpu => Err(GpuError::NotBuilt),
+        ReconDevice::Cpu | ReconDevice::Auto => Ok(None),
+    }
+}
