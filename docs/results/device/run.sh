@@ -79,7 +79,7 @@ done
 live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
   --method adaptive,traditional-frameless,late-warp
 if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
-  step bench_trace_gpu 60 "$bin" bench --trace gpu --size 1920x1080 --json
+  step bench_trace_gpu 90 "$bin" bench --trace gpu --size 1920x1080 --json
 fi
 if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
   live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
