@@ -102,10 +102,6 @@ pub(super) struct Carried {
     /// so that with exact motion the sums go where that point is, not where its
     /// velocity takes it.
     anchor: HashMap<u32, Anchor>,
-    /// The anchors of this refresh's nearest new samples, pixel by pixel (reused).
-    next_anchor: HashMap<u32, Anchor>,
-    /// The pixels new samples landed on at this refresh, each once (reused).
-    touched: Vec<u32>,
     /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
     stamp: Vec<u32>,
     epoch: u32,
@@ -131,8 +127,6 @@ impl Carried {
             pending: 0,
             moving: Vec::new(),
             anchor: HashMap::new(),
-            next_anchor: HashMap::new(),
-            touched: Vec::new(),
             stamp: vec![0; n],
             epoch: 0,
             ahead: Vec::new(),
@@ -504,10 +498,8 @@ impl Reconstructor {
         let band_px = CUT_ROWS * w;
         let bands = h.div_ceil(CUT_ROWS);
         let by_band = bucket_by_band(&ahead, CUT_ROWS, bands);
-        let geo = &c.geo;
         let ctx = CutContext {
             ahead: &ahead,
-            geo,
             keep,
             epoch,
             w,
@@ -520,8 +512,9 @@ impl Reconstructor {
             .zip(self.cover.par_chunks_mut(band_px))
             .zip(c.stamp.par_chunks_mut(band_px))
             .zip(c.next_geo.par_chunks_mut(band_px))
+            .zip(c.geo.par_chunks_mut(band_px))
             .enumerate()
-            .map(|(b, (((acc, cover), stamp), next_geo))| {
+            .map(|(b, ((((acc, cover), stamp), next_geo), geo))| {
                 let mut band = CutBand {
                     y0: b * CUT_ROWS,
                     base: b * band_px,
@@ -529,15 +522,18 @@ impl Reconstructor {
                     cover,
                     stamp,
                     next_geo,
+                    geo,
+                    touched: Vec::new(),
+                    next_anchor: HashMap::new(),
                     out: BandOut::default(),
                 };
                 band.cut_and_offer(&ctx, &by_band[b], ring);
+                band.settle();
                 band.out
             })
             .collect();
         c.ahead = ahead;
         c.merge_bands(outs);
-        c.settle();
     }
 }
 
@@ -559,8 +555,6 @@ fn bucket_by_band(ahead: &[Ahead], rows: usize, bands: usize) -> Vec<Vec<u32>> {
 /// What every band of the cut reads.
 struct CutContext<'a> {
     ahead: &'a [Ahead],
-    /// The carried geometry (read only until [`Carried::settle`]).
-    geo: &'a [Geo],
     keep: f32,
     epoch: u32,
     w: usize,
@@ -572,10 +566,12 @@ struct CutContext<'a> {
 /// What a band of the cut leaves for [`Carried::merge_bands`].
 #[derive(Default)]
 struct BandOut {
-    touched: Vec<u32>,
     /// `(index in ahead, pixel)` of each moving sample, in order.
     moving: Vec<(u32, u32)>,
-    next_anchor: HashMap<u32, Anchor>,
+    /// Pixels whose carried geometry moved (their anchors go), and the anchors of
+    /// those whose new geometry moves.
+    unanchored: Vec<u32>,
+    anchored: Vec<(u32, Anchor)>,
 }
 
 /// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
@@ -588,6 +584,12 @@ struct CutBand<'a> {
     cover: &'a mut [f32],
     stamp: &'a mut [u32],
     next_geo: &'a mut [Geo],
+    /// The carried geometry: read while the band's samples are cut, then settled.
+    geo: &'a mut [Geo],
+    /// The pixels new samples landed on, each once, and the anchors of their nearest
+    /// new samples where those move.
+    touched: Vec<u32>,
+    next_anchor: HashMap<u32, Anchor>,
     out: BandOut,
 }
 
@@ -603,7 +605,7 @@ impl CutBand<'_> {
                 let a = ctx.ahead[n as usize];
                 let (px, py) = (a.px as usize, a.py as usize);
                 let q = py * w + px;
-                prefetch(ctx.geo, q);
+                prefetch(self.geo, q - base);
                 prefetch(self.stamp, q - base);
                 prefetch(self.next_geo, q - base);
                 prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
@@ -612,7 +614,7 @@ impl CutBand<'_> {
             let (px, ry) = (px as usize, py as usize - self.y0);
             let q = py as usize * w + px;
             let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
-            let g = ctx.geo[q];
+            let g = self.geo[q - base];
             let held = g.is_some() && holds(self.acc[at(3)]);
             // Carried sums of a moving surface were placed by extrapolation: a new
             // sample at another depth wins over them either way. Still ones are
@@ -655,22 +657,40 @@ impl CutBand<'_> {
         let i = q - self.base;
         if self.stamp[i] != epoch {
             self.stamp[i] = epoch;
-            self.out.touched.push(q as u32);
+            self.touched.push(q as u32);
             self.next_geo[i] = Geo::NONE;
         }
         let nearest = self.next_geo[i];
         if g.z < nearest.z {
             // Anchors are kept for moving geometry only.
             if nearest.v != Vec3::ZERO {
-                self.out.next_anchor.remove(&(q as u32));
+                self.next_anchor.remove(&(q as u32));
             }
             if g.v != Vec3::ZERO {
-                self.out.next_anchor.insert(q as u32, anchor());
+                self.next_anchor.insert(q as u32, anchor());
             }
             self.next_geo[i] = g;
         }
         if g.v != Vec3::ZERO {
             self.out.moving.push((k, q as u32));
+        }
+    }
+
+    /// Every pixel of the band new samples landed on takes its nearest one's
+    /// geometry; the anchors to drop and keep go to the merge.
+    fn settle(&mut self) {
+        for &q in &self.touched {
+            let i = q as usize - self.base;
+            if self.geo[i].v != Vec3::ZERO {
+                self.out.unanchored.push(q);
+            }
+            let g = self.next_geo[i];
+            if g.v != Vec3::ZERO {
+                if let Some(a) = self.next_anchor.remove(&q) {
+                    self.out.anchored.push((q, a));
+                }
+            }
+            self.geo[i] = g;
         }
     }
 }
@@ -686,35 +706,22 @@ impl Carried {
         self.epoch
     }
 
-    /// The bands' pixels touched, anchors and moving pixels, the moving ones in the
-    /// order of their samples (as one pass over the samples lists them).
+    /// The bands' anchors and moving pixels, the moving ones in the order of their
+    /// samples (as one pass over the samples lists them). A pixel's old anchor goes
+    /// before its new one comes.
     fn merge_bands(&mut self, outs: Vec<BandOut>) {
         let mut moving = Vec::new();
+        let mut anchored = Vec::new();
         for o in outs {
-            self.touched.extend(o.touched);
-            self.next_anchor.extend(o.next_anchor);
-            moving.extend(o.moving);
-        }
-        moving.sort_unstable_by_key(|&(k, _)| k);
-        self.moving.extend(moving.into_iter().map(|(_, q)| q));
-    }
-
-    /// Every pixel new samples landed on takes its nearest one's geometry and anchor.
-    fn settle(&mut self) {
-        for &q in &self.touched {
-            let i = q as usize;
-            if self.geo[i].v != Vec3::ZERO {
+            for q in o.unanchored {
                 self.anchor.remove(&q);
             }
-            let g = self.next_geo[i];
-            if g.v != Vec3::ZERO {
-                if let Some(a) = self.next_anchor.remove(&q) {
-                    self.anchor.insert(q, a);
-                }
-            }
-            self.geo[i] = g;
+            anchored.extend(o.anchored);
+            moving.extend(o.moving);
         }
-        self.touched.clear();
+        self.anchor.extend(anchored);
+        moving.sort_unstable_by_key(|&(k, _)| k);
+        self.moving.extend(moving.into_iter().map(|(_, q)| q));
     }
 }
 
