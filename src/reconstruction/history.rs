@@ -475,7 +475,14 @@ impl History {
         }
         self.seen = seen;
         let pixels = w * self.height as usize;
-        sort_by_pixel(&mut order, pixels, &mut self.buckets, &mut self.sorted);
+        let band = BLEND_ROWS * w;
+        sort_by_pixel(
+            &mut order,
+            pixels,
+            band,
+            &mut self.buckets,
+            &mut self.sorted,
+        );
         order
     }
 
@@ -976,15 +983,18 @@ fn hidden(front: Option<(&[f32], f32)>, q: usize, z: f32) -> bool {
     front.is_some_and(|(f, keep)| super::splat::behind_front(f[q], z, keep))
 }
 
-/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel: stably,
-/// so each pixel keeps its samples' order. A batch of more than 1/16 as many as the
-/// `pixels` (a burst, up to a whole ring) goes through a counting sort, in time linear
-/// in both, with `buckets` and `out` as scratch; a smaller one through a comparison
-/// sort of `(pixel, index)` keys, whose indices are distinct and increasing, so it is
-/// stable without a stable sort.
+/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel (of
+/// `pixels`): stably, so each pixel keeps its samples' order. The indices are distinct
+/// and increasing, so a sort by `(pixel, index)` is stable without a stable sort, and
+/// every way below gives the same order. A batch of at most 1/16 as many as the pixels
+/// goes through that comparison sort; a larger one (a burst, up to a whole ring) goes
+/// to its bands of `band` pixels first (a counting sort over the bands), each band then
+/// sorted in parallel; on one thread, through a counting sort over the pixels, linear
+/// in both. `buckets` and `out` are scratch.
 fn sort_by_pixel(
     order: &mut Vec<(u32, u32)>,
     pixels: usize,
+    band: usize,
     buckets: &mut Vec<u32>,
     out: &mut Vec<(u32, u32)>,
 ) {
@@ -992,20 +1002,43 @@ fn sort_by_pixel(
         order.sort_unstable();
         return;
     }
+    let band = if rayon::current_num_threads() > 1 {
+        band.max(1)
+    } else {
+        1
+    };
+    let bands = pixels.div_ceil(band);
     buckets.clear();
-    buckets.resize(pixels + 1, 0);
+    buckets.resize(bands + 1, 0);
     for &(q, _) in order.iter() {
-        buckets[q as usize + 1] += 1;
+        buckets[q as usize / band + 1] += 1;
     }
     for k in 1..buckets.len() {
         buckets[k] += buckets[k - 1];
     }
     out.clear();
     out.resize(order.len(), (0, 0));
-    for &(q, i) in order.iter() {
-        let slot = &mut buckets[q as usize];
-        out[*slot as usize] = (q, i);
-        *slot += 1;
+    if band > 1 {
+        let mut runs = Vec::with_capacity(bands);
+        let mut rest = &mut out[..];
+        for w in buckets.windows(2) {
+            let (run, tail) = rest.split_at_mut((w[1] - w[0]) as usize);
+            runs.push(run);
+            rest = tail;
+        }
+        let mut next: Vec<u32> = buckets[..bands].to_vec();
+        for &(q, i) in order.iter() {
+            let b = q as usize / band;
+            runs[b][(next[b] - buckets[b]) as usize] = (q, i);
+            next[b] += 1;
+        }
+        runs.into_par_iter().for_each(|run| run.sort_unstable());
+    } else {
+        for &(q, i) in order.iter() {
+            let slot = &mut buckets[q as usize];
+            out[*slot as usize] = (q, i);
+            *slot += 1;
+        }
     }
     std::mem::swap(order, out);
 }
@@ -1059,15 +1092,25 @@ mod tests {
     #[test]
     fn sorting_by_pixel_is_stable_for_small_and_large_batches() {
         let mut rng = crate::sampling::Rng::new(&[5]);
-        for (n, pixels) in [(10, 1000), (5000, 1000), (3, 3), (0, 7)] {
+        for (n, pixels) in [(10, 1000), (5000, 1000), (3, 3), (0, 7), (20000, 4000)] {
             let input: Vec<(u32, u32)> = (0..n)
                 .map(|i| ((rng.uniform() * pixels as f32) as u32 % pixels as u32, i))
                 .collect();
             let mut want = input.clone();
             want.sort_by_key(|&(q, _)| q);
-            let (mut got, mut buckets, mut out) = (input, Vec::new(), Vec::new());
-            sort_by_pixel(&mut got, pixels, &mut buckets, &mut out);
-            assert_eq!(got, want, "{n} samples over {pixels} pixels");
+            let (got, mut buckets, mut out) = (input, Vec::new(), Vec::new());
+            for threads in [1, 3] {
+                let mut got = got.clone();
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| sort_by_pixel(&mut got, pixels, 64, &mut buckets, &mut out));
+                assert_eq!(
+                    got, want,
+                    "{n} samples over {pixels} pixels, {threads} threads"
+                );
+            }
         }
     }
 
