@@ -83,7 +83,7 @@ fn an_exact_method_on_a_still_scene_scores_near_zero() {
     cfg.seconds = 0.4;
     cfg.warmup = 0.2;
     cfg.ideal_spp = 4;
-    cfg.methods = vec![RtMethod::Framed, RtMethod::TraditionalFrameless];
+    cfg.methods = vec![RtMethod::FramedFull, RtMethod::TraditionalFrameless];
     cfg.repeat = 2;
     let out = live::run(Arc::new(still_wall()), &cfg, &Silent).expect("live evaluation runs");
     let s = &out.summary;
@@ -92,14 +92,14 @@ fn an_exact_method_on_a_still_scene_scores_near_zero() {
     assert_eq!(
         order,
         [
-            (RtMethod::Framed, 1),
+            (RtMethod::FramedFull, 1),
             (RtMethod::TraditionalFrameless, 1),
-            (RtMethod::Framed, 2),
+            (RtMethod::FramedFull, 2),
             (RtMethod::TraditionalFrameless, 2)
         ]
     );
     let framed = &s.results[0];
-    assert_eq!((framed.method, framed.runs), (RtMethod::Framed, 2));
+    assert_eq!((framed.method, framed.runs), (RtMethod::FramedFull, 2));
     // Framed traces every pixel's centre; on a smooth wall that is the ideal's mean
     // to within a level of quantization.
     assert!(framed.max.rms < 0.6, "framed RMS {}", framed.max.rms);
@@ -139,7 +139,7 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
         h,
         TraceOptions::default(),
     ));
-    let mut config = RtConfig::new(RtMethod::Framed);
+    let mut config = RtConfig::new(RtMethod::FramedFull);
     config.refresh_hz = 60.0;
     config.start = 0.0;
     let window = Window {
@@ -149,7 +149,7 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
     let rec = record(
         tracer.clone(),
         config.clone(),
-        RtMethod::Framed.settings(),
+        RtMethod::FramedFull.settings(),
         window,
     )
     .expect("records");

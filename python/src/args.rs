@@ -103,6 +103,13 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     live.set_item("ideal_spp", l.ideal_spp)?;
     live.set_item("max_depth", l.max_depth)?;
     d.set_item("live", live)?;
+    // `frameless still`'s own defaults; the rest are every command's.
+    let still = PyDict::new(py);
+    still.set_item("size", settings::SIZE)?;
+    still.set_item("seed", settings::SEED)?;
+    still.set_item("spp", settings::STILL_SPP)?;
+    still.set_item("max_depth", settings::MAX_DEPTH)?;
+    d.set_item("still", still)?;
     d.set_item("max_depth_limit", frameless::limits::MAX_DEPTH)?;
     d.set_item("max_ideal_spp", frameless::limits::MAX_IDEAL_SPP)?;
     d.set_item("scenes", frameless::scene::builtin::NAMES.to_vec())?;
@@ -110,6 +117,11 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("all_methods", all)?;
     let all_rt: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
     d.set_item("all_live_methods", all_rt)?;
+    let renamed = PyDict::new(py);
+    for (old, new) in frameless::methods::OLD_NAMES {
+        renamed.set_item(old, new)?;
+    }
+    d.set_item("renamed_methods", renamed)?;
     Ok(d)
 }
 

@@ -89,7 +89,7 @@ impl NativeScene {
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let time = args::finite("--time", time)?;
         let (w, h) = args::size(size)?;
-        args::in_range("--spp", spp, 1, 65536)?;
+        args::in_range("--spp", spp, 1, frameless::limits::MAX_STILL_SPP as u64)?;
         args::in_range(
             "--max-depth",
             max_depth,

@@ -50,7 +50,7 @@ fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::S
 #[pymethods]
 impl NativeRender {
     /// NativeRender(scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
-    ///              texture_filter)
+    ///              max_depth, texture_filter)
     /// --
     ///
     /// Checks the settings as `frameless render` does, then starts the method.
@@ -66,9 +66,11 @@ impl NativeRender {
         size: &str,
         refresh_hz: f64,
         seed: u64,
+        max_depth: u64,
         texture_filter: &str,
     ) -> PyResult<Self> {
         let (width, height) = args::size(size)?;
+        args::ideal_spp_and_depth(1, max_depth)?;
         let cfg = SequenceConfig {
             scene_name: scene.name.clone(),
             camera_path: scene.camera_path.clone(),
@@ -81,7 +83,7 @@ impl NativeRender {
             width,
             height,
             seed,
-            max_depth: frameless::settings::MAX_DEPTH,
+            max_depth: max_depth as u32,
             texture_filter: args::texture_filter(texture_filter)?,
             format: ImageFormat::Exr,
             gpu: None,
