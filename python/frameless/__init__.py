@@ -4,7 +4,8 @@ The nouns, names and defaults are the ``frameless`` command line's::
 
     import frameless
     scene = frameless.Scene.load("toycar")
-    img = scene.still(0.5, size=(256, 192), spp=16)        # H×W×3 float32, linear
+    img = scene.still(0.5, size=(256, 192), spp=16)        # H×W×3 float32 display values
+    frameless.write_image("still.png", img)                # or .exr, in linear light
     ev = frameless.evaluate(scene, methods=["adaptive", "taa"], rates=["400k"])
     ev.summary["results"]                                  # as summary.json has them
     ev.frames["rms"]                                       # numpy columns of frames.csv
@@ -18,15 +19,17 @@ the command line gives. See docs/python.md in the repository.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, Iterator, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import _frameless
-from ._frameless import to_display
+from ._frameless import to_display, to_linear
 
 __all__ = [
     "Scene",
@@ -37,6 +40,8 @@ __all__ = [
     "render",
     "scenes",
     "to_display",
+    "to_linear",
+    "write_image",
     "DEFAULT_METHODS",
     "DEFAULT_RATES",
 ]
@@ -59,6 +64,19 @@ DEFAULT_METHODS: Tuple[str, ...] = (
     "adaptive",
 )
 DEFAULT_RATES: Tuple[str, ...] = ("100k", "400k", "800k")
+
+
+def write_image(path: PathLike, image: Any) -> None:
+    """Write an image as ``frameless`` writes its own: ``.png`` as displayed (clamped,
+    8-bit sRGB), ``.exr`` in linear light (docs/colour.md). ``image`` is an ``H×W×3``
+    array of display values, as ``Scene.still`` returns: float (0–1), or uint8 bytes
+    (0–255) as ``to_display`` returns. The file appears whole or not at all."""
+    a = np.asarray(image)
+    if a.dtype == np.uint8:
+        a = a.astype(np.float32) / np.float32(255.0)
+    elif a.dtype.kind == "f":
+        a = a.astype(np.float32, copy=False)
+    _frameless.write_image(os.fspath(path), a)
 
 
 def scenes() -> list:
@@ -84,6 +102,37 @@ def _names(value: Union[str, Iterable[str]]) -> list:
     if isinstance(value, str):
         return value.split(",")
     return [str(v) for v in value]
+
+
+def _did_you_mean(name: str, known: Sequence[str]) -> str:
+    """ "; did you mean 'x'?" for the closest of ``known``, or nothing."""
+    close = difflib.get_close_matches(name, known, n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _methods(value: Union[str, Iterable[str]]) -> list:
+    """Method names as the command line takes them: an old name becomes the current
+    one with a FutureWarning naming it, as the command line notes it; an unknown one
+    raises ValueError with the closest name."""
+    lib = _frameless.defaults()
+    renamed = lib["renamed_methods"]
+    known = list(dict.fromkeys(lib["all_methods"] + lib["all_live_methods"]))
+    out = []
+    for name in (n.strip() for n in _names(value)):
+        if name in renamed:
+            warnings.warn(
+                f"method {name!r} is called {renamed[name]!r} now; the old name still works",
+                FutureWarning,
+                stacklevel=3,
+            )
+            name = renamed[name]
+        elif name not in known:
+            raise ValueError(
+                f"unknown method {name!r}{_did_you_mean(name, known)} "
+                f"(methods: {', '.join(known)})"
+            )
+        out.append(name)
+    return out
 
 
 def _rates(value: Union[str, float, Iterable[Union[str, float]]]) -> list:
@@ -179,18 +228,18 @@ class Scene:
     def still(
         self,
         t: float = 0.0,
-        size: Size = (512, 384),
+        size: Size = (256, 256),
         spp: int = 16,
         *,
-        seed: int = 0,
+        seed: int = 1,
         max_depth: int = 5,
         texture_filter: str = "ray-cones",
         progress: Progress = True,
     ) -> np.ndarray:
         """``frameless still``: the image at scene time ``t`` by stratified
         supersampling, ``spp`` samples per pixel, as an ``H×W×3`` float32 array of
-        linear values (what ``--out still.exr`` holds; ``to_display`` gives the PNG's
-        bytes)."""
+        display values, unclamped (``to_display`` gives the PNG's bytes, ``to_linear``
+        the OpenEXR file's values; docs/colour.md)."""
         with _Bar(progress, "rendering", "rows") as cb:
             return self._native.still(
                 float(t), _size(size), spp, seed, max_depth, texture_filter, cb
@@ -285,7 +334,7 @@ def evaluate(
     native = _scene(scene)._native
     with _Bar(progress, "evaluating", "rays") as cb:
         summary, frames = _frameless.evaluate(
-            native, _names(methods), _rates(rates), float(start), float(duration),
+            native, _methods(methods), _rates(rates), float(start), float(duration),
             _size(size), float(refresh_hz), seed, ideal_spp, float(warmup), max_depth,
             texture_filter, flip_every, _cache_dir(cache_dir, no_cache), cb,
         )
@@ -302,7 +351,7 @@ def live(
     methods: Optional[Union[str, Iterable[str]]] = None,
     *,
     start: float = 0.0,
-    seconds: float = 3.0,
+    duration: float = 3.0,
     warmup: float = 1.0,
     size: Size = (256, 256),
     refresh_hz: float = 60.0,
@@ -315,16 +364,22 @@ def live(
     cache_dir: Optional[PathLike] = None,
     no_cache: bool = False,
     progress: Progress = True,
+    seconds: Optional[float] = None,
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
-    this machine for ``seconds`` of wall time each, every displayed refresh scored
-    against the ideal image at its scan-out time. ``threads`` sizes the pipeline as
-    ``--threads`` does. Ctrl-C stops it when the run in progress ends."""
+    this machine for ``duration`` seconds of wall time each, every displayed refresh
+    scored against the ideal image at its scan-out time. ``threads`` sizes the pipeline
+    as ``--threads`` does. Ctrl-C stops it when the run in progress ends. ``seconds``
+    is ``duration``'s old name (a FutureWarning says so)."""
+    if seconds is not None:
+        warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
+                      FutureWarning, stacklevel=2)
+        duration = seconds
     native = _scene(scene)._native
-    names = None if methods is None else _names(methods)
+    names = None if methods is None else _methods(methods)
     with _Bar(progress, "live", "refreshes") as cb:
         summary, frames = _frameless.live(
-            native, names, float(start), float(seconds), float(warmup), _size(size),
+            native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
             texture_filter, _cache_dir(cache_dir, no_cache), cb,
         )
@@ -362,19 +417,21 @@ def render(
     refresh_hz: float = 60.0,
     size: Size = (256, 256),
     seed: int = 1,
+    max_depth: int = 5,
     texture_filter: str = "ray-cones",
     progress: Progress = True,
 ) -> Render:
     """``frameless render``: what ``method`` displays at each refresh of
     ``[start, start + duration)`` under the simulated clock at ``rate`` samples per
-    second. Yields ``(time, image)``, the image linear ``H×W×3`` float32 (the values
-    of ``--format exr``'s frames; ``to_display`` gives the PNG frames' bytes). The
+    second. Yields ``(time, image)``, the image ``H×W×3`` float32 display values
+    (``to_linear`` gives ``--format exr``'s frames, ``to_display`` the PNG frames'
+    bytes). The
     settings are checked here, before the first image."""
     rates = _rates(rate)
     if len(rates) != 1:
         raise ValueError(f"rate {rate!r}: render runs one rate")
     native = _frameless.NativeRender(
-        _scene(scene)._native, method, rates[0], float(start), float(duration),
-        float(warmup), _size(size), float(refresh_hz), seed, texture_filter,
+        _scene(scene)._native, _methods(method)[0], rates[0], float(start), float(duration),
+        float(warmup), _size(size), float(refresh_hz), seed, max_depth, texture_filter,
     )
     return Render(native, progress)

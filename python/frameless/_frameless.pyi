@@ -15,8 +15,14 @@ def defaults() -> dict:
     the method names."""
 
 def to_display(image: npt.NDArray[np.float32]) -> npt.NDArray[np.uint8]:
-    """A linear H×W×3 image as displayed and written to PNG: clamped to [0, 1] and
-    rounded to 8 bits."""
+    """An H×W×3 image as displayed and written to PNG: clamped to [0, 1] and rounded
+    to 8 bits."""
+
+def to_linear(image: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    """An H×W×3 image in linear light, as written to OpenEXR (docs/colour.md)."""
+
+def write_image(path: str, image: npt.NDArray[np.float32]) -> None:
+    """Write an image: `.png` as displayed, `.exr` in linear light."""
 
 class NativeScene:
     """A loaded scene and the camera path overriding its camera."""
@@ -39,7 +45,7 @@ class NativeScene:
         texture_filter: str,
         progress: ProgressCallback = None,
     ) -> npt.NDArray[np.float32]:
-        """`frameless still`'s linear image, H×W×3 float32."""
+        """`frameless still`'s image (display values), H×W×3 float32."""
 
 def evaluate(
     scene: NativeScene,
@@ -94,6 +100,7 @@ class NativeRender:
         size: str,
         refresh_hz: float,
         seed: int,
+        max_depth: int,
         texture_filter: str,
     ) -> None: ...
     def __iter__(self) -> Iterator[Tuple[float, npt.NDArray[np.float32]]]: ...

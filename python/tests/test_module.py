@@ -65,7 +65,7 @@ def test_still_equals_the_commands_png_and_exr(tmp_path, binary, toycar):
     assert img.shape == (32, 48, 3) and img.dtype == np.float32
     exr = read_exr(tmp_path / "s.exr")
     assert exr.shape == img.shape
-    assert np.array_equal(bits(exr), bits(img)), "EXR values differ"
+    assert np.array_equal(bits(exr), bits(frameless.to_linear(img))), "EXR values differ"
     png = np.asarray(Image.open(tmp_path / "s.png").convert("RGB"))
     assert np.array_equal(png, frameless.to_display(img))
     # Not a constant image: the comparison above could tell two renderings apart.
@@ -73,9 +73,9 @@ def test_still_equals_the_commands_png_and_exr(tmp_path, binary, toycar):
 
 
 def test_still_defaults_are_the_commands(tmp_path, binary, toycar):
-    cli(binary, "still", "--spp", "1", "--out", tmp_path / "d.exr")
+    cli(binary, "still", "--spp", "1", "--format", "exr", "--out", tmp_path / "d.exr")
     img = toycar.still(spp=1, progress=False)
-    assert np.array_equal(bits(read_exr(tmp_path / "d.exr")), bits(img))
+    assert np.array_equal(bits(read_exr(tmp_path / "d.exr")), bits(frameless.to_linear(img)))
 
 
 def without_timing(summary: dict) -> dict:
@@ -119,7 +119,7 @@ def test_render_yields_the_commands_exr_frames(tmp_path, binary, toycar):
     assert len(frames) == len(files) == 3
     for k, ((t, img), f) in enumerate(zip(frames, files)):
         assert t == pytest.approx(k / 60.0)
-        assert np.array_equal(bits(img), bits(read_exr(f))), f.name
+        assert np.array_equal(bits(frameless.to_linear(img)), bits(read_exr(f))), f.name
 
 
 # Settings the library checks: the whole message is the command's.
@@ -131,7 +131,7 @@ LIBRARY_CHECKED = [
      lambda s: frameless.evaluate(s, methods=["adaptive", "adaptive"])),
     (["eval", "--size", "4096x4097"], lambda s: frameless.evaluate(s, size=(4096, 4097))),
     (["render", "--warmup", "-2"], lambda s: frameless.render(s, warmup=-2)),
-    (["live", "--seconds", "0"], lambda s: frameless.live(s, seconds=0)),
+    (["live", "--duration", "0"], lambda s: frameless.live(s, duration=0)),
 ]
 
 # Values clap parses on the command line ("invalid value '…' for '--opt <OPT>':
@@ -195,7 +195,7 @@ def test_bart_kitchen_still_equals_the_commands(tmp_path, binary):
     args = ["--time", "2", "--size", "40x30", "--spp", "2"]
     cli(binary, "still", "--scene", kitchen, *args, "--out", tmp_path / "k.exr")
     img = frameless.Scene.load(kitchen).still(2.0, size=(40, 30), spp=2, progress=False)
-    assert np.array_equal(bits(img), bits(read_exr(tmp_path / "k.exr")))
+    assert np.array_equal(bits(frameless.to_linear(img)), bits(read_exr(tmp_path / "k.exr")))
     assert img.std() > 0.01
 
 
@@ -208,8 +208,14 @@ def test_python_defaults_are_the_librarys():
               "flip_every"):
         assert ev[k].default == lib["evaluate"][k], k
     assert tuple(ev["size"].default) == tuple(lib["evaluate"]["size"])
+    st = inspect.signature(frameless.Scene.still).parameters
+    for k in ("seed", "spp", "max_depth"):
+        assert st[k].default == lib["still"][k], k
+    assert tuple(st["size"].default) == tuple(lib["still"]["size"]) == tuple(ev["size"].default)
+    assert st["seed"].default == ev["seed"].default
     lv = inspect.signature(frameless.live).parameters
-    for k in ("start", "seconds", "warmup", "refresh_hz", "repeat", "seed", "ideal_spp",
+    assert lv["duration"].default == lib["live"]["seconds"]
+    for k in ("start", "warmup", "refresh_hz", "repeat", "seed", "ideal_spp",
               "max_depth"):
         assert lv[k].default == lib["live"][k], k
     assert tuple(lv["size"].default) == tuple(lib["live"]["size"])
@@ -310,3 +316,45 @@ def test_exit_with_a_thread_inside_a_still_is_clean():
     err = p.stderr.read()
     assert p.returncode == 0, (p.returncode, err)
     assert "FATAL" not in err, err
+
+
+def test_one_name_per_method_and_old_names_warn(toycar):
+    # `framed-full` is a method of both clocks; `framed`, the real-time pipeline's old
+    # name for it, still works with a FutureWarning naming the new one.
+    lib = frameless._frameless.defaults()
+    assert "framed-full" in lib["all_methods"] and "framed-full" in lib["all_live_methods"]
+    assert lib["renamed_methods"] == {"framed": "framed-full"}
+    with pytest.warns(FutureWarning, match="'framed-full'"):
+        ev = frameless.evaluate(toycar, methods="framed", rates="100k", duration=0.05,
+                                size=(16, 16), no_cache=True, progress=False)
+    assert ev.results[0]["method"] == "framed-full"
+    with pytest.raises(ValueError, match="did you mean 'framed-full'"):
+        frameless.evaluate(toycar, methods="framed-ful", progress=False)
+
+
+def srgb_encode(linear: np.ndarray) -> np.ndarray:
+    """IEC 61966-2-1's encoding, written here from the standard (docs/colour.md)."""
+    a = np.abs(linear.astype(np.float64))
+    enc = np.where(a <= 0.0031308, a * 12.92, 1.055 * a ** (1 / 2.4) - 0.055)
+    return np.copysign(enc, linear)
+
+
+def test_write_image_writes_the_commands_files_which_agree_through_srgb(tmp_path, binary, toycar):
+    args = ["--scene", "toycar", "--time", "0.5", "--size", "40x24", "--spp", "2"]
+    cli(binary, "still", *args, "--format", "exr", "-o", tmp_path / "c.exr")
+    cli(binary, "still", *args, "-o", tmp_path / "c.png")
+    img = toycar.still(0.5, size=(40, 24), spp=2, progress=False)
+    frameless.write_image(tmp_path / "p.exr", img)
+    frameless.write_image(tmp_path / "p.png", img)
+    exr, png = read_exr(tmp_path / "c.exr"), np.asarray(Image.open(tmp_path / "c.png"))
+    assert np.array_equal(bits(read_exr(tmp_path / "p.exr")), bits(exr))
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "p.png")), png)
+    # The EXR holds linear light: its sRGB encoding, clamped and rounded, is the PNG
+    # (to within float rounding at a rounding boundary).
+    shown = np.clip(srgb_encode(exr), 0, 1) * 255
+    assert np.all(np.abs(shown - png) <= 0.5 + 1e-3)
+    # Bytes as to_display gives them write the same PNG.
+    frameless.write_image(tmp_path / "b.png", frameless.to_display(img))
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "b.png")), png)
+    with pytest.raises(ValueError, match=r"\.jpg"):
+        frameless.write_image(tmp_path / "x.jpg", img)
