@@ -24,6 +24,26 @@ def to_linear(image: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
 def write_image(path: str, image: npt.NDArray[np.float32]) -> None:
     """Write an image: `.png` as displayed, `.exr` in linear light."""
 
+def read_image(path: str) -> npt.NDArray[np.float32]:
+    """A `.png` or `.exr` file's display values, H×W×3 float32."""
+
+def main(argv: list) -> int:
+    """Run the `frameless` command (`argv[0]` is the program's name); its exit status."""
+
+def rms(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """RMS error of two H×W×3 byte images, 0–255."""
+
+def psnr(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """PSNR of two H×W×3 byte images, dB."""
+
+def flip(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """Mean LDR-FLIP error of two H×W×3 byte images."""
+
+def flip_map(
+    reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.float32]:
+    """Per-pixel LDR-FLIP error, H×W float32."""
+
 class NativeScene:
     """A loaded scene and the camera path overriding its camera."""
 
@@ -62,6 +82,7 @@ def evaluate(
     texture_filter: str,
     flip_every: int,
     cache_dir: Optional[str],
+    recon: str = "cpu",
     progress: ProgressCallback = None,
 ) -> Tuple[str, str]:
     """`frameless eval`: (summary JSON, per-frame rows JSON)."""
@@ -81,12 +102,13 @@ def live(
     max_depth: int,
     texture_filter: str,
     cache_dir: Optional[str],
+    recon: str = "cpu",
     progress: ProgressCallback = None,
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 
 class NativeRender:
-    """`frameless render` as an iterator of (time, linear H×W×3 float32 image)."""
+    """`frameless render` as an iterator of (time, H×W×3 float32 image of display values)."""
 
     len: int
     def __init__(
@@ -102,6 +124,7 @@ class NativeRender:
         seed: int,
         max_depth: int,
         texture_filter: str,
+        recon: str = "cpu",
     ) -> None: ...
     def __iter__(self) -> Iterator[Tuple[float, npt.NDArray[np.float32]]]: ...
     def __next__(self) -> Tuple[float, npt.NDArray[np.float32]]: ...

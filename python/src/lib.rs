@@ -6,8 +6,10 @@
 //! raises with the text `frameless` prints after `error: ` (see [`errors`]).
 
 mod args;
+mod cli;
 mod errors;
 mod eval;
+mod metrics;
 mod scene;
 mod sequence;
 mod work;
@@ -93,6 +95,47 @@ fn write_image(py: Python<'_>, path: std::path::PathBuf, image: &Bound<'_, PyAny
     })
 }
 
+/// read_image(path)
+/// --
+///
+/// An image file's display values, `H×W×3` float32: a PNG's bytes / 255, an OpenEXR
+/// file's linear light encoded back (docs/colour.md).
+#[pyfunction]
+fn read_image<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+) -> PyResult<Bound<'py, PyArray3<f32>>> {
+    use frameless::image::{read_exr, read_png_rgb8, Image, ImageFormat};
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let format = ImageFormat::ALL
+        .into_iter()
+        .find(|(_, x, _)| extension.as_deref() == Some(*x))
+        .map(|(f, _, _)| f)
+        .ok_or_else(|| {
+            errors::value(format!(
+                "read_image reads .png and .exr files; {} is neither",
+                path.display()
+            ))
+        })?;
+    let read = work::detach(py, || -> std::io::Result<Image> {
+        match format {
+            ImageFormat::Exr => Ok(read_exr(&path)?.to_display_values()),
+            ImageFormat::Png => {
+                let (w, h, rgb) = read_png_rgb8(&path)?;
+                let pixels = rgb
+                    .chunks_exact(3)
+                    .map(|p| glam::Vec3::new(p[0].into(), p[1].into(), p[2].into()) / 255.0)
+                    .collect();
+                Ok(Image { width: w, height: h, pixels })
+            }
+        }
+    });
+    let img = read.map_err(|e| {
+        pyo3::exceptions::PyOSError::new_err(format!("reading {}: {e}", path.display()))
+    })?;
+    Ok(to_array(py, &img))
+}
+
 /// An `H×W×3` float32 array argument of `function` as an image.
 fn image_arg(function: &str, image: &Bound<'_, PyAny>) -> PyResult<frameless::image::Image> {
     let array: PyReadonlyArray3<'_, f32> =
@@ -133,6 +176,9 @@ fn _frameless(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(to_display, m)?)?;
     m.add_function(wrap_pyfunction!(to_linear, m)?)?;
     m.add_function(wrap_pyfunction!(write_image, m)?)?;
+    m.add_function(wrap_pyfunction!(read_image, m)?)?;
+    cli::register(m)?;
+    metrics::register(m)?;
     scene::register(m)?;
     eval::register(m)?;
     sequence::register(m)?;

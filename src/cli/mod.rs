@@ -34,12 +34,21 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
+    std::process::ExitCode::from(status(args))
+}
+
+/// [`main`]'s exit status as a number: 0 on success, 1 after printing the error.
+pub fn status<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
     let cli = Cli::parse_from(args);
     match run(cli) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(e) => {
             eprintln!("error: {}", message(&e));
-            std::process::ExitCode::FAILURE
+            1
         }
     }
 }
