@@ -7,7 +7,9 @@ pub mod metrics;
 pub mod report;
 pub mod sequence;
 pub mod sweep;
+pub mod style;
 pub mod table1;
+pub mod verdict;
 pub mod temporal;
 pub mod video_metric;
 
