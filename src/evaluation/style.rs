@@ -1,8 +1,9 @@
 //! One look per method in every plot and report: a colour, a line pattern and a marker,
 //! keyed by the method's name, so that a method is drawn alike in every plot of every
-//! report (`eval`, `table1`, `live`) whichever methods share the plot. The methods of
-//! the default evaluation get the first styles, so each of them has a colour no other
-//! one of them has.
+//! report (`eval`, `table1`, `live`) whichever methods share the plot. `adaptive`, the
+//! method the project is about, gets the first style (the palette's blue, a solid line,
+//! discs); then the other methods of the default evaluation, so each of them has a
+//! colour no other one of them has; then the rest.
 
 use plotters::style::RGBColor;
 
@@ -78,14 +79,17 @@ fn nth(k: usize) -> Style {
     }
 }
 
-/// A method's place in the order styles are handed out in: the default methods first,
-/// then every other method in registry order.
+/// A method's place in the order styles are handed out in: `adaptive`, the other
+/// default methods, then every other method in registry order.
 fn rank(method: MethodKind) -> usize {
+    let defaults = DEFAULT_METHODS
+        .iter()
+        .filter(|m| **m != MethodKind::Adaptive);
     let others = MethodKind::ALL
         .iter()
         .filter(|m| !DEFAULT_METHODS.contains(m));
-    DEFAULT_METHODS
-        .iter()
+    std::iter::once(&MethodKind::Adaptive)
+        .chain(defaults)
         .chain(others)
         .position(|m| *m == method)
         .expect("every method is in the registry")
