@@ -90,12 +90,30 @@ fn one_name_per_method_and_the_old_name_noted() {
         let out = tmp(&format!("eval-{method}"));
         let o = out.to_str().unwrap();
         let eval = [
-            "eval", "--size", "16", "--duration", "0.05", "--rate", "100k", "--no-cache",
-            "--method", method, "-o", o,
+            "eval",
+            "--size",
+            "16",
+            "--duration",
+            "0.05",
+            "--rate",
+            "100k",
+            "--no-cache",
+            "--method",
+            method,
+            "-o",
+            o,
         ];
         let view = [
-            "view", "--headless", "--duration", "0.05", "--size", "16", "--method", method,
-            "-o", o,
+            "view",
+            "--headless",
+            "--duration",
+            "0.05",
+            "--size",
+            "16",
+            "--method",
+            method,
+            "-o",
+            o,
         ];
         for args in [&eval[..], &view[..]] {
             let run = frameless(args);
@@ -123,19 +141,36 @@ fn format_exr_is_one_option_and_the_old_ways_still_work() {
     }
     let clash = frameless(&[&still[..], &["--format", "png", "-o", &file("c.exr")]].concat());
     let err = String::from_utf8_lossy(&clash.stderr);
-    assert!(!clash.status.success() && err.contains("--format png"), "{err}");
+    assert!(
+        !clash.status.success() && err.contains("--format png"),
+        "{err}"
+    );
     assert!(!out.join("c.exr").exists());
     let eval = [
-        "eval", "--size", "8", "--duration", "0.05", "--rate", "100k", "--no-cache",
-        "--method", "traditional-frameless",
+        "eval",
+        "--size",
+        "8",
+        "--duration",
+        "0.05",
+        "--rate",
+        "100k",
+        "--no-cache",
+        "--method",
+        "traditional-frameless",
     ];
     for (flag, noted) in [(&["--format", "exr"][..], false), (&["--exr"][..], true)] {
         let dir = file("eval");
         let run = frameless(&[&eval[..], flag, &["-o", &dir]].concat());
         let err = String::from_utf8_lossy(&run.stderr);
         assert!(run.status.success(), "{flag:?}: {err}");
-        assert_eq!(err.contains("note: --exr is `--format exr` now"), noted, "{err}");
-        let exr = std::fs::read_dir(out.join("eval/exr")).expect("exr/ written").count();
+        assert_eq!(
+            err.contains("note: --exr is `--format exr` now"),
+            noted,
+            "{err}"
+        );
+        let exr = std::fs::read_dir(out.join("eval/exr"))
+            .expect("exr/ written")
+            .count();
         assert!(exr > 0, "{flag:?}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -150,9 +185,23 @@ fn still_has_the_defaults_of_every_other_command() {
     std::fs::create_dir_all(&out).unwrap();
     let explicit = out.join("explicit.png");
     let default = out.join("default.png");
-    let size = format!("{}x{}", frameless::settings::SIZE.0, frameless::settings::SIZE.1);
+    let size = format!(
+        "{}x{}",
+        frameless::settings::SIZE.0,
+        frameless::settings::SIZE.1
+    );
     let seed = frameless::settings::SEED.to_string();
-    ok(&["still", "--spp", "1", "--size", &size, "--seed", &seed, "-o", explicit.to_str().unwrap()]);
+    ok(&[
+        "still",
+        "--spp",
+        "1",
+        "--size",
+        &size,
+        "--seed",
+        &seed,
+        "-o",
+        explicit.to_str().unwrap(),
+    ]);
     ok(&["still", "--spp", "1", "-o", default.to_str().unwrap()]);
     let read = |p: &std::path::Path| frameless::image::read_png_rgb8(p).expect("a PNG");
     assert_eq!(read(&default), read(&explicit));

@@ -137,7 +137,10 @@ fn exr_frames_hold_the_linear_values_the_png_frames_quantize() {
         let values = linear.to_display_values().pixels;
         for (v, b) in values.iter().flat_map(|p| p.to_array()).zip(&rgb) {
             let v = v.clamp(0.0, 1.0) * 255.0;
-            assert!((v - f32::from(*b)).abs() <= 0.5 + 1e-3, "frame {k}: {v} vs {b}");
+            assert!(
+                (v - f32::from(*b)).abs() <= 0.5 + 1e-3,
+                "frame {k}: {v} vs {b}"
+            );
         }
         frames += 1;
     }

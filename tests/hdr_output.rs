@@ -84,7 +84,10 @@ fn still_exr_holds_linear_light_and_png_the_display_values() {
     // float rounding of the decode and encode, at a rounding boundary).
     for (i, (e, b)) in pixels.iter().flatten().zip(&rgb).enumerate() {
         let v = frameless::image::linear_to_display(*e).clamp(0.0, 1.0) * 255.0;
-        assert!((v - f32::from(*b)).abs() <= 0.5 + 1e-3, "value {i}: {e} -> {v} vs {b}");
+        assert!(
+            (v - f32::from(*b)).abs() <= 0.5 + 1e-3,
+            "value {i}: {e} -> {v} vs {b}"
+        );
     }
     let _ = std::fs::remove_dir_all(&d);
 }

@@ -89,7 +89,9 @@ fn edit_distance(a: &str, b: &str) -> usize {
         let mut diag = row[0];
         row[0] = i + 1;
         for (j, cb) in b.iter().enumerate() {
-            let next = (diag + usize::from(ca != *cb)).min(row[j] + 1).min(row[j + 1] + 1);
+            let next = (diag + usize::from(ca != *cb))
+                .min(row[j] + 1)
+                .min(row[j + 1] + 1);
             diag = row[j + 1];
             row[j + 1] = next;
         }
@@ -216,7 +218,9 @@ pub fn groups(
 )> {
     ideal_spp_and_depth(ideal_spp, max_depth)?;
     let display = settings::DisplayGroup {
-        size: size.parse().map_err(|e: frameless::limits::LimitError| value(e.to_string()))?,
+        size: size
+            .parse()
+            .map_err(|e: frameless::limits::LimitError| value(e.to_string()))?,
         refresh_hz: finite("refresh_hz", refresh_hz)?,
         ..Default::default()
     };

@@ -106,7 +106,9 @@ fn read_image<'py>(
     path: std::path::PathBuf,
 ) -> PyResult<Bound<'py, PyArray3<f32>>> {
     use frameless::image::{read_exr, read_png_rgb8, Image, ImageFormat};
-    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let extension = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
     let format = ImageFormat::ALL
         .into_iter()
         .find(|(_, x, _)| extension.as_deref() == Some(*x))
@@ -126,7 +128,11 @@ fn read_image<'py>(
                     .chunks_exact(3)
                     .map(|p| glam::Vec3::new(p[0].into(), p[1].into(), p[2].into()) / 255.0)
                     .collect();
-                Ok(Image { width: w, height: h, pixels })
+                Ok(Image {
+                    width: w,
+                    height: h,
+                    pixels,
+                })
             }
         }
     });

@@ -77,8 +77,7 @@ fn flip_map<'py>(
     let (w, h, r, t) = pair(&reference, &test)?;
     let values = crate::work::detach(py, || metrics::flip_values(&r, &t, w, h))
         .ok_or_else(|| value("FLIP could not compare these images"))?;
-    let map = Array2::from_shape_vec((h as usize, w as usize), values)
-        .expect("one value a pixel");
+    let map = Array2::from_shape_vec((h as usize, w as usize), values).expect("one value a pixel");
     Ok(map.into_pyarray(py))
 }
 

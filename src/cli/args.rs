@@ -651,10 +651,15 @@ mod tests {
         };
         assert!(a.reference.no_cache && a.reference.cache().is_none());
         assert_eq!(a.warmup, Some(0.5));
-        assert_eq!(a.camera_path.as_deref(), Some(std::path::Path::new("path.csv")));
+        assert_eq!(
+            a.camera_path.as_deref(),
+            Some(std::path::Path::new("path.csv"))
+        );
         assert_eq!(a.quality.max_depth, 2);
         // Unset, every animation keeps its own warm-up and camera.
-        let Command::Table1(a) = Cli::try_parse_from(["frameless", "table1"]).unwrap().command
+        let Command::Table1(a) = Cli::try_parse_from(["frameless", "table1"])
+            .unwrap()
+            .command
         else {
             panic!("table1 expected")
         };
@@ -665,14 +670,16 @@ mod tests {
     #[test]
     fn old_method_names_are_taken_as_the_new_ones() {
         for (old, new) in frameless::methods::OLD_NAMES {
-            let Command::Render(r) =
-                Cli::try_parse_from(["frameless", "render", "--method", old]).unwrap().command
+            let Command::Render(r) = Cli::try_parse_from(["frameless", "render", "--method", old])
+                .unwrap()
+                .command
             else {
                 panic!("render expected")
             };
             assert_eq!(r.method.name(), *new);
-            let Command::Live(l) =
-                Cli::try_parse_from(["frameless", "live", "--method", old]).unwrap().command
+            let Command::Live(l) = Cli::try_parse_from(["frameless", "live", "--method", old])
+                .unwrap()
+                .command
             else {
                 panic!("live expected")
             };

@@ -132,7 +132,10 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
                 .bart
                 .clone()
                 .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into));
-            (&a.out, vec![bart, a.reference.cache(), a.camera_path.clone()])
+            (
+                &a.out,
+                vec![bart, a.reference.cache(), a.camera_path.clone()],
+            )
         }
         Command::Merge(a) => (&a.out, a.results.iter().cloned().map(Some).collect()),
         _ => return None,
@@ -328,8 +331,8 @@ fn still(a: args::StillArgs) -> Result<()> {
     let scene = load_scene(&a.scene.scene)?;
     let path = load_camera_path(a.scene.camera_path.as_deref())?;
     let Size(w, h) = a.size;
-    let tracer = Tracer::new(Arc::new(scene), w, h, TraceOptions::from(&a.quality))
-        .with_camera_path(path);
+    let tracer =
+        Tracer::new(Arc::new(scene), w, h, TraceOptions::from(&a.quality)).with_camera_path(path);
     let bar = Meter::new("rendering", "rows");
     bar.set_total(h as u64);
     let t0 = Instant::now();

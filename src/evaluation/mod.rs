@@ -6,11 +6,11 @@ pub mod live;
 pub mod metrics;
 pub mod report;
 pub mod sequence;
-pub mod sweep;
 pub mod style;
+pub mod sweep;
 pub mod table1;
-pub mod verdict;
 pub mod temporal;
+pub mod verdict;
 pub mod video_metric;
 
 use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};

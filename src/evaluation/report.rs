@@ -11,9 +11,7 @@ use std::{
 
 use plotters::prelude::*;
 
-use super::{
-    metrics, style, verdict, video_metric, EvalError, EvalOutput, FrameRow, Summary,
-};
+use super::{metrics, style, verdict, video_metric, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{
     image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
@@ -316,8 +314,7 @@ pub(crate) fn plot_lines(
             ))
         }
         .map_err(|x| e(Box::new(x)))?;
-        with_mark!(look, |mark| legend_area.draw(&mark((28, y))))
-            .map_err(|x| e(Box::new(x)))?;
+        with_mark!(look, |mark| legend_area.draw(&mark((28, y)))).map_err(|x| e(Box::new(x)))?;
         legend_area
             .draw(&Text::new(
                 name.clone(),

@@ -45,7 +45,12 @@ pub enum Marker {
 
 /// Four marks: with the ten colours and three patterns, the first 60 styles differ in
 /// at least one of the three from every other.
-const MARKERS: [Marker; 4] = [Marker::Circle, Marker::Triangle, Marker::Square, Marker::Cross];
+const MARKERS: [Marker; 4] = [
+    Marker::Circle,
+    Marker::Triangle,
+    Marker::Square,
+    Marker::Cross,
+];
 
 /// How one series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -113,13 +118,19 @@ mod tests {
 
     #[test]
     fn every_method_has_its_own_style_and_the_defaults_their_own_colour() {
-        let styles: Vec<Style> = MethodKind::ALL.iter().map(|m| of_method(m.name()).unwrap()).collect();
+        let styles: Vec<Style> = MethodKind::ALL
+            .iter()
+            .map(|m| of_method(m.name()).unwrap())
+            .collect();
         for (i, a) in styles.iter().enumerate() {
             for b in &styles[i + 1..] {
                 assert!((a.colour, a.dash, a.marker) != (b.colour, b.dash, b.marker));
             }
         }
-        let colours: Vec<RGBColor> = DEFAULT_METHODS.iter().map(|m| of_method(m.name()).unwrap().colour).collect();
+        let colours: Vec<RGBColor> = DEFAULT_METHODS
+            .iter()
+            .map(|m| of_method(m.name()).unwrap().colour)
+            .collect();
         for (i, c) in colours.iter().enumerate() {
             assert!(!colours[i + 1..].contains(c), "{}", DEFAULT_METHODS[i]);
         }

@@ -22,10 +22,7 @@ fn ranked(s: &Summary, rate: f64) -> Vec<&ResultRow> {
 /// One sentence: at each rate the method with the lowest mean RMS error, with its RMS
 /// and the runner-up's, and FLIP's best where that is another method.
 pub fn sentence(s: &Summary, rates: &[f64]) -> String {
-    let clauses: Vec<String> = rates
-        .iter()
-        .filter_map(|&rate| clause(s, rate))
-        .collect();
+    let clauses: Vec<String> = rates.iter().filter_map(|&rate| clause(s, rate)).collect();
     if clauses.is_empty() {
         return "No method here was held to a sample budget, so none is ranked.".into();
     }
