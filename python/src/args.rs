@@ -145,7 +145,7 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let rt: Vec<&str> = l.methods.iter().map(|m| m.name()).collect();
     live.set_item("methods", rt)?;
     live.set_item("start", l.start)?;
-    live.set_item("seconds", l.seconds)?;
+    live.set_item("duration", l.seconds)?;
     live.set_item("warmup", l.warmup)?;
     live.set_item("size", (l.width, l.height))?;
     live.set_item("refresh_hz", l.refresh_hz)?;

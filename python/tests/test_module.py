@@ -235,7 +235,7 @@ def test_python_defaults_are_the_librarys():
     assert tuple(st["size"].default) == tuple(lib["still"]["size"]) == tuple(ev["size"].default)
     assert st["seed"].default == ev["seed"].default
     lv = inspect.signature(frameless.live).parameters
-    assert lv["duration"].default == lib["live"]["seconds"]
+    assert lv["duration"].default == lib["live"]["duration"]
     for k in ("start", "warmup", "refresh_hz", "repeat", "seed", "ideal_spp",
               "max_depth"):
         assert lv[k].default == lib["live"][k], k
