@@ -209,9 +209,10 @@ fn bad_input_is_refused_before_any_work() {
         err.contains("taa-warp"),
         "the error lists the methods: {err}"
     );
+    // `--seconds`, the old name, is refused by the new name's check, which names it.
     let err = run(&["--seconds", "0"]);
     assert!(
-        err.contains("--seconds") && err.contains("must be in (0,"),
+        err.contains("--duration") && err.contains("must be in (0,"),
         "{err}"
     );
     let err = run(&["--refresh-hz", "0"]);
@@ -221,8 +222,9 @@ fn bad_input_is_refused_before_any_work() {
     );
     let err = run(&["--repeat", "0"]);
     assert!(err.contains("--repeat"), "{err}");
-    let err = run(&["--method", "framed,framed"]);
-    assert!(err.contains("lists framed twice"), "{err}");
+    // An old name is the new one: twice, with the new name in the reason.
+    let err = run(&["--method", "framed,framed-full"]);
+    assert!(err.contains("lists framed-full twice"), "{err}");
     let err = run(&["--size", "640x480", "--seconds", "3000"]);
     assert!(err.contains("live recording"), "{err}");
     let unwritable = file.join("out");
