@@ -231,12 +231,27 @@ fn bart_no_cache_warmup_and_camera_path_apply_to_every_animation() {
     let bart = bart_dir();
     let out = tmp("shared-options");
     let cache = tmp("shared-options-cache");
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/camera_paths/kitchen_toycar.csv");
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/camera_paths/kitchen_toycar.csv");
     let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
         .args(["table1", "--bart"])
         .arg(&bart)
-        .args(["--animations", "interactive,bart", "--size", "16", "--duration", "0.05"])
-        .args(["--rate", "100k", "--ideal-spp", "1", "--method", "traditional-frameless"])
+        .args([
+            "--animations",
+            "interactive,bart",
+            "--size",
+            "16",
+            "--duration",
+            "0.05",
+        ])
+        .args([
+            "--rate",
+            "100k",
+            "--ideal-spp",
+            "1",
+            "--method",
+            "traditional-frameless",
+        ])
         .args(["--no-cache", "--warmup", "0.1", "--camera-path"])
         .arg(&path)
         .arg("--cache-dir")
@@ -245,7 +260,11 @@ fn bart_no_cache_warmup_and_camera_path_apply_to_every_animation() {
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     assert!(!cache.exists(), "--no-cache wrote the cache");
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
