@@ -1,7 +1,7 @@
 //! The report's first screen says who wins at each rate: the sentence above the tables
 //! names, for every rate, the method with the lowest mean RMS error among those held to
 //! that budget (as `summary.json` has them), and a chart in the methods' colours
-//! follows it, all before the first table.
+//! follows it, all before the first table; further down, the image strips fold by rate.
 
 use std::process::Command;
 
@@ -73,5 +73,9 @@ fn the_first_screen_names_the_winner_at_each_rate() {
     let legend_end = legend_end + html[legend_end..].find("</p>").unwrap();
     assert!(!html[verdict..legend_end].contains("full-res-60hz"));
     assert!(html[verdict..legend_end].contains("traditional-frameless"));
+    // The image strips fold by rate, so the page stays short: one section per rate,
+    // only the first open.
+    assert_eq!(html.matches("<details").count(), 2, "one section per rate");
+    assert_eq!(html.matches("<details open>").count(), 1);
     std::fs::remove_dir_all(&out).unwrap();
 }

@@ -736,9 +736,39 @@ fn html_strips(
             "<h2>Images</h2><p class=\"note\">What each method displays at a few refreshes, \
              beside the ideal image, and below each its FLIP error map against the ideal \
              (black: no visible difference, through red, to yellow: the largest). Per \
-             panel: that frame's RMS error and FLIP.</p>",
+             panel: that frame's RMS error and FLIP. One section per rate, the first \
+             open; click a rate to open or fold its images.</p>",
         );
     }
+    // One foldable section per rate, so that the page stays short: the first open.
+    let mut rates: Vec<f64> = Vec::new();
+    for st in &strips {
+        if !rates.contains(&st.rate) {
+            rates.push(st.rate);
+        }
+    }
+    for (k, &rate) in rates.iter().enumerate() {
+        let of_rate: Vec<&StripFiles> = strips.iter().copied().filter(|x| x.rate == rate).collect();
+        let _ = write!(
+            h,
+            "<details{}><summary><b>{} samples/s</b>: {} refreshes</summary>",
+            if k == 0 { " open" } else { "" },
+            rate_label(rate),
+            of_rate.len()
+        );
+        html_strips_of_rate(h, s, frames, &of_rate, present);
+        h.push_str("</details>");
+    }
+}
+
+/// The strips of one rate, each a row of labelled panels.
+fn html_strips_of_rate(
+    h: &mut String,
+    s: &Summary,
+    frames: &[FrameRow],
+    strips: &[&StripFiles],
+    present: &dyn Fn(&str) -> bool,
+) {
     for st in strips {
         let flip = present(&st.flip);
         let _ = write!(
