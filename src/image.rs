@@ -1,5 +1,8 @@
-//! Linear RGB images and their display form (clamped to [0, 1], quantized to 8 bits),
-//! written as PNG (the display form) or OpenEXR (the linear values, unclamped: HDR).
+//! RGB images and their two file forms. The renderer's values are display values, the
+//! scenes' own convention (docs/colour.md): a PNG holds them clamped to [0, 1] and
+//! quantized to 8 bits, which is what a viewer expects of a PNG (sRGB-encoded bytes);
+//! an OpenEXR file holds linear light, as EXR viewers expect, which is
+//! [`display_to_linear`] of each value, unclamped (HDR).
 
 use std::path::Path;
 
@@ -18,13 +21,38 @@ pub struct Image {
     pub pixels: Vec<Vec3>,
 }
 
-/// Quantize one linear channel as displayed: clamp to [0, 1], round to 8 bits.
+/// Quantize one channel as displayed: clamp to [0, 1], round to 8 bits.
 #[inline]
 pub fn quantize(v: f32) -> u8 {
     if v.is_nan() {
         return 0;
     }
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// Linear light of a display value: the sRGB decoding (IEC 61966-2-1), continued past
+/// 1 along its power curve for the highlights a PNG clips, and odd about 0, so that
+/// every value keeps its information. What an OpenEXR file holds of a display value.
+pub fn display_to_linear(v: f32) -> f32 {
+    let a = f64::from(v).abs();
+    let l = if a <= 0.04045 {
+        a / 12.92
+    } else {
+        ((a + 0.055) / 1.055).powf(2.4)
+    };
+    (l.copysign(f64::from(v))) as f32
+}
+
+/// The display value of linear light: the inverse of [`display_to_linear`] (sRGB
+/// encoding, continued past 1 and odd about 0).
+pub fn linear_to_display(v: f32) -> f32 {
+    let l = f64::from(v).abs();
+    let a = if l <= 0.0031308 {
+        l * 12.92
+    } else {
+        1.055 * l.powf(1.0 / 2.4) - 0.055
+    };
+    (a.copysign(f64::from(v))) as f32
 }
 
 impl Image {
@@ -61,8 +89,9 @@ impl Image {
         write_png_rgb8(path, self.width, self.height, &self.to_rgb8())
     }
 
-    /// Write the linear values as OpenEXR (32-bit float RGB, nothing clamped or
-    /// quantized), atomically (see [`crate::output`]).
+    /// Write the image as OpenEXR: linear light ([`display_to_linear`] of every value),
+    /// 32-bit float RGB, nothing clamped or quantized, atomically (see
+    /// [`crate::output`]).
     pub fn save_exr(&self, path: &Path) -> std::io::Result<()> {
         use exr::prelude::{Image as ExrImage, SpecificChannels, Vec2, WritableImage};
         // An EXR under another format's name would mislead every program that opens it.
@@ -70,14 +99,33 @@ impl Image {
             .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidInput, e.to_string()))?;
         let w = self.width as usize;
         let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
-            let p = self.pixels[y * w + x];
-            (p.x, p.y, p.z)
+            let p = self.pixels[y * w + x].to_array().map(display_to_linear);
+            (p[0], p[1], p[2])
         });
         let image = ExrImage::from_channels((w, self.height as usize), channels);
         output::write_seekable(path, |file| image.write().to_buffered(file).map_err(exr_io))
     }
 
-    /// Write the image in `format`: PNG as displayed, OpenEXR linear.
+    /// The same image in linear light, as [`Image::save_exr`] writes it.
+    pub fn to_linear(&self) -> Image {
+        self.map(display_to_linear)
+    }
+
+    /// The display values of an image in linear light (as [`read_exr`] reads one).
+    pub fn to_display_values(&self) -> Image {
+        self.map(linear_to_display)
+    }
+
+    fn map(&self, f: fn(f32) -> f32) -> Image {
+        let pixels = self
+            .pixels
+            .iter()
+            .map(|p| Vec3::from_array(p.to_array().map(f)))
+            .collect();
+        Image { pixels, ..*self }
+    }
+
+    /// Write the image in `format`: PNG as displayed, OpenEXR in linear light.
     pub fn save(&self, path: &Path, format: ImageFormat) -> std::io::Result<()> {
         match format {
             ImageFormat::Png => self.save_png(path),
@@ -91,7 +139,7 @@ impl Image {
 pub enum ImageFormat {
     /// 8-bit RGB PNG of the displayed image: clamped to [0, 1] and quantized.
     Png,
-    /// 32-bit float RGB OpenEXR of the linear values (high dynamic range).
+    /// 32-bit float RGB OpenEXR in linear light (high dynamic range).
     Exr,
 }
 
@@ -131,7 +179,8 @@ fn exr_io(e: exr::error::Error) -> std::io::Error {
     }
 }
 
-/// Read the first RGB(A) layer of an OpenEXR file as a linear image (alpha dropped).
+/// Read the first RGB(A) layer of an OpenEXR file as stored, in linear light (alpha
+/// dropped); [`Image::to_display_values`] gives its display values.
 pub fn read_exr(path: &Path) -> std::io::Result<Image> {
     let read = exr::prelude::read_first_rgba_layer_from_file(
         path,
@@ -295,6 +344,23 @@ mod tests {
     }
 
     #[test]
+    fn the_srgb_transform_is_the_standards_and_its_own_inverse() {
+        // IEC 61966-2-1 values: black, white, the segment joint, mid-grey.
+        assert_eq!(display_to_linear(0.0), 0.0);
+        assert_eq!(display_to_linear(1.0), 1.0);
+        assert!((display_to_linear(0.04045) - 0.04045 / 12.92).abs() < 1e-9);
+        assert!((display_to_linear(0.5) - 0.214_041).abs() < 1e-6);
+        for i in -40..=80 {
+            let v = i as f32 * 0.05;
+            let back = linear_to_display(display_to_linear(v));
+            assert!((back - v).abs() <= 1e-6 * v.abs().max(1.0), "{v}: {back}");
+            // Monotone and odd: no value's order or sign is lost.
+            assert_eq!(display_to_linear(-v), -display_to_linear(v));
+            assert!(display_to_linear(v + 0.05) > display_to_linear(v));
+        }
+    }
+
+    #[test]
     fn png_round_trip() {
         let dir = std::env::temp_dir().join(format!("frameless-png-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -313,7 +379,7 @@ mod tests {
     }
 
     #[test]
-    fn exr_keeps_linear_values_png_the_display() {
+    fn exr_holds_linear_light_png_the_display() {
         let dir = std::env::temp_dir().join(format!("frameless-exr-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let mut img = Image::new(5, 3);
@@ -324,7 +390,12 @@ mod tests {
         let p = dir.join("a.EXR");
         assert_eq!(ImageFormat::for_output(&p).unwrap(), ImageFormat::Exr);
         img.save(&p, ImageFormat::Exr).unwrap();
-        assert_eq!(read_exr(&p).unwrap(), img);
+        let stored = read_exr(&p).unwrap();
+        assert_eq!(stored, img.to_linear());
+        // Back through the documented transform, to within float rounding.
+        for (a, b) in stored.to_display_values().pixels.iter().zip(&img.pixels) {
+            assert!((*a - *b).abs().max_element() <= 1e-5 * b.abs().max_element().max(1.0));
+        }
         let png = dir.join("a.png");
         assert_eq!(ImageFormat::for_output(&png).unwrap(), ImageFormat::Png);
         img.save(&png, ImageFormat::Png).unwrap();

@@ -201,6 +201,10 @@ pub const MAX_IDEAL_SPP: u32 = 4096;
 /// Deepest reflection/refraction recursion: the tracer recurses once per bounce.
 pub const MAX_DEPTH: u32 = 64;
 
+/// Most samples per pixel `frameless still` takes: a still is one image, so it may
+/// take far more than an ideal image of every refresh.
+pub const MAX_STILL_SPP: u32 = 65536;
+
 /// Most rates one run evaluates (table columns).
 pub const MAX_RATES: usize = 64;
 

@@ -19,6 +19,9 @@ pub const MAX_DEPTH: u32 = 5;
 /// Samples per pixel of an ideal image, unless another count is asked for.
 pub const IDEAL_SPP: u32 = 16;
 
+/// Samples per pixel of `frameless still`, unless another count is asked for.
+pub const STILL_SPP: u32 = 16;
+
 /// Seed of every random choice, unless another is asked for.
 pub const SEED: u64 = 1;
 
@@ -114,7 +117,8 @@ impl Setting {
         match self {
             Setting::Warmup => "--warmup",
             Setting::Duration => "--duration",
-            Setting::Seconds => "--seconds",
+            // `--seconds` is still taken, but `--duration` is its name in every command.
+            Setting::Seconds => "--duration",
             Setting::Start => "--start",
             Setting::RefreshHz => "--refresh-hz",
             Setting::Rates => "--rates",

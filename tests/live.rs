@@ -83,7 +83,7 @@ fn an_exact_method_on_a_still_scene_scores_near_zero() {
     cfg.seconds = 0.4;
     cfg.warmup = 0.2;
     cfg.ideal_spp = 4;
-    cfg.methods = vec![RtMethod::Framed, RtMethod::TraditionalFrameless];
+    cfg.methods = vec![RtMethod::FramedFull, RtMethod::TraditionalFrameless];
     cfg.repeat = 2;
     let out = live::run(Arc::new(still_wall()), &cfg, &Silent).expect("live evaluation runs");
     let s = &out.summary;
@@ -92,14 +92,14 @@ fn an_exact_method_on_a_still_scene_scores_near_zero() {
     assert_eq!(
         order,
         [
-            (RtMethod::Framed, 1),
+            (RtMethod::FramedFull, 1),
             (RtMethod::TraditionalFrameless, 1),
-            (RtMethod::Framed, 2),
+            (RtMethod::FramedFull, 2),
             (RtMethod::TraditionalFrameless, 2)
         ]
     );
     let framed = &s.results[0];
-    assert_eq!((framed.method, framed.runs), (RtMethod::Framed, 2));
+    assert_eq!((framed.method, framed.runs), (RtMethod::FramedFull, 2));
     // Framed traces every pixel's centre; on a smooth wall that is the ideal's mean
     // to within a level of quantization.
     assert!(framed.max.rms < 0.6, "framed RMS {}", framed.max.rms);
@@ -139,7 +139,7 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
         h,
         TraceOptions::default(),
     ));
-    let mut config = RtConfig::new(RtMethod::Framed);
+    let mut config = RtConfig::new(RtMethod::FramedFull);
     config.refresh_hz = 60.0;
     config.start = 0.0;
     let window = Window {
@@ -149,7 +149,7 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
     let rec = record(
         tracer.clone(),
         config.clone(),
-        RtMethod::Framed.settings(),
+        RtMethod::FramedFull.settings(),
         window,
     )
     .expect("records");
@@ -209,9 +209,10 @@ fn bad_input_is_refused_before_any_work() {
         err.contains("taa-warp"),
         "the error lists the methods: {err}"
     );
+    // `--seconds`, the old name, is refused by the new name's check, which names it.
     let err = run(&["--seconds", "0"]);
     assert!(
-        err.contains("--seconds") && err.contains("must be in (0,"),
+        err.contains("--duration") && err.contains("must be in (0,"),
         "{err}"
     );
     let err = run(&["--refresh-hz", "0"]);
@@ -221,8 +222,9 @@ fn bad_input_is_refused_before_any_work() {
     );
     let err = run(&["--repeat", "0"]);
     assert!(err.contains("--repeat"), "{err}");
-    let err = run(&["--method", "framed,framed"]);
-    assert!(err.contains("lists framed twice"), "{err}");
+    // An old name is the new one: twice, with the new name in the reason.
+    let err = run(&["--method", "framed,framed-full"]);
+    assert!(err.contains("lists framed-full twice"), "{err}");
     let err = run(&["--size", "640x480", "--seconds", "3000"]);
     assert!(err.contains("live recording"), "{err}");
     let unwritable = file.join("out");

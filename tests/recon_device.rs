@@ -206,7 +206,7 @@ fn gpu_eval_of_ours_runs_on_the_gpu() {
 fn gpu_view_headless_records_the_gpu() {
     let d = scratch("gpu-view");
     let adapter = gpu_context().describe();
-    for (method, device) in [("adaptive", "gpu"), ("framed", "cpu")] {
+    for (method, device) in [("adaptive", "gpu"), ("framed-full", "cpu")] {
         let out = d.join(method);
         let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
             .args(["view", "--headless", "--seconds", "0.5", "--size", "48x32"])

@@ -79,7 +79,7 @@ const LIVE: &[&str] = &[
     "--warmup",
     "0",
     "--method",
-    "framed",
+    "framed-full",
     "--ideal-spp",
     "1",
 ];

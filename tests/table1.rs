@@ -222,3 +222,56 @@ fn tracer_with(
     frameless::trace::Tracer::new(std::sync::Arc::new(scene), 96, 96, Default::default())
         .with_camera_path(Some(path))
 }
+
+/// The options `table1` shares with `eval`: `--no-cache` reads and writes no ideal
+/// image, and `--warmup` and `--camera-path` replace every animation's own.
+#[test]
+#[ignore = "needs the BART scenes: set FRAMELESS_BART_DIR"]
+fn bart_no_cache_warmup_and_camera_path_apply_to_every_animation() {
+    let bart = bart_dir();
+    let out = tmp("shared-options");
+    let cache = tmp("shared-options-cache");
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("assets/camera_paths/kitchen_toycar.csv");
+    let st = Command::new(env!("CARGO_BIN_EXE_frameless"))
+        .args(["table1", "--bart"])
+        .arg(&bart)
+        .args([
+            "--animations",
+            "interactive,bart",
+            "--size",
+            "16",
+            "--duration",
+            "0.05",
+        ])
+        .args([
+            "--rate",
+            "100k",
+            "--ideal-spp",
+            "1",
+            "--method",
+            "traditional-frameless",
+        ])
+        .args(["--no-cache", "--warmup", "0.1", "--camera-path"])
+        .arg(&path)
+        .arg("--cache-dir")
+        .arg(&cache)
+        .arg("-o")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(!cache.exists(), "--no-cache wrote the cache");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for a in v["animations"].as_array().unwrap() {
+        let s = &a["summary"];
+        assert_eq!(s["warmup"].as_f64(), Some(0.1), "{}", a["name"]);
+        assert_eq!(s["camera_path"].as_bool(), Some(true), "{}", a["name"]);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}

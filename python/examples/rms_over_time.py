@@ -18,7 +18,7 @@ scene = frameless.Scene.load("toycar")
 scene
 
 # %% [markdown]
-# A still image: linear values as an H×W×3 float32 array (`frameless.to_display` gives
+# A still image: display values as an H×W×3 float32 array (`frameless.to_display` gives
 # the 8-bit image the command line writes to PNG).
 
 # %%

@@ -15,8 +15,34 @@ def defaults() -> dict:
     the method names."""
 
 def to_display(image: npt.NDArray[np.float32]) -> npt.NDArray[np.uint8]:
-    """A linear H×W×3 image as displayed and written to PNG: clamped to [0, 1] and
-    rounded to 8 bits."""
+    """An H×W×3 image as displayed and written to PNG: clamped to [0, 1] and rounded
+    to 8 bits."""
+
+def to_linear(image: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]:
+    """An H×W×3 image in linear light, as written to OpenEXR (docs/colour.md)."""
+
+def write_image(path: str, image: npt.NDArray[np.float32]) -> None:
+    """Write an image: `.png` as displayed, `.exr` in linear light."""
+
+def read_image(path: str) -> npt.NDArray[np.float32]:
+    """A `.png` or `.exr` file's display values, H×W×3 float32."""
+
+def main(argv: list) -> int:
+    """Run the `frameless` command (`argv[0]` is the program's name); its exit status."""
+
+def rms(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """RMS error of two H×W×3 byte images, 0–255."""
+
+def psnr(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """PSNR of two H×W×3 byte images, dB."""
+
+def flip(reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]) -> float:
+    """Mean LDR-FLIP error of two H×W×3 byte images."""
+
+def flip_map(
+    reference: npt.NDArray[np.uint8], test: npt.NDArray[np.uint8]
+) -> npt.NDArray[np.float32]:
+    """Per-pixel LDR-FLIP error, H×W float32."""
 
 class NativeScene:
     """A loaded scene and the camera path overriding its camera."""
@@ -39,7 +65,7 @@ class NativeScene:
         texture_filter: str,
         progress: ProgressCallback = None,
     ) -> npt.NDArray[np.float32]:
-        """`frameless still`'s linear image, H×W×3 float32."""
+        """`frameless still`'s image (display values), H×W×3 float32."""
 
 def evaluate(
     scene: NativeScene,
@@ -56,6 +82,7 @@ def evaluate(
     texture_filter: str,
     flip_every: int,
     cache_dir: Optional[str],
+    recon: str = "cpu",
     progress: ProgressCallback = None,
 ) -> Tuple[str, str]:
     """`frameless eval`: (summary JSON, per-frame rows JSON)."""
@@ -75,12 +102,13 @@ def live(
     max_depth: int,
     texture_filter: str,
     cache_dir: Optional[str],
+    recon: str = "cpu",
     progress: ProgressCallback = None,
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 
 class NativeRender:
-    """`frameless render` as an iterator of (time, linear H×W×3 float32 image)."""
+    """`frameless render` as an iterator of (time, H×W×3 float32 image of display values)."""
 
     len: int
     def __init__(
@@ -94,7 +122,9 @@ class NativeRender:
         size: str,
         refresh_hz: float,
         seed: int,
+        max_depth: int,
         texture_filter: str,
+        recon: str = "cpu",
     ) -> None: ...
     def __iter__(self) -> Iterator[Tuple[float, npt.NDArray[np.float32]]]: ...
     def __next__(self) -> Tuple[float, npt.NDArray[np.float32]]: ...

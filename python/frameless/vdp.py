@@ -109,7 +109,7 @@ def jod_rows(scene, summary: dict, frames: Dict[str, np.ndarray], *,
     """A JOD for every result row of ``summary`` (``summary.json``'s shape), whose
     per-refresh rows ``frames`` (numpy columns of ``frames.csv``) give the RMS each
     re-rendered frame must have. Returns ``{"method", "rate", "jod"}`` rows."""
-    from . import Scene, _scene
+    from ._api import Scene, _scene
     scene = _scene(scene)
     size = f"{summary['width']}x{summary['height']}"
     common = dict(start=summary["start"], duration=summary["duration"],

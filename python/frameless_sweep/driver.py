@@ -156,7 +156,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     where.add_argument("--local-workers", type=int, help="start a local cluster of this many workers (default: --shards)")
     a = ap.parse_args(argv)
 
-    from distributed import Client, LocalCluster
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        sys.exit("frameless-sweep runs on Dask, which is not installed: "
+                 "pip install 'frameless[sweep]'")
 
     t0 = time.monotonic()
     if a.scheduler:

@@ -1,11 +1,18 @@
 //! Arguments as the command line spells them (`"256x256"`, `"400k"`, method names),
 //! parsed by the library's parsers so that a bad one gets the command line's reason.
 //! The ranges clap checks on the command line (`--spp`, `--max-depth`, …) are checked
-//! here with the same bounds, the message naming the option.
+//! here with the same bounds, the message naming the Python keyword (`spp=0`), not
+//! the option.
 
 use frameless::{
-    clock::parse_rate, evaluation::live::LiveConfig, evaluation::EvalConfig, methods::MethodKind,
-    realtime::RtMethod, settings, trace::TextureFilter,
+    clock::parse_rate,
+    evaluation::live::LiveConfig,
+    evaluation::EvalConfig,
+    methods::MethodKind,
+    realtime::RtMethod,
+    reconstruction::device::{self, GpuContext},
+    settings::{self, ReconDevice},
+    trace::TextureFilter,
 };
 use pyo3::{prelude::*, types::PyDict};
 
@@ -37,32 +44,76 @@ pub fn rt_methods(list: &[String]) -> PyResult<Vec<RtMethod>> {
         .collect()
 }
 
-/// `--texture-filter`.
+/// `texture_filter=`, as `--texture-filter` takes it.
 pub fn texture_filter(name: &str) -> PyResult<TextureFilter> {
     match name {
         "ray-cones" => Ok(TextureFilter::RayCones),
         "none" => Ok(TextureFilter::None),
         _ => Err(value(format!(
-            "--texture-filter `{name}`: expected ray-cones or none"
+            "texture_filter={name:?}: expected 'ray-cones' or 'none'{}",
+            did_you_mean(name, &["ray-cones", "none"])
         ))),
     }
 }
 
-/// A whole-number option clap bounds on the command line.
-pub fn in_range(option: &str, v: u64, lo: u64, hi: u64) -> PyResult<()> {
+/// `recon=`, as `--recon` takes it: the GPU the reconstructor runs on (`None`: the
+/// CPU). This module is built without the GPU reconstructor, so `gpu` is refused with
+/// the library's reason and `auto` runs on the CPU, as the binary built so does.
+pub fn recon(name: &str) -> PyResult<Option<std::sync::Arc<GpuContext>>> {
+    let names = ReconDevice::ALL.map(|d| d.name());
+    let choice: ReconDevice = name.parse().map_err(|_| {
+        value(format!(
+            "recon={name:?}: expected 'cpu', 'gpu' or 'auto'{}",
+            did_you_mean(name, &names)
+        ))
+    })?;
+    device::acquire(choice).map_err(|e| value(format!("recon={name:?}: {}", message(&e))))
+}
+
+/// "; did you mean 'x'?" for the known name closest to `name` (at most a third of its
+/// letters changed), or nothing.
+pub fn did_you_mean(name: &str, known: &[&str]) -> String {
+    known
+        .iter()
+        .map(|k| (edit_distance(name, k), *k))
+        .filter(|(d, _)| *d * 3 <= name.chars().count().max(3))
+        .min()
+        .map_or_else(String::new, |(_, k)| format!("; did you mean '{k}'?"))
+}
+
+/// Levenshtein distance, in characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diag = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let next = (diag + usize::from(ca != *cb))
+                .min(row[j] + 1)
+                .min(row[j + 1] + 1);
+            diag = row[j + 1];
+            row[j + 1] = next;
+        }
+    }
+    row[b.len()]
+}
+
+/// A whole-number keyword clap bounds on the command line.
+pub fn in_range(keyword: &str, v: u64, lo: u64, hi: u64) -> PyResult<()> {
     if (lo..=hi).contains(&v) {
         Ok(())
     } else {
-        Err(value(format!("{option}: {v} is not in {lo}..={hi}")))
+        Err(value(format!("{keyword}={v} is not in {lo}..={hi}")))
     }
 }
 
-/// A setting that must be a finite number, as every time and rate option is.
-pub fn finite(option: &str, v: f64) -> PyResult<f64> {
+/// A keyword that must be a finite number, as every time and rate is.
+pub fn finite(keyword: &str, v: f64) -> PyResult<f64> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(value(format!("{option} `{v}` is not finite")))
+        Err(value(format!("{keyword}={v} is not finite")))
     }
 }
 
@@ -94,7 +145,7 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let rt: Vec<&str> = l.methods.iter().map(|m| m.name()).collect();
     live.set_item("methods", rt)?;
     live.set_item("start", l.start)?;
-    live.set_item("seconds", l.seconds)?;
+    live.set_item("duration", l.seconds)?;
     live.set_item("warmup", l.warmup)?;
     live.set_item("size", (l.width, l.height))?;
     live.set_item("refresh_hz", l.refresh_hz)?;
@@ -103,6 +154,13 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     live.set_item("ideal_spp", l.ideal_spp)?;
     live.set_item("max_depth", l.max_depth)?;
     d.set_item("live", live)?;
+    // `frameless still`'s own defaults; the rest are every command's.
+    let still = PyDict::new(py);
+    still.set_item("size", settings::SIZE)?;
+    still.set_item("seed", settings::SEED)?;
+    still.set_item("spp", settings::STILL_SPP)?;
+    still.set_item("max_depth", settings::MAX_DEPTH)?;
+    d.set_item("still", still)?;
     d.set_item("max_depth_limit", frameless::limits::MAX_DEPTH)?;
     d.set_item("max_ideal_spp", frameless::limits::MAX_IDEAL_SPP)?;
     d.set_item("scenes", frameless::scene::builtin::NAMES.to_vec())?;
@@ -110,6 +168,11 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("all_methods", all)?;
     let all_rt: Vec<&str> = RtMethod::ALL.iter().map(|m| m.name()).collect();
     d.set_item("all_live_methods", all_rt)?;
+    let renamed = PyDict::new(py);
+    for (old, new) in frameless::methods::OLD_NAMES {
+        renamed.set_item(old, new)?;
+    }
+    d.set_item("renamed_methods", renamed)?;
     Ok(d)
 }
 
@@ -120,13 +183,13 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// `--ideal-spp` and `--max-depth` in the ranges the command line takes.
 pub fn ideal_spp_and_depth(ideal_spp: u64, max_depth: u64) -> PyResult<()> {
     in_range(
-        "--ideal-spp",
+        "ideal_spp",
         ideal_spp,
         1,
         frameless::limits::MAX_IDEAL_SPP as u64,
     )?;
     in_range(
-        "--max-depth",
+        "max_depth",
         max_depth,
         0,
         frameless::limits::MAX_DEPTH as u64,
@@ -155,8 +218,10 @@ pub fn groups(
 )> {
     ideal_spp_and_depth(ideal_spp, max_depth)?;
     let display = settings::DisplayGroup {
-        size: size.parse().map_err(|e: frameless::limits::LimitError| value(e.to_string()))?,
-        refresh_hz: finite("--refresh-hz", refresh_hz)?,
+        size: size
+            .parse()
+            .map_err(|e: frameless::limits::LimitError| value(e.to_string()))?,
+        refresh_hz: finite("refresh_hz", refresh_hz)?,
         ..Default::default()
     };
     let quality = settings::QualityGroup {

@@ -2,7 +2,9 @@
 //! `error: `: bad settings are ValueError, unreadable or unwritable files OSError,
 //! anything else RuntimeError.
 
-use frameless::{evaluation::EvalError, methods::MethodError, scene::SceneError};
+use frameless::{
+    evaluation::EvalError, methods::MethodError, scene::SceneError, settings::Setting,
+};
 use pyo3::{
     exceptions::{PyOSError, PyRuntimeError, PyValueError},
     PyErr,
@@ -14,9 +16,10 @@ pub fn message(e: &(dyn std::error::Error + 'static)) -> String {
     let mut msg = String::new();
     let mut cause = Some(e);
     while let Some(c) = cause {
-        // A bad setting is named by its option, as the command line names it.
+        // A bad setting is named by its Python keyword, where the command line names
+        // its option.
         let text = match c.downcast_ref::<EvalError>() {
-            Some(EvalError::Config { setting, why }) => format!("{} {why}", setting.option()),
+            Some(EvalError::Config { setting, why }) => format!("{} {why}", keyword(*setting)),
             _ => c.to_string(),
         };
         if !msg.ends_with(&text) {
@@ -28,6 +31,15 @@ pub fn message(e: &(dyn std::error::Error + 'static)) -> String {
         cause = c.source();
     }
     msg
+}
+
+/// The keyword of `frameless.evaluate`, `live` or `render` that sets `setting`.
+fn keyword(setting: Setting) -> &'static str {
+    match setting {
+        // `live`'s recorded seconds are its `duration=`, as on the command line.
+        Setting::Seconds => "duration",
+        s => s.key(),
+    }
 }
 
 /// A bad argument, with the reason the command line gives for it.

@@ -15,14 +15,16 @@ fn json<T: serde::Serialize>(v: &T) -> String {
 }
 
 /// evaluate(scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
-///          warmup, max_depth, texture_filter, flip_every, cache_dir, progress=None)
+///          warmup, max_depth, texture_filter, flip_every, cache_dir, recon="cpu",
+///          progress=None)
 /// --
 ///
 /// `frameless eval` with these settings: `(summary_json, frames_json)`; `cache_dir`
 /// None reads and writes no ideal-image cache.
 #[pyfunction]
 #[pyo3(signature = (scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
-                    warmup, max_depth, texture_filter, flip_every, cache_dir, progress=None))]
+                    warmup, max_depth, texture_filter, flip_every, cache_dir, recon="cpu",
+                    progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate(
     py: Python<'_>,
@@ -40,9 +42,10 @@ fn evaluate(
     texture_filter: &str,
     flip_every: u64,
     cache_dir: Option<PathBuf>,
+    recon: &str,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String)> {
-    args::in_range("--flip-every", flip_every, 1, u32::MAX as u64)?;
+    args::in_range("flip_every", flip_every, 1, u32::MAX as u64)?;
     let (display, quality, reference) = args::groups(
         size,
         refresh_hz,
@@ -54,16 +57,17 @@ fn evaluate(
     )?;
     let mut cfg = EvalConfig::new(&scene.name);
     cfg.camera_path = scene.camera_path.clone();
-    cfg.start = args::finite("--start", start)?;
-    cfg.duration = args::finite("--duration", duration)?;
+    cfg.start = args::finite("start", start)?;
+    cfg.duration = args::finite("duration", duration)?;
     cfg.rates = args::rates(&rates)?;
     cfg.methods = args::methods(&methods)?;
-    cfg.warmup = args::finite("--warmup", warmup)?;
+    cfg.warmup = args::finite("warmup", warmup)?;
     cfg.flip_every = flip_every as usize;
     // As the command line: the groups set last (image strips at the quartiles of the
     // window).
     cfg.set_groups(&display, &quality, &reference);
     cfg.validate().map_err(errors::eval)?;
+    cfg.gpu = args::recon(recon)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = evaluation::run(scene, &cfg, work).map_err(errors::eval)?;
@@ -72,13 +76,14 @@ fn evaluate(
 }
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
-///      ideal_spp, max_depth, texture_filter, cache_dir, progress=None)
+///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None)
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
 #[pyfunction]
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
-                    seed, ideal_spp, max_depth, texture_filter, cache_dir, progress=None))]
+                    seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
+                    progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -96,9 +101,10 @@ fn live(
     max_depth: u64,
     texture_filter: &str,
     cache_dir: Option<PathBuf>,
+    recon: &str,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<(String, String)> {
-    args::in_range("--repeat", repeat, 1, 100)?;
+    args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
         size,
         refresh_hz,
@@ -110,19 +116,20 @@ fn live(
     )?;
     let mut cfg = live_eval::LiveConfig::new(&scene.name);
     cfg.camera_path = scene.camera_path.clone();
-    cfg.start = args::finite("--start", start)?;
-    cfg.seconds = args::finite("--seconds", seconds)?;
-    cfg.warmup = args::finite("--warmup", warmup)?;
+    cfg.start = args::finite("start", start)?;
+    cfg.seconds = args::finite("duration", seconds)?;
+    cfg.warmup = args::finite("warmup", warmup)?;
     cfg.set_groups(&display, &quality, &reference);
     if let Some(m) = methods {
         cfg.methods = args::rt_methods(&m)?;
     }
     cfg.repeat = repeat as usize;
     if let Some(n) = threads {
-        args::in_range("--threads", n, 1, 1024)?;
+        args::in_range("threads", n, 1, 1024)?;
         cfg.cores = n as usize;
     }
     cfg.validate().map_err(errors::eval)?;
+    cfg.gpu = args::recon(recon)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = live_eval::run(scene, &cfg, work).map_err(errors::eval)?;

@@ -87,11 +87,11 @@ impl NativeScene {
         texture_filter: &str,
         progress: Option<Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let time = args::finite("--time", time)?;
+        let time = args::finite("t", time)?;
         let (w, h) = args::size(size)?;
-        args::in_range("--spp", spp, 1, 65536)?;
+        args::in_range("spp", spp, 1, frameless::limits::MAX_STILL_SPP as u64)?;
         args::in_range(
-            "--max-depth",
+            "max_depth",
             max_depth,
             0,
             frameless::limits::MAX_DEPTH as u64,

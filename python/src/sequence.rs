@@ -50,11 +50,13 @@ fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::S
 #[pymethods]
 impl NativeRender {
     /// NativeRender(scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
-    ///              texture_filter)
+    ///              max_depth, texture_filter, recon="cpu")
     /// --
     ///
     /// Checks the settings as `frameless render` does, then starts the method.
     #[new]
+    #[pyo3(signature = (scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
+                        max_depth, texture_filter, recon="cpu"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scene: &NativeScene,
@@ -66,27 +68,34 @@ impl NativeRender {
         size: &str,
         refresh_hz: f64,
         seed: u64,
+        max_depth: u64,
         texture_filter: &str,
+        recon: &str,
     ) -> PyResult<Self> {
         let (width, height) = args::size(size)?;
+        args::ideal_spp_and_depth(1, max_depth)?;
         let cfg = SequenceConfig {
             scene_name: scene.name.clone(),
             camera_path: scene.camera_path.clone(),
             method: args::methods(&[method])?[0],
             rate: args::rates(&[rate])?[0],
-            start: args::finite("--start", start)?,
-            duration: args::finite("--duration", duration)?,
-            warmup: args::finite("--warmup", warmup)?,
-            refresh_hz: args::finite("--refresh-hz", refresh_hz)?,
+            start: args::finite("start", start)?,
+            duration: args::finite("duration", duration)?,
+            warmup: args::finite("warmup", warmup)?,
+            refresh_hz: args::finite("refresh_hz", refresh_hz)?,
             width,
             height,
             seed,
-            max_depth: frameless::settings::MAX_DEPTH,
+            max_depth: max_depth as u32,
             texture_filter: args::texture_filter(texture_filter)?,
             format: ImageFormat::Exr,
             gpu: None,
         };
         cfg.validate().map_err(errors::eval)?;
+        let cfg = SequenceConfig {
+            gpu: args::recon(recon)?,
+            ..cfg
+        };
         let len = cfg.frames();
         // One refresh traced ahead of the one being looked at.
         let (tx, rx) = mpsc::bounded(1);

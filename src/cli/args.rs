@@ -8,34 +8,7 @@ use frameless::{
     methods::MethodKind,
     realtime::{RtMethod, Visualisation},
     settings::{self, finite_f64, Size},
-    trace::TextureFilter,
 };
-
-/// `--ideal-spp`, shared by the commands that make ideal images.
-#[derive(Args, Clone, Copy, Debug)]
-pub struct IdealSppArg {
-    /// Samples per pixel of the ideal images.
-    #[arg(long, default_value_t = settings::IDEAL_SPP, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_IDEAL_SPP as i64), allow_negative_numbers = true)]
-    pub ideal_spp: u32,
-}
-
-/// `--max-depth`, shared by the commands that let the tracer's recursion be set.
-#[derive(Args, Clone, Copy, Debug)]
-pub struct MaxDepthArg {
-    /// Reflection/refraction depth limit.
-    #[arg(long, default_value_t = settings::MAX_DEPTH, value_parser = clap::value_parser!(u32).range(0..=frameless::limits::MAX_DEPTH as i64), allow_negative_numbers = true)]
-    pub max_depth: u32,
-}
-
-/// `--texture-filter`, shared by the commands that trace textured scenes.
-#[derive(Args, Clone, Copy, Debug)]
-pub struct TextureFilterArg {
-    /// Texture filtering: ray-cones (mip-mapped lookups at each ray's footprint; no
-    /// moiré on far and grazing textured surfaces) or none (full-resolution bilinear
-    /// lookups, the paper's setting).
-    #[arg(long, value_enum, default_value = "ray-cones")]
-    pub texture_filter: TextureFilter,
-}
 
 /// `frameless`: adaptive frameless rendering.
 #[derive(Parser, Debug)]
@@ -123,8 +96,8 @@ pub struct RenderArgs {
     /// Sampling before the first refresh (seconds).
     #[arg(long, default_value_t = settings::WARMUP_S, value_parser = finite_f64, allow_negative_numbers = true)]
     pub warmup: f64,
-    /// File format of the frames: png (as displayed: clamped, 8-bit) or exr (OpenEXR,
-    /// linear HDR, 32-bit float).
+    /// File format of the frames: png (display values, 8-bit sRGB-encoded) or exr
+    /// (OpenEXR, the linear values, 32-bit float); docs/colour.md.
     #[arg(long, value_enum, default_value = "png")]
     pub format: FrameFormat,
     /// Output folder for `frame_NNNNN.png` (or `.exr`) and `stats.json`.
@@ -132,10 +105,10 @@ pub struct RenderArgs {
     pub out: PathBuf,
 }
 
-/// File format of `frameless render`'s frames.
+/// File format of the images `still`, `render` and `eval` write (`--format`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum FrameFormat {
-    /// PNG, as displayed: clamped to [0, 1], 8 bits.
+    /// PNG, as displayed: clamped to [0, 1], sRGB-encoded, 8 bits.
     Png,
     /// OpenEXR: the linear values, 32-bit float, unclamped.
     Exr,
@@ -160,22 +133,22 @@ pub struct Table1Args {
     /// Override every animation's window length (seconds), e.g. for a quick trial.
     #[arg(long, alias = "seconds", value_parser = finite_f64, allow_negative_numbers = true)]
     pub duration: Option<f64>,
+    /// Override every animation's warm-up before its window (seconds).
+    #[arg(long, value_parser = finite_f64, allow_negative_numbers = true)]
+    pub warmup: Option<f64>,
+    /// Camera path CSV overriding every animation's camera.
+    #[arg(long)]
+    pub camera_path: Option<PathBuf>,
     /// Display size.
     #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = settings::SEED, allow_negative_numbers = true)]
-    pub seed: u64,
     #[command(flatten)]
-    pub filter: TextureFilterArg,
+    pub quality: settings::QualityGroup,
     #[command(flatten)]
-    pub ideal: IdealSppArg,
+    pub reference: settings::ReferenceGroup,
     /// Compute FLIP on every n-th refresh (1: every one).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
-    /// Ideal-image cache (default `$FRAMELESS_CACHE`, else `~/.cache/frameless/ideal`).
-    #[arg(long)]
-    pub cache_dir: Option<PathBuf>,
     /// Image strips written per animation and rate: the frames at the window's
     /// quartiles, its middle frame only, or none.
     #[arg(long, value_enum, default_value = "quartiles")]
@@ -343,9 +316,13 @@ pub struct EvalArgs {
     /// instability are always computed on every frame).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..), allow_negative_numbers = true)]
     pub flip_every: u32,
-    /// Also write the strip frames as OpenEXR (linear HDR, before the display clamps
-    /// and quantizes) under `exr/`: the ideal image and every method's.
-    #[arg(long)]
+    /// Format of the image strips: png only, or exr to write them also as OpenEXR
+    /// (the linear values, before the display clamps and encodes them) under `exr/`:
+    /// the ideal image and every method's. The report reads the PNGs.
+    #[arg(long, value_enum, default_value = "png")]
+    pub format: FrameFormat,
+    /// `--format exr`, by its old name.
+    #[arg(long, hide = true)]
     pub exr: bool,
     /// Output folder.
     #[arg(short, long, default_value = "eval-out")]
@@ -390,32 +367,27 @@ pub struct LiveArgs {
 /// Arguments of `frameless still`.
 #[derive(Args, Debug)]
 pub struct StillArgs {
-    /// Built-in scene name or scene file (.aff, .gltf, .glb, .obj).
-    #[arg(long, default_value = "toycar")]
-    pub scene: String,
-    /// Camera path CSV overriding the scene's camera.
-    #[arg(long)]
-    pub camera_path: Option<PathBuf>,
+    #[command(flatten)]
+    pub scene: settings::SceneGroup,
     /// Scene time in seconds.
     #[arg(long, default_value = "0", value_parser = finite_f64, allow_negative_numbers = true)]
     pub time: f64,
-    /// Image size WxH.
-    #[arg(long, default_value = "512x384")]
+    /// Image size WxH (or N for NxN).
+    #[arg(long, default_value_t = Size::DEFAULT)]
     pub size: Size,
     /// Samples per pixel (stratified).
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=65536), allow_negative_numbers = true)]
+    #[arg(long, default_value_t = settings::STILL_SPP, value_parser = clap::value_parser!(u32).range(1..=frameless::limits::MAX_STILL_SPP as i64), allow_negative_numbers = true)]
     pub spp: u32,
-    /// Seed of the sample positions.
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    pub seed: u64,
     #[command(flatten)]
-    pub filter: TextureFilterArg,
-    #[command(flatten)]
-    pub depth: MaxDepthArg,
-    /// Output file: `.png` (as displayed: clamped, 8-bit) or `.exr` (OpenEXR, linear
-    /// HDR, 32-bit float).
-    #[arg(short, long, default_value = "still.png")]
-    pub out: PathBuf,
+    pub quality: settings::QualityGroup,
+    /// File format: png (display values, 8-bit sRGB-encoded) or exr (OpenEXR, the
+    /// linear values, 32-bit float); docs/colour.md. Default: the one `--out`'s
+    /// extension names, else png.
+    #[arg(long, value_enum)]
+    pub format: Option<FrameFormat>,
+    /// Output file [default: still.png, or still.exr with `--format exr`].
+    #[arg(short, long)]
+    pub out: Option<PathBuf>,
 }
 
 /// Arguments of `frameless bench`.
@@ -460,8 +432,8 @@ fn parse_rays(s: &str) -> anyhow::Result<usize> {
 
 /// The parser of `--method` in the commands that run methods under the simulated
 /// clock: blanks around a name are ignored (so that a list written `adaptive, taa`
-/// parses), every method is listed in `--help`, and the real-time pipeline's `framed`
-/// is answered with the names it may mean.
+/// parses), every method is listed in `--help`, and an old name is taken with a note
+/// naming the new one.
 fn method_parser() -> MethodParser {
     MethodParser(clap::builder::EnumValueParser::new())
 }
@@ -479,19 +451,7 @@ impl clap::builder::TypedValueParser for MethodParser {
         value: &std::ffi::OsStr,
     ) -> Result<MethodKind, clap::Error> {
         let text = value.to_string_lossy();
-        let name = text.trim();
-        if MethodKind::parse(name).is_err() && RtMethod::parse(name).is_ok() {
-            return Err(invalid(
-                cmd,
-                arg,
-                name,
-                format!(
-                    "`{name}` is a method of the real-time pipeline (`frameless view`); under \
-                     the simulated clock the framed methods are {}",
-                    framed_names().join(", ")
-                ),
-            ));
-        }
+        let name = current_name_noted(text.trim());
         self.0.parse_ref(cmd, arg, std::ffi::OsStr::new(name))
     }
 
@@ -502,13 +462,14 @@ impl clap::builder::TypedValueParser for MethodParser {
     }
 }
 
-/// The simulated clock's framed methods, by name.
-fn framed_names() -> Vec<&'static str> {
-    MethodKind::ALL
-        .iter()
-        .map(|m| m.name())
-        .filter(|n| n.contains("framed") || n.starts_with("full-res"))
-        .collect()
+/// A method's current name; an old name gets a note on stderr naming the new one, so
+/// that scripts move to it while they keep working.
+fn current_name_noted(name: &str) -> &str {
+    let new = frameless::methods::current_name(name);
+    if new != name {
+        eprintln!("note: method `{name}` is called `{new}` now; the old name still works");
+    }
+    new
 }
 
 /// `--method` of `frameless view`: a real-time method, or a clear word on why an
@@ -526,7 +487,7 @@ impl clap::builder::TypedValueParser for RtMethodParser {
         value: &std::ffi::OsStr,
     ) -> Result<RtMethod, clap::Error> {
         let text = value.to_string_lossy();
-        let name = text.trim();
+        let name = current_name_noted(text.trim());
         if let Ok(m) = RtMethod::parse(name) {
             return Ok(m);
         }
@@ -567,6 +528,7 @@ fn invalid(cmd: &clap::Command, arg: Option<&clap::Arg>, value: &str, why: Strin
 #[cfg(test)]
 mod tests {
     use super::*;
+    use frameless::trace::TextureFilter;
 
     #[test]
     fn eval_help_lists_every_method() {
@@ -652,10 +614,6 @@ mod tests {
 
     #[test]
     fn methods_of_the_other_clock_get_a_reason() {
-        let e = Cli::try_parse_from(["frameless", "render", "--method", "framed"])
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("real-time") && e.contains("framed-60hz"), "{e}");
         let e = Cli::try_parse_from(["frameless", "view", "--method", "point-tracking"])
             .unwrap_err()
             .to_string();
@@ -663,13 +621,71 @@ mod tests {
             e.contains("simulated clock") && e.contains("adaptive"),
             "{e}"
         );
-        // `taa` runs under both clocks.
-        for m in ["framed", "taa"] {
-            assert!(Cli::try_parse_from(["frameless", "view", "--method", m]).is_ok());
+        // Every real-time method runs under the simulated clock too, by the same name.
+        for m in RtMethod::ALL {
+            assert!(MethodKind::parse(m.name()).is_ok(), "{}", m.name());
+            let ok = Cli::try_parse_from(["frameless", "view", "--method", m.name()]);
+            assert!(ok.is_ok(), "{}", m.name());
         }
         for m in MethodKind::ALL {
             let ok = Cli::try_parse_from(["frameless", "render", "--method", m.name()]);
             assert!(ok.is_ok(), "{}", m.name());
+        }
+    }
+
+    #[test]
+    fn table1_takes_the_options_of_eval_that_apply() {
+        let Command::Table1(a) = Cli::try_parse_from([
+            "frameless",
+            "table1",
+            "--no-cache",
+            "--warmup",
+            "0.5",
+            "--camera-path",
+            "path.csv",
+            "--max-depth",
+            "2",
+        ])
+        .expect("parses")
+        .command
+        else {
+            panic!("table1 expected")
+        };
+        assert!(a.reference.no_cache && a.reference.cache().is_none());
+        assert_eq!(a.warmup, Some(0.5));
+        assert_eq!(
+            a.camera_path.as_deref(),
+            Some(std::path::Path::new("path.csv"))
+        );
+        assert_eq!(a.quality.max_depth, 2);
+        // Unset, every animation keeps its own warm-up and camera.
+        let Command::Table1(a) = Cli::try_parse_from(["frameless", "table1"])
+            .unwrap()
+            .command
+        else {
+            panic!("table1 expected")
+        };
+        assert!(a.warmup.is_none() && a.camera_path.is_none());
+        assert_eq!(a.quality, frameless::settings::QualityGroup::default());
+    }
+
+    #[test]
+    fn old_method_names_are_taken_as_the_new_ones() {
+        for (old, new) in frameless::methods::OLD_NAMES {
+            let Command::Render(r) = Cli::try_parse_from(["frameless", "render", "--method", old])
+                .unwrap()
+                .command
+            else {
+                panic!("render expected")
+            };
+            assert_eq!(r.method.name(), *new);
+            let Command::Live(l) = Cli::try_parse_from(["frameless", "live", "--method", old])
+                .unwrap()
+                .command
+            else {
+                panic!("live expected")
+            };
+            assert_eq!(l.methods.unwrap()[0].name(), *new);
         }
     }
 

@@ -25,14 +25,30 @@ use frameless::{
     trace::{TraceOptions, Tracer},
 };
 
-/// Entry point of the `frameless` binary; returns the process exit code.
-pub(crate) fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+/// Entry point of the `frameless` binary, and of the Python package's `frameless`
+/// command, which compiles this module into its extension: parse `args` (the program's
+/// name first) and run the command; returns the process exit code. A usage error
+/// exits the process here, as clap does.
+pub fn main<I, T>(args: I) -> std::process::ExitCode
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    std::process::ExitCode::from(status(args))
+}
+
+/// [`main`]'s exit status as a number: 0 on success, 1 after printing the error.
+pub fn status<I, T>(args: I) -> u8
+where
+    I: IntoIterator<Item = T>,
+    T: Into<std::ffi::OsString> + Clone,
+{
+    let cli = Cli::parse_from(args);
     match run(cli) {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(()) => 0,
         Err(e) => {
             eprintln!("error: {}", message(&e));
-            std::process::ExitCode::FAILURE
+            1
         }
     }
 }
@@ -76,41 +92,7 @@ pub fn run(cli: Cli) -> Result<()> {
             }
             Ok(())
         }
-        Command::Still(a) => {
-            let format = ImageFormat::for_output(&a.out)?;
-            let scene = load_scene(&a.scene)?;
-            let path = load_camera_path(a.camera_path.as_deref())?;
-            let Size(w, h) = a.size;
-            let tracer = Tracer::new(
-                Arc::new(scene),
-                w,
-                h,
-                TraceOptions {
-                    max_depth: a.depth.max_depth,
-                    texture_filter: a.filter.texture_filter,
-                },
-            )
-            .with_camera_path(path);
-            let bar = Meter::new("rendering", "rows");
-            bar.set_total(h as u64);
-            let t0 = Instant::now();
-            let img = still::render(&tracer, a.time, a.spp, a.seed, &|rows| {
-                bar.set_position(rows as u64)
-            });
-            bar.finish();
-            img.save(&a.out, format)
-                .with_context(|| format!("writing {}", a.out.display()))?;
-            eprintln!(
-                "wrote {} ({}x{}, {} spp, t = {} s) in {:.2} s",
-                a.out.display(),
-                w,
-                h,
-                a.spp,
-                a.time,
-                t0.elapsed().as_secs_f64()
-            );
-            Ok(())
-        }
+        Command::Still(a) => still(a),
         Command::Eval(a) => eval(a),
         Command::Sampler(a) => sampler(a),
         Command::Table1(a) => table1(a),
@@ -132,9 +114,6 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
     let scene = |s: &str| -> Option<std::path::PathBuf> {
         (!builtin::NAMES.contains(&s)).then(|| s.into())
     };
-    let cache = |dir: &Option<std::path::PathBuf>, off: bool| {
-        (!off).then(|| dir.clone().unwrap_or_else(settings::default_cache_dir))
-    };
     let input = |s: &frameless::settings::SceneGroup| vec![s.camera_path.clone(), scene(&s.scene)];
     let (out, inputs) = match cmd {
         Command::Eval(a) => (
@@ -153,7 +132,10 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
                 .bart
                 .clone()
                 .or_else(|| std::env::var_os("FRAMELESS_BART_DIR").map(Into::into));
-            (&a.out, vec![bart, cache(&a.cache_dir, false)])
+            (
+                &a.out,
+                vec![bart, a.reference.cache(), a.camera_path.clone()],
+            )
         }
         Command::Merge(a) => (&a.out, a.results.iter().cloned().map(Some).collect()),
         _ => return None,
@@ -399,6 +381,73 @@ fn check_wgpu_backend() -> Result<()> {
     Ok(())
 }
 
+/// `frameless still`.
+fn still(a: args::StillArgs) -> Result<()> {
+    let (out, format) = still_target(&a)?;
+    let scene = load_scene(&a.scene.scene)?;
+    let path = load_camera_path(a.scene.camera_path.as_deref())?;
+    let Size(w, h) = a.size;
+    let tracer =
+        Tracer::new(Arc::new(scene), w, h, TraceOptions::from(&a.quality)).with_camera_path(path);
+    let bar = Meter::new("rendering", "rows");
+    bar.set_total(h as u64);
+    let t0 = Instant::now();
+    let img = still::render(&tracer, a.time, a.spp, a.quality.seed, &|rows| {
+        bar.set_position(rows as u64)
+    });
+    bar.finish();
+    img.save(&out, format)
+        .with_context(|| format!("writing {}", out.display()))?;
+    eprintln!(
+        "wrote {} ({}x{}, {} spp, t = {} s) in {:.2} s",
+        out.display(),
+        w,
+        h,
+        a.spp,
+        a.time,
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The file `still` writes and its format: `--format` and `--out` must agree where
+/// both are given; either alone decides both, and with neither it is `still.png`.
+fn still_target(a: &args::StillArgs) -> Result<(std::path::PathBuf, ImageFormat)> {
+    let asked = a.format.map(image_format);
+    let out = match (&a.out, asked) {
+        (Some(out), _) => out.clone(),
+        (None, Some(ImageFormat::Exr)) => "still.exr".into(),
+        (None, _) => "still.png".into(),
+    };
+    let named = ImageFormat::for_output(&out)?;
+    match asked {
+        Some(f) if f != named => bail!(
+            "--format {} but --out {} names another format: give one of them, or make \
+             them agree",
+            f.extension(),
+            out.display()
+        ),
+        _ => Ok((out, named)),
+    }
+}
+
+/// The library's image format of a `--format` value.
+fn image_format(f: args::FrameFormat) -> ImageFormat {
+    match f {
+        args::FrameFormat::Png => ImageFormat::Png,
+        args::FrameFormat::Exr => ImageFormat::Exr,
+    }
+}
+
+/// `eval`'s `--format`, or `--exr`, its old spelling, with a note naming the new one.
+fn eval_format(a: &args::EvalArgs) -> ImageFormat {
+    if a.exr {
+        eprintln!("note: --exr is `--format exr` now; the old flag still works");
+        return ImageFormat::Exr;
+    }
+    image_format(a.format)
+}
+
 fn eval(a: args::EvalArgs) -> Result<()> {
     frameless::output::check_folder_target(&a.out)?;
     let mut cfg = EvalConfig::new(&a.scene.scene);
@@ -415,7 +464,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
-        linear_strips: a.exr,
+        linear_strips: eval_format(&a) == ImageFormat::Exr,
         ..evaluation::RunOptions::default()
     };
     let mut out = evaluation::run_with(scene, &cfg, &bar, options)?;
@@ -456,10 +505,7 @@ fn render(a: args::RenderArgs) -> Result<()> {
         seed: a.quality.seed,
         max_depth: a.quality.max_depth,
         texture_filter: a.quality.texture_filter,
-        format: match a.format {
-            args::FrameFormat::Png => ImageFormat::Png,
-            args::FrameFormat::Exr => ImageFormat::Exr,
-        },
+        format: image_format(a.format),
         gpu: None,
     };
     cfg.validate()?;
@@ -554,6 +600,7 @@ fn bart_kitchen(bart: Option<&Path>) -> Result<std::path::PathBuf> {
 /// The evaluation of one Table 1 animation, validated.
 fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> Result<EvalConfig> {
     let camera_path = match anim.camera_path {
+        _ if a.camera_path.is_some() => load_camera_path(a.camera_path.as_deref())?,
         Some(text) => Some(
             CameraPath::parse(anim.camera_path_file.unwrap_or(anim.name), text)
                 .map_err(anyhow::Error::from)?,
@@ -573,17 +620,13 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
             Some(m) => m.clone(),
             None => evaluation::table1::METHODS.to_vec(),
         },
-        seed: a.seed,
-        ideal_spp: a.ideal.ideal_spp,
-        warmup: anim.warmup,
+        seed: a.quality.seed,
+        ideal_spp: a.reference.ideal_spp,
+        warmup: a.warmup.unwrap_or(anim.warmup),
         refresh_hz: settings::REFRESH_HZ,
-        max_depth: settings::MAX_DEPTH,
-        texture_filter: a.filter.texture_filter,
-        cache_dir: Some(
-            a.cache_dir
-                .clone()
-                .unwrap_or_else(settings::default_cache_dir),
-        ),
+        max_depth: a.quality.max_depth,
+        texture_filter: a.quality.texture_filter,
+        cache_dir: a.reference.cache(),
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
         gpu: None,

@@ -151,10 +151,10 @@ mod tests {
         assert_eq!(s.rates, a.rates);
         let Size(w, h) = a.size;
         assert_eq!(s.sizes, vec![(w, h)]);
-        assert_eq!(s.seeds, vec![a.seed]);
-        assert_eq!(s.ideal_spp, a.ideal.ideal_spp);
+        assert_eq!(s.seeds, vec![a.quality.seed]);
+        assert_eq!(s.ideal_spp, a.reference.ideal_spp);
         assert_eq!(s.flip_every, a.flip_every);
-        assert_eq!(s.texture_filter, a.filter.texture_filter);
+        assert_eq!(s.texture_filter, a.quality.texture_filter);
         assert_eq!(a.strips, Strips::Quartiles);
         assert_eq!(s.strips, StripFrames::Quartiles);
         assert!(a.methods.is_none() && a.duration.is_none() && a.strip_rates.is_none());

@@ -68,11 +68,9 @@ pub fn flip_mean(reference: &[u8], test: &[u8], w: u32, h: u32) -> f64 {
 /// shown with [`flip_palette`]; `None` if the images are not `w × h`. (Indices into a
 /// palette, not colours: a third of the size, and FLIP's colour scale has 256 entries.)
 pub fn flip_map(reference: &[u8], test: &[u8], w: u32, h: u32) -> Option<Vec<u8>> {
-    let r = RgbImage::new(w as usize, h as usize, reference.to_vec()).ok()?;
-    let t = RgbImage::new(w as usize, h as usize, test.to_vec()).ok()?;
-    let map = ldr_flip(&r, &t, DEFAULT_PPD).ok()?;
+    let values = flip_values(reference, test, w, h)?;
     Some(
-        map.pixels()
+        values
             .iter()
             .map(|&v| {
                 let v = if v.is_nan() { 1.0 } else { v.clamp(0.0, 1.0) };
@@ -80,6 +78,15 @@ pub fn flip_map(reference: &[u8], test: &[u8], w: u32, h: u32) -> Option<Vec<u8>
             })
             .collect(),
     )
+}
+
+/// The FLIP error of every pixel (row-major, in [0, 1]) between a reference and a test
+/// image of `w × h` 8-bit RGB pixels; `None` if the images are not `w × h`.
+pub fn flip_values(reference: &[u8], test: &[u8], w: u32, h: u32) -> Option<Vec<f32>> {
+    let r = RgbImage::new(w as usize, h as usize, reference.to_vec()).ok()?;
+    let t = RgbImage::new(w as usize, h as usize, test.to_vec()).ok()?;
+    let map = ldr_flip(&r, &t, DEFAULT_PPD).ok()?;
+    Some(map.pixels().to_vec())
 }
 
 /// The largest value of [`flip_map`]; the value above it is white (a strip's gaps).

@@ -6,9 +6,11 @@ pub mod live;
 pub mod metrics;
 pub mod report;
 pub mod sequence;
+pub mod style;
 pub mod sweep;
 pub mod table1;
 pub mod temporal;
+pub mod verdict;
 pub mod video_metric;
 
 use std::{collections::HashMap, path::PathBuf, sync::Arc, time::Instant};

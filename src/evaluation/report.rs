@@ -11,7 +11,7 @@ use std::{
 
 use plotters::prelude::*;
 
-use super::{metrics, video_metric, EvalError, EvalOutput, FrameRow, Summary};
+use super::{metrics, style, verdict, video_metric, EvalError, EvalOutput, FrameRow, Summary};
 pub use crate::clock::{parse_rate, rate_label};
 use crate::{
     image::{read_png_rgb8, write_png_indexed, write_png_rgb8},
@@ -177,29 +177,31 @@ pub fn read_summary(path: &Path) -> Result<Summary, EvalError> {
     serde_json::from_str(&text).map_err(|e| bad(e.to_string()))
 }
 
-/// Line colours: Tableau 10, chosen to be told apart, also by most colour-blind readers
-/// when combined with [`DASHES`].
-const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(214, 39, 40),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(127, 127, 127),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-];
-
-/// Line patterns, `(dash, gap)` in pixels, `(0, 0)` solid. Their count is prime to the
-/// palette's, so no two of the first 30 series share both colour and pattern, and
-/// neighbours in the legend always differ in both.
-const DASHES: [(u32, u32); 3] = [(0, 0), (9, 5), (2, 4)];
-
-/// The colour and pattern of series `i`.
-fn series_style(i: usize) -> (RGBColor, (u32, u32)) {
-    (PALETTE[i % PALETTE.len()], DASHES[i % DASHES.len()])
+/// `$draw` with `$mark` bound to a function making `$look`'s mark at a point (each kind
+/// of mark is a type of its own, so the choice is made around the drawing, not inside
+/// it).
+macro_rules! with_mark {
+    ($look:expr, |$mark:ident| $draw:expr) => {{
+        let (fill, line) = ($look.colour.filled(), $look.colour.stroke_width(2));
+        match $look.marker {
+            style::Marker::Circle => {
+                let $mark = |at| Circle::new(at, 4, fill);
+                $draw
+            }
+            style::Marker::Triangle => {
+                let $mark = |at| TriangleMarker::new(at, 5, fill);
+                $draw
+            }
+            style::Marker::Square => {
+                let $mark = |at| EmptyElement::at(at) + Rectangle::new([(-3, -3), (3, 3)], fill);
+                $draw
+            }
+            style::Marker::Cross => {
+                let $mark = |at| Cross::new(at, 4, line);
+                $draw
+            }
+        }
+    }};
 }
 
 /// RMS over time at one rate, one line per method (paper Fig. 8), as SVG: frames on
@@ -277,24 +279,32 @@ pub(crate) fn plot_lines(
         .x_label_formatter(&|x| format!("{x}"))
         .draw()
         .map_err(|x| e(Box::new(x)))?;
-    for (i, (_, pts)) in series.iter().enumerate() {
+    // About a dozen marks a line, each method's at its own phase of the cycle.
+    let every = (xmax as usize / MARKS_PER_LINE).max(1);
+    for (i, (name, pts)) in series.iter().enumerate() {
         if pts.is_empty() {
             continue;
         }
-        let (color, (dash, gap)) = series_style(i);
-        let style = color.stroke_width(2);
+        let look = style::of_series(name, i);
+        let line = look.colour.stroke_width(2);
+        let (dash, gap) = look.dash;
         if dash == 0 {
-            chart.draw_series(LineSeries::new(pts.iter().copied(), style))
+            chart.draw_series(LineSeries::new(pts.iter().copied(), line))
         } else {
-            chart.draw_series(DashedLineSeries::new(pts.iter().copied(), dash, gap, style))
+            chart.draw_series(DashedLineSeries::new(pts.iter().copied(), dash, gap, line))
         }
         .map_err(|x| e(Box::new(x)))?;
+        let marks = pts.iter().skip(look.phase % every).step_by(every);
+        with_mark!(look, |mark| chart.draw_series(marks.map(|&p| mark(p))))
+            .map_err(|x| e(Box::new(x)))?;
     }
-    // The legend: a sample of each line and its method, top to bottom in series order.
+    // The legend: a sample of each line with its mark and its method, top to bottom in
+    // series order.
     for (i, (name, _)) in series.iter().enumerate() {
         let y = 40 + 22 * i as i32;
-        let (color, (dash, gap)) = series_style(i);
-        let style = color.stroke_width(2);
+        let look = style::of_series(name, i);
+        let style = look.colour.stroke_width(2);
+        let (dash, gap) = look.dash;
         let line = vec![(8, y), (48, y)];
         if dash == 0 {
             legend_area.draw(&PathElement::new(line, style))
@@ -304,6 +314,7 @@ pub(crate) fn plot_lines(
             ))
         }
         .map_err(|x| e(Box::new(x)))?;
+        with_mark!(look, |mark| legend_area.draw(&mark((28, y)))).map_err(|x| e(Box::new(x)))?;
         legend_area
             .draw(&Text::new(
                 name.clone(),
@@ -315,6 +326,9 @@ pub(crate) fn plot_lines(
     root.present().map_err(|x| e(Box::new(x)))?;
     Ok(())
 }
+
+/// Marks a line carries over its length ([`plot_lines`]).
+const MARKS_PER_LINE: usize = 12;
 
 /// Side-by-side strip of images (8-bit RGB, all `w × h`) with [`STRIP_GAP`]-pixel
 /// white gaps.
@@ -490,6 +504,7 @@ fn html(
     let present = |file: &str| dir.join(file).is_file();
     let mut h = String::new();
     html_heading(&mut h, s);
+    html_verdict(&mut h, s);
     html_tables(&mut h, s);
     html_video_table(&mut h, s, dir);
     html_plots(&mut h, plots, &present);
@@ -524,6 +539,17 @@ fn html_heading(h: &mut String, s: &Summary) {
         s.ideal_spp,
         if s.camera_path { "; camera path" } else { "" },
         escape(&s.recon.to_string())
+    );
+}
+
+/// The first screen: who wins at each rate, in one sentence and a small chart.
+fn html_verdict(h: &mut String, s: &Summary) {
+    let rates = rates_in_order(s);
+    let _ = write!(
+        h,
+        "<p class=\"verdict\" style=\"font-size:1.1em\">{}</p>{}",
+        verdict::sentence(s, &rates),
+        verdict::chart(s, &rates)
     );
 }
 
@@ -710,9 +736,39 @@ fn html_strips(
             "<h2>Images</h2><p class=\"note\">What each method displays at a few refreshes, \
              beside the ideal image, and below each its FLIP error map against the ideal \
              (black: no visible difference, through red, to yellow: the largest). Per \
-             panel: that frame's RMS error and FLIP.</p>",
+             panel: that frame's RMS error and FLIP. One section per rate, the first \
+             open; click a rate to open or fold its images.</p>",
         );
     }
+    // One foldable section per rate, so that the page stays short: the first open.
+    let mut rates: Vec<f64> = Vec::new();
+    for st in &strips {
+        if !rates.contains(&st.rate) {
+            rates.push(st.rate);
+        }
+    }
+    for (k, &rate) in rates.iter().enumerate() {
+        let of_rate: Vec<&StripFiles> = strips.iter().copied().filter(|x| x.rate == rate).collect();
+        let _ = write!(
+            h,
+            "<details{}><summary><b>{} samples/s</b>: {} refreshes</summary>",
+            if k == 0 { " open" } else { "" },
+            rate_label(rate),
+            of_rate.len()
+        );
+        html_strips_of_rate(h, s, frames, &of_rate, present);
+        h.push_str("</details>");
+    }
+}
+
+/// The strips of one rate, each a row of labelled panels.
+fn html_strips_of_rate(
+    h: &mut String,
+    s: &Summary,
+    frames: &[FrameRow],
+    strips: &[&StripFiles],
+    present: &dyn Fn(&str) -> bool,
+) {
     for st in strips {
         let flip = present(&st.flip);
         let _ = write!(

@@ -236,8 +236,9 @@ impl MethodKind {
         self.info().description
     }
 
-    /// Parse a command-line name.
+    /// Parse a command-line name, or an old name [`OLD_NAMES`] lists.
     pub fn parse(s: &str) -> Result<Self, UnknownMethod> {
+        let s = current_name(s);
         Self::ALL
             .iter()
             .copied()
@@ -260,6 +261,25 @@ impl MethodKind {
             e => e,
         })
     }
+}
+
+/// Names methods had before the command line, the real-time pipeline and Python
+/// spoke one vocabulary, each with the name it has now. They are still accepted, so
+/// that scripts and result files written before keep working; the binary and the
+/// Python module say the new name when one is used.
+pub const OLD_NAMES: &[(&str, &str)] = &[
+    // The real-time pipeline's name for what the simulated clock called `framed-full`:
+    // full-resolution frames, each shown when complete, as fast as the budget allows.
+    ("framed", "framed-full"),
+];
+
+/// The current name of a method named `name`: the new name if `name` is an old one
+/// ([`OLD_NAMES`]), else `name` itself.
+pub fn current_name(name: &str) -> &str {
+    OLD_NAMES
+        .iter()
+        .find(|(old, _)| *old == name)
+        .map_or(name, |(_, new)| new)
 }
 
 /// A method name that no method has.

@@ -37,7 +37,7 @@ use crate::{
 
 /// The framed method's description.
 pub(crate) const METHOD: MethodInfo = MethodInfo {
-    name: "framed",
+    name: "framed-full",
     about: "double-buffered frames at full resolution, as fast as they go",
     // Nothing else of it needs a core: the image thread only copies.
     default_sampling_threads: |cores| cores,

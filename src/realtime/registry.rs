@@ -36,8 +36,7 @@ macro_rules! registry {
         /// What the pipeline renders: one variant per method of the registry, in the
         /// viewer's key order ([`RtMethod::ALL`]). Each is described (name, threads,
         /// how it starts) in its own file.
-        #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-        #[serde(rename_all = "kebab-case")]
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
         pub enum RtMethod {
             $($(#[doc = $doc])* $(#[cfg($cfg)])? $variant,)*
         }
@@ -139,7 +138,7 @@ registry! {
     /// Traditional frameless: random pixels, newest sample shown per pixel.
     TraditionalFrameless => frameless::METHOD,
     /// Double-buffered framed rendering at full resolution, as fast as it goes.
-    Framed => framed::METHOD,
+    FramedFull => framed::METHOD,
     /// Framed, with the newest frame reprojected to the camera at every refresh.
     LateWarp => framed::LATE_WARP,
     /// Temporal upsampler: jittered low-resolution frames accumulated into a
@@ -194,8 +193,10 @@ impl RtMethod {
         self.facts().overlays
     }
 
-    /// Parse a command-line name.
+    /// Parse a command-line name, or an old name the evaluation's methods list
+    /// ([`crate::methods::OLD_NAMES`]).
     pub fn parse(s: &str) -> Result<Self, RealtimeError> {
+        let s = crate::methods::current_name(s);
         Self::ALL
             .iter()
             .copied()
@@ -207,6 +208,21 @@ impl RtMethod {
                     one_of(&names)
                 ))
             })
+    }
+}
+
+// By name, as the command line spells it: result files written before a method was
+// renamed ([`crate::methods::OLD_NAMES`]) still read.
+impl serde::Serialize for RtMethod {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for RtMethod {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = <String as serde::Deserialize>::deserialize(d)?;
+        Self::parse(&s).map_err(serde::de::Error::custom)
     }
 }
 
@@ -345,7 +361,7 @@ mod tests {
             [
                 "adaptive",
                 "traditional-frameless",
-                "framed",
+                "framed-full",
                 "late-warp",
                 "taa",
                 "taa-warp"
@@ -358,10 +374,14 @@ mod tests {
             assert_eq!(serde_json::to_value(m).unwrap(), m.name());
             assert_eq!(m.settings().method(), m);
         }
+        // The old name still parses and reads from result files.
+        assert_eq!(RtMethod::parse("framed").unwrap(), RtMethod::FramedFull);
+        let old: RtMethod = serde_json::from_value(serde_json::json!("framed")).unwrap();
+        assert_eq!(old, RtMethod::FramedFull);
         let err = RtMethod::parse("bogus").unwrap_err().to_string();
         assert!(
             err.contains(
-                "unknown method `bogus` (expected adaptive, traditional-frameless, framed, late-warp, taa, taa-warp"
+                "unknown method `bogus` (expected adaptive, traditional-frameless, framed-full, late-warp, taa, taa-warp"
             ),
             "{err}"
         );
@@ -385,7 +405,7 @@ mod tests {
         }
         assert_eq!(seen, ["tiling", "gradients", "density", "image"]);
         assert_eq!(
-            Visualisation::IMAGE.next(RtMethod::Framed),
+            Visualisation::IMAGE.next(RtMethod::FramedFull),
             Visualisation::IMAGE
         );
         assert_eq!(
@@ -400,7 +420,7 @@ mod tests {
         let threads = |m| RtConfig::new(m).sampling_threads;
         assert_eq!(threads(RtMethod::Adaptive), cores);
         assert_eq!(threads(RtMethod::TraditionalFrameless), cores);
-        assert_eq!(threads(RtMethod::Framed), cores);
+        assert_eq!(threads(RtMethod::FramedFull), cores);
         assert_eq!(threads(RtMethod::LateWarp), cores);
         assert_eq!(threads(RtMethod::Taa), cores);
         assert_eq!(threads(RtMethod::TaaWarp), cores);

@@ -812,7 +812,7 @@ mod tests {
         let mut cfg = LiveConfig::new("toycar");
         (cfg.start, cfg.warmup, cfg.refresh_hz) = (2.0, 0.51, 60.0);
         assert_eq!(cfg.warmup_refreshes(), 31);
-        let c = cfg.rt_config(RtMethod::Framed);
+        let c = cfg.rt_config(RtMethod::FramedFull);
         let first = c.start + cfg.warmup_refreshes() as f64 / cfg.refresh_hz;
         assert!((first - cfg.refresh(0)).abs() < 1e-12);
         assert_eq!(cfg.refresh(0), 2.0);
