@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import importlib
 import json
 import os
 import warnings
@@ -170,6 +171,12 @@ class _Bar:
             self.bar.close()
 
 
+
+# Video metrics by name: each an optional extra (ColorVideoVDP needs PyTorch), a module
+# on top of this one that scores an evaluation's videos with its ``evaluation_jod``. It
+# is imported only when asked for, by name, so that this module does not depend on it.
+VIDEO_METRICS = {"cvvdp": "frameless.vdp"}
+
 class Scene:
     """A scene, built in or from a file, and the camera path overriding its camera."""
 
@@ -323,7 +330,7 @@ def evaluate(
     ``frameless.vdp``). ``recon`` is ``--recon``: ``"cpu"`` (the reference) or
     ``"auto"``; this module is built without the GPU reconstructor, so ``"gpu"``
     raises ValueError and ``"auto"`` runs on the CPU."""
-    if video_metric not in (None, "cvvdp"):
+    if video_metric is not None and video_metric not in VIDEO_METRICS:
         raise ValueError(f"video_metric {video_metric!r}: the one video metric is 'cvvdp'")
     native = _scene(scene)._native
     with _Bar(progress, "evaluating", "rays") as cb:
@@ -333,10 +340,10 @@ def evaluate(
             texture_filter, flip_every, _cache_dir(cache_dir, no_cache), recon, cb,
         )
     ev = Evaluation._from_json(summary, frames)
-    if video_metric == "cvvdp":
-        from . import vdp
-        vdp.evaluation_jod(ev, _scene(scene), max_depth=max_depth,
-                           texture_filter=texture_filter, display=video_display)
+    if video_metric is not None:
+        score = getattr(importlib.import_module(VIDEO_METRICS[video_metric]), "evaluation_jod")
+        score(ev, _scene(scene), max_depth=max_depth, texture_filter=texture_filter,
+              display=video_display)
     return ev
 
 

@@ -85,7 +85,7 @@ def _rms(a: np.ndarray, b: np.ndarray) -> float:
 
 def _ideal_video(scene, times: Sequence[float], size: str, ideal_spp: int, seed: int,
                  max_depth: int, texture_filter: str) -> np.ndarray:
-    from . import to_display
+    from ._frameless import to_display
     return np.stack([
         to_display(scene.still(t, size, ideal_spp, seed=seed, max_depth=max_depth,
                                texture_filter=texture_filter, progress=False))
