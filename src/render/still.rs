@@ -41,6 +41,56 @@ pub fn render(
     }
 }
 
+/// Samples of one GPU dispatch of [`render_gpu`], about.
+#[cfg(feature = "gpu")]
+const GPU_BATCH: usize = 1 << 22;
+
+/// [`render`] on the GPU tracer: the same samples of every pixel, traced in batches of
+/// whole rows and averaged in the same order, so the image differs from the CPU's only
+/// where a sample's colour does.
+#[cfg(feature = "gpu")]
+pub fn render_gpu(
+    gpu: &mut crate::trace::gpu::GpuTracer,
+    tracer: &Tracer,
+    t: f64,
+    spp: u32,
+    seed: u64,
+) -> Result<Image, crate::trace::gpu::GpuTraceError> {
+    let (w, h) = tracer.size();
+    let state = tracer.state_at(t);
+    let rows = (GPU_BATCH / (w as usize * spp.max(1) as usize)).max(1) as u32;
+    let mut pixels = Vec::with_capacity(w as usize * h as usize);
+    for y0 in (0..h).step_by(rows as usize) {
+        let mut points = Vec::new();
+        let mut counts = Vec::new();
+        for y in y0..(y0 + rows).min(h) {
+            for x in 0..w {
+                let pts = pixel_samples(x, y, spp, seed);
+                counts.push(pts.len());
+                points.extend(pts.iter().map(|(dx, dy)| [x as f32 + dx, y as f32 + dy]));
+            }
+        }
+        let got = gpu.trace(tracer, &state, &points)?;
+        let mut at = 0;
+        for n in counts {
+            let sum: glam::Vec3 = got[at..at + n].iter().map(|s| s.color).sum();
+            pixels.push(sum / n as f32);
+            at += n;
+        }
+    }
+    Ok(Image {
+        width: w,
+        height: h,
+        pixels,
+    })
+}
+
+/// The sub-pixel positions of pixel `(x, y)`'s samples.
+fn pixel_samples(x: u32, y: u32, spp: u32, seed: u64) -> Vec<(f32, f32)> {
+    let mut rng = Rng::new(&[seed, 0x5717, x as u64, y as u64]);
+    stratified::unit_square(spp, &mut rng)
+}
+
 /// Pixel `(x, y)` of [`render`]'s image, for callers that schedule the rows themselves
 /// (to stop between them): the same samples, so the same value.
 pub fn pixel(
@@ -51,8 +101,7 @@ pub fn pixel(
     spp: u32,
     seed: u64,
 ) -> glam::Vec3 {
-    let mut rng = Rng::new(&[seed, 0x5717, x as u64, y as u64]);
-    let pts = stratified::unit_square(spp, &mut rng);
+    let pts = pixel_samples(x, y, spp, seed);
     let sum: glam::Vec3 = pts
         .iter()
         .map(|(dx, dy)| tracer.sample(state, x as f32 + dx, y as f32 + dy).color)
