@@ -196,28 +196,6 @@ fn gpu_trace_at_groups_samples_by_their_own_time() {
     );
 }
 
-#[test]
-#[ignore = "needs a GPU adapter (lavapipe in CI)"]
-fn gpu_trace_ideal_image_matches_the_cpu() {
-    let spp = crate::settings::IDEAL_SPP;
-    let tracer = Tracer::new(Arc::new(builtin("toycar")), 64, 48, TraceOptions::default());
-    let mut gpu = GpuTracer::new(context(), &tracer).expect("GPU tracer");
-    let got = crate::render::still::render_gpu(&mut gpu, &tracer, 1.5, spp, 7).expect("GPU ideal");
-    let want = crate::render::still::render(&tracer, 1.5, spp, 7, &|_| {});
-    let off = got
-        .pixels
-        .iter()
-        .zip(&want.pixels)
-        .filter(|(g, c)| (**g - **c).abs().max_element() > MAX_DIFF)
-        .count();
-    let allowed = ((1.0 - SAME_HIT) * want.pixels.len() as f64).floor() as usize;
-    assert!(
-        off <= allowed,
-        "{off} of {} pixels differ",
-        want.pixels.len()
-    );
-}
-
 fn bart(file: &str) -> Scene {
     let dir = std::env::var_os("FRAMELESS_BART_DIR")
         .expect("FRAMELESS_BART_DIR must name the BART scene folder (e.g. ../shared/scenes/bart)");
