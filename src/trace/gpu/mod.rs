@@ -189,7 +189,9 @@ impl GpuTracer {
         primary_only: bool,
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
         self.upload_state(tracer, state)?;
-        let per_dispatch = (MAX_GROUPS * GROUP) as usize;
+        // One dispatch's output (32 bytes a sample) must fit one storage binding.
+        let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / 32);
+        let per_dispatch = per_dispatch.max(1) as usize;
         let mut out = Vec::with_capacity(points.len());
         for chunk in points.chunks(per_dispatch) {
             out.extend(self.dispatch(tracer, state, chunk, primary_only)?);
@@ -311,16 +313,20 @@ fn init(
     })
 }
 
+/// The largest storage buffer the adapter binds, in bytes.
+fn binding_limit(ctx: &GpuContext) -> u64 {
+    ctx.limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size)
+}
+
 /// A read-only storage buffer holding `bytes`, checked against the adapter's limit.
 fn storage_init(
     ctx: &GpuContext,
     label: &'static str,
     bytes: &[u8],
 ) -> Result<wgpu::Buffer, GpuTraceError> {
-    let limit = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let limit = binding_limit(ctx);
     if bytes.len() as u64 > limit {
         return Err(GpuTraceError::TooLarge {
             what: label,
