@@ -1,5 +1,5 @@
 //! One figure of `frameless bench --live-recon`, for profiling:
-//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat] [still]`.
+//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still]`.
 //! The image hash it prints tells whether two builds make the same images.
 
 use frameless::{bench, reconstruction::ReconParams};
@@ -7,7 +7,7 @@ use frameless::{bench, reconstruction::ReconParams};
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     if a.len() < 5 {
-        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat] [still]");
+        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still]");
         std::process::exit(2);
     }
     let num = |i: usize| -> f64 { a[i].parse().expect("a number") };
@@ -20,6 +20,7 @@ fn main() {
     };
     let params = ReconParams {
         carry: !flag("resplat"),
+        resplat_moving_view: !flag("carried"),
         ..ReconParams::realtime()
     };
     let f = bench::live_image_ms(case, num(4), params, 30, !flag("still"));
@@ -27,4 +28,10 @@ fn main() {
         "{:.2} ms per image, {:.0} placed, image {}",
         f.ms_median, f.placed_per_image, f.image_hash
     );
+    let passes: Vec<String> = f
+        .pass_ms
+        .iter()
+        .map(|(n, ms)| format!("{n} {ms:.1}"))
+        .collect();
+    println!("  per pass (ms, mean): {}", passes.join(", "));
 }

@@ -335,3 +335,37 @@ fn synthetic_ring_determinism_across_threads() {
     };
     assert_eq!(run(1), run(3));
 }
+
+#[test]
+fn carried_moved_and_resplatted_images_are_identical_for_any_thread_count() {
+    use frameless::{bench, reconstruction::ReconParams};
+    // The bench's live fixture, with the camera turning (sums carried with the view,
+    // or the ring re-splatted) and still: the carry and history passes run in parallel
+    // and must land everything in the same order on any number of threads.
+    let case = bench::LiveCase {
+        width: 120,
+        height: 80,
+        rate: 60_000.0,
+        refresh_hz: 30.0,
+    };
+    let run = |threads: usize, resplat_moving_view: bool, turning: bool| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let params = ReconParams {
+                    resplat_moving_view,
+                    ..ReconParams::realtime()
+                };
+                bench::live_image_ms(case, 2.0, params, 6, turning).image_hash
+            })
+    };
+    for (resplat, turning) in [(false, true), (true, true), (false, false)] {
+        assert_eq!(
+            run(1, resplat, turning),
+            run(3, resplat, turning),
+            "resplat_moving_view {resplat}, turning {turning}"
+        );
+    }
+}

@@ -8,7 +8,7 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::{
-    reconstruction::{ReconParams, Reconstructor, RingSample},
+    reconstruction::{PassTimes, ReconParams, Reconstructor, RingSample},
     sampling::Rng,
     scene::{Camera, CameraFrame},
 };
@@ -72,6 +72,8 @@ pub struct LiveFigure {
     pub ms_median: f64,
     /// Whether the camera turned between images (every carried pixel moves).
     pub turning: bool,
+    /// Mean milliseconds of each step of a timed image, by name.
+    pub pass_ms: Vec<(&'static str, f64)>,
     /// FNV-1a hash of the last image's pixel bits: two builds that make the same
     /// images print the same hash.
     pub image_hash: String,
@@ -142,6 +144,7 @@ pub fn live_image_ms(
     let warm = case.refresh_hz.ceil() as usize;
     let mut times = Vec::with_capacity(images);
     let mut placed = 0usize;
+    let mut warm_passes = PassTimes::default();
     for i in 0..warm + images.max(1) {
         let t1 = (i + 1) as f64 / case.refresh_hz;
         for k in 0..per {
@@ -159,6 +162,9 @@ pub fn live_image_ms(
             });
         }
         let cam = camera_at(t1, w, h, turning);
+        if i == warm {
+            warm_passes = r.pass_times().clone();
+        }
         let t0 = Instant::now();
         std::hint::black_box(r.reconstruct(t1, &cam, &tiling));
         if i >= warm {
@@ -174,6 +180,7 @@ pub fn live_image_ms(
         placed_per_image: placed as f64 / times.len() as f64,
         ms_median: times[times.len() / 2],
         turning,
+        pass_ms: r.pass_times().since(&warm_passes).mean_ms(),
         image_hash: image_hash(r.image()),
     }
 }

@@ -619,7 +619,7 @@ fn html_video_table(h: &mut String, s: &Summary, dir: &Path) {
                 h,
                 "<p class=\"note\">{} is there but could not be read: {}</p>",
                 video_metric::FILE,
-                escape(&why)
+                escape(&why.to_string())
             );
             return;
         }

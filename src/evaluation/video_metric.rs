@@ -39,36 +39,75 @@ pub struct VideoRow {
     pub jod: f64,
 }
 
+/// Why a `vdp.json` could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum VideoMetricError {
+    /// The file could not be read (too large, not UTF-8, I/O).
+    #[error("{}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// Not the file's JSON layout.
+    #[error("{}: {source}", path.display())]
+    Parse {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The JSON error.
+        source: serde_json::Error,
+    },
+    /// A score that no ColorVideoVDP run gives.
+    #[error("{}: {method} at {rate}: JOD {jod} is not a finite value of at most 10", path.display())]
+    BadScore {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The method of the score.
+        method: String,
+        /// Its rate column.
+        rate: f64,
+        /// The score.
+        jod: f64,
+    },
+}
+
 /// The folder's `vdp.json`: `None` when there is none, else the scores or why they
 /// could not be read.
-pub fn read(dir: &Path) -> Option<Result<VideoScores, String>> {
+pub fn read(dir: &Path) -> Option<Result<VideoScores, VideoMetricError>> {
     let path = dir.join(FILE);
     if !path.is_file() {
         return None;
     }
-    let text = match limits::read_text(&path, limits::MAX_DATA_FILE_BYTES) {
-        Ok(t) => t,
-        Err(e) => return Some(Err(e.to_string())),
-    };
-    Some(
-        serde_json::from_str::<VideoScores>(&text)
-            .map_err(|e| e.to_string())
-            // 10 is no visible difference, the most a JOD can be; a video far worse than
-            // its reference scores below 0.
-            .and_then(|v| {
-                match v
-                    .results
-                    .iter()
-                    .find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3))
-                {
-                    Some(r) => Err(format!(
-                        "{} at {}: JOD {} is not a finite value of at most 10",
-                        r.method, r.rate, r.jod
-                    )),
-                    None => Ok(v),
-                }
-            }),
-    )
+    Some(parse(&path))
+}
+
+fn parse(path: &Path) -> Result<VideoScores, VideoMetricError> {
+    let text = limits::read_text(path, limits::MAX_DATA_FILE_BYTES).map_err(|source| {
+        VideoMetricError::Read {
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
+    let v: VideoScores = serde_json::from_str(&text).map_err(|source| VideoMetricError::Parse {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    // 10 is no visible difference, the most a JOD can be; a video far worse than its
+    // reference scores below 0.
+    match v
+        .results
+        .iter()
+        .find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3))
+    {
+        Some(r) => Err(VideoMetricError::BadScore {
+            path: path.to_path_buf(),
+            method: r.method.clone(),
+            rate: r.rate,
+            jod: r.jod,
+        }),
+        None => Ok(v),
+    }
 }
 
 #[cfg(test)]
@@ -87,7 +126,10 @@ mod tests {
         let d = dir("read");
         assert!(read(&d).is_none());
         std::fs::write(d.join(FILE), "{\"metric\": 3}").unwrap();
-        assert!(read(&d).unwrap().is_err());
+        assert!(matches!(
+            read(&d).unwrap(),
+            Err(VideoMetricError::Parse { .. })
+        ));
         std::fs::write(
             d.join(FILE),
             r#"{"metric":"ColorVideoVDP","version":"0.5.7","display":"standard_fhd",
@@ -95,7 +137,11 @@ mod tests {
         )
         .unwrap();
         let why = read(&d).unwrap().unwrap_err();
-        assert!(why.contains("at most 10"), "{why}");
+        assert!(
+            matches!(why, VideoMetricError::BadScore { .. })
+                && why.to_string().contains("at most 10"),
+            "{why}"
+        );
         std::fs::write(
             d.join(FILE),
             r#"{"metric":"ColorVideoVDP","version":"0.5.7","display":"standard_fhd",

@@ -34,6 +34,7 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::{
     lanes::{fast_exp_neg, prefetch},
@@ -101,15 +102,13 @@ pub(super) struct Carried {
     /// so that with exact motion the sums go where that point is, not where its
     /// velocity takes it.
     anchor: HashMap<u32, Anchor>,
-    /// The anchors of this refresh's nearest new samples, pixel by pixel (reused).
-    next_anchor: HashMap<u32, Anchor>,
-    /// The pixels new samples landed on at this refresh, each once (reused).
-    touched: Vec<u32>,
     /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
     stamp: Vec<u32>,
     epoch: u32,
-    /// The pixel and weight index of each new sample (reused).
-    ahead: Vec<[u32; 2]>,
+    /// Where each new sample lands (reused).
+    ahead: Vec<Ahead>,
+    /// Where each pixel's sums go when the view moves, in pixel order (reused).
+    moves: Vec<(u32, u32, Move)>,
     /// The previous refresh re-splatted the ring: the next carried refresh starts
     /// from nothing and places the whole live ring as new.
     restart: bool,
@@ -128,15 +127,33 @@ impl Carried {
             pending: 0,
             moving: Vec::new(),
             anchor: HashMap::new(),
-            next_anchor: HashMap::new(),
-            touched: Vec::new(),
             stamp: vec![0; n],
             epoch: 0,
             ahead: Vec::new(),
+            moves: Vec::new(),
             restart: false,
             view: None,
         }
     }
+}
+
+/// Where a new sample lands at a refresh: its pixel (`u32::MAX`: off the image or
+/// behind the eye), depth and velocity.
+#[derive(Clone, Copy, Debug)]
+struct Ahead {
+    px: u32,
+    py: u32,
+    z: f32,
+    v: Vec3,
+}
+
+impl Ahead {
+    const OFF: Ahead = Ahead {
+        px: u32::MAX,
+        py: u32::MAX,
+        z: 0.0,
+        v: Vec3::ZERO,
+    };
 }
 
 /// Where one pixel's sums go at a refresh: the pixel its point is seen in now, with
@@ -297,28 +314,21 @@ impl Reconstructor {
         decay: &[[f32; 2]],
         camera: &CameraFrame,
     ) {
-        let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
-        let (mut k, mut kc) = (vec![0f32; w], vec![0f32; w]);
-        for y in 0..h {
-            for (x, l) in self.lookup[y * w..(y + 1) * w].iter().enumerate() {
-                [k[x], kc[x]] = decay[l.tile as usize];
-            }
-            let row = &mut self.acc[y * CHANNELS * cs..(y + 1) * CHANNELS * cs];
-            let (rgb, rest) = row.split_at_mut(3 * cs);
-            let (wp, ap) = rest.split_at_mut(cs);
-            for x in 0..w {
-                ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
-                wp[x] *= k[x];
-            }
-            for plane in rgb.chunks_exact_mut(cs) {
-                for x in 0..w {
-                    plane[x] *= k[x];
-                }
-            }
-            for (v, kc) in self.cover[y * w..(y + 1) * w].iter_mut().zip(&kc) {
-                *v *= kc;
-            }
-        }
+        let (w, cs) = (self.width as usize, self.cs);
+        // Rows are independent: in parallel, each row decayed as a whole.
+        self.acc
+            .par_chunks_mut(CHANNELS * cs)
+            .zip(self.cover.par_chunks_mut(w))
+            .zip(self.lookup.par_chunks(w))
+            .for_each_init(
+                || (vec![0f32; w], vec![0f32; w]),
+                |(k, kc), ((row, cover), lookup)| {
+                    for (x, l) in lookup.iter().enumerate() {
+                        [k[x], kc[x]] = decay[l.tile as usize];
+                    }
+                    decay_row(row, cover, cs, k, kc, dt);
+                },
+            );
         if self.params.reproject {
             self.move_listed(c, dt, camera);
         }
@@ -394,34 +404,41 @@ impl Reconstructor {
         c.anchor.clear();
         let mover = Mover::new(w, h, dt, cam0, camera);
         let keep = self.carry_keep();
+        // Where each pixel's sums go, in parallel row by row (the geometry read is
+        // the previous refresh's, which nothing changes here); then they land one
+        // after another in pixel order, as conflicts are settled in that order.
+        let (prev, geo) = (&c.prev, &c.geo);
+        let mut moves = std::mem::take(&mut c.moves);
+        moves.clear();
+        moves.par_extend((0..h).into_par_iter().flat_map_iter(|y| {
+            let mover = &mover;
+            (0..w).filter_map(move |x| {
+                if !holds(prev[(y * CHANNELS + 3) * cs + x]) {
+                    return None;
+                }
+                let g = geo[y * w + x];
+                let g = if g.is_some() {
+                    g
+                } else {
+                    borrow(geo, w, h, x, y, keep)?
+                };
+                mover.target(x, y, g).map(|m| (x as u32, y as u32, m))
+            })
+        }));
         let mut into = Target {
             acc: &mut self.acc,
             cs,
             geo: &mut c.next_geo,
             cover: &mut c.next_cover,
         };
-        for y in 0..h {
-            for x in 0..w {
-                let q = y * w + x;
-                if !holds(c.prev[(y * CHANNELS + 3) * cs + x]) {
-                    continue;
-                }
-                let g = c.geo[q];
-                let Some(g) = (if g.is_some() {
-                    Some(g)
-                } else {
-                    borrow(&c.geo, w, h, x, y, keep)
-                }) else {
-                    continue;
-                };
-                let Some(m) = mover.target(x, y, g) else {
-                    continue;
-                };
-                let [k, kc] = decay[self.lookup[q].tile as usize];
-                let sums = decayed(&c.prev, cs, x, y, k, dt);
-                into.land_move(&m, sums, self.cover[q] * kc, keep, &mut c.moving);
-            }
+        for &(x, y, ref m) in &moves {
+            let (x, y) = (x as usize, y as usize);
+            let q = y * w + x;
+            let [k, kc] = decay[self.lookup[q].tile as usize];
+            let sums = decayed(&c.prev, cs, x, y, k, dt);
+            into.land_move(m, sums, self.cover[q] * kc, keep, &mut c.moving);
         }
+        c.moves = moves;
         std::mem::swap(&mut c.geo, &mut c.next_geo);
         std::mem::swap(&mut self.cover, &mut c.next_cover);
     }
@@ -446,59 +463,175 @@ impl Reconstructor {
         samples: std::ops::Range<usize>,
     ) {
         use field::*;
-        let start = samples.start;
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let proj = Projector::new(camera);
         let keep = self.carry_keep();
         let epoch = c.next_epoch();
         let ring = &self.ring;
-        let sample = |i: usize| {
-            let p = ring.phys(i);
-            let dt = (t - ring.t[p]) as f32;
-            let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
-            let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
-            let (x, y, z) = proj.project(hit + v * dt);
-            (pixel_at(x, y, z, w, h), z, v)
+        // Each sample's pixel, depth and velocity first, in parallel, so that the
+        // loop below can ask for the pixels of samples ahead of it (they are at
+        // random: one miss after another otherwise).
+        let mut ahead = std::mem::take(&mut c.ahead);
+        ahead.clear();
+        samples
+            .clone()
+            .into_par_iter()
+            .map(|i| {
+                let p = ring.phys(i);
+                let dt = (t - ring.t[p]) as f32;
+                let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+                let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
+                let (x, y, z) = proj.project(hit + v * dt);
+                match pixel_at(x, y, z, w, h) {
+                    Some((px, py)) => Ahead {
+                        px: px as u32,
+                        py: py as u32,
+                        z,
+                        v,
+                    },
+                    None => Ahead::OFF,
+                }
+            })
+            .collect_into_vec(&mut ahead);
+        // Then band by band of rows in parallel: a sample touches only its own pixel,
+        // and each pixel sees its samples in ring order.
+        let band_px = CUT_ROWS * w;
+        let bands = h.div_ceil(CUT_ROWS);
+        let by_band = bucket_by_band(&ahead, CUT_ROWS, bands);
+        let ctx = CutContext {
+            ahead: &ahead,
+            keep,
+            epoch,
+            w,
+            cs,
+            start: samples.start,
         };
-        // Each sample's pixel first, so that the loop below can ask for the pixels
-        // of samples ahead of it (they are at random: one miss after another
-        // otherwise).
-        c.ahead.clear();
-        c.ahead.extend(samples.clone().map(|i| match sample(i).0 {
-            Some((px, py)) => [(py * w + px) as u32, ((py * CHANNELS + 3) * cs + px) as u32],
-            None => [u32::MAX; 2],
-        }));
-        for i in samples {
-            if let Some(&[q, a]) = c.ahead.get(i - start + PREFETCH_AHEAD) {
-                let q = q as usize;
-                prefetch(&c.geo, q);
-                prefetch(&c.stamp, q);
-                prefetch(&c.next_geo, q);
-                prefetch(&self.acc, a as usize);
+        let outs: Vec<BandOut> = self
+            .acc
+            .par_chunks_mut(CUT_ROWS * CHANNELS * cs)
+            .zip(self.cover.par_chunks_mut(band_px))
+            .zip(c.stamp.par_chunks_mut(band_px))
+            .zip(c.next_geo.par_chunks_mut(band_px))
+            .zip(c.geo.par_chunks_mut(band_px))
+            .enumerate()
+            .map(|(b, ((((acc, cover), stamp), next_geo), geo))| {
+                let mut band = CutBand {
+                    y0: b * CUT_ROWS,
+                    base: b * band_px,
+                    acc,
+                    cover,
+                    stamp,
+                    next_geo,
+                    geo,
+                    touched: Vec::new(),
+                    next_anchor: HashMap::new(),
+                    out: BandOut::default(),
+                };
+                band.cut_and_offer(&ctx, &by_band[b], ring);
+                band.settle();
+                band.out
+            })
+            .collect();
+        c.ahead = ahead;
+        c.merge_bands(outs);
+    }
+}
+
+/// Rows per band of the parallel cut.
+const CUT_ROWS: usize = 16;
+
+/// Indices of `ahead` grouped by band of `rows` rows (`bands` of them), in their
+/// order within each band; samples off the image are left out.
+fn bucket_by_band(ahead: &[Ahead], rows: usize, bands: usize) -> Vec<Vec<u32>> {
+    let mut by_band = vec![Vec::new(); bands];
+    for (k, a) in ahead.iter().enumerate() {
+        if a.px != u32::MAX {
+            by_band[a.py as usize / rows].push(k as u32);
+        }
+    }
+    by_band
+}
+
+/// What every band of the cut reads.
+struct CutContext<'a> {
+    ahead: &'a [Ahead],
+    keep: f32,
+    epoch: u32,
+    w: usize,
+    cs: usize,
+    /// Logical ring index of `ahead[0]`.
+    start: usize,
+}
+
+/// What a band of the cut leaves for [`Carried::merge_bands`].
+#[derive(Default)]
+struct BandOut {
+    /// `(index in ahead, pixel)` of each moving sample, in order.
+    moving: Vec<(u32, u32)>,
+    /// Pixels whose carried geometry moved (their anchors go), and the anchors of
+    /// those whose new geometry moves.
+    unanchored: Vec<u32>,
+    anchored: Vec<(u32, Anchor)>,
+}
+
+/// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
+/// pixels' coverage, stamps and next geometry.
+struct CutBand<'a> {
+    y0: usize,
+    /// The band's first pixel.
+    base: usize,
+    acc: &'a mut [f32],
+    cover: &'a mut [f32],
+    stamp: &'a mut [u32],
+    next_geo: &'a mut [Geo],
+    /// The carried geometry: read while the band's samples are cut, then settled.
+    geo: &'a mut [Geo],
+    /// The pixels new samples landed on, each once, and the anchors of their nearest
+    /// new samples where those move.
+    touched: Vec<u32>,
+    next_anchor: HashMap<u32, Anchor>,
+    out: BandOut,
+}
+
+impl CutBand<'_> {
+    /// The band's samples (indices of `ctx.ahead`, in ring order): where one lies in
+    /// front of its pixel's carried sums beyond the tolerance they are cut; where
+    /// behind, it is left to the visibility pass; the nearest not behind is offered as
+    /// the pixel's geometry.
+    fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[u32], ring: &super::ring::Ring) {
+        let (w, cs, base) = (ctx.w, ctx.cs, self.base);
+        for (j, &k) in ks.iter().enumerate() {
+            if let Some(&n) = ks.get(j + PREFETCH_AHEAD) {
+                let a = ctx.ahead[n as usize];
+                let (px, py) = (a.px as usize, a.py as usize);
+                let q = py * w + px;
+                prefetch(self.geo, q - base);
+                prefetch(self.stamp, q - base);
+                prefetch(self.next_geo, q - base);
+                prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
             }
-            let (at, z, v) = sample(i);
-            let Some((px, py)) = at else {
-                continue;
-            };
-            let q = py * w + px;
-            let g = c.geo[q];
-            let held = g.is_some() && holds(self.acc[(py * CHANNELS + 3) * cs + px]);
+            let Ahead { px, py, z, v } = ctx.ahead[k as usize];
+            let (px, ry) = (px as usize, py as usize - self.y0);
+            let q = py as usize * w + px;
+            let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
+            let g = self.geo[q - base];
+            let held = g.is_some() && holds(self.acc[at(3)]);
             // Carried sums of a moving surface were placed by extrapolation: a new
             // sample at another depth wins over them either way. Still ones are
             // exact: a new sample behind them was seen through them (traced from an
             // earlier view, or what was in front has gone since), and is left to the
             // visibility pass while they decay.
             let still = g.v == Vec3::ZERO;
-            if held && still && behind_front(g.z, z, keep) {
+            if held && still && behind_front(g.z, z, ctx.keep) {
                 continue;
             }
-            let cut = held && (behind_front(z, g.z, keep) || behind_front(g.z, z, keep));
+            let cut = held && (behind_front(z, g.z, ctx.keep) || behind_front(g.z, z, ctx.keep));
             if cut {
                 // Something came in front.
                 for ch in 0..CHANNELS {
-                    self.acc[(py * CHANNELS + ch) * cs + px] = 0.0;
+                    self.acc[at(ch)] = 0.0;
                 }
-                self.cover[q] = 0.0;
+                self.cover[q - base] = 0.0;
             }
             // Splats are centred on pixel centres; sums carried here keep their
             // position. (The sample's own sub-pixel position would scatter
@@ -511,9 +644,54 @@ impl Reconstructor {
             // The nearest new sample of a pixel gives its geometry (the one the
             // visibility pass keeps), set once every sample has been tested against
             // the carried one.
-            c.offer(q, Geo { z, ox, oy, v }, epoch, || ring.anchor_of(i));
+            let i = ctx.start + k as usize;
+            self.offer(q, k, Geo { z, ox, oy, v }, ctx.epoch, || ring.anchor_of(i));
         }
-        c.settle();
+    }
+
+    /// A new sample (index `k` of the cut) of geometry `g` lands in pixel `q` at the
+    /// refresh of stamp `epoch`: it becomes the pixel's next geometry if it is the
+    /// nearest yet, with its anchor where it moves (`next_geo` is scratch until the
+    /// next refresh).
+    fn offer(&mut self, q: usize, k: u32, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
+        let i = q - self.base;
+        if self.stamp[i] != epoch {
+            self.stamp[i] = epoch;
+            self.touched.push(q as u32);
+            self.next_geo[i] = Geo::NONE;
+        }
+        let nearest = self.next_geo[i];
+        if g.z < nearest.z {
+            // Anchors are kept for moving geometry only.
+            if nearest.v != Vec3::ZERO {
+                self.next_anchor.remove(&(q as u32));
+            }
+            if g.v != Vec3::ZERO {
+                self.next_anchor.insert(q as u32, anchor());
+            }
+            self.next_geo[i] = g;
+        }
+        if g.v != Vec3::ZERO {
+            self.out.moving.push((k, q as u32));
+        }
+    }
+
+    /// Every pixel of the band new samples landed on takes its nearest one's
+    /// geometry; the anchors to drop and keep go to the merge.
+    fn settle(&mut self) {
+        for &q in &self.touched {
+            let i = q as usize - self.base;
+            if self.geo[i].v != Vec3::ZERO {
+                self.out.unanchored.push(q);
+            }
+            let g = self.next_geo[i];
+            if g.v != Vec3::ZERO {
+                if let Some(a) = self.next_anchor.remove(&q) {
+                    self.out.anchored.push((q, a));
+                }
+            }
+            self.geo[i] = g;
+        }
     }
 }
 
@@ -528,47 +706,22 @@ impl Carried {
         self.epoch
     }
 
-    /// A new sample of geometry `g` lands in pixel `q` at the refresh of stamp `epoch`:
-    /// it becomes the pixel's next geometry if it is the nearest yet, with its anchor
-    /// where it moves (`next_geo` is scratch until the next refresh).
-    fn offer(&mut self, q: usize, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
-        if self.stamp[q] != epoch {
-            self.stamp[q] = epoch;
-            self.touched.push(q as u32);
-            self.next_geo[q] = Geo::NONE;
-        }
-        let nearest = self.next_geo[q];
-        if g.z < nearest.z {
-            // Anchors are kept for moving geometry only.
-            if nearest.v != Vec3::ZERO {
-                self.next_anchor.remove(&(q as u32));
-            }
-            if g.v != Vec3::ZERO {
-                self.next_anchor.insert(q as u32, anchor());
-            }
-            self.next_geo[q] = g;
-        }
-        if g.v != Vec3::ZERO {
-            self.moving.push(q as u32);
-        }
-    }
-
-    /// Every pixel new samples landed on takes its nearest one's geometry and anchor.
-    fn settle(&mut self) {
-        for &q in &self.touched {
-            let i = q as usize;
-            if self.geo[i].v != Vec3::ZERO {
+    /// The bands' anchors and moving pixels, the moving ones in the order of their
+    /// samples (as one pass over the samples lists them). A pixel's old anchor goes
+    /// before its new one comes.
+    fn merge_bands(&mut self, outs: Vec<BandOut>) {
+        let mut moving = Vec::new();
+        let mut anchored = Vec::new();
+        for o in outs {
+            for q in o.unanchored {
                 self.anchor.remove(&q);
             }
-            let g = self.next_geo[i];
-            if g.v != Vec3::ZERO {
-                if let Some(a) = self.next_anchor.remove(&q) {
-                    self.anchor.insert(q, a);
-                }
-            }
-            self.geo[i] = g;
+            anchored.extend(o.anchored);
+            moving.extend(o.moving);
         }
-        self.touched.clear();
+        self.anchor.extend(anchored);
+        moving.sort_unstable_by_key(|&(k, _)| k);
+        self.moving.extend(moving.into_iter().map(|(_, q)| q));
     }
 }
 
@@ -679,6 +832,27 @@ fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32;
     s
 }
 
+/// One row of accumulators (`CHANNELS` runs of `cs` floats) and its coverage decayed
+/// by the per-pixel factors `k` (sums) and `kc` (coverage) over `dt` (the weighted age
+/// grows by `dt` per unit weight first).
+fn decay_row(row: &mut [f32], cover: &mut [f32], cs: usize, k: &[f32], kc: &[f32], dt: f32) {
+    let w = cover.len();
+    let (rgb, rest) = row.split_at_mut(3 * cs);
+    let (wp, ap) = rest.split_at_mut(cs);
+    for x in 0..w {
+        ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
+        wp[x] *= k[x];
+    }
+    for plane in rgb.chunks_exact_mut(cs) {
+        for x in 0..w {
+            plane[x] *= k[x];
+        }
+    }
+    for (v, kc) in cover.iter_mut().zip(kc) {
+        *v *= kc;
+    }
+}
+
 /// The accumulators, geometry and coverage that carried sums land in.
 struct Target<'a> {
     acc: &'a mut [f32],
@@ -743,14 +917,19 @@ impl Reconstructor {
             return;
         };
         let (w, cs) = (self.width as usize, self.cs);
-        for (y, row) in self.front.chunks_mut(w).enumerate() {
-            let weight = &self.acc[(y * CHANNELS + 3) * cs..][..w];
-            for ((f, g), &wt) in row.iter_mut().zip(&c.geo[y * w..]).zip(weight) {
-                if holds(wt) && g.v == Vec3::ZERO {
-                    *f = f.min(g.z);
+        let acc = &self.acc;
+        self.front
+            .par_chunks_mut(w)
+            .zip(c.geo.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, geo))| {
+                let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
+                for ((f, g), &wt) in row.iter_mut().zip(geo).zip(weight) {
+                    if holds(wt) && g.v == Vec3::ZERO {
+                        *f = f.min(g.z);
+                    }
                 }
-            }
-        }
+            });
     }
 }
 

@@ -5,6 +5,8 @@
 
 use std::sync::OnceLock;
 
+use rayon::prelude::*;
+
 use super::{filter, Reconstructor};
 use crate::tiles::TilingSnapshot;
 
@@ -60,33 +62,59 @@ impl Reconstructor {
         } else {
             self.tile_filters(tiling);
         }
-        for (l, &sc) in self.lookup.iter_mut().zip(&self.scale) {
-            l.scale = sc;
-        }
+        self.lookup
+            .par_iter_mut()
+            .zip(&self.scale)
+            .for_each(|(l, &sc)| l.scale = sc);
     }
 
     /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
     fn tile_filters(&mut self, tiling: &TilingSnapshot) {
-        let w = self.width as usize;
+        let (w, h) = (self.width as usize, self.height as usize);
         let cut = self.params.spatial_cutoff;
         let tiles = tiling.tiles.len();
-        for tile in &tiling.tiles {
+        // The tiles that reach each band of rows, so that bands fill their part of
+        // the map in parallel (tiles do not overlap: the order does not matter).
+        let bands = h.div_ceil(MAP_ROWS);
+        let mut reach: Vec<Vec<u32>> = vec![Vec::new(); bands];
+        for (k, tile) in tiling.tiles.iter().enumerate() {
             let r = tile.rect;
             let rl = filter::local_rate(self.rate, tiles, r.area());
             let (gx, gy, gt) = (tile.gx, tile.gy, tile.gt);
             let v_s = self.params.filter_volume / rl;
             let e = filter::extents(v_s, gx, gy, gt, &self.params.bounds);
-            let k = self.tiles.len() as u32;
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
             ));
-            let x1 = (r.x1 as usize).min(w);
-            for y in r.y0 as usize..(r.y1 as usize).min(self.height as usize) {
-                for l in &mut self.lookup[y * w + r.x0 as usize..y * w + x1] {
-                    l.tile = k;
+            let y1 = (r.y1 as usize).min(h);
+            if (r.y0 as usize) < y1 {
+                for b in r.y0 as usize / MAP_ROWS..=(y1 - 1) / MAP_ROWS {
+                    reach[b].push(k as u32);
                 }
             }
         }
+        let rects = &tiling.tiles;
+        self.lookup
+            .par_chunks_mut(MAP_ROWS * w)
+            .zip(&reach)
+            .enumerate()
+            .for_each(|(b, (band, ks))| {
+                let y0 = b * MAP_ROWS;
+                let rows = band.len() / w.max(1);
+                for &k in ks {
+                    let r = rects[k as usize].rect;
+                    let (x0, x1) = (r.x0 as usize, (r.x1 as usize).min(w));
+                    let ys = (r.y0 as usize).max(y0)..(r.y1 as usize).min(y0 + rows);
+                    for y in ys {
+                        for l in &mut band[(y - y0) * w + x0..(y - y0) * w + x1] {
+                            l.tile = k;
+                        }
+                    }
+                }
+            });
     }
 }
+
+/// Rows per band of the pixel → tile map's parallel fill.
+const MAP_ROWS: usize = 16;

@@ -190,11 +190,7 @@ impl Accum {
 
     /// Pixel `q` empty (its point stays: it is read only where the count is not 0).
     fn clear(&mut self, q: usize) {
-        let c = &mut self.cell[q];
-        c.sum = Vec3::ZERO;
-        c.time_sum = 0.0;
-        c.range = EMPTY_RANGE;
-        self.count[q] = 0.0;
+        clear(&mut self.cell[q], &mut self.count[q]);
     }
 
     /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
@@ -209,6 +205,15 @@ impl Accum {
         };
         self.count[d] = from.count[q] * k;
     }
+}
+
+/// Empty one pixel's cell and count (its point stays: it is read only where the count
+/// is not 0).
+fn clear(cell: &mut Cell, count: &mut f32) {
+    cell.sum = Vec3::ZERO;
+    cell.time_sum = 0.0;
+    cell.range = EMPTY_RANGE;
+    *count = 0.0;
 }
 
 /// A sample waiting to enter the history at the next refresh.
@@ -279,6 +284,8 @@ pub(super) struct History {
     cut_pixels: Vec<u32>,
     buckets: Vec<u32>,
     sorted: Vec<(u32, u32)>,
+    /// The pixel each fresh sample is seen in now (`u32::MAX`: none), reused.
+    seen: Vec<u32>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -297,6 +304,7 @@ impl History {
             view_since: None,
             fresh: Vec::new(),
             order: Vec::new(),
+            seen: Vec::new(),
             cut_pixels: Vec::new(),
             buckets: Vec::new(),
             sorted: Vec::new(),
@@ -434,12 +442,23 @@ impl History {
         let w = self.width as usize;
         let mut order = std::mem::take(&mut self.order);
         order.clear();
+        // Where each sample's surface point is seen now, in parallel.
+        let mut seen = std::mem::take(&mut self.seen);
+        if self.params.reproject {
+            let (w, h) = (self.width, self.height);
+            self.fresh
+                .par_iter()
+                .map(|f| {
+                    pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32, w, h)
+                        .map_or(u32::MAX, |(q, _)| q as u32)
+                })
+                .collect_into_vec(&mut seen);
+        }
         for (i, f) in self.fresh.iter().enumerate() {
             let q = if self.params.reproject {
-                // Where the sample's surface point is seen now.
-                match self.pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32) {
-                    Some((q, _)) => q,
-                    None => continue,
+                match seen[i] {
+                    u32::MAX => continue,
+                    q => q as usize,
                 }
             } else {
                 if f.t < since {
@@ -454,6 +473,7 @@ impl History {
             }
             order.push((q as u32, i as u32));
         }
+        self.seen = seen;
         let pixels = w * self.height as usize;
         sort_by_pixel(&mut order, pixels, &mut self.buckets, &mut self.sorted);
         order
@@ -518,6 +538,8 @@ struct Pixels {
     /// band, and three rows a band as it goes (reused).
     edges: Vec<(Vec3, Vec3)>,
     rolling: Vec<(Vec3, Vec3)>,
+    /// Where each pixel's history lands when the view moves: from, to, depth (reused).
+    lands: Vec<(u32, u32, f32)>,
     /// Pixels cut during the step under way.
     cuts: u64,
 }
@@ -532,6 +554,7 @@ impl Pixels {
             held_at: Some(Vec::new()),
             edges: Vec::new(),
             rolling: Vec::new(),
+            lands: Vec::new(),
             cuts: 0,
         }
     }
@@ -557,15 +580,7 @@ impl Pixels {
                 self.drop_held();
             }
         }
-        for (k, &(q, i)) in step.order.iter().enumerate() {
-            if let Some(&(qa, ia)) = step.order.get(k + PREFETCH_AHEAD) {
-                // Samples are visited in pixel order, but read at random.
-                prefetch(&step.fresh, ia as usize);
-                prefetch(&self.acc.cell, qa as usize);
-                prefetch(&self.held, qa as usize);
-            }
-            self.take_in(q as usize, &step.fresh[i as usize], step.slack, p);
-        }
+        self.take_in_all(step, p, image.width as usize);
         for &q in &step.cuts {
             self.cut(q as usize);
         }
@@ -585,21 +600,32 @@ impl Pixels {
     ) {
         let height = (self.acc.count.len() / width.max(1) as usize) as u32;
         self.depth.fill(f32::INFINITY);
-        for q in 0..self.acc.count.len() {
-            if self.acc.count[q] <= 0.0 {
-                continue;
-            }
-            let Some((d, z)) = pixel_at(camera, self.acc.cell[q].point, width, height) else {
-                continue;
-            };
-            if hidden(front, d, z) {
-                continue;
-            }
+        // Where each pixel's history lands, in parallel; then landed one after
+        // another in pixel order, the nearest winning as before.
+        let (count, cell) = (&self.acc.count, &self.acc.cell);
+        let mut lands = std::mem::take(&mut self.lands);
+        lands.clear();
+        lands.par_extend(
+            count
+                .par_iter()
+                .zip(cell.par_iter())
+                .enumerate()
+                .filter_map(|(q, (&n, c))| {
+                    if n <= 0.0 {
+                        return None;
+                    }
+                    let (d, z) = pixel_at(camera, c.point, width, height)?;
+                    (!hidden(front, d, z)).then_some((q as u32, d as u32, z))
+                }),
+        );
+        for &(q, d, z) in &lands {
+            let (q, d) = (q as usize, d as usize);
             if z < self.depth[d] {
                 self.depth[d] = z;
                 self.scratch.take(d, &self.acc, q, cap);
             }
         }
+        self.lands = lands;
         // What nothing landed on is empty (cheaper than emptying everything first:
         // most pixels are landed on).
         for (d, _) in self
@@ -615,45 +641,46 @@ impl Pixels {
         self.drop_held();
     }
 
-    /// A still sample joins pixel `q` if it agrees with what the pixel showed; two in
-    /// a row that do not start the pixel over; a moving one cuts it.
-    fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
-        if !f.still {
-            // Something moving covers (part of) the pixel now.
-            self.cut(q);
-            return;
-        }
-        let l = luminance(f.color);
-        let (lo, hi) = self.acc.cell[q].range;
-        let outside =
-            self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
-        match (outside, self.held[q].take()) {
-            (false, held) => {
-                // In range: a held sample was a rare part of the pixel after all.
-                if let Some((c, t, hit)) = held {
-                    self.add(q, c, t, hit, p.max_count);
+    /// Every fresh sample of `step` in its pixel ([`Band::take_in`]), bands of
+    /// [`BLEND_ROWS`] rows of `width` pixels in parallel: a sample touches only its own
+    /// pixel and each pixel sees its samples in their order, so the outcome is the
+    /// same on any number of threads.
+    fn take_in_all(&mut self, step: &Step, p: &HistoryParams, width: usize) {
+        let band = BLEND_ROWS * width.max(1);
+        let order = &step.order;
+        let per_band: Vec<(u64, Vec<u32>)> = self
+            .acc
+            .cell
+            .par_chunks_mut(band)
+            .zip(self.acc.count.par_chunks_mut(band))
+            .zip(self.held.par_chunks_mut(band))
+            .enumerate()
+            .map(|(b, ((cell, count), held))| {
+                let base = b * band;
+                let lo = order.partition_point(|&(q, _)| (q as usize) < base);
+                let hi = order.partition_point(|&(q, _)| (q as usize) < base + cell.len());
+                let mut band = Band {
+                    base,
+                    cell,
+                    count,
+                    held,
+                    cuts: 0,
+                    held_at: Vec::new(),
+                };
+                band.take_in_run(&order[lo..hi], &step.fresh, step.slack, p);
+                (band.cuts, band.held_at)
+            })
+            .collect();
+        let limit = self.held.len() / 8;
+        for (cuts, held) in per_band {
+            self.cuts += cuts;
+            if let Some(at) = &mut self.held_at {
+                // Listed while there are few; past that every pixel may hold one.
+                if at.len() + held.len() <= limit {
+                    at.extend(held);
+                } else {
+                    self.held_at = None;
                 }
-                self.add(q, f.color, f.t, f.hit_point, p.max_count);
-            }
-            (true, None) => self.hold(q, (f.color, f.t, f.hit_point)),
-            (true, Some((c, t, hit))) => {
-                // Two in a row outside what the pixel showed: it changed (a surface
-                // uncovered, a shadow gone); start over from them.
-                self.cut(q);
-                self.add(q, c, t, hit, p.max_count);
-                self.add(q, f.color, f.t, f.hit_point, p.max_count);
-            }
-        }
-    }
-
-    /// Hold sample `s` back at pixel `q`.
-    fn hold(&mut self, q: usize, s: (Vec3, f64, Vec3)) {
-        self.held[q] = Some(s);
-        if let Some(at) = &mut self.held_at {
-            if at.len() < self.held.len() / 8 {
-                at.push(q as u32);
-            } else {
-                self.held_at = None;
             }
         }
     }
@@ -678,23 +705,6 @@ impl Pixels {
         self.cuts += (self.acc.count[q] > 0.0) as u64;
         self.acc.clear(q);
         self.held[q] = None;
-    }
-
-    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
-        let (a, count) = (&mut self.acc.cell[q], &mut self.acc.count[q]);
-        a.point = hit;
-        a.sum += c;
-        a.time_sum += t;
-        *count += 1.0;
-        let l = luminance(c);
-        let r = &mut a.range;
-        *r = (r.0.min(l), r.1.max(l));
-        if *count > max {
-            let k = max / *count;
-            a.sum *= k;
-            a.time_sum *= k as f64;
-            *count = max;
-        }
     }
 
     /// Clamp each pixel's history to the box of the reconstruction around it, then
@@ -777,6 +787,95 @@ impl Pixels {
         let rows = rows.iter().flatten();
         let cuts = rows.clone().map(|r| r.0).sum::<u64>();
         (cuts, rows.map(|r| r.1).sum())
+    }
+}
+
+/// A band of consecutive pixels of the history (from pixel `base`) taking in its
+/// fresh samples; what it cut and the pixels it held a sample back in are merged after.
+struct Band<'a> {
+    base: usize,
+    cell: &'a mut [Cell],
+    count: &'a mut [f32],
+    held: &'a mut [Option<(Vec3, f64, Vec3)>],
+    cuts: u64,
+    held_at: Vec<u32>,
+}
+
+impl Band<'_> {
+    /// The `(pixel, index)` run `order` of `fresh`, in order.
+    fn take_in_run(
+        &mut self,
+        order: &[(u32, u32)],
+        fresh: &[Fresh],
+        slack: f32,
+        p: &HistoryParams,
+    ) {
+        for (k, &(q, i)) in order.iter().enumerate() {
+            if let Some(&(qa, ia)) = order.get(k + PREFETCH_AHEAD) {
+                // Samples are visited in pixel order, but read at random.
+                let qa = qa as usize - self.base;
+                prefetch(fresh, ia as usize);
+                prefetch(self.cell, qa);
+                prefetch(self.held, qa);
+            }
+            self.take_in(q as usize - self.base, &fresh[i as usize], slack, p);
+        }
+    }
+
+    /// A still sample joins pixel `q` (of the band) if it agrees with what the pixel
+    /// showed; two in a row that do not start the pixel over; a moving one cuts it.
+    fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
+        if !f.still {
+            // Something moving covers (part of) the pixel now.
+            self.cut(q);
+            return;
+        }
+        let l = luminance(f.color);
+        let (lo, hi) = self.cell[q].range;
+        let outside = self.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
+        match (outside, self.held[q].take()) {
+            (false, held) => {
+                // In range: a held sample was a rare part of the pixel after all.
+                if let Some((c, t, hit)) = held {
+                    self.add(q, c, t, hit, p.max_count);
+                }
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+            (true, None) => {
+                self.held[q] = Some((f.color, f.t, f.hit_point));
+                self.held_at.push((self.base + q) as u32);
+            }
+            (true, Some((c, t, hit))) => {
+                // Two in a row outside what the pixel showed: it changed (a surface
+                // uncovered, a shadow gone); start over from them.
+                self.cut(q);
+                self.add(q, c, t, hit, p.max_count);
+                self.add(q, f.color, f.t, f.hit_point, p.max_count);
+            }
+        }
+    }
+
+    fn cut(&mut self, q: usize) {
+        self.cuts += (self.count[q] > 0.0) as u64;
+        clear(&mut self.cell[q], &mut self.count[q]);
+        self.held[q] = None;
+    }
+
+    fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
+        let (a, count) = (&mut self.cell[q], &mut self.count[q]);
+        a.point = hit;
+        a.sum += c;
+        a.time_sum += t;
+        *count += 1.0;
+        let l = luminance(c);
+        let r = &mut a.range;
+        *r = (r.0.min(l), r.1.max(l));
+        if *count > max {
+            let k = max / *count;
+            a.sum *= k;
+            a.time_sum *= k as f64;
+            *count = max;
+        }
     }
 }
 

@@ -89,6 +89,7 @@ pub mod filter;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod ring;
+pub use passes::{PassTimes, PASSES};
 
 mod carry;
 #[cfg(test)]
@@ -100,6 +101,7 @@ mod history;
 mod holes;
 mod lanes;
 mod params;
+mod passes;
 mod place;
 mod pullpush;
 mod resolve;
@@ -227,6 +229,8 @@ pub struct Reconstructor {
     /// Why the GPU side was given up, if it failed at a refresh (they then run on the
     /// CPU).
     gpu_failure: Option<String>,
+    /// Wall time of each step of the CPU refreshes.
+    passes: PassTimes,
 }
 
 impl Reconstructor {
@@ -303,6 +307,7 @@ impl Reconstructor {
             #[cfg(feature = "gpu")]
             gpu: None,
             gpu_failure: None,
+            passes: PassTimes::default(),
         }
     }
 
@@ -499,28 +504,43 @@ impl Reconstructor {
 
     /// [`Reconstructor::reconstruct`]'s steps.
     fn refresh(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {
+        let t0 = std::time::Instant::now();
         self.update_filters(tiling);
         self.resplat = self.resplats_at(camera);
+        let mut lap = self.passes.lap(0, t0);
         if self.refresh_on_gpu(t, camera) {
+            self.passes.count_refresh();
             return;
         }
         self.prepare_splats(t, camera);
+        lap = self.passes.lap(1, lap);
         self.front_depths();
+        lap = self.passes.lap(2, lap);
         if self.carries_now() {
             let start = self.ring.len() - self.placed;
             self.carry_over(t, camera, start);
             self.carried_front();
         }
+        lap = self.passes.lap(3, lap);
         self.splat();
+        lap = self.passes.lap(4, lap);
         self.resolve();
         if self.resplat {
             self.restart_carry();
         }
+        lap = self.passes.lap(5, lap);
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let Some(h) = &mut self.history {
             let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
+        self.passes.lap(6, lap);
+        self.passes.count_refresh();
+    }
+
+    /// Wall time of each step of the CPU refreshes so far.
+    pub fn pass_times(&self) -> &PassTimes {
+        &self.passes
     }
 
     /// A refresh on the GPU, if there is one; false if it is still to be done (no GPU,
@@ -547,13 +567,16 @@ impl Reconstructor {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
         let pending = self.carried.as_ref().map(|c| c.pending);
+        let lap = std::time::Instant::now();
         let carried = if self.resplat {
             None
         } else {
             self.carry_for_gpu(t, camera, start)
         };
+        let lap = self.passes.lap(3, lap);
         let max_r = self.max_footprint_radius();
         let step = self.history.as_mut().map(|h| h.plan(t, camera));
+        let lap = self.passes.lap(6, lap);
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -596,6 +619,7 @@ impl Reconstructor {
         }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;
+        self.passes.lap(7, lap);
         Ok(())
     }
 

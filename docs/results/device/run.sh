@@ -1,53 +1,104 @@
 #!/usr/bin/env bash
 # The figures the open issues ask of a machine with a GPU and 16 cores, in one run of
-# under 10 minutes, for a session that is lent one (the device tool). The machine has no
-# network: build the release binary here first and carry it, e.g.
-#   cargo build --release --bin frameless && strip -o target/frameless-stripped target/release/frameless
-# then, on the device: FRAMELESS=target/frameless-stripped bash docs/results/device/run.sh
-# Results go to $OUT (the device tool's folder), one file or folder per figure:
-# - machine.txt: cores, memory, GPU;
-# - bench_live_recon.json: the reconstructor's cost per image at live rates, one core
-#   (issue 45's bench table);
-# - bench_gpu.json: `frameless bench --recon gpu` (the GPU reconstructor's figures, or
-#   why it could not measure them);
+# about 5 minutes, for a session that is lent one (the device tool). The machine has no
+# network and no Vulkan loader: build here, fetch the loaders once as the device tool's
+# README says (into .gl/, ignored), and carry them with the stripped binaries:
+#   cargo build --release --bin frameless --example live_recon
+#   strip -o target/frameless-stripped target/release/frameless
+#   strip -o target/live_recon-stripped target/release/examples/live_recon
+# then, on the device, with carry [".gl", "target/frameless-stripped",
+# "target/live_recon-stripped"] (the tracked PNGs under docs/results may have to be
+# removed from the working tree for the call, and restored after, to fit its 64 MiB):
+#   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
+#   BUDGET_S=330 bash docs/results/device/run.sh 2>&1 | tee $OUT/run.log
+# Only eight files come back from the device, so everything is written under a work
+# folder and packed into $OUT/results.tar.gz (images left out). Steps, in order of
+# value, each cut to what is left of the time budget:
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
-#   640x480 and 1280x720 on 4, 8 and 16 cores (issue 45's scaling: new images/s,
-#   samples/s, the image thread's share), one run each, 4-spp ideal images to keep the
-#   whole under the time limit;
-# - live_1920x1080_all/: the 1920x1080 live case at 30 Hz on every core.
+#   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
+#   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
+# - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
+# - bench_trace_gpu.log: the GPU tracer's rays/s at 1920x1080 (where `bench --trace`
+#   exists);
+# - live_1920x1080_gputrace/: adaptive and traditional frameless at 1920x1080, 60 Hz,
+#   traced and reconstructed on the GPU (where `live --trace` exists);
+# - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
+# - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU;
+# - view_2cores_recon<N>.log: 1280x720 on 2 cores, the image build on 1 or 2 threads;
+# - bench_gpu.log: `frameless bench --recon gpu`.
 set -uo pipefail
-bin="${FRAMELESS:-target/release/frameless}"
+bin="${FRAMELESS:-target/frameless-stripped}"
+ex="${LIVE_RECON:-target/live_recon-stripped}"
 out="${OUT:-/tmp/device-out}"
-cache="$(mktemp -d)"
-mkdir -p "$out"
+work="$(mktemp -d)"
+cache="$work/ideal-cache"
+budget="${BUDGET_S:-330}"
+mkdir -p "$out" "$cache"
 [ -x "$bin" ] || { echo "error: $bin not found: build and carry the release binary" >&2; exit 1; }
+bin="$(realpath "$bin")"
+[ -x "$ex" ] && ex="$(realpath "$ex")"
+start=$SECONDS
+if [ -z "${VK_DRIVER_FILES:-}" ] && [ -e /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]; then
+  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+fi
+
+# step NAME MAX_SECONDS COMMAND...: run with a timeout of at most what is left.
+step() {
+  local name="$1" max="$2"; shift 2
+  local left=$((budget - (SECONDS - start)))
+  local t=$((max < left ? max : left))
+  if [ "$t" -lt 15 ]; then echo "skipped $name: time budget spent"; return; fi
+  local t0=$SECONDS
+  timeout "$t" "$@" > "$work/$name.log" 2>&1
+  echo "$name: exit $? in $((SECONDS - t0)) s (limit $t s)"
+}
 
 {
   echo "cores: $(nproc)"
+  lscpu | grep -E 'Model name|MHz' | head -3
   free -g | head -2
   nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv 2>&1 || echo "nvidia-smi: none"
-  ls /usr/share/vulkan/icd.d/ 2>&1
-} > "$out/machine.txt"
+  ldconfig -p | grep -i libvulkan || echo "no Vulkan loader"
+} > "$work/machine.txt"
 
-# One core: the reconstructor's cost per image (about 4 minutes here, less there).
-timeout 300 taskset -c 0 "$bin" bench --live-recon --json > "$out/bench_live_recon.json" 2> "$out/bench_live_recon.log"
+live() { # live NAME CORES ARGS...
+  local name="$1" n="$2"; shift 2
+  step "$name" 110 taskset -c "0-$((n - 1))" "$bin" --threads "$n" live --scene toycar \
+    --start 1 --duration 2 --warmup 1 --repeat 1 --ideal-spp 4 \
+    --cache-dir "$cache" -o "$work/$name" "$@"
+}
 
-# The GPU reconstructor, where wgpu finds the GPU (a missing Vulkan driver is reported).
-timeout 120 "$bin" bench --recon gpu --json > "$out/bench_gpu.json" 2> "$out/bench_gpu.log"
-
-# Scaling of live adaptive against traditional frameless.
+all=$(nproc)
 for size in 640x480 1280x720; do
   for n in 4 8 16; do
-    [ "$n" -le "$(nproc)" ] || continue
-    timeout 100 taskset -c "0-$((n - 1))" "$bin" --threads "$n" live --scene toycar \
-      --size "$size" --refresh-hz 30 --start 1 --seconds 2 --repeat 1 --ideal-spp 4 \
-      --method adaptive,traditional-frameless --cache-dir "$cache" \
-      --out "$out/live_${size}_${n}" > "$out/live_${size}_${n}.log" 2>&1
+    [ "$n" -le "$all" ] || continue
+    live "live_${size}_${n}" "$n" --size "$size" --refresh-hz 30 \
+      --method adaptive,traditional-frameless
   done
 done
-# Issue 45's new live case: 1920x1080 at 30 Hz on every core, against the best others.
-timeout 150 "$bin" --threads "$(nproc)" live --scene toycar --size 1920x1080 --refresh-hz 30 \
-  --start 1 --duration 2 --repeat 1 --ideal-spp 4 \
-  --method adaptive,traditional-frameless,late-warp --cache-dir "$cache" \
-  --out "$out/live_1920x1080_all" > "$out/live_1920x1080_all.log" 2>&1
-echo "done: $out"
+live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
+  --method adaptive,traditional-frameless,late-warp
+if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
+  step bench_trace_gpu 90 "$bin" bench --trace gpu --size 1920x1080 --json
+fi
+if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
+  live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
+    --recon gpu --method adaptive,traditional-frameless
+fi
+if [ -x "$ex" ]; then
+  step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
+    echo \"1280x720 4M/s 30Hz 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' 1280 720 4e6 30 2 \$m; done; done"
+fi
+for size in 1280x720 1920x1080; do
+  live "live_${size}_gpurecon" "$all" --size "$size" --refresh-hz 30 --method adaptive --recon gpu
+done
+for r in 1 2; do
+  mkdir -p "$work/view_2cores_recon$r"
+  step "view_2cores_recon$r" 20 bash -c "cd '$work/view_2cores_recon$r' && taskset -c 0-1 '$bin' \
+    view --headless --size 1280x720 --refresh-hz 30 --duration 3 --method adaptive \
+    --recon-threads $r"
+done
+step bench_gpu 40 "$bin" bench --recon gpu --json
+
+tar -C "$work" --exclude='*.png' --exclude='ideal-cache' -czf "$out/results.tar.gz" .
+echo "done in $((SECONDS - start)) s: $out/results.tar.gz"

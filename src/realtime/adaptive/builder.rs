@@ -165,6 +165,7 @@ impl ImageBuilder for Builder {
             ("ring_capacity", f.ring_capacity.into()),
             ("placed_mean", per_image(f.placed_sum).into()),
             ("limited_share", per_image(f.limited_images as f64).into()),
+            ("pass_ms", pass_ms(self.recon.pass_times())),
         ];
         if let Some(why) = self.recon.gpu_failure() {
             figures.push(("gpu_failure", why.into()));
@@ -248,4 +249,15 @@ impl ImageBuilder for Builder {
             view_time: t,
         })
     }
+}
+
+/// Mean milliseconds per CPU refresh of each step of the reconstructor, as a JSON
+/// object in the steps' order (what names the image's first bottleneck).
+fn pass_ms(p: &crate::reconstruction::PassTimes) -> serde_json::Value {
+    let m: serde_json::Map<String, serde_json::Value> = p
+        .mean_ms()
+        .into_iter()
+        .map(|(name, ms)| (name.to_string(), ms.into()))
+        .collect();
+    m.into()
 }

@@ -6,6 +6,8 @@
 //! and with the visibility pass the initial front depths; it reads the final sums and
 //! coverage back, before any fill, so that the next carry starts from them.
 
+use rayon::prelude::*;
+
 use super::PER_PIXEL;
 use crate::reconstruction::splat::{channel_row, CHANNELS};
 
@@ -23,17 +25,21 @@ pub(in crate::reconstruction) struct CarriedIn {
 /// image and its coverage `cover` into per-pixel runs of [`PER_PIXEL`] floats.
 pub(in crate::reconstruction) fn pack(acc: &[f32], cs: usize, w: usize, cover: &[f32]) -> Vec<f32> {
     let mut out = vec![0f32; cover.len() * PER_PIXEL];
-    for (y, rows) in out.chunks_mut(w * PER_PIXEL).enumerate() {
-        for ch in 0..CHANNELS {
-            let src = &channel_row(acc, cs, y, ch)[..w];
-            for (px, &v) in rows.chunks_exact_mut(PER_PIXEL).zip(src) {
-                px[ch] = v;
+    // Rows are independent: in parallel.
+    out.par_chunks_mut(w * PER_PIXEL)
+        .zip(cover.par_chunks(w))
+        .enumerate()
+        .for_each(|(y, (rows, cover))| {
+            for ch in 0..CHANNELS {
+                let src = &channel_row(acc, cs, y, ch)[..w];
+                for (px, &v) in rows.chunks_exact_mut(PER_PIXEL).zip(src) {
+                    px[ch] = v;
+                }
             }
-        }
-        for (px, &c) in rows.chunks_exact_mut(PER_PIXEL).zip(&cover[y * w..]) {
-            px[CHANNELS] = c;
-        }
-    }
+            for (px, &c) in rows.chunks_exact_mut(PER_PIXEL).zip(cover) {
+                px[CHANNELS] = c;
+            }
+        });
     out
 }
 
@@ -46,17 +52,20 @@ pub(in crate::reconstruction) fn unpack(
     w: usize,
     cover: &mut [f32],
 ) {
-    for (y, rows) in sums.chunks(w * PER_PIXEL).enumerate() {
-        for ch in 0..CHANNELS {
-            let dst = &mut acc[(y * CHANNELS + ch) * cs..][..w];
-            for (d, px) in dst.iter_mut().zip(rows.chunks_exact(PER_PIXEL)) {
-                *d = px[ch];
+    acc.par_chunks_mut(CHANNELS * cs)
+        .zip(cover.par_chunks_mut(w))
+        .zip(sums.par_chunks(w * PER_PIXEL))
+        .for_each(|((acc, cover), rows)| {
+            for ch in 0..CHANNELS {
+                let dst = &mut acc[ch * cs..][..w];
+                for (d, px) in dst.iter_mut().zip(rows.chunks_exact(PER_PIXEL)) {
+                    *d = px[ch];
+                }
             }
-        }
-        for (c, px) in cover[y * w..].iter_mut().zip(rows.chunks_exact(PER_PIXEL)) {
-            *c = px[CHANNELS];
-        }
-    }
+            for (c, px) in cover.iter_mut().zip(rows.chunks_exact(PER_PIXEL)) {
+                *c = px[CHANNELS];
+            }
+        });
 }
 
 /// Front depths as the shaders keep them: the complement of a depth's bits, so that
