@@ -137,6 +137,13 @@ pub struct GpuTraceFigures {
     /// Whether the adapter is a software one (such as lavapipe): the figures are then
     /// the CPU's speed under a driver, not a GPU's.
     pub software: bool,
+    /// Samples per pixel of the ideal images timed below (`settings::IDEAL_SPP`).
+    pub ideal_spp: u32,
+    /// Seconds of one ideal image at the bench's size on the GPU tracer
+    /// (`render::still::render_gpu`), one run after the figures above.
+    pub ideal_s_gpu: f64,
+    /// The same image on the CPU tracer, all threads (`render::still::render`).
+    pub ideal_s_cpu: f64,
 }
 
 /// Measure the GPU tracer on `tracer`'s scene at `time` with `opts`' rays and
@@ -174,12 +181,30 @@ pub fn gpu_trace_figures(
     };
     let (primary_s, _) = timed(true, &pts)?;
     let (shaded_s, secondary) = timed(false, shaded_pts)?;
+    let spp = crate::settings::IDEAL_SPP;
+    let t = Instant::now();
+    std::hint::black_box(crate::render::still::render_gpu(
+        &mut gpu, tracer, time, spp, opts.seed,
+    )?);
+    let ideal_s_gpu = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    std::hint::black_box(crate::render::still::render(
+        tracer,
+        time,
+        spp,
+        opts.seed,
+        &|_| {},
+    ));
+    let ideal_s_cpu = t.elapsed().as_secs_f64();
     Ok(GpuTraceFigures {
         primary_mrays_per_s: pts.len() as f64 / primary_s / 1e6,
         shaded_msamples_per_s: shaded_pts.len() as f64 / shaded_s / 1e6,
         secondary_mrays_per_s: secondary as f64 / shaded_s / 1e6,
         secondary_per_sample: secondary as f64 / shaded_pts.len().max(1) as f64,
         software,
+        ideal_spp: spp,
+        ideal_s_gpu,
+        ideal_s_cpu,
     })
 }
 

@@ -262,6 +262,10 @@ fn print_bench(report: &bench::BenchReport) {
             "gpu shaded       {:.2} M samples/s, {:.2} M secondary rays/s ({:.2} per sample)",
             g.shaded_msamples_per_s, g.secondary_mrays_per_s, g.secondary_per_sample
         );
+        println!(
+            "ideal {} spp     {:.2} s on the GPU tracer, {:.2} s on the CPU's, all threads",
+            g.ideal_spp, g.ideal_s_gpu, g.ideal_s_cpu
+        );
     }
     println!("reconstructor    {}", report.recon);
     println!(

@@ -76,6 +76,46 @@ pub struct GpuTracer {
     statics: layout::StaticOffsets,
     /// The state uploaded last: its time quantum and camera generation, the buffer.
     state: Option<((i64, u64), wgpu::Buffer, layout::StateOffsets)>,
+    /// The per-dispatch buffers, kept between dispatches.
+    io: Option<Io>,
+}
+
+/// One dispatch's buffers, kept and grown rather than made anew for every batch: a
+/// new buffer is zero-filled before its first use, which for a 1080p batch's output
+/// and read-back copies is 130 MB of writes.
+struct Io {
+    /// Samples the buffers hold.
+    cap: usize,
+    uniform: wgpu::Buffer,
+    points: wgpu::Buffer,
+    out: wgpu::Buffer,
+    back: wgpu::Buffer,
+}
+
+impl Io {
+    fn new(device: &wgpu::Device, cap: usize) -> Self {
+        let buffer = |label, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(32),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let cap64 = cap as u64;
+        Self {
+            cap,
+            uniform: buffer(
+                "trace params",
+                std::mem::size_of::<layout::Params>() as u64,
+                U::UNIFORM | U::COPY_DST,
+            ),
+            points: buffer("trace points", cap64 * 8, U::STORAGE | U::COPY_DST),
+            out: buffer("trace out", cap64 * 32, U::STORAGE | U::COPY_SRC),
+            back: buffer("trace readback", cap64 * 32, U::MAP_READ | U::COPY_DST),
+        }
+    }
 }
 
 impl std::fmt::Debug for GpuTracer {
@@ -129,6 +169,7 @@ impl GpuTracer {
             data,
             statics: statics.at,
             state: None,
+            io: None,
         })
     }
 
@@ -189,7 +230,9 @@ impl GpuTracer {
         primary_only: bool,
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
         self.upload_state(tracer, state)?;
-        let per_dispatch = (MAX_GROUPS * GROUP) as usize;
+        // One dispatch's output (32 bytes a sample) must fit one storage binding.
+        let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / 32);
+        let per_dispatch = per_dispatch.max(1) as usize;
         let mut out = Vec::with_capacity(points.len());
         for chunk in points.chunks(per_dispatch) {
             out.extend(self.dispatch(tracer, state, chunk, primary_only)?);
@@ -209,7 +252,7 @@ impl GpuTracer {
     }
 
     fn dispatch(
-        &self,
+        &mut self,
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
@@ -221,37 +264,35 @@ impl GpuTracer {
         let n = points.len() as u32;
         let params = layout::params(tracer, state, n, self.statics, *at, primary_only);
         let device = &self.ctx.device;
-        let uniform = init(
-            device,
-            "trace params",
-            bytemuck::bytes_of(&params),
-            wgpu::BufferUsages::UNIFORM,
-        );
-        let pts = storage_init(&self.ctx, "trace points", bytemuck::cast_slice(points))?;
+        if self.io.as_ref().is_none_or(|io| io.cap < points.len()) {
+            self.io = Some(Io::new(device, points.len()));
+        }
+        let Some(io) = &self.io else {
+            return Ok(Vec::new());
+        };
+        let queue = &self.ctx.queue;
+        queue.write_buffer(&io.uniform, 0, bytemuck::bytes_of(&params));
+        queue.write_buffer(&io.points, 0, bytemuck::cast_slice(points));
         let out_bytes = points.len() as u64 * 32;
-        let out = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("trace out"),
-            size: out_bytes.max(32),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let back = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("trace readback"),
-            size: out_bytes.max(32),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (out, back) = (&io.out, &io.back);
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace"),
             layout: &self.layout,
-            entries: &[&uniform, &self.words, &self.data, state_buf, &pts, &out]
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect::<Vec<_>>(),
+            entries: &[
+                &io.uniform,
+                &self.words,
+                &self.data,
+                state_buf,
+                &io.points,
+                out,
+            ]
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect::<Vec<_>>(),
         });
         let mut enc = device.create_command_encoder(&Default::default());
         {
@@ -260,9 +301,9 @@ impl GpuTracer {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(n.div_ceil(GROUP).max(1), 1, 1);
         }
-        enc.copy_buffer_to_buffer(&out, 0, &back, 0, out_bytes.max(32));
-        self.ctx.queue.submit([enc.finish()]);
-        let words = read_words(&self.ctx, &back, out_bytes)?;
+        enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(32));
+        queue.submit([enc.finish()]);
+        let words = read_words(&self.ctx, back, out_bytes)?;
         Ok(words.chunks_exact(8).map(unpack).collect())
     }
 }
@@ -311,16 +352,20 @@ fn init(
     })
 }
 
+/// The largest storage buffer the adapter binds, in bytes.
+fn binding_limit(ctx: &GpuContext) -> u64 {
+    ctx.limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size)
+}
+
 /// A read-only storage buffer holding `bytes`, checked against the adapter's limit.
 fn storage_init(
     ctx: &GpuContext,
     label: &'static str,
     bytes: &[u8],
 ) -> Result<wgpu::Buffer, GpuTraceError> {
-    let limit = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let limit = binding_limit(ctx);
     if bytes.len() as u64 > limit {
         return Err(GpuTraceError::TooLarge {
             what: label,
