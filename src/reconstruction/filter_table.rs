@@ -89,8 +89,8 @@ impl Reconstructor {
             ));
             let y1 = (r.y1 as usize).min(h);
             if (r.y0 as usize) < y1 {
-                for b in r.y0 as usize / MAP_ROWS..=(y1 - 1) / MAP_ROWS {
-                    reach[b].push(k as u32);
+                for band in &mut reach[r.y0 as usize / MAP_ROWS..=(y1 - 1) / MAP_ROWS] {
+                    band.push(k as u32);
                 }
             }
         }
