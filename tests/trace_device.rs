@@ -1,6 +1,6 @@
-//! `--trace cpu|gpu|auto`: where rays are traced. Only `bench` takes it so far; the
-//! test that needs a GPU adapter (Mesa's lavapipe will do) is ignored by default and
-//! named `gpu_`.
+//! `--trace cpu|gpu|auto`: where rays are traced. Only `bench` and `still` take it so
+//! far; the tests that need a GPU adapter (Mesa's lavapipe will do) are ignored by
+//! default and named `gpu_`.
 
 use std::process::{Command, Output};
 
@@ -16,7 +16,7 @@ fn stderr(o: &Output) -> String {
 }
 
 #[test]
-fn trace_is_taken_by_bench_only_and_lists_its_values() {
+fn trace_is_taken_by_bench_and_still_only_and_lists_its_values() {
     let o = frameless(&["bench", "--trace", "bogus"]);
     let e = stderr(&o);
     assert!(!o.status.success());
@@ -73,4 +73,49 @@ fn gpu_bench_trace_gpu_records_the_adapter_and_its_figures() {
         // toycar's floor reflects and every hit casts a shadow ray: all positive.
         assert!(v.is_finite() && v > 0.0, "{figure} = {v}: {r}");
     }
+}
+
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_still_traced_on_the_gpu_matches_the_cpu() {
+    let dir = std::env::temp_dir().join(format!("frameless-still-trace-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |trace: &str| {
+        let out = dir.join(format!("{trace}.png"));
+        let o = frameless(&[
+            "still",
+            "--size",
+            "64x48",
+            "--spp",
+            "4",
+            "--time",
+            "1",
+            "--trace",
+            trace,
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        (
+            frameless::image::read_png_rgb8(&out).expect("a PNG"),
+            stderr(&o),
+        )
+    };
+    let (cpu, _) = run("cpu");
+    let (gpu, said) = run("gpu");
+    assert!(said.contains("tracing on "), "{said}");
+    assert_eq!((cpu.0, cpu.1), (gpu.0, gpu.1));
+    // The same samples traced alike: every 8-bit value within one level (a quarter
+    // level apart before rounding can round apart).
+    let worst = cpu
+        .2
+        .iter()
+        .zip(&gpu.2)
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    assert!(worst <= 1, "largest difference {worst} levels");
+    let _ = std::fs::remove_dir_all(&dir);
 }

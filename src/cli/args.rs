@@ -380,6 +380,8 @@ pub struct StillArgs {
     pub spp: u32,
     #[command(flatten)]
     pub quality: settings::QualityGroup,
+    #[command(flatten)]
+    pub trace: settings::TraceGroup,
     /// File format: png (display values, 8-bit sRGB-encoded) or exr (OpenEXR, the
     /// linear values, 32-bit float); docs/colour.md. Default: the one `--out`'s
     /// extension names, else png.

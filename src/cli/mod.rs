@@ -388,18 +388,25 @@ fn check_wgpu_backend() -> Result<()> {
 /// `frameless still`.
 fn still(a: args::StillArgs) -> Result<()> {
     let (out, format) = still_target(&a)?;
+    let trace_gpu = acquire_trace(a.trace.trace)?;
     let scene = load_scene(&a.scene.scene)?;
     let path = load_camera_path(a.scene.camera_path.as_deref())?;
     let Size(w, h) = a.size;
     let tracer =
         Tracer::new(Arc::new(scene), w, h, TraceOptions::from(&a.quality)).with_camera_path(path);
-    let bar = Meter::new("rendering", "rows");
-    bar.set_total(h as u64);
     let t0 = Instant::now();
-    let img = still::render(&tracer, a.time, a.spp, a.quality.seed, &|rows| {
-        bar.set_position(rows as u64)
-    });
-    bar.finish();
+    let img = match trace_gpu {
+        Some(ctx) => still_on_gpu(ctx, &tracer, &a)?,
+        None => {
+            let bar = Meter::new("rendering", "rows");
+            bar.set_total(h as u64);
+            let img = still::render(&tracer, a.time, a.spp, a.quality.seed, &|rows| {
+                bar.set_position(rows as u64)
+            });
+            bar.finish();
+            img
+        }
+    };
     img.save(&out, format)
         .with_context(|| format!("writing {}", out.display()))?;
     eprintln!(
@@ -412,6 +419,29 @@ fn still(a: args::StillArgs) -> Result<()> {
         t0.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// `still`'s image traced on the GPU of `ctx` (`--trace gpu`): the same stratified
+/// samples as on the CPU, in batches of whole rows.
+#[cfg(feature = "gpu")]
+fn still_on_gpu(
+    ctx: Arc<GpuContext>,
+    tracer: &Tracer,
+    a: &args::StillArgs,
+) -> Result<frameless::image::Image> {
+    let mut gpu = frameless::trace::gpu::GpuTracer::new(ctx, tracer)
+        .context("--trace gpu (--trace cpu traces on the CPU)")?;
+    still::render_gpu(&mut gpu, tracer, a.time, a.spp, a.quality.seed)
+        .context("--trace gpu (--trace cpu traces on the CPU)")
+}
+
+#[cfg(not(feature = "gpu"))]
+fn still_on_gpu(
+    ctx: Arc<GpuContext>,
+    _tracer: &Tracer,
+    _a: &args::StillArgs,
+) -> Result<frameless::image::Image> {
+    match *ctx {}
 }
 
 /// The file `still` writes and its format: `--format` and `--out` must agree where
