@@ -37,7 +37,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    lanes::{fast_exp_neg, prefetch},
+    lanes::{fast_exp_neg, prefetch, PREFETCH_AHEAD},
     place::Projector,
     resolve::MIN_WEIGHT,
     ring::field,
@@ -78,9 +78,6 @@ impl Geo {
 /// Neighbours searched for the geometry of a pixel that holds sums but got no sample
 /// of its own (a footprint reached it): rings up to this distance, pixels.
 const BORROW_RADIUS: i32 = 2;
-
-/// How many samples or pixels ahead passes that visit pixels at random ask for them.
-const PREFETCH_AHEAD: usize = 16;
 
 /// The state carried between refreshes.
 pub(super) struct Carried {

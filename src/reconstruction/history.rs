@@ -33,11 +33,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::lanes::prefetch;
+use super::lanes::{prefetch, PREFETCH_AHEAD};
 use crate::{image::Image, scene::CameraFrame, trace::luminance};
-
-/// How many samples ahead the history asks for what they will read.
-const PREFETCH_AHEAD: usize = 16;
 
 /// Parameters of the still-region history.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -1007,38 +1004,41 @@ fn sort_by_pixel(
     } else {
         1
     };
+    // A counting sort by `pixel / band`, in input order (no division per sample on
+    // one thread).
+    let key = |q: u32| {
+        if band == 1 {
+            q as usize
+        } else {
+            q as usize / band
+        }
+    };
     let bands = pixels.div_ceil(band);
     buckets.clear();
     buckets.resize(bands + 1, 0);
     for &(q, _) in order.iter() {
-        buckets[q as usize / band + 1] += 1;
+        buckets[key(q) + 1] += 1;
     }
     for k in 1..buckets.len() {
         buckets[k] += buckets[k - 1];
     }
     out.clear();
     out.resize(order.len(), (0, 0));
+    for &(q, i) in order.iter() {
+        let slot = &mut buckets[key(q)];
+        out[*slot as usize] = (q, i);
+        *slot += 1;
+    }
     if band > 1 {
+        // `buckets[b]` is now where band `b` ends: each band's run sorted on its own.
         let mut runs = Vec::with_capacity(bands);
-        let mut rest = &mut out[..];
-        for w in buckets.windows(2) {
-            let (run, tail) = rest.split_at_mut((w[1] - w[0]) as usize);
+        let (mut rest, mut start) = (&mut out[..], 0);
+        for &end in &buckets[..bands] {
+            let (run, tail) = rest.split_at_mut(end as usize - start);
             runs.push(run);
-            rest = tail;
-        }
-        let mut next: Vec<u32> = buckets[..bands].to_vec();
-        for &(q, i) in order.iter() {
-            let b = q as usize / band;
-            runs[b][(next[b] - buckets[b]) as usize] = (q, i);
-            next[b] += 1;
+            (rest, start) = (tail, end as usize);
         }
         runs.into_par_iter().for_each(|run| run.sort_unstable());
-    } else {
-        for &(q, i) in order.iter() {
-            let slot = &mut buckets[q as usize];
-            out[*slot as usize] = (q, i);
-            *slot += 1;
-        }
     }
     std::mem::swap(order, out);
 }

@@ -87,6 +87,10 @@ pub(super) const PREFIX: [Lanes; LANES + 1] = {
     t
 };
 
+/// How many samples or pixels ahead passes that visit pixels at random ask for them
+/// ([`prefetch`]).
+pub(super) const PREFETCH_AHEAD: usize = 16;
+
 /// Ask the cache for `items[i]` ahead of its use (nothing where `i` is out of
 /// bounds, and nothing off x86-64): passes that visit pixels at random issue it some
 /// samples ahead, so that the misses of several samples overlap instead of queueing.
