@@ -534,22 +534,18 @@ fn best_rate(repeats: usize, n: usize, mut f: impl FnMut()) -> f64 {
     n as f64 / best.max(1e-9)
 }
 
-/// Measure the tracer. `load_s` and `build_s` are passed through to the report.
-pub fn run(
-    tracer: &std::sync::Arc<Tracer>,
+/// Primary rays and shaded samples per second of `tracer` at `time` on one thread and
+/// on all: `[primary 1t, primary all, shaded 1t, shaded all]`.
+fn tracer_rates(
+    tracer: &Tracer,
     time: f64,
-    opts: BenchOptions,
-    load_s: f64,
-    build_s: f64,
-) -> BenchReport {
+    opts: &BenchOptions,
+    one: &rayon::ThreadPool,
+) -> [f64; 4] {
     let (w, h) = tracer.size();
     let state = tracer.state_at(time);
     let pts = random_pixel_order(w, h, opts.rays, opts.seed);
     let shaded_pts = &pts[..pts.len() / 4];
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("one-thread pool");
     let chunk = 4096;
     let primary = |pts: &[(f32, f32)]| {
         pts.par_chunks(chunk)
@@ -585,6 +581,23 @@ pub fn run(
     let sa = best_rate(opts.repeats, shaded_pts.len(), || {
         std::hint::black_box(shaded(shaded_pts));
     });
+    [p1, pa, s1, sa]
+}
+
+/// Measure the tracer. `load_s` and `build_s` are passed through to the report.
+pub fn run(
+    tracer: &std::sync::Arc<Tracer>,
+    time: f64,
+    opts: BenchOptions,
+    load_s: f64,
+    build_s: f64,
+) -> BenchReport {
+    let (w, h) = tracer.size();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("one-thread pool");
+    let [p1, pa, s1, sa] = tracer_rates(tracer, time, &opts, &one);
     let recon = recon_figures(tracer, time, &opts, &one);
     let ctrl = controller_throughput(tracer, time);
     BenchReport {

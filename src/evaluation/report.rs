@@ -298,8 +298,18 @@ pub(crate) fn plot_lines(
         with_mark!(look, |mark| chart.draw_series(marks.map(|&p| mark(p))))
             .map_err(|x| e(Box::new(x)))?;
     }
-    // The legend: a sample of each line with its mark and its method, top to bottom in
-    // series order.
+    draw_legend(&legend_area, series, &e)?;
+    root.present().map_err(|x| e(Box::new(x)))?;
+    Ok(())
+}
+
+/// The legend of [`plot_lines`]: a sample of each line with its mark and its method,
+/// top to bottom in series order.
+fn draw_legend(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    series: &[(String, Vec<(i32, f64)>)],
+    e: &dyn Fn(Box<dyn std::error::Error>) -> EvalError,
+) -> Result<(), EvalError> {
     for (i, (name, _)) in series.iter().enumerate() {
         let y = 40 + 22 * i as i32;
         let look = style::of_series(name, i);
@@ -307,23 +317,21 @@ pub(crate) fn plot_lines(
         let (dash, gap) = look.dash;
         let line = vec![(8, y), (48, y)];
         if dash == 0 {
-            legend_area.draw(&PathElement::new(line, style))
+            area.draw(&PathElement::new(line, style))
         } else {
-            legend_area.draw(&plotters::element::DashedPathElement::new(
+            area.draw(&plotters::element::DashedPathElement::new(
                 line, dash, gap, style,
             ))
         }
         .map_err(|x| e(Box::new(x)))?;
-        with_mark!(look, |mark| legend_area.draw(&mark((28, y)))).map_err(|x| e(Box::new(x)))?;
-        legend_area
-            .draw(&Text::new(
-                name.clone(),
-                (56, y - 8),
-                ("sans-serif", 14).into_font(),
-            ))
-            .map_err(|x| e(Box::new(x)))?;
+        with_mark!(look, |mark| area.draw(&mark((28, y)))).map_err(|x| e(Box::new(x)))?;
+        area.draw(&Text::new(
+            name.clone(),
+            (56, y - 8),
+            ("sans-serif", 14).into_font(),
+        ))
+        .map_err(|x| e(Box::new(x)))?;
     }
-    root.present().map_err(|x| e(Box::new(x)))?;
     Ok(())
 }
 
