@@ -485,6 +485,32 @@ fn b2_leaf(anim: bool, prim_base: u32, lo: vec4<f32>, hi: vec4<f32>, r: ptr<func
     return true;
 }
 
+// The next node of a Bvh2 walk after visiting both children of one: the nearer
+// hit child (`left` first when both are, `right` pushed), else the top of the stack;
+// false when the walk is done.
+fn b2_next(go_left: bool, go_right: bool, left: u32, right: u32,
+           stack: ptr<function, array<u32, STACK2>>, sp: ptr<function, u32>,
+           current: ptr<function, u32>) -> bool {
+    if go_left && go_right {
+        *current = left;
+        if *sp < STACK2 {
+            (*stack)[*sp] = right;
+            *sp = *sp + 1u;
+        }
+    } else if go_left {
+        *current = left;
+    } else if go_right {
+        *current = right;
+    } else {
+        if *sp == 0u {
+            return false;
+        }
+        *sp = *sp - 1u;
+        *current = (*stack)[*sp];
+    }
+    return true;
+}
+
 // An inner Bvh2 at vec4 `at` (of dyn_ if `anim`): the closest hit's t (slot in
 // `best`), or for `shadow` 0 when blocked. Returns FAR when nothing was hit.
 fn b2_traverse(anim: bool, at: u32, prim_base: u32, r_in: Ray, shadow: bool, acc: ptr<function, f32>, best: ptr<function, u32>) -> f32 {
@@ -530,22 +556,8 @@ fn b2_traverse(anim: bool, at: u32, prim_base: u32, r_in: Ray, shadow: bool, acc
             }
             go_right = false;
         }
-        if go_left && go_right {
-            current = bitcast<u32>(l_hi.w);
-            if sp < STACK2 {
-                stack[sp] = bitcast<u32>(r_hi.w);
-                sp++;
-            }
-        } else if go_left {
-            current = bitcast<u32>(l_hi.w);
-        } else if go_right {
-            current = bitcast<u32>(r_hi.w);
-        } else {
-            if sp == 0u {
-                break;
-            }
-            sp--;
-            current = stack[sp];
+        if !b2_next(go_left, go_right, bitcast<u32>(l_hi.w), bitcast<u32>(r_hi.w), &stack, &sp, &current) {
+            break;
         }
     }
     return select(FAR, r.tmax, r.tmax < tmax0);
@@ -697,22 +709,8 @@ fn top_traverse(r_in: Ray, shadow: bool, acc: ptr<function, f32>, hit: ptr<funct
             }
             go_right = false;
         }
-        if go_left && go_right {
-            current = bitcast<u32>(l_hi.w);
-            if sp < STACK2 {
-                stack[sp] = bitcast<u32>(r_hi.w);
-                sp++;
-            }
-        } else if go_left {
-            current = bitcast<u32>(l_hi.w);
-        } else if go_right {
-            current = bitcast<u32>(r_hi.w);
-        } else {
-            if sp == 0u {
-                break;
-            }
-            sp--;
-            current = stack[sp];
+        if !b2_next(go_left, go_right, bitcast<u32>(l_hi.w), bitcast<u32>(r_hi.w), &stack, &sp, &current) {
+            break;
         }
     }
     return true;
