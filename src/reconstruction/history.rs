@@ -367,19 +367,18 @@ impl History {
         }
     }
 
-    /// Take in the samples pushed since the last refresh and blend the history over
-    /// `image` (the reconstruction at `t` seen by `camera`, whose per-pixel age is
-    /// `age`, replaced by the age of what is shown); returns the sum over pixels of the
-    /// shown age. `front`: the reconstruction's front depths and `1 / (1 + tolerance)`.
-    pub(super) fn refresh(
+    /// Carry out `step` (from [`History::plan`]): take in its samples and blend the
+    /// history over `image` (the reconstruction at the step's time and view, whose
+    /// per-pixel age is `age`, replaced by the age of what is shown); returns the sum
+    /// over pixels of the shown age. `front`: the reconstruction's front depths and
+    /// `1 / (1 + tolerance)`.
+    pub(super) fn apply(
         &mut self,
-        t: f64,
-        camera: &CameraFrame,
+        step: Step,
         image: &mut Image,
         age: &mut [f32],
         front: Option<(&[f32], f32)>,
     ) -> f64 {
-        let step = self.plan(t, camera);
         let n = (self.width * self.height) as usize;
         let px = self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)));
         let (cuts, age_sum) = px.apply(&step, &self.params, front, image, age);
@@ -1085,7 +1084,8 @@ mod tests {
     fn refresh(h: &mut History, t: f64, cam: &CameraFrame, recon: f32) -> Image {
         let mut img = Image::new(4, 4);
         img.pixels.fill(Vec3::splat(recon));
-        h.refresh(t, cam, &mut img, &mut [0.0; 16], None);
+        let step = h.plan(t, cam);
+        h.apply(step, &mut img, &mut [0.0; 16], None);
         img
     }
 

@@ -103,6 +103,7 @@ mod lanes;
 mod params;
 mod passes;
 mod place;
+mod plan;
 mod pullpush;
 mod resolve;
 mod splat;
@@ -127,6 +128,7 @@ use history::History;
 pub use history::HistoryParams;
 pub use lanes::fast_exp_neg;
 pub use params::{ReconParams, Visibility};
+use plan::RefreshPlan;
 pub use ring::Ring;
 use splat::{Splat, BAND_ROWS, CHANNELS};
 
@@ -502,23 +504,26 @@ impl Reconstructor {
         &self.image
     }
 
-    /// [`Reconstructor::reconstruct`]'s steps.
+    /// [`Reconstructor::reconstruct`]'s steps: the plan, then its passes on the GPU if
+    /// there is one, else (or if it failed now) on the CPU.
     fn refresh(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {
-        let t0 = std::time::Instant::now();
-        self.update_filters(tiling);
-        self.resplat = self.resplats_at(camera);
-        let mut lap = self.passes.lap(0, t0);
-        if self.refresh_on_gpu(t, camera) {
-            self.passes.count_refresh();
-            return;
+        let mut plan = self.plan(t, camera, tiling);
+        if !self.refresh_on_gpu(&mut plan) {
+            self.refresh_on_cpu(&mut plan);
         }
-        self.prepare_splats(t, camera);
+        self.passes.count_refresh();
+    }
+
+    /// The CPU's passes of `plan`.
+    fn refresh_on_cpu(&mut self, plan: &mut RefreshPlan) {
+        let mut lap = std::time::Instant::now();
+        self.prepare_splats(plan);
         lap = self.passes.lap(1, lap);
         self.front_depths();
         lap = self.passes.lap(2, lap);
         if self.carries_now() {
             let start = self.ring.len() - self.placed;
-            self.carry_over(t, camera, start);
+            self.carry_over(plan.t, &plan.camera, start);
             self.carried_front();
         }
         lap = self.passes.lap(3, lap);
@@ -530,12 +535,11 @@ impl Reconstructor {
         }
         lap = self.passes.lap(5, lap);
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
-        if let Some(h) = &mut self.history {
-            let age_sum = h.refresh(t, camera, &mut self.image, &mut self.age, front);
+        if let (Some(h), Some(step)) = (&mut self.history, plan.history.take()) {
+            let age_sum = h.apply(step, &mut self.image, &mut self.age, front);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
         self.passes.lap(6, lap);
-        self.passes.count_refresh();
     }
 
     /// Wall time of each step of the CPU refreshes so far.
@@ -543,12 +547,13 @@ impl Reconstructor {
         &self.passes
     }
 
-    /// A refresh on the GPU, if there is one; false if it is still to be done (no GPU,
-    /// or it failed now: then it is given up).
-    fn refresh_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> bool {
+    /// `plan`'s passes on the GPU, if there is one; false if they are still to be done
+    /// (no GPU, or it failed now: then it is given up, and the CPU carries out the same
+    /// plan).
+    fn refresh_on_gpu(&mut self, plan: &mut RefreshPlan) -> bool {
         #[cfg(feature = "gpu")]
         if self.gpu.is_some() {
-            match self.reconstruct_on_gpu(t, camera) {
+            match self.reconstruct_on_gpu(plan) {
                 Ok(()) => return true,
                 Err(e) => {
                     self.gpu = None;
@@ -556,41 +561,38 @@ impl Reconstructor {
                 }
             }
         }
-        let _ = (t, camera);
+        let _ = plan;
         false
     }
 
-    /// [`Reconstructor::reconstruct`]'s splat, resolve, fill and history on the GPU,
-    /// after the filter table is built (when carrying, the carry step stays here).
+    /// `plan`'s splat, resolve, fill and history on the GPU (when carrying, the carry
+    /// step stays here).
     #[cfg(feature = "gpu")]
-    fn reconstruct_on_gpu(&mut self, t: f64, camera: &CameraFrame) -> Result<(), gpu::GpuError> {
-        let start = self.live_range(t);
-        let moved = self.follow_motion_if_asked(t, start);
+    fn reconstruct_on_gpu(&mut self, plan: &mut RefreshPlan) -> Result<(), gpu::GpuError> {
+        let (t, camera, start) = (plan.t, plan.camera, plan.start);
         let pending = self.carried.as_ref().map(|c| c.pending);
         let lap = std::time::Instant::now();
         let carried = if self.resplat {
             None
         } else {
-            self.carry_for_gpu(t, camera, start)
+            self.carry_for_gpu(t, &camera, start)
         };
         let lap = self.passes.lap(3, lap);
         let max_r = self.max_footprint_radius();
-        let step = self.history.as_mut().map(|h| h.plan(t, camera));
-        let lap = self.passes.lap(6, lap);
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
         };
         let back = g.refresh(
             &self.ring,
             start,
-            moved,
+            plan.moved,
             t,
-            self.params.reproject.then_some(camera),
+            self.params.reproject.then_some(&camera),
             &self.tiles,
             &self.lookup,
             &self.params,
             max_r,
-            step.as_ref(),
+            plan.history.as_ref(),
             carried.as_ref(),
         );
         let back = back.inspect_err(|_| {
@@ -614,7 +616,9 @@ impl Reconstructor {
             &mut self.scale,
         );
         self.holes = back.holes;
-        if let (Some(h), Some(step), Some(hb)) = (&mut self.history, step, back.history) {
+        if let (Some(h), Some(step), Some(hb)) =
+            (&mut self.history, plan.history.take(), back.history)
+        {
             h.done_on_gpu(step, hb.counts, hb.cuts);
         }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();

@@ -10,6 +10,7 @@ use super::RingSample;
 use super::{
     filter_table::{Lookup, TileFilter},
     lanes::{fast_exp_neg, small_int},
+    plan::RefreshPlan,
     ring::{field, Ring},
     splat::{Splat, BAND_ROWS, OUTSIDE, SINGLE_THREAD_BAND_ROWS},
     Reconstructor,
@@ -566,9 +567,8 @@ impl Reconstructor {
     /// Place the live part of the ring and bin its splats by band, pieces of the ring
     /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
     /// of it.
-    pub(super) fn prepare_splats(&mut self, t: f64, camera: &CameraFrame) {
-        let start = self.live_range(t);
-        self.follow_motion_if_asked(t, start);
+    pub(super) fn prepare_splats(&mut self, plan: &RefreshPlan) {
+        let start = plan.start;
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.
@@ -602,7 +602,7 @@ impl Reconstructor {
             binned.resize_with(pieces.len(), Vec::new);
         }
         self.pieces = pieces.len();
-        let placer = self.placer(t, camera);
+        let placer = self.placer(plan.t, &plan.camera);
         pieces
             .par_iter()
             .zip(binned.par_iter_mut())
