@@ -3,7 +3,7 @@
 as one shard by the binary directly: byte for byte, except summary.json's "timing"
 objects (wall-clock seconds, summed over jobs) and report.html, which prints them.
 
-Needs the frameless binary: $FRAMELESS_BIN, else target/debug/frameless (cargo build).
+Needs the frameless binary: $FRAMELESS_BIN, else target/release/frameless (cargo build --release).
 """
 
 import os
@@ -22,7 +22,7 @@ EXAMPLE = REPO / "assets" / "sweeps" / "example.toml"
 
 @pytest.fixture(scope="module")
 def binary() -> Path:
-    p = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "debug" / "frameless")
+    p = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "release" / "frameless")
     if not p.is_file():
         pytest.fail(f"no frameless binary at {p}: run `cargo build` or set FRAMELESS_BIN")
     return p

@@ -5,7 +5,7 @@ with the command's reason in Python's terms, `frameless.metrics` gives the evalu
 numbers, the `frameless` console script and `python -m frameless` are the command, and
 long work stops on Ctrl-C.
 
-Needs the frameless binary: $FRAMELESS_BIN, else target/debug/frameless (cargo build).
+Needs the frameless binary: $FRAMELESS_BIN, else target/release/frameless (cargo build --release).
 """
 
 import _thread
@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def binary() -> Path:
-    p = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "debug" / "frameless")
+    p = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "release" / "frameless")
     if not p.is_file():
         pytest.fail(f"no frameless binary at {p}: run `cargo build` or set FRAMELESS_BIN")
     return p

@@ -3,7 +3,7 @@
 Skipped, with its reason, where `cvvdp` is not installed: `.ci/run` installs
 `./python[test]` only, since PyTorch from PyPI is about 5.7 GB (docs/python.md). Run
 it with `pip install './python[test,vdp]'`. Needs the frameless binary for the folder
-test: $FRAMELESS_BIN, else target/debug/frameless.
+test: $FRAMELESS_BIN, else target/release/frameless.
 """
 
 import json
@@ -48,7 +48,7 @@ def test_evaluate_gives_every_row_a_jod_of_the_images_it_scored():
 
 
 def test_a_folder_gets_vdp_json_and_a_wrong_scene_is_refused(tmp_path):
-    binary = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "debug" / "frameless")
+    binary = Path(os.environ.get("FRAMELESS_BIN") or REPO / "target" / "release" / "frameless")
     if not binary.is_file():
         pytest.fail(f"no frameless binary at {binary}: run `cargo build` or set FRAMELESS_BIN")
     out = tmp_path / "ev"
