@@ -91,7 +91,7 @@ impl Reconstructor {
         pull_levels(&mut levels);
         push_levels(&mut levels, &mut up);
         if let Some(coarse) = levels.first() {
-            full.push_from(coarse, &mut up, &mut image, &mut ages);
+            full.push_from(coarse, &mut image, &mut ages);
         }
         self.image.pixels = image;
         self.age = ages;
@@ -142,30 +142,49 @@ impl Full<'_> {
     }
 
     /// The last push, from the first level `coarse` into the image: only pixels below
-    /// full coverage change.
-    fn push_from(&self, coarse: &Level, up: &mut Vec<f32>, image: &mut [Vec3], ages: &mut [f32]) {
+    /// full coverage change, so only they are computed, each with the same operations
+    /// as [`upsampled`] and [`push_row`] apply to a whole level (the same bits); at
+    /// the full resolution most pixels are covered, and upsampling every row first
+    /// would write twice the image's floats.
+    fn push_from(&self, coarse: &Level, image: &mut [Vec3], ages: &mut [f32]) {
         let w = self.w;
-        let up = upsampled(coarse, w, up);
+        let xt = taps(w, coarse.w);
         image
             .par_chunks_mut(w)
             .zip(ages.par_chunks_mut(w))
             .enumerate()
-            .for_each_init(
-                || vec![0f32; CH * w],
-                |v, (y, (px, age))| {
-                    premultiplied_row(self.weights(y), self.w0, px, age, v);
-                    let (y0, y1, ty) = tap(y, coarse.h);
-                    let (vals, alpha) = v.split_at_mut(4 * w);
-                    push_row(vals, alpha, up_row(up, y0, w), up_row(up, y1, w), ty, w);
-                    // Pixels at full coverage stay as they are.
-                    for x in 0..w {
-                        if alpha[x] < 1.0 {
-                            px[x] = Vec3::new(vals[x], vals[w + x], vals[2 * w + x]);
-                            age[x] = vals[3 * w + x];
-                        }
+            .for_each(|(y, (px, age))| {
+                let weight = self.weights(y);
+                let (y0, y1, ty) = tap(y, coarse.h);
+                let (top, bottom) = (coarse.row(y0), coarse.row(y1));
+                for x in 0..w {
+                    let cw = weight[x];
+                    // `cw ≥ w0` gives `q = 1` (division is monotonic and `w0 / w0 = 1`):
+                    // most pixels are skipped on a comparison, without a division.
+                    if cw >= self.w0 {
+                        continue;
                     }
-                },
-            );
+                    let q = (cw / self.w0).min(1.0);
+                    if q >= 1.0 {
+                        continue;
+                    }
+                    let (x0, x1, tx) = xt[x];
+                    let hole = cw < MIN_WEIGHT;
+                    let alpha = if hole { 0.0 } else { q };
+                    let p = px[x];
+                    let mut v = [p.x * q, p.y * q, p.z * q, age[x] * q];
+                    for (c, v) in v.iter_mut().enumerate() {
+                        let (t, b) = (&top[c * coarse.w..], &bottom[c * coarse.w..]);
+                        let ut = t[x0] + (t[x1] - t[x0]) * tx;
+                        let ub = b[x0] + (b[x1] - b[x0]) * tx;
+                        let up = ut + (ub - ut) * ty;
+                        let own = if hole { 0.0 } else { *v };
+                        *v = own + (1.0 - alpha) * up;
+                    }
+                    px[x] = Vec3::new(v[0], v[1], v[2]);
+                    age[x] = v[3];
+                }
+            });
     }
 }
 
