@@ -14,14 +14,14 @@
 # Only eight files come back from the device, so everything is written under a work
 # folder and packed into $OUT/results.tar.gz (images left out). Steps, in order of
 # value, each cut to what is left of the time budget:
+# - bench_trace_gpu.log: the GPU tracer's rays/s and its 16-spp ideal against the CPU's
+#   at 1920x1080 (where `bench --trace` exists);
+# - live_1920x1080_gputrace/: adaptive and traditional frameless at 1920x1080, 60 Hz,
+#   traced and reconstructed on the GPU (where `live --trace` exists);
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
-# - bench_trace_gpu.log: the GPU tracer's rays/s at 1920x1080 (where `bench --trace`
-#   exists);
-# - live_1920x1080_gputrace/: adaptive and traditional frameless at 1920x1080, 60 Hz,
-#   traced and reconstructed on the GPU (where `live --trace` exists);
 # - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
 # - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU;
 # - view_2cores_recon<N>.log: 1280x720 on 2 cores, the image build on 1 or 2 threads;
@@ -69,6 +69,14 @@ live() { # live NAME CORES ARGS...
 }
 
 all=$(nproc)
+# The GPU tracer first: its figures were never taken with methods sampling through it.
+if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
+  step bench_trace_gpu 90 "$bin" bench --trace gpu --size 1920x1080 --json
+fi
+if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
+  live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
+    --recon gpu --method adaptive,traditional-frameless
+fi
 for size in 640x480 1280x720; do
   for n in 4 8 16; do
     [ "$n" -le "$all" ] || continue
@@ -78,13 +86,6 @@ for size in 640x480 1280x720; do
 done
 live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
   --method adaptive,traditional-frameless,late-warp
-if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
-  step bench_trace_gpu 90 "$bin" bench --trace gpu --size 1920x1080 --json
-fi
-if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
-  live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
-    --recon gpu --method adaptive,traditional-frameless
-fi
 if [ -x "$ex" ]; then
   step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
     echo \"1280x720 4M/s 30Hz 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' 1280 720 4e6 30 2 \$m; done; done"
