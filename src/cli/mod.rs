@@ -150,7 +150,7 @@ fn bench(a: args::BenchArgs) -> Result<()> {
         return bench_live_recon(a.json);
     }
     let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.trace.trace)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace)?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -353,6 +353,23 @@ fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>
     }
 }
 
+/// `--trace` of the real-time pipeline (`view`, `live`), whose sampling threads trace
+/// on the CPU only so far: `gpu` is an error rather than a silent CPU run, and `auto`
+/// says once that it traces on the CPU.
+fn realtime_trace(choice: settings::TraceDevice) -> Result<()> {
+    match choice {
+        settings::TraceDevice::Cpu => Ok(()),
+        settings::TraceDevice::Auto => {
+            eprintln!("note: --trace auto: the real-time pipeline traces on the CPU only so far; tracing on the CPU");
+            Ok(())
+        }
+        settings::TraceDevice::Gpu => bail!(
+            "--trace gpu: the real-time pipeline (view, live) traces on the CPU only so far; \
+             use --trace cpu, or eval/render/table1 --trace gpu"
+        ),
+    }
+}
+
 /// Check `WGPU_BACKEND` as wgpu reads it (comma-separated backend names). wgpu skips a
 /// name it does not know, and with no name left it lists no adapter, which the library
 /// can only report as a missing driver; so the variable is named here instead.
@@ -495,6 +512,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     cfg.set_groups(&a.display, &a.quality, &a.reference);
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
+    cfg.trace_gpu = acquire_trace(a.devices.trace.trace)?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
@@ -541,10 +559,12 @@ fn render(a: args::RenderArgs) -> Result<()> {
         texture_filter: a.quality.texture_filter,
         format: image_format(a.format),
         gpu: None,
+        trace_gpu: None,
     };
     cfg.validate()?;
     let cfg = SequenceConfig {
         gpu: acquire_recon(a.devices.recon)?,
+        trace_gpu: acquire_trace(a.devices.trace.trace)?,
         ..cfg
     };
     let scene = Arc::new(load_scene(&a.scene.scene)?);
@@ -581,8 +601,10 @@ fn table1(a: args::Table1Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     // One GPU for every animation's evaluation.
     let gpu = acquire_recon(a.devices.recon)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace)?;
     for cfg in &mut cfgs {
         cfg.gpu = gpu.clone();
+        cfg.trace_gpu = trace_gpu.clone();
     }
     let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
     let outputs = table1::Table1Output::begin(&a.out)?;
@@ -664,6 +686,7 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
         gpu: None,
+        trace_gpu: None,
     };
     cfg.strip_frames = match a.strips {
         args::Strips::Quartiles => cfg.quartile_frames(),
@@ -742,6 +765,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = Adaptive::new(&ctx, params)?;
     let frames = (a.duration * a.display.refresh_hz).ceil() as u64;
@@ -805,6 +829,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     settings.check_size(&cfg, w, h)?;
     let gpu = acquire_recon(a.devices.recon)?;
     settings.use_gpu(gpu.clone());
+    realtime_trace(a.devices.trace.trace)?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
@@ -947,6 +972,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     }
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
+    realtime_trace(a.devices.trace.trace)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);

@@ -35,6 +35,7 @@ use std::{
 use glam::{Mat4, Quat, Vec2, Vec3};
 
 use crate::{
+    gpu::DeviceUsed,
     image::{read_png, write_png_rgb8_tagged, Image},
     render::still,
     sampling::rng::mix64,
@@ -437,6 +438,8 @@ pub struct IdealCache {
     /// The key lines shared by every entry of this cache.
     base_key: String,
     size: (u32, u32),
+    /// Whether its entries are the GPU tracer's ([`IdealCache::for_tracer`]).
+    gpu: bool,
 }
 
 impl IdealCache {
@@ -484,7 +487,20 @@ impl IdealCache {
             dir: dir.to_path_buf(),
             base_key: key,
             size: (width, height),
+            gpu: false,
         })
+    }
+
+    /// The cache of the images the tracer `used` makes. The GPU tracer's images differ
+    /// from the CPU's in the last bits of some samples, so its entries are apart: their
+    /// key names the tracer and its adapter. The CPU's keys name none, as before there
+    /// was a GPU tracer, so that caches made then still serve.
+    pub fn for_tracer(mut self, used: &DeviceUsed) -> Self {
+        if used.device != DeviceUsed::cpu().device {
+            let _ = writeln!(self.base_key, "tracer {used}");
+            self.gpu = true;
+        }
+        self
     }
 
     /// The full key of the entry at time `t`: the text an entry must carry to be served.
@@ -506,6 +522,22 @@ impl IdealCache {
     /// The ideal image at time `t` as displayed (8-bit values), from disk when a valid
     /// entry is there, else rendered and stored; and what the lookup found.
     pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> (Image, Lookup) {
+        let gpu = self.gpu;
+        self.get_or_render_with(t, spp, seed, || {
+            (still::render(tracer, t, spp, seed, &|_| {}), !gpu)
+        })
+    }
+
+    /// [`get_or_render`](Self::get_or_render) with the image made by `render`, which
+    /// also says whether the tracer the key names made it (an image that fell back to
+    /// the CPU is served but not stored under a GPU key).
+    pub fn get_or_render_with(
+        &self,
+        t: f64,
+        spp: u32,
+        seed: u64,
+        render: impl FnOnce() -> (Image, bool),
+    ) -> (Image, Lookup) {
         let key = self.entry_key(t, spp, seed);
         let path = self.entry_path(t, spp, seed);
         let (w, h) = self.size;
@@ -513,8 +545,11 @@ impl IdealCache {
             Ok(rgb) => return (from_rgb8(w, h, &rgb), Lookup::Hit),
             Err(lookup) => lookup,
         };
-        let img = still::render(tracer, t, spp, seed, &|_| {});
+        let (img, store) = render();
         let rgb = img.to_rgb8();
+        if !store {
+            return (from_rgb8(w, h, &rgb), lookup);
+        }
         let checksum = format!("{:016x}", pixel_checksum(w, h, &rgb));
         // A failed write only costs a re-render next time.
         let _ = write_png_rgb8_tagged(

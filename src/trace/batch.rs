@@ -110,6 +110,33 @@ impl std::fmt::Debug for GpuRays {
     }
 }
 
+/// Why a run's GPU tracer could not be made: the scene does not fit the adapter, or
+/// the device failed.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct OpenError(String);
+
+/// The GPU tracer of `tracer`'s scene on `ctx` (`None`: none asked for).
+pub fn open(
+    ctx: Option<Arc<crate::gpu::GpuContext>>,
+    tracer: &Tracer,
+) -> Result<Option<Arc<GpuRays>>, OpenError> {
+    let Some(ctx) = ctx else {
+        return Ok(None);
+    };
+    #[cfg(feature = "gpu")]
+    {
+        GpuRays::new(ctx, tracer)
+            .map(|g| Some(Arc::new(g)))
+            .map_err(|e| OpenError(e.to_string()))
+    }
+    #[cfg(not(feature = "gpu"))]
+    {
+        let _ = tracer;
+        match *ctx {}
+    }
+}
+
 /// The tracer a run's results come from: the GPU's, else the CPU.
 pub fn used(gpu: Option<&Arc<GpuRays>>) -> DeviceUsed {
     gpu.map_or_else(DeviceUsed::cpu, |g| g.used())
