@@ -353,21 +353,23 @@ fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>
     }
 }
 
-/// `--trace` of the real-time pipeline (`view`, `live`), whose sampling threads trace
-/// on the CPU only so far: `gpu` is an error rather than a silent CPU run, and `auto`
-/// says once that it traces on the CPU.
-fn realtime_trace(choice: settings::TraceDevice) -> Result<()> {
-    match choice {
-        settings::TraceDevice::Cpu => Ok(()),
-        settings::TraceDevice::Auto => {
-            eprintln!("note: --trace auto: the real-time pipeline traces on the CPU only so far; tracing on the CPU");
-            Ok(())
+/// `--trace` of the real-time pipeline (`view`, `live`) running `methods`, as
+/// [`acquire_trace`]; a GPU for a method whose sampling cannot trace on it is an error
+/// before any work, rather than a run that traces on the CPU.
+fn realtime_trace(
+    choice: settings::TraceDevice,
+    methods: &[frameless::realtime::RtMethod],
+) -> Result<Option<Arc<GpuContext>>> {
+    let got = acquire_trace(choice)?;
+    if got.is_some() {
+        if let Some(m) = methods.iter().find(|m| !m.traces_on_gpu()) {
+            bail!(
+                "--trace {choice}: {} (--trace cpu traces on the CPU)",
+                frameless::realtime::registry::cannot_trace_on_gpu(*m)
+            );
         }
-        settings::TraceDevice::Gpu => bail!(
-            "--trace gpu: the real-time pipeline (view, live) traces on the CPU only so far; \
-             use --trace cpu, or eval/render/table1 --trace gpu"
-        ),
     }
+    Ok(got)
 }
 
 /// Check `WGPU_BACKEND` as wgpu reads it (comma-separated backend names). wgpu skips a
@@ -820,7 +822,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     if let Some(p) = &a.screenshot {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
-    let cfg = view_config(&a, threads)?;
+    let mut cfg = view_config(&a, threads)?;
     let mut settings = view_settings(&a, a.method)?;
     if let Some(s) = a.seconds {
         frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
@@ -829,12 +831,14 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     settings.check_size(&cfg, w, h)?;
     let gpu = acquire_recon(a.devices.recon)?;
     settings.use_gpu(gpu.clone());
-    realtime_trace(a.devices.trace.trace)?;
+    let trace_gpu = realtime_trace(a.devices.trace.trace, &[a.method])?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
             .with_camera_path(load_camera_path(a.scene.camera_path.as_deref())?),
     );
+    cfg.rays = frameless::trace::batch::open(trace_gpu, &tracer)
+        .context("--trace gpu (--trace cpu traces on the CPU)")?;
     if a.headless {
         return view_headless(&a, tracer, cfg, settings);
     }
@@ -972,7 +976,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     }
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
-    realtime_trace(a.devices.trace.trace)?;
+    cfg.trace_gpu = realtime_trace(a.devices.trace.trace, &cfg.methods)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);

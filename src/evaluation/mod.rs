@@ -1508,20 +1508,27 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// `summary.json` records the reconstructor; one written before it did reads as
-    /// the CPU's, which made every result then.
+    /// `summary.json` records the reconstructor and the tracer; one written before it
+    /// did reads as the CPU's, which made every result then.
     #[test]
-    fn summaries_record_the_reconstructor_and_older_ones_read_as_the_cpus() {
+    fn summaries_record_the_devices_and_older_ones_read_as_the_cpus() {
         use crate::reconstruction::device::ReconUsed;
-        let s = EvalConfig::new("toycar").summary(Vec::new(), evaluation::Timing::default());
+        let s = EvalConfig::new("toycar").summary(Vec::new(), evaluation::Timing::default(), None);
         let mut v = serde_json::to_value(&s).expect("serialises");
-        assert_eq!(
-            v["recon"],
-            serde_json::json!({"device": "cpu", "adapter": null})
-        );
-        v.as_object_mut().expect("an object").remove("recon");
+        for field in ["recon", "trace"] {
+            assert_eq!(
+                v[field],
+                serde_json::json!({"device": "cpu", "adapter": null}),
+                "{field}"
+            );
+        }
+        assert!(v.get("trace_failure").is_none(), "no failure, no field");
+        let o = v.as_object_mut().expect("an object");
+        o.remove("recon");
+        o.remove("trace");
         let old: evaluation::Summary = serde_json::from_value(v).expect("reads");
         assert_eq!(old.recon, ReconUsed::cpu());
+        assert_eq!(old.trace, crate::gpu::DeviceUsed::cpu());
         assert_eq!(old, s);
     }
 

@@ -644,6 +644,43 @@ mod tests {
     }
 
     #[test]
+    fn gpu_entries_are_apart_from_the_cpus_and_a_cpu_fallback_is_not_stored() {
+        let dir = scratch("tracer");
+        let scene = Arc::new(builtin::toycar());
+        let tracer = Tracer::new(scene, 8, 6, TraceOptions::default());
+        let open = || IdealCache::new(&dir, &tracer, None).unwrap();
+        let cpu = open();
+        // The CPU's keys are as they were before there was a GPU tracer.
+        assert_eq!(
+            cpu.entry_key(0.5, 2, 1),
+            open().for_tracer(&DeviceUsed::cpu()).entry_key(0.5, 2, 1)
+        );
+        assert!(!cpu.entry_key(0.5, 2, 1).contains("tracer"));
+        let used = |adapter: &str| DeviceUsed {
+            device: "gpu".into(),
+            adapter: Some(adapter.into()),
+        };
+        let gpu = open().for_tracer(&used("lavapipe"));
+        let other = open().for_tracer(&used("another adapter"));
+        let key = gpu.entry_key(0.5, 2, 1);
+        assert!(key.contains("tracer gpu (lavapipe)"), "{key}");
+        let paths = [&cpu, &gpu, &other].map(|c| c.entry_path(0.5, 2, 1));
+        assert!(paths[0] != paths[1] && paths[1] != paths[2] && paths[0] != paths[2]);
+        // A CPU image under the GPU's key is served but not stored; the GPU's is.
+        let img = still::render(&tracer, 0.5, 2, 1, &|_| {});
+        let (_, l) = gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), false));
+        assert_eq!(l, Lookup::Miss);
+        assert!(!paths[1].exists(), "a fallback image was stored under the GPU's key");
+        let (_, l) = gpu.get_or_render(&tracer, 0.5, 2, 1);
+        assert_eq!(l, Lookup::Miss);
+        assert!(!paths[1].exists(), "a CPU image was stored under the GPU's key");
+        gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
+        assert_eq!(gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true)).1, Lookup::Hit);
+        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Miss);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
     fn the_fingerprint_sees_every_part_of_the_scene() {
         let base = builtin::toycar();
         let fp = scene_fingerprint(&base);
