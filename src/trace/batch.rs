@@ -12,7 +12,7 @@
 //! When the GPU fails part way, the failure is kept ([`GpuRays::failure`]) and every
 //! later batch is traced on the CPU, so that a run finishes and says why.
 
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use rayon::prelude::*;
 
@@ -26,8 +26,8 @@ const MIN_PER_THREAD: usize = 256;
 /// The GPU tracer of a run, shared by its methods and its ideal images.
 #[cfg(feature = "gpu")]
 pub struct GpuRays {
-    tracer: Mutex<super::gpu::GpuTracer>,
-    failure: Mutex<Option<String>>,
+    tracer: std::sync::Mutex<super::gpu::GpuTracer>,
+    failure: std::sync::Mutex<Option<String>>,
     used: DeviceUsed,
 }
 
@@ -44,8 +44,8 @@ impl GpuRays {
     ) -> Result<Self, super::gpu::GpuTraceError> {
         let used = ctx.used();
         Ok(Self {
-            tracer: Mutex::new(super::gpu::GpuTracer::new(ctx, tracer)?),
-            failure: Mutex::new(None),
+            tracer: std::sync::Mutex::new(super::gpu::GpuTracer::new(ctx, tracer)?),
+            failure: std::sync::Mutex::new(None),
             used,
         })
     }
