@@ -25,12 +25,12 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// `frameless eval` of `methods` on toycar at 64x48 (0.25 s after a 0.5 s warm-up at
-/// 100K samples/s, 16-spp ideals) with `extra` arguments, into `out`.
+/// `frameless eval` of `methods` on toycar at 64x48 (0.25 s after a 0.5 s warm-up,
+/// 16-spp ideals) with `extra` arguments (the rate among them), into `out`.
 fn eval(methods: &str, extra: &[&str], out: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_frameless"))
         .args(["eval", "--scene", "toycar", "--size", "64x48", "--start", "1"])
-        .args(["--duration", "0.25", "--warmup", "0.5", "--rate", "100k"])
+        .args(["--duration", "0.25", "--warmup", "0.5"])
         .args(["--method", methods, "--no-cache"])
         .args(extra)
         .arg("--out")
@@ -117,7 +117,7 @@ fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
 fn eval_records_the_cpu_tracer_by_default() {
     let d = scratch("cpu");
     let out = d.join("out");
-    let o = eval("traditional-frameless", &["--ideal-spp", "1"], &out);
+    let o = eval("traditional-frameless", &["--ideal-spp", "1", "--rate", "100k"], &out);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         summary(&out)["trace"],
@@ -262,26 +262,25 @@ fn frame_metrics(dir: &Path) -> Vec<(String, f64, f64)> {
         .collect()
 }
 
-/// Issue 48's criterion: `eval --trace gpu` of traditional frameless and adaptive
-/// within RMS 0.5 and 1% FLIP of `--trace cpu`, frame by frame, and the strips'
-/// displayed images within RMS 0.5 of each other.
+/// `eval` of `methods` at `rate` with `--trace cpu` and `--trace gpu`: every frame's RMS
+/// within 0.5 and FLIP within 0.01 (1%) of each other, and the strips' displayed
+/// images within RMS 0.5 of each other; the GPU run records the GPU.
 #[cfg(feature = "gpu")]
-#[test]
-#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
-fn gpu_eval_traced_on_the_gpu_matches_the_cpu() {
-    let d = scratch("eval");
-    let methods = "traditional-frameless,adaptive";
+fn assert_eval_alike(name: &str, methods: &str, rate: &str) {
+    let d = scratch(name);
     let (cpu, gpu) = (d.join("cpu"), d.join("gpu"));
-    let o = eval(methods, &["--trace", "cpu"], &cpu);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let o = eval(methods, &["--trace", "gpu"], &gpu);
-    assert!(o.status.success(), "{}", stderr(&o));
+    for (out, trace) in [(&cpu, "cpu"), (&gpu, "gpu")] {
+        let o = eval(methods, &["--trace", trace, "--rate", rate], out);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
     let s = summary(&gpu);
     assert_eq!(s["trace"]["device"], "gpu", "{s}");
     assert!(s.get("trace_failure").is_none(), "{s}");
     let (a, b) = (frame_metrics(&cpu), frame_metrics(&gpu));
     assert_eq!(a.len(), b.len());
-    assert!(a.iter().any(|r| r.0 == "adaptive") && a.iter().any(|r| r.0 == "traditional-frameless"));
+    for m in methods.split(',') {
+        assert!(a.iter().any(|r| r.0 == m), "no frames of {m}");
+    }
     for ((m, rms_a, flip_a), (_, rms_b, flip_b)) in a.iter().zip(&b) {
         assert!((rms_a - rms_b).abs() <= 0.5, "{m}: RMS {rms_a} on the CPU, {rms_b} on the GPU");
         assert!((flip_a - flip_b).abs() <= 0.01, "{m}: FLIP {flip_a} on the CPU, {flip_b} on the GPU");
@@ -301,4 +300,23 @@ fn gpu_eval_traced_on_the_gpu_matches_the_cpu() {
         assert!(rms <= 0.5, "{name}: the strips differ by RMS {rms}");
     }
     let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Issue 48's criterion: `eval --trace gpu` of traditional frameless and adaptive
+/// within RMS 0.5 and 1% FLIP of `--trace cpu`.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_eval_traced_on_the_gpu_matches_the_cpu() {
+    assert_eval_alike("eval", "traditional-frameless,adaptive", "100k");
+}
+
+/// The same of every other simulated method (the late warps trace through the framed
+/// methods, TAA's warp through TAA).
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_eval_of_the_other_methods_matches_the_cpu() {
+    let methods = "framed-60hz,framed-full,full-res-60hz,point-tracking,taa,late-warp,taa-warp";
+    assert_eval_alike("others", methods, "400k");
 }
