@@ -59,6 +59,7 @@ fn every_command_that_traces_takes_trace_and_lists_its_values() {
 }
 
 /// `view --headless` of `method` for one second on toycar at 64x48 with `extra`.
+#[cfg(feature = "gpu")]
 fn view(method: &str, extra: &[&str], out: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_frameless"))
         .args(["view", "--headless", "--method", method, "--size", "64x48"])
@@ -250,6 +251,7 @@ fn gpu_still_traced_on_the_gpu_matches_the_cpu() {
 }
 
 /// Per-frame RMS and FLIP of `dir`'s `frames.csv`, by method.
+#[cfg(feature = "gpu")]
 fn frame_metrics(dir: &Path) -> Vec<(String, f64, f64)> {
     let text = std::fs::read_to_string(dir.join("frames.csv")).expect("frames.csv");
     text.lines()
