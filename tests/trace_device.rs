@@ -322,3 +322,33 @@ fn gpu_eval_of_the_other_methods_matches_the_cpu() {
     let methods = "framed-60hz,framed-full,full-res-60hz,point-tracking,taa,late-warp,taa-warp";
     assert_eval_alike("others", methods, "400k");
 }
+
+/// GPU ideals are cached and served again, and never served to a CPU run (nor the
+/// CPU's to a GPU run).
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_ideals_are_cached_apart_from_the_cpus() {
+    let d = scratch("cache");
+    let cache = d.join("cache");
+    let run = |trace: &str, k: u32| {
+        let out = d.join(format!("{trace}{k}"));
+        let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .args(["eval", "--size", "32x24", "--duration", "0.1", "--warmup", "0.1"])
+            .args(["--method", "traditional-frameless", "--rate", "100k"])
+            .args(["--trace", trace, "--cache-dir"])
+            .arg(&cache)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("the binary runs");
+        assert!(o.status.success(), "{}", stderr(&o));
+        summary(&out)["timing"]["ideal_cache_hits"].as_u64().expect("a count")
+    };
+    assert_eq!(run("gpu", 1), 0);
+    assert_eq!(run("gpu", 2), 6, "the GPU's ideals were not served again");
+    assert_eq!(run("cpu", 1), 0, "a CPU run was served the GPU's ideals");
+    assert_eq!(run("cpu", 2), 6);
+    assert_eq!(run("gpu", 3), 6);
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -522,15 +522,15 @@ impl IdealCache {
     /// The ideal image at time `t` as displayed (8-bit values), from disk when a valid
     /// entry is there, else rendered and stored; and what the lookup found.
     pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> (Image, Lookup) {
-        let gpu = self.gpu;
         self.get_or_render_with(t, spp, seed, || {
-            (still::render(tracer, t, spp, seed, &|_| {}), !gpu)
+            (still::render(tracer, t, spp, seed, &|_| {}), false)
         })
     }
 
     /// [`get_or_render`](Self::get_or_render) with the image made by `render`, which
-    /// also says whether the tracer the key names made it (an image that fell back to
-    /// the CPU is served but not stored under a GPU key).
+    /// also says whether the GPU tracer made it. An image is stored only under the key
+    /// of the tracer that made it: one that fell back to the CPU is served but not
+    /// stored under a GPU key.
     pub fn get_or_render_with(
         &self,
         t: f64,
@@ -545,9 +545,9 @@ impl IdealCache {
             Ok(rgb) => return (from_rgb8(w, h, &rgb), Lookup::Hit),
             Err(lookup) => lookup,
         };
-        let (img, store) = render();
+        let (img, on_gpu) = render();
         let rgb = img.to_rgb8();
-        if !store {
+        if on_gpu != self.gpu {
             return (from_rgb8(w, h, &rgb), lookup);
         }
         let checksum = format!("{:016x}", pixel_checksum(w, h, &rgb));
@@ -676,7 +676,11 @@ mod tests {
         assert!(!paths[1].exists(), "a CPU image was stored under the GPU's key");
         gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
         assert_eq!(gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true)).1, Lookup::Hit);
+        // And a GPU image never under the CPU's key; the CPU's own is stored.
+        cpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
+        assert!(!paths[0].exists(), "a GPU image was stored under the CPU's key");
         assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Miss);
+        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Hit);
         let _ = std::fs::remove_dir_all(&dir);
     }
 
