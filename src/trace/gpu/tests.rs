@@ -209,11 +209,7 @@ fn gpu_trace_toycar_matches_the_cpu() {
 /// spheres, cylinders; matte, mirror and glass) each on its own path, spinning, over a
 /// textured floor, lit by two lights, seen from above.
 fn swarm(n: u32) -> Scene {
-    use crate::scene::{
-        animation::{RotationSpline, TcbKey, VectorSpline},
-        Camera, CameraTrack, Cone, Group, KeyframeTrack, Light, Material, Node, NodeKind,
-        Sphere,
-    };
+    use crate::scene::{Material, Node, NodeKind};
     let mut s = builtin("toycar");
     s.name = "swarm".into();
     // Keep toycar's floor, textures and materials; drop its car and props.
@@ -242,19 +238,6 @@ fn swarm(n: u32) -> Scene {
         },
     ]);
     for i in 0..n * n {
-        let (gx, gz) = ((i % n) as f32, (i / n) as f32);
-        let c = Vec3::new((gx - 0.5 * n as f32) * 0.9, 0.3, (gz - 0.5 * n as f32) * 0.9);
-        let phase = i as f32 * 0.7;
-        let keys = (-2..=12)
-            .map(|k| {
-                let t = k as f32 * 0.5;
-                let a = t + phase;
-                TcbKey::catmull_rom(t, c + Vec3::new(0.3 * a.cos(), 0.1 * (2.0 * a).sin(), 0.3 * a.sin()))
-            })
-            .collect();
-        let spin = (-2..=12)
-            .map(|k| TcbKey::catmull_rom(k as f32 * 0.5, (Vec3::Y, k as f32 * 40.0 + phase * 50.0)))
-            .collect();
         s.nodes.push(Node {
             parent: None,
             kind: NodeKind::Animated {
@@ -262,47 +245,74 @@ fn swarm(n: u32) -> Scene {
                 track: Some(s.tracks.len() as u32),
             },
         });
-        s.tracks.push(KeyframeTrack {
-            name: format!("o{i}"),
-            translation: VectorSpline::new(keys),
-            rotation: RotationSpline::new(spin),
-            ..Default::default()
-        });
-        let material = m + i % 3;
-        let mut g = Group {
-            node: Some(s.nodes.len() as u32 - 1),
-            ..Default::default()
-        };
-        match i % 3 {
-            0 => g.triangles = cube_triangles(0.2, material),
-            1 => g.spheres.push(Sphere {
-                center: Vec3::ZERO,
-                radius: 0.22,
-                material,
-            }),
-            _ => g.cones.push(Cone {
-                base: Vec3::new(0.0, -0.2, 0.0),
-                base_radius: 0.15,
-                apex: Vec3::new(0.0, 0.2, 0.0),
-                apex_radius: 0.05,
-                material,
-            }),
-        }
-        s.groups.push(g);
+        s.tracks.push(swarm_track(i, n));
+        s.groups.push(swarm_object(i, s.nodes.len() as u32 - 1, m + i % 3));
     }
+    swarm_stage(&mut s);
+    s
+}
+
+/// Object `i`'s path over an `n × n` grid: a loop about its cell, spinning.
+fn swarm_track(i: u32, n: u32) -> crate::scene::KeyframeTrack {
+    use crate::scene::animation::{RotationSpline, TcbKey, VectorSpline};
+    let (gx, gz) = ((i % n) as f32, (i / n) as f32);
+    let c = Vec3::new((gx - 0.5 * n as f32) * 0.9, 0.3, (gz - 0.5 * n as f32) * 0.9);
+    let phase = i as f32 * 0.7;
+    let keys = (-2..=12)
+        .map(|k| {
+            let a = k as f32 * 0.5 + phase;
+            let p = c + Vec3::new(0.3 * a.cos(), 0.1 * (2.0 * a).sin(), 0.3 * a.sin());
+            TcbKey::catmull_rom(k as f32 * 0.5, p)
+        })
+        .collect();
+    let spin = (-2..=12)
+        .map(|k| TcbKey::catmull_rom(k as f32 * 0.5, (Vec3::Y, k as f32 * 40.0 + phase * 50.0)))
+        .collect();
+    crate::scene::KeyframeTrack {
+        name: format!("o{i}"),
+        translation: VectorSpline::new(keys),
+        rotation: RotationSpline::new(spin),
+        ..Default::default()
+    }
+}
+
+/// Object `i` under `node`: a box, a sphere or a cylinder by turns.
+fn swarm_object(i: u32, node: u32, material: u32) -> crate::scene::Group {
+    use crate::scene::{Cone, Group, Sphere};
+    let mut g = Group {
+        node: Some(node),
+        ..Default::default()
+    };
+    match i % 3 {
+        0 => g.triangles = cube_triangles(0.2, material),
+        1 => g.spheres.push(Sphere {
+            center: Vec3::ZERO,
+            radius: 0.22,
+            material,
+        }),
+        _ => g.cones.push(Cone {
+            base: Vec3::new(0.0, -0.2, 0.0),
+            base_radius: 0.15,
+            apex: Vec3::new(0.0, 0.2, 0.0),
+            apex_radius: 0.05,
+            material,
+        }),
+    }
+    g
+}
+
+/// Two lights and a camera above the swarm.
+fn swarm_stage(s: &mut Scene) {
+    use crate::scene::{Camera, CameraTrack, Light};
+    let light = |position, c| Light {
+        position,
+        color: Vec3::splat(c),
+        track: None,
+        name: None,
+    };
     s.lights = vec![
-        Light {
-            position: Vec3::new(2.0, 6.0, 3.0),
-            color: Vec3::splat(0.7),
-            track: None,
-            name: None,
-        },
-        Light {
-            position: Vec3::new(-3.0, 4.0, -2.0),
-            color: Vec3::splat(0.35),
-            track: None,
-            name: None,
-        },
+        light(Vec3::new(2.0, 6.0, 3.0), 0.7),
+        light(Vec3::new(-3.0, 4.0, -2.0), 0.35),
     ];
     s.camera = CameraTrack {
         base: Camera {
@@ -315,7 +325,6 @@ fn swarm(n: u32) -> Scene {
         track: None,
         resolution: None,
     };
-    s
 }
 
 /// An axis-aligned cube of half-side `h` about the origin, as twelve triangles.
