@@ -369,12 +369,14 @@ def live(
     recon: str = "cpu",
     progress: Progress = True,
     seconds: Optional[float] = None,
+    trace: str = "cpu",
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
     scored against the ideal image at its scan-out time. ``threads`` sizes the pipeline
     as ``--threads`` does. Ctrl-C stops it when the run in progress ends. ``seconds``
-    is ``duration``'s old name (a FutureWarning says so)."""
+    is ``duration``'s old name (a FutureWarning says so). ``recon`` and ``trace`` are
+    ``--recon`` and ``--trace`` (see ``evaluate``)."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)
@@ -385,7 +387,7 @@ def live(
         summary, frames = _frameless.live(
             native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
-            texture_filter, _cache_dir(cache_dir, no_cache), recon, cb,
+            texture_filter, _cache_dir(cache_dir, no_cache), recon, cb, trace,
         )
     return Evaluation._from_json(summary, frames)
 

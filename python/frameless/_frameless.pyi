@@ -105,6 +105,7 @@ def live(
     cache_dir: Optional[str],
     recon: str = "cpu",
     progress: ProgressCallback = None,
+    trace: str = "cpu",
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 

@@ -78,14 +78,15 @@ fn evaluate(
 }
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
-///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None)
+///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
+///      trace="cpu")
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
 #[pyfunction]
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
-                    progress=None))]
+                    progress=None, trace="cpu"))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -105,6 +106,7 @@ fn live(
     cache_dir: Option<PathBuf>,
     recon: &str,
     progress: Option<Bound<'_, PyAny>>,
+    trace: &str,
 ) -> PyResult<(String, String)> {
     args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
@@ -132,6 +134,7 @@ fn live(
     }
     cfg.validate().map_err(errors::eval)?;
     cfg.gpu = args::recon(recon)?;
+    cfg.trace_gpu = args::trace(trace)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = live_eval::run(scene, &cfg, work).map_err(errors::eval)?;

@@ -428,6 +428,8 @@ def test_trace_is_the_commands(toycar):
         frameless.evaluate(toycar, trace="cpx", progress=False)
     with pytest.raises(ValueError, match="trace=.gpu.: .*GPU"):
         frameless.render(toycar, "adaptive", trace="gpu", progress=False)
+    with pytest.raises(ValueError, match="trace=.gpu.: .*GPU"):
+        frameless.live(toycar, "adaptive", trace="gpu", progress=False)
     kw = dict(methods="traditional-frameless", rates="100k", duration=0.05, size=(16, 16),
               no_cache=True, progress=False)
     cpu = frameless.evaluate(toycar, trace="cpu", **kw)
