@@ -150,7 +150,7 @@ fn bench(a: args::BenchArgs) -> Result<()> {
         return bench_live_recon(a.json);
     }
     let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.devices.trace.trace)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -330,10 +330,19 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
 
 /// The GPU `--trace` asks for, as [`acquire_recon`] does for `--recon`: one line on
 /// stderr saying where rays are traced when that is not the CPU asked for; `auto`
-/// falls back to the CPU (and says so once) whenever no GPU can be had.
-fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>>> {
+/// falls back to the CPU (and says so once) whenever no GPU can be had. The
+/// reconstructor's GPU `recon`, where it is one `choice` accepts (`auto` takes no
+/// software adapter), is shared rather than a second device opened on it.
+fn acquire_trace(
+    choice: settings::TraceDevice,
+    recon: Option<&Arc<GpuContext>>,
+) -> Result<Option<Arc<GpuContext>>> {
     if choice == settings::TraceDevice::Cpu {
         return Ok(None);
+    }
+    if let Some(g) = recon.filter(|g| choice == settings::TraceDevice::Gpu || !g.is_software()) {
+        eprintln!("tracing on {}", g.describe());
+        return Ok(Some(g.clone()));
     }
     let got = check_wgpu_backend().and_then(|()| Ok(frameless::gpu::acquire(choice)?));
     match got {
@@ -358,9 +367,10 @@ fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>
 /// before any work, rather than a run that traces on the CPU.
 fn realtime_trace(
     choice: settings::TraceDevice,
+    recon: Option<&Arc<GpuContext>>,
     methods: &[frameless::realtime::RtMethod],
 ) -> Result<Option<Arc<GpuContext>>> {
-    let got = acquire_trace(choice)?;
+    let got = acquire_trace(choice, recon)?;
     if got.is_some() {
         if let Some(m) = methods.iter().find(|m| !m.traces_on_gpu()) {
             bail!(
@@ -407,7 +417,7 @@ fn check_wgpu_backend() -> Result<()> {
 /// `frameless still`.
 fn still(a: args::StillArgs) -> Result<()> {
     let (out, format) = still_target(&a)?;
-    let trace_gpu = acquire_trace(a.trace.trace)?;
+    let trace_gpu = acquire_trace(a.trace.trace, None)?;
     let scene = load_scene(&a.scene.scene)?;
     let path = load_camera_path(a.scene.camera_path.as_deref())?;
     let Size(w, h) = a.size;
@@ -514,7 +524,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     cfg.set_groups(&a.display, &a.quality, &a.reference);
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
-    cfg.trace_gpu = acquire_trace(a.devices.trace.trace)?;
+    cfg.trace_gpu = acquire_trace(a.devices.trace.trace, cfg.gpu.as_ref())?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
@@ -564,9 +574,10 @@ fn render(a: args::RenderArgs) -> Result<()> {
         trace_gpu: None,
     };
     cfg.validate()?;
+    let gpu = acquire_recon(a.devices.recon)?;
     let cfg = SequenceConfig {
-        gpu: acquire_recon(a.devices.recon)?,
-        trace_gpu: acquire_trace(a.devices.trace.trace)?,
+        trace_gpu: acquire_trace(a.devices.trace.trace, gpu.as_ref())?,
+        gpu,
         ..cfg
     };
     let scene = Arc::new(load_scene(&a.scene.scene)?);
@@ -603,7 +614,7 @@ fn table1(a: args::Table1Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     // One GPU for every animation's evaluation.
     let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.devices.trace.trace)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
     for cfg in &mut cfgs {
         cfg.gpu = gpu.clone();
         cfg.trace_gpu = trace_gpu.clone();
@@ -831,7 +842,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     settings.check_size(&cfg, w, h)?;
     let gpu = acquire_recon(a.devices.recon)?;
     settings.use_gpu(gpu.clone());
-    let trace_gpu = realtime_trace(a.devices.trace.trace, &[a.method])?;
+    let trace_gpu = realtime_trace(a.devices.trace.trace, gpu.as_ref(), &[a.method])?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
@@ -976,7 +987,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     }
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
-    cfg.trace_gpu = realtime_trace(a.devices.trace.trace, &cfg.methods)?;
+    cfg.trace_gpu = realtime_trace(a.devices.trace.trace, cfg.gpu.as_ref(), &cfg.methods)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
