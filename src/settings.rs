@@ -341,7 +341,7 @@ pub fn default_cache_dir() -> PathBuf {
     }
 }
 
-/// Where the work runs: the reconstructor's device.
+/// Where the work runs: the reconstructor's device and the tracer's.
 #[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
 pub struct DevicesGroup {
     /// Where the adaptive reconstructor runs: cpu (the reference; committed results
@@ -352,6 +352,9 @@ pub struct DevicesGroup {
     /// error, not a silent fallback.
     #[arg(long, value_name = "DEVICE", default_value = "cpu", value_parser = recon_parser())]
     pub recon: ReconDevice,
+    /// Where rays are traced (`--trace`).
+    #[command(flatten)]
+    pub trace: TraceGroup,
 }
 
 /// Where rays are traced: `--trace cpu|gpu|auto`, the same three choices as `--recon`.
@@ -370,8 +373,8 @@ fn trace_parser() -> impl clap::builder::TypedValueParser<Value = TraceDevice> {
     clap::builder::PossibleValuesParser::new(values).try_map(|s| s.parse::<TraceDevice>())
 }
 
-/// Where rays are traced. Declared once; flattened only into the commands that honour
-/// it, so that no command accepts `--trace gpu` and traces on the CPU.
+/// Where rays are traced. Declared once: part of [`DevicesGroup`], and flattened on
+/// its own into `still`, which reconstructs nothing.
 #[derive(clap::Args, Clone, Copy, Debug, PartialEq)]
 pub struct TraceGroup {
     /// Where rays are traced: cpu (the reference), gpu (wgpu compute shaders with

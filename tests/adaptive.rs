@@ -80,6 +80,7 @@ fn ctx(scene: Scene, size: u32, rate: f64) -> MethodContext {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     }
 }
 
@@ -324,6 +325,7 @@ fn evaluation_with_adaptive_is_thread_count_independent() {
         strip_frames: vec![],
         flip_every: 4,
         gpu: None,
+        trace_gpu: None,
     };
     let run = |n: usize| {
         rayon::ThreadPoolBuilder::new()

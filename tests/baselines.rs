@@ -83,6 +83,7 @@ fn point_tracking_histogram_on_a_one_pixel_pan() {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = PointTracking::new(&ctx, true);
     m.display(0.25); // frames 0 and 1 complete (0.1 s each) and are tracked once
@@ -117,6 +118,7 @@ fn cfg(methods: &[MethodKind], rate: f64, duration: f64) -> EvalConfig {
         strip_frames: vec![],
         flip_every: 1000,
         gpu: None,
+        trace_gpu: None,
     }
 }
 
@@ -193,6 +195,7 @@ fn taa_rejects_history_at_a_disocclusion() {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = Taa::new(&ctx, TaaParams::default()).unwrap();
     // Frame j starts at refresh j and is shown at refresh j + 1: frame 30, the first
@@ -329,6 +332,7 @@ fn late_warp_shows_a_panned_scene_in_the_right_place_at_no_ray_cost() {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let (mut warp, mut framed) = (
         LateWarp::new(&ctx).unwrap(),

@@ -42,6 +42,7 @@ fn config(cache_dir: Option<PathBuf>) -> EvalConfig {
         strip_frames: vec![0, 3],
         flip_every: 1,
         gpu: None,
+        trace_gpu: None,
     }
 }
 

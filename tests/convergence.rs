@@ -44,6 +44,7 @@ fn cfg(methods: &[MethodKind], warmup: f64, duration: f64) -> EvalConfig {
         strip_frames: vec![],
         flip_every: 1000,
         gpu: None,
+        trace_gpu: None,
         texture_filter: TextureFilter::RayCones,
     }
 }
@@ -171,6 +172,7 @@ fn an_object_that_starts_moving_after_a_long_still_leaves_no_ghost() {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let build = |m: MethodKind| (m.info().build)(&ctx).unwrap();
     let (mut ours, mut without) = (

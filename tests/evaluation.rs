@@ -99,6 +99,7 @@ fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> 
         strip_frames: vec![0],
         flip_every: 1,
         gpu: None,
+        trace_gpu: None,
     }
 }
 
@@ -130,6 +131,7 @@ fn double_buffering_timing_hand_worked() {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = Framed::full_res(&ctx).unwrap();
     assert_eq!(m.samples_per_frame(), 768);

@@ -189,6 +189,7 @@ fn silhouette_error(recon: ReconParams) -> f64 {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = Adaptive::with_reconstructor(&ctx, SamplerParams::ours(), recon).unwrap();
     let (w, h) = (size as i64, size as i64);

@@ -166,6 +166,7 @@ fn ctx(scene: Scene, size: u32, rate: f64) -> MethodContext {
         ideal_spp: 16,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     }
 }
 

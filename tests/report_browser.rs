@@ -45,6 +45,7 @@ fn write_report(dir: &Path) {
         strip_frames: vec![1, 4],
         flip_every: 1,
         gpu: None,
+        trace_gpu: None,
     };
     let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
     let mut out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");

@@ -42,6 +42,7 @@ fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
         strip_frames: vec![],
         flip_every: 1000,
         gpu: None,
+        trace_gpu: None,
         texture_filter: frameless::trace::TextureFilter::None,
     }
 }

@@ -318,6 +318,7 @@ def evaluate(
     recon: str = "cpu",
     progress: Progress = True,
     video_metric: Optional[str] = None,
+    trace: str = "cpu",
     video_display: str = "standard_fhd",
 ) -> Evaluation:
     """``frameless eval``: every method at every rate against the ideal image at each
@@ -329,7 +330,8 @@ def evaluate(
     ``video_display`` to every result row (``jod``; the extra ``frameless[vdp]``, see
     ``frameless.vdp``). ``recon`` is ``--recon``: ``"cpu"`` (the reference) or
     ``"auto"``; this module is built without the GPU reconstructor, so ``"gpu"``
-    raises ValueError and ``"auto"`` runs on the CPU."""
+    raises ValueError and ``"auto"`` runs on the CPU. ``trace`` is ``--trace``, the
+    same three choices for the tracer, and the same refusal of ``"gpu"`` here."""
     if video_metric is not None and video_metric not in VIDEO_METRICS:
         raise ValueError(f"video_metric {video_metric!r}: the one video metric is 'cvvdp'")
     native = _scene(scene)._native
@@ -337,7 +339,7 @@ def evaluate(
         summary, frames = _frameless.evaluate(
             native, _methods(methods), _rates(rates), float(start), float(duration),
             _size(size), float(refresh_hz), seed, ideal_spp, float(warmup), max_depth,
-            texture_filter, flip_every, _cache_dir(cache_dir, no_cache), recon, cb,
+            texture_filter, flip_every, _cache_dir(cache_dir, no_cache), recon, cb, trace,
         )
     ev = Evaluation._from_json(summary, frames)
     if video_metric is not None:
@@ -367,12 +369,14 @@ def live(
     recon: str = "cpu",
     progress: Progress = True,
     seconds: Optional[float] = None,
+    trace: str = "cpu",
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
     scored against the ideal image at its scan-out time. ``threads`` sizes the pipeline
     as ``--threads`` does. Ctrl-C stops it when the run in progress ends. ``seconds``
-    is ``duration``'s old name (a FutureWarning says so)."""
+    is ``duration``'s old name (a FutureWarning says so). ``recon`` and ``trace`` are
+    ``--recon`` and ``--trace`` (see ``evaluate``)."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)
@@ -383,7 +387,7 @@ def live(
         summary, frames = _frameless.live(
             native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
-            texture_filter, _cache_dir(cache_dir, no_cache), recon, cb,
+            texture_filter, _cache_dir(cache_dir, no_cache), recon, cb, trace,
         )
     return Evaluation._from_json(summary, frames)
 
@@ -426,19 +430,20 @@ def render(
     texture_filter: str = "ray-cones",
     recon: str = "cpu",
     progress: Progress = True,
+    trace: str = "cpu",
 ) -> Render:
     """``frameless render``: what ``method`` displays at each refresh of
     ``[start, start + duration)`` under the simulated clock at ``rate`` samples per
     second. Yields ``(time, image)``, the image ``H×W×3`` float32 display values
     (``to_linear`` gives ``--format exr``'s frames, ``to_display`` the PNG frames'
-    bytes). The
-    settings are checked here, before the first image."""
+    bytes). ``recon`` and ``trace`` are ``--recon`` and ``--trace`` (see
+    ``evaluate``). The settings are checked here, before the first image."""
     rates = _rates(rate)
     if len(rates) != 1:
         raise ValueError(f"rate {rate!r}: render runs one rate")
     native = _frameless.NativeRender(
         _scene(scene)._native, _methods(method)[0], rates[0], float(start), float(duration),
         float(warmup), _size(size), float(refresh_hz), seed, max_depth, texture_filter,
-        recon,
+        recon, trace,
     )
     return Render(native, progress)

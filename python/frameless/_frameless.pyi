@@ -84,6 +84,7 @@ def evaluate(
     cache_dir: Optional[str],
     recon: str = "cpu",
     progress: ProgressCallback = None,
+    trace: str = "cpu",
 ) -> Tuple[str, str]:
     """`frameless eval`: (summary JSON, per-frame rows JSON)."""
 
@@ -104,6 +105,7 @@ def live(
     cache_dir: Optional[str],
     recon: str = "cpu",
     progress: ProgressCallback = None,
+    trace: str = "cpu",
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 
@@ -125,6 +127,7 @@ class NativeRender:
         max_depth: int,
         texture_filter: str,
         recon: str = "cpu",
+        trace: str = "cpu",
     ) -> None: ...
     def __iter__(self) -> Iterator[Tuple[float, npt.NDArray[np.float32]]]: ...
     def __next__(self) -> Tuple[float, npt.NDArray[np.float32]]: ...

@@ -70,6 +70,20 @@ pub fn recon(name: &str) -> PyResult<Option<std::sync::Arc<GpuContext>>> {
     device::acquire(choice).map_err(|e| value(format!("recon={name:?}: {}", message(&e))))
 }
 
+/// `trace=`, as `--trace` takes it: the GPU the samples are traced on (`None`: the
+/// CPU tracer). This module is built without GPU support, so `gpu` is refused with the
+/// library's reason and `auto` traces on the CPU, as the binary built so does.
+pub fn trace(name: &str) -> PyResult<Option<std::sync::Arc<GpuContext>>> {
+    let names = settings::TraceDevice::ALL.map(|d| d.name());
+    let choice: settings::TraceDevice = name.parse().map_err(|_| {
+        value(format!(
+            "trace={name:?}: expected 'cpu', 'gpu' or 'auto'{}",
+            did_you_mean(name, &names)
+        ))
+    })?;
+    frameless::gpu::acquire(choice).map_err(|e| value(format!("trace={name:?}: {}", message(&e))))
+}
+
 /// "; did you mean 'x'?" for the known name closest to `name` (at most a third of its
 /// letters changed), or nothing.
 pub fn did_you_mean(name: &str, known: &[&str]) -> String {

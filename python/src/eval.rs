@@ -16,7 +16,7 @@ fn json<T: serde::Serialize>(v: &T) -> String {
 
 /// evaluate(scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
 ///          warmup, max_depth, texture_filter, flip_every, cache_dir, recon="cpu",
-///          progress=None)
+///          progress=None, trace="cpu")
 /// --
 ///
 /// `frameless eval` with these settings: `(summary_json, frames_json)`; `cache_dir`
@@ -24,7 +24,7 @@ fn json<T: serde::Serialize>(v: &T) -> String {
 #[pyfunction]
 #[pyo3(signature = (scene, methods, rates, start, duration, size, refresh_hz, seed, ideal_spp,
                     warmup, max_depth, texture_filter, flip_every, cache_dir, recon="cpu",
-                    progress=None))]
+                    progress=None, trace="cpu"))]
 #[allow(clippy::too_many_arguments)]
 fn evaluate(
     py: Python<'_>,
@@ -44,6 +44,7 @@ fn evaluate(
     cache_dir: Option<PathBuf>,
     recon: &str,
     progress: Option<Bound<'_, PyAny>>,
+    trace: &str,
 ) -> PyResult<(String, String)> {
     args::in_range("flip_every", flip_every, 1, u32::MAX as u64)?;
     let (display, quality, reference) = args::groups(
@@ -68,6 +69,7 @@ fn evaluate(
     cfg.set_groups(&display, &quality, &reference);
     cfg.validate().map_err(errors::eval)?;
     cfg.gpu = args::recon(recon)?;
+    cfg.trace_gpu = args::trace(trace)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = evaluation::run(scene, &cfg, work).map_err(errors::eval)?;
@@ -76,14 +78,15 @@ fn evaluate(
 }
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
-///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None)
+///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
+///      trace="cpu")
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
 #[pyfunction]
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
-                    progress=None))]
+                    progress=None, trace="cpu"))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -103,6 +106,7 @@ fn live(
     cache_dir: Option<PathBuf>,
     recon: &str,
     progress: Option<Bound<'_, PyAny>>,
+    trace: &str,
 ) -> PyResult<(String, String)> {
     args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
@@ -130,6 +134,7 @@ fn live(
     }
     cfg.validate().map_err(errors::eval)?;
     cfg.gpu = args::recon(recon)?;
+    cfg.trace_gpu = args::trace(trace)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = live_eval::run(scene, &cfg, work).map_err(errors::eval)?;

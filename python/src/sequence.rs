@@ -50,13 +50,13 @@ fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::S
 #[pymethods]
 impl NativeRender {
     /// NativeRender(scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
-    ///              max_depth, texture_filter, recon="cpu")
+    ///              max_depth, texture_filter, recon="cpu", trace="cpu")
     /// --
     ///
     /// Checks the settings as `frameless render` does, then starts the method.
     #[new]
     #[pyo3(signature = (scene, method, rate, start, duration, warmup, size, refresh_hz, seed,
-                        max_depth, texture_filter, recon="cpu"))]
+                        max_depth, texture_filter, recon="cpu", trace="cpu"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         scene: &NativeScene,
@@ -71,6 +71,7 @@ impl NativeRender {
         max_depth: u64,
         texture_filter: &str,
         recon: &str,
+        trace: &str,
     ) -> PyResult<Self> {
         let (width, height) = args::size(size)?;
         args::ideal_spp_and_depth(1, max_depth)?;
@@ -90,10 +91,14 @@ impl NativeRender {
             texture_filter: args::texture_filter(texture_filter)?,
             format: ImageFormat::Exr,
             gpu: None,
+            trace_gpu: None,
         };
         cfg.validate().map_err(errors::eval)?;
+        // This module is CPU-only: `trace` is checked (gpu refused, auto the CPU), and
+        // the sequence traces on the CPU as `sequence::method_context` sets it up.
         let cfg = SequenceConfig {
             gpu: args::recon(recon)?,
+            trace_gpu: args::trace(trace)?,
             ..cfg
         };
         let len = cfg.frames();

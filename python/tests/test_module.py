@@ -418,6 +418,26 @@ def test_recon_is_the_commands(toycar):
     assert cpu.results[0]["rms_mean"] == auto.results[0]["rms_mean"]
 
 
+def test_trace_is_the_commands(toycar):
+    # `trace=` beside `recon=`: this module is built without GPU support, so gpu is
+    # refused with the library's reason, a typo gets the command line's suggestion, and
+    # auto traces on the CPU, recorded in the summary.
+    with pytest.raises(ValueError, match="trace=.gpu.: .*GPU"):
+        frameless.evaluate(toycar, trace="gpu", progress=False)
+    with pytest.raises(ValueError, match="did you mean 'cpu'"):
+        frameless.evaluate(toycar, trace="cpx", progress=False)
+    with pytest.raises(ValueError, match="trace=.gpu.: .*GPU"):
+        frameless.render(toycar, "adaptive", trace="gpu", progress=False)
+    with pytest.raises(ValueError, match="trace=.gpu.: .*GPU"):
+        frameless.live(toycar, "adaptive", trace="gpu", progress=False)
+    kw = dict(methods="traditional-frameless", rates="100k", duration=0.05, size=(16, 16),
+              no_cache=True, progress=False)
+    cpu = frameless.evaluate(toycar, trace="cpu", **kw)
+    auto = frameless.evaluate(toycar, trace="auto", **kw)
+    assert cpu.results[0]["rms_mean"] == auto.results[0]["rms_mean"]
+    assert auto.summary["trace"] == {"device": "cpu", "adapter": None}
+
+
 def test_metrics_are_the_evaluations(tmp_path, binary, toycar):
     # Two of the command's own files, compared by the module as `eval` compares images:
     # the numbers follow the definitions (RMS of the bytes, PSNR of the RMS), and the

@@ -499,6 +499,7 @@ pub fn adaptive_after_one_second_on(
         ideal_spp: 1,
         ideal_cache: None,
         gpu: gpu.cloned(),
+        rays: None,
     };
     let mut m = adaptive::Adaptive::new(&ctx, adaptive::SamplerParams::paper())?;
     let end = time + 1.0;

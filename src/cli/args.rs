@@ -418,8 +418,6 @@ pub struct BenchArgs {
     pub live_recon: bool,
     #[command(flatten)]
     pub devices: settings::DevicesGroup,
-    #[command(flatten)]
-    pub trace: settings::TraceGroup,
 }
 
 fn parse_rays(s: &str) -> anyhow::Result<usize> {

@@ -150,7 +150,7 @@ fn bench(a: args::BenchArgs) -> Result<()> {
         return bench_live_recon(a.json);
     }
     let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.trace.trace)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -330,10 +330,19 @@ fn acquire_recon(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>> {
 
 /// The GPU `--trace` asks for, as [`acquire_recon`] does for `--recon`: one line on
 /// stderr saying where rays are traced when that is not the CPU asked for; `auto`
-/// falls back to the CPU (and says so once) whenever no GPU can be had.
-fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>>> {
+/// falls back to the CPU (and says so once) whenever no GPU can be had. The
+/// reconstructor's GPU `recon`, where it is one `choice` accepts (`auto` takes no
+/// software adapter), is shared rather than a second device opened on it.
+fn acquire_trace(
+    choice: settings::TraceDevice,
+    recon: Option<&Arc<GpuContext>>,
+) -> Result<Option<Arc<GpuContext>>> {
     if choice == settings::TraceDevice::Cpu {
         return Ok(None);
+    }
+    if let Some(g) = recon.filter(|g| choice == settings::TraceDevice::Gpu || !g.is_software()) {
+        eprintln!("tracing on {}", g.describe());
+        return Ok(Some(g.clone()));
     }
     let got = check_wgpu_backend().and_then(|()| Ok(frameless::gpu::acquire(choice)?));
     match got {
@@ -351,6 +360,26 @@ fn acquire_trace(choice: settings::TraceDevice) -> Result<Option<Arc<GpuContext>
         }
         Err(e) => Err(e.context(format!("--trace {choice} (--trace cpu traces on the CPU)"))),
     }
+}
+
+/// `--trace` of the real-time pipeline (`view`, `live`) running `methods`, as
+/// [`acquire_trace`]; a GPU for a method whose sampling cannot trace on it is an error
+/// before any work, rather than a run that traces on the CPU.
+fn realtime_trace(
+    choice: settings::TraceDevice,
+    recon: Option<&Arc<GpuContext>>,
+    methods: &[frameless::realtime::RtMethod],
+) -> Result<Option<Arc<GpuContext>>> {
+    let got = acquire_trace(choice, recon)?;
+    if got.is_some() {
+        if let Some(m) = methods.iter().find(|m| !m.traces_on_gpu()) {
+            bail!(
+                "--trace {choice}: {} (--trace cpu traces on the CPU)",
+                frameless::realtime::registry::cannot_trace_on_gpu(*m)
+            );
+        }
+    }
+    Ok(got)
 }
 
 /// Check `WGPU_BACKEND` as wgpu reads it (comma-separated backend names). wgpu skips a
@@ -388,7 +417,7 @@ fn check_wgpu_backend() -> Result<()> {
 /// `frameless still`.
 fn still(a: args::StillArgs) -> Result<()> {
     let (out, format) = still_target(&a)?;
-    let trace_gpu = acquire_trace(a.trace.trace)?;
+    let trace_gpu = acquire_trace(a.trace.trace, None)?;
     let scene = load_scene(&a.scene.scene)?;
     let path = load_camera_path(a.scene.camera_path.as_deref())?;
     let Size(w, h) = a.size;
@@ -495,6 +524,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     cfg.set_groups(&a.display, &a.quality, &a.reference);
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
+    cfg.trace_gpu = acquire_trace(a.devices.trace.trace, cfg.gpu.as_ref())?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
@@ -541,10 +571,13 @@ fn render(a: args::RenderArgs) -> Result<()> {
         texture_filter: a.quality.texture_filter,
         format: image_format(a.format),
         gpu: None,
+        trace_gpu: None,
     };
     cfg.validate()?;
+    let gpu = acquire_recon(a.devices.recon)?;
     let cfg = SequenceConfig {
-        gpu: acquire_recon(a.devices.recon)?,
+        trace_gpu: acquire_trace(a.devices.trace.trace, gpu.as_ref())?,
+        gpu,
         ..cfg
     };
     let scene = Arc::new(load_scene(&a.scene.scene)?);
@@ -581,8 +614,10 @@ fn table1(a: args::Table1Args) -> Result<()> {
         .collect::<Result<Vec<_>>>()?;
     // One GPU for every animation's evaluation.
     let gpu = acquire_recon(a.devices.recon)?;
+    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
     for cfg in &mut cfgs {
         cfg.gpu = gpu.clone();
+        cfg.trace_gpu = trace_gpu.clone();
     }
     let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
     let outputs = table1::Table1Output::begin(&a.out)?;
@@ -664,6 +699,7 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
         gpu: None,
+        trace_gpu: None,
     };
     cfg.strip_frames = match a.strips {
         args::Strips::Quartiles => cfg.quartile_frames(),
@@ -742,6 +778,7 @@ fn sampler(a: args::SamplerArgs) -> Result<()> {
         ideal_spp: 1,
         ideal_cache: None,
         gpu: None,
+        rays: None,
     };
     let mut m = Adaptive::new(&ctx, params)?;
     let frames = (a.duration * a.display.refresh_hz).ceil() as u64;
@@ -796,7 +833,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     if let Some(p) = &a.screenshot {
         frameless::output::check_file_target(p, "png", "PNG")?;
     }
-    let cfg = view_config(&a, threads)?;
+    let mut cfg = view_config(&a, threads)?;
     let mut settings = view_settings(&a, a.method)?;
     if let Some(s) = a.seconds {
         frameless::limits::check_view_seconds(s).map_err(|e| anyhow::anyhow!("--duration {e}"))?;
@@ -805,11 +842,14 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     settings.check_size(&cfg, w, h)?;
     let gpu = acquire_recon(a.devices.recon)?;
     settings.use_gpu(gpu.clone());
+    let trace_gpu = realtime_trace(a.devices.trace.trace, gpu.as_ref(), &[a.method])?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
             .with_camera_path(load_camera_path(a.scene.camera_path.as_deref())?),
     );
+    cfg.rays = frameless::trace::batch::open(trace_gpu, &tracer)
+        .context("--trace gpu (--trace cpu traces on the CPU)")?;
     if a.headless {
         return view_headless(&a, tracer, cfg, settings);
     }
@@ -947,6 +987,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
     }
     cfg.validate()?;
     cfg.gpu = acquire_recon(a.devices.recon)?;
+    cfg.trace_gpu = realtime_trace(a.devices.trace.trace, cfg.gpu.as_ref(), &cfg.methods)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);

@@ -21,12 +21,19 @@ use serde::{Deserialize, Serialize};
 use crate::{
     clock::{rate_label, Clock},
     limits,
-    methods::{ideal::ideal_image, Method, MethodContext, MethodError, MethodKind, RunShape},
+    gpu::DeviceUsed,
+    methods::{
+        ideal::{ideal_image, ideal_lookup},
+        Method, MethodContext, MethodError, MethodKind, RunShape,
+    },
     reconstruction::device::{GpuContext, ReconUsed},
     render::cache::{IdealCache, Lookup},
     scene::{CameraPath, Scene},
     settings::{self, Setting},
-    trace::{TextureFilter, TraceOptions, Tracer},
+    trace::{
+        batch::{self, GpuRays},
+        TextureFilter, TraceOptions, Tracer,
+    },
 };
 
 /// Why an evaluation could not run or write its outputs.
@@ -43,6 +50,9 @@ pub enum EvalError {
     /// A method cannot run as asked.
     #[error(transparent)]
     Method(#[from] MethodError),
+    /// The GPU tracer could not take the scene (`--trace gpu`).
+    #[error("the GPU tracer: {0}")]
+    Trace(String),
     /// A live run's pipeline failed (a thread could not start, or panicked).
     #[error("{method}: {source}")]
     Live {
@@ -247,6 +257,9 @@ pub struct EvalConfig {
     /// The GPU the adaptive methods reconstruct on, acquired once for the whole run
     /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
     pub gpu: Option<Arc<GpuContext>>,
+    /// The GPU the samples of the methods that trace in batches and the ideal images
+    /// are traced on (`--trace`); `None`: the CPU tracer, the reference.
+    pub trace_gpu: Option<Arc<GpuContext>>,
 }
 
 /// The methods `frameless eval` runs when none are named: the baselines, today's
@@ -289,6 +302,7 @@ impl EvalConfig {
             strip_frames: Vec::new(),
             flip_every: 1,
             gpu: None,
+            trace_gpu: None,
         };
         cfg.strip_frames = cfg.quartile_frames();
         cfg
@@ -362,7 +376,12 @@ impl EvalConfig {
         runs
     }
 
-    fn summary(&self, results: Vec<ResultRow>, timing: Timing) -> Summary {
+    fn summary(
+        &self,
+        results: Vec<ResultRow>,
+        timing: Timing,
+        rays: Option<&Arc<GpuRays>>,
+    ) -> Summary {
         Summary {
             scene: self.scene_name.clone(),
             width: self.width,
@@ -375,6 +394,8 @@ impl EvalConfig {
             ideal_spp: self.ideal_spp,
             camera_path: self.camera_path.is_some(),
             recon: self.recon_used(),
+            trace: batch::used(rays),
+            trace_failure: rays.and_then(|r| r.failure()),
             results,
             timing,
         }
@@ -605,6 +626,13 @@ pub struct Summary {
     /// recorded were all made on the CPU).
     #[serde(default = "ReconUsed::cpu")]
     pub recon: ReconUsed,
+    /// The tracer of the samples and the ideal images (summaries written before it was
+    /// recorded were all traced on the CPU).
+    #[serde(default = "DeviceUsed::cpu")]
+    pub trace: DeviceUsed,
+    /// Why the GPU tracer stopped part way, after which the CPU traced the rest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub trace_failure: Option<String>,
     /// Per method and rate.
     pub results: Vec<ResultRow>,
     /// Cost of the run.
@@ -952,7 +980,9 @@ pub fn run_with(
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = cfg.tracer(scene);
-    let cache = open_cache(cfg, &tracer)?;
+    let rays = batch::open(cfg.trace_gpu.clone(), &tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
+    let cache = open_cache(cfg, &tracer, &batch::used(rays.as_ref()))?;
     let n = cfg.frames();
     let runs = cfg.runs();
     let units = Units {
@@ -973,6 +1003,7 @@ pub fn run_with(
         ideal_spp: cfg.ideal_spp,
         ideal_cache: cache.clone(),
         gpu: cfg.gpu.clone(),
+        rays: rays.clone(),
     };
     refuse_early(cfg, &ctx_for(cfg.rates[0]))?;
     let ideal = ideal_images(
@@ -1012,7 +1043,7 @@ pub fn run_with(
         run.evaluate(cfg, &ctx_for(rate), &units, &mut timing, &mut out, progress)?;
     }
     Ok(EvalOutput {
-        summary: cfg.summary(out.results, timing),
+        summary: cfg.summary(out.results, timing, rays.as_ref()),
         frames: out.frames,
         strips: out.strips,
         linear: out.linear,
@@ -1028,12 +1059,17 @@ fn ideal_strips(cfg: &EvalConfig, frames: &[usize], ideal: &[Vec<u8>]) -> Vec<St
         .collect()
 }
 
-/// The ideal-image cache of the run, if it asks for one.
-fn open_cache(cfg: &EvalConfig, tracer: &Tracer) -> Result<Option<Arc<IdealCache>>, EvalError> {
+/// The ideal-image cache of the run, if it asks for one, for the images `used` traces.
+fn open_cache(
+    cfg: &EvalConfig,
+    tracer: &Tracer,
+    used: &DeviceUsed,
+) -> Result<Option<Arc<IdealCache>>, EvalError> {
     Ok(match &cfg.cache_dir {
         Some(dir) => Some(Arc::new(
             IdealCache::new(dir, tracer, cfg.camera_path.as_ref())
-                .map_err(|e| EvalError::io(dir, e))?,
+                .map_err(|e| EvalError::io(dir, e))?
+                .for_tracer(used),
         )),
         None => None,
     })
@@ -1214,19 +1250,13 @@ fn ideal_images(
     for k in (first..n).chain(0..first) {
         let t = cfg.refresh(k);
         let cost = units(k);
-        ideal[k] = match &ctx.ideal_cache {
-            Some(cache) => {
-                let (image, lookup) = cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed);
-                match lookup {
-                    Lookup::Hit => timing.ideal_cache_hits += 1,
-                    Lookup::Rejected(_) => timing.ideal_cache_rejected += 1,
-                    Lookup::Miss => {}
-                }
-                image
-            }
-            None => ideal_image(ctx, t),
+        let (image, lookup) = ideal_lookup(ctx, t);
+        match lookup {
+            Lookup::Hit => timing.ideal_cache_hits += 1,
+            Lookup::Rejected(_) => timing.ideal_cache_rejected += 1,
+            Lookup::Miss => {}
         }
-        .to_rgb8();
+        ideal[k] = image.to_rgb8();
         progress.advance("ideal images", cost);
     }
     timing.ideal_s = t0.elapsed().as_secs_f64();
@@ -1449,6 +1479,7 @@ mod tests {
             strip_frames: Vec::new(),
             flip_every: 1,
             gpu: None,
+            trace_gpu: None,
         };
         let n = cfg.frames();
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
@@ -1477,20 +1508,27 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// `summary.json` records the reconstructor; one written before it did reads as
-    /// the CPU's, which made every result then.
+    /// `summary.json` records the reconstructor and the tracer; one written before it
+    /// did reads as the CPU's, which made every result then.
     #[test]
-    fn summaries_record_the_reconstructor_and_older_ones_read_as_the_cpus() {
+    fn summaries_record_the_devices_and_older_ones_read_as_the_cpus() {
         use crate::reconstruction::device::ReconUsed;
-        let s = EvalConfig::new("toycar").summary(Vec::new(), evaluation::Timing::default());
+        let s = EvalConfig::new("toycar").summary(Vec::new(), evaluation::Timing::default(), None);
         let mut v = serde_json::to_value(&s).expect("serialises");
-        assert_eq!(
-            v["recon"],
-            serde_json::json!({"device": "cpu", "adapter": null})
-        );
-        v.as_object_mut().expect("an object").remove("recon");
+        for field in ["recon", "trace"] {
+            assert_eq!(
+                v[field],
+                serde_json::json!({"device": "cpu", "adapter": null}),
+                "{field}"
+            );
+        }
+        assert!(v.get("trace_failure").is_none(), "no failure, no field");
+        let o = v.as_object_mut().expect("an object");
+        o.remove("recon");
+        o.remove("trace");
         let old: evaluation::Summary = serde_json::from_value(v).expect("reads");
         assert_eq!(old.recon, ReconUsed::cpu());
+        assert_eq!(old.trace, crate::gpu::DeviceUsed::cpu());
         assert_eq!(old, s);
     }
 
@@ -1522,6 +1560,7 @@ mod tests {
             strip_frames: Vec::new(),
             flip_every: 1,
             gpu: None,
+            trace_gpu: None,
         };
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
         let out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");

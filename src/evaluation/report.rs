@@ -89,6 +89,7 @@ pub fn markdown(s: &Summary) -> String {
         s.scene, s.width, s.height, s.refresh_hz, s.start, s.duration, s.warmup, s.seed, s.ideal_spp
     );
     let _ = writeln!(out, "Reconstructor: {}\n", s.recon);
+    let _ = writeln!(out, "Tracer: {}\n", tracer_words(s));
     let tables: [Metric; 7] = [
         ("Mean RMS error (0–255, lower is better)", |r| r.rms_mean, 1),
         ("Mean PSNR (dB, higher is better)", |r| r.psnr_mean, 2),
@@ -535,7 +536,7 @@ fn html_heading(h: &mut String, s: &Summary) {
         h,
         "<h1>Evaluation: {}</h1><p>{}×{} pixels, display refreshed at {} Hz; {} s window \
          from t = {} s after {} s of warm-up; seed {}; ideal images with {} samples per \
-         pixel{}.</p><p>Reconstructor: {}.</p>",
+         pixel{}.</p><p>Reconstructor: {}.</p><p>Tracer: {}.</p>",
         escape(&s.scene),
         s.width,
         s.height,
@@ -546,8 +547,18 @@ fn html_heading(h: &mut String, s: &Summary) {
         s.seed,
         s.ideal_spp,
         if s.camera_path { "; camera path" } else { "" },
-        escape(&s.recon.to_string())
+        escape(&s.recon.to_string()),
+        escape(&tracer_words(s))
     );
+}
+
+/// The tracer a run's samples and ideal images came from, and why it stopped part way
+/// if it did.
+fn tracer_words(s: &Summary) -> String {
+    match &s.trace_failure {
+        Some(why) => format!("{} (failed part way, the rest traced on the CPU: {why})", s.trace),
+        None => s.trace.to_string(),
+    }
 }
 
 /// The first screen: who wins at each rate, in one sentence and a small chart.

@@ -13,7 +13,7 @@ use crate::{
     methods::{Method, MethodContext, MethodKind},
     output::OutputDir,
     scene::{CameraPath, Scene},
-    trace::{TextureFilter, TraceOptions, Tracer},
+    trace::{batch, TextureFilter, TraceOptions, Tracer},
 };
 
 /// Most frames one sequence may have.
@@ -52,6 +52,8 @@ pub struct SequenceConfig {
     pub format: ImageFormat,
     /// The GPU the reconstructor runs on, if any.
     pub gpu: Option<Arc<crate::reconstruction::device::GpuContext>>,
+    /// The GPU the samples are traced on (`--trace`), if any.
+    pub trace_gpu: Option<Arc<crate::gpu::GpuContext>>,
 }
 
 /// `stats.json` of a sequence.
@@ -89,6 +91,11 @@ pub struct SequenceStats {
     pub extra: Option<serde_json::Value>,
     /// Where the reconstructor ran (the GPU given, else the CPU).
     pub recon: crate::reconstruction::device::ReconUsed,
+    /// Where the samples were traced (the GPU given, else the CPU).
+    pub trace: crate::gpu::DeviceUsed,
+    /// Why the GPU tracer stopped part way, after which the CPU traced the rest.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace_failure: Option<String>,
 }
 
 impl SequenceConfig {
@@ -140,6 +147,7 @@ impl SequenceConfig {
             strip_frames: Vec::new(),
             flip_every: 1,
             gpu: None,
+            trace_gpu: None,
         }
         .validate()
     }
@@ -157,7 +165,11 @@ pub fn render_sequence(
 ) -> Result<SequenceStats, EvalError> {
     cfg.validate()?;
     let (w, h) = (cfg.width, cfg.height);
-    let mut m = cfg.method.build(&method_context(scene, cfg))?;
+    let mut ctx = method_context(scene, cfg);
+    ctx.rays = batch::open(cfg.trace_gpu.clone(), &ctx.tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
+    let rays = ctx.rays.clone();
+    let mut m = cfg.method.build(&ctx)?;
     let staging = OutputDir::begin(out).map_err(|e| EvalError::io(out, e))?;
     let frames = cfg.frames();
     let t0 = Instant::now();
@@ -182,6 +194,8 @@ pub fn render_sequence(
             .gpu
             .as_ref()
             .map_or_else(crate::reconstruction::device::ReconUsed::cpu, |g| g.used()),
+        trace: batch::used(rays.as_ref()),
+        trace_failure: rays.and_then(|r| r.failure()),
     };
     let p = staging.path().join("stats.json");
     // Numbers and strings always serialise.
@@ -191,7 +205,8 @@ pub fn render_sequence(
     Ok(stats)
 }
 
-/// What the method of a sequence runs with: the tracer and the simulated clock.
+/// What the method of a sequence runs with: the tracer and the simulated clock (on the
+/// CPU tracer: [`render_sequence`] opens the GPU's, which can fail).
 pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext {
     let tracer = Arc::new(
         Tracer::new(
@@ -217,6 +232,7 @@ pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext 
         ideal_spp: crate::settings::IDEAL_SPP,
         ideal_cache: None,
         gpu: cfg.gpu.clone(),
+        rays: None,
     }
 }
 

@@ -25,7 +25,10 @@ use crate::{
     clock::TIME_EPS,
     image::Image,
     scene::CameraFrame,
-    trace::{Sample, SceneState, Tracer},
+    trace::{
+        batch::{self, GpuRays},
+        Sample, SceneState, Tracer,
+    },
 };
 
 /// What one grid sample of a frame hit: enough to move it to another time and camera.
@@ -198,24 +201,16 @@ impl Framed {
         let state = tracer.state_at(t);
         let (gw, gh) = self.grid;
         let (w, h) = tracer.size();
-        let small: Vec<glam::Vec3> = if let Some(gbuffer) = &mut self.front_gbuffer {
-            let samples: Vec<Sample> = (0..gh)
-                .into_par_iter()
-                .flat_map_iter(|y| trace_row_samples(tracer, &state, (gw, gh), y))
-                .collect();
+        let samples = trace_grid(tracer, self.ctx.rays.as_deref(), &state, (gw, gh));
+        if let Some(gbuffer) = &mut self.front_gbuffer {
             *gbuffer = Some(GBuffer {
                 grid: (gw, gh),
                 samples: samples.iter().map(GSample::from).collect(),
                 time: t,
                 camera: state.camera,
             });
-            samples.iter().map(|s| s.color).collect()
-        } else {
-            (0..gh)
-                .into_par_iter()
-                .flat_map_iter(|y| trace_row(tracer, &state, (gw, gh), y))
-                .collect()
-        };
+        }
+        let small: Vec<glam::Vec3> = samples.iter().map(|s| s.color).collect();
         self.trace_s += t0.elapsed().as_secs_f64();
         self.front = upscale(
             &Image {
@@ -304,6 +299,29 @@ pub fn trace_row<'a>(
     y: u32,
 ) -> impl Iterator<Item = glam::Vec3> + 'a {
     trace_row_samples(tracer, state, grid, y).map(|s| s.color)
+}
+
+/// Every sample of a `grid` frame in `state`, row-major, as [`trace_row_samples`]
+/// traces each row: on the GPU tracer `rays` in one batch where there is one.
+pub fn trace_grid(
+    tracer: &Tracer,
+    rays: Option<&GpuRays>,
+    state: &SceneState,
+    grid: (u32, u32),
+) -> Vec<Sample> {
+    let (gw, gh) = grid;
+    let Some(rays) = rays else {
+        return (0..gh)
+            .into_par_iter()
+            .flat_map_iter(|y| trace_row_samples(tracer, state, grid, y))
+            .collect();
+    };
+    let (w, h) = tracer.size();
+    let (sx, sy) = (w as f32 / gw as f32, h as f32 / gh as f32);
+    let points: Vec<[f32; 2]> = (0..gh)
+        .flat_map(|y| (0..gw).map(move |x| [(x as f32 + 0.5) * sx, (y as f32 + 0.5) * sy]))
+        .collect();
+    batch::trace_points(tracer, Some(rays), state, &points)
 }
 
 /// [`trace_row`] with everything the tracer returned, not only the colours.

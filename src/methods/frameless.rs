@@ -5,10 +5,15 @@
 //! the pass number), so every pixel is refreshed once per `W·H/R` seconds. Samples go
 //! through pixel centers.
 
-use rayon::prelude::*;
-
 use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodInfo};
-use crate::{image::Image, sampling::Rng, trace::Tracer};
+use crate::{
+    image::Image,
+    sampling::Rng,
+    trace::{
+        batch::{self, GpuRays},
+        Tracer,
+    },
+};
 
 /// `traditional-frameless`.
 pub const TRADITIONAL_FRAMELESS: MethodInfo = MethodInfo {
@@ -62,18 +67,23 @@ impl Traditional {
     }
 }
 
-/// Trace a batch of `(pixel, time)` samples that share one scene state.
-pub(crate) fn trace_batch(tracer: &Tracer, time: f64, pixels: &[u32]) -> Vec<glam::Vec3> {
+/// Trace a batch of `(pixel, time)` samples that share one scene state, on the GPU
+/// tracer when there is one.
+pub(crate) fn trace_batch(
+    tracer: &Tracer,
+    rays: Option<&GpuRays>,
+    time: f64,
+    pixels: &[u32],
+) -> Vec<glam::Vec3> {
     let state = tracer.state_at(time);
     let w = tracer.size().0;
-    pixels
-        .par_iter()
-        .with_min_len(256)
-        .map(|&p| {
-            tracer
-                .sample(&state, (p % w) as f32 + 0.5, (p / w) as f32 + 0.5)
-                .color
-        })
+    let points: Vec<[f32; 2]> = pixels
+        .iter()
+        .map(|&p| [(p % w) as f32 + 0.5, (p / w) as f32 + 0.5])
+        .collect();
+    batch::trace_points(tracer, rays, &state, &points)
+        .iter()
+        .map(|s| s.color)
         .collect()
 }
 
@@ -100,7 +110,12 @@ impl Method for Traditional {
             self.pixel_of(i0); // make sure `order` is this pass's permutation
             let (a, b) = ((i0 % n) as usize, ((i1 - 1) % n) as usize + 1);
             let t0 = std::time::Instant::now();
-            let colors = trace_batch(&tracer, clock.sample_time(i0), &self.order[a..b]);
+            let colors = trace_batch(
+                &tracer,
+                self.ctx.rays.as_deref(),
+                clock.sample_time(i0),
+                &self.order[a..b],
+            );
             trace_s += t0.elapsed().as_secs_f64();
             for (k, (&p, c)) in self.order[a..b].iter().zip(colors).enumerate() {
                 self.newest.set(p, c, clock.sample_time(i0 + k as u64));

@@ -2,7 +2,10 @@
 //! supersampling, with zero delay. Not a contender; viewable as a method.
 
 use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodInfo};
-use crate::{image::Image, render::still};
+use crate::{
+    image::Image,
+    render::{cache::Lookup, still},
+};
 
 /// `ideal`: every refresh supersampled, held to no budget.
 pub const IDEAL: MethodInfo = MethodInfo {
@@ -34,11 +37,17 @@ impl Ideal {
     }
 }
 
-/// Render (or fetch from the cache) the ideal image at time `t`.
+/// Render (or fetch from the cache) the ideal image at time `t`, on the run's tracer.
 pub fn ideal_image(ctx: &MethodContext, t: f64) -> Image {
+    ideal_lookup(ctx, t).0
+}
+
+/// [`ideal_image`], and what the cache found (`Miss` without a cache).
+pub fn ideal_lookup(ctx: &MethodContext, t: f64) -> (Image, Lookup) {
+    let render = || still::render_on(&ctx.tracer, ctx.rays.as_deref(), t, ctx.ideal_spp, ctx.seed);
     match &ctx.ideal_cache {
-        Some(cache) => cache.get_or_render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed).0,
-        None => still::render(&ctx.tracer, t, ctx.ideal_spp, ctx.seed, &|_| {}),
+        Some(cache) => cache.get_or_render_with(t, ctx.ideal_spp, ctx.seed, render),
+        None => (render().0, Lookup::Miss),
     }
 }
 

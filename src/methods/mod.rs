@@ -17,7 +17,7 @@ use crate::{
     image::Image,
     reconstruction::device::GpuContext,
     render::cache::IdealCache,
-    trace::Tracer,
+    trace::{batch::GpuRays, Tracer},
 };
 
 /// Declares the method files and derives [`MethodKind`] from
@@ -342,6 +342,9 @@ pub struct MethodContext {
     pub ideal_cache: Option<Arc<IdealCache>>,
     /// The GPU the adaptive reconstructor runs on (`None`: the CPU, the reference).
     pub gpu: Option<Arc<GpuContext>>,
+    /// The GPU tracer the methods that trace in batches and the ideal images use
+    /// (`--trace gpu`; `None`: the CPU tracer, the reference).
+    pub rays: Option<Arc<GpuRays>>,
 }
 
 /// What the display shows at one refresh.

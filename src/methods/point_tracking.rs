@@ -18,11 +18,10 @@
 use std::{collections::VecDeque, time::Instant};
 
 use glam::Vec3;
-use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{one_frame_in_run, Budget, Displayed, Method, MethodContext, MethodInfo};
-use crate::{clock::TIME_EPS, image::Image};
+use crate::{clock::TIME_EPS, image::Image, trace::batch};
 
 /// `point-tracking`.
 pub const POINT_TRACKING: MethodInfo = MethodInfo {
@@ -176,15 +175,17 @@ impl PointTracking {
             }
         }
         let t1 = Instant::now();
-        let samples: Vec<_> = targets
-            .par_iter()
+        let rays = self.ctx.rays.as_deref();
+        let points: Vec<[f32; 2]> = targets
+            .iter()
             .enumerate()
             .map(|(q, tg)| {
                 let (x, y) =
                     tg.unwrap_or(((q as u32 % w) as f32 + 0.5, (q as u32 / w) as f32 + 0.5));
-                tracer.sample(&state, x, y)
+                [x, y]
             })
             .collect();
+        let samples = batch::trace_points(&tracer, rays, &state, &points);
         let traced = t1.elapsed().as_secs_f64();
         if tracked {
             for (c, s) in counts.iter().zip(&samples) {
@@ -194,13 +195,12 @@ impl PointTracking {
             }
             self.stats.tracked_trace_s += traced;
             let t2 = Instant::now();
-            let plain: f32 = (0..w * h)
-                .into_par_iter()
-                .map(|q| {
-                    tracer
-                        .sample(&state, (q % w) as f32 + 0.5, (q / w) as f32 + 0.5)
-                        .luminance
-                })
+            let centres: Vec<[f32; 2]> = (0..w * h)
+                .map(|q| [(q % w) as f32 + 0.5, (q / w) as f32 + 0.5])
+                .collect();
+            let plain: f32 = batch::trace_points(&tracer, rays, &state, &centres)
+                .iter()
+                .map(|s| s.luminance)
                 .sum();
             std::hint::black_box(plain);
             self.stats.plain_trace_s += t2.elapsed().as_secs_f64();

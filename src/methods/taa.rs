@@ -32,7 +32,7 @@ use crate::{
     clock::TIME_EPS,
     image::Image,
     scene::CameraFrame,
-    trace::{Sample, SceneState, Tracer},
+    trace::{batch, Sample, SceneState, Tracer},
 };
 
 /// `taa`.
@@ -719,13 +719,13 @@ impl Taa {
         let state = tracer.state_at(t);
         let jitter = frame_jitter(j, self.jitter_period);
         let t0 = std::time::Instant::now();
-        let low: Vec<Sample> = (0..gw * gh)
-            .into_par_iter()
+        let points: Vec<[f32; 2]> = (0..gw * gh)
             .map(|q| {
                 let (x, y) = jittered_position(size, self.grid, jitter, q % gw, q / gw);
-                tracer.sample(&state, x, y)
+                [x, y]
             })
             .collect();
+        let low = batch::trace_points(&tracer, self.ctx.rays.as_deref(), &state, &points);
         self.trace_s += t0.elapsed().as_secs_f64();
         self.samples += (gw * gh) as u64;
         self.history.accumulate(JitteredFrame {

@@ -20,6 +20,10 @@ pub struct RtConfig {
     pub start: f64,
     /// Seed of the threads' random choices.
     pub seed: u64,
+    /// The GPU tracer of the pipeline's tracer (`--trace gpu`; `None`: the CPU). With
+    /// it, the methods that can trace on it do so from one sampling thread, in batches
+    /// (the GPU runs one batch at a time; more threads would only queue).
+    pub rays: Option<std::sync::Arc<crate::trace::batch::GpuRays>>,
 }
 
 impl RtConfig {

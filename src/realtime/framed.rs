@@ -44,6 +44,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
+    traces_on_gpu: false,
     start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
@@ -55,6 +56,7 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
+    traces_on_gpu: false,
     start: |sp, _| start_with(sp, Shown::Warped),
 };
 

@@ -13,7 +13,14 @@ use super::{
     config::RealtimeError,
     shared::{Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
 };
-use crate::{methods::frameless::NewestSamples, sampling::Rng, trace::StateCache};
+use crate::{
+    methods::frameless::NewestSamples,
+    sampling::Rng,
+    trace::{
+        batch::{self, GpuRays},
+        StateCache,
+    },
+};
 
 /// The traditional frameless method's description.
 pub(crate) const METHOD: MethodInfo = MethodInfo {
@@ -24,6 +31,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
+    traces_on_gpu: true,
     start: |sp, _| start(sp),
 };
 
@@ -47,6 +55,13 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
 /// A sampling thread: a random pixel (taken, traced through its centre at the current
 /// time, released), over and over.
 fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
+    if let Some(rays) = &s.config.rays {
+        // The GPU traces one batch at a time: one thread feeds it.
+        if thread == 0 {
+            sample_on_gpu(s, rays, tx);
+        }
+        return;
+    }
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     let n = w * h;
@@ -84,6 +99,42 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
                 return;
             }
             sent = Instant::now();
+        }
+    }
+}
+
+/// Pixels of one GPU batch, at most: a sixteenth of a 1080p display, so that a batch's
+/// samples share an instant no older than a fraction of a refresh on a GPU that
+/// traces tens of millions of samples a second.
+const GPU_BATCH: u32 = 1 << 17;
+
+/// The sampling thread of a run with a GPU tracer: batches of random pixels, each
+/// batch traced at the time it was drawn (one scene state, so one dispatch).
+fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Batch>) {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let n = w * h;
+    let per_batch = (n / 4).clamp(1, GPU_BATCH);
+    let mut rng = Rng::new(&[s.config.seed, 0xf4a3e1, 0]);
+    let mut states = StateCache::new();
+    while !s.stopped() {
+        let now = s.clock.now();
+        let state = states.at(tracer, now).0;
+        let pixels: Vec<u32> = (0..per_batch).map(|_| rng.below(n)).collect();
+        let points: Vec<[f32; 2]> = pixels
+            .iter()
+            .map(|&p| [(p % w) as f32 + 0.5, (p / w) as f32 + 0.5])
+            .collect();
+        let t0 = Instant::now();
+        let got = batch::trace_points(tracer, Some(rays), &state, &points);
+        let busy = t0.elapsed().as_secs_f64();
+        let k = got.len() as u64;
+        let batch: Batch = pixels.iter().zip(got).map(|(&p, x)| (p, x.color, now)).collect();
+        s.samples.fetch_add(k, Ordering::Relaxed);
+        s.rays.fetch_add(k, Ordering::Relaxed);
+        s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
+        if tx.send(batch).is_err() {
+            return;
         }
     }
 }

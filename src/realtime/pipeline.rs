@@ -72,6 +72,12 @@ pub struct PipelineStats {
     /// Where the method reconstructs its images: `{"device": "cpu", "adapter": null}`,
     /// or the GPU and its adapter.
     pub recon: ReconUsed,
+    /// Where the samples were traced: the CPU, or the GPU and its adapter (a method
+    /// that cannot trace on the GPU traces on the CPU: `trace_failure` says so).
+    pub trace: crate::gpu::DeviceUsed,
+    /// Why samples were traced on the CPU although a GPU tracer was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace_failure: Option<String>,
     /// The method's own figures, each named by its method and listed in `stats.json`
     /// beside the figures every method has (the `view` section of `docs/usage.md`
     /// says what each is).
@@ -189,6 +195,8 @@ impl Pipeline {
             age_p99_s: img.age_hist.quantile(0.99),
             pixel_conflicts: s.locks.conflicts(),
             recon: img.recon.unwrap_or_else(ReconUsed::cpu),
+            trace: crate::trace::batch::used(cfg.rays.as_ref()),
+            trace_failure: cfg.rays.as_ref().and_then(|r| r.failure()),
             method_stats: img.method.iter().cloned().collect(),
         }
     }

@@ -46,6 +46,7 @@ pub(crate) const METHOD: MethodInfo<ProbeSettings> = MethodInfo {
     default_sampling_threads: |cores| cores.min(2),
     extra_threads: |_| 0,
     overlays: &[],
+    traces_on_gpu: false,
     check_size: display_only,
     start,
 };

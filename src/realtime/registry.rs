@@ -65,6 +65,7 @@ macro_rules! registry {
                             default_sampling_threads: i.default_sampling_threads,
                             extra_threads: i.extra_threads,
                             overlays: i.overlays,
+                            traces_on_gpu: i.traces_on_gpu,
                         }
                     })*
                 }
@@ -117,10 +118,16 @@ macro_rules! registry {
             }
 
             /// Start the method's threads; the image thread then calls the builder.
+            /// A method that cannot trace on the GPU refuses a run that has a GPU
+            /// tracer rather than trace on the CPU.
             pub(crate) fn start(
                 &self,
                 sp: &mut Spawner<'_>,
             ) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
+                let method = self.method();
+                if sp.shared().config.rays.is_some() && !method.traces_on_gpu() {
+                    return Err(RealtimeError::Config(cannot_trace_on_gpu(method)));
+                }
                 match self {
                     $($(#[cfg($cfg)])? RtSettings::$variant(s) => ($info.start)(sp, s),)*
                 }
@@ -158,6 +165,7 @@ struct Facts {
     default_sampling_threads: fn(usize) -> usize,
     extra_threads: fn(usize) -> usize,
     overlays: &'static [Overlay],
+    traces_on_gpu: bool,
 }
 
 impl RtMethod {
@@ -175,6 +183,11 @@ impl RtMethod {
     /// Command-line name.
     pub fn name(self) -> &'static str {
         self.facts().name
+    }
+
+    /// Whether its sampling traces on the GPU tracer (`--trace gpu`).
+    pub fn traces_on_gpu(self) -> bool {
+        self.facts().traces_on_gpu
     }
 
     /// One line for help texts.
@@ -326,6 +339,20 @@ impl clap::ValueEnum for Visualisation {
     }
 }
 
+/// Why `method` cannot run with a GPU tracer.
+pub fn cannot_trace_on_gpu(method: RtMethod) -> String {
+    let on_gpu: Vec<&str> = RtMethod::ALL
+        .iter()
+        .filter(|m| m.traces_on_gpu())
+        .map(|m| m.name())
+        .collect();
+    format!(
+        "{} traces on the CPU only; of the real-time methods, {} trace on the GPU",
+        method.name(),
+        on_gpu.join(" and ")
+    )
+}
+
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
     /// machine, and reconstruction on half the cores.
@@ -342,6 +369,7 @@ impl RtConfig {
             refresh_hz: crate::settings::REFRESH_HZ,
             start: 0.0,
             seed: crate::settings::SEED,
+            rays: None,
         }
     }
 }

@@ -267,6 +267,9 @@ pub(crate) struct MethodInfo<S: 'static = NoSettings> {
     pub extra_threads: fn(usize) -> usize,
     /// The images it offers besides the displayed one ([`Built::overlays`] draws them).
     pub overlays: &'static [Overlay],
+    /// Whether its sampling traces on the GPU tracer when the run has one
+    /// ([`RtConfig::rays`]); a method that cannot refuses such a run.
+    pub traces_on_gpu: bool,
     /// Check that a `width × height` display fits the run budgets with its buffers
     /// under `config` and its settings ([`display_only`] for a method with no buffer
     /// beyond the image).

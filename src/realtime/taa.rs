@@ -49,6 +49,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
+    traces_on_gpu: false,
     start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
@@ -60,6 +61,7 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
+    traces_on_gpu: false,
     start: |sp, _| start_with(sp, Shown::Warped),
 };
 

@@ -195,6 +195,12 @@ impl App {
         if m == self.method() {
             return Ok(());
         }
+        if self.config.rays.is_some() && !m.traces_on_gpu() {
+            // A run traced on the GPU stays with the methods that trace there, rather
+            // than stop the viewer or trace on the CPU.
+            eprintln!("{}", super::registry::cannot_trace_on_gpu(m));
+            return Ok(());
+        }
         let settings = self.opts.others.iter().find(|s| s.method() == m);
         let settings = settings.cloned().unwrap_or_else(|| m.settings());
         let old = self.pipeline.take().expect("pipeline runs");

@@ -35,6 +35,7 @@ use std::{
 use glam::{Mat4, Quat, Vec2, Vec3};
 
 use crate::{
+    gpu::DeviceUsed,
     image::{read_png, write_png_rgb8_tagged, Image},
     render::still,
     sampling::rng::mix64,
@@ -437,6 +438,8 @@ pub struct IdealCache {
     /// The key lines shared by every entry of this cache.
     base_key: String,
     size: (u32, u32),
+    /// Whether its entries are the GPU tracer's ([`IdealCache::for_tracer`]).
+    gpu: bool,
 }
 
 impl IdealCache {
@@ -484,7 +487,20 @@ impl IdealCache {
             dir: dir.to_path_buf(),
             base_key: key,
             size: (width, height),
+            gpu: false,
         })
+    }
+
+    /// The cache of the images the tracer `used` makes. The GPU tracer's images differ
+    /// from the CPU's in the last bits of some samples, so its entries are apart: their
+    /// key names the tracer and its adapter. The CPU's keys name none, as before there
+    /// was a GPU tracer, so that caches made then still serve.
+    pub fn for_tracer(mut self, used: &DeviceUsed) -> Self {
+        if used.device != DeviceUsed::cpu().device {
+            let _ = writeln!(self.base_key, "tracer {used}");
+            self.gpu = true;
+        }
+        self
     }
 
     /// The full key of the entry at time `t`: the text an entry must carry to be served.
@@ -506,6 +522,22 @@ impl IdealCache {
     /// The ideal image at time `t` as displayed (8-bit values), from disk when a valid
     /// entry is there, else rendered and stored; and what the lookup found.
     pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> (Image, Lookup) {
+        self.get_or_render_with(t, spp, seed, || {
+            (still::render(tracer, t, spp, seed, &|_| {}), false)
+        })
+    }
+
+    /// [`get_or_render`](Self::get_or_render) with the image made by `render`, which
+    /// also says whether the GPU tracer made it. An image is stored only under the key
+    /// of the tracer that made it: one that fell back to the CPU is served but not
+    /// stored under a GPU key.
+    pub fn get_or_render_with(
+        &self,
+        t: f64,
+        spp: u32,
+        seed: u64,
+        render: impl FnOnce() -> (Image, bool),
+    ) -> (Image, Lookup) {
         let key = self.entry_key(t, spp, seed);
         let path = self.entry_path(t, spp, seed);
         let (w, h) = self.size;
@@ -513,8 +545,11 @@ impl IdealCache {
             Ok(rgb) => return (from_rgb8(w, h, &rgb), Lookup::Hit),
             Err(lookup) => lookup,
         };
-        let img = still::render(tracer, t, spp, seed, &|_| {});
+        let (img, on_gpu) = render();
         let rgb = img.to_rgb8();
+        if on_gpu != self.gpu {
+            return (from_rgb8(w, h, &rgb), lookup);
+        }
         let checksum = format!("{:016x}", pixel_checksum(w, h, &rgb));
         // A failed write only costs a re-render next time.
         let _ = write_png_rgb8_tagged(
@@ -605,6 +640,47 @@ mod tests {
         let none = key(TextureFilter::None);
         assert_eq!(none, key(TextureFilter::None));
         assert_ne!(none, key(TextureFilter::RayCones));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn gpu_entries_are_apart_from_the_cpus_and_a_cpu_fallback_is_not_stored() {
+        let dir = scratch("tracer");
+        let scene = Arc::new(builtin::toycar());
+        let tracer = Tracer::new(scene, 8, 6, TraceOptions::default());
+        let open = || IdealCache::new(&dir, &tracer, None).unwrap();
+        let cpu = open();
+        // The CPU's keys are as they were before there was a GPU tracer.
+        assert_eq!(
+            cpu.entry_key(0.5, 2, 1),
+            open().for_tracer(&DeviceUsed::cpu()).entry_key(0.5, 2, 1)
+        );
+        assert!(!cpu.entry_key(0.5, 2, 1).contains("tracer"));
+        let used = |adapter: &str| DeviceUsed {
+            device: "gpu".into(),
+            adapter: Some(adapter.into()),
+        };
+        let gpu = open().for_tracer(&used("lavapipe"));
+        let other = open().for_tracer(&used("another adapter"));
+        let key = gpu.entry_key(0.5, 2, 1);
+        assert!(key.contains("tracer gpu (lavapipe)"), "{key}");
+        let paths = [&cpu, &gpu, &other].map(|c| c.entry_path(0.5, 2, 1));
+        assert!(paths[0] != paths[1] && paths[1] != paths[2] && paths[0] != paths[2]);
+        // A CPU image under the GPU's key is served but not stored; the GPU's is.
+        let img = still::render(&tracer, 0.5, 2, 1, &|_| {});
+        let (_, l) = gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), false));
+        assert_eq!(l, Lookup::Miss);
+        assert!(!paths[1].exists(), "a fallback image was stored under the GPU's key");
+        let (_, l) = gpu.get_or_render(&tracer, 0.5, 2, 1);
+        assert_eq!(l, Lookup::Miss);
+        assert!(!paths[1].exists(), "a CPU image was stored under the GPU's key");
+        gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
+        assert_eq!(gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true)).1, Lookup::Hit);
+        // And a GPU image never under the CPU's key; the CPU's own is stored.
+        cpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
+        assert!(!paths[0].exists(), "a GPU image was stored under the CPU's key");
+        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Miss);
+        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Hit);
         let _ = std::fs::remove_dir_all(&dir);
     }
 

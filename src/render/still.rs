@@ -41,6 +41,24 @@ pub fn render(
     }
 }
 
+/// [`render`] on a run's tracer: on the GPU tracer `rays` where there is one and it
+/// works, else on the CPU's threads; and whether the GPU traced it.
+pub fn render_on(
+    tracer: &Tracer,
+    rays: Option<&crate::trace::batch::GpuRays>,
+    t: f64,
+    spp: u32,
+    seed: u64,
+) -> (Image, bool) {
+    #[cfg(feature = "gpu")]
+    if let Some(img) = rays.and_then(|g| g.with(|gpu| render_gpu(gpu, tracer, t, spp, seed))) {
+        return (img, true);
+    }
+    #[cfg(not(feature = "gpu"))]
+    let _ = rays;
+    (render(tracer, t, spp, seed, &|_| {}), false)
+}
+
 /// Samples of one GPU dispatch of [`render_gpu`], about.
 #[cfg(feature = "gpu")]
 const GPU_BATCH: usize = 1 << 22;

@@ -7,6 +7,7 @@
 //! thousand times per simulated second, never the static world.
 
 pub mod accel;
+pub mod batch;
 mod build;
 pub mod cones;
 #[cfg(feature = "gpu")]

@@ -33,7 +33,7 @@ use crate::{
     render::{cache::IdealCache, cache::Lookup, still},
     scene::{CameraPath, Scene},
     settings::{self, Setting},
-    trace::{TextureFilter, TraceOptions, Tracer},
+    trace::{batch, TextureFilter, TraceOptions, Tracer},
 };
 
 /// Most repeats of each method.
@@ -78,6 +78,9 @@ pub struct LiveConfig {
     /// The GPU the adaptive reconstructor runs on, acquired once for every run
     /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
     pub gpu: Option<Arc<GpuContext>>,
+    /// The GPU the methods' samples are traced on (`--trace`), a GPU tracer made for
+    /// each run's tracer; `None`: the CPU tracer.
+    pub trace_gpu: Option<Arc<GpuContext>>,
 }
 
 impl LiveConfig {
@@ -104,6 +107,7 @@ impl LiveConfig {
             texture_filter: TextureFilter::default(),
             cache_dir: None,
             gpu: None,
+            trace_gpu: None,
         }
     }
 
@@ -436,6 +440,11 @@ pub struct LiveSummary {
     /// recorded were all made on the CPU).
     #[serde(default = "ReconUsed::cpu")]
     pub recon: ReconUsed,
+    /// The tracer of the methods' samples (summaries written before it was recorded
+    /// were all traced on the CPU). Each run's `stats` says whether its GPU tracer
+    /// failed part way (`trace_failure`).
+    #[serde(default = "crate::gpu::DeviceUsed::cpu")]
+    pub trace: crate::gpu::DeviceUsed,
     /// Runs of each method.
     pub repeat: usize,
     /// Cores of the machine.
@@ -599,8 +608,11 @@ fn record_run(
         warmup: cfg.warmup_refreshes(),
         refreshes: cfg.frames(),
     };
-    let (config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
-    let rec = record::record(tracer(scene, cfg), config, settings, window).map_err(|source| {
+    let (mut config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
+    let tracer = tracer(scene, cfg);
+    config.rays = batch::open(cfg.trace_gpu.clone(), &tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
+    let rec = record::record(tracer, config, settings, window).map_err(|source| {
         EvalError::Live {
             method: method.name(),
             source,
@@ -762,6 +774,10 @@ fn assemble(
             ideal_spp: cfg.ideal_spp,
             camera_path: cfg.camera_path.is_some(),
             recon: cfg.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used()),
+            trace: cfg
+                .trace_gpu
+                .as_ref()
+                .map_or_else(crate::gpu::DeviceUsed::cpu, |g| g.used()),
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,

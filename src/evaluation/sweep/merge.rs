@@ -277,7 +277,7 @@ fn assemble(
             ),
         });
     }
-    let mut summary = cfg.summary(rows, timing);
+    let mut summary = cfg.summary(rows, timing, None);
     summary.camera_path = sweep.evaluations[inst.evaluation].camera_path.is_some();
     Ok(EvalOutput {
         summary,

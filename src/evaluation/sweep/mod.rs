@@ -821,6 +821,7 @@ impl Sweep {
             flip_every: self.flip_every as usize,
             // Sweep jobs reconstruct on the CPU, the reference.
             gpu: None,
+            trace_gpu: None,
         };
         cfg.strip_frames = self.strips.frames(cfg.frames());
         cfg

@@ -165,7 +165,8 @@ impl Adaptive {
                 })?;
         }
         Ok(Self {
-            sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?,
+            sampler: Sampler::new(ctx.tracer.clone(), ctx.clock, params, ctx.seed)?
+                .with_gpu_rays(ctx.rays.clone()),
             recon: reconstructor,
             tracer: ctx.tracer.clone(),
         })

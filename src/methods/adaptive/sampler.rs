@@ -22,7 +22,10 @@ use crate::{
     methods::MethodError,
     sampling::Rng,
     scene::CameraFrame,
-    trace::{Held, Sample, SceneState, StateCache, StreamSample, Tracer},
+    trace::{
+        batch::{self, GpuRays},
+        Held, Sample, SceneState, StateCache, StreamSample, Tracer,
+    },
 };
 
 /// Counters of the sampler's work.
@@ -64,6 +67,8 @@ fn max_rays_per_visit(p: &SamplerParams) -> u64 {
 pub struct Sampler {
     params: SamplerParams,
     tracer: Arc<Tracer>,
+    /// The GPU tracer its samples are traced on (`None`: the CPU tracer).
+    rays: Option<Arc<GpuRays>>,
     clock: Clock,
     /// The corner of the pixels it adapts in the image: `(0, 0)` for the whole image,
     /// or that of the region a real-time controller adapts; every position it holds is
@@ -314,6 +319,7 @@ impl Sampler {
         let mut s = Self {
             params,
             tracer,
+            rays: None,
             clock,
             origin: (region.x0, region.y0),
             width,
@@ -508,13 +514,41 @@ impl Sampler {
         s
     }
 
-    fn trace(&mut self, state: &SceneState, x: f32, y: f32, t: f64) -> Sample {
+    /// Trace its samples on the GPU tracer `rays` (`None`: the CPU tracer). Its
+    /// decisions stay on the CPU: each visit's samples depend on the last visit's, so
+    /// a crosshair is one batch and an initiating sample another.
+    pub fn with_gpu_rays(mut self, rays: Option<Arc<GpuRays>>) -> Self {
+        self.rays = rays;
+        self
+    }
+
+    /// The samples at `points`, all in `state`, on the sampler's tracer.
+    fn trace_points(&mut self, state: &SceneState, points: &[[f32; 2]]) -> Vec<Sample> {
         let t0 = Instant::now();
-        let s = self.tracer.sample(state, x, y);
+        let got = match &self.rays {
+            None => points
+                .iter()
+                .map(|p| self.tracer.sample(state, p[0], p[1]))
+                .collect(),
+            Some(r) => batch::trace_points(&self.tracer, Some(r), state, points),
+        };
         self.trace_s += t0.elapsed().as_secs_f64();
+        got
+    }
+
+    /// Count and stream a sample traced at `(x, y, t)`.
+    fn record(&mut self, x: f32, y: f32, t: f64, s: Sample) -> Sample {
         self.counters.rays += 1;
         self.stream.push(StreamSample { x, y, t, sample: s });
         s
+    }
+
+    fn trace(&mut self, state: &SceneState, x: f32, y: f32, t: f64) -> Sample {
+        let s = match self.trace_points(state, &[[x, y]]).first() {
+            Some(s) => *s,
+            None => self.tracer.sample(state, x, y),
+        };
+        self.record(x, y, t, s)
     }
 
     /// Trace a full crosshair at `(x, y)` for the tile `rect` (which sets its arms);
@@ -530,7 +564,21 @@ impl Sampler {
     ) -> Crosshair {
         let (w, h) = (self.width, self.height);
         let arms = self.params.arms(rect);
-        let c = crosshair_with(w, h, at, arms, t, old, |sx, sy| self.trace(state, sx, sy, t));
+        // The points `crosshair_with` traces, in its order, traced as one batch.
+        let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+        let points: Vec<[f32; 2]> = crosshair_points(at, arms)
+            .iter()
+            .enumerate()
+            .filter(|&(k, &(x, y))| k == 0 || on_screen(x, y))
+            .map(|(_, &(x, y))| [x, y])
+            .collect();
+        let mut got = self.trace_points(state, &points).into_iter();
+        let c = crosshair_with(w, h, at, arms, t, old, |sx, sy| {
+            let s = got
+                .next()
+                .unwrap_or_else(|| self.tracer.sample(state, sx, sy));
+            self.record(sx, sy, t, s)
+        });
         self.counters.crosshair_samples += 5;
         c
     }

@@ -76,6 +76,7 @@ pub(crate) const METHOD: MethodInfo<AdaptiveSettings> = MethodInfo {
     default_sampling_threads: |cores| cores,
     extra_threads: controllers,
     overlays: overlays::OVERLAYS,
+    traces_on_gpu: true,
     // Its buffers (deep buffer, ring) include the display check.
     check_size: |_, a, w, h| crate::methods::adaptive::check_budget(w, h, &a.sampler, &a.recon),
     start,

@@ -19,7 +19,10 @@ use crate::{
     },
     realtime::shared::{lock, Shared, BATCH_S},
     sampling::Rng,
-    trace::{SceneState, StateCache, StreamSample},
+    trace::{
+        batch::{self, GpuRays},
+        Sample, SceneState, StateCache, StreamSample,
+    },
 };
 
 /// A sampling thread's copy of the bands' snapshots, with when it last initiated a
@@ -110,6 +113,13 @@ pub(super) const BATCH_VISITS: usize = 256;
 /// A sampling thread: visits at the current time, batched for the controllers of
 /// the visited tiles' bands.
 pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>) {
+    if let Some(rays) = &s.config.rays {
+        // The GPU traces one batch at a time: one thread feeds it.
+        if thread == 0 {
+            sample_on_gpu(s, published, rays, tx);
+        }
+        return;
+    }
     let tracer = &s.tracer;
     let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
     let mut states = StateCache::new();
@@ -230,6 +240,161 @@ pub(super) fn initiate(
         return true;
     }
     false
+}
+
+/// Visits of one GPU batch, at most (about six samples each).
+const GPU_VISITS: usize = 4096;
+
+/// A visit of a GPU batch, planned before its samples are traced: where they start in
+/// the batch's points.
+enum Planned {
+    /// Complete `pending` with a crosshair at `at`.
+    Complete {
+        band: usize,
+        pending: Pending,
+        at: (f32, f32),
+        arms: (f32, f32),
+        first: usize,
+    },
+    /// Initiate a crosshair at `(x, y)`.
+    Initiate { band: usize, x: f32, y: f32, first: usize },
+}
+
+/// The sampling thread of a run with a GPU tracer: it plans the visits of up to
+/// [`GPU_VISITS`] tiles at the current time as the CPU threads choose them (each tile
+/// at most once a batch), traces all their samples in one batch, and sends the
+/// visits as the CPU threads do. No visit of a batch depends on another's samples:
+/// the crosshairs it completes were initiated by earlier batches.
+fn sample_on_gpu(s: &Shared, published: &Published, rays: &GpuRays, tx: Vec<Sender<Batch>>) {
+    let tracer = &s.tracer;
+    let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, 0]);
+    let mut states = StateCache::new();
+    let mut view = View::new(published);
+    let mut out = Outbox::new(tx);
+    while !s.stopped() {
+        view.refresh(published);
+        let now = s.clock.now();
+        let state = states.at(tracer, now).0;
+        let (plans, points) = plan_visits(s, published, &mut view, &state, now, &mut rng);
+        let t0 = Instant::now();
+        let got = batch::trace_points(tracer, Some(rays), &state, &points);
+        out.busy += t0.elapsed().as_secs_f64();
+        let mut bands: Vec<usize> = plans.iter().map(|p| fill(s, p, &got, now, &mut out)).collect();
+        bands.sort_unstable();
+        bands.dedup();
+        for b in bands {
+            if !out.send_due(s, b) {
+                return;
+            }
+        }
+    }
+}
+
+/// The visits of one GPU batch and the points they trace.
+fn plan_visits(
+    s: &Shared,
+    published: &Published,
+    view: &mut View,
+    state: &SceneState,
+    now: f64,
+    rng: &mut Rng,
+) -> (Vec<Planned>, Vec<[f32; 2]>) {
+    let sampler = &published.settings.sampler;
+    let (w, h) = s.tracer.size();
+    let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
+    let draws = &published.pixel_draws;
+    let (mut plans, mut points) = (Vec::new(), Vec::new());
+    for _ in 0..GPU_VISITS.min(view.len()) {
+        let k = choose_tile(view.len() as u32, sampler.tile_choices, rng, |k| {
+            let (b, i) = view.locate(k);
+            view.last[b][i]
+        });
+        let (b, i) = view.locate(k);
+        if view.last[b][i] == Some(now) {
+            continue; // visited in this batch: its pending crosshair is taken
+        }
+        let rect = view.snaps[b].rects[i];
+        if let Some(p) = view.snaps[b].pending[i] {
+            let at = p.follow(state, now);
+            let c = completion_point(sampler, &state.camera, &at, rect, now, w, h);
+            let arms = sampler.arms(rect);
+            let first = points.len();
+            for (j, (x, y)) in crosshair_points(c, arms).into_iter().enumerate() {
+                if j == 0 || on_screen(x, y) {
+                    points.push([x, y]);
+                }
+            }
+            plans.push(Planned::Complete {
+                band: b,
+                pending: p,
+                at: c,
+                arms,
+                first,
+            });
+        }
+        let (x, y) = if draws.is_empty() {
+            rect.random_point(rng)
+        } else {
+            stratified_in(rect, rng, s.config.seed, w, |p| {
+                draws[p].fetch_add(1, Ordering::Relaxed)
+            })
+        };
+        plans.push(Planned::Initiate {
+            band: b,
+            x,
+            y,
+            first: points.len(),
+        });
+        points.push([x, y]);
+        view.last[b][i] = Some(now);
+    }
+    (plans, points)
+}
+
+/// Put the visit `plan` with its samples (from `got`) into its band's batch, as
+/// [`complete`] and [`initiate`] do; its band.
+fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) -> usize {
+    let (w, h) = s.tracer.size();
+    match *plan {
+        Planned::Complete {
+            band,
+            pending,
+            at,
+            arms,
+            first,
+        } => {
+            let batch = &mut out.batches[band];
+            let stream = &mut batch.stream;
+            let mut next = first;
+            let c = crosshair_with(w, h, at, arms, now, Some((pending.lum, pending.t)), |x, y| {
+                let sample = got.get(next).copied().unwrap_or_default();
+                next += 1;
+                stream.push(StreamSample { x, y, t: now, sample });
+                sample
+            });
+            batch.visits.push(Visit::Completed {
+                crosshair: c,
+                rays: (next - first) as u32,
+                pending,
+            });
+            band
+        }
+        Planned::Initiate { band, x, y, first } => {
+            let sample = got.get(first).copied().unwrap_or_default();
+            let batch = &mut out.batches[band];
+            batch.stream.push(StreamSample { x, y, t: now, sample });
+            batch.visits.push(Visit::Initiated(Pending {
+                x,
+                y,
+                t: now,
+                lum: sample.luminance,
+                hit_point: sample.hit_point,
+                velocity: sample.velocity,
+                anchor: sample.anchor,
+            }));
+            band
+        }
+    }
 }
 
 /// A sampling thread's batches, one per band, and its tracing time since they last went.

@@ -23,7 +23,7 @@ const CW_WORDS: usize = 20;
 /// Words per group record.
 const GROUP_WORDS: usize = 8;
 /// Vec4s per instance record (the shader's `inst_base`).
-const INSTANCE_VEC4S: usize = 11;
+const INSTANCE_VEC4S: usize = 15;
 
 const _: () = assert!(std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>() == CW_WORDS * 4);
 
@@ -343,12 +343,14 @@ pub(super) fn state(tracer: &Tracer, state: &SceneState) -> (Vec<V4>, StateOffse
         out.extend(mat3_cols(inst.normal));
         out.extend(mat3_cols(Mat3::from_mat4(inst.world)));
         let gpu_group = inst.group + 1; // group 0 is the static world
+        let moving = inst.velocity != Mat4::ZERO;
         out.push([
             f32::from_bits(gpu_group),
             f32::from_bits(inst.group),
-            0.0,
+            f32::from_bits(moving as u32),
             0.0,
         ]);
+        out.extend(mat4_cols(inst.velocity));
     }
     debug_assert_eq!(out.len(), state.instances.len() * INSTANCE_VEC4S);
     if let Some(top) = &state.top {
@@ -365,10 +367,16 @@ pub(super) fn state(tracer: &Tracer, state: &SceneState) -> (Vec<V4>, StateOffse
         }
         at.anim_attr_at = out.len() as u32;
         let scene = &tracer.scene;
-        for (slot, n) in anim.normals.iter().enumerate() {
+        for (slot, (n, v)) in anim.normals.iter().zip(&anim.velocities).enumerate() {
             let src = anim.bvh.primitive_indices[slot] as usize;
             let m = scene.animated_triangles[src].material;
+            let moving = *v != [Vec3::ZERO; 3];
             out.extend([v4(n[0], f32::from_bits(m)), v4(n[1], 0.0), v4(n[2], 0.0)]);
+            out.extend([
+                v4(v[0], f32::from_bits(moving as u32)),
+                v4(v[1], 0.0),
+                v4(v[2], 0.0),
+            ]);
         }
     }
     at.lights_at = out.len() as u32;

@@ -13,9 +13,9 @@
 //!
 //! A sample of [`GpuTracer::trace_at`] is traced at its own time: samples are grouped
 //! by their 1 ms quantum, one dispatch per quantum, exactly the states the CPU would
-//! use. What it returns is colour, distance and the hit's identity ([`HitId`]); the
-//! velocity, anchor and `dynamic` flag of a CPU [`super::Sample`] are not computed
-//! here yet.
+//! use. What it returns ([`GpuSample`]) is everything a CPU [`Sample`] holds (colour,
+//! hit point, distance, velocity, anchor, the `dynamic` flag), computed in the shader
+//! as the CPU computes it, and the hit's identity ([`HitId`]).
 
 mod layout;
 #[cfg(test)]
@@ -25,7 +25,7 @@ use std::sync::Arc;
 
 use glam::Vec3;
 
-use super::{HitId, SceneState, Tracer};
+use super::{luminance, Anchor, HitId, Sample, SceneState, Tracer};
 use crate::gpu::{GpuContext, GpuError};
 
 /// Samples per workgroup (the shader's `@workgroup_size`).
@@ -34,6 +34,10 @@ const GROUP: u32 = 64;
 const MAX_GROUPS: u32 = 65_535;
 /// Storage buffers the shader binds.
 const STORAGE_BUFFERS: u32 = 5;
+/// Bytes of one sample's output (the shader's `OUT_VEC4S` vec4s).
+const OUT_BYTES: u64 = 80;
+/// Set in the secondary-ray count word of a sample in which something moved.
+const DYNAMIC_BIT: u32 = 1 << 31;
 
 /// Why a batch could not be traced on the GPU.
 #[derive(Debug, thiserror::Error)]
@@ -53,10 +57,10 @@ pub enum GpuTraceError {
     },
 }
 
-/// What the GPU returns of one sample.
+/// What the GPU returns of one sample: a CPU [`Sample`]'s fields and the hit's identity.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuSample {
-    /// Linear RGB radiance, as [`super::Sample::color`].
+    /// Linear RGB radiance, as [`Sample::color`].
     pub color: Vec3,
     /// Distance from the eye to the primary hit (`INFINITY` on a miss).
     pub depth: f32,
@@ -64,6 +68,30 @@ pub struct GpuSample {
     pub hit: HitId,
     /// Secondary rays traced for it: shadow rays, reflections, refractions.
     pub secondary_rays: u32,
+    /// As [`Sample::hit_point`].
+    pub hit_point: Vec3,
+    /// As [`Sample::velocity`].
+    pub velocity: Vec3,
+    /// As [`Sample::dynamic`].
+    pub dynamic: bool,
+    /// As [`Sample::anchor`].
+    pub anchor: Anchor,
+}
+
+impl GpuSample {
+    /// The CPU tracer's form of it.
+    pub fn sample(&self) -> Sample {
+        Sample {
+            color: self.color,
+            luminance: luminance(self.color),
+            hit_point: self.hit_point,
+            depth: self.depth,
+            velocity: self.velocity,
+            hit: self.hit != HitId::Miss,
+            dynamic: self.dynamic,
+            anchor: self.anchor,
+        }
+    }
 }
 
 /// The tracer's GPU side: its static buffers and the state uploaded last.
@@ -97,7 +125,7 @@ impl Io {
         let buffer = |label, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
-                size: size.max(32),
+                size: size.max(OUT_BYTES),
                 usage,
                 mapped_at_creation: false,
             })
@@ -112,8 +140,12 @@ impl Io {
                 U::UNIFORM | U::COPY_DST,
             ),
             points: buffer("trace points", cap64 * 8, U::STORAGE | U::COPY_DST),
-            out: buffer("trace out", cap64 * 32, U::STORAGE | U::COPY_SRC),
-            back: buffer("trace readback", cap64 * 32, U::MAP_READ | U::COPY_DST),
+            out: buffer("trace out", cap64 * OUT_BYTES, U::STORAGE | U::COPY_SRC),
+            back: buffer(
+                "trace readback",
+                cap64 * OUT_BYTES,
+                U::MAP_READ | U::COPY_DST,
+            ),
         }
     }
 }
@@ -230,8 +262,8 @@ impl GpuTracer {
         primary_only: bool,
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
         self.upload_state(tracer, state)?;
-        // One dispatch's output (32 bytes a sample) must fit one storage binding.
-        let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / 32);
+        // One dispatch's output must fit one storage binding.
+        let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / OUT_BYTES);
         let per_dispatch = per_dispatch.max(1) as usize;
         let mut out = Vec::with_capacity(points.len());
         for chunk in points.chunks(per_dispatch) {
@@ -273,7 +305,7 @@ impl GpuTracer {
         let queue = &self.ctx.queue;
         queue.write_buffer(&io.uniform, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&io.points, 0, bytemuck::cast_slice(points));
-        let out_bytes = points.len() as u64 * 32;
+        let out_bytes = points.len() as u64 * OUT_BYTES;
         let (out, back) = (&io.out, &io.back);
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace"),
@@ -301,32 +333,51 @@ impl GpuTracer {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(n.div_ceil(GROUP).max(1), 1, 1);
         }
-        enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(32));
+        enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(OUT_BYTES));
         queue.submit([enc.finish()]);
         let words = read_words(&self.ctx, back, out_bytes)?;
-        Ok(words.chunks_exact(8).map(unpack).collect())
+        Ok(words
+            .chunks_exact((OUT_BYTES / 4) as usize)
+            .map(unpack)
+            .collect())
     }
 }
 
-/// One sample of the shader's output: (colour, t), (kind, group, primitive, secondary
-/// rays).
+/// One sample of the shader's output: (colour, t), (kind, group, primitive,
+/// secondary rays | dynamic), (hit point, 0), (velocity, 0), (anchor, 0).
 fn unpack(w: &[u32]) -> GpuSample {
-    let color = Vec3::new(
-        f32::from_bits(w[0]),
-        f32::from_bits(w[1]),
-        f32::from_bits(w[2]),
-    );
+    let vec3 = |k: usize| {
+        Vec3::new(
+            f32::from_bits(w[k]),
+            f32::from_bits(w[k + 1]),
+            f32::from_bits(w[k + 2]),
+        )
+    };
     let hit = HitId::from_parts(w[4], w[5], w[6]);
     let depth = if hit == HitId::Miss {
         f32::INFINITY
     } else {
         f32::from_bits(w[3])
     };
+    let a = vec3(16);
+    let anchor = match hit {
+        HitId::Miss | HitId::Static(_) => Anchor::Still,
+        HitId::Instance { group, .. } => Anchor::Instance { group, local: a },
+        HitId::Morphing(index) => Anchor::Triangle {
+            index,
+            u: a.x,
+            v: a.y,
+        },
+    };
     GpuSample {
-        color,
+        color: vec3(0),
         depth,
         hit,
-        secondary_rays: w[7],
+        secondary_rays: w[7] & !DYNAMIC_BIT,
+        hit_point: vec3(8),
+        velocity: vec3(12),
+        dynamic: w[7] & DYNAMIC_BIT != 0,
+        anchor,
     }
 }
 

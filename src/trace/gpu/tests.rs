@@ -1,6 +1,7 @@
 //! The GPU tracer against the CPU one on the same samples: the same primary hit
 //! (instance group and primitive) on at least 99.9% of them, and where the hit is the
-//! same, colours within a quarter of an 8-bit level. Needs a Vulkan (or Metal, DX12)
+//! same, colours within a quarter of an 8-bit level and the same motion (hit point,
+//! velocity, anchor, the `dynamic` flag). Needs a Vulkan (or Metal, DX12)
 //! adapter; Mesa's lavapipe serves (`apt-get install mesa-vulkan-drivers libvulkan1`),
 //! and a missing one fails the test rather than skipping it.
 
@@ -8,6 +9,7 @@ use std::{path::PathBuf, sync::Arc};
 
 use super::*;
 use crate::{
+    trace::{Anchor, Sample},
     gpu::GpuContext,
     scene::{self, Scene},
     settings::ReconDevice,
@@ -59,6 +61,42 @@ struct Comparison {
     /// Same-hit samples on rigid instances and on morphing triangles.
     instance_hits: usize,
     morphing_hits: usize,
+    /// Same-hit samples whose hit point, velocity, anchor or `dynamic` flag differ.
+    motion_off: usize,
+    /// Same-hit samples that the CPU calls dynamic, and that move.
+    dynamic: usize,
+    moving: usize,
+}
+
+/// Whether `a` and `b` agree to `tol` of their size (at least 1).
+fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
+    (a - b).abs().max_element() <= tol * a.abs().max_element().max(1.0)
+}
+
+/// Whether the GPU's sample moves as the CPU's: hit point, velocity and anchor to float
+/// rounding, the same `dynamic` flag.
+fn same_motion(cpu: &Sample, gpu: &Sample) -> bool {
+    let anchor = match (cpu.anchor, gpu.anchor) {
+        (Anchor::Still, Anchor::Still) => true,
+        (
+            Anchor::Instance { group: a, local: p },
+            Anchor::Instance { group: b, local: q },
+        ) => a == b && close(p, q, 1e-4),
+        (
+            Anchor::Triangle { index: a, u, v },
+            Anchor::Triangle {
+                index: b,
+                u: u2,
+                v: v2,
+            },
+        ) => a == b && (u - u2).abs() <= 1e-3 && (v - v2).abs() <= 1e-3,
+        _ => false,
+    };
+    anchor
+        && cpu.dynamic == gpu.dynamic
+        && cpu.hit == gpu.hit
+        && close(cpu.hit_point, gpu.hit_point, 1e-4)
+        && close(cpu.velocity, gpu.velocity, 1e-3)
 }
 
 fn compare(tracer: &Tracer, gpu: &mut GpuTracer, t: f64, w: u32, h: u32) -> Comparison {
@@ -78,7 +116,16 @@ fn compare(tracer: &Tracer, gpu: &mut GpuTracer, t: f64, w: u32, h: u32) -> Comp
         c.hits += (id != HitId::Miss) as usize;
         c.instance_hits += matches!(id, HitId::Instance { .. }) as usize;
         c.morphing_hits += matches!(id, HitId::Morphing(_)) as usize;
-        let cpu = tracer.sample(&state, p[0], p[1]).color;
+        let cpu_sample = tracer.sample(&state, p[0], p[1]);
+        if !same_motion(&cpu_sample, &g.sample()) {
+            c.motion_off += 1;
+            if c.motion_off <= 5 {
+                eprintln!("  motion off at {p:?}: cpu {cpu_sample:?} gpu {g:?}");
+            }
+        }
+        c.dynamic += cpu_sample.dynamic as usize;
+        c.moving += (cpu_sample.velocity != Vec3::ZERO) as usize;
+        let cpu = cpu_sample.color;
         let d = (cpu - g.color).abs().max_element();
         c.max_diff = c.max_diff.max(d);
         if d > MAX_DIFF {
@@ -119,6 +166,11 @@ fn check(
             ((1.0 - SAME_HIT) * c.same_hit as f64).floor() as usize
         };
         assert!(
+            c.motion_off <= ((1.0 - SAME_HIT) * c.same_hit as f64).floor() as usize,
+            "{name} t={t}: motion differs on {} samples: {c:?}",
+            c.motion_off
+        );
+        assert!(
             c.colour_off <= allowed,
             "{name} t={t}: colours differ by up to {} (more than {MAX_DIFF}) on {} samples: {c:?}",
             c.max_diff,
@@ -146,6 +198,184 @@ fn gpu_trace_toycar_matches_the_cpu() {
     assert!(
         got.iter().all(|c| c.instance_hits > 0),
         "the car was never hit"
+    );
+    assert!(
+        got.iter().any(|c| c.moving > 0 && c.dynamic > c.moving),
+        "no moving hit, or no sample dynamic through a shadow or reflection: {got:?}"
+    );
+}
+
+/// A scene of many moving rigid instances: `n × n` objects (boxes of triangles,
+/// spheres, cylinders; matte, mirror and glass) each on its own path, spinning, over a
+/// textured floor, lit by two lights, seen from above.
+fn swarm(n: u32) -> Scene {
+    use crate::scene::{Material, Node, NodeKind};
+    let mut s = builtin("toycar");
+    s.name = "swarm".into();
+    // Keep toycar's floor, textures and materials; drop its car and props.
+    s.groups.retain(|g| g.node.is_none());
+    for g in &mut s.groups {
+        g.spheres.clear();
+        g.cones.clear();
+    }
+    s.nodes.clear();
+    s.tracks.clear();
+    let m = s.materials.len() as u32;
+    s.materials.extend([
+        Material::matte(Vec3::new(0.8, 0.3, 0.2)),
+        Material {
+            diffuse: Vec3::splat(0.05),
+            specular: Vec3::splat(0.8),
+            shininess: 200.0,
+            ..Material::default()
+        },
+        Material {
+            diffuse: Vec3::splat(0.02),
+            specular: Vec3::splat(0.1),
+            transmission: 0.85,
+            ior: 1.5,
+            ..Material::default()
+        },
+    ]);
+    for i in 0..n * n {
+        s.nodes.push(Node {
+            parent: None,
+            kind: NodeKind::Animated {
+                name: format!("o{i}"),
+                track: Some(s.tracks.len() as u32),
+            },
+        });
+        s.tracks.push(swarm_track(i, n));
+        s.groups.push(swarm_object(i, s.nodes.len() as u32 - 1, m + i % 3));
+    }
+    swarm_stage(&mut s);
+    s
+}
+
+/// Object `i`'s path over an `n × n` grid: a loop about its cell, spinning.
+fn swarm_track(i: u32, n: u32) -> crate::scene::KeyframeTrack {
+    use crate::scene::animation::{RotationSpline, TcbKey, VectorSpline};
+    let (gx, gz) = ((i % n) as f32, (i / n) as f32);
+    let c = Vec3::new((gx - 0.5 * n as f32) * 0.9, 0.3, (gz - 0.5 * n as f32) * 0.9);
+    let phase = i as f32 * 0.7;
+    let keys = (-2..=12)
+        .map(|k| {
+            let a = k as f32 * 0.5 + phase;
+            let p = c + Vec3::new(0.3 * a.cos(), 0.1 * (2.0 * a).sin(), 0.3 * a.sin());
+            TcbKey::catmull_rom(k as f32 * 0.5, p)
+        })
+        .collect();
+    let spin = (-2..=12)
+        .map(|k| TcbKey::catmull_rom(k as f32 * 0.5, (Vec3::Y, k as f32 * 40.0 + phase * 50.0)))
+        .collect();
+    crate::scene::KeyframeTrack {
+        name: format!("o{i}"),
+        translation: VectorSpline::new(keys),
+        rotation: RotationSpline::new(spin),
+        ..Default::default()
+    }
+}
+
+/// Object `i` under `node`: a box, a sphere or a cylinder by turns.
+fn swarm_object(i: u32, node: u32, material: u32) -> crate::scene::Group {
+    use crate::scene::{Cone, Group, Sphere};
+    let mut g = Group {
+        node: Some(node),
+        ..Default::default()
+    };
+    match i % 3 {
+        0 => g.triangles = cube_triangles(0.2, material),
+        1 => g.spheres.push(Sphere {
+            center: Vec3::ZERO,
+            radius: 0.22,
+            material,
+        }),
+        _ => g.cones.push(Cone {
+            base: Vec3::new(0.0, -0.2, 0.0),
+            base_radius: 0.15,
+            apex: Vec3::new(0.0, 0.2, 0.0),
+            apex_radius: 0.05,
+            material,
+        }),
+    }
+    g
+}
+
+/// Two lights and a camera above the swarm.
+fn swarm_stage(s: &mut Scene) {
+    use crate::scene::{Camera, CameraTrack, Light};
+    let light = |position, c| Light {
+        position,
+        color: Vec3::splat(c),
+        track: None,
+        name: None,
+    };
+    s.lights = vec![
+        light(Vec3::new(2.0, 6.0, 3.0), 0.7),
+        light(Vec3::new(-3.0, 4.0, -2.0), 0.35),
+    ];
+    s.camera = CameraTrack {
+        base: Camera {
+            eye: Vec3::new(0.0, 6.0, 4.5),
+            at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 55.0,
+            hither: 1e-3,
+        },
+        track: None,
+        resolution: None,
+    };
+}
+
+/// An axis-aligned cube of half-side `h` about the origin, as twelve triangles.
+fn cube_triangles(h: f32, material: u32) -> Vec<crate::scene::Triangle> {
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x * h, y * h, z * h);
+    let faces = [
+        [v(-1., -1., 1.), v(1., -1., 1.), v(1., 1., 1.), v(-1., 1., 1.)],
+        [v(1., -1., -1.), v(-1., -1., -1.), v(-1., 1., -1.), v(1., 1., -1.)],
+        [v(1., -1., 1.), v(1., -1., -1.), v(1., 1., -1.), v(1., 1., 1.)],
+        [v(-1., -1., -1.), v(-1., -1., 1.), v(-1., 1., 1.), v(-1., 1., -1.)],
+        [v(-1., 1., 1.), v(1., 1., 1.), v(1., 1., -1.), v(-1., 1., -1.)],
+        [v(-1., -1., -1.), v(1., -1., -1.), v(1., -1., 1.), v(-1., -1., 1.)],
+    ];
+    faces
+        .iter()
+        .flat_map(|q| {
+            [[q[0], q[1], q[2]], [q[0], q[2], q[3]]].map(|p| crate::scene::Triangle {
+                p,
+                n: None,
+                uv: None,
+                material,
+            })
+        })
+        .collect()
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe in CI)"]
+fn gpu_trace_many_moving_instances_match_the_cpu() {
+    let scene = swarm(8);
+    let groups = scene.groups.iter().filter(|g| g.node.is_some()).count();
+    assert_eq!(groups, 64);
+    let got = check(scene, TraceOptions::default(), &[0.0, 1.37, 3.9], (128, 96));
+    for c in &got {
+        assert!(
+            c.instance_hits > c.samples / 10 && c.moving > 0 && c.dynamic >= c.moving,
+            "too few moving hits to judge: {c:?}"
+        );
+    }
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe in CI)"]
+fn gpu_trace_gltf_scene_matches_the_cpu() {
+    // The glTF demo: a turntable, a hopping cube, glass, a PNG texture, punctual lights.
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/demo.gltf");
+    let scene = scene::load(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let got = check(scene, TraceOptions::default(), &[0.0, 1.0, 2.3], (128, 96));
+    assert!(
+        got.iter().all(|c| c.instance_hits > 0 && c.moving > 0),
+        "the glTF's animated nodes were never hit: {got:?}"
     );
 }
 

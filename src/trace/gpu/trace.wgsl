@@ -50,8 +50,21 @@ struct Params {
 // triangles and their attributes, lights.
 @group(0) @binding(3) var<storage, read> dyn_: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> points: array<vec2<f32>>;
-// Per sample: (colour, t), (hit kind, instance group, primitive, secondary rays traced).
+// Per sample OUT_VEC4S vec4: (colour, t), (hit kind, instance group, primitive,
+// secondary rays traced | DYNAMIC_BIT), (hit point, 0), (velocity, 0), (anchor, 0).
 @group(0) @binding(5) var<storage, read_write> out: array<vec4<u32>>;
+
+const OUT_VEC4S: u32 = 5u;
+const DYNAMIC_BIT: u32 = 0x80000000u;
+
+// Whether something moving took part in this invocation's sample (`Sample::dynamic`):
+// set wherever the CPU tracer sets it, deep in traversal and shading, so a private
+// flag rather than a value threaded through every call.
+var<private> g_dynamic: bool;
+
+// vec4s per morphing triangle's attributes: normals (the first's w: material),
+// vertex velocities (the first's w: 1 where any is not zero).
+const ANIM_VEC4S: u32 = 6u;
 
 struct Ray {
     o: vec3<f32>,
@@ -445,7 +458,11 @@ fn leaf_test(anim: bool, prim_base: u32, slot: u32, r: Ray, shadow: bool, acc: p
     if anim {
         var t = tri_intersect(true, P.anim_tris_at + 4u * slot, r);
         if shadow && t < FAR {
-            let tr = material_transmission(bitcast<u32>(dyn_[P.anim_attr_at + 3u * slot].w));
+            // Tracer::shadow: any moving triangle the shadow ray meets makes it dynamic.
+            if bitcast<u32>(dyn_[P.anim_attr_at + ANIM_VEC4S * slot + 3u].w) != 0u {
+                g_dynamic = true;
+            }
+            let tr = material_transmission(bitcast<u32>(dyn_[P.anim_attr_at + ANIM_VEC4S * slot].w));
             if tr > 0.0 {
                 *acc *= tr;
                 t = FAR;
@@ -620,11 +637,23 @@ fn group_occluded(g: u32, r: Ray, acc: ptr<function, f32>) -> bool {
     return false;
 }
 
-// ---- Instances: 11 vec4 each: inv (4 columns), normal matrix (3), world's linear
-// part (3), (group in `groups`, the CPU's group index, …). ----
+// ---- Instances: 15 vec4 each: inv (4 columns), normal matrix (3), world's linear
+// part (3), (group in `groups`, the CPU's group index, moving, 0), d(world)/dt (4
+// columns). ----
 
 fn inst_base(i: u32) -> u32 {
-    return P.inst_at + 11u * i;
+    return P.inst_at + 15u * i;
+}
+
+// Whether the instance moves now (its d(world)/dt is not zero).
+fn inst_moving(i: u32) -> bool {
+    return bitcast<u32>(dyn_[inst_base(i) + 10u].z) != 0u;
+}
+
+// The world velocity of the instance's local point `p` (`velocity.transform_point3`).
+fn inst_velocity(i: u32, p: vec3<f32>) -> vec3<f32> {
+    let k = inst_base(i) + 11u;
+    return dyn_[k].xyz * p.x + dyn_[k + 1u].xyz * p.y + dyn_[k + 2u].xyz * p.z + dyn_[k + 3u].xyz;
 }
 
 // The instance's group in the `groups` table (0 is the static world).
@@ -658,7 +687,12 @@ fn inst_mat3(i: u32, first: u32, v: vec3<f32>) -> vec3<f32> {
 fn top_leaf(i: u32, r: ptr<function, Ray>, shadow: bool, acc: ptr<function, f32>, hit: ptr<function, Hit>) -> bool {
     let local = local_ray(i, *r);
     if shadow {
-        return !group_occluded(inst_group(i), local, acc);
+        let before = *acc;
+        let blocked = group_occluded(inst_group(i), local, acc);
+        if (blocked || *acc != before) && inst_moving(i) {
+            g_dynamic = true;
+        }
+        return !blocked;
     }
     var prim = 0u;
     let t = group_closest(inst_group(i), local, &prim);
@@ -774,6 +808,9 @@ struct Surface {
     uv: vec2<f32>,
     material: u32,
     uv_density: f32,
+    velocity: vec3<f32>,
+    // Instance: the local point; morphing triangle: (u, v, 0); else zero.
+    anchor: vec3<f32>,
 }
 
 // A rigid group's primitive seen by the (local) ray `lr` at `t`.
@@ -783,7 +820,7 @@ fn group_surface(g: u32, prim: u32, lr: Ray, t: f32) -> Surface {
     if (prim & ANALYTIC_BIT) != 0u {
         let i = gr.analytic_base + (prim & ~ANALYTIC_BIT);
         let n = analytic_normal(i, pl);
-        return Surface(pl, n, n, vec2<f32>(0.0), analytic_material(i), 0.0);
+        return Surface(pl, n, n, vec2<f32>(0.0), analytic_material(i), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
     }
     let slot = gr.tri_base + prim;
     let tk = P.tris_at + 4u * slot;
@@ -799,7 +836,7 @@ fn group_surface(g: u32, prim: u32, lr: Ray, t: f32) -> Surface {
     let a3 = data[ak + 3u];
     let n = normalize_or(a0.xyz * w + a1.xyz * u + a2.xyz * v, ng);
     let uv = vec2<f32>(a0.w, a1.w) * w + vec2<f32>(a2.w, a3.x) * u + a3.yz * v;
-    return Surface(pl, ng, n, uv, bitcast<u32>(a3.w), 0.0);
+    return Surface(pl, ng, n, uv, bitcast<u32>(a3.w), 0.0, vec3<f32>(0.0), vec3<f32>(0.0));
 }
 
 // UV area per unit world area of a rigid group's triangle; `inst` NONE: static.
@@ -839,6 +876,8 @@ fn surface(ray: Ray, h: Hit) -> Surface {
     if h.kind == INSTANCE {
         let g = inst_group(h.inst);
         var s = group_surface(g, h.prim, local_ray(h.inst, ray), h.t);
+        s.velocity = inst_velocity(h.inst, s.p);
+        s.anchor = s.p;
         s.p = p_world;
         s.ng = normalize_or(inst_mat3(h.inst, 4u, s.ng), vec3<f32>(0.0, 1.0, 0.0));
         s.n = normalize_or(inst_mat3(h.inst, 4u, s.n), vec3<f32>(0.0, 1.0, 0.0));
@@ -851,9 +890,10 @@ fn surface(ray: Ray, h: Hit) -> Surface {
     let v = bc.y;
     let w = 1.0 - u - v;
     let ng = -normalize_or(dyn_[tk + 3u].xyz, vec3<f32>(0.0));
-    let ak = P.anim_attr_at + 3u * h.prim;
+    let ak = P.anim_attr_at + ANIM_VEC4S * h.prim;
     let n = normalize_or(dyn_[ak].xyz * w + dyn_[ak + 1u].xyz * u + dyn_[ak + 2u].xyz * v, ng);
-    return Surface(p_world, ng, n, vec2<f32>(0.0), bitcast<u32>(dyn_[ak].w), 0.0);
+    let velocity = dyn_[ak + 3u].xyz * w + dyn_[ak + 4u].xyz * u + dyn_[ak + 5u].xyz * v;
+    return Surface(p_world, ng, n, vec2<f32>(0.0), bitcast<u32>(dyn_[ak].w), 0.0, velocity, vec3<f32>(u, v, 0.0));
 }
 
 // ---- Textures (scene/texture.rs: bilinear, repeat wrap, trilinear between levels) ----
@@ -988,6 +1028,9 @@ fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32, rays: ptr<function, 
     var res: Local;
     res.refr.weight = vec3<f32>(0.0);
     res.refl.weight = vec3<f32>(0.0);
+    if any(s.velocity != vec3<f32>(0.0)) {
+        g_dynamic = true;
+    }
     if s.material >= P.n_materials {
         res.color = vec3<f32>(1.0, 0.0, 1.0);
         return res;
@@ -1040,12 +1083,23 @@ fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32, rays: ptr<function, 
     return res;
 }
 
+// Writes sample `i`'s output.
+fn write_out(i: u32, color: vec3<f32>, t: f32, id: vec4<u32>, p: vec3<f32>, velocity: vec3<f32>, anchor: vec3<f32>) {
+    let k = OUT_VEC4S * i;
+    out[k] = vec4<u32>(bitcast<vec3<u32>>(color), bitcast<u32>(t));
+    out[k + 1u] = id;
+    out[k + 2u] = vec4<u32>(bitcast<vec3<u32>>(p), 0u);
+    out[k + 3u] = vec4<u32>(bitcast<vec3<u32>>(velocity), 0u);
+    out[k + 4u] = vec4<u32>(bitcast<vec3<u32>>(anchor), 0u);
+}
+
 @compute @workgroup_size(64)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if i >= P.count {
         return;
     }
+    g_dynamic = false;
     let xy = points[i];
     let dir = normalize_cpu(P.corner.xyz + P.du.xyz * xy.x + P.dv.xyz * xy.y);
     let primary = make_ray(P.eye.xyz, dir, max(P.eye.w, 0.0), FAR);
@@ -1055,8 +1109,9 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         id.y = inst_cpu_group(h.inst);
     }
     if h.kind == MISS || P.primary_only != 0u {
-        out[2u * i] = vec4<u32>(bitcast<vec3<u32>>(P.background.xyz), bitcast<u32>(h.t));
-        out[2u * i + 1u] = id;
+        // Tracer::sample on a miss: the ray's point a million units out.
+        let far = primary.o + primary.d * 1e6;
+        write_out(i, P.background.xyz, h.t, id, far, vec3<f32>(0.0), vec3<f32>(0.0));
         return;
     }
     var color = vec3<f32>(0.0);
@@ -1069,11 +1124,17 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     var cone_width = 0.0;
     var depth = 0u;
     var rays = 0u;
+    var first: Surface;
+    var is_first = true;
     loop {
         if hit.kind == MISS {
             color += weight * P.background.xyz;
         } else {
             let s = surface(ray, hit);
+            if is_first {
+                first = s;
+                is_first = false;
+            }
             let width = cone_width + P.corner.w * hit.t;
             let local = shade(ray, s, width, depth, &rays);
             color += weight * local.color;
@@ -1100,7 +1161,6 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         cone_width = next.cone_width;
         depth = next.depth;
     }
-    out[2u * i] = vec4<u32>(bitcast<vec3<u32>>(color), bitcast<u32>(h.t));
-    id.w = rays;
-    out[2u * i + 1u] = id;
+    id.w = rays | select(0u, DYNAMIC_BIT, g_dynamic);
+    write_out(i, color, h.t, id, first.p, first.velocity, first.anchor);
 }
