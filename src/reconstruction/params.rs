@@ -169,7 +169,8 @@ impl ReconParams {
         }
     }
 
-    /// The real-time reconstructor (`frameless view`, `frameless live`):
+    /// Our reconstructor as every command runs it (`adaptive` in `frameless eval`,
+    /// `table1` and `render`, and in `frameless view` and `live`):
     /// [`ReconParams::converging`] with a ring of 2 × pixels samples (it only holds the
     /// samples until their first refresh, and an image thread that falls behind may
     /// take in that many at once). Splats are at most 8 px in radius (paper: 24):
@@ -183,13 +184,13 @@ impl ReconParams {
         }
     }
 
-    /// Ablation of [`ReconParams::converging`]: samples splat where they were traced.
+    /// Ablation of [`ReconParams::realtime`]: samples splat where they were traced.
     pub fn no_reprojection() -> Self {
         Self {
             reproject: false,
             // Depths need the current view: samples splat where they were traced.
             visibility: None,
-            ..Self::converging()
+            ..Self::realtime()
         }
     }
 
@@ -202,7 +203,7 @@ impl ReconParams {
                 ey: 1.0,
                 et: 0.1,
             }),
-            ..Self::converging()
+            ..Self::realtime()
         }
     }
 }

@@ -44,7 +44,7 @@ pub const ADAPTIVE: MethodInfo = MethodInfo {
     name: "adaptive",
     description: "adaptive frameless (ours): closed-loop sampler over a K-D tiling of a deep buffer, space-time reconstruction with a still-region history",
     budget: Budget::Rate,
-    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::converging()),
+    check_rate: |shape, _| fits(shape, SamplerParams::ours(), ReconParams::realtime()),
     build: |ctx| Ok(Box::new(Adaptive::new(ctx, SamplerParams::ours())?)),
 };
 
@@ -132,10 +132,11 @@ pub struct Adaptive {
 }
 
 impl Adaptive {
-    /// Create for one run with the given sampler parameters and our reconstructor
-    /// ([`ReconParams::converging`]).
+    /// Create for one run with the given sampler parameters and our reconstructor as
+    /// `frameless live` and `view` run it ([`ReconParams::realtime`]), so that the
+    /// simulated figures describe the images a person sees live.
     pub fn new(ctx: &MethodContext, params: SamplerParams) -> Result<Self, MethodError> {
-        Self::with_reconstructor(ctx, params, ReconParams::converging())
+        Self::with_reconstructor(ctx, params, ReconParams::realtime())
     }
 
     /// Create for one run with the given sampler and reconstructor parameters.
