@@ -71,15 +71,15 @@ fn view(method: &str, extra: &[&str], out: &Path) -> Output {
         .expect("the binary runs")
 }
 
-/// The real-time pipeline traces traditional frameless and adaptive on the GPU and
-/// records it; a method whose sampling cannot is refused before any work rather than
-/// run on the CPU.
+/// The real-time pipeline traces traditional frameless, adaptive, framed and late warp
+/// on the GPU and records it; a method whose sampling cannot (TAA) is refused before
+/// any work rather than run on the CPU.
 #[cfg(feature = "gpu")]
 #[test]
 #[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
 fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
     let d = scratch("realtime");
-    for method in ["traditional-frameless", "adaptive"] {
+    for method in ["traditional-frameless", "adaptive", "framed", "late-warp"] {
         let out = d.join(method);
         let o = view(method, &["--trace", "gpu"], &out);
         assert!(o.status.success(), "{method}: {}", stderr(&o));
@@ -90,14 +90,14 @@ fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
         assert!(p.get("trace_failure").is_none(), "{method}: {v}");
         assert!(p["samples_per_s"].as_f64().unwrap_or(0.0) > 0.0, "{method}: {v}");
     }
-    let o = view("framed", &["--trace", "gpu"], &d.join("framed"));
+    let o = view("taa", &["--trace", "gpu"], &d.join("taa-view"));
     let e = stderr(&o);
-    assert!(!o.status.success(), "framed ran with --trace gpu: {e}");
-    assert!(e.contains("framed-full traces on the CPU only") && e.contains("--trace cpu"), "{e}");
-    assert!(!d.join("framed").exists(), "the error comes before any work");
+    assert!(!o.status.success(), "taa ran with --trace gpu: {e}");
+    assert!(e.contains("taa traces on the CPU only") && e.contains("--trace cpu"), "{e}");
+    assert!(!d.join("taa-view").exists(), "the error comes before any work");
     let out = d.join("live");
     let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
-        .args(["live", "--method", "traditional-frameless,adaptive", "--trace", "gpu"])
+        .args(["live", "--method", "traditional-frameless,adaptive,late-warp", "--trace", "gpu"])
         .args(["--size", "64x48", "--duration", "0.5", "--warmup", "0.25"])
         .args(["--ideal-spp", "1", "--no-cache", "--out"])
         .arg(&out)

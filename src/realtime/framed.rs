@@ -9,6 +9,10 @@
 //! newest complete one reprojected at every refresh to the camera and time shown (the
 //! evaluation's [`Warp`]: depth and object motion, display-side, no rays): the
 //! practitioners' low-latency answer, live beside frameless.
+//!
+//! With a GPU tracer (`--trace gpu`) one sampling thread traces each whole frame as one
+//! batch at its start time (one scene state, so one dispatch) and hands its rows on as
+//! the CPU's threads do.
 
 use std::{
     sync::{
@@ -32,7 +36,10 @@ use crate::{
         late_warp::Warp,
     },
     scene::CameraFrame,
-    trace::{SceneState, Tracer},
+    trace::{
+        batch::{self, GpuRays},
+        SceneState, Tracer,
+    },
 };
 
 /// The framed method's description.
@@ -44,7 +51,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
-    traces_on_gpu: false,
+    traces_on_gpu: true,
     start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
@@ -56,7 +63,7 @@ pub(crate) const LATE_WARP: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
-    traces_on_gpu: false,
+    traces_on_gpu: true,
     start: |sp, _| start_with(sp, Shown::Warped),
 };
 
@@ -107,7 +114,12 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     // growing memory; ~100 ms of rows.
     let (tx, rx) = bounded(1024);
     let s1 = s.clone();
-    sp.sampling_threads(tx, move |_, tx| sample(&s1, &job, tx, shown))?;
+    sp.sampling_threads(tx, move |thread, tx| match &s1.config.rays {
+        // The GPU traces one frame at a time: one thread feeds it.
+        Some(rays) if thread == 0 => sample_on_gpu(&s1, rays, tx, shown),
+        Some(_) => {}
+        None => sample(&s1, &job, tx, shown),
+    })?;
     let (w, h) = s.tracer.size();
     // The warp runs on the builder's own pool.
     let config = s.config.clone();
@@ -172,6 +184,45 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, shown: Shown)
         {
             return;
         }
+    }
+}
+
+/// The sampling thread of a run with a GPU tracer: whole frames, each traced as one
+/// batch through pixel centres at the time it starts, then handed on row by row.
+fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Row>, shown: Shown) {
+    let tracer = &s.tracer;
+    let (w, h) = tracer.size();
+    let points: Vec<[f32; 2]> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| [x as f32 + 0.5, y as f32 + 0.5]))
+        .collect();
+    let mut id = 0u64;
+    while !s.stopped() {
+        let time = s.clock.now();
+        let state = tracer.state_at(time);
+        let t0 = Instant::now();
+        let got = batch::trace_points(tracer, Some(rays), &state, &points);
+        s.busy_ns
+            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        s.samples.fetch_add(got.len() as u64, Ordering::Relaxed);
+        s.rays.fetch_add(got.len() as u64, Ordering::Relaxed);
+        for (y, row) in got.chunks(w as usize).enumerate() {
+            let hits = match shown {
+                Shown::Warped => row.iter().map(GSample::from).collect(),
+                _ => Vec::new(),
+            };
+            let sent = tx.send(Row {
+                frame: id,
+                time,
+                camera: state.camera,
+                y: y as u32,
+                pixels: row.iter().map(|s| s.color).collect(),
+                hits,
+            });
+            if sent.is_err() {
+                return;
+            }
+        }
+        id += 1;
     }
 }
 
