@@ -29,7 +29,9 @@ fn scratch(name: &str) -> PathBuf {
 /// 16-spp ideals) with `extra` arguments (the rate among them), into `out`.
 fn eval(methods: &str, extra: &[&str], out: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_frameless"))
-        .args(["eval", "--scene", "toycar", "--size", "64x48", "--start", "1"])
+        .args([
+            "eval", "--scene", "toycar", "--size", "64x48", "--start", "1",
+        ])
         .args(["--duration", "0.25", "--warmup", "0.5"])
         .args(["--method", methods, "--no-cache"])
         .args(extra)
@@ -88,16 +90,31 @@ fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
         let p = &v["pipeline"];
         assert_eq!(p["trace"]["device"], "gpu", "{method}: {v}");
         assert!(p.get("trace_failure").is_none(), "{method}: {v}");
-        assert!(p["samples_per_s"].as_f64().unwrap_or(0.0) > 0.0, "{method}: {v}");
+        assert!(
+            p["samples_per_s"].as_f64().unwrap_or(0.0) > 0.0,
+            "{method}: {v}"
+        );
     }
     let o = view("taa", &["--trace", "gpu"], &d.join("taa-view"));
     let e = stderr(&o);
     assert!(!o.status.success(), "taa ran with --trace gpu: {e}");
-    assert!(e.contains("taa traces on the CPU only") && e.contains("--trace cpu"), "{e}");
-    assert!(!d.join("taa-view").exists(), "the error comes before any work");
+    assert!(
+        e.contains("taa traces on the CPU only") && e.contains("--trace cpu"),
+        "{e}"
+    );
+    assert!(
+        !d.join("taa-view").exists(),
+        "the error comes before any work"
+    );
     let out = d.join("live");
     let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
-        .args(["live", "--method", "traditional-frameless,adaptive,late-warp", "--trace", "gpu"])
+        .args([
+            "live",
+            "--method",
+            "traditional-frameless,adaptive,late-warp",
+            "--trace",
+            "gpu",
+        ])
         .args(["--size", "64x48", "--duration", "0.5", "--warmup", "0.25"])
         .args(["--ideal-spp", "1", "--no-cache", "--out"])
         .arg(&out)
@@ -110,7 +127,11 @@ fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
         .arg(d.join("taa"))
         .output()
         .expect("the binary runs");
-    assert!(!o.status.success() && stderr(&o).contains("taa traces on the CPU only"), "{}", stderr(&o));
+    assert!(
+        !o.status.success() && stderr(&o).contains("taa traces on the CPU only"),
+        "{}",
+        stderr(&o)
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
 
@@ -118,7 +139,11 @@ fn gpu_view_and_live_trace_on_the_gpu_or_refuse() {
 fn eval_records_the_cpu_tracer_by_default() {
     let d = scratch("cpu");
     let out = d.join("out");
-    let o = eval("traditional-frameless", &["--ideal-spp", "1", "--rate", "100k"], &out);
+    let o = eval(
+        "traditional-frameless",
+        &["--ideal-spp", "1", "--rate", "100k"],
+        &out,
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         summary(&out)["trace"],
@@ -139,7 +164,15 @@ fn trace_gpu_without_an_adapter_is_a_clear_error_and_auto_falls_back() {
     let run = |choice: &str| {
         Command::new(env!("CARGO_BIN_EXE_frameless"))
             .env("WGPU_ADAPTER_NAME", "no adapter is called this")
-            .args(["eval", "--size", "32x24", "--duration", "0.05", "--warmup", "0.05"])
+            .args([
+                "eval",
+                "--size",
+                "32x24",
+                "--duration",
+                "0.05",
+                "--warmup",
+                "0.05",
+            ])
             .args(["--method", "traditional-frameless", "--rate", "100k"])
             .args(["--ideal-spp", "1", "--no-cache", "--trace", choice, "--out"])
             .arg(&out)
@@ -284,8 +317,14 @@ fn assert_eval_alike(name: &str, methods: &str, rate: &str) {
         assert!(a.iter().any(|r| r.0 == m), "no frames of {m}");
     }
     for ((m, rms_a, flip_a), (_, rms_b, flip_b)) in a.iter().zip(&b) {
-        assert!((rms_a - rms_b).abs() <= 0.5, "{m}: RMS {rms_a} on the CPU, {rms_b} on the GPU");
-        assert!((flip_a - flip_b).abs() <= 0.01, "{m}: FLIP {flip_a} on the CPU, {flip_b} on the GPU");
+        assert!(
+            (rms_a - rms_b).abs() <= 0.5,
+            "{m}: RMS {rms_a} on the CPU, {rms_b} on the GPU"
+        );
+        assert!(
+            (flip_a - flip_b).abs() <= 0.01,
+            "{m}: FLIP {flip_a} on the CPU, {flip_b} on the GPU"
+        );
     }
     let strips: Vec<_> = std::fs::read_dir(&cpu)
         .expect("the CPU run's folder")
@@ -297,7 +336,11 @@ fn assert_eval_alike(name: &str, methods: &str, rate: &str) {
         let x = frameless::image::read_png_rgb8(&cpu.join(&name)).expect("a PNG");
         let y = frameless::image::read_png_rgb8(&gpu.join(&name)).expect("a PNG");
         assert_eq!((x.0, x.1), (y.0, y.1));
-        let sq: f64 = x.2.iter().zip(&y.2).map(|(p, q)| (*p as f64 - *q as f64).powi(2)).sum();
+        let sq: f64 =
+            x.2.iter()
+                .zip(&y.2)
+                .map(|(p, q)| (*p as f64 - *q as f64).powi(2))
+                .sum();
         let rms = (sq / x.2.len() as f64).sqrt();
         assert!(rms <= 0.5, "{name}: the strips differ by RMS {rms}");
     }
@@ -334,7 +377,15 @@ fn gpu_ideals_are_cached_apart_from_the_cpus() {
     let run = |trace: &str, k: u32| {
         let out = d.join(format!("{trace}{k}"));
         let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
-            .args(["eval", "--size", "32x24", "--duration", "0.1", "--warmup", "0.1"])
+            .args([
+                "eval",
+                "--size",
+                "32x24",
+                "--duration",
+                "0.1",
+                "--warmup",
+                "0.1",
+            ])
             .args(["--method", "traditional-frameless", "--rate", "100k"])
             .args(["--trace", trace, "--cache-dir"])
             .arg(&cache)
@@ -343,7 +394,9 @@ fn gpu_ideals_are_cached_apart_from_the_cpus() {
             .output()
             .expect("the binary runs");
         assert!(o.status.success(), "{}", stderr(&o));
-        summary(&out)["timing"]["ideal_cache_hits"].as_u64().expect("a count")
+        summary(&out)["timing"]["ideal_cache_hits"]
+            .as_u64()
+            .expect("a count")
     };
     assert_eq!(run("gpu", 1), 0);
     assert_eq!(run("gpu", 2), 6, "the GPU's ideals were not served again");

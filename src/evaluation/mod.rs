@@ -20,8 +20,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     clock::{rate_label, Clock},
-    limits,
     gpu::DeviceUsed,
+    limits,
     methods::{
         ideal::{ideal_image, ideal_lookup},
         Method, MethodContext, MethodError, MethodKind, RunShape,
@@ -980,8 +980,8 @@ pub fn run_with(
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = cfg.tracer(scene);
-    let rays = batch::open(cfg.trace_gpu.clone(), &tracer)
-        .map_err(|e| EvalError::Trace(e.to_string()))?;
+    let rays =
+        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
     let cache = open_cache(cfg, &tracer, &batch::used(rays.as_ref()))?;
     let n = cfg.frames();
     let runs = cfg.runs();

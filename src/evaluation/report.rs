@@ -556,7 +556,10 @@ fn html_heading(h: &mut String, s: &Summary) {
 /// if it did.
 fn tracer_words(s: &Summary) -> String {
     match &s.trace_failure {
-        Some(why) => format!("{} (failed part way, the rest traced on the CPU: {why})", s.trace),
+        Some(why) => format!(
+            "{} (failed part way, the rest traced on the CPU: {why})",
+            s.trace
+        ),
         None => s.trace.to_string(),
     }
 }

@@ -129,7 +129,11 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Batch>) {
         let got = batch::trace_points(tracer, Some(rays), &state, &points);
         let busy = t0.elapsed().as_secs_f64();
         let k = got.len() as u64;
-        let batch: Batch = pixels.iter().zip(got).map(|(&p, x)| (p, x.color, now)).collect();
+        let batch: Batch = pixels
+            .iter()
+            .zip(got)
+            .map(|(&p, x)| (p, x.color, now))
+            .collect();
         s.samples.fetch_add(k, Ordering::Relaxed);
         s.rays.fetch_add(k, Ordering::Relaxed);
         s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);

@@ -670,15 +670,27 @@ mod tests {
         let img = still::render(&tracer, 0.5, 2, 1, &|_| {});
         let (_, l) = gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), false));
         assert_eq!(l, Lookup::Miss);
-        assert!(!paths[1].exists(), "a fallback image was stored under the GPU's key");
+        assert!(
+            !paths[1].exists(),
+            "a fallback image was stored under the GPU's key"
+        );
         let (_, l) = gpu.get_or_render(&tracer, 0.5, 2, 1);
         assert_eq!(l, Lookup::Miss);
-        assert!(!paths[1].exists(), "a CPU image was stored under the GPU's key");
+        assert!(
+            !paths[1].exists(),
+            "a CPU image was stored under the GPU's key"
+        );
         gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
-        assert_eq!(gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true)).1, Lookup::Hit);
+        assert_eq!(
+            gpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true)).1,
+            Lookup::Hit
+        );
         // And a GPU image never under the CPU's key; the CPU's own is stored.
         cpu.get_or_render_with(0.5, 2, 1, || (img.clone(), true));
-        assert!(!paths[0].exists(), "a GPU image was stored under the CPU's key");
+        assert!(
+            !paths[0].exists(),
+            "a GPU image was stored under the CPU's key"
+        );
         assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Miss);
         assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Hit);
         let _ = std::fs::remove_dir_all(&dir);

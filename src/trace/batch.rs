@@ -81,7 +81,12 @@ impl GpuRays {
         }
     }
 
-    fn trace(&self, tracer: &Tracer, state: &SceneState, points: &[[f32; 2]]) -> Option<Vec<Sample>> {
+    fn trace(
+        &self,
+        tracer: &Tracer,
+        state: &SceneState,
+        points: &[[f32; 2]],
+    ) -> Option<Vec<Sample>> {
         self.with(|g| g.trace(tracer, state, points))
             .map(|got| got.iter().map(|s| s.sample()).collect())
     }
@@ -162,12 +167,16 @@ pub fn trace_points(
 
 /// Trace the samples `(x, y, t)`, each at its own time, in the order given: grouped by
 /// time quantum, one [`trace_points`] batch per quantum.
-pub fn trace_at(tracer: &Tracer, gpu: Option<&GpuRays>, samples: &[(f32, f32, f64)]) -> Vec<Sample> {
+pub fn trace_at(
+    tracer: &Tracer,
+    gpu: Option<&GpuRays>,
+    samples: &[(f32, f32, f64)],
+) -> Vec<Sample> {
     let mut order: Vec<usize> = (0..samples.len()).collect();
     order.sort_by_key(|&i| Tracer::quantize(samples[i].2));
     let mut out = vec![Sample::default(); samples.len()];
-    for run in order
-        .chunk_by(|&a, &b| Tracer::quantize(samples[a].2) == Tracer::quantize(samples[b].2))
+    for run in
+        order.chunk_by(|&a, &b| Tracer::quantize(samples[a].2) == Tracer::quantize(samples[b].2))
     {
         let state = tracer.state_at(samples[run[0]].2);
         let points: Vec<[f32; 2]> = run.iter().map(|&i| [samples[i].0, samples[i].1]).collect();
@@ -189,7 +198,13 @@ mod tests {
         let tracer = Tracer::new(Arc::new(scene), 32, 24, TraceOptions::default());
         // Times out of order and four quanta apart: the car moves between them.
         let samples: Vec<(f32, f32, f64)> = (0..32 * 24)
-            .map(|i| ((i % 32) as f32 + 0.5, (i / 32) as f32 + 0.5, 1.0 + 0.004 * ((i * 7) % 5) as f64))
+            .map(|i| {
+                (
+                    (i % 32) as f32 + 0.5,
+                    (i / 32) as f32 + 0.5,
+                    1.0 + 0.004 * ((i * 7) % 5) as f64,
+                )
+            })
             .collect();
         let got = trace_at(&tracer, None, &samples);
         for ((x, y, t), s) in samples.iter().zip(&got) {

@@ -610,14 +610,13 @@ fn record_run(
     };
     let (mut config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
     let tracer = tracer(scene, cfg);
-    config.rays = batch::open(cfg.trace_gpu.clone(), &tracer)
-        .map_err(|e| EvalError::Trace(e.to_string()))?;
-    let rec = record::record(tracer, config, settings, window).map_err(|source| {
-        EvalError::Live {
+    config.rays =
+        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
+    let rec =
+        record::record(tracer, config, settings, window).map_err(|source| EvalError::Live {
             method: method.name(),
             source,
-        }
-    })?;
+        })?;
     let cores = machine::cores();
     let mut warnings = Vec::new();
     if let Some(l) = rec.figures.others_load_before.filter(|&l| l > cores as f64) {

@@ -257,7 +257,12 @@ enum Planned {
         first: usize,
     },
     /// Initiate a crosshair at `(x, y)`.
-    Initiate { band: usize, x: f32, y: f32, first: usize },
+    Initiate {
+        band: usize,
+        x: f32,
+        y: f32,
+        first: usize,
+    },
 }
 
 /// The sampling thread of a run with a GPU tracer: it plans the visits of up to
@@ -279,7 +284,10 @@ fn sample_on_gpu(s: &Shared, published: &Published, rays: &GpuRays, tx: Vec<Send
         let t0 = Instant::now();
         let got = batch::trace_points(tracer, Some(rays), &state, &points);
         out.busy += t0.elapsed().as_secs_f64();
-        let mut bands: Vec<usize> = plans.iter().map(|p| fill(s, p, &got, now, &mut out)).collect();
+        let mut bands: Vec<usize> = plans
+            .iter()
+            .map(|p| fill(s, p, &got, now, &mut out))
+            .collect();
         bands.sort_unstable();
         bands.dedup();
         for b in bands {
@@ -366,12 +374,25 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
             let batch = &mut out.batches[band];
             let stream = &mut batch.stream;
             let mut next = first;
-            let c = crosshair_with(w, h, at, arms, now, Some((pending.lum, pending.t)), |x, y| {
-                let sample = got.get(next).copied().unwrap_or_default();
-                next += 1;
-                stream.push(StreamSample { x, y, t: now, sample });
-                sample
-            });
+            let c = crosshair_with(
+                w,
+                h,
+                at,
+                arms,
+                now,
+                Some((pending.lum, pending.t)),
+                |x, y| {
+                    let sample = got.get(next).copied().unwrap_or_default();
+                    next += 1;
+                    stream.push(StreamSample {
+                        x,
+                        y,
+                        t: now,
+                        sample,
+                    });
+                    sample
+                },
+            );
             batch.visits.push(Visit::Completed {
                 crosshair: c,
                 rays: (next - first) as u32,
@@ -382,7 +403,12 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
         Planned::Initiate { band, x, y, first } => {
             let sample = got.get(first).copied().unwrap_or_default();
             let batch = &mut out.batches[band];
-            batch.stream.push(StreamSample { x, y, t: now, sample });
+            batch.stream.push(StreamSample {
+                x,
+                y,
+                t: now,
+                sample,
+            });
             batch.visits.push(Visit::Initiated(Pending {
                 x,
                 y,

@@ -9,10 +9,10 @@ use std::{path::PathBuf, sync::Arc};
 
 use super::*;
 use crate::{
-    trace::{Anchor, Sample},
     gpu::GpuContext,
     scene::{self, Scene},
     settings::ReconDevice,
+    trace::{Anchor, Sample},
     trace::{TextureFilter, TraceOptions},
 };
 
@@ -78,10 +78,9 @@ fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
 fn same_motion(cpu: &Sample, gpu: &Sample) -> bool {
     let anchor = match (cpu.anchor, gpu.anchor) {
         (Anchor::Still, Anchor::Still) => true,
-        (
-            Anchor::Instance { group: a, local: p },
-            Anchor::Instance { group: b, local: q },
-        ) => a == b && close(p, q, 1e-4),
+        (Anchor::Instance { group: a, local: p }, Anchor::Instance { group: b, local: q }) => {
+            a == b && close(p, q, 1e-4)
+        }
         (
             Anchor::Triangle { index: a, u, v },
             Anchor::Triangle {
@@ -246,7 +245,8 @@ fn swarm(n: u32) -> Scene {
             },
         });
         s.tracks.push(swarm_track(i, n));
-        s.groups.push(swarm_object(i, s.nodes.len() as u32 - 1, m + i % 3));
+        s.groups
+            .push(swarm_object(i, s.nodes.len() as u32 - 1, m + i % 3));
     }
     swarm_stage(&mut s);
     s
@@ -256,7 +256,11 @@ fn swarm(n: u32) -> Scene {
 fn swarm_track(i: u32, n: u32) -> crate::scene::KeyframeTrack {
     use crate::scene::animation::{RotationSpline, TcbKey, VectorSpline};
     let (gx, gz) = ((i % n) as f32, (i / n) as f32);
-    let c = Vec3::new((gx - 0.5 * n as f32) * 0.9, 0.3, (gz - 0.5 * n as f32) * 0.9);
+    let c = Vec3::new(
+        (gx - 0.5 * n as f32) * 0.9,
+        0.3,
+        (gz - 0.5 * n as f32) * 0.9,
+    );
     let phase = i as f32 * 0.7;
     let keys = (-2..=12)
         .map(|k| {
@@ -331,12 +335,42 @@ fn swarm_stage(s: &mut Scene) {
 fn cube_triangles(h: f32, material: u32) -> Vec<crate::scene::Triangle> {
     let v = |x: f32, y: f32, z: f32| Vec3::new(x * h, y * h, z * h);
     let faces = [
-        [v(-1., -1., 1.), v(1., -1., 1.), v(1., 1., 1.), v(-1., 1., 1.)],
-        [v(1., -1., -1.), v(-1., -1., -1.), v(-1., 1., -1.), v(1., 1., -1.)],
-        [v(1., -1., 1.), v(1., -1., -1.), v(1., 1., -1.), v(1., 1., 1.)],
-        [v(-1., -1., -1.), v(-1., -1., 1.), v(-1., 1., 1.), v(-1., 1., -1.)],
-        [v(-1., 1., 1.), v(1., 1., 1.), v(1., 1., -1.), v(-1., 1., -1.)],
-        [v(-1., -1., -1.), v(1., -1., -1.), v(1., -1., 1.), v(-1., -1., 1.)],
+        [
+            v(-1., -1., 1.),
+            v(1., -1., 1.),
+            v(1., 1., 1.),
+            v(-1., 1., 1.),
+        ],
+        [
+            v(1., -1., -1.),
+            v(-1., -1., -1.),
+            v(-1., 1., -1.),
+            v(1., 1., -1.),
+        ],
+        [
+            v(1., -1., 1.),
+            v(1., -1., -1.),
+            v(1., 1., -1.),
+            v(1., 1., 1.),
+        ],
+        [
+            v(-1., -1., -1.),
+            v(-1., -1., 1.),
+            v(-1., 1., 1.),
+            v(-1., 1., -1.),
+        ],
+        [
+            v(-1., 1., 1.),
+            v(1., 1., 1.),
+            v(1., 1., -1.),
+            v(-1., 1., -1.),
+        ],
+        [
+            v(-1., -1., -1.),
+            v(1., -1., -1.),
+            v(1., -1., 1.),
+            v(-1., -1., 1.),
+        ],
     ];
     faces
         .iter()
