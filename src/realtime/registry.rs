@@ -347,9 +347,9 @@ pub fn cannot_trace_on_gpu(method: RtMethod) -> String {
         .map(|m| m.name())
         .collect();
     format!(
-        "{} traces on the CPU only; of the real-time methods, {} trace on the GPU",
+        "{} traces on the CPU only; the real-time methods that trace on the GPU: {}",
         method.name(),
-        on_gpu.join(" and ")
+        on_gpu.join(", ")
     )
 }
 
@@ -379,6 +379,18 @@ mod tests {
     use clap::ValueEnum;
 
     use super::*;
+
+    #[test]
+    fn every_shipped_method_traces_on_the_gpu_and_one_that_cannot_is_named() {
+        for m in RtMethod::ALL.iter().filter(|m| **m != RtMethod::Probe) {
+            assert!(m.traces_on_gpu(), "{}", m.name());
+        }
+        // The tests' probe traces nothing: it stands for a method that cannot.
+        assert!(!RtMethod::Probe.traces_on_gpu());
+        let e = cannot_trace_on_gpu(RtMethod::Probe);
+        assert!(e.starts_with("probe traces on the CPU only"), "{e}");
+        assert!(e.contains("adaptive, traditional-frameless"), "{e}");
+    }
 
     #[test]
     fn method_names_parse_back_and_are_clap_values() {

@@ -32,10 +32,14 @@ use crate::{
         framed::reduced_grid,
         late_warp::Warp,
         taa::{
-            frame_jitter, jitter_period, trace_jittered_row, JitteredFrame, TaaHistory, TaaParams,
+            frame_jitter, jitter_period, jittered_position, trace_jittered_row, JitteredFrame,
+            TaaHistory, TaaParams,
         },
     },
-    trace::{Sample, SceneState, Tracer},
+    trace::{
+        batch::{self, GpuRays},
+        Sample, SceneState, Tracer,
+    },
 };
 
 /// `taa`'s description.
@@ -49,7 +53,7 @@ pub(crate) const METHOD: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
-    traces_on_gpu: false,
+    traces_on_gpu: true,
     start: |sp, _| start_with(sp, Shown::AsBuilt),
 };
 
@@ -61,7 +65,7 @@ pub(crate) const TAA_WARP: MethodInfo = MethodInfo {
     extra_threads: |_| 0,
     check_size: super::shared::display_only,
     overlays: &[],
-    traces_on_gpu: false,
+    traces_on_gpu: true,
     start: |sp, _| start_with(sp, Shown::Warped),
 };
 
@@ -175,7 +179,12 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     // growing memory.
     let (tx, rx) = bounded(1024);
     let s1 = s.clone();
-    sp.sampling_threads(tx, move |_, tx| sample(&s1, &frames, &params, tx))?;
+    sp.sampling_threads(tx, move |thread, tx| match &s1.config.rays {
+        // The GPU traces one frame at a time: one thread feeds it.
+        Some(rays) if thread == 0 => sample_on_gpu(&s1, &frames, &params, rays, tx),
+        Some(_) => {}
+        None => sample(&s1, &frames, &params, tx),
+    })?;
     // Folds and warps run on the builder's own pool.
     let config = s.config.clone();
     Ok(Box::new(Pooled::new(
@@ -225,6 +234,49 @@ fn sample(s: &Shared, frames: &Mutex<Frames>, params: &TaaParams, tx: Sender<Row
         {
             return;
         }
+    }
+}
+
+/// The sampling thread of a run with a GPU tracer: each frame traced whole as one batch
+/// at its start time, handed on row by row, then the next sized as the CPU threads
+/// size it (from the samples per second this thread traced).
+fn sample_on_gpu(
+    s: &Shared,
+    frames: &Mutex<Frames>,
+    params: &TaaParams,
+    rays: &GpuRays,
+    tx: Sender<Row>,
+) {
+    let tracer: &Tracer = &s.tracer;
+    let size = tracer.size();
+    while !s.stopped() {
+        let cur = lock(frames).current.clone();
+        let (gw, gh) = cur.grid;
+        let points: Vec<[f32; 2]> = (0..gw * gh)
+            .map(|q| {
+                let (x, y) = jittered_position(size, cur.grid, cur.jitter, q % gw, q / gw);
+                [x, y]
+            })
+            .collect();
+        let t0 = Instant::now();
+        let got = batch::trace_points(tracer, Some(rays), &cur.state, &points);
+        s.busy_ns
+            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        s.samples.fetch_add(got.len() as u64, Ordering::Relaxed);
+        s.rays.fetch_add(got.len() as u64, Ordering::Relaxed);
+        for (y, row) in got.chunks(gw as usize).enumerate() {
+            let sent = tx.send(Row {
+                job: cur.clone(),
+                y: y as u32,
+                samples: row.to_vec(),
+            });
+            if sent.is_err() {
+                return;
+            }
+        }
+        let mut f = lock(frames);
+        let next = f.next(&cur, s, params);
+        f.current = next;
     }
 }
 
