@@ -107,6 +107,28 @@ pub(super) struct Batch {
     pub(super) stream: Vec<StreamSample>,
 }
 
+impl Batch {
+    /// A crosshair initiated at `(x, y)` at `now` by `sample`: the sample goes to the
+    /// stream and the crosshair waits for its arms.
+    fn initiated(&mut self, x: f32, y: f32, now: f64, sample: Sample) {
+        self.stream.push(StreamSample {
+            x,
+            y,
+            t: now,
+            sample,
+        });
+        self.visits.push(Visit::Initiated(Pending {
+            x,
+            y,
+            t: now,
+            lum: sample.luminance,
+            hit_point: sample.hit_point,
+            velocity: sample.velocity,
+            anchor: sample.anchor,
+        }));
+    }
+}
+
 /// Visits in a batch before it is sent.
 pub(super) const BATCH_VISITS: usize = 256;
 
@@ -222,21 +244,7 @@ pub(super) fn initiate(
         };
         let sample = s.tracer.sample(state, x, y);
         drop(guard);
-        batch.stream.push(StreamSample {
-            x,
-            y,
-            t: now,
-            sample,
-        });
-        batch.visits.push(Visit::Initiated(Pending {
-            x,
-            y,
-            t: now,
-            lum: sample.luminance,
-            hit_point: sample.hit_point,
-            velocity: sample.velocity,
-            anchor: sample.anchor,
-        }));
+        batch.initiated(x, y, now, sample);
         return true;
     }
     false
@@ -402,22 +410,7 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
         }
         Planned::Initiate { band, x, y, first } => {
             let sample = got.get(first).copied().unwrap_or_default();
-            let batch = &mut out.batches[band];
-            batch.stream.push(StreamSample {
-                x,
-                y,
-                t: now,
-                sample,
-            });
-            batch.visits.push(Visit::Initiated(Pending {
-                x,
-                y,
-                t: now,
-                lum: sample.luminance,
-                hit_point: sample.hit_point,
-                velocity: sample.velocity,
-                anchor: sample.anchor,
-            }));
+            out.batches[band].initiated(x, y, now, sample);
             band
         }
     }
