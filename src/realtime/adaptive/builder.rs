@@ -106,6 +106,13 @@ pub(super) fn push_newest(
     }
 }
 
+/// The live limit never cuts an image below one new sample per this many pixels, so
+/// that an image still moves on where the build's per-pixel work alone exceeds the
+/// budget; low enough that on many cores, where more samples arrive than a build can
+/// place in a refresh, the limit and not the floor decides (docs/performance.md,
+/// session 23).
+const LIVE_LIMIT_FLOOR_DIVISOR: usize = 16;
+
 /// The live limit for the next image, after one that placed `placed` samples under
 /// `limit` and took `ms` to build, against a budget of `budget_ms` (0: no limit).
 ///
@@ -128,6 +135,9 @@ pub(super) fn next_live_limit(
     let from = match limit {
         None if ms <= budget_ms => return None,
         None => placed,
+        // Over budget with fewer samples than the limit allows: the cut starts from
+        // what was placed, or a limit above the arrivals would take images to bind.
+        Some(k) if ms > budget_ms => k.min(placed.max(1)),
         Some(k) => k,
     };
     let next = (from as f64 * step) as usize;
@@ -222,9 +232,7 @@ impl ImageBuilder for Builder {
         let ages = r.pixel_ages();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let budget_ms = settings.image_budget * 1e3 / s.config.refresh_hz;
-        // A floor of half a sample per pixel keeps an image where the build's
-        // per-pixel work alone exceeds the budget.
-        let floor = (w as usize * h as usize / 2).max(1);
+        let floor = ((w as usize * h as usize) / LIVE_LIMIT_FLOOR_DIVISOR).max(1);
         let limited = self.live_limit.is_some();
         self.live_limit = next_live_limit(
             self.live_limit,

@@ -155,6 +155,11 @@ fn the_live_limit_follows_the_build_time_budget() {
         next_live_limit(None, 80_000, 1e6, 13.0, floor, cap),
         Some(40_000)
     );
+    // Over budget under a limit the arrivals did not reach: cut from what was placed.
+    assert_eq!(
+        next_live_limit(Some(60_000), 20_000, 1e6, 13.0, floor, cap),
+        Some(10_000)
+    );
     // Never below the floor.
     assert_eq!(
         next_live_limit(Some(1500), 1500, 1e3, 13.0, floor, cap),
