@@ -74,27 +74,48 @@ pub fn render_gpu(
     spp: u32,
     seed: u64,
 ) -> Result<Image, crate::trace::gpu::GpuTraceError> {
+    use rayon::prelude::*;
     let (w, h) = tracer.size();
     let state = tracer.state_at(t);
     let rows = (GPU_BATCH / (w as usize * spp.max(1) as usize)).max(1) as u32;
     let mut pixels = Vec::with_capacity(w as usize * h as usize);
     for y0 in (0..h).step_by(rows as usize) {
-        let mut points = Vec::new();
-        let mut counts = Vec::new();
-        for y in y0..(y0 + rows).min(h) {
-            for x in 0..w {
-                let pts = pixel_samples(x, y, spp, seed);
-                counts.push(pts.len());
-                points.extend(pts.iter().map(|(dx, dy)| [x as f32 + dx, y as f32 + dy]));
-            }
-        }
-        let got = gpu.trace(tracer, &state, &points)?;
+        // Each row's points and each pixel's count of them, made on every thread.
+        let made: Vec<(Vec<[f32; 2]>, Vec<usize>)> = (y0..(y0 + rows).min(h))
+            .into_par_iter()
+            .map(|y| {
+                let (mut points, mut counts) = (Vec::new(), Vec::with_capacity(w as usize));
+                for x in 0..w {
+                    let pts = pixel_samples(x, y, spp, seed);
+                    counts.push(pts.len());
+                    points.extend(pts.iter().map(|(dx, dy)| [x as f32 + dx, y as f32 + dy]));
+                }
+                (points, counts)
+            })
+            .collect();
+        let points: Vec<[f32; 2]> = made.iter().flat_map(|(p, _)| p.iter().copied()).collect();
+        let got = gpu.colours(tracer, &state, &points)?;
+        let mut starts = Vec::with_capacity(made.len());
         let mut at = 0;
-        for n in counts {
-            let sum: glam::Vec3 = got[at..at + n].iter().map(|s| s.color).sum();
-            pixels.push(sum / n as f32);
-            at += n;
+        for (p, _) in &made {
+            starts.push(at);
+            at += p.len();
         }
+        let rows_px: Vec<Vec<glam::Vec3>> = made
+            .par_iter()
+            .zip(starts)
+            .map(|((_, counts), mut at)| {
+                counts
+                    .iter()
+                    .map(|&n| {
+                        let sum: glam::Vec3 = got[at..at + n].iter().sum();
+                        at += n;
+                        sum / n as f32
+                    })
+                    .collect()
+            })
+            .collect();
+        pixels.extend(rows_px.into_iter().flatten());
     }
     Ok(Image {
         width: w,

@@ -51,7 +51,11 @@ pub(super) struct Params {
     pub state: StateOffsets,
     /// 1: primary hits only, no shading.
     pub primary_only: u32,
-    pub pad: [u32; 3],
+    /// 1: only each sample's colour and distance, 16 bytes instead of [`OUT_BYTES`].
+    ///
+    /// [`OUT_BYTES`]: super::OUT_BYTES
+    pub colour_only: u32,
+    pub pad: [u32; 2],
 }
 
 /// Where each part of the static buffers starts (vec4s of `data`, words of `words`).
@@ -393,7 +397,7 @@ pub(super) fn params(
     count: u32,
     statics: StaticOffsets,
     at: StateOffsets,
-    primary_only: bool,
+    mode: super::Mode,
 ) -> Params {
     let cam = &state.camera;
     let cones = tracer.options.texture_filter == TextureFilter::RayCones;
@@ -415,7 +419,8 @@ pub(super) fn params(
         n_lights: state.lights.len() as u32,
         statics,
         state: at,
-        primary_only: primary_only as u32,
-        pad: [0; 3],
+        primary_only: (mode == super::Mode::PrimaryHits) as u32,
+        colour_only: (mode == super::Mode::Colours) as u32,
+        pad: [0; 2],
     }
 }

@@ -36,6 +36,8 @@ const MAX_GROUPS: u32 = 65_535;
 const STORAGE_BUFFERS: u32 = 5;
 /// Bytes of one sample's output (the shader's `OUT_VEC4S` vec4s).
 const OUT_BYTES: u64 = 80;
+/// Bytes of one sample's output in [`Mode::Colours`]: one vec4, (colour, t).
+const COLOUR_BYTES: u64 = 16;
 /// Set in the secondary-ray count word of a sample in which something moved.
 const DYNAMIC_BIT: u32 = 1 << 31;
 
@@ -94,6 +96,56 @@ impl GpuSample {
     }
 }
 
+/// What one dispatch computes and reads back.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Mode {
+    /// Every field of a [`GpuSample`].
+    Samples,
+    /// The primary hits only, unshaded (the benchmark's primary rays).
+    PrimaryHits,
+    /// Only the colours (and distances): a fifth of the read-back, for ideal images.
+    Colours,
+}
+
+impl Mode {
+    fn out_bytes(self) -> u64 {
+        match self {
+            Mode::Colours => COLOUR_BYTES,
+            Mode::Samples | Mode::PrimaryHits => OUT_BYTES,
+        }
+    }
+}
+
+/// Where the GPU tracer's time went, summed over its dispatches.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct GpuTraceTimes {
+    /// Dispatches and the samples they traced.
+    pub dispatches: u64,
+    /// Samples traced.
+    pub samples: u64,
+    /// Seconds spent uploading the scene state, the points and the parameters, and
+    /// submitting the work.
+    pub upload_s: f64,
+    /// Seconds from the submission until the results were mapped for reading: the
+    /// shader, the copy to the read-back buffer and the wait for both.
+    pub wait_s: f64,
+    /// Seconds spent reading the mapped results into samples on the CPU.
+    pub read_s: f64,
+}
+
+impl GpuTraceTimes {
+    /// What was spent after `earlier`, a reading of the same tracer.
+    pub fn since(&self, earlier: &Self) -> Self {
+        Self {
+            dispatches: self.dispatches - earlier.dispatches,
+            samples: self.samples - earlier.samples,
+            upload_s: self.upload_s - earlier.upload_s,
+            wait_s: self.wait_s - earlier.wait_s,
+            read_s: self.read_s - earlier.read_s,
+        }
+    }
+}
+
 /// The tracer's GPU side: its static buffers and the state uploaded last.
 pub struct GpuTracer {
     ctx: Arc<GpuContext>,
@@ -106,6 +158,7 @@ pub struct GpuTracer {
     state: Option<((i64, u64), wgpu::Buffer, layout::StateOffsets)>,
     /// The per-dispatch buffers, kept between dispatches.
     io: Option<Io>,
+    times: GpuTraceTimes,
 }
 
 /// One dispatch's buffers, kept and grown rather than made anew for every batch: a
@@ -202,12 +255,18 @@ impl GpuTracer {
             statics: statics.at,
             state: None,
             io: None,
+            times: GpuTraceTimes::default(),
         })
     }
 
     /// The device it runs on.
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
+    }
+
+    /// Where its time went since it was made.
+    pub fn times(&self) -> GpuTraceTimes {
+        self.times
     }
 
     /// Trace the samples `(x, y, t)`, each in the scene state of its own time (as
@@ -240,7 +299,32 @@ impl GpuTracer {
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
-        self.run(tracer, state, points, false)
+        let mut out = Vec::with_capacity(points.len());
+        self.run(tracer, state, points, Mode::Samples, &mut |w| {
+            out.extend(read_par(w, OUT_BYTES, unpack))
+        })?;
+        Ok(out)
+    }
+
+    /// Only the colours of [`GpuTracer::trace`]'s samples, with a fifth of its
+    /// read-back: what ideal images need.
+    pub fn colours(
+        &mut self,
+        tracer: &Tracer,
+        state: &SceneState,
+        points: &[[f32; 2]],
+    ) -> Result<Vec<Vec3>, GpuTraceError> {
+        let mut out = Vec::with_capacity(points.len());
+        self.run(tracer, state, points, Mode::Colours, &mut |w| {
+            out.extend(read_par(w, COLOUR_BYTES, |c| {
+                Vec3::new(
+                    f32::from_bits(c[0]),
+                    f32::from_bits(c[1]),
+                    f32::from_bits(c[2]),
+                )
+            }))
+        })?;
+        Ok(out)
     }
 
     /// Only the primary hits of `points` (colour: the background), as
@@ -251,25 +335,32 @@ impl GpuTracer {
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
-        self.run(tracer, state, points, true)
+        let mut out = Vec::with_capacity(points.len());
+        self.run(tracer, state, points, Mode::PrimaryHits, &mut |w| {
+            out.extend(read_par(w, OUT_BYTES, unpack))
+        })?;
+        Ok(out)
     }
 
+    /// Trace `points` in `mode`, handing each dispatch's mapped output to `take`.
     fn run(
         &mut self,
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
-        primary_only: bool,
-    ) -> Result<Vec<GpuSample>, GpuTraceError> {
+        mode: Mode,
+        take: &mut dyn FnMut(&[u32]),
+    ) -> Result<(), GpuTraceError> {
+        let t = std::time::Instant::now();
         self.upload_state(tracer, state)?;
+        self.times.upload_s += t.elapsed().as_secs_f64();
         // One dispatch's output must fit one storage binding.
         let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / OUT_BYTES);
         let per_dispatch = per_dispatch.max(1) as usize;
-        let mut out = Vec::with_capacity(points.len());
         for chunk in points.chunks(per_dispatch) {
-            out.extend(self.dispatch(tracer, state, chunk, primary_only)?);
+            self.dispatch(tracer, state, chunk, mode, take)?;
         }
-        Ok(out)
+        Ok(())
     }
 
     fn upload_state(&mut self, tracer: &Tracer, state: &SceneState) -> Result<(), GpuTraceError> {
@@ -288,24 +379,26 @@ impl GpuTracer {
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
-        primary_only: bool,
-    ) -> Result<Vec<GpuSample>, GpuTraceError> {
+        mode: Mode,
+        take: &mut dyn FnMut(&[u32]),
+    ) -> Result<(), GpuTraceError> {
+        let t0 = std::time::Instant::now();
         let Some((_, state_buf, at)) = &self.state else {
-            return Ok(Vec::new());
+            return Ok(());
         };
         let n = points.len() as u32;
-        let params = layout::params(tracer, state, n, self.statics, *at, primary_only);
+        let params = layout::params(tracer, state, n, self.statics, *at, mode);
         let device = &self.ctx.device;
         if self.io.as_ref().is_none_or(|io| io.cap < points.len()) {
             self.io = Some(Io::new(device, points.len()));
         }
         let Some(io) = &self.io else {
-            return Ok(Vec::new());
+            return Ok(());
         };
         let queue = &self.ctx.queue;
         queue.write_buffer(&io.uniform, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&io.points, 0, bytemuck::cast_slice(points));
-        let out_bytes = points.len() as u64 * OUT_BYTES;
+        let out_bytes = points.len() as u64 * mode.out_bytes();
         let (out, back) = (&io.out, &io.back);
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace"),
@@ -335,12 +428,28 @@ impl GpuTracer {
         }
         enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(OUT_BYTES));
         queue.submit([enc.finish()]);
-        let words = read_words(&self.ctx, back, out_bytes)?;
-        Ok(words
-            .chunks_exact((OUT_BYTES / 4) as usize)
-            .map(unpack)
-            .collect())
+        let t1 = std::time::Instant::now();
+        let read = read_mapped(&self.ctx, back, out_bytes, take)?;
+        let times = &mut self.times;
+        times.upload_s += (t1 - t0).as_secs_f64();
+        times.wait_s += (t1.elapsed() - read).as_secs_f64();
+        times.read_s += read.as_secs_f64();
+        times.dispatches += 1;
+        times.samples += u64::from(n);
+        Ok(())
     }
+}
+
+/// `words`, the mapped output of a dispatch of `stride` bytes per sample, read into
+/// one `T` per sample on every thread: at a million samples and more per dispatch the
+/// read is a large share of the GPU tracer's time.
+fn read_par<T: Send>(words: &[u32], stride: u64, f: impl Fn(&[u32]) -> T + Sync + Send) -> Vec<T> {
+    use rayon::prelude::*;
+    words
+        .par_chunks_exact((stride / 4) as usize)
+        .with_min_len(4096)
+        .map(f)
+        .collect()
 }
 
 /// One sample of the shader's output: (colour, t), (kind, group, primitive,
@@ -427,8 +536,15 @@ fn storage_init(
     Ok(init(&ctx.device, label, bytes, wgpu::BufferUsages::STORAGE))
 }
 
-/// The first `bytes` of a read-back buffer as words, after the work submitted so far.
-fn read_words(ctx: &GpuContext, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<u32>, GpuError> {
+/// Hand the first `bytes` of a read-back buffer, as words, to `take` once the work
+/// submitted so far is done, read in place from the mapping; returns how long `take`
+/// took.
+fn read_mapped(
+    ctx: &GpuContext,
+    buf: &wgpu::Buffer,
+    bytes: u64,
+    take: &mut dyn FnMut(&[u32]),
+) -> Result<std::time::Duration, GpuError> {
     let failed = |e: &dyn std::fmt::Display| GpuError::Failed(e.to_string());
     let slice = buf.slice(0..bytes.max(32));
     let (tx, rx) = std::sync::mpsc::channel();
@@ -440,10 +556,12 @@ fn read_words(ctx: &GpuContext, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<u3
         .map_err(|e| failed(&e))?;
     rx.recv().map_err(|e| failed(&e))?.map_err(|e| failed(&e))?;
     let view = slice.get_mapped_range().map_err(|e| failed(&e))?;
-    let out = bytemuck::cast_slice::<u8, u32>(&view)[..(bytes / 4) as usize].to_vec();
+    let t = std::time::Instant::now();
+    take(&bytemuck::cast_slice::<u8, u32>(&view)[..(bytes / 4) as usize]);
+    let took = t.elapsed();
     drop(view);
     buf.unmap();
-    Ok(out)
+    Ok(took)
 }
 
 fn bind_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {

@@ -35,7 +35,8 @@ struct Params {
     lights_at: u32,
     // 1: primary hits only, no shading (the benchmark's primary rays).
     primary_only: u32,
-    pad0: u32,
+    // 1: only (colour, t) per sample, one vec4 each (the ideal images' read-back).
+    colour_only: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -1085,6 +1086,10 @@ fn shade(ray: Ray, s: Surface, cone_width: f32, depth: u32, rays: ptr<function, 
 
 // Writes sample `i`'s output.
 fn write_out(i: u32, color: vec3<f32>, t: f32, id: vec4<u32>, p: vec3<f32>, velocity: vec3<f32>, anchor: vec3<f32>) {
+    if P.colour_only != 0u {
+        out[i] = vec4<u32>(bitcast<vec3<u32>>(color), bitcast<u32>(t));
+        return;
+    }
     let k = OUT_VEC4S * i;
     out[k] = vec4<u32>(bitcast<vec3<u32>>(color), bitcast<u32>(t));
     out[k + 1u] = id;
