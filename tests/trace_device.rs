@@ -392,3 +392,38 @@ fn gpu_ideals_are_cached_apart_from_the_cpus() {
     assert_eq!(run("gpu", 3), 6);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe in CI)"]
+fn gpu_live_ideals_are_traced_on_the_gpu_and_cached_apart() {
+    let d = scratch("live-cache");
+    let cache = d.join("cache");
+    let run = |trace: &str, k: u32| {
+        let out = d.join(format!("{trace}{k}"));
+        let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
+            .args([
+                "live",
+                "--method",
+                "traditional-frameless",
+                "--trace",
+                trace,
+            ])
+            .args(["--size", "32x24", "--duration", "0.25", "--warmup", "0.1"])
+            .args(["--ideal-spp", "1", "--cache-dir"])
+            .arg(&cache)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .expect("the binary runs");
+        assert!(o.status.success(), "{}", stderr(&o));
+        summary(&out)["timing"]["ideal_cache_hits"]
+            .as_u64()
+            .expect("a count")
+    };
+    assert_eq!(run("gpu", 1), 0);
+    let refreshes = run("gpu", 2);
+    assert!(refreshes > 0, "the GPU's ideals were not served again");
+    assert_eq!(run("cpu", 1), 0, "a CPU run was served the GPU's ideals");
+    assert_eq!(run("cpu", 2), refreshes);
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -56,9 +56,9 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
 /// time, released), over and over.
 fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
     if let Some(rays) = &s.config.rays {
-        // The GPU traces one batch at a time: one thread feeds it.
-        if thread == 0 {
-            sample_on_gpu(s, rays, tx);
+        // A few threads feed the GPU, each a batch at a time.
+        if thread < batch::GPU_FEEDERS {
+            sample_on_gpu(s, rays, thread, tx);
         }
         return;
     }
@@ -108,14 +108,15 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
 /// traces tens of millions of samples a second.
 const GPU_BATCH: u32 = 1 << 17;
 
-/// The sampling thread of a run with a GPU tracer: batches of random pixels, each
-/// batch traced at the time it was drawn (one scene state, so one dispatch).
-fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Batch>) {
+/// A sampling thread of a run with a GPU tracer (one of [`batch::GPU_FEEDERS`]):
+/// batches of random pixels, each batch traced at the time it was drawn (one scene
+/// state, so one dispatch).
+fn sample_on_gpu(s: &Shared, rays: &GpuRays, thread: u64, tx: Sender<Batch>) {
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     let n = w * h;
     let per_batch = (n / 4).clamp(1, GPU_BATCH);
-    let mut rng = Rng::new(&[s.config.seed, 0xf4a3e1, 0]);
+    let mut rng = Rng::new(&[s.config.seed, 0xf4a3e1, thread]);
     let mut states = StateCache::new();
     while !s.stopped() {
         let now = s.clock.now();

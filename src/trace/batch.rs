@@ -23,10 +23,20 @@ use crate::gpu::DeviceUsed;
 /// saves.
 const MIN_PER_THREAD: usize = 256;
 
-/// The GPU tracer of a run, shared by its methods and its ideal images.
+/// Threads that feed one GPU tracer with batches in a real-time run: while one waits
+/// for its dispatch, the others make their batches and read theirs back, so the GPU
+/// is not idle between dispatches.
+pub const GPU_FEEDERS: u64 = 4;
+
+/// The GPU tracer of a run, shared by its methods and its ideal images. Threads that
+/// trace at once each take a tracer of their own from a pool (forked from the first:
+/// one shader and one copy of the scene), so that one thread's upload and read-back
+/// overlap another's wait for the GPU.
 #[cfg(feature = "gpu")]
 pub struct GpuRays {
-    tracer: std::sync::Mutex<super::gpu::GpuTracer>,
+    idle: std::sync::Mutex<Vec<super::gpu::GpuTracer>>,
+    /// Forked for each thread that finds the pool empty; never traces itself.
+    template: super::gpu::GpuTracer,
     failure: std::sync::Mutex<Option<String>>,
     used: DeviceUsed,
 }
@@ -43,8 +53,10 @@ impl GpuRays {
         tracer: &Tracer,
     ) -> Result<Self, super::gpu::GpuTraceError> {
         let used = ctx.used();
+        let template = super::gpu::GpuTracer::new(ctx, tracer)?;
         Ok(Self {
-            tracer: std::sync::Mutex::new(super::gpu::GpuTracer::new(ctx, tracer)?),
+            idle: std::sync::Mutex::new(vec![template.fork()]),
+            template,
             failure: std::sync::Mutex::new(None),
             used,
         })
@@ -63,7 +75,8 @@ impl GpuRays {
             .clone()
     }
 
-    /// `f` on the GPU tracer; `None` (and the first failure kept) once it has failed.
+    /// `f` on a GPU tracer of the pool, one no other thread is using; `None` (and the
+    /// first failure kept) once one has failed.
     pub fn with<R>(
         &self,
         f: impl FnOnce(&mut super::gpu::GpuTracer) -> Result<R, super::gpu::GpuTraceError>,
@@ -71,7 +84,11 @@ impl GpuRays {
         if self.failure().is_some() {
             return None;
         }
-        let got = f(&mut self.tracer.lock().unwrap_or_else(|e| e.into_inner()));
+        let idle = || self.idle.lock().unwrap_or_else(|e| e.into_inner());
+        let taken = idle().pop();
+        let mut gpu = taken.unwrap_or_else(|| self.template.fork());
+        let got = f(&mut gpu);
+        idle().push(gpu);
         match got {
             Ok(r) => Some(r),
             Err(e) => {

@@ -17,7 +17,8 @@
 # - bench_trace_gpu.log: the GPU tracer's rays/s and its 16-spp ideal against the CPU's
 #   at 1920x1080 (where `bench --trace` exists);
 # - live_1920x1080_gputrace/: adaptive and traditional frameless at 1920x1080, 60 Hz,
-#   traced and reconstructed on the GPU (where `live --trace` exists);
+#   traced and reconstructed on the GPU (where `live --trace` exists), and
+#   live_1920x1080_gputrace_cpurecon/: adaptive traced on the GPU, built on the CPU;
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
@@ -76,9 +77,12 @@ fi
 if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
   live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
     --recon gpu --method adaptive,traditional-frameless
+  live live_1920x1080_gputrace_cpurecon "$all" --size 1920x1080 --refresh-hz 60 \
+    --trace gpu --method adaptive
 fi
+# All cores first: its ideals fill the cache for the smaller core counts.
 for size in 640x480 1280x720; do
-  for n in 4 8 16; do
+  for n in 16 8 4; do
     [ "$n" -le "$all" ] || continue
     live "live_${size}_${n}" "$n" --size "$size" --refresh-hz 30 \
       --method adaptive,traditional-frameless

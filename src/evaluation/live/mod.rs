@@ -555,7 +555,8 @@ fn tracer(scene: &Arc<Scene>, cfg: &LiveConfig) -> Arc<Tracer> {
     )
 }
 
-/// The ideal image of every refresh of the window, as displayed.
+/// The ideal image of every refresh of the window, as displayed, on the run's tracer
+/// (`--trace`): the GPU's ideals are cached apart from the CPU's.
 fn ideal_images(
     scene: &Arc<Scene>,
     cfg: &LiveConfig,
@@ -564,23 +565,27 @@ fn ideal_images(
 ) -> Result<Vec<Vec<u8>>, EvalError> {
     let t0 = Instant::now();
     let tracer = tracer(scene, cfg);
+    let rays =
+        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
     let cache = match &cfg.cache_dir {
         Some(dir) => Some(
             IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
-                .map_err(|e| EvalError::io(dir, e))?,
+                .map_err(|e| EvalError::io(dir, e))?
+                .for_tracer(&batch::used(rays.as_ref())),
         ),
         None => None,
     };
     let mut ideal = Vec::with_capacity(cfg.frames());
     for j in 0..cfg.frames() {
         let t = cfg.refresh(j);
+        let render = || still::render_on(&tracer, rays.as_deref(), t, cfg.ideal_spp, cfg.seed);
         let image = match &cache {
             Some(c) => {
-                let (image, lookup) = c.get_or_render(&tracer, t, cfg.ideal_spp, cfg.seed);
+                let (image, lookup) = c.get_or_render_with(t, cfg.ideal_spp, cfg.seed, render);
                 timing.ideal_cache_hits += usize::from(matches!(lookup, Lookup::Hit));
                 image
             }
-            None => still::render(&tracer, t, cfg.ideal_spp, cfg.seed, &|_| {}),
+            None => render().0,
         };
         ideal.push(image.to_rgb8());
         progress.step("ideal images");

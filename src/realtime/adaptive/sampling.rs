@@ -136,9 +136,9 @@ pub(super) const BATCH_VISITS: usize = 256;
 /// the visited tiles' bands.
 pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sender<Batch>>) {
     if let Some(rays) = &s.config.rays {
-        // The GPU traces one batch at a time: one thread feeds it.
-        if thread == 0 {
-            sample_on_gpu(s, published, rays, tx);
+        // A few threads feed the GPU, each a batch at a time.
+        if thread < batch::GPU_FEEDERS {
+            sample_on_gpu(s, published, rays, thread, tx);
         }
         return;
     }
@@ -273,14 +273,21 @@ enum Planned {
     },
 }
 
-/// The sampling thread of a run with a GPU tracer: it plans the visits of up to
+/// A sampling thread of a run with a GPU tracer (one of [`batch::GPU_FEEDERS`], as
+/// the CPU's sampling threads run side by side): it plans the visits of up to
 /// [`GPU_VISITS`] tiles at the current time as the CPU threads choose them (each tile
 /// at most once a batch), traces all their samples in one batch, and sends the
 /// visits as the CPU threads do. No visit of a batch depends on another's samples:
 /// the crosshairs it completes were initiated by earlier batches.
-fn sample_on_gpu(s: &Shared, published: &Published, rays: &GpuRays, tx: Vec<Sender<Batch>>) {
+fn sample_on_gpu(
+    s: &Shared,
+    published: &Published,
+    rays: &GpuRays,
+    thread: u64,
+    tx: Vec<Sender<Batch>>,
+) {
     let tracer = &s.tracer;
-    let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, 0]);
+    let mut rng = Rng::new(&[s.config.seed, 0x5a3b1e, thread]);
     let mut states = StateCache::new();
     let mut view = View::new(published);
     let mut out = Outbox::new(tx);

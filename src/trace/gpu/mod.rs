@@ -146,14 +146,22 @@ impl GpuTraceTimes {
     }
 }
 
-/// The tracer's GPU side: its static buffers and the state uploaded last.
-pub struct GpuTracer {
+/// What every [`GpuTracer`] of one scene shares: the compiled shader and the static
+/// world's and groups' buffers.
+struct Kernel {
     ctx: Arc<GpuContext>,
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     words: wgpu::Buffer,
     data: wgpu::Buffer,
     statics: layout::StaticOffsets,
+}
+
+/// The tracer's GPU side: the shared kernel, the state it uploaded last and its own
+/// dispatch buffers. Tracers forked from one another ([`GpuTracer::fork`]) trace on
+/// the same device at once, each from its own thread.
+pub struct GpuTracer {
+    kernel: Arc<Kernel>,
     /// The state uploaded last: its time quantum and camera generation, the buffer.
     state: Option<((i64, u64), wgpu::Buffer, layout::StateOffsets)>,
     /// The per-dispatch buffers, kept between dispatches.
@@ -206,7 +214,7 @@ impl Io {
 impl std::fmt::Debug for GpuTracer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("GpuTracer")
-            .field("adapter", &self.ctx.describe())
+            .field("adapter", &self.kernel.ctx.describe())
             .finish()
     }
 }
@@ -246,22 +254,36 @@ impl GpuTracer {
         let data = storage_init(&ctx, "trace data", bytemuck::cast_slice(&statics.data))?;
         let layout = bind_layout(device);
         let pipeline = pipeline(device, &layout, tracer.options.max_depth, statics.stacks);
-        Ok(Self {
+        let kernel = Kernel {
             ctx,
             pipeline,
             layout,
             words,
             data,
             statics: statics.at,
+        };
+        Ok(Self::on(Arc::new(kernel)))
+    }
+
+    fn on(kernel: Arc<Kernel>) -> Self {
+        Self {
+            kernel,
             state: None,
             io: None,
             times: GpuTraceTimes::default(),
-        })
+        }
+    }
+
+    /// Another tracer of the same scene on the same device, sharing this one's shader
+    /// and static buffers, with buffers of its own for the state and the dispatches:
+    /// a second thread traces with it while this one waits for its results.
+    pub fn fork(&self) -> Self {
+        Self::on(self.kernel.clone())
     }
 
     /// The device it runs on.
     pub fn context(&self) -> &Arc<GpuContext> {
-        &self.ctx
+        &self.kernel.ctx
     }
 
     /// Where its time went since it was made.
@@ -355,7 +377,8 @@ impl GpuTracer {
         self.upload_state(tracer, state)?;
         self.times.upload_s += t.elapsed().as_secs_f64();
         // One dispatch's output must fit one storage binding.
-        let per_dispatch = u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.ctx) / OUT_BYTES);
+        let per_dispatch =
+            u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.kernel.ctx) / OUT_BYTES);
         let per_dispatch = per_dispatch.max(1) as usize;
         for chunk in points.chunks(per_dispatch) {
             self.dispatch(tracer, state, chunk, mode, take)?;
@@ -369,7 +392,7 @@ impl GpuTracer {
             return Ok(());
         }
         let (data, at) = layout::state(tracer, state);
-        let buf = storage_init(&self.ctx, "trace state", bytemuck::cast_slice(&data))?;
+        let buf = storage_init(&self.kernel.ctx, "trace state", bytemuck::cast_slice(&data))?;
         self.state = Some((key, buf, at));
         Ok(())
     }
@@ -387,49 +410,43 @@ impl GpuTracer {
             return Ok(());
         };
         let n = points.len() as u32;
-        let params = layout::params(tracer, state, n, self.statics, *at, mode);
-        let device = &self.ctx.device;
+        let params = layout::params(tracer, state, n, self.kernel.statics, *at, mode);
+        let k = &*self.kernel;
+        let device = &k.ctx.device;
         if self.io.as_ref().is_none_or(|io| io.cap < points.len()) {
             self.io = Some(Io::new(device, points.len()));
         }
         let Some(io) = &self.io else {
             return Ok(());
         };
-        let queue = &self.ctx.queue;
+        let queue = &k.ctx.queue;
         queue.write_buffer(&io.uniform, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&io.points, 0, bytemuck::cast_slice(points));
         let out_bytes = points.len() as u64 * mode.out_bytes();
         let (out, back) = (&io.out, &io.back);
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("trace"),
-            layout: &self.layout,
-            entries: &[
-                &io.uniform,
-                &self.words,
-                &self.data,
-                state_buf,
-                &io.points,
-                out,
-            ]
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect::<Vec<_>>(),
+            layout: &k.layout,
+            entries: &[&io.uniform, &k.words, &k.data, state_buf, &io.points, out]
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
         });
         let mut enc = device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(&k.pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(n.div_ceil(GROUP).max(1), 1, 1);
         }
         enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(OUT_BYTES));
-        queue.submit([enc.finish()]);
+        let index = queue.submit([enc.finish()]);
         let t1 = std::time::Instant::now();
-        let read = read_mapped(&self.ctx, back, out_bytes, take)?;
+        let read = read_mapped(&k.ctx, back, out_bytes, index, take)?;
         let times = &mut self.times;
         times.upload_s += (t1 - t0).as_secs_f64();
         times.wait_s += (t1.elapsed() - read).as_secs_f64();
@@ -536,13 +553,14 @@ fn storage_init(
     Ok(init(&ctx.device, label, bytes, wgpu::BufferUsages::STORAGE))
 }
 
-/// Hand the first `bytes` of a read-back buffer, as words, to `take` once the work
-/// submitted so far is done, read in place from the mapping; returns how long `take`
-/// took.
+/// Hand the first `bytes` of a read-back buffer, as words, to `take` once submission
+/// `index` is done (not waiting for other threads' later work), read in place from
+/// the mapping; returns how long `take` took.
 fn read_mapped(
     ctx: &GpuContext,
     buf: &wgpu::Buffer,
     bytes: u64,
+    index: wgpu::SubmissionIndex,
     take: &mut dyn FnMut(&[u32]),
 ) -> Result<std::time::Duration, GpuError> {
     let failed = |e: &dyn std::fmt::Display| GpuError::Failed(e.to_string());
@@ -552,7 +570,10 @@ fn read_mapped(
         let _ = tx.send(r);
     });
     ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
+        .poll(wgpu::PollType::Wait {
+            submission_index: Some(index),
+            timeout: None,
+        })
         .map_err(|e| failed(&e))?;
     rx.recv().map_err(|e| failed(&e))?.map_err(|e| failed(&e))?;
     let view = slice.get_mapped_range().map_err(|e| failed(&e))?;

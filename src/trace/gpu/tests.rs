@@ -460,6 +460,38 @@ fn gpu_trace_at_groups_samples_by_their_own_time() {
     );
 }
 
+#[test]
+#[ignore = "needs a GPU adapter (lavapipe in CI)"]
+fn gpu_forked_tracers_trace_at_once_as_one_does() {
+    let tracer = Tracer::new(Arc::new(builtin("toycar")), 64, 48, TraceOptions::default());
+    let mut gpu = GpuTracer::new(context(), &tracer).expect("GPU tracer");
+    let state = tracer.state_at(1.2);
+    let pts = points(64, 48);
+    let want = gpu.trace(&tracer, &state, &pts).expect("GPU trace");
+    let colours = gpu.colours(&tracer, &state, &pts).expect("GPU colours");
+    assert_eq!(colours, want.iter().map(|s| s.color).collect::<Vec<_>>());
+    // Three forks at once, each at its own state first, then at the shared one.
+    let got: Vec<Vec<GpuSample>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..3)
+            .map(|k| {
+                let mut fork = gpu.fork();
+                let (tracer, pts, state) = (&tracer, &pts, &state);
+                scope.spawn(move || {
+                    let other = tracer.state_at(0.5 + 0.1 * k as f64);
+                    fork.trace(tracer, &other, pts).expect("GPU trace");
+                    let got = fork.trace(tracer, state, pts).expect("GPU trace");
+                    assert_eq!(fork.times().dispatches, 2);
+                    got
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    for g in got {
+        assert!(g == want, "a forked tracer differs");
+    }
+}
+
 fn bart(file: &str) -> Scene {
     let dir = std::env::var_os("FRAMELESS_BART_DIR")
         .expect("FRAMELESS_BART_DIR must name the BART scene folder (e.g. ../shared/scenes/bart)");
