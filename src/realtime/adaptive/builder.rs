@@ -49,6 +49,7 @@ pub(super) struct Builder {
     rate_window: VecDeque<(f64, u64)>,
     /// Newest samples the reconstructor places ([`next_live_limit`]).
     live_limit: Option<usize>,
+    cost: BuildCost,
     figures: ImageFigures,
 }
 
@@ -67,6 +68,7 @@ impl Builder {
             recon,
             rate_window: VecDeque::new(),
             live_limit: None,
+            cost: BuildCost::default(),
             figures: ImageFigures::default(),
         }
     }
@@ -113,6 +115,62 @@ pub(super) fn push_newest(
 /// session 23).
 const LIVE_LIMIT_FLOOR_DIVISOR: usize = 16;
 
+/// Images whose build times [`BuildCost`] fits.
+const COST_WINDOW: usize = 32;
+
+/// The build's time as a fixed part (the per-pixel passes) plus a part per sample
+/// placed, fitted by least squares over the last [`COST_WINDOW`] images.
+///
+/// It sets the deepest cut worth making: below `fixed / per_sample` samples the fixed
+/// part is most of a build, so cutting further buys at most twice the images while
+/// dropping most of the samples (and starving the still-region history, which takes in
+/// only the samples placed). On 4 and 8 device cores, cutting to the pixel floor
+/// doubled the images but lost FLIP (docs/performance.md, session 23).
+#[derive(Default)]
+pub(super) struct BuildCost {
+    recent: VecDeque<(f64, f64)>,
+}
+
+impl BuildCost {
+    /// An image that placed `placed` samples in `ms`.
+    pub(super) fn add(&mut self, placed: usize, ms: f64) {
+        if self.recent.len() == COST_WINDOW {
+            self.recent.pop_front();
+        }
+        self.recent.push_back((placed as f64, ms));
+    }
+
+    /// `(fixed ms, ms per sample)`, once the images' sample counts spread enough
+    /// (10% of their mean) to tell the two apart and the fit is not degenerate.
+    pub(super) fn fit(&self) -> Option<(f64, f64)> {
+        let n = self.recent.len() as f64;
+        if n < 8.0 {
+            return None;
+        }
+        let (mk, mt) = self
+            .recent
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (k, t)| (a + k / n, b + t / n));
+        let (mut vk, mut cov) = (0.0, 0.0);
+        for (k, t) in &self.recent {
+            vk += (k - mk) * (k - mk) / n;
+            cov += (k - mk) * (t - mt) / n;
+        }
+        if vk.sqrt() < 0.1 * mk || vk <= 0.0 {
+            return None;
+        }
+        let per_sample = cov / vk;
+        let fixed = mt - per_sample * mk;
+        (per_sample > 0.0 && fixed > 0.0).then_some((fixed, per_sample))
+    }
+
+    /// The fewest samples an image should place: as many as cost the build's fixed
+    /// part, when that is known.
+    pub(super) fn deepest_cut(&self) -> Option<usize> {
+        self.fit().map(|(fixed, per)| (fixed / per) as usize)
+    }
+}
+
 /// The live limit for the next image, after one that placed `placed` samples under
 /// `limit` and took `ms` to build, against a budget of `budget_ms` (0: no limit).
 ///
@@ -151,7 +209,10 @@ impl ImageBuilder for Builder {
     /// `recon_rate` the filters assume (measured, /s); the `ring_capacity`;
     /// `placed_mean` samples placed per image (the ring within the temporal cutoff, at
     /// most the live limit); `limited_share` of images built under a live limit
-    /// ([`AdaptiveSettings::image_budget`]); `gpu_failure`, why the GPU reconstructor
+    /// ([`AdaptiveSettings::image_budget`]); `build_fixed_ms` and
+    /// `build_ns_per_sample`, the build's time fitted over the last images as a fixed
+    /// part and a part per sample placed ([`BuildCost`]), where the fit holds;
+    /// `gpu_failure`, why the GPU reconstructor
     /// was given up, if it was (the images after it were built on the CPU).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         let p = &*self.published;
@@ -177,6 +238,10 @@ impl ImageBuilder for Builder {
             ("limited_share", per_image(f.limited_images as f64).into()),
             ("pass_ms", pass_ms(self.recon.pass_times())),
         ];
+        if let Some((fixed, per_sample)) = self.cost.fit() {
+            figures.push(("build_fixed_ms", fixed.into()));
+            figures.push(("build_ns_per_sample", (per_sample * 1e6).into()));
+        }
         if let Some(why) = self.recon.gpu_failure() {
             figures.push(("gpu_failure", why.into()));
         }
@@ -232,7 +297,9 @@ impl ImageBuilder for Builder {
         let ages = r.pixel_ages();
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let budget_ms = settings.image_budget * 1e3 / s.config.refresh_hz;
-        let floor = ((w as usize * h as usize) / LIVE_LIMIT_FLOOR_DIVISOR).max(1);
+        self.cost.add(r.placed(), ms);
+        let pixel_floor = ((w as usize * h as usize) / LIVE_LIMIT_FLOOR_DIVISOR).max(1);
+        let floor = pixel_floor.max(self.cost.deepest_cut().unwrap_or(0));
         let limited = self.live_limit.is_some();
         self.live_limit = next_live_limit(
             self.live_limit,

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use super::{
     bands,
     bench::{band_samplers, record},
-    builder::{next_live_limit, push_newest},
+    builder::{next_live_limit, push_newest, BuildCost},
     controllers,
     published::{Published, MIN_BAND_ROWS},
     sampling::Visit,
@@ -182,4 +182,45 @@ fn the_live_limit_follows_the_build_time_budget() {
         placed = limit.unwrap_or(cap).min(cap);
     }
     assert_eq!(limit, None);
+}
+
+/// Images built under the live limit, with the floor raised by the fitted build cost
+/// as the builder does: `cost(k)` ms for `k` samples placed, `arrivals` per image.
+fn settle(cost: impl Fn(f64) -> f64, arrivals: usize, budget: f64) -> (usize, f64) {
+    let (pixel_floor, cap) = (1000, 1_000_000);
+    let (mut limit, mut fit) = (None, BuildCost::default());
+    let mut placed = arrivals;
+    for _ in 0..200 {
+        let ms = cost(placed as f64);
+        fit.add(placed, ms);
+        let floor = pixel_floor.max(fit.deepest_cut().unwrap_or(0));
+        limit = next_live_limit(limit, placed, ms, budget, floor, cap);
+        placed = limit.unwrap_or(cap).min(arrivals);
+    }
+    (placed, cost(placed as f64))
+}
+
+#[test]
+fn the_live_limit_cuts_no_deeper_than_the_builds_fixed_part_pays() {
+    // Fixed part 2 ms, 0.2 µs a sample, budget 13 ms: the budget decides (55K).
+    let (placed, ms) = settle(|k| 2.0 + k * 2e-4, 300_000, 13.0);
+    assert!((12.0..=13.5).contains(&ms), "{ms} ms with {placed}");
+    // Fixed part 40 ms over the budget: cutting below 200K samples would buy at most
+    // twice the images, so the limit stays near there instead of at the pixel floor.
+    let (placed, _) = settle(|k| 40.0 + k * 2e-4, 300_000, 13.0);
+    assert!((150_000..=300_000).contains(&placed), "{placed}");
+    // The fit needs spread sample counts and a positive fixed part and slope.
+    let mut c = BuildCost::default();
+    for _ in 0..20 {
+        c.add(50_000, 30.0);
+    }
+    assert_eq!(c.fit(), None);
+    let mut c = BuildCost::default();
+    for k in 0..20 {
+        let placed = 10_000 + 5_000 * k;
+        c.add(placed, 4.0 + placed as f64 * 1e-4);
+    }
+    let (fixed, per) = c.fit().expect("a fit");
+    assert!((fixed - 4.0).abs() < 1e-6 && (per - 1e-4).abs() < 1e-12);
+    assert_eq!(c.deepest_cut(), Some(40_000));
 }
