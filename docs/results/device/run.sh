@@ -2,10 +2,15 @@
 # The figures the open issues ask of a machine with a GPU and 16 cores, in one run of
 # about 5 minutes, for a session that is lent one (the device tool). The machine has no
 # network and no Vulkan loader: build here, fetch the loaders once as the device tool's
-# README says (into .gl/, ignored), and carry them with the stripped binaries:
-#   cargo build --release --bin frameless --example live_recon
-#   strip -o target/frameless-stripped target/release/frameless
-#   strip -o target/live_recon-stripped target/release/examples/live_recon
+# README says (into .gl/, ignored), and carry them with the stripped binaries. Build them
+# for any AVX2 x86-64, not for this machine's CPU (.cargo/config.toml's target-cpu=native):
+# the device's Xeons differ between calls, and in session 23 a native build stopped with
+# "Illegal instruction" in the GPU tracer's steps on an H200 host after running on an
+# H100 host. Its own target folder keeps the native build's cache:
+#   RUSTFLAGS="-C target-cpu=x86-64-v3" cargo build --release --target-dir target/device \
+#     --bin frameless --example live_recon
+#   strip -o target/frameless-stripped target/device/release/frameless
+#   strip -o target/live_recon-stripped target/device/release/examples/live_recon
 # then, on the device, with carry [".gl", "target/frameless-stripped",
 # "target/live_recon-stripped"] (the tracked PNGs under docs/results may have to be
 # removed from the working tree for the call, and restored after, to fit its 64 MiB):
