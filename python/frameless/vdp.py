@@ -9,6 +9,9 @@ refresh rate. It is the extra ``frameless[vdp]`` (PyTorch, several GB: see
 docs/python.md); nothing else in ``frameless`` imports it.
 
 - ``video_jod(test, reference, fps)``: JOD of two ``F×H×W×3`` uint8 videos.
+- ``video_jod_parts(test, reference, fps)``: that JOD and, per visual channel of the
+  metric (achromatic sustained, red–green, yellow–violet, achromatic transient), the
+  JOD the videos would have if they differed in that channel alone.
 - ``evaluation_jod(ev, scene, ...)``: a JOD in every result row of an ``evaluate``
   result (``frameless.evaluate(..., video_metric="cvvdp")`` calls it).
 - ``python -m frameless.vdp FOLDER --scene S [--camera-path CSV]``: the same for an
@@ -59,11 +62,27 @@ def _cvvdp(display: str):
     return _metrics[display]
 
 
+#: ColorVideoVDP's visual channels of a video, in the order of its per-channel
+#: quality (``Q_per_ch``): the achromatic channel's sustained response, the two
+#: chromatic channels, and the achromatic channel's transient response.
+CHANNELS = ("achromatic_sustained", "red_green", "yellow_violet", "achromatic_transient")
+
+
 def video_jod(test: np.ndarray, reference: np.ndarray, fps: float,
               display: str = DEFAULT_DISPLAY) -> float:
     """ColorVideoVDP's JOD of the video ``test`` against ``reference``: both
     ``F×H×W×3`` uint8 (8-bit display values, taken as sRGB by the display model),
     ``fps`` frames per second."""
+    return video_jod_parts(test, reference, fps, display)["jod"]
+
+
+def video_jod_parts(test: np.ndarray, reference: np.ndarray, fps: float,
+                    display: str = DEFAULT_DISPLAY) -> Dict[str, Any]:
+    """``{"jod": J, "parts": {channel: J_c}}``: ColorVideoVDP's JOD of ``test`` against
+    ``reference`` (as ``video_jod``), and for each of ``CHANNELS`` the JOD pooled from
+    that channel's quality alone, the others' set to no difference. ``J_c`` is at least
+    ``J``; the channel whose ``J_c`` is lowest is where most of the visible difference
+    is (lag in the sustained response, flicker in the transient one)."""
     test = np.asarray(test)
     reference = np.asarray(reference)
     if test.shape != reference.shape or test.ndim != 4 or test.shape[-1] != 3:
@@ -73,9 +92,22 @@ def video_jod(test: np.ndarray, reference: np.ndarray, fps: float,
         raise ValueError("videos must be uint8 display values (frameless.to_display)")
     if not (math.isfinite(fps) and fps > 0):
         raise ValueError(f"fps {fps} is not a positive frame rate")
-    q, _stats = _cvvdp(display).predict(test, reference, dim_order="FHWC",
-                                        frames_per_second=float(fps))
-    return float(q)
+    metric = _cvvdp(display)
+    q, stats = metric.predict(test, reference, dim_order="FHWC",
+                              frames_per_second=float(fps))
+    return {"jod": float(q), "parts": _channel_jods(metric, stats["Q_per_ch"])}
+
+
+def _channel_jods(metric, q_per_ch: np.ndarray) -> Dict[str, float]:
+    """Each channel's JOD alone, pooled by the metric's own pooling."""
+    import torch
+    q = torch.as_tensor(q_per_ch, device=metric.device)
+    parts = {}
+    for c, name in enumerate(CHANNELS[:q.shape[1]]):
+        alone = torch.zeros_like(q)
+        alone[:, c] = q[:, c]
+        parts[name] = float(metric.do_pooling_and_jods(alone))
+    return parts
 
 
 def _rms(a: np.ndarray, b: np.ndarray) -> float:
@@ -108,7 +140,8 @@ def jod_rows(scene, summary: dict, frames: Dict[str, np.ndarray], *,
              display: str = DEFAULT_DISPLAY) -> List[dict]:
     """A JOD for every result row of ``summary`` (``summary.json``'s shape), whose
     per-refresh rows ``frames`` (numpy columns of ``frames.csv``) give the RMS each
-    re-rendered frame must have. Returns ``{"method", "rate", "jod"}`` rows."""
+    re-rendered frame must have. Returns ``{"method", "rate", "jod", "jod_parts"}``
+    rows (``jod_parts``: ``video_jod_parts``'s per-channel JODs)."""
     from ._api import Scene, _scene
     scene = _scene(scene)
     size = f"{summary['width']}x{summary['height']}"
@@ -138,8 +171,9 @@ def jod_rows(scene, summary: dict, frames: Dict[str, np.ndarray], *,
                     f"{method} at {rate}, refresh {k}: re-rendered RMS {got:.4f} is not the "
                     f"evaluation's {rms:.4f}; were max_depth ({max_depth}), texture_filter "
                     f"({texture_filter}) and the camera path those of the evaluation?")
-        jod = video_jod(video, ideal, summary["refresh_hz"], display)
-        out.append({"method": method, "rate": rate, "jod": jod})
+        got = video_jod_parts(video, ideal, summary["refresh_hz"], display)
+        out.append({"method": method, "rate": rate, "jod": got["jod"],
+                    "jod_parts": got["parts"]})
     return out
 
 
@@ -212,7 +246,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     path = add_to_folder(a.folder, a.scene, a.camera_path, max_depth=a.max_depth,
                          texture_filter=a.texture_filter, display=a.display)
     for r in json.loads(path.read_text())["results"]:
-        print(f"{r['method']} {r['rate']:.0f}: JOD {r['jod']:.2f}")
+        parts = ", ".join(f"{k} {v:.2f}" for k, v in r["jod_parts"].items())
+        print(f"{r['method']} {r['rate']:.0f}: JOD {r['jod']:.2f} ({parts})")
     print(f"wrote {path}")
     return 0
 

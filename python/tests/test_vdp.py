@@ -36,6 +36,25 @@ def test_identical_videos_score_ten_and_noise_scores_less():
         vdp.video_jod(ref.astype(np.float32), ref.astype(np.float32), 60.0)
 
 
+def test_each_channel_alone_scores_at_least_the_whole_and_flicker_is_transient():
+    rng = np.random.default_rng(2)
+    still = np.repeat((rng.random((1, 32, 48, 3)) * 255).astype(np.uint8), 12, axis=0)
+    same = vdp.video_jod_parts(still, still, 60.0)
+    assert same["jod"] == pytest.approx(10.0, abs=1e-4)
+    assert set(same["parts"]) == set(vdp.CHANNELS)
+    assert all(j == pytest.approx(10.0, abs=1e-4) for j in same["parts"].values())
+    # A grey flicker on every other frame: the achromatic transient channel is where
+    # the difference is, so it alone scores lowest, and no channel alone below the whole.
+    flicker = still.astype(int)
+    flicker[1::2] += 40
+    flicker = np.clip(flicker, 0, 255).astype(np.uint8)
+    got = vdp.video_jod_parts(flicker, still, 60.0)
+    parts = got["parts"]
+    assert all(j >= got["jod"] - 1e-4 for j in parts.values()), got
+    assert min(parts, key=parts.get) == "achromatic_transient", got
+    assert vdp.video_jod(flicker, still, 60.0) == pytest.approx(got["jod"])
+
+
 def test_evaluate_gives_every_row_a_jod_of_the_images_it_scored():
     ev = frameless.evaluate("toycar", methods=["adaptive", "traditional-frameless"],
                             rates=["100k"], duration=0.1, size=(48, 32), ideal_spp=2,

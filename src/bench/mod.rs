@@ -147,6 +147,7 @@ pub struct GpuTraceFigures {
     /// Where the GPU tracer's time went in the best timed call of the primary rays,
     /// of the shaded samples, and in the ideal image: uploads, the wait for the GPU,
     /// the read-back on the CPU.
+    #[cfg(feature = "gpu")]
     pub split: GpuTraceSplit,
 }
 

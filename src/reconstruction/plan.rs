@@ -15,7 +15,9 @@ pub(super) struct RefreshPlan {
     /// The first logical ring index placed (past the stale part, within the live
     /// limit, and when carrying past what earlier refreshes placed).
     pub(super) start: usize,
-    /// Whether exact motion rewrote the velocities of the placed samples.
+    /// Whether exact motion rewrote the velocities of the placed samples (the GPU
+    /// uploads them again; the CPU reads them in place).
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(super) moved: bool,
     /// The still-region history's step, if there is a history.
     pub(super) history: Option<Step>,
