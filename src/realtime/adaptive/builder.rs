@@ -111,8 +111,8 @@ pub(super) fn push_newest(
 /// The live limit never cuts an image below one new sample per this many pixels, so
 /// that an image still moves on where the build's per-pixel work alone exceeds the
 /// budget; low enough that on many cores, where more samples arrive than a build can
-/// place in a refresh, the limit and not the floor decides (docs/performance.md,
-/// session 23).
+/// place in a refresh, the limit and not the floor decides (docs/performance.md, "The
+/// live limit on many cores").
 const LIVE_LIMIT_FLOOR_DIVISOR: usize = 16;
 
 /// Images whose build times [`BuildCost`] fits.
@@ -124,8 +124,8 @@ const COST_WINDOW: usize = 32;
 /// It sets the deepest cut worth making: below `fixed / per_sample` samples the fixed
 /// part is most of a build, so cutting further buys at most twice the images while
 /// dropping most of the samples (and starving the still-region history, which takes in
-/// only the samples placed). On 4 and 8 device cores, cutting to the pixel floor
-/// doubled the images but lost FLIP (docs/performance.md, session 23).
+/// only the samples placed): images come more often but noisier (docs/performance.md,
+/// "The live limit on many cores").
 #[derive(Default)]
 pub(super) struct BuildCost {
     recent: VecDeque<(f64, f64)>,
