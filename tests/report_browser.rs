@@ -206,6 +206,48 @@ fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
         table.contains("<td class=\"best\">8.50</td>") && table.contains("<td>8.25</td>"),
         "{table}"
     );
+    assert!(
+        !html.contains("JOD per visual channel"),
+        "no channels in this file"
+    );
+    // With each channel's JOD alone, as `python -m frameless.vdp` now keeps them: a
+    // table of them, each row's lowest in bold.
+    std::fs::write(
+        dir.join("vdp.json"),
+        r#"{"metric": "ColorVideoVDP", "version": "0.5.7", "display": "standard_fhd",
+            "results": [
+            {"method": "adaptive", "rate": 100000.0, "jod": 9.41, "jod_parts":
+              {"achromatic_sustained": 9.5, "red_green": 9.9, "yellow_violet": 9.95,
+               "achromatic_transient": 9.62}},
+            {"method": "traditional-frameless", "rate": 100000.0, "jod": 8.02, "jod_parts":
+              {"achromatic_sustained": 8.2, "red_green": 9.8, "yellow_violet": 9.7,
+               "achromatic_transient": 8.1}}]}"#,
+    )
+    .unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
+    let at = html
+        .find("<h3>JOD per visual channel")
+        .expect("a channel table");
+    let table = &html[at..at + html[at..].find("</table>").unwrap()];
+    assert!(table.contains("<th>achromatic sustained</th>"), "{table}");
+    assert!(
+        table.contains("<td class=\"best\">9.50</td>") && table.contains("<td>9.62</td>"),
+        "{table}"
+    );
+    assert!(
+        table.contains("<td class=\"best\">8.10</td>") && table.contains("<td>8.20</td>"),
+        "{table}"
+    );
+    // A channel's JOD above 10 is refused like a method's.
+    let bad = std::fs::read_to_string(dir.join("vdp.json"))
+        .unwrap()
+        .replace("9.95", "10.5");
+    std::fs::write(dir.join("vdp.json"), bad).unwrap();
+    let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
+    assert!(
+        html.contains("vdp.json is there but could not be read"),
+        "a bad part taken"
+    );
     // A file that cannot be read is named, not taken.
     std::fs::write(dir.join("vdp.json"), "{").unwrap();
     let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();

@@ -725,6 +725,58 @@ fn html_video_table(h: &mut String, s: &Summary, dir: &Path) {
         h.push_str("</tr>");
     }
     h.push_str("</table>");
+    html_video_parts(h, s, &v);
+}
+
+/// The JOD of each visual channel alone, per method and rate (the lowest of each row
+/// in bold: where most of the visible difference is), when `vdp.json` keeps them.
+fn html_video_parts(h: &mut String, s: &Summary, v: &video_metric::VideoScores) {
+    let Some(names) = v.results.iter().find_map(|r| {
+        let p = r.part_values()?;
+        (!p.is_empty()).then(|| p.iter().map(|(k, _)| k.to_string()).collect::<Vec<_>>())
+    }) else {
+        return;
+    };
+    h.push_str(
+        "<h3>JOD per visual channel</h3><p class=\"note\">The JOD each channel of the \
+         metric would give alone, the others set to no difference; the lowest of a row \
+         (bold) is where most of the visible difference is: the sustained response for \
+         what stays wrong, the transient one for flicker.</p><table><tr><th>method</th>\
+         <th>samples/s</th>",
+    );
+    for n in &names {
+        let label = n
+            .replace("red_green", "red–green")
+            .replace("yellow_violet", "yellow–violet")
+            .replace('_', " ");
+        let _ = write!(h, "<th>{}</th>", escape(&label));
+    }
+    h.push_str("</tr>");
+    for m in methods_in_order(s).iter().map(|m| m.name()) {
+        for r in rates_in_order(s) {
+            let Some(row) = v.results.iter().find(|x| x.method == m && x.rate == r) else {
+                continue;
+            };
+            let parts = row.part_values().unwrap_or_default();
+            let low = parts.iter().map(|(_, j)| *j).reduce(f64::min);
+            let _ = write!(h, "<tr><td>{}</td><td>{}</td>", escape(m), rate_label(r));
+            for n in &names {
+                match parts.iter().find(|(k, _)| k == n) {
+                    Some((_, j)) => {
+                        let class = if Some(*j) == low {
+                            " class=\"best\""
+                        } else {
+                            ""
+                        };
+                        let _ = write!(h, "<td{class}>{j:.2}</td>");
+                    }
+                    None => h.push_str("<td>–</td>"),
+                }
+            }
+            h.push_str("</tr>");
+        }
+    }
+    h.push_str("</table>");
 }
 
 /// The RMS-over-time plots that are in the folder.

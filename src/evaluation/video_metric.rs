@@ -37,6 +37,20 @@ pub struct VideoRow {
     /// Just-objectionable differences: 10 is no visible difference; far worse videos
     /// score below 0.
     pub jod: f64,
+    /// The JOD pooled from each of the metric's visual channels alone (`jod_parts`;
+    /// empty in files written before they were kept), by channel name.
+    #[serde(default, rename = "jod_parts")]
+    pub parts: serde_json::Map<String, serde_json::Value>,
+}
+
+impl VideoRow {
+    /// [`VideoRow::parts`] as numbers; `None` where one is not a number.
+    pub fn part_values(&self) -> Option<Vec<(&str, f64)>> {
+        self.parts
+            .iter()
+            .map(|(k, v)| Some((k.as_str(), v.as_f64()?)))
+            .collect()
+    }
 }
 
 /// Why a `vdp.json` could not be read.
@@ -95,19 +109,22 @@ fn parse(path: &Path) -> Result<VideoScores, VideoMetricError> {
     })?;
     // 10 is no visible difference, the most a JOD can be; a video far worse than its
     // reference scores below 0.
-    match v
-        .results
-        .iter()
-        .find(|r| !(r.jod.is_finite() && r.jod <= 10.0 + 1e-3))
-    {
-        Some(r) => Err(VideoMetricError::BadScore {
-            path: path.to_path_buf(),
-            method: r.method.clone(),
-            rate: r.rate,
-            jod: r.jod,
-        }),
-        None => Ok(v),
+    let valid = |j: f64| j.is_finite() && j <= 10.0 + 1e-3;
+    for r in &v.results {
+        let parts = r.part_values().unwrap_or_else(|| vec![("", f64::NAN)]);
+        let bad = std::iter::once(r.jod)
+            .chain(parts.into_iter().map(|(_, j)| j))
+            .find(|&j| !valid(j));
+        if let Some(jod) = bad {
+            return Err(VideoMetricError::BadScore {
+                path: path.to_path_buf(),
+                method: r.method.clone(),
+                rate: r.rate,
+                jod,
+            });
+        }
     }
+    Ok(v)
 }
 
 #[cfg(test)]
