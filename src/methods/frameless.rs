@@ -81,10 +81,7 @@ pub(crate) fn trace_batch(
         .iter()
         .map(|&p| [(p % w) as f32 + 0.5, (p / w) as f32 + 0.5])
         .collect();
-    batch::trace_points(tracer, rays, &state, &points)
-        .iter()
-        .map(|s| s.color)
-        .collect()
+    batch::trace_colours(tracer, rays, &state, &points)
 }
 
 impl Method for Traditional {

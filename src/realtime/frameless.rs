@@ -127,14 +127,10 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, thread: u64, tx: Sender<Batch>) {
             .map(|&p| [(p % w) as f32 + 0.5, (p / w) as f32 + 0.5])
             .collect();
         let t0 = Instant::now();
-        let got = batch::trace_points(tracer, Some(rays), &state, &points);
+        let got = batch::trace_colours(tracer, Some(rays), &state, &points);
         let busy = t0.elapsed().as_secs_f64();
         let k = got.len() as u64;
-        let batch: Batch = pixels
-            .iter()
-            .zip(got)
-            .map(|(&p, x)| (p, x.color, now))
-            .collect();
+        let batch: Batch = pixels.iter().zip(got).map(|(&p, c)| (p, c, now)).collect();
         s.samples.fetch_add(k, Ordering::Relaxed);
         s.rays.fetch_add(k, Ordering::Relaxed);
         s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
