@@ -135,15 +135,19 @@ fn a_report_made_again_leaves_out_what_was_deleted() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The report's HTML from the heading that starts with `heading` to the end of the
+/// table under it.
+fn table_after<'a>(html: &'a str, heading: &str) -> &'a str {
+    let at = html.find(heading).unwrap_or_else(|| panic!("no {heading}"));
+    &html[at..at + html[at..].find("</table>").unwrap()]
+}
+
 #[test]
 fn a_folder_written_before_the_sustained_and_transient_errors_still_makes_a_report() {
     let dir = scratch("before-split");
     write_report(&dir);
     let fresh = std::fs::read_to_string(dir.join("report.html")).unwrap();
-    let table = |html: &str| {
-        let at = html.find("<h2>Sustained error").expect("a sustained table");
-        html[at..at + html[at..].find("</table>").unwrap()].to_string()
-    };
+    let table = |html: &str| table_after(html, "<h2>Sustained error").to_string();
     assert!(!table(&fresh).contains("<td>–</td>"), "{}", table(&fresh));
     // Drop the two columns from frames.csv and the two means from summary.json, as an
     // earlier version wrote them.
@@ -194,10 +198,10 @@ fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
     )
     .unwrap();
     let html = std::fs::read_to_string(report::rewrite(&dir).expect("report made again")).unwrap();
-    let at = html
-        .find("<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd")
-        .expect("a JOD table");
-    let table = &html[at..at + html[at..].find("</table>").unwrap()];
+    let table = table_after(
+        &html,
+        "<h2>Video JOD (ColorVideoVDP 0.5.7, display standard_fhd",
+    );
     assert!(
         table.contains("<td class=\"best\">9.41</td>") && table.contains("<td>8.02</td>"),
         "{table}"
@@ -225,10 +229,7 @@ fn a_video_metric_written_beside_an_evaluation_shows_in_its_report() {
     )
     .unwrap();
     let html = std::fs::read_to_string(report::rewrite(&dir).unwrap()).unwrap();
-    let at = html
-        .find("<h3>JOD per visual channel")
-        .expect("a channel table");
-    let table = &html[at..at + html[at..].find("</table>").unwrap()];
+    let table = table_after(&html, "<h3>JOD per visual channel");
     assert!(table.contains("<th>achromatic sustained</th>"), "{table}");
     assert!(
         table.contains("<td class=\"best\">9.50</td>") && table.contains("<td>9.62</td>"),

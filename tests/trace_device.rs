@@ -353,6 +353,23 @@ fn gpu_eval_of_the_other_methods_matches_the_cpu() {
     assert_eval_alike("others", methods, "400k");
 }
 
+/// The ideal-cache hits of `frameless ARGS --cache-dir CACHE --out OUT`.
+#[cfg(feature = "gpu")]
+fn ideal_cache_hits(args: &[&str], cache: &Path, out: &Path) -> u64 {
+    let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
+        .args(args)
+        .arg("--cache-dir")
+        .arg(cache)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .expect("the binary runs");
+    assert!(o.status.success(), "{}", stderr(&o));
+    summary(out)["timing"]["ideal_cache_hits"]
+        .as_u64()
+        .expect("a count")
+}
+
 /// GPU ideals are cached and served again, and never served to a CPU run (nor the
 /// CPU's to a GPU run).
 #[cfg(feature = "gpu")]
@@ -362,28 +379,18 @@ fn gpu_ideals_are_cached_apart_from_the_cpus() {
     let d = scratch("cache");
     let cache = d.join("cache");
     let run = |trace: &str, k: u32| {
-        let out = d.join(format!("{trace}{k}"));
-        let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
-            .args([
-                "eval",
-                "--size",
-                "32x24",
-                "--duration",
-                "0.1",
-                "--warmup",
-                "0.1",
-            ])
-            .args(["--method", "traditional-frameless", "--rate", "100k"])
-            .args(["--trace", trace, "--cache-dir"])
-            .arg(&cache)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .expect("the binary runs");
-        assert!(o.status.success(), "{}", stderr(&o));
-        summary(&out)["timing"]["ideal_cache_hits"]
-            .as_u64()
-            .expect("a count")
+        let args = [
+            "eval",
+            "--size",
+            "32x24",
+            "--duration",
+            "0.1",
+            "--warmup",
+            "0.1",
+        ];
+        let method = ["--method", "traditional-frameless", "--rate", "100k"];
+        let args: Vec<&str> = [&args[..], &method, &["--trace", trace]].concat();
+        ideal_cache_hits(&args, &cache, &d.join(format!("{trace}{k}")))
     };
     assert_eq!(run("gpu", 1), 0);
     assert_eq!(run("gpu", 2), 6, "the GPU's ideals were not served again");
@@ -393,32 +400,23 @@ fn gpu_ideals_are_cached_apart_from_the_cpus() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+#[cfg(feature = "gpu")]
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe in CI)"]
 fn gpu_live_ideals_are_traced_on_the_gpu_and_cached_apart() {
     let d = scratch("live-cache");
     let cache = d.join("cache");
     let run = |trace: &str, k: u32| {
-        let out = d.join(format!("{trace}{k}"));
-        let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
-            .args([
-                "live",
-                "--method",
-                "traditional-frameless",
-                "--trace",
-                trace,
-            ])
-            .args(["--size", "32x24", "--duration", "0.25", "--warmup", "0.1"])
-            .args(["--ideal-spp", "1", "--cache-dir"])
-            .arg(&cache)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .expect("the binary runs");
-        assert!(o.status.success(), "{}", stderr(&o));
-        summary(&out)["timing"]["ideal_cache_hits"]
-            .as_u64()
-            .expect("a count")
+        let args = [
+            "live",
+            "--method",
+            "traditional-frameless",
+            "--trace",
+            trace,
+        ];
+        let size = ["--size", "32x24", "--duration", "0.25", "--warmup", "0.1"];
+        let args: Vec<&str> = [&args[..], &size, &["--ideal-spp", "1"]].concat();
+        ideal_cache_hits(&args, &cache, &d.join(format!("{trace}{k}")))
     };
     assert_eq!(run("gpu", 1), 0);
     let refreshes = run("gpu", 2);

@@ -153,6 +153,36 @@ impl GpuContext {
             adapter: Some(self.describe()),
         }
     }
+
+    /// `take` of the first `bytes` of the read-back buffer `buf`, read in place from
+    /// its mapping once submission `index` is done (`None`: all work submitted so
+    /// far); then the buffer is unmapped.
+    pub fn read_mapped<R>(
+        &self,
+        buf: &wgpu::Buffer,
+        bytes: u64,
+        index: Option<wgpu::SubmissionIndex>,
+        take: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
+        let failed = |e: &dyn std::fmt::Display| GpuError::Failed(e.to_string());
+        let slice = buf.slice(0..bytes);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::Wait {
+                submission_index: index,
+                timeout: None,
+            })
+            .map_err(|e| failed(&e))?;
+        rx.recv().map_err(|e| failed(&e))?.map_err(|e| failed(&e))?;
+        let view = slice.get_mapped_range().map_err(|e| failed(&e))?;
+        let got = take(&view);
+        drop(view);
+        buf.unmap();
+        Ok(got)
+    }
 }
 
 fn describe(info: &wgpu::AdapterInfo) -> String {

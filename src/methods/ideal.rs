@@ -4,7 +4,7 @@
 use super::{any_rate, Budget, Displayed, Method, MethodContext, MethodInfo};
 use crate::{
     image::Image,
-    render::{cache::Lookup, still},
+    render::cache::{self, Lookup},
 };
 
 /// `ideal`: every refresh supersampled, held to no budget.
@@ -44,11 +44,14 @@ pub fn ideal_image(ctx: &MethodContext, t: f64) -> Image {
 
 /// [`ideal_image`], and what the cache found (`Miss` without a cache).
 pub fn ideal_lookup(ctx: &MethodContext, t: f64) -> (Image, Lookup) {
-    let render = || still::render_on(&ctx.tracer, ctx.rays.as_deref(), t, ctx.ideal_spp, ctx.seed);
-    match &ctx.ideal_cache {
-        Some(cache) => cache.get_or_render_with(t, ctx.ideal_spp, ctx.seed, render),
-        None => (render().0, Lookup::Miss),
-    }
+    cache::ideal_image(
+        ctx.ideal_cache.as_deref(),
+        &ctx.tracer,
+        ctx.rays.as_deref(),
+        t,
+        ctx.ideal_spp,
+        ctx.seed,
+    )
 }
 
 impl Method for Ideal {

@@ -167,10 +167,7 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, shown: Shown)
                 Vec::new(),
             )
         };
-        s.busy_ns
-            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        s.samples.fetch_add(w as u64, Ordering::Relaxed);
-        s.rays.fetch_add(w as u64, Ordering::Relaxed);
+        s.traced(w as u64, t0.elapsed());
         if tx
             .send(Row {
                 frame: cur.id,
@@ -201,10 +198,7 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Row>, shown: Shown) {
         let state = tracer.state_at(time);
         let t0 = Instant::now();
         let got = batch::trace_points(tracer, Some(rays), &state, &points);
-        s.busy_ns
-            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        s.samples.fetch_add(got.len() as u64, Ordering::Relaxed);
-        s.rays.fetch_add(got.len() as u64, Ordering::Relaxed);
+        s.traced(got.len() as u64, t0.elapsed());
         for (y, row) in got.chunks(w as usize).enumerate() {
             let hits = match shown {
                 Shown::Warped => row.iter().map(GSample::from).collect(),

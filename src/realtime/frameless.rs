@@ -4,7 +4,7 @@
 //! [`Traditional`](crate::methods::frameless::Traditional) does). It runs no thread of
 //! its own besides: the image thread only copies.
 
-use std::{sync::atomic::Ordering, time::Instant};
+use std::time::Instant;
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 use glam::Vec3;
@@ -69,7 +69,7 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
     let mut states = StateCache::new();
     let mut batch = Vec::with_capacity(1024);
     let mut sent = Instant::now();
-    let mut busy = 0.0f64;
+    let mut busy = std::time::Duration::ZERO;
     while !s.stopped() {
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
@@ -85,13 +85,9 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
             drop(guard);
             batch.push((p, c, now));
         }
-        busy += t0.elapsed().as_secs_f64();
+        busy += t0.elapsed();
         if batch.len() >= 1024 || sent.elapsed().as_secs_f64() > BATCH_S {
-            let k = batch.len() as u64;
-            s.samples.fetch_add(k, Ordering::Relaxed);
-            s.rays.fetch_add(k, Ordering::Relaxed);
-            s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
-            busy = 0.0;
+            s.traced(batch.len() as u64, std::mem::take(&mut busy));
             if tx
                 .send(std::mem::replace(&mut batch, Vec::with_capacity(1024)))
                 .is_err()
@@ -128,12 +124,8 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, thread: u64, tx: Sender<Batch>) {
             .collect();
         let t0 = Instant::now();
         let got = batch::trace_colours(tracer, Some(rays), &state, &points);
-        let busy = t0.elapsed().as_secs_f64();
-        let k = got.len() as u64;
+        s.traced(got.len() as u64, t0.elapsed());
         let batch: Batch = pixels.iter().zip(got).map(|(&p, c)| (p, c, now)).collect();
-        s.samples.fetch_add(k, Ordering::Relaxed);
-        s.rays.fetch_add(k, Ordering::Relaxed);
-        s.busy_ns.fetch_add((busy * 1e9) as u64, Ordering::Relaxed);
         if tx.send(batch).is_err() {
             return;
         }

@@ -148,6 +148,15 @@ pub(crate) struct Shared {
 }
 
 impl Shared {
+    /// Count `n` shaded samples (one ray each) that a sampling thread traced in `busy`
+    /// and delivered.
+    pub fn traced(&self, n: u64, busy: std::time::Duration) {
+        self.samples.fetch_add(n, Ordering::Relaxed);
+        self.rays.fetch_add(n, Ordering::Relaxed);
+        self.busy_ns
+            .fetch_add(busy.as_nanos() as u64, Ordering::Relaxed);
+    }
+
     /// Nothing running yet; scene time `config.start` is now.
     pub fn new(tracer: Arc<Tracer>, config: RtConfig) -> Self {
         let (w, h) = tracer.size();

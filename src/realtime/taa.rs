@@ -219,11 +219,7 @@ fn sample(s: &Shared, frames: &Mutex<Frames>, params: &TaaParams, tx: Sender<Row
         let t0 = Instant::now();
         let samples: Vec<Sample> =
             trace_jittered_row(tracer, &cur.state, cur.grid, cur.jitter, y).collect();
-        s.busy_ns
-            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        let n = samples.len() as u64;
-        s.samples.fetch_add(n, Ordering::Relaxed);
-        s.rays.fetch_add(n, Ordering::Relaxed);
+        s.traced(samples.len() as u64, t0.elapsed());
         if tx
             .send(Row {
                 job: cur,
@@ -260,10 +256,7 @@ fn sample_on_gpu(
             .collect();
         let t0 = Instant::now();
         let got = batch::trace_points(tracer, Some(rays), &cur.state, &points);
-        s.busy_ns
-            .fetch_add(t0.elapsed().as_nanos() as u64, Ordering::Relaxed);
-        s.samples.fetch_add(got.len() as u64, Ordering::Relaxed);
-        s.rays.fetch_add(got.len() as u64, Ordering::Relaxed);
+        s.traced(got.len() as u64, t0.elapsed());
         for (y, row) in got.chunks(gw as usize).enumerate() {
             let sent = tx.send(Row {
                 job: cur.clone(),

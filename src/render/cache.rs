@@ -43,7 +43,7 @@ use crate::{
         gltf::NodeAnimation, Camera, CameraPath, CameraTrack, KeyframeTrack, Material, NodeKind,
         Scene, Texture,
     },
-    trace::{TextureFilter, TraceOptions, Tracer, RENDERER_VERSION},
+    trace::{batch::GpuRays, TextureFilter, TraceOptions, Tracer, RENDERER_VERSION},
 };
 
 /// Bump when the still renderer's sampling or the stored format changes what an entry
@@ -432,6 +432,22 @@ fn pixel_checksum(width: u32, height: u32, rgb: &[u8]) -> u64 {
     h.0
 }
 
+/// The ideal image at time `t` on the run's tracer, through `cache` when there is one
+/// (`Lookup::Miss` without), as every evaluation and the `ideal` method take it.
+pub fn ideal_image(
+    cache: Option<&IdealCache>,
+    tracer: &Tracer,
+    rays: Option<&GpuRays>,
+    t: f64,
+    spp: u32,
+    seed: u64,
+) -> (Image, Lookup) {
+    match cache {
+        Some(c) => c.get_or_render(tracer, rays, t, spp, seed),
+        None => (still::render_on(tracer, rays, t, spp, seed).0, Lookup::Miss),
+    }
+}
+
 /// The cache for one scene, camera and image size.
 pub struct IdealCache {
     dir: PathBuf,
@@ -520,10 +536,18 @@ impl IdealCache {
     }
 
     /// The ideal image at time `t` as displayed (8-bit values), from disk when a valid
-    /// entry is there, else rendered and stored; and what the lookup found.
-    pub fn get_or_render(&self, tracer: &Tracer, t: f64, spp: u32, seed: u64) -> (Image, Lookup) {
+    /// entry is there, else rendered on the run's tracer (`rays`: the GPU's, else the
+    /// CPU) and stored; and what the lookup found.
+    pub fn get_or_render(
+        &self,
+        tracer: &Tracer,
+        rays: Option<&GpuRays>,
+        t: f64,
+        spp: u32,
+        seed: u64,
+    ) -> (Image, Lookup) {
         self.get_or_render_with(t, spp, seed, || {
-            (still::render(tracer, t, spp, seed, &|_| {}), false)
+            still::render_on(tracer, rays, t, spp, seed)
         })
     }
 
@@ -674,7 +698,7 @@ mod tests {
             !paths[1].exists(),
             "a fallback image was stored under the GPU's key"
         );
-        let (_, l) = gpu.get_or_render(&tracer, 0.5, 2, 1);
+        let (_, l) = gpu.get_or_render(&tracer, None, 0.5, 2, 1);
         assert_eq!(l, Lookup::Miss);
         assert!(
             !paths[1].exists(),
@@ -691,8 +715,8 @@ mod tests {
             !paths[0].exists(),
             "a GPU image was stored under the CPU's key"
         );
-        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Miss);
-        assert_eq!(cpu.get_or_render(&tracer, 0.5, 2, 1).1, Lookup::Hit);
+        assert_eq!(cpu.get_or_render(&tracer, None, 0.5, 2, 1).1, Lookup::Miss);
+        assert_eq!(cpu.get_or_render(&tracer, None, 0.5, 2, 1).1, Lookup::Hit);
         let _ = std::fs::remove_dir_all(&dir);
     }
 
@@ -759,11 +783,11 @@ mod tests {
         let tracer = Tracer::new(scene, 12, 8, TraceOptions::default());
         let cache = IdealCache::new(&dir, &tracer, None).unwrap();
         let (t, u) = (0.5, 0.75);
-        let (a, l) = cache.get_or_render(&tracer, t, 2, 1);
+        let (a, l) = cache.get_or_render(&tracer, None, t, 2, 1);
         assert_eq!(l, Lookup::Miss);
-        let (a2, l) = cache.get_or_render(&tracer, t, 2, 1);
+        let (a2, l) = cache.get_or_render(&tracer, None, t, 2, 1);
         assert_eq!((l, &a2), (Lookup::Hit, &a));
-        let (b, _) = cache.get_or_render(&tracer, u, 2, 1);
+        let (b, _) = cache.get_or_render(&tracer, None, u, 2, 1);
         assert_ne!(a, b, "the two instants differ, so a swap would be visible");
         let (pa, pb) = (cache.entry_path(t, 2, 1), cache.entry_path(u, 2, 1));
         let bytes_b = std::fs::read(&pb).unwrap();
@@ -800,11 +824,11 @@ mod tests {
         ];
         for (why, damage) in damage {
             damage();
-            let (img, l) = cache.get_or_render(&tracer, t, 2, 1);
+            let (img, l) = cache.get_or_render(&tracer, None, t, 2, 1);
             assert_eq!(l, Lookup::Rejected(why));
             assert_eq!(img, a, "{why:?}: the right image all the same");
             assert_eq!(
-                cache.get_or_render(&tracer, t, 2, 1).1,
+                cache.get_or_render(&tracer, None, t, 2, 1).1,
                 Lookup::Hit,
                 "{why:?}"
             );

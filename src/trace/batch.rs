@@ -55,7 +55,7 @@ impl GpuRays {
         let used = ctx.used();
         let template = super::gpu::GpuTracer::new(ctx, tracer)?;
         Ok(Self {
-            idle: std::sync::Mutex::new(vec![template.fork()]),
+            idle: std::sync::Mutex::new(Vec::new()),
             template,
             failure: std::sync::Mutex::new(None),
             used,

@@ -30,7 +30,7 @@ use crate::{
         RtConfig, RtMethod, RtSettings,
     },
     reconstruction::device::{GpuContext, ReconUsed},
-    render::{cache::IdealCache, cache::Lookup, still},
+    render::cache::{self, IdealCache, Lookup},
     scene::{CameraPath, Scene},
     settings::{self, Setting},
     trace::{batch, TextureFilter, TraceOptions, Tracer},
@@ -578,15 +578,15 @@ fn ideal_images(
     let mut ideal = Vec::with_capacity(cfg.frames());
     for j in 0..cfg.frames() {
         let t = cfg.refresh(j);
-        let render = || still::render_on(&tracer, rays.as_deref(), t, cfg.ideal_spp, cfg.seed);
-        let image = match &cache {
-            Some(c) => {
-                let (image, lookup) = c.get_or_render_with(t, cfg.ideal_spp, cfg.seed, render);
-                timing.ideal_cache_hits += usize::from(matches!(lookup, Lookup::Hit));
-                image
-            }
-            None => render().0,
-        };
+        let (image, lookup) = cache::ideal_image(
+            cache.as_ref(),
+            &tracer,
+            rays.as_deref(),
+            t,
+            cfg.ideal_spp,
+            cfg.seed,
+        );
+        timing.ideal_cache_hits += usize::from(matches!(lookup, Lookup::Hit));
         ideal.push(image.to_rgb8());
         progress.step("ideal images");
     }

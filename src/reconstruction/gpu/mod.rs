@@ -744,24 +744,7 @@ impl GpuRecon {
 
 /// The first `bytes` of a read-back buffer, after the work submitted so far.
 fn read(ctx: &GpuContext, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
-    let slice = buf.slice(0..bytes);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Failed(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Failed(e.to_string()))?
-        .map_err(|e| GpuError::Failed(e.to_string()))?;
-    let view = slice
-        .get_mapped_range()
-        .map_err(|e| GpuError::Failed(e.to_string()))?;
-    let out = copy_par(bytemuck::cast_slice::<u8, f32>(&view));
-    drop(view);
-    buf.unmap();
-    Ok(out)
+    ctx.read_mapped(buf, bytes, None, |b| copy_par(bytemuck::cast_slice(b)))
 }
 
 /// `src` copied on every thread: a refresh reads back its image and its carried sums,

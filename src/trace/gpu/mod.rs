@@ -321,11 +321,7 @@ impl GpuTracer {
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
-        let mut out = Vec::with_capacity(points.len());
-        self.run(tracer, state, points, Mode::Samples, &mut |w| {
-            out.extend(read_par(w, OUT_BYTES, unpack))
-        })?;
-        Ok(out)
+        self.run(tracer, state, points, Mode::Samples, unpack)
     }
 
     /// Only the colours of [`GpuTracer::trace`]'s samples, with a fifth of its
@@ -336,17 +332,13 @@ impl GpuTracer {
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<Vec3>, GpuTraceError> {
-        let mut out = Vec::with_capacity(points.len());
-        self.run(tracer, state, points, Mode::Colours, &mut |w| {
-            out.extend(read_par(w, COLOUR_BYTES, |c| {
-                Vec3::new(
-                    f32::from_bits(c[0]),
-                    f32::from_bits(c[1]),
-                    f32::from_bits(c[2]),
-                )
-            }))
-        })?;
-        Ok(out)
+        self.run(tracer, state, points, Mode::Colours, |c| {
+            Vec3::new(
+                f32::from_bits(c[0]),
+                f32::from_bits(c[1]),
+                f32::from_bits(c[2]),
+            )
+        })
     }
 
     /// Only the primary hits of `points` (colour: the background), as
@@ -357,22 +349,20 @@ impl GpuTracer {
         state: &SceneState,
         points: &[[f32; 2]],
     ) -> Result<Vec<GpuSample>, GpuTraceError> {
-        let mut out = Vec::with_capacity(points.len());
-        self.run(tracer, state, points, Mode::PrimaryHits, &mut |w| {
-            out.extend(read_par(w, OUT_BYTES, unpack))
-        })?;
-        Ok(out)
+        self.run(tracer, state, points, Mode::PrimaryHits, unpack)
     }
 
-    /// Trace `points` in `mode`, handing each dispatch's mapped output to `take`.
-    fn run(
+    /// Trace `points` in `mode`, each sample's output words read into a `T` by `read`
+    /// on every thread.
+    fn run<T: Send>(
         &mut self,
         tracer: &Tracer,
         state: &SceneState,
         points: &[[f32; 2]],
         mode: Mode,
-        take: &mut dyn FnMut(&[u32]),
-    ) -> Result<(), GpuTraceError> {
+        read: impl Fn(&[u32]) -> T + Sync + Send,
+    ) -> Result<Vec<T>, GpuTraceError> {
+        let mut out = Vec::with_capacity(points.len());
         let t = std::time::Instant::now();
         self.upload_state(tracer, state)?;
         self.times.upload_s += t.elapsed().as_secs_f64();
@@ -381,9 +371,11 @@ impl GpuTracer {
             u64::from(MAX_GROUPS * GROUP).min(binding_limit(&self.kernel.ctx) / OUT_BYTES);
         let per_dispatch = per_dispatch.max(1) as usize;
         for chunk in points.chunks(per_dispatch) {
-            self.dispatch(tracer, state, chunk, mode, take)?;
+            self.dispatch(tracer, state, chunk, mode, &mut |w| {
+                out.extend(read_par(w, mode, &read))
+            })?;
         }
-        Ok(())
+        Ok(out)
     }
 
     fn upload_state(&mut self, tracer: &Tracer, state: &SceneState) -> Result<(), GpuTraceError> {
@@ -446,7 +438,15 @@ impl GpuTracer {
         enc.copy_buffer_to_buffer(out, 0, back, 0, out_bytes.max(OUT_BYTES));
         let index = queue.submit([enc.finish()]);
         let t1 = std::time::Instant::now();
-        let read = read_mapped(&k.ctx, back, out_bytes, index, take)?;
+        // The copy and the mapping cover at least one sample's output, as the
+        // buffers do: wgpu maps no empty range.
+        let read = k
+            .ctx
+            .read_mapped(back, out_bytes.max(OUT_BYTES), Some(index), |b| {
+                let t = std::time::Instant::now();
+                take(&bytemuck::cast_slice::<u8, u32>(b)[..(out_bytes / 4) as usize]);
+                t.elapsed()
+            })?;
         let times = &mut self.times;
         times.upload_s += (t1 - t0).as_secs_f64();
         times.wait_s += (t1.elapsed() - read).as_secs_f64();
@@ -457,13 +457,13 @@ impl GpuTracer {
     }
 }
 
-/// `words`, the mapped output of a dispatch of `stride` bytes per sample, read into
-/// one `T` per sample on every thread: at a million samples and more per dispatch the
-/// read is a large share of the GPU tracer's time.
-fn read_par<T: Send>(words: &[u32], stride: u64, f: impl Fn(&[u32]) -> T + Sync + Send) -> Vec<T> {
+/// `words`, the mapped output of a dispatch in `mode`, read into one `T` per sample on
+/// every thread: at a million samples and more per dispatch the read is a large share
+/// of the GPU tracer's time.
+fn read_par<T: Send>(words: &[u32], mode: Mode, f: impl Fn(&[u32]) -> T + Sync + Send) -> Vec<T> {
     use rayon::prelude::*;
     words
-        .par_chunks_exact((stride / 4) as usize)
+        .par_chunks_exact((mode.out_bytes() / 4) as usize)
         .with_min_len(4096)
         .map(f)
         .collect()
@@ -551,38 +551,6 @@ fn storage_init(
         });
     }
     Ok(init(&ctx.device, label, bytes, wgpu::BufferUsages::STORAGE))
-}
-
-/// Hand the first `bytes` of a read-back buffer, as words, to `take` once submission
-/// `index` is done (not waiting for other threads' later work), read in place from
-/// the mapping; returns how long `take` took.
-fn read_mapped(
-    ctx: &GpuContext,
-    buf: &wgpu::Buffer,
-    bytes: u64,
-    index: wgpu::SubmissionIndex,
-    take: &mut dyn FnMut(&[u32]),
-) -> Result<std::time::Duration, GpuError> {
-    let failed = |e: &dyn std::fmt::Display| GpuError::Failed(e.to_string());
-    let slice = buf.slice(0..bytes.max(32));
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device
-        .poll(wgpu::PollType::Wait {
-            submission_index: Some(index),
-            timeout: None,
-        })
-        .map_err(|e| failed(&e))?;
-    rx.recv().map_err(|e| failed(&e))?.map_err(|e| failed(&e))?;
-    let view = slice.get_mapped_range().map_err(|e| failed(&e))?;
-    let t = std::time::Instant::now();
-    take(&bytemuck::cast_slice::<u8, u32>(&view)[..(bytes / 4) as usize]);
-    let took = t.elapsed();
-    drop(view);
-    buf.unmap();
-    Ok(took)
 }
 
 fn bind_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
