@@ -5,27 +5,34 @@
 # each folder's summary.json and vdp.json. Run from the repository root with a Python
 # that has `frameless[vdp]` installed:
 #   BART=../shared/scenes/bart PYTHON=/path/to/venv/bin/python bash docs/results/temporal/jod.sh
+# PARTS (default "table1 m5 m4 gl demo room m3") picks what runs.
 set -euo pipefail
+parts=" ${PARTS:-table1 m5 m4 gl demo room m3} "
+want() { [[ "$parts" == *" $1 "* ]]; }
 bart="${BART:-../shared/scenes/bart}"
 bin="${FRAMELESS:-target/release/frameless}"
 py="${PYTHON:-python3}"
 here=docs/results/temporal/jod_1s
 paths=assets/camera_paths
-"$bin" table1 --bart "$bart" --rate 400k --duration 1 --strips none --out "$here"
-for a in interactive bart toycar still; do
+want table1 && "$bin" table1 --bart "$bart" --rate 400k --duration 1 --strips none --out "$here"
+want table1 && for a in interactive bart toycar still; do
   cam=()
   if [ "$a" != bart ]; then cam=(--camera-path "$paths/kitchen_$a.csv"); fi
   "$py" -m frameless.vdp "$here/$a" --scene "$bart/kitchen/kitchen.aff" "${cam[@]}"
   "$bin" report "$here/$a"
 done
-# The generalisation windows of run.sh at 100K and 400K: museum5 t = 4–5 s (held out
-# from tuning), museum4 t = 2.5–3.5 s and the kitchen glance t = 1–3.5 s; run.sh's
-# evaluations again (the seed fixes every image), scored the same way, each window's
-# summary and vdp.json kept in its folder (about 5, 5 and 19 minutes on 2 cores).
+# The generalisation windows of ../generalisation/run.sh at 100K and 400K: museum5
+# t = 4–5 s (held out from tuning), museum4 t = 2.5–3.5 s, the kitchen glance
+# t = 1–3.5 s, the README demo (built-in toycar, t = 0–1 s), the still room and museum3
+# t = 2–3 s; that script's evaluations again (the seed fixes every image), scored the
+# same way, each window's summary and vdp.json kept in its folder (about 5, 5 and 19
+# minutes on 2 cores for the first three).
 methods=framed-60hz,framed-full,traditional-frameless,point-tracking,taa,late-warp,taa-warp,adaptive,adaptive-paper,adaptive-no-reprojection
 tmp=$(mktemp -d)
 window() {
   local name=$1; shift
+  want "$name" || return 0
+  mkdir -p "docs/results/temporal/$name"
   "$bin" eval "$@" --rate 100k,400k --method "$methods" --out "$tmp/$name"
   local scene=() cam=()
   while [ $# -gt 0 ]; do
@@ -38,4 +45,7 @@ window() {
 window m5 --scene "$bart/museum/museum5.aff" --start 4 --duration 1
 window m4 --scene "$bart/museum/museum4.aff" --start 2.5 --duration 1
 window gl --scene "$bart/kitchen/kitchen.aff" --camera-path "$paths/kitchen_glance.csv" --start 1 --duration 2.5
+window demo --scene toycar
+window room --scene room --camera-path "$paths/room_still.csv" --warmup 4 --duration 0.5 --ideal-spp 64
+window m3 --scene "$bart/museum/museum3.aff" --start 2 --duration 1
 python3 docs/results/temporal/tables.py docs/results/temporal > docs/results/temporal/tables.md
