@@ -164,23 +164,51 @@ impl GpuContext {
         index: Option<wgpu::SubmissionIndex>,
         take: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
+        self.read_mapped_all(&[(buf, bytes)], index, |views| take(views[0]))
+    }
+
+    /// [`GpuContext::read_mapped`] of several read-back buffers at once, after one
+    /// wait: `take` sees every mapping or is not called, so that a failure leaves
+    /// whatever it would have written untouched.
+    pub fn read_mapped_all<R>(
+        &self,
+        bufs: &[(&wgpu::Buffer, u64)],
+        index: Option<wgpu::SubmissionIndex>,
+        take: impl FnOnce(&[&[u8]]) -> R,
+    ) -> Result<R, GpuError> {
         let failed = |e: &dyn std::fmt::Display| GpuError::Failed(e.to_string());
-        let slice = buf.slice(0..bytes);
         let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.device
+        for &(buf, bytes) in bufs {
+            let tx = tx.clone();
+            buf.slice(0..bytes)
+                .map_async(wgpu::MapMode::Read, move |r| {
+                    let _ = tx.send(r);
+                });
+        }
+        drop(tx);
+        // A failure gives the device up (callers drop it), so nothing is unmapped then.
+        self
+            .device
             .poll(wgpu::PollType::Wait {
                 submission_index: index,
                 timeout: None,
             })
-            .map_err(|e| failed(&e))?;
-        rx.recv().map_err(|e| failed(&e))?.map_err(|e| failed(&e))?;
-        let view = slice.get_mapped_range().map_err(|e| failed(&e))?;
-        let got = take(&view);
-        drop(view);
-        buf.unmap();
+            .map_err(|e| failed(&e))
+            .and_then(|_| {
+                (0..bufs.len()).try_for_each(|_| match rx.recv() {
+                    Ok(r) => r.map_err(|e| failed(&e)),
+                    Err(e) => Err(failed(&e)),
+                })
+            })?;
+        let views = bufs
+            .iter()
+            .map(|&(buf, bytes)| buf.slice(0..bytes).get_mapped_range().map_err(|e| failed(&e)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let slices: Vec<&[u8]> = views.iter().map(|v| &v[..]).collect();
+        let got = take(&slices);
+        drop(slices);
+        drop(views);
+        bufs.iter().for_each(|(b, _)| b.unmap());
         Ok(got)
     }
 }

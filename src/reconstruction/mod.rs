@@ -572,15 +572,27 @@ impl Reconstructor {
         let (t, camera, start) = (plan.t, plan.camera, plan.start);
         let pending = self.carried.as_ref().map(|c| c.pending);
         let lap = std::time::Instant::now();
+        if !self.resplat {
+            self.carry_over_for_gpu(t, &camera, start);
+        }
+        let lap = self.passes.lap(3, lap);
         let carried = if self.resplat {
             None
         } else {
-            self.carry_for_gpu(t, &camera, start)
+            self.pack_carried()
         };
-        let lap = self.passes.lap(3, lap);
+        let pack_s = lap.elapsed().as_secs_f64();
         let max_r = self.max_footprint_radius();
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
+        };
+        let before = g.times();
+        let into = gpu::ReadInto {
+            image: &mut self.image.pixels,
+            age: &mut self.age,
+            coverage: &mut self.coverage,
+            scale: &mut self.scale,
+            sums: (&mut self.acc, self.cs, &mut self.cover),
         };
         let back = g.refresh(
             &self.ring,
@@ -594,7 +606,12 @@ impl Reconstructor {
             max_r,
             plan.history.as_ref(),
             carried.as_ref(),
+            into,
         );
+        let after = g.times();
+        self.passes.add(7, pack_s + after.upload_s - before.upload_s);
+        self.passes.add(8, after.wait_s - before.wait_s);
+        self.passes.add(9, after.read_s - before.read_s);
         let back = back.inspect_err(|_| {
             // The CPU redoes this refresh: its new samples are pending again (the sums
             // already carried to `t` carry on over no time).
@@ -602,19 +619,11 @@ impl Reconstructor {
                 c.pending = n;
             }
         })?;
-        if let Some(sums) = &back.sums {
-            let w = self.width as usize;
-            gpu::carried::unpack(sums, &mut self.acc, self.cs, w, &mut self.cover);
-        }
+        // Taking in what came back counts as reading it.
+        let lap = std::time::Instant::now();
         if self.resplat {
             self.restart_carry();
         }
-        back.unpack(
-            &mut self.image.pixels,
-            &mut self.age,
-            &mut self.coverage,
-            &mut self.scale,
-        );
         self.holes = back.holes;
         if let (Some(h), Some(step), Some(hb)) =
             (&mut self.history, plan.history.take(), back.history)
@@ -623,23 +632,25 @@ impl Reconstructor {
         }
         let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
         self.mean_age = age_sum / self.age.len().max(1) as f64;
-        self.passes.lap(7, lap);
+        self.passes.lap(9, lap);
         Ok(())
     }
 
     /// With carried accumulators: carry them to this refresh on the CPU, from logical
-    /// ring index `start` on (as [`Reconstructor::reconstruct`] does), and pack what
-    /// the GPU adds the new splats to. The initial front depths are the CPU's rule
+    /// ring index `start` on (as [`Reconstructor::reconstruct`] does).
+    #[cfg(feature = "gpu")]
+    fn carry_over_for_gpu(&mut self, t: f64, camera: &CameraFrame, start: usize) {
+        if self.carried.is_some() {
+            self.carry_over(t, camera, start);
+        }
+    }
+
+    /// With carried accumulators, what the GPU adds the new splats to: the carried
+    /// sums and, with the visibility pass, the initial front depths, by the CPU's rule
     /// ([`Reconstructor::carried_front`]) over no new splat (`front` is scratch here).
     #[cfg(feature = "gpu")]
-    fn carry_for_gpu(
-        &mut self,
-        t: f64,
-        camera: &CameraFrame,
-        start: usize,
-    ) -> Option<gpu::carried::CarriedIn> {
+    fn pack_carried(&mut self) -> Option<gpu::carried::CarriedIn> {
         self.carried.as_ref()?;
-        self.carry_over(t, camera, start);
         let (w, cs) = (self.width as usize, self.cs);
         let front = self.visibility_keep().map(|_| {
             self.front.clear();

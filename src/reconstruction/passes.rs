@@ -4,10 +4,21 @@
 use std::time::Instant;
 
 /// The steps of a refresh, in the order they run: on the GPU, the filters, the carry
-/// and the history's plan stay on the CPU, and `gpu` is the rest (uploads, the
-/// passes, read-back); on the CPU, `gpu` is zero.
-pub const PASSES: [&str; 8] = [
-    "filters", "place", "fronts", "carry", "splat", "resolve", "history", "gpu",
+/// and the history's plan stay on the CPU, and the rest is the GPU's three parts:
+/// `gpu_upload` (packing the carried sums, uploads, encoding, submission), `gpu_wait`
+/// (until the read-back buffers are mapped: the shaders and the copies) and
+/// `gpu_read` (unpacking the read-back and taking it in); on the CPU those are zero.
+pub const PASSES: [&str; 10] = [
+    "filters",
+    "place",
+    "fronts",
+    "carry",
+    "splat",
+    "resolve",
+    "history",
+    "gpu_upload",
+    "gpu_wait",
+    "gpu_read",
 ];
 
 /// Seconds spent in each of [`PASSES`] since the reconstructor was made, and the
@@ -46,6 +57,12 @@ impl PassTimes {
         self.refreshes += 1;
     }
 
+    /// `seconds` more of pass `k` (an index of [`PASSES`]), timed elsewhere.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
+    pub(super) fn add(&mut self, k: usize, seconds: f64) {
+        self.seconds[k] += seconds;
+    }
+
     /// Time from `since` to now goes to pass `k` (an index of [`PASSES`]); returns now,
     /// the start of the next pass.
     pub(super) fn lap(&mut self, k: usize, since: Instant) -> Instant {
@@ -74,6 +91,8 @@ mod tests {
         // Two or more milliseconds over two refreshes.
         assert!(ms[4].1 >= 1.0, "{ms:?}");
         assert!(ms[0].1 == 0.0 && ms[6].1 >= 0.0 && ms[7].1 == 0.0);
+        p.add(8, 0.004);
+        assert!((p.mean_ms()[8].1 - 2.0).abs() < 1e-9, "{:?}", p.mean_ms());
         assert_eq!(p.refreshes(), 2);
         let later = {
             let mut q = p.clone();

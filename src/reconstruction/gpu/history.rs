@@ -7,7 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GpuError, GROUP,
+    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GROUP,
     PER_PIXEL,
 };
 use crate::reconstruction::{
@@ -185,12 +185,19 @@ impl GpuHistory {
         enc.copy_buffer_to_buffer(&self.pick, 2 * n as u64 * 4, &self.read_cuts, 0, 4);
     }
 
-    /// The counts and cuts of the refresh just submitted.
-    pub(super) fn read(&self, ctx: &GpuContext) -> Result<HistoryBack, GpuError> {
+    /// The read-back buffers of the refresh just submitted, for
+    /// [`GpuContext::read_mapped_all`]: the counts, then the cuts.
+    pub(super) fn read_buffers(&self) -> [(&wgpu::Buffer, u64); 2] {
         let n = self.width as u64 * self.height as u64;
-        let counts = super::read(ctx, &self.read_counts, n * 4)?;
-        let cuts = super::read(ctx, &self.read_cuts, 4)?[0].to_bits() as u64;
-        Ok(HistoryBack { counts, cuts })
+        [(&self.read_counts, n * 4), (&self.read_cuts, 4)]
+    }
+
+    /// What [`GpuHistory::read_buffers`] mapped, as the CPU history takes it.
+    pub(super) fn back(counts: &[u8], cuts: &[u8]) -> HistoryBack {
+        HistoryBack {
+            counts: super::copy_par(bytemuck::cast_slice(counts)),
+            cuts: bytemuck::cast_slice::<u8, u32>(cuts)[0] as u64,
+        }
     }
 
     /// Upload the step's fresh samples (in pixel order, times relative to `epoch`)

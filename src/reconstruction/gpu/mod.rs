@@ -128,35 +128,59 @@ struct Level {
 /// Bytes of one splat in the shaders' `Splat`.
 const SPLAT_BYTES: u64 = 64;
 
-/// What a refresh reads back.
+/// What a refresh reads back besides the arrays it writes in place ([`ReadInto`]).
 pub(super) struct Readback {
-    /// Per pixel: red, green, blue, age, coverage (bits), splat scale.
-    pub(super) pixels: Vec<f32>,
     /// Pixels no splat reached.
     pub(super) holes: usize,
     /// The history's counts and cuts, with one.
     pub(super) history: Option<history::HistoryBack>,
-    /// When carrying: the final accumulators before any fill, per pixel as
-    /// [`carried::pack`] lays them out.
-    pub(super) sums: Option<Vec<f32>>,
 }
 
-impl Readback {
-    /// Copy into the reconstructor's image, ages, coverage and splat scale.
-    pub(super) fn unpack(
-        &self,
-        image: &mut [Vec3],
-        age: &mut [f32],
-        coverage: &mut [u32],
-        scale: &mut [f32],
-    ) {
-        for (i, p) in self.pixels.chunks_exact(PER_PIXEL).enumerate() {
-            image[i] = Vec3::new(p[0], p[1], p[2]);
-            age[i] = p[3];
-            coverage[i] = p[4].to_bits();
-            scale[i] = p[5];
-        }
-    }
+/// The reconstructor's arrays a refresh's read-back is unpacked into, straight from
+/// the mapped buffers (tens of megabytes at 1920×1080: one copy, on every thread).
+pub(super) struct ReadInto<'a> {
+    pub(super) image: &'a mut [Vec3],
+    pub(super) age: &'a mut [f32],
+    pub(super) coverage: &'a mut [u32],
+    pub(super) scale: &'a mut [f32],
+    /// The planar accumulators (channel stride `cs`) and the carried coverage, which
+    /// a GPU side made for carrying fills with its final sums, before any fill.
+    pub(super) sums: (&'a mut [f32], usize, &'a mut [f32]),
+}
+
+/// Seconds a GPU reconstructor has spent in each part of its refreshes.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct GpuReconTimes {
+    /// Uploads, encoding and submission.
+    pub(super) upload_s: f64,
+    /// From the submissions until the read-back buffers were mapped.
+    pub(super) wait_s: f64,
+    /// Unpacking the mapped buffers into the reconstructor's arrays.
+    pub(super) read_s: f64,
+}
+
+/// Pixels per task of the read-back's unpacking.
+const UNPACK_CHUNK: usize = 1 << 14;
+
+/// The read-back image (red, green, blue, age, coverage bits, splat scale per pixel)
+/// into `into`'s image, ages, coverage and splat scale.
+fn unpack_pixels(src: &[f32], into: &mut ReadInto) {
+    use rayon::prelude::*;
+    let c = UNPACK_CHUNK;
+    into.image
+        .par_chunks_mut(c)
+        .zip(into.age.par_chunks_mut(c))
+        .zip(into.coverage.par_chunks_mut(c))
+        .zip(into.scale.par_chunks_mut(c))
+        .zip(src.par_chunks(c * PER_PIXEL))
+        .for_each(|((((image, age), coverage), scale), src)| {
+            for (i, p) in src.chunks_exact(PER_PIXEL).enumerate() {
+                image[i] = Vec3::new(p[0], p[1], p[2]);
+                age[i] = p[3];
+                coverage[i] = p[4].to_bits();
+                scale[i] = p[5];
+            }
+        });
 }
 
 /// The GPU side of one reconstructor (see the module doc).
@@ -178,6 +202,7 @@ pub struct GpuRecon {
     /// hours of scene time only relative to a nearby origin).
     epoch: Option<f64>,
     history: Option<history::GpuHistory>,
+    times: GpuReconTimes,
 }
 
 struct Pipelines {
@@ -376,12 +401,18 @@ impl GpuRecon {
             level_stride,
             uploaded: 0,
             epoch: None,
+            times: GpuReconTimes::default(),
         })
     }
 
     /// The adapter.
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
+    }
+
+    /// Where its refreshes' time went so far.
+    pub(super) fn times(&self) -> GpuReconTimes {
+        self.times
     }
 
     /// Upload the samples pushed into `ring` since the last upload.
@@ -450,7 +481,8 @@ impl GpuRecon {
     /// history's `step` with one. `moved`: the hit points and velocities of live
     /// samples were rewritten since the last upload (exact motion). `carried`: the
     /// sums the new splats add to, when carrying (the GPU side must have been made
-    /// with `carry`).
+    /// with `carry`). The image and, when carrying, the sums are read back `into` the
+    /// reconstructor's arrays, all of them or (on an error) none.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn refresh(
         &mut self,
@@ -465,7 +497,9 @@ impl GpuRecon {
         max_r: f32,
         step: Option<&Step>,
         carried: Option<&CarriedIn>,
+        into: ReadInto,
     ) -> Result<Readback, GpuError> {
+        let (t0, before) = (std::time::Instant::now(), self.times);
         self.upload_ring(ring);
         if moved {
             self.upload_motion(ring, start);
@@ -495,7 +529,10 @@ impl GpuRecon {
             }
             self.grow_items(total);
         }
-        self.splat_pass(params.fill_weight > 0.0, step, p.keep)
+        let back = self.splat_pass(params.fill_weight > 0.0, step, p.keep, into);
+        let waited = (self.times.wait_s - before.wait_s) + (self.times.read_s - before.read_s);
+        self.times.upload_s += t0.elapsed().as_secs_f64() - waited;
+        back
     }
 
     /// Write the carried sums and coverage into the accumulators, which only the
@@ -616,7 +653,7 @@ impl GpuRecon {
     /// Place, count, scan and list the splats by bin, the front depths starting from
     /// `front` (as [`carried::front_bits`] gives them; `None`: from none); returns the
     /// items listed.
-    fn bin_pass(&self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
+    fn bin_pass(&mut self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         let d = &self.ctx.device;
         let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
@@ -644,17 +681,19 @@ impl GpuRecon {
             4,
         );
         self.ctx.queue.submit([enc.finish()]);
-        let counts = self.read(&self.buffers.read_counts, 4)?;
-        Ok(counts[0].to_bits() as usize)
+        let bufs = [(&self.buffers.read_counts, 4)];
+        read_timed(&self.ctx, &mut self.times, &bufs, |v| first_u32(v[0]) as usize)
     }
 
     /// Sort the bins, gather, resolve and fill, then the history's `step` with one;
-    /// read the image back.
+    /// read the image (and the sums, when carrying) back `into` the reconstructor's
+    /// arrays.
     fn splat_pass(
         &mut self,
         pull_push: bool,
         step: Option<&Step>,
         keep: f32,
+        mut into: ReadInto,
     ) -> Result<Readback, GpuError> {
         let n = self.width as u64 * self.height as u64;
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
@@ -695,21 +734,24 @@ impl GpuRecon {
             4,
         );
         self.ctx.queue.submit([enc.finish()]);
-        let holes = self.read(&self.buffers.read_counts, 4)?[0].to_bits() as usize;
-        let pixels = self.read(&self.buffers.read_out, bytes)?;
-        let history = match (&self.history, step) {
-            (Some(h), Some(_)) => Some(h.read(&self.ctx)?),
-            _ => None,
-        };
-        let sums = match &self.buffers.read_acc {
-            Some(r) => Some(self.read(r, bytes)?),
-            None => None,
-        };
-        Ok(Readback {
-            pixels,
-            holes,
-            history,
-            sums,
+        let history = self.history.as_ref().filter(|_| step.is_some());
+        let mut bufs = vec![(&self.buffers.read_counts, 4), (&self.buffers.read_out, bytes)];
+        bufs.extend(history.map(|h| h.read_buffers()).into_iter().flatten());
+        bufs.extend(self.buffers.read_acc.as_ref().map(|r| (r, bytes)));
+        let (w, carrying) = (self.width as usize, self.buffers.read_acc.is_some());
+        read_timed(&self.ctx, &mut self.times, &bufs, |v| {
+            unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
+            let rest = &v[2..];
+            let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1]));
+            if carrying {
+                let (acc, cs, cover) = into.sums;
+                let sums = bytemuck::cast_slice(rest[rest.len() - 1]);
+                carried::unpack(sums, acc, cs, w, cover);
+            }
+            Readback {
+                holes: first_u32(v[0]) as usize,
+                history,
+            }
         })
     }
 
@@ -737,14 +779,32 @@ impl GpuRecon {
         );
     }
 
-    fn read(&self, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
-        read(&self.ctx, buf, bytes)
-    }
 }
 
-/// The first `bytes` of a read-back buffer, after the work submitted so far.
-fn read(ctx: &GpuContext, buf: &wgpu::Buffer, bytes: u64) -> Result<Vec<f32>, GpuError> {
-    ctx.read_mapped(buf, bytes, None, |b| copy_par(bytemuck::cast_slice(b)))
+/// `take` of the mapped `bufs` ([`GpuContext::read_mapped_all`], after all work
+/// submitted), with its wait and its own time added to `times`.
+fn read_timed<R>(
+    ctx: &GpuContext,
+    times: &mut GpuReconTimes,
+    bufs: &[(&wgpu::Buffer, u64)],
+    take: impl FnOnce(&[&[u8]]) -> R,
+) -> Result<R, GpuError> {
+    let t0 = std::time::Instant::now();
+    let mut mapped = None;
+    let got = ctx.read_mapped_all(bufs, None, |v| {
+        mapped = Some(std::time::Instant::now());
+        take(v)
+    });
+    let end = std::time::Instant::now();
+    let mapped = mapped.unwrap_or(end);
+    times.wait_s += (mapped - t0).as_secs_f64();
+    times.read_s += (end - mapped).as_secs_f64();
+    got
+}
+
+/// The first word of a mapped buffer, as the shaders' counters write it.
+fn first_u32(b: &[u8]) -> u32 {
+    bytemuck::cast_slice::<u8, u32>(&b[..4])[0]
 }
 
 /// `src` copied on every thread: a refresh reads back its image and its carried sums,
