@@ -5,16 +5,19 @@
 # each folder's summary.json and vdp.json. Run from the repository root with a Python
 # that has `frameless[vdp]` installed:
 #   BART=../shared/scenes/bart PYTHON=/path/to/venv/bin/python bash docs/results/temporal/jod.sh
-# PARTS (default "table1 m5 m4 gl demo room m3") picks what runs.
+# PARTS (default "table1 m5 m4 gl demo room m3") picks what runs; T1_DURATION (default
+# 1) is the length of Table 1's windows, kept in jod_<T1_DURATION>s/ (3 is Table 1's
+# own: about 50 minutes on 2 cores).
 set -euo pipefail
 parts=" ${PARTS:-table1 m5 m4 gl demo room m3} "
 want() { [[ "$parts" == *" $1 "* ]]; }
 bart="${BART:-../shared/scenes/bart}"
 bin="${FRAMELESS:-target/release/frameless}"
 py="${PYTHON:-python3}"
-here=docs/results/temporal/jod_1s
+t1="${T1_DURATION:-1}"
+here=docs/results/temporal/jod_${t1}s
 paths=assets/camera_paths
-want table1 && "$bin" table1 --bart "$bart" --rate 400k --duration 1 --strips none --out "$here"
+want table1 && "$bin" table1 --bart "$bart" --rate 400k --duration "$t1" --strips none --out "$here"
 want table1 && for a in interactive bart toycar still; do
   cam=()
   if [ "$a" != bart ]; then cam=(--camera-path "$paths/kitchen_$a.csv"); fi
