@@ -380,6 +380,8 @@ pub struct StillArgs {
     pub spp: u32,
     #[command(flatten)]
     pub quality: settings::QualityGroup,
+    // The tracing half of `DevicesGroup` alone: a still is traced and never
+    // reconstructed, so `--recon` would be an option it takes and ignores.
     #[command(flatten)]
     pub trace: settings::TraceGroup,
     /// File format: png (display values, 8-bit sRGB-encoded) or exr (OpenEXR, the
