@@ -218,6 +218,25 @@ pub fn ideal_spp_and_depth(ideal_spp: u64, max_depth: u64) -> PyResult<()> {
     )
 }
 
+/// How samples are traced, from the Python keywords, in the ranges the command line
+/// takes; a field they do not set at the command line's default.
+// The struct update is there for the fields these keywords do not set.
+#[allow(clippy::needless_update)]
+pub fn quality(seed: u64, max_depth: u64, filter: &str) -> PyResult<settings::QualityGroup> {
+    in_range(
+        "max_depth",
+        max_depth,
+        0,
+        frameless::limits::MAX_DEPTH as u64,
+    )?;
+    Ok(settings::QualityGroup {
+        seed,
+        max_depth: max_depth as u32,
+        texture_filter: texture_filter(filter)?,
+        ..Default::default()
+    })
+}
+
 /// The settings groups of a run from the Python keywords, in the ranges the command
 /// line takes; each unset field at the command line's default. `cache_dir` is the
 /// folder itself (`None`: no cache), as the Python side resolves `--cache-dir` and
@@ -246,12 +265,7 @@ pub fn groups(
         refresh_hz: finite("refresh_hz", refresh_hz)?,
         ..Default::default()
     };
-    let quality = settings::QualityGroup {
-        seed,
-        max_depth: max_depth as u32,
-        texture_filter: texture_filter(filter)?,
-        ..Default::default()
-    };
+    let quality = quality(seed, max_depth, filter)?;
     let mut reference = settings::ReferenceGroup {
         ideal_spp: ideal_spp as u32,
         ..Default::default()

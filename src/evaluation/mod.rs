@@ -393,10 +393,7 @@ impl EvalConfig {
                 scene,
                 self.display.size.0,
                 self.display.size.1,
-                TraceOptions {
-                    max_depth: self.quality.max_depth,
-                    texture_filter: self.quality.texture_filter,
-                },
+                TraceOptions::from(&self.quality),
             )
             .with_camera_path(self.camera_path.clone()),
         )

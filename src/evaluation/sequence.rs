@@ -210,10 +210,7 @@ pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext 
             scene,
             cfg.display.size.0,
             cfg.display.size.1,
-            TraceOptions {
-                max_depth: cfg.quality.max_depth,
-                texture_filter: cfg.quality.texture_filter,
-            },
+            TraceOptions::from(&cfg.quality),
         )
         .with_camera_path(cfg.camera_path.clone()),
     );

@@ -535,10 +535,7 @@ fn quartiles(n: usize) -> Vec<usize> {
 /// The tracer every run and the ideal images use, new for each so that no run finds
 /// scene states another left in its cache.
 fn tracer(scene: &Arc<Scene>, cfg: &LiveConfig) -> Arc<Tracer> {
-    let options = TraceOptions {
-        max_depth: cfg.quality.max_depth,
-        texture_filter: cfg.quality.texture_filter,
-    };
+    let options = TraceOptions::from(&cfg.quality);
     Arc::new(
         Tracer::new(
             scene.clone(),
