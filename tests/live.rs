@@ -78,8 +78,7 @@ const SPEED: f32 = 5.0;
 fn an_exact_method_on_a_still_scene_scores_near_zero() {
     let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
     let mut cfg = LiveConfig::new("wall");
-    cfg.display.size.0 = 48;
-    cfg.display.size.1 = 32;
+    cfg.display.size = frameless::settings::Size(48, 32);
     cfg.seconds = 0.4;
     cfg.warmup = 0.2;
     cfg.reference.ideal_spp = 4;

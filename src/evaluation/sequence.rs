@@ -186,11 +186,7 @@ pub fn render_sequence(
         mean_age_s: ages / frames as f64,
         wall_s: t0.elapsed().as_secs_f64(),
         extra: m.extra_stats(),
-        recon: cfg
-            .devices
-            .recon
-            .as_ref()
-            .map_or_else(crate::reconstruction::device::ReconUsed::cpu, |g| g.used()),
+        recon: cfg.devices.recon_used(),
         trace: batch::used(rays.as_ref()),
         trace_failure: rays.and_then(|r| r.failure()),
     };

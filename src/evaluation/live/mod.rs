@@ -774,16 +774,8 @@ fn assemble(
             seed: cfg.quality.seed,
             ideal_spp: cfg.reference.ideal_spp,
             camera_path: cfg.camera_path.is_some(),
-            recon: cfg
-                .devices
-                .recon
-                .as_ref()
-                .map_or_else(ReconUsed::cpu, |g| g.used()),
-            trace: cfg
-                .devices
-                .trace
-                .as_ref()
-                .map_or_else(crate::gpu::DeviceUsed::cpu, |g| g.used()),
+            recon: cfg.devices.recon_used(),
+            trace: cfg.devices.trace_used(),
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,
