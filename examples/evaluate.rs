@@ -24,7 +24,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     cfg.rates = vec![400_000.0];
     cfg.methods = vec![MethodKind::TraditionalFrameless, MethodKind::Adaptive];
     // Ideal images are the costly part; keep them between runs as the command does.
-    cfg.cache_dir = std::env::var_os("FRAMELESS_CACHE").map(Into::into);
+    cfg.reference
+        .set_cache(std::env::var_os("FRAMELESS_CACHE").map(Into::into));
 
     let mut out = evaluation::run(scene, &cfg, &Silent)?;
     for row in &out.summary.results {

@@ -12,8 +12,7 @@
 //!
 //! let scene = Arc::new(builtin::load("toycar").expect("a built-in scene"));
 //! let mut cfg = EvalConfig::new("toycar");
-//! cfg.width = 64;
-//! cfg.height = 48;
+//! cfg.display.size = frameless::settings::Size(64, 48);
 //! cfg.duration = 0.25;
 //! cfg.warmup = 0.25;
 //! cfg.rates = vec![400_000.0];

@@ -323,6 +323,22 @@ pub struct ReferenceGroup {
 }
 
 impl ReferenceGroup {
+    /// The ideal images at the default samples per pixel, cached nowhere (the
+    /// command line's `--no-cache`): what a run the library sets up starts from, so
+    /// that a test or a script writes no cache it did not ask for.
+    pub fn uncached() -> Self {
+        Self {
+            no_cache: true,
+            ..Self::default()
+        }
+    }
+
+    /// Cache the ideal images in `dir`, or (`None`) nowhere.
+    pub fn set_cache(&mut self, dir: Option<PathBuf>) {
+        self.no_cache = dir.is_none();
+        self.cache_dir = dir;
+    }
+
     /// The cache folder a run uses: `--cache-dir`, else `$FRAMELESS_CACHE`, else
     /// `~/.cache/frameless/ideal`; `None` with `--no-cache`.
     pub fn cache(&self) -> Option<PathBuf> {

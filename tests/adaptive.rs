@@ -306,26 +306,22 @@ fn budget_is_never_exceeded_and_runs_are_deterministic() {
 
 #[test]
 fn evaluation_with_adaptive_is_thread_count_independent() {
-    let cfg = EvalConfig {
-        scene_name: "motion".into(),
-        camera_path: None,
-        start: 0.0,
-        duration: 0.2,
-        width: 32,
-        height: 32,
-        rates: vec![30_000.0],
-        methods: vec![MethodKind::Adaptive, MethodKind::AdaptiveNoReprojection],
-        seed: 5,
-        ideal_spp: 4,
-        warmup: 0.2,
-        refresh_hz: 60.0,
-        max_depth: 2,
-        texture_filter: frameless::trace::TextureFilter::None,
-        cache_dir: None,
-        strip_frames: vec![],
-        flip_every: 4,
-        gpu: None,
-        trace_gpu: None,
+    let cfg = {
+        let mut c = EvalConfig::new("motion");
+        c.start = 0.0;
+        c.duration = 0.2;
+        c.display.size = frameless::settings::Size(32, 32);
+        c.rates = vec![30_000.0];
+        c.methods = vec![MethodKind::Adaptive, MethodKind::AdaptiveNoReprojection];
+        c.quality.seed = 5;
+        c.reference.ideal_spp = 4;
+        c.warmup = 0.2;
+        c.display.refresh_hz = 60.0;
+        c.quality.max_depth = 2;
+        c.quality.texture_filter = frameless::trace::TextureFilter::None;
+        c.strip_frames = vec![];
+        c.flip_every = 4;
+        c
     };
     let run = |n: usize| {
         rayon::ThreadPoolBuilder::new()

@@ -99,27 +99,21 @@ fn static_scene() -> Scene {
 }
 
 fn cfg(methods: &[MethodKind], rate: f64, duration: f64) -> EvalConfig {
-    EvalConfig {
-        scene_name: "t".into(),
-        camera_path: None,
-        start: 0.0,
-        duration,
-        width: 48,
-        height: 48,
-        rates: vec![rate],
-        methods: methods.to_vec(),
-        seed: 2,
-        ideal_spp: 16,
-        warmup: 0.0,
-        refresh_hz: 60.0,
-        max_depth: 2,
-        texture_filter: frameless::trace::TextureFilter::None,
-        cache_dir: None,
-        strip_frames: vec![],
-        flip_every: 1000,
-        gpu: None,
-        trace_gpu: None,
-    }
+    let mut c = EvalConfig::new("t");
+    c.start = 0.0;
+    c.duration = duration;
+    c.display.size = frameless::settings::Size(48, 48);
+    c.rates = vec![rate];
+    c.methods = methods.to_vec();
+    c.quality.seed = 2;
+    c.reference.ideal_spp = 16;
+    c.warmup = 0.0;
+    c.display.refresh_hz = 60.0;
+    c.quality.max_depth = 2;
+    c.quality.texture_filter = frameless::trace::TextureFilter::None;
+    c.strip_frames = vec![];
+    c.flip_every = 1000;
+    c
 }
 
 #[test]
@@ -264,13 +258,11 @@ fn panned_scene() -> (Scene, CameraPath) {
 }
 
 fn panned_cfg(methods: &[MethodKind], path: Option<CameraPath>) -> EvalConfig {
-    EvalConfig {
-        width: 64,
-        height: 64,
-        camera_path: path,
-        // 1,024 samples per frame: a 32x32 grid, upscaled 2x.
-        ..cfg(methods, 61_440.0, 0.3)
-    }
+    // 1,024 samples per frame: a 32x32 grid, upscaled 2x.
+    let mut c = cfg(methods, 61_440.0, 0.3);
+    c.display.size = frameless::settings::Size(64, 64);
+    c.camera_path = path;
+    c
 }
 
 fn rms_series(out: &evaluation::EvalOutput, m: MethodKind) -> Vec<f64> {

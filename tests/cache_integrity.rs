@@ -23,27 +23,22 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn config(cache_dir: Option<PathBuf>) -> EvalConfig {
-    EvalConfig {
-        scene_name: "toycar".into(),
-        camera_path: None,
-        start: 0.5,
-        duration: 0.1,
-        width: 24,
-        height: 16,
-        rates: vec![100_000.0],
-        methods: vec![MethodKind::TraditionalFrameless, MethodKind::Framed60Hz],
-        seed: 9,
-        ideal_spp: 2,
-        warmup: 0.1,
-        refresh_hz: 60.0,
-        max_depth: 3,
-        texture_filter: TextureFilter::None,
-        cache_dir,
-        strip_frames: vec![0, 3],
-        flip_every: 1,
-        gpu: None,
-        trace_gpu: None,
-    }
+    let mut c = EvalConfig::new("toycar");
+    c.start = 0.5;
+    c.duration = 0.1;
+    c.display.size = frameless::settings::Size(24, 16);
+    c.rates = vec![100_000.0];
+    c.methods = vec![MethodKind::TraditionalFrameless, MethodKind::Framed60Hz];
+    c.quality.seed = 9;
+    c.reference.ideal_spp = 2;
+    c.warmup = 0.1;
+    c.display.refresh_hz = 60.0;
+    c.quality.max_depth = 3;
+    c.quality.texture_filter = TextureFilter::None;
+    c.reference.set_cache(cache_dir);
+    c.strip_frames = vec![0, 3];
+    c.flip_every = 1;
+    c
 }
 
 fn run(cache_dir: Option<&Path>) -> EvalOutput {

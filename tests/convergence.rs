@@ -26,27 +26,21 @@ const SIZE: u32 = 48;
 const RATE: f64 = 100_000.0;
 
 fn cfg(methods: &[MethodKind], warmup: f64, duration: f64) -> EvalConfig {
-    EvalConfig {
-        scene_name: "t".into(),
-        camera_path: None,
-        start: 0.0,
-        duration,
-        width: SIZE,
-        height: SIZE,
-        rates: vec![RATE],
-        methods: methods.to_vec(),
-        seed: 2,
-        ideal_spp: 64,
-        warmup,
-        refresh_hz: 60.0,
-        max_depth: 2,
-        cache_dir: None,
-        strip_frames: vec![],
-        flip_every: 1000,
-        gpu: None,
-        trace_gpu: None,
-        texture_filter: TextureFilter::RayCones,
-    }
+    let mut c = EvalConfig::new("t");
+    c.start = 0.0;
+    c.duration = duration;
+    c.display.size = frameless::settings::Size(SIZE, SIZE);
+    c.rates = vec![RATE];
+    c.methods = methods.to_vec();
+    c.quality.seed = 2;
+    c.reference.ideal_spp = 64;
+    c.warmup = warmup;
+    c.display.refresh_hz = 60.0;
+    c.quality.max_depth = 2;
+    c.strip_frames = vec![];
+    c.flip_every = 1000;
+    c.quality.texture_filter = TextureFilter::RayCones;
+    c
 }
 
 fn mean(v: &[f64]) -> f64 {

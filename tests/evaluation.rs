@@ -80,27 +80,21 @@ fn static_scene() -> Scene {
 }
 
 fn config(methods: &[MethodKind], rates: &[f64], warmup: f64, duration: f64) -> EvalConfig {
-    EvalConfig {
-        scene_name: "static".into(),
-        camera_path: None,
-        start: 0.0,
-        duration,
-        width: 32,
-        height: 24,
-        rates: rates.to_vec(),
-        methods: methods.to_vec(),
-        seed: 3,
-        ideal_spp: 16,
-        warmup,
-        refresh_hz: 60.0,
-        max_depth: 3,
-        texture_filter: frameless::trace::TextureFilter::None,
-        cache_dir: None,
-        strip_frames: vec![0],
-        flip_every: 1,
-        gpu: None,
-        trace_gpu: None,
-    }
+    let mut c = EvalConfig::new("static");
+    c.start = 0.0;
+    c.duration = duration;
+    c.display.size = frameless::settings::Size(32, 24);
+    c.rates = rates.to_vec();
+    c.methods = methods.to_vec();
+    c.quality.seed = 3;
+    c.reference.ideal_spp = 16;
+    c.warmup = warmup;
+    c.display.refresh_hz = 60.0;
+    c.quality.max_depth = 3;
+    c.quality.texture_filter = frameless::trace::TextureFilter::None;
+    c.strip_frames = vec![0];
+    c.flip_every = 1;
+    c
 }
 
 fn rms_series(out: &evaluation::EvalOutput, method: MethodKind, rate: f64) -> Vec<f64> {
@@ -259,7 +253,7 @@ fn ideal_cache_round_trips_and_recovers_from_corruption() {
     let dir = std::env::temp_dir().join(format!("frameless-cache-test-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let mut cfg = config(&[MethodKind::FramedFull], &[768.0 * 60.0], 0.0, 0.05);
-    cfg.cache_dir = Some(dir.clone());
+    cfg.reference.set_cache(Some(dir.clone()));
     let first = evaluation::run(Arc::new(static_scene()), &cfg, &Silent).unwrap();
     assert_eq!(first.summary.timing.ideal_cache_hits, 0);
     let second = evaluation::run(Arc::new(static_scene()), &cfg, &Silent).unwrap();

@@ -7,7 +7,7 @@ use std::{path::PathBuf, process::Command, sync::Arc};
 use frameless::{
     render::still,
     scene::builtin,
-    trace::{TextureFilter, TraceOptions, Tracer},
+    trace::{TraceOptions, Tracer},
 };
 
 fn scratch(name: &str) -> PathBuf {
@@ -53,10 +53,7 @@ fn still_exr_holds_linear_light_and_png_the_display_values() {
     // The same render in this process, with the command's defaults: the still renderer
     // is deterministic for any thread count.
     let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
-    let options = TraceOptions {
-        max_depth: 5,
-        texture_filter: TextureFilter::RayCones,
-    };
+    let options = TraceOptions::default();
     let tracer = Tracer::new(scene, 48, 32, options);
     let shown = still::render(&tracer, 1.0, 4, 3, &|_| {});
 

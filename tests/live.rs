@@ -78,11 +78,10 @@ const SPEED: f32 = 5.0;
 fn an_exact_method_on_a_still_scene_scores_near_zero() {
     let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
     let mut cfg = LiveConfig::new("wall");
-    cfg.width = 48;
-    cfg.height = 32;
+    cfg.display.size = frameless::settings::Size(48, 32);
     cfg.seconds = 0.4;
     cfg.warmup = 0.2;
-    cfg.ideal_spp = 4;
+    cfg.reference.ideal_spp = 4;
     cfg.methods = vec![RtMethod::FramedFull, RtMethod::TraditionalFrameless];
     cfg.repeat = 2;
     let out = live::run(Arc::new(still_wall()), &cfg, &Silent).expect("live evaluation runs");
@@ -112,7 +111,7 @@ fn an_exact_method_on_a_still_scene_scores_near_zero() {
     // The same instrument sees a method's error: a black screen scores far from zero.
     let black = vec![0u8; 48 * 32 * 3];
     let tracer = Tracer::new(Arc::new(still_wall()), 48, 32, TraceOptions::default());
-    let ideal = still::render(&tracer, cfg.start, 4, cfg.seed, &|_| {}).to_rgb8();
+    let ideal = still::render(&tracer, cfg.start, 4, cfg.quality.seed, &|_| {}).to_rgb8();
     assert!(metrics::rms(&ideal, &black) > 20.0);
 }
 

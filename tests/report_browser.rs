@@ -26,26 +26,22 @@ fn scratch(name: &str) -> PathBuf {
 
 /// A small evaluation written as a report folder at `dir`.
 fn write_report(dir: &Path) {
-    let cfg = EvalConfig {
-        scene_name: "toycar <small>".into(),
-        camera_path: None,
-        start: 0.5,
-        duration: 0.1,
-        width: 40,
-        height: 30,
-        rates: vec![100_000.0, 200_000.0],
-        methods: METHODS.to_vec(),
-        seed: 1,
-        ideal_spp: 2,
-        warmup: 0.2,
-        refresh_hz: 60.0,
-        max_depth: 3,
-        texture_filter: TextureFilter::None,
-        cache_dir: None,
-        strip_frames: vec![1, 4],
-        flip_every: 1,
-        gpu: None,
-        trace_gpu: None,
+    let cfg = {
+        let mut c = EvalConfig::new("toycar <small>");
+        c.start = 0.5;
+        c.duration = 0.1;
+        c.display.size = frameless::settings::Size(40, 30);
+        c.rates = vec![100_000.0, 200_000.0];
+        c.methods = METHODS.to_vec();
+        c.quality.seed = 1;
+        c.reference.ideal_spp = 2;
+        c.warmup = 0.2;
+        c.display.refresh_hz = 60.0;
+        c.quality.max_depth = 3;
+        c.quality.texture_filter = TextureFilter::None;
+        c.strip_frames = vec![1, 4];
+        c.flip_every = 1;
+        c
     };
     let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
     let mut out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");

@@ -24,27 +24,22 @@ fn scene() -> Scene {
 }
 
 fn cfg(camera_path: Option<CameraPath>, duration: f64) -> EvalConfig {
-    EvalConfig {
-        scene_name: "t".into(),
-        camera_path,
-        start: 0.0,
-        duration,
-        width: SIZE,
-        height: SIZE,
-        rates: vec![RATE],
-        methods: vec![MethodKind::Taa],
-        seed: 2,
-        ideal_spp: 16,
-        warmup: 0.0,
-        refresh_hz: 60.0,
-        max_depth: 2,
-        cache_dir: None,
-        strip_frames: vec![],
-        flip_every: 1000,
-        gpu: None,
-        trace_gpu: None,
-        texture_filter: frameless::trace::TextureFilter::None,
-    }
+    let mut c = EvalConfig::new("t");
+    c.camera_path = camera_path;
+    c.start = 0.0;
+    c.duration = duration;
+    c.display.size = frameless::settings::Size(SIZE, SIZE);
+    c.rates = vec![RATE];
+    c.methods = vec![MethodKind::Taa];
+    c.quality.seed = 2;
+    c.reference.ideal_spp = 16;
+    c.warmup = 0.0;
+    c.display.refresh_hz = 60.0;
+    c.quality.max_depth = 2;
+    c.strip_frames = vec![];
+    c.flip_every = 1000;
+    c.quality.texture_filter = frameless::trace::TextureFilter::None;
+    c
 }
 
 /// RMS (0–255) of TAA's displayed image against the ideal at every refresh.

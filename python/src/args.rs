@@ -84,6 +84,14 @@ pub fn trace(name: &str) -> PyResult<Option<std::sync::Arc<GpuContext>>> {
     frameless::gpu::acquire(choice).map_err(|e| value(format!("trace={name:?}: {}", message(&e))))
 }
 
+/// `recon=` and `trace=`: the run's devices, as `--recon` and `--trace` give them.
+pub fn devices(recon_name: &str, trace_name: &str) -> PyResult<frameless::gpu::Devices> {
+    Ok(frameless::gpu::Devices {
+        recon: recon(recon_name)?,
+        trace: trace(trace_name)?,
+    })
+}
+
 /// "; did you mean 'x'?" for the known name closest to `name` (at most a third of its
 /// letters changed), or nothing.
 pub fn did_you_mean(name: &str, known: &[&str]) -> String {
@@ -146,12 +154,12 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     eval.set_item("rates", e.rates.clone())?;
     eval.set_item("start", e.start)?;
     eval.set_item("duration", e.duration)?;
-    eval.set_item("size", (e.width, e.height))?;
-    eval.set_item("refresh_hz", e.refresh_hz)?;
-    eval.set_item("seed", e.seed)?;
-    eval.set_item("ideal_spp", e.ideal_spp)?;
+    eval.set_item("size", e.size())?;
+    eval.set_item("refresh_hz", e.display.refresh_hz)?;
+    eval.set_item("seed", e.quality.seed)?;
+    eval.set_item("ideal_spp", e.reference.ideal_spp)?;
     eval.set_item("warmup", e.warmup)?;
-    eval.set_item("max_depth", e.max_depth)?;
+    eval.set_item("max_depth", e.quality.max_depth)?;
     eval.set_item("flip_every", e.flip_every)?;
     d.set_item("evaluate", eval)?;
     let l = LiveConfig::new("toycar");
@@ -161,12 +169,12 @@ fn defaults(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     live.set_item("start", l.start)?;
     live.set_item("duration", l.seconds)?;
     live.set_item("warmup", l.warmup)?;
-    live.set_item("size", (l.width, l.height))?;
-    live.set_item("refresh_hz", l.refresh_hz)?;
+    live.set_item("size", l.size())?;
+    live.set_item("refresh_hz", l.display.refresh_hz)?;
     live.set_item("repeat", l.repeat)?;
-    live.set_item("seed", l.seed)?;
-    live.set_item("ideal_spp", l.ideal_spp)?;
-    live.set_item("max_depth", l.max_depth)?;
+    live.set_item("seed", l.quality.seed)?;
+    live.set_item("ideal_spp", l.reference.ideal_spp)?;
+    live.set_item("max_depth", l.quality.max_depth)?;
     d.set_item("live", live)?;
     // `frameless still`'s own defaults; the rest are every command's.
     let still = PyDict::new(py);
@@ -210,6 +218,25 @@ pub fn ideal_spp_and_depth(ideal_spp: u64, max_depth: u64) -> PyResult<()> {
     )
 }
 
+/// How samples are traced, from the Python keywords, in the ranges the command line
+/// takes; a field they do not set at the command line's default.
+// The struct update is there for the fields these keywords do not set.
+#[allow(clippy::needless_update)]
+pub fn quality(seed: u64, max_depth: u64, filter: &str) -> PyResult<settings::QualityGroup> {
+    in_range(
+        "max_depth",
+        max_depth,
+        0,
+        frameless::limits::MAX_DEPTH as u64,
+    )?;
+    Ok(settings::QualityGroup {
+        seed,
+        max_depth: max_depth as u32,
+        texture_filter: texture_filter(filter)?,
+        ..Default::default()
+    })
+}
+
 /// The settings groups of a run from the Python keywords, in the ranges the command
 /// line takes; each unset field at the command line's default. `cache_dir` is the
 /// folder itself (`None`: no cache), as the Python side resolves `--cache-dir` and
@@ -238,16 +265,11 @@ pub fn groups(
         refresh_hz: finite("refresh_hz", refresh_hz)?,
         ..Default::default()
     };
-    let quality = settings::QualityGroup {
-        seed,
-        max_depth: max_depth as u32,
-        texture_filter: texture_filter(filter)?,
+    let quality = quality(seed, max_depth, filter)?;
+    let mut reference = settings::ReferenceGroup {
+        ideal_spp: ideal_spp as u32,
         ..Default::default()
     };
-    let reference = settings::ReferenceGroup {
-        ideal_spp: ideal_spp as u32,
-        no_cache: cache_dir.is_none(),
-        cache_dir,
-    };
+    reference.set_cache(cache_dir);
     Ok((display, quality, reference))
 }

@@ -68,8 +68,7 @@ fn evaluate(
     // window).
     cfg.set_groups(&display, &quality, &reference);
     cfg.validate().map_err(errors::eval)?;
-    cfg.gpu = args::recon(recon)?;
-    cfg.trace_gpu = args::trace(trace)?;
+    cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = evaluation::run(scene, &cfg, work).map_err(errors::eval)?;
@@ -133,8 +132,7 @@ fn live(
         cfg.cores = n as usize;
     }
     cfg.validate().map_err(errors::eval)?;
-    cfg.gpu = args::recon(recon)?;
-    cfg.trace_gpu = args::trace(trace)?;
+    cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();
     work::run(py, progress.as_ref(), move |work| {
         let out = live_eval::run(scene, &cfg, work).map_err(errors::eval)?;

@@ -90,16 +90,8 @@ impl NativeScene {
         let time = args::finite("t", time)?;
         let (w, h) = args::size(size)?;
         args::in_range("spp", spp, 1, frameless::limits::MAX_STILL_SPP as u64)?;
-        args::in_range(
-            "max_depth",
-            max_depth,
-            0,
-            frameless::limits::MAX_DEPTH as u64,
-        )?;
-        let options = TraceOptions {
-            max_depth: max_depth as u32,
-            texture_filter: args::texture_filter(texture_filter)?,
-        };
+        let quality = args::quality(seed, max_depth, texture_filter)?;
+        let options = TraceOptions::from(&quality);
         let scene = self.scene.clone();
         let path = self.camera_path.clone();
         let img = work::run(py, progress.as_ref(), move |work| {

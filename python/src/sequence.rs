@@ -39,7 +39,7 @@ fn produce(scene: Arc<frameless::scene::Scene>, cfg: SequenceConfig, tx: mpsc::S
         }
     };
     for k in 0..cfg.frames() {
-        let t = cfg.start + k as f64 / cfg.refresh_hz;
+        let t = cfg.start + k as f64 / cfg.display.refresh_hz;
         let image = method.display(t).image.clone();
         if tx.send(Ok((t, image))).is_err() {
             return; // The iterator is gone.
@@ -73,9 +73,10 @@ impl NativeRender {
         recon: &str,
         trace: &str,
     ) -> PyResult<Self> {
-        let (width, height) = args::size(size)?;
-        args::ideal_spp_and_depth(1, max_depth)?;
-        let cfg = SequenceConfig {
+        // A sequence has no ideal images: the reference group is unused.
+        let (display, quality, _) =
+            args::groups(size, refresh_hz, seed, 1, max_depth, texture_filter, None)?;
+        let mut cfg = SequenceConfig {
             scene_name: scene.name.clone(),
             camera_path: scene.camera_path.clone(),
             method: args::methods(&[method])?[0],
@@ -83,24 +84,15 @@ impl NativeRender {
             start: args::finite("start", start)?,
             duration: args::finite("duration", duration)?,
             warmup: args::finite("warmup", warmup)?,
-            refresh_hz: args::finite("refresh_hz", refresh_hz)?,
-            width,
-            height,
-            seed,
-            max_depth: max_depth as u32,
-            texture_filter: args::texture_filter(texture_filter)?,
+            display,
+            quality,
             format: ImageFormat::Exr,
-            gpu: None,
-            trace_gpu: None,
+            devices: Default::default(),
         };
         cfg.validate().map_err(errors::eval)?;
         // This module is CPU-only: `trace` is checked (gpu refused, auto the CPU), and
         // the sequence traces on the CPU as `sequence::method_context` sets it up.
-        let cfg = SequenceConfig {
-            gpu: args::recon(recon)?,
-            trace_gpu: args::trace(trace)?,
-            ..cfg
-        };
+        cfg.devices = args::devices(recon, trace)?;
         let len = cfg.frames();
         // One refresh traced ahead of the one being looked at.
         let (tx, rx) = mpsc::bounded(1);

@@ -17,6 +17,7 @@ use progress::Meter;
 use frameless::{
     bench,
     evaluation::{self, report, EvalConfig, EvalError},
+    gpu::Devices,
     image::ImageFormat,
     reconstruction::device::{self, GpuContext, ReconDevice},
     render::still,
@@ -149,8 +150,10 @@ fn bench(a: args::BenchArgs) -> Result<()> {
     if a.live_recon {
         return bench_live_recon(a.json);
     }
-    let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
+    let Devices {
+        recon: gpu,
+        trace: trace_gpu,
+    } = acquire_devices(&a.devices)?;
     let t0 = Instant::now();
     let scene = load_scene(&a.scene)?;
     let load_s = t0.elapsed().as_secs_f64();
@@ -294,6 +297,25 @@ fn print_bench(report: &bench::BenchReport) {
         report.controller_tracing_samples_per_s_1t / 1e6,
         report.controller_margin
     );
+}
+
+/// The GPUs `--recon` and `--trace` ask for, acquired once for the whole command (the
+/// tracer shares the reconstructor's where it may).
+fn acquire_devices(d: &settings::DevicesGroup) -> Result<Devices> {
+    let recon = acquire_recon(d.recon)?;
+    let trace = acquire_trace(d.trace.trace, recon.as_ref())?;
+    Ok(Devices { recon, trace })
+}
+
+/// [`acquire_devices`] for the real-time pipeline running `methods`: a GPU tracer for a
+/// method whose sampling cannot trace on it is an error before any work.
+fn realtime_devices(
+    d: &settings::DevicesGroup,
+    methods: &[frameless::realtime::RtMethod],
+) -> Result<Devices> {
+    let recon = acquire_recon(d.recon)?;
+    let trace = realtime_trace(d.trace.trace, recon.as_ref(), methods)?;
+    Ok(Devices { recon, trace })
 }
 
 /// The GPU `choice` asks for, acquired once for the whole command, with one line on
@@ -523,8 +545,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
     cfg.flip_every = a.flip_every as usize;
     cfg.set_groups(&a.display, &a.quality, &a.reference);
     cfg.validate()?;
-    cfg.gpu = acquire_recon(a.devices.recon)?;
-    cfg.trace_gpu = acquire_trace(a.devices.trace.trace, cfg.gpu.as_ref())?;
+    cfg.devices = acquire_devices(&a.devices)?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("evaluating", "rays");
     let options = evaluation::RunOptions {
@@ -554,8 +575,7 @@ fn eval(a: args::EvalArgs) -> Result<()> {
 fn render(a: args::RenderArgs) -> Result<()> {
     use frameless::evaluation::sequence::{render_sequence, SequenceConfig};
     frameless::output::check_folder_target(&a.out)?;
-    let Size(w, h) = a.display.size;
-    let cfg = SequenceConfig {
+    let mut cfg = SequenceConfig {
         scene_name: a.scene.scene.clone(),
         camera_path: load_camera_path(a.scene.camera_path.as_deref())?,
         method: a.method,
@@ -563,23 +583,13 @@ fn render(a: args::RenderArgs) -> Result<()> {
         start: a.start,
         duration: a.duration,
         warmup: a.warmup,
-        refresh_hz: a.display.refresh_hz,
-        width: w,
-        height: h,
-        seed: a.quality.seed,
-        max_depth: a.quality.max_depth,
-        texture_filter: a.quality.texture_filter,
+        display: a.display,
+        quality: a.quality,
         format: image_format(a.format),
-        gpu: None,
-        trace_gpu: None,
+        devices: Devices::default(),
     };
     cfg.validate()?;
-    let gpu = acquire_recon(a.devices.recon)?;
-    let cfg = SequenceConfig {
-        trace_gpu: acquire_trace(a.devices.trace.trace, gpu.as_ref())?,
-        gpu,
-        ..cfg
-    };
+    cfg.devices = acquire_devices(&a.devices)?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let bar = Meter::new("rendering", "rays");
     let stats = render_sequence(scene, &cfg, &a.out, &bar)?;
@@ -612,12 +622,10 @@ fn table1(a: args::Table1Args) -> Result<()> {
         .iter()
         .map(|anim| table1_config(&a, anim))
         .collect::<Result<Vec<_>>>()?;
-    // One GPU for every animation's evaluation.
-    let gpu = acquire_recon(a.devices.recon)?;
-    let trace_gpu = acquire_trace(a.devices.trace.trace, gpu.as_ref())?;
+    // One set of GPUs for every animation's evaluation.
+    let devices = acquire_devices(&a.devices)?;
     for cfg in &mut cfgs {
-        cfg.gpu = gpu.clone();
-        cfg.trace_gpu = trace_gpu.clone();
+        cfg.devices = devices.clone();
     }
     let scene = Arc::new(load_scene(&kitchen.to_string_lossy())?);
     let outputs = table1::Table1Output::begin(&a.out)?;
@@ -676,30 +684,27 @@ fn table1_config(a: &args::Table1Args, anim: &evaluation::table1::Animation) -> 
         ),
         None => None,
     };
-    let Size(w, h) = a.size;
     let mut cfg = EvalConfig {
         scene_name: format!("kitchen ({})", anim.name),
         camera_path,
         start: anim.start,
         duration: a.duration.unwrap_or(anim.duration),
-        width: w,
-        height: h,
         rates: a.rates.clone(),
         methods: match &a.methods {
             Some(m) => m.clone(),
             None => evaluation::table1::METHODS.to_vec(),
         },
-        seed: a.quality.seed,
-        ideal_spp: a.reference.ideal_spp,
         warmup: a.warmup.unwrap_or(anim.warmup),
-        refresh_hz: settings::REFRESH_HZ,
-        max_depth: a.quality.max_depth,
-        texture_filter: a.quality.texture_filter,
-        cache_dir: a.reference.cache(),
+        // Table 1 is the paper's, at its refresh rate (the default).
+        display: settings::DisplayGroup {
+            size: a.size,
+            ..Default::default()
+        },
+        quality: a.quality,
+        reference: a.reference.clone(),
         strip_frames: Vec::new(),
         flip_every: a.flip_every as usize,
-        gpu: None,
-        trace_gpu: None,
+        devices: Devices::default(),
     };
     cfg.strip_frames = match a.strips {
         args::Strips::Quartiles => cfg.quartile_frames(),
@@ -840,15 +845,14 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     }
     let Size(w, h) = a.display.size;
     settings.check_size(&cfg, w, h)?;
-    let gpu = acquire_recon(a.devices.recon)?;
-    settings.use_gpu(gpu.clone());
-    let trace_gpu = realtime_trace(a.devices.trace.trace, gpu.as_ref(), &[a.method])?;
+    let devices = realtime_devices(&a.devices, &[a.method])?;
+    settings.use_gpu(devices.recon.clone());
     let scene = Arc::new(load_scene(&a.scene.scene)?);
     let tracer = Arc::new(
         Tracer::new(scene, w, h, TraceOptions::from(&a.quality))
             .with_camera_path(load_camera_path(a.scene.camera_path.as_deref())?),
     );
-    cfg.rays = frameless::trace::batch::open(trace_gpu, &tracer)
+    cfg.rays = frameless::trace::batch::open(devices.trace, &tracer)
         .context("--trace gpu (--trace cpu traces on the CPU)")?;
     if a.headless {
         return view_headless(&a, tracer, cfg, settings);
@@ -857,7 +861,7 @@ fn view(a: args::ViewArgs, threads: Option<u16>) -> Result<()> {
     let mut others = Vec::new();
     for m in realtime::RtMethod::ALL {
         let mut s = view_settings(&a, m)?;
-        s.use_gpu(gpu.clone());
+        s.use_gpu(devices.recon.clone());
         others.push(s);
     }
     let opts = realtime::ViewerOptions {
@@ -986,8 +990,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
         cfg.cores = n as usize;
     }
     cfg.validate()?;
-    cfg.gpu = acquire_recon(a.devices.recon)?;
-    cfg.trace_gpu = realtime_trace(a.devices.trace.trace, cfg.gpu.as_ref(), &cfg.methods)?;
+    cfg.devices = realtime_devices(&a.devices, &cfg.methods)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.
     cfg.validate()?;
     let scene = Arc::new(load_scene(&a.scene.scene)?);

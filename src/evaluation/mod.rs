@@ -20,19 +20,19 @@ use serde::{Deserialize, Serialize};
 
 use crate::{
     clock::{rate_label, Clock},
-    gpu::DeviceUsed,
+    gpu::{DeviceUsed, Devices},
     limits,
     methods::{
         ideal::{ideal_image, ideal_lookup},
         Method, MethodContext, MethodError, MethodKind, RunShape,
     },
-    reconstruction::device::{GpuContext, ReconUsed},
+    reconstruction::device::ReconUsed,
     render::cache::{IdealCache, Lookup},
     scene::{CameraPath, Scene},
     settings::{self, Setting},
     trace::{
         batch::{self, GpuRays},
-        TextureFilter, TraceOptions, Tracer,
+        TraceOptions, Tracer,
     },
 };
 
@@ -216,7 +216,9 @@ impl EvalError {
     }
 }
 
-/// Settings of one evaluation run.
+/// Settings of one evaluation run. What every command shares is held as its group
+/// ([`settings`]'s), so an option added to a group reaches the evaluation with no
+/// field here.
 #[derive(Clone, Debug)]
 pub struct EvalConfig {
     /// How the user named the scene (for reports).
@@ -227,39 +229,27 @@ pub struct EvalConfig {
     pub start: f64,
     /// Length of the evaluated window, seconds.
     pub duration: f64,
-    /// Display width.
-    pub width: u32,
-    /// Display height.
-    pub height: u32,
     /// Sample budgets to evaluate, samples per second.
     pub rates: Vec<f64>,
     /// Methods to evaluate.
     pub methods: Vec<MethodKind>,
-    /// Seed of every random choice.
-    pub seed: u64,
-    /// Samples per pixel of the ideal images (≥ 16 for the paper's protocol).
-    pub ideal_spp: u32,
     /// Seconds every method runs before the first evaluated refresh.
     pub warmup: f64,
-    /// Display refresh rate, Hz.
-    pub refresh_hz: f64,
-    /// Reflection/refraction depth limit.
-    pub max_depth: u32,
-    /// Texture filtering of every image traced, ideal images included.
-    pub texture_filter: TextureFilter,
-    /// Ideal-image cache directory (`None`: no cache).
-    pub cache_dir: Option<PathBuf>,
+    /// The display: size and refresh rate.
+    pub display: settings::DisplayGroup,
+    /// How samples are traced, ideal images included: seed, depth, texture filter.
+    pub quality: settings::QualityGroup,
+    /// The ideal images: samples per pixel (≥ 16 for the paper's protocol) and cache.
+    pub reference: settings::ReferenceGroup,
     /// Frames at which image strips are saved (indices into the window).
     pub strip_frames: Vec<usize>,
     /// FLIP is computed on every n-th frame (it costs more than tracing a frame at the
     /// paper's rates); RMS and PSNR on every frame.
     pub flip_every: usize,
-    /// The GPU the adaptive methods reconstruct on, acquired once for the whole run
-    /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
-    pub gpu: Option<Arc<GpuContext>>,
-    /// The GPU the samples of the methods that trace in batches and the ideal images
-    /// are traced on (`--trace`); `None`: the CPU tracer, the reference.
-    pub trace_gpu: Option<Arc<GpuContext>>,
+    /// The GPUs the adaptive methods reconstruct on and the methods that trace in
+    /// batches and the ideal images are traced on, each acquired once for the whole
+    /// run; the CPU, the reference, by default.
+    pub devices: Devices,
 }
 
 /// The methods `frameless eval` runs when none are named: the baselines, today's
@@ -288,21 +278,15 @@ impl EvalConfig {
             camera_path: None,
             start: 0.0,
             duration: 1.0,
-            width: settings::SIZE.0,
-            height: settings::SIZE.1,
             rates: settings::RATES.to_vec(),
             methods: DEFAULT_METHODS.to_vec(),
-            seed: settings::SEED,
-            ideal_spp: settings::IDEAL_SPP,
             warmup: settings::WARMUP_S,
-            refresh_hz: settings::REFRESH_HZ,
-            max_depth: settings::MAX_DEPTH,
-            texture_filter: TextureFilter::default(),
-            cache_dir: None,
+            display: settings::DisplayGroup::default(),
+            quality: settings::QualityGroup::default(),
+            reference: settings::ReferenceGroup::uncached(),
             strip_frames: Vec::new(),
             flip_every: 1,
-            gpu: None,
-            trace_gpu: None,
+            devices: Devices::default(),
         };
         cfg.strip_frames = cfg.quartile_frames();
         cfg
@@ -310,27 +294,28 @@ impl EvalConfig {
 
     /// Take the settings every run shares from their groups: the display, how samples
     /// are traced, the ideal images (the one place the command line and the Python
-    /// module set them).
+    /// module set them), with the image strips at the new window's quartiles.
     pub fn set_groups(
         &mut self,
         display: &settings::DisplayGroup,
         quality: &settings::QualityGroup,
         reference: &settings::ReferenceGroup,
     ) {
-        let settings::Size(w, h) = display.size;
-        (self.width, self.height) = (w, h);
-        self.refresh_hz = display.refresh_hz;
-        self.seed = quality.seed;
-        self.max_depth = quality.max_depth;
-        self.texture_filter = quality.texture_filter;
-        self.ideal_spp = reference.ideal_spp;
-        self.cache_dir = reference.cache();
+        self.display = *display;
+        self.quality = *quality;
+        self.reference = reference.clone();
         self.strip_frames = self.quartile_frames();
+    }
+
+    /// Display width and height.
+    pub fn size(&self) -> (u32, u32) {
+        let settings::Size(w, h) = self.display.size;
+        (w, h)
     }
 
     /// The reconstructor the run's results come from.
     pub fn recon_used(&self) -> ReconUsed {
-        self.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used())
+        self.devices.recon_used()
     }
 
     /// The frames at a quarter, half and three quarters of the window (the strips
@@ -344,7 +329,7 @@ impl EvalConfig {
 
     /// Number of evaluated refreshes.
     pub fn frames(&self) -> usize {
-        refreshes(self.duration, self.refresh_hz)
+        refreshes(self.duration, self.display.refresh_hz)
     }
 
     /// The simulated clock at `rate`: sample 0 at the start of the warm-up.
@@ -353,13 +338,13 @@ impl EvalConfig {
             start: self.start - self.warmup,
             rate,
             first_refresh: self.start,
-            refresh_hz: self.refresh_hz,
+            refresh_hz: self.display.refresh_hz,
         }
     }
 
     /// Display time of evaluated refresh `k`.
     pub fn refresh(&self, k: usize) -> f64 {
-        self.start + k as f64 / self.refresh_hz
+        self.start + k as f64 / self.display.refresh_hz
     }
 
     /// The method runs: each method once per rate, or once for all rates when it
@@ -384,14 +369,14 @@ impl EvalConfig {
     ) -> Summary {
         Summary {
             scene: self.scene_name.clone(),
-            width: self.width,
-            height: self.height,
-            refresh_hz: self.refresh_hz,
+            width: self.display.size.0,
+            height: self.display.size.1,
+            refresh_hz: self.display.refresh_hz,
             start: self.start,
             duration: self.duration,
             warmup: self.warmup,
-            seed: self.seed,
-            ideal_spp: self.ideal_spp,
+            seed: self.quality.seed,
+            ideal_spp: self.reference.ideal_spp,
             camera_path: self.camera_path.is_some(),
             recon: self.recon_used(),
             trace: batch::used(rays),
@@ -406,12 +391,9 @@ impl EvalConfig {
         Arc::new(
             Tracer::new(
                 scene,
-                self.width,
-                self.height,
-                TraceOptions {
-                    max_depth: self.max_depth,
-                    texture_filter: self.texture_filter,
-                },
+                self.display.size.0,
+                self.display.size.1,
+                TraceOptions::from(&self.quality),
             )
             .with_camera_path(self.camera_path.clone()),
         )
@@ -420,10 +402,10 @@ impl EvalConfig {
     /// What the methods' budget rules need to know of this run.
     pub fn shape(&self) -> RunShape {
         RunShape {
-            width: self.width,
-            height: self.height,
-            refresh_hz: self.refresh_hz,
-            ideal_spp: self.ideal_spp,
+            width: self.display.size.0,
+            height: self.display.size.1,
+            refresh_hz: self.display.refresh_hz,
+            ideal_spp: self.reference.ideal_spp,
             seconds: self.warmup + self.duration,
         }
     }
@@ -444,7 +426,7 @@ impl EvalConfig {
                 return bad(option, why.to_string());
             }
         }
-        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+        if let Err(why) = limits::check_refresh_hz(self.display.refresh_hz) {
             return bad(Setting::RefreshHz, why.to_string());
         }
         if self.rates.is_empty() {
@@ -481,13 +463,13 @@ impl EvalConfig {
         if self.flip_every == 0 {
             return bad(Setting::FlipEvery, "must be at least 1".into());
         }
-        if let Err(why) = limits::check_ideal_spp(self.ideal_spp) {
+        if let Err(why) = limits::check_ideal_spp(self.reference.ideal_spp) {
             return bad(Setting::IdealSpp, why.to_string());
         }
-        if let Err(why) = limits::check_max_depth(self.max_depth) {
+        if let Err(why) = limits::check_max_depth(self.quality.max_depth) {
             return bad(Setting::MaxDepth, why.to_string());
         }
-        if let Err(why) = limits::check_display(self.width, self.height) {
+        if let Err(why) = limits::check_display(self.display.size.0, self.display.size.1) {
             return bad(Setting::Size, why.to_string());
         }
         let shape = self.shape();
@@ -980,15 +962,15 @@ pub fn run_with(
 ) -> Result<EvalOutput, EvalError> {
     cfg.validate()?;
     let tracer = cfg.tracer(scene);
-    let rays =
-        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
+    let rays = batch::open(cfg.devices.trace.clone(), &tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
     let cache = open_cache(cfg, &tracer, &batch::used(rays.as_ref()))?;
     let n = cfg.frames();
     let runs = cfg.runs();
     let units = Units {
         cfg,
         cache: cache.as_deref(),
-        pixels: cfg.width as u64 * cfg.height as u64,
+        pixels: cfg.display.size.0 as u64 * cfg.display.size.1 as u64,
         shape: cfg.shape(),
     };
     progress.total(
@@ -999,10 +981,10 @@ pub fn run_with(
     let ctx_for = |rate: f64| MethodContext {
         tracer: tracer.clone(),
         clock: cfg.clock(rate),
-        seed: cfg.seed,
-        ideal_spp: cfg.ideal_spp,
+        seed: cfg.quality.seed,
+        ideal_spp: cfg.reference.ideal_spp,
         ideal_cache: cache.clone(),
-        gpu: cfg.gpu.clone(),
+        gpu: cfg.devices.recon.clone(),
         rays: rays.clone(),
     };
     refuse_early(cfg, &ctx_for(cfg.rates[0]))?;
@@ -1065,7 +1047,7 @@ fn open_cache(
     tracer: &Tracer,
     used: &DeviceUsed,
 ) -> Result<Option<Arc<IdealCache>>, EvalError> {
-    Ok(match &cfg.cache_dir {
+    Ok(match &cfg.reference.cache() {
         Some(dir) => Some(Arc::new(
             IdealCache::new(dir, tracer, cfg.camera_path.as_ref())
                 .map_err(|e| EvalError::io(dir, e))?
@@ -1091,12 +1073,12 @@ impl Units<'_> {
         let cfg = self.cfg;
         match self.cache {
             Some(c)
-                if c.entry_path(cfg.refresh(k), cfg.ideal_spp, cfg.seed)
+                if c.entry_path(cfg.refresh(k), cfg.reference.ideal_spp, cfg.quality.seed)
                     .is_file() =>
             {
                 self.pixels
             }
-            _ => self.pixels * cfg.ideal_spp as u64,
+            _ => self.pixels * cfg.reference.ideal_spp as u64,
         }
     }
 
@@ -1311,7 +1293,7 @@ fn show(
     let effective_rate = budget.effective_rate(&cfg.shape(), rate);
     let budget_clock = cfg.clock(effective_rate);
     let mut frames: Vec<(Vec<u8>, f64)> = Vec::with_capacity(n);
-    let pixels = cfg.width as u64 * cfg.height as u64;
+    let pixels = cfg.display.size.0 as u64 * cfg.display.size.1 as u64;
     let mut linear = Vec::new();
     let mut counted = 0;
     let mut used = 0;
@@ -1350,11 +1332,14 @@ fn show(
 /// (from the second frame on), and the sustained and transient errors (from the first
 /// full eye window on), computed in parallel.
 fn measure(cfg: &EvalConfig, shown: &[(Vec<u8>, f64)], ideal: &[Vec<u8>]) -> Vec<FrameMetrics> {
-    let (w, h) = (cfg.width, cfg.height);
+    let (w, h) = cfg.size();
     let images: Vec<&[u8]> = shown.iter().map(|(rgb, _)| &rgb[..]).collect();
     let ideals: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
-    let splits =
-        temporal::per_refresh(&images, &ideals, temporal::window_refreshes(cfg.refresh_hz));
+    let splits = temporal::per_refresh(
+        &images,
+        &ideals,
+        temporal::window_refreshes(cfg.display.refresh_hz),
+    );
     shown
         .par_iter()
         .zip(ideal.par_iter())
@@ -1460,26 +1445,23 @@ mod tests {
     fn cache_hits_count_only_entries_served() {
         let dir = std::env::temp_dir().join(format!("frameless-eval-hits-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let cfg = EvalConfig {
-            scene_name: "toycar".into(),
-            camera_path: None,
-            start: 0.2,
-            duration: 0.1,
-            width: 16,
-            height: 12,
-            rates: vec![100_000.0],
-            methods: vec![MethodKind::TraditionalFrameless],
-            seed: 5,
-            ideal_spp: 2,
-            warmup: 0.0,
-            refresh_hz: 60.0,
-            max_depth: 3,
-            texture_filter: crate::trace::TextureFilter::None,
-            cache_dir: Some(dir.clone()),
-            strip_frames: Vec::new(),
-            flip_every: 1,
-            gpu: None,
-            trace_gpu: None,
+        let cfg = {
+            let mut c = EvalConfig::new("toycar");
+            c.start = 0.2;
+            c.duration = 0.1;
+            c.display.size = crate::settings::Size(16, 12);
+            c.rates = vec![100_000.0];
+            c.methods = vec![MethodKind::TraditionalFrameless];
+            c.quality.seed = 5;
+            c.reference.ideal_spp = 2;
+            c.warmup = 0.0;
+            c.display.refresh_hz = 60.0;
+            c.quality.max_depth = 3;
+            c.quality.texture_filter = crate::trace::TextureFilter::None;
+            c.reference.set_cache(Some(dir.clone()));
+            c.strip_frames = Vec::new();
+            c.flip_every = 1;
+            c
         };
         let n = cfg.frames();
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
@@ -1541,26 +1523,22 @@ mod tests {
             MethodKind::parse("test-frameless"),
             Ok(MethodKind::TestFrameless)
         );
-        let cfg = EvalConfig {
-            scene_name: "toycar".into(),
-            camera_path: None,
-            start: 0.2,
-            duration: 0.1,
-            width: 32,
-            height: 24,
-            rates: vec![100_000.0, 400_000.0],
-            methods: vec![MethodKind::TestFrameless, MethodKind::TraditionalFrameless],
-            seed: 5,
-            ideal_spp: 4,
-            warmup: 0.2,
-            refresh_hz: 60.0,
-            max_depth: 3,
-            texture_filter: crate::trace::TextureFilter::None,
-            cache_dir: None,
-            strip_frames: Vec::new(),
-            flip_every: 1,
-            gpu: None,
-            trace_gpu: None,
+        let cfg = {
+            let mut c = EvalConfig::new("toycar");
+            c.start = 0.2;
+            c.duration = 0.1;
+            c.display.size = crate::settings::Size(32, 24);
+            c.rates = vec![100_000.0, 400_000.0];
+            c.methods = vec![MethodKind::TestFrameless, MethodKind::TraditionalFrameless];
+            c.quality.seed = 5;
+            c.reference.ideal_spp = 4;
+            c.warmup = 0.2;
+            c.display.refresh_hz = 60.0;
+            c.quality.max_depth = 3;
+            c.quality.texture_filter = crate::trace::TextureFilter::None;
+            c.strip_frames = Vec::new();
+            c.flip_every = 1;
+            c
         };
         let scene = Arc::new(builtin::load("toycar").expect("built-in scene"));
         let out = evaluation::run(scene, &cfg, &Silent).expect("evaluation runs");

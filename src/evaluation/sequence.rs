@@ -13,7 +13,7 @@ use crate::{
     methods::{Method, MethodContext, MethodKind},
     output::OutputDir,
     scene::{CameraPath, Scene},
-    trace::{batch, TextureFilter, TraceOptions, Tracer},
+    trace::{batch, TraceOptions, Tracer},
 };
 
 /// Most frames one sequence may have.
@@ -36,24 +36,15 @@ pub struct SequenceConfig {
     pub duration: f64,
     /// Sampling before the first refresh, seconds.
     pub warmup: f64,
-    /// Display refresh rate, Hz.
-    pub refresh_hz: f64,
-    /// Display width.
-    pub width: u32,
-    /// Display height.
-    pub height: u32,
-    /// Seed of every random choice.
-    pub seed: u64,
-    /// Reflection/refraction depth limit.
-    pub max_depth: u32,
-    /// Texture filtering.
-    pub texture_filter: TextureFilter,
+    /// The display: size and refresh rate.
+    pub display: crate::settings::DisplayGroup,
+    /// How samples are traced: seed, depth, texture filter.
+    pub quality: crate::settings::QualityGroup,
     /// File format of the frames.
     pub format: ImageFormat,
-    /// The GPU the reconstructor runs on, if any.
-    pub gpu: Option<Arc<crate::reconstruction::device::GpuContext>>,
-    /// The GPU the samples are traced on (`--trace`), if any.
-    pub trace_gpu: Option<Arc<crate::gpu::GpuContext>>,
+    /// The GPUs the reconstructor runs on and the samples are traced on; the CPU by
+    /// default.
+    pub devices: crate::gpu::Devices,
 }
 
 /// `stats.json` of a sequence.
@@ -99,9 +90,17 @@ pub struct SequenceStats {
 }
 
 impl SequenceConfig {
+    /// Display width and height.
+    pub fn size(&self) -> (u32, u32) {
+        let crate::settings::Size(w, h) = self.display.size;
+        (w, h)
+    }
+
     /// Number of frames.
     pub fn frames(&self) -> u64 {
-        (self.duration * self.refresh_hz + 1e-9).floor().max(1.0) as u64
+        (self.duration * self.display.refresh_hz + 1e-9)
+            .floor()
+            .max(1.0) as u64
     }
 
     /// Check the settings: the ranges, and the same checks as an evaluation of this
@@ -115,7 +114,7 @@ impl SequenceConfig {
         if let Err(why) = limits::check_warmup(self.warmup) {
             return bad(Setting::Warmup, why.to_string());
         }
-        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+        if let Err(why) = limits::check_refresh_hz(self.display.refresh_hz) {
             return bad(Setting::RefreshHz, why.to_string());
         }
         let frames = self.frames();
@@ -133,21 +132,18 @@ impl SequenceConfig {
             camera_path: None,
             start: self.start,
             duration: self.duration,
-            width: self.width,
-            height: self.height,
             rates: vec![self.rate],
             methods: vec![self.method],
-            seed: self.seed,
-            ideal_spp: 1,
             warmup: self.warmup,
-            refresh_hz: self.refresh_hz,
-            max_depth: self.max_depth,
-            texture_filter: self.texture_filter,
-            cache_dir: None,
+            display: self.display,
+            quality: self.quality,
+            reference: crate::settings::ReferenceGroup {
+                ideal_spp: 1,
+                ..crate::settings::ReferenceGroup::uncached()
+            },
             strip_frames: Vec::new(),
             flip_every: 1,
-            gpu: None,
-            trace_gpu: None,
+            devices: crate::gpu::Devices::default(),
         }
         .validate()
     }
@@ -164,9 +160,9 @@ pub fn render_sequence(
     progress: &dyn Progress,
 ) -> Result<SequenceStats, EvalError> {
     cfg.validate()?;
-    let (w, h) = (cfg.width, cfg.height);
+    let (w, h) = cfg.size();
     let mut ctx = method_context(scene, cfg);
-    ctx.rays = batch::open(cfg.trace_gpu.clone(), &ctx.tracer)
+    ctx.rays = batch::open(cfg.devices.trace.clone(), &ctx.tracer)
         .map_err(|e| EvalError::Trace(e.to_string()))?;
     let rays = ctx.rays.clone();
     let mut m = cfg.method.build(&ctx)?;
@@ -183,17 +179,14 @@ pub fn render_sequence(
         start: cfg.start,
         duration: cfg.duration,
         warmup: cfg.warmup,
-        refresh_hz: cfg.refresh_hz,
+        refresh_hz: cfg.display.refresh_hz,
         frames,
         samples: m.samples_used(),
         trace_s: m.trace_seconds(),
         mean_age_s: ages / frames as f64,
         wall_s: t0.elapsed().as_secs_f64(),
         extra: m.extra_stats(),
-        recon: cfg
-            .gpu
-            .as_ref()
-            .map_or_else(crate::reconstruction::device::ReconUsed::cpu, |g| g.used()),
+        recon: cfg.devices.recon_used(),
         trace: batch::used(rays.as_ref()),
         trace_failure: rays.and_then(|r| r.failure()),
     };
@@ -211,12 +204,9 @@ pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext 
     let tracer = Arc::new(
         Tracer::new(
             scene,
-            cfg.width,
-            cfg.height,
-            TraceOptions {
-                max_depth: cfg.max_depth,
-                texture_filter: cfg.texture_filter,
-            },
+            cfg.display.size.0,
+            cfg.display.size.1,
+            TraceOptions::from(&cfg.quality),
         )
         .with_camera_path(cfg.camera_path.clone()),
     );
@@ -226,12 +216,12 @@ pub fn method_context(scene: Arc<Scene>, cfg: &SequenceConfig) -> MethodContext 
             start: cfg.start - cfg.warmup,
             rate: cfg.rate,
             first_refresh: cfg.start,
-            refresh_hz: cfg.refresh_hz,
+            refresh_hz: cfg.display.refresh_hz,
         },
-        seed: cfg.seed,
+        seed: cfg.quality.seed,
         ideal_spp: crate::settings::IDEAL_SPP,
         ideal_cache: None,
-        gpu: cfg.gpu.clone(),
+        gpu: cfg.devices.recon.clone(),
         rays: None,
     }
 }
@@ -244,7 +234,7 @@ fn write_frames(
     dir: &Path,
     progress: &dyn Progress,
 ) -> Result<f64, EvalError> {
-    let (w, h) = (cfg.width, cfg.height);
+    let (w, h) = cfg.size();
     let frames = cfg.frames();
     // Progress in samples (the first refresh traces the whole warm-up), at least one a
     // refresh.
@@ -253,7 +243,7 @@ fn write_frames(
     let mut ages = 0.0;
     let (mut used, mut counted) = (0, 0);
     for k in 0..frames {
-        let t = cfg.start + k as f64 / cfg.refresh_hz;
+        let t = cfg.start + k as f64 / cfg.display.refresh_hz;
         let shown = m.display(t);
         ages += shown.mean_age;
         let p = dir.join(format!("frame_{k:05}.{}", cfg.format.extension()));

@@ -7,7 +7,7 @@
 //! [`GpuError::NotBuilt`], so that callers compile unchanged and `gpu` choices fail
 //! with a clear message.
 
-use std::fmt;
+use std::{fmt, sync::Arc};
 
 use serde::{Deserialize, Serialize};
 
@@ -47,6 +47,33 @@ impl fmt::Display for DeviceUsed {
     }
 }
 
+/// The GPUs a run works on, each acquired once for the whole run from its
+/// [`DevicesGroup`](crate::settings::DevicesGroup) (`--recon`, `--trace`); `None` is
+/// the CPU, the reference. The default is the CPU for both.
+#[derive(Clone, Debug, Default)]
+pub struct Devices {
+    /// The GPU the adaptive methods reconstruct on.
+    pub recon: Option<Arc<GpuContext>>,
+    /// The GPU samples, and the ideal images, are traced on.
+    pub trace: Option<Arc<GpuContext>>,
+}
+
+impl Devices {
+    /// What results record of the reconstructor's device.
+    pub fn recon_used(&self) -> DeviceUsed {
+        self.recon
+            .as_ref()
+            .map_or_else(DeviceUsed::cpu, |g| g.used())
+    }
+
+    /// What results record of the tracer's device.
+    pub fn trace_used(&self) -> DeviceUsed {
+        self.trace
+            .as_ref()
+            .map_or_else(DeviceUsed::cpu, |g| g.used())
+    }
+}
+
 /// A GPU device; this build has none (it was built without the `gpu` feature).
 #[cfg(not(feature = "gpu"))]
 #[derive(Debug)]
@@ -82,7 +109,7 @@ pub enum GpuError {
 /// The GPU device `choice` asks for: `Ok(None)` for `cpu`, and for `auto` where there
 /// is no hardware adapter (or, without the `gpu` feature, no GPU support); an error
 /// for `gpu` where there is no adapter at all.
-pub fn acquire(choice: ReconDevice) -> Result<Option<std::sync::Arc<GpuContext>>, GpuError> {
+pub fn acquire(choice: ReconDevice) -> Result<Option<Arc<GpuContext>>, GpuError> {
     #[cfg(feature = "gpu")]
     {
         GpuContext::acquire(choice)

@@ -16,30 +16,32 @@ mod report;
 
 pub use report::{markdown, read_summary, rewrite, write_all};
 
-use std::{path::PathBuf, sync::Arc, time::Instant};
+use std::{sync::Arc, time::Instant};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::{metrics, temporal, EvalError, Progress};
 use crate::{
+    gpu::Devices,
     limits,
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
         RtConfig, RtMethod, RtSettings,
     },
-    reconstruction::device::{GpuContext, ReconUsed},
+    reconstruction::device::ReconUsed,
     render::cache::{self, IdealCache, Lookup},
     scene::{CameraPath, Scene},
     settings::{self, Setting},
-    trace::{batch, TextureFilter, TraceOptions, Tracer},
+    trace::{batch, TraceOptions, Tracer},
 };
 
 /// Most repeats of each method.
 pub const MAX_REPEAT: usize = 100;
 
-/// Settings of a live evaluation.
+/// Settings of a live evaluation. What every command shares is held as its group
+/// ([`settings`]'s), as [`EvalConfig`](crate::evaluation::EvalConfig) holds it.
 #[derive(Clone, Debug)]
 pub struct LiveConfig {
     /// How the user named the scene (for reports).
@@ -53,34 +55,23 @@ pub struct LiveConfig {
     /// Wall seconds each run goes before its window (rounded up to whole refreshes, at
     /// least one).
     pub warmup: f64,
-    /// Display width.
-    pub width: u32,
-    /// Display height.
-    pub height: u32,
-    /// Display refresh rate, Hz.
-    pub refresh_hz: f64,
     /// The real-time methods, run in this order.
     pub methods: Vec<RtMethod>,
     /// Runs of each method, in alternation.
     pub repeat: usize,
     /// Cores the methods size their threads for (default: the machine's).
     pub cores: usize,
-    /// Seed of the methods' random choices and of the ideal images.
-    pub seed: u64,
-    /// Samples per pixel of the ideal images.
-    pub ideal_spp: u32,
-    /// Reflection/refraction depth limit.
-    pub max_depth: u32,
-    /// Texture filtering of every image traced, ideal images included.
-    pub texture_filter: TextureFilter,
-    /// Ideal-image cache directory (`None`: no cache).
-    pub cache_dir: Option<PathBuf>,
-    /// The GPU the adaptive reconstructor runs on, acquired once for every run
-    /// ([`crate::reconstruction::device::acquire`]); `None`: the CPU, the reference.
-    pub gpu: Option<Arc<GpuContext>>,
-    /// The GPU the methods' samples are traced on (`--trace`), a GPU tracer made for
-    /// each run's tracer; `None`: the CPU tracer.
-    pub trace_gpu: Option<Arc<GpuContext>>,
+    /// The display: size and refresh rate.
+    pub display: settings::DisplayGroup,
+    /// How samples are traced, the ideal images' included: seed (of the methods'
+    /// random choices too), depth, texture filter.
+    pub quality: settings::QualityGroup,
+    /// The ideal images: samples per pixel and cache.
+    pub reference: settings::ReferenceGroup,
+    /// The GPUs the adaptive reconstructor runs on and the methods' samples are traced
+    /// on (a GPU tracer made for each run's tracer), acquired once for every run; the
+    /// CPU, the reference, by default.
+    pub devices: Devices,
 }
 
 impl LiveConfig {
@@ -95,19 +86,13 @@ impl LiveConfig {
             start: 0.0,
             seconds: 3.0,
             warmup: 1.0,
-            width: settings::SIZE.0,
-            height: settings::SIZE.1,
-            refresh_hz: settings::REFRESH_HZ,
             methods: RtMethod::ALL.to_vec(),
             repeat: 1,
             cores: machine::cores(),
-            seed: settings::SEED,
-            ideal_spp: settings::IDEAL_SPP,
-            max_depth: settings::MAX_DEPTH,
-            texture_filter: TextureFilter::default(),
-            cache_dir: None,
-            gpu: None,
-            trace_gpu: None,
+            display: settings::DisplayGroup::default(),
+            quality: settings::QualityGroup::default(),
+            reference: settings::ReferenceGroup::uncached(),
+            devices: Devices::default(),
         }
     }
 
@@ -119,51 +104,56 @@ impl LiveConfig {
         quality: &settings::QualityGroup,
         reference: &settings::ReferenceGroup,
     ) {
-        let settings::Size(w, h) = display.size;
-        (self.width, self.height) = (w, h);
-        self.refresh_hz = display.refresh_hz;
-        self.seed = quality.seed;
-        self.max_depth = quality.max_depth;
-        self.texture_filter = quality.texture_filter;
-        self.ideal_spp = reference.ideal_spp;
-        self.cache_dir = reference.cache();
+        self.display = *display;
+        self.quality = *quality;
+        self.reference = reference.clone();
+    }
+
+    /// Display width and height.
+    pub fn size(&self) -> (u32, u32) {
+        let settings::Size(w, h) = self.display.size;
+        (w, h)
     }
 
     /// Refreshes recorded per run.
     pub fn frames(&self) -> usize {
-        ((self.seconds * self.refresh_hz) + 1e-9).floor().max(1.0) as usize
+        ((self.seconds * self.display.refresh_hz) + 1e-9)
+            .floor()
+            .max(1.0) as usize
     }
 
     /// Refreshes of warm-up before the window.
     pub fn warmup_refreshes(&self) -> u64 {
-        ((self.warmup * self.refresh_hz) - 1e-9).ceil().max(1.0) as u64
+        ((self.warmup * self.display.refresh_hz) - 1e-9)
+            .ceil()
+            .max(1.0) as u64
     }
 
     /// Scan-out time of recorded refresh `j`, scene seconds.
     pub fn refresh(&self, j: usize) -> f64 {
-        self.start + j as f64 / self.refresh_hz
+        self.start + j as f64 / self.display.refresh_hz
     }
 
     /// The pipeline settings of `method`.
     pub fn rt_config(&self, method: RtMethod) -> RtConfig {
         let mut c = RtConfig::for_cores(method, self.cores);
-        c.refresh_hz = self.refresh_hz;
-        c.seed = self.seed;
-        c.start = self.start - self.warmup_refreshes() as f64 / self.refresh_hz;
+        c.refresh_hz = self.display.refresh_hz;
+        c.seed = self.quality.seed;
+        c.start = self.start - self.warmup_refreshes() as f64 / self.display.refresh_hz;
         c
     }
 
     /// `method`'s own settings: its defaults, with the run's GPU.
     pub fn rt_settings(&self, method: RtMethod) -> RtSettings {
         let mut s = method.settings();
-        s.use_gpu(self.gpu.clone());
+        s.use_gpu(self.devices.recon.clone());
         s
     }
 
     /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
     /// images of the window, 8-bit RGB each.
     pub fn run_bytes(&self) -> u64 {
-        2 * self.frames() as u64 * self.width as u64 * self.height as u64 * 3
+        2 * self.frames() as u64 * self.display.size.0 as u64 * self.display.size.1 as u64 * 3
     }
 
     /// Check the settings before any work; the error names the option.
@@ -182,10 +172,10 @@ impl LiveConfig {
                 return bad(setting, why.to_string());
             }
         }
-        if let Err(why) = limits::check_display(self.width, self.height) {
+        if let Err(why) = limits::check_display(self.display.size.0, self.display.size.1) {
             return bad(Setting::Size, why.to_string());
         }
-        if let Err(why) = limits::check_refresh_hz(self.refresh_hz) {
+        if let Err(why) = limits::check_refresh_hz(self.display.refresh_hz) {
             return bad(Setting::RefreshHz, why.to_string());
         }
         if self.methods.is_empty() {
@@ -202,7 +192,7 @@ impl LiveConfig {
                 format!("{} must be in 1..={MAX_REPEAT}", self.repeat),
             );
         }
-        if self.ideal_spp == 0 {
+        if self.reference.ideal_spp == 0 {
             return bad(Setting::IdealSpp, "must be at least 1".into());
         }
         for &m in &self.methods {
@@ -218,7 +208,7 @@ impl LiveConfig {
             let check = c
                 .validate()
                 .and_then(|()| s.validate())
-                .and_then(|()| s.check_size(&c, self.width, self.height));
+                .and_then(|()| s.check_size(&c, self.display.size.0, self.display.size.1));
             if let Err(e) = check {
                 return bad(Setting::Methods, format!("{}: {e}", m.name()));
             }
@@ -545,13 +535,15 @@ fn quartiles(n: usize) -> Vec<usize> {
 /// The tracer every run and the ideal images use, new for each so that no run finds
 /// scene states another left in its cache.
 fn tracer(scene: &Arc<Scene>, cfg: &LiveConfig) -> Arc<Tracer> {
-    let options = TraceOptions {
-        max_depth: cfg.max_depth,
-        texture_filter: cfg.texture_filter,
-    };
+    let options = TraceOptions::from(&cfg.quality);
     Arc::new(
-        Tracer::new(scene.clone(), cfg.width, cfg.height, options)
-            .with_camera_path(cfg.camera_path.clone()),
+        Tracer::new(
+            scene.clone(),
+            cfg.display.size.0,
+            cfg.display.size.1,
+            options,
+        )
+        .with_camera_path(cfg.camera_path.clone()),
     )
 }
 
@@ -565,9 +557,9 @@ fn ideal_images(
 ) -> Result<Vec<Vec<u8>>, EvalError> {
     let t0 = Instant::now();
     let tracer = tracer(scene, cfg);
-    let rays =
-        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
-    let cache = match &cfg.cache_dir {
+    let rays = batch::open(cfg.devices.trace.clone(), &tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
+    let cache = match &cfg.reference.cache() {
         Some(dir) => Some(
             IdealCache::new(dir, &tracer, cfg.camera_path.as_ref())
                 .map_err(|e| EvalError::io(dir, e))?
@@ -583,8 +575,8 @@ fn ideal_images(
             &tracer,
             rays.as_deref(),
             t,
-            cfg.ideal_spp,
-            cfg.seed,
+            cfg.reference.ideal_spp,
+            cfg.quality.seed,
         );
         timing.ideal_cache_hits += usize::from(matches!(lookup, Lookup::Hit));
         ideal.push(image.to_rgb8());
@@ -615,8 +607,8 @@ fn record_run(
     };
     let (mut config, settings) = (cfg.rt_config(method), cfg.rt_settings(method));
     let tracer = tracer(scene, cfg);
-    config.rays =
-        batch::open(cfg.trace_gpu.clone(), &tracer).map_err(|e| EvalError::Trace(e.to_string()))?;
+    config.rays = batch::open(cfg.devices.trace.clone(), &tracer)
+        .map_err(|e| EvalError::Trace(e.to_string()))?;
     let rec =
         record::record(tracer, config, settings, window).map_err(|source| EvalError::Live {
             method: method.name(),
@@ -650,7 +642,12 @@ fn record_run(
 fn displayed<'a>(rec: &'a Recording, j: usize, cfg: &LiveConfig) -> std::borrow::Cow<'a, [u8]> {
     match rec.shown[j] {
         Some(i) => std::borrow::Cow::Borrowed(&rec.images[i as usize].rgb[..]),
-        None => std::borrow::Cow::Owned(vec![0; cfg.width as usize * cfg.height as usize * 3]),
+        None => std::borrow::Cow::Owned(vec![
+            0;
+            cfg.display.size.0 as usize
+                * cfg.display.size.1 as usize
+                * 3
+        ]),
     }
 }
 
@@ -662,11 +659,11 @@ fn score(
     rec: &Recording,
     ideal: &[Vec<u8>],
 ) -> Vec<LiveFrameRow> {
-    let (w, h) = (cfg.width, cfg.height);
+    let (w, h) = cfg.size();
     let shown_all: Vec<_> = (0..cfg.frames()).map(|j| displayed(rec, j, cfg)).collect();
     let shown_refs: Vec<&[u8]> = shown_all.iter().map(|s| &s[..]).collect();
     let ideal_refs: Vec<&[u8]> = ideal.iter().map(|i| &i[..]).collect();
-    let n = temporal::window_refreshes(cfg.refresh_hz);
+    let n = temporal::window_refreshes(cfg.display.refresh_hz);
     let splits = temporal::per_refresh(&shown_refs, &ideal_refs[..shown_refs.len()], n);
     (0..cfg.frames())
         .into_par_iter()
@@ -768,20 +765,17 @@ fn assemble(
     LiveOutput {
         summary: LiveSummary {
             scene: cfg.scene_name.clone(),
-            width: cfg.width,
-            height: cfg.height,
-            refresh_hz: cfg.refresh_hz,
+            width: cfg.display.size.0,
+            height: cfg.display.size.1,
+            refresh_hz: cfg.display.refresh_hz,
             start: cfg.start,
             seconds: cfg.seconds,
-            warmup: cfg.warmup_refreshes() as f64 / cfg.refresh_hz,
-            seed: cfg.seed,
-            ideal_spp: cfg.ideal_spp,
+            warmup: cfg.warmup_refreshes() as f64 / cfg.display.refresh_hz,
+            seed: cfg.quality.seed,
+            ideal_spp: cfg.reference.ideal_spp,
             camera_path: cfg.camera_path.is_some(),
-            recon: cfg.gpu.as_ref().map_or_else(ReconUsed::cpu, |g| g.used()),
-            trace: cfg
-                .trace_gpu
-                .as_ref()
-                .map_or_else(crate::gpu::DeviceUsed::cpu, |g| g.used()),
+            recon: cfg.devices.recon_used(),
+            trace: cfg.devices.trace_used(),
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,
@@ -803,10 +797,10 @@ mod tests {
     #[test]
     fn a_ten_second_640_by_480_run_fits_the_memory_bound() {
         let mut cfg = LiveConfig::new("toycar");
-        (cfg.width, cfg.height, cfg.seconds) = (640, 480, 10.0);
+        (cfg.display.size.0, cfg.display.size.1, cfg.seconds) = (640, 480, 10.0);
         assert!(cfg.validate().is_ok(), "{:?}", cfg.validate());
         assert_eq!(cfg.run_bytes(), 2 * 600 * 640 * 480 * 3);
-        (cfg.width, cfg.height, cfg.seconds) = (1920, 1080, 2.8);
+        (cfg.display.size.0, cfg.display.size.1, cfg.seconds) = (1920, 1080, 2.8);
         assert!(cfg.validate().is_ok());
         cfg.seconds = 3.0;
         let err = cfg.validate().unwrap_err().to_string();
@@ -830,10 +824,10 @@ mod tests {
     #[test]
     fn the_window_is_on_the_refresh_grid() {
         let mut cfg = LiveConfig::new("toycar");
-        (cfg.start, cfg.warmup, cfg.refresh_hz) = (2.0, 0.51, 60.0);
+        (cfg.start, cfg.warmup, cfg.display.refresh_hz) = (2.0, 0.51, 60.0);
         assert_eq!(cfg.warmup_refreshes(), 31);
         let c = cfg.rt_config(RtMethod::FramedFull);
-        let first = c.start + cfg.warmup_refreshes() as f64 / cfg.refresh_hz;
+        let first = c.start + cfg.warmup_refreshes() as f64 / cfg.display.refresh_hz;
         assert!((first - cfg.refresh(0)).abs() < 1e-12);
         assert_eq!(cfg.refresh(0), 2.0);
         cfg.warmup = 0.0;

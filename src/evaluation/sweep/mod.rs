@@ -24,9 +24,11 @@ use serde::{de, Deserialize, Deserializer, Serialize};
 use super::{EvalConfig, EvalError};
 use crate::{
     clock::{parse_rate, rate_label},
+    gpu::Devices,
     methods::MethodKind,
     sampling::rng::mix64,
     scene::{builtin, CameraPath, SceneError},
+    settings::{self, DisplayGroup, QualityGroup, ReferenceGroup},
     trace::TextureFilter,
 };
 
@@ -793,6 +795,26 @@ impl Sweep {
         }
     }
 
+    /// An instance's display: its size at the sweep's refresh rate.
+    fn display(&self, inst: &Instance) -> DisplayGroup {
+        DisplayGroup {
+            size: settings::Size(inst.width, inst.height),
+            refresh_hz: self.refresh_hz,
+        }
+    }
+
+    /// How an instance's samples are traced: its seed, the sweep's depth and filter.
+    /// A setting sweep files have no key for takes the command line's default.
+    #[allow(clippy::needless_update)]
+    fn quality(&self, inst: &Instance) -> QualityGroup {
+        QualityGroup {
+            seed: inst.seed,
+            max_depth: self.max_depth,
+            texture_filter: self.texture_filter,
+            ..QualityGroup::default()
+        }
+    }
+
     /// The settings of `frameless eval` that run the whole instance.
     pub fn config(
         &self,
@@ -806,23 +828,21 @@ impl Sweep {
             camera_path,
             start: e.start,
             duration: e.duration,
-            width: inst.width,
-            height: inst.height,
             rates: self.rates.clone(),
             methods: self.methods.clone(),
-            seed: inst.seed,
-            ideal_spp: self.ideal_spp,
             warmup: e.warmup,
-            refresh_hz: self.refresh_hz,
-            max_depth: self.max_depth,
-            texture_filter: self.texture_filter,
-            cache_dir,
+            display: self.display(inst),
+            quality: self.quality(inst),
+            reference: ReferenceGroup {
+                ideal_spp: self.ideal_spp,
+                ..ReferenceGroup::uncached()
+            },
             strip_frames: Vec::new(),
             flip_every: self.flip_every as usize,
-            // Sweep jobs reconstruct on the CPU, the reference.
-            gpu: None,
-            trace_gpu: None,
+            // Sweep jobs reconstruct and trace on the CPU, the reference.
+            devices: Devices::default(),
         };
+        cfg.reference.set_cache(cache_dir);
         cfg.strip_frames = self.strips.frames(cfg.frames());
         cfg
     }

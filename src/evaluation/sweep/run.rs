@@ -404,7 +404,7 @@ fn run_job(
                 source: Box::new(source),
             }
         })?;
-    let (w, h) = (cfg.width, cfg.height);
+    let (w, h) = cfg.size();
     let strips = out_job
         .strips
         .iter()

@@ -424,3 +424,90 @@ pub(super) fn params(
         pad: [0; 2],
     }
 }
+
+/// The Rust `Params` checked against `trace.wgsl`'s, without a GPU: a field reordered,
+/// added or resized on one side only fails here, where the size alone would not see a
+/// swap of two fields of one size.
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `Params`' fields `$f…` (the offsets structs' inline, as the WGSL has them) as
+    /// `(name, offset, size)` in bytes, named by their last part.
+    macro_rules! params_fields {
+        ($($($f:ident).+),* $(,)?) => {{
+            fn size_of_field<F>(_: fn(&Params) -> &F) -> usize {
+                std::mem::size_of::<F>()
+            }
+            vec![$((
+                [$(stringify!($f)),+].last().unwrap().to_string(),
+                std::mem::offset_of!(Params, $($f).+),
+                size_of_field(|p: &Params| &p.$($f).+),
+            )),*]
+        }};
+    }
+
+    /// The WGSL struct `Params`' fields as `(name, offset, size)`, padding left out.
+    fn wgsl_params() -> Vec<(String, usize, usize)> {
+        let source =
+            super::super::shader_source(crate::settings::MAX_DEPTH, Stacks { cw: 32, b2: 96 });
+        let module = naga::front::wgsl::parse_str(&source)
+            .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)));
+        let ty = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("Params"))
+            .expect("a Params struct")
+            .1;
+        let naga::TypeInner::Struct { members, .. } = &ty.inner else {
+            panic!("Params is not a struct");
+        };
+        members
+            .iter()
+            .map(|m| {
+                let size = module.types[m.ty].inner.size(module.to_ctx()) as usize;
+                (m.name.clone().unwrap_or_default(), m.offset as usize, size)
+            })
+            .filter(|(n, _, _)| !n.starts_with("pad"))
+            .collect()
+    }
+
+    #[test]
+    fn trace_wgsl_lays_out_params_as_the_rust_side() {
+        let rust = params_fields!(
+            eye,
+            corner,
+            du,
+            dv,
+            background,
+            ambient,
+            count,
+            max_depth,
+            ray_cones,
+            n_lights,
+            statics.tris_at,
+            statics.attrs_at,
+            statics.analytic_at,
+            statics.b2_at,
+            statics.materials_at,
+            statics.n_materials,
+            statics.texels_at,
+            statics.levels_at,
+            statics.textures_at,
+            statics.groups_at,
+            state.inst_at,
+            state.top_at,
+            state.anim_nodes_at,
+            state.anim_tris_at,
+            state.anim_attr_at,
+            state.lights_at,
+            primary_only,
+            colour_only,
+        );
+        assert_eq!(
+            rust,
+            wgsl_params(),
+            "struct Params: the Rust fields (left) are not the WGSL's (right), as (name, offset, size)"
+        );
+    }
+}

@@ -429,10 +429,11 @@ fn gpu_trace_room_and_terrain_match_the_cpu() {
 #[test]
 #[ignore = "needs a GPU adapter (lavapipe in CI)"]
 fn gpu_trace_matches_without_ray_cones_and_at_depth_zero() {
-    let options = TraceOptions {
+    let options = TraceOptions::from(&crate::settings::QualityGroup {
         max_depth: 0,
         texture_filter: TextureFilter::None,
-    };
+        ..Default::default()
+    });
     check(builtin("toycar"), options, &[0.9], (96, 72));
 }
 
