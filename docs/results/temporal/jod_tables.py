@@ -1,8 +1,9 @@
 """The JOD tables of docs/results/temporal/README.md from jod.sh's folders.
 
 Usage: python3 docs/results/temporal/jod_tables.py docs/results/temporal/jod_1s > jod.md
+(or jod_3s > jod_3s.md)
 
-Per animation (the first second of Table 1's window, 400K): every method Table 1 runs
+Per animation (the first second of Table 1's window, or all of it in jod_3s, 400K): every method Table 1 runs
 with ColorVideoVDP's JOD (higher is better) beside RMS, FLIP and the sustained and
 transient errors (lower is better), each with its rank among the equal-budget methods
 (full-res-60hz, with ten times the budget, is shown but not ranked); then Kendall's tau
@@ -33,8 +34,10 @@ def kendall(a, b):
 def main(root):
     taus = []
     body = []
+    seconds = None
     for a in ANIMATIONS:
         s = json.load(open(os.path.join(root, a, "summary.json")))
+        seconds = s["duration"]
         v = json.load(open(os.path.join(root, a, "vdp.json")))
         jod = {(r["method"], r["rate"]): r["jod"] for r in v["results"]}
         rows = [dict(r, jod=jod[(r["method"], r["rate"])]) for r in s["results"]
@@ -57,7 +60,7 @@ def main(root):
         body.append("")
         # JOD's rank 1 is the best, as every other score's: the same direction.
         taus.append((a, order[0]["method"], [kendall(rank["jod"], rank[k]) for _, k, _ in SCORES]))
-    print("| animation 400K (1 s) | best JOD | " + " | ".join(f"τ {t}" for t, _, _ in SCORES) + " |")
+    print(f"| animation 400K ({seconds:g} s) | best JOD | " + " | ".join(f"τ {t}" for t, _, _ in SCORES) + " |")
     print("|---|---|" + "---:|" * len(SCORES))
     for a, best, ts in taus:
         print(f"| {a} | {best} | " + " | ".join(f"{t:.2f}" for t in ts) + " |")
