@@ -470,7 +470,11 @@ impl GpuRecon {
                 pad: [0.0; 3],
             })
             .collect();
-        let ids: Vec<u32> = lookup.iter().map(|l| l.tile).collect();
+        // Two million pixels at 1920×1080: on every thread.
+        let ids: Vec<u32> = {
+            use rayon::prelude::*;
+            lookup.par_iter().map(|l| l.tile).collect()
+        };
         let q = &self.ctx.queue;
         q.write_buffer(&self.buffers.tiles, 0, bytemuck::cast_slice(&gt));
         q.write_buffer(&self.buffers.pix_tile, 0, bytemuck::cast_slice(&ids));
