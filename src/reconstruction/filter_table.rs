@@ -58,17 +58,17 @@ impl Reconstructor {
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
             ));
-            self.lookup.iter_mut().for_each(|l| l.tile = 0);
+            self.lookup
+                .par_iter_mut()
+                .zip(&self.scale)
+                .for_each(|(l, &sc)| *l = Lookup { tile: 0, scale: sc });
         } else {
             self.tile_filters(tiling);
         }
-        self.lookup
-            .par_iter_mut()
-            .zip(&self.scale)
-            .for_each(|(l, &sc)| l.scale = sc);
     }
 
-    /// The adaptive filter of every tile of `tiling`, and the pixel → tile map.
+    /// The adaptive filter of every tile of `tiling`, and the pixel → tile map with
+    /// each pixel's splat scale.
     fn tile_filters(&mut self, tiling: &TilingSnapshot) {
         let (w, h) = (self.width as usize, self.height as usize);
         let cut = self.params.spatial_cutoff;
@@ -95,11 +95,16 @@ impl Reconstructor {
             }
         }
         let rects = &tiling.tiles;
+        // Each band takes its splat scales too, while its part of the map is in cache.
         self.lookup
             .par_chunks_mut(MAP_ROWS * w)
+            .zip(self.scale.par_chunks(MAP_ROWS * w))
             .zip(&reach)
             .enumerate()
-            .for_each(|(b, (band, ks))| {
+            .for_each(|(b, ((band, scale), ks))| {
+                for (l, &sc) in band.iter_mut().zip(scale) {
+                    l.scale = sc;
+                }
                 let y0 = b * MAP_ROWS;
                 let rows = band.len() / w.max(1);
                 for &k in ks {
