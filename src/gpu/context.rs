@@ -187,8 +187,7 @@ impl GpuContext {
         }
         drop(tx);
         // A failure gives the device up (callers drop it), so nothing is unmapped then.
-        self
-            .device
+        self.device
             .poll(wgpu::PollType::Wait {
                 submission_index: index,
                 timeout: None,
@@ -202,7 +201,11 @@ impl GpuContext {
             })?;
         let views = bufs
             .iter()
-            .map(|&(buf, bytes)| buf.slice(0..bytes).get_mapped_range().map_err(|e| failed(&e)))
+            .map(|&(buf, bytes)| {
+                buf.slice(0..bytes)
+                    .get_mapped_range()
+                    .map_err(|e| failed(&e))
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let slices: Vec<&[u8]> = views.iter().map(|v| &v[..]).collect();
         let got = take(&slices);

@@ -609,7 +609,8 @@ impl Reconstructor {
             into,
         );
         let after = g.times();
-        self.passes.add(7, pack_s + after.upload_s - before.upload_s);
+        self.passes
+            .add(7, pack_s + after.upload_s - before.upload_s);
         self.passes.add(8, after.wait_s - before.wait_s);
         self.passes.add(9, after.read_s - before.read_s);
         let back = back.inspect_err(|_| {

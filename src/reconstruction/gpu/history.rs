@@ -7,8 +7,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GROUP,
-    PER_PIXEL,
+    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GROUP, PER_PIXEL,
 };
 use crate::reconstruction::{
     history::{Step, ViewChange},

@@ -686,7 +686,9 @@ impl GpuRecon {
         );
         self.ctx.queue.submit([enc.finish()]);
         let bufs = [(&self.buffers.read_counts, 4)];
-        read_timed(&self.ctx, &mut self.times, &bufs, |v| first_u32(v[0]) as usize)
+        read_timed(&self.ctx, &mut self.times, &bufs, |v| {
+            first_u32(v[0]) as usize
+        })
     }
 
     /// Sort the bins, gather, resolve and fill, then the history's `step` with one;
@@ -739,7 +741,10 @@ impl GpuRecon {
         );
         self.ctx.queue.submit([enc.finish()]);
         let history = self.history.as_ref().filter(|_| step.is_some());
-        let mut bufs = vec![(&self.buffers.read_counts, 4), (&self.buffers.read_out, bytes)];
+        let mut bufs = vec![
+            (&self.buffers.read_counts, 4),
+            (&self.buffers.read_out, bytes),
+        ];
         bufs.extend(history.map(|h| h.read_buffers()).into_iter().flatten());
         bufs.extend(self.buffers.read_acc.as_ref().map(|r| (r, bytes)));
         let (w, carrying) = (self.width as usize, self.buffers.read_acc.is_some());
@@ -782,7 +787,6 @@ impl GpuRecon {
             Some(0),
         );
     }
-
 }
 
 /// `take` of the mapped `bufs` ([`GpuContext::read_mapped_all`], after all work
