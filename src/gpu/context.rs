@@ -209,7 +209,7 @@ impl GpuContext {
             .collect::<Result<Vec<_>, _>>()?;
         let slices: Vec<&[u8]> = views.iter().map(|v| &v[..]).collect();
         let got = take(&slices);
-        drop(slices);
+        // Every view must be gone before its buffer is unmapped.
         drop(views);
         bufs.iter().for_each(|(b, _)| b.unmap());
         Ok(got)

@@ -572,15 +572,14 @@ impl Reconstructor {
         let (t, camera, start) = (plan.t, plan.camera, plan.start);
         let pending = self.carried.as_ref().map(|c| c.pending);
         let lap = std::time::Instant::now();
-        if !self.resplat {
-            self.carry_over_for_gpu(t, &camera, start);
+        // Carrying: the CPU carries the sums to `t` (as `refresh_on_cpu` does), and
+        // they go up with the new splats.
+        let carrying = !self.resplat && self.carried.is_some();
+        if carrying {
+            self.carry_over(t, &camera, start);
         }
         let lap = self.passes.lap(3, lap);
-        let carried = if self.resplat {
-            None
-        } else {
-            self.pack_carried()
-        };
+        let carried = carrying.then(|| self.pack_carried());
         let pack_s = lap.elapsed().as_secs_f64();
         let max_r = self.max_footprint_radius();
         let Some(g) = self.gpu.as_mut() else {
@@ -637,21 +636,11 @@ impl Reconstructor {
         Ok(())
     }
 
-    /// With carried accumulators: carry them to this refresh on the CPU, from logical
-    /// ring index `start` on (as [`Reconstructor::reconstruct`] does).
-    #[cfg(feature = "gpu")]
-    fn carry_over_for_gpu(&mut self, t: f64, camera: &CameraFrame, start: usize) {
-        if self.carried.is_some() {
-            self.carry_over(t, camera, start);
-        }
-    }
-
     /// With carried accumulators, what the GPU adds the new splats to: the carried
     /// sums and, with the visibility pass, the initial front depths, by the CPU's rule
     /// ([`Reconstructor::carried_front`]) over no new splat (`front` is scratch here).
     #[cfg(feature = "gpu")]
-    fn pack_carried(&mut self) -> Option<gpu::carried::CarriedIn> {
-        self.carried.as_ref()?;
+    fn pack_carried(&mut self) -> gpu::carried::CarriedIn {
         let (w, cs) = (self.width as usize, self.cs);
         let front = self.visibility_keep().map(|_| {
             self.front.clear();
@@ -659,9 +648,9 @@ impl Reconstructor {
             self.carried_front();
             gpu::carried::front_bits(&self.front)
         });
-        Some(gpu::carried::CarriedIn {
+        gpu::carried::CarriedIn {
             sums: gpu::carried::pack(&self.acc, cs, w, &self.cover),
             front,
-        })
+        }
     }
 }
