@@ -1,6 +1,7 @@
 //! One figure of `frameless bench --live-recon`, for profiling:
 //! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still]`.
-//! The image hash it prints tells whether two builds make the same images.
+//! The hash it prints (the last image, its ages, splat scales and history counts)
+//! tells whether two builds make the same images.
 
 use frameless::{bench, reconstruction::ReconParams};
 

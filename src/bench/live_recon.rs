@@ -74,15 +74,20 @@ pub struct LiveFigure {
     pub turning: bool,
     /// Mean milliseconds of each step of a timed image, by name.
     pub pass_ms: Vec<(&'static str, f64)>,
-    /// FNV-1a hash of the last image's pixel bits: two builds that make the same
-    /// images print the same hash.
+    /// FNV-1a hash of the last image's pixel bits, with its pixel ages, the splat
+    /// scales for the next refresh and the history's counts: two builds that make the same images (and the same
+    /// state behind them) print the same hash.
     pub image_hash: String,
 }
 
-/// FNV-1a over the bits of every pixel's channels.
-fn image_hash(image: &crate::image::Image) -> String {
+/// FNV-1a over the bits of every pixel's channels, then of its age, splat scale and
+/// history count.
+fn state_hash(r: &Reconstructor) -> String {
+    let pixels = r.image().pixels.iter().flat_map(|p| p.to_array());
+    let counts = r.history_counts().unwrap_or(&[]);
+    let rest = r.pixel_ages().iter().chain(r.splat_scale()).chain(counts).copied();
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for c in image.pixels.iter().flat_map(|p| p.to_array()) {
+    for c in pixels.chain(rest) {
         for b in c.to_bits().to_le_bytes() {
             h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
         }
@@ -181,7 +186,7 @@ pub fn live_image_ms(
         ms_median: times[times.len() / 2],
         turning,
         pass_ms: r.pass_times().since(&warm_passes).mean_ms(),
-        image_hash: image_hash(r.image()),
+        image_hash: state_hash(&r),
     }
 }
 
