@@ -18,12 +18,22 @@
 //! pixel's centre (docs/performance.md, "Tuning records", has the choice).
 
 use glam::Vec3;
-use rayon::prelude::*;
+use rayon::{iter::Either, prelude::*};
 
-use super::{resolve::MIN_WEIGHT, splat::channel_row, Reconstructor};
+use super::{
+    lanes::{prefetch, LANES},
+    resolve::MIN_WEIGHT,
+    splat::channel_row,
+    Reconstructor,
+};
 
 /// Channels of a pyramid level: premultiplied red, green, blue, age, and coverage `α`.
-const CH: usize = 5;
+pub(super) const CH: usize = 5;
+/// Rows per task of the last push.
+const PUSH_ROWS: usize = 16;
+/// `Vec3` pixels (rounded down) and floats of a 64-byte cache line.
+const LINE_PIXELS: usize = 5;
+const LINE_FLOATS: usize = 16;
 /// Index of the coverage channel.
 const ALPHA: usize = 4;
 
@@ -59,14 +69,51 @@ impl Level {
     }
 }
 
+impl Pyramid {
+    /// The first level of the pyramid of a `w × h` image (made if missing) for the
+    /// resolve to pull into: its width, and its rows in runs of `rows`, one per band
+    /// of `2 · rows` image rows; with `pull` false (or no level: a single pixel)
+    /// `None` for every band.
+    pub(super) fn first_rows(
+        &mut self,
+        w: usize,
+        h: usize,
+        rows: usize,
+        pull: bool,
+    ) -> (
+        usize,
+        impl IndexedParallelIterator<Item = Option<&mut [f32]>>,
+    ) {
+        if pull && self.levels.is_empty() {
+            // The display's size fixes the levels; every value is rewritten below.
+            let (mut lw, mut lh) = (w, h);
+            while lw > 1 || lh > 1 {
+                (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
+                self.levels.push(Level::new(lw, lh));
+            }
+        }
+        match self.levels.first_mut().filter(|_| pull) {
+            Some(first) => (
+                first.w,
+                Either::Left(first.v.par_chunks_mut(rows * CH * first.w).map(Some)),
+            ),
+            None => (
+                0,
+                Either::Right(rayon::iter::repeat_n((), h.div_ceil(2 * rows)).map(|_| None)),
+            ),
+        }
+    }
+}
+
 impl Reconstructor {
     /// Complete the pixels whose accumulated weight is below `w0` from the pull-push
     /// interpolation; returns the sum of all pixels' ages afterwards.
     ///
     /// The full-resolution level is never stored: its coverage and colours are
-    /// recomputed a row at a time from the accumulators and the resolved image where
-    /// the first pull and the last push need them.
-    pub(super) fn pull_push(&mut self, w0: f32) -> f64 {
+    /// recomputed a row at a time from the accumulators (and the resolved image)
+    /// where the first pull and the last push need them. With `pulled` the resolve
+    /// has pulled the first level already ([`Pyramid::first_rows`]).
+    pub(super) fn pull_push(&mut self, w0: f32, pulled: bool) -> f64 {
         let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
         let mut image = std::mem::take(&mut self.image.pixels);
         let mut ages = std::mem::take(&mut self.age);
@@ -85,7 +132,7 @@ impl Reconstructor {
                 levels.push(Level::new(lw, lh));
             }
         }
-        if let Some(first) = levels.first_mut() {
+        if let Some(first) = levels.first_mut().filter(|_| !pulled) {
             full.pull_into(first, &image, &ages);
         }
         pull_levels(&mut levels);
@@ -150,42 +197,112 @@ impl Full<'_> {
         let w = self.w;
         let xt = taps(w, coarse.w);
         image
-            .par_chunks_mut(w)
-            .zip(ages.par_chunks_mut(w))
+            .par_chunks_mut(PUSH_ROWS * w)
+            .zip(ages.par_chunks_mut(PUSH_ROWS * w))
             .enumerate()
-            .for_each(|(y, (px, age))| {
-                let weight = self.weights(y);
-                let (y0, y1, ty) = tap(y, coarse.h);
-                let (top, bottom) = (coarse.row(y0), coarse.row(y1));
-                for x in 0..w {
-                    let cw = weight[x];
-                    // `cw ≥ w0` gives `q = 1` (division is monotonic and `w0 / w0 = 1`):
-                    // most pixels are skipped on a comparison, without a division.
-                    if cw >= self.w0 {
-                        continue;
+            .for_each(|(b, (px, age))| {
+                for r in 0..px.len() / w {
+                    // The pixels to change are scattered: a row's lines are asked for
+                    // a row ahead, so that they stream in instead of missing one by one.
+                    for ahead in (0..w).step_by(LINE_PIXELS) {
+                        prefetch(px, (r + 1) * w + ahead);
                     }
-                    let q = (cw / self.w0).min(1.0);
-                    if q >= 1.0 {
-                        continue;
+                    for ahead in (0..w).step_by(LINE_FLOATS) {
+                        prefetch(age, (r + 1) * w + ahead);
                     }
-                    let (x0, x1, tx) = xt[x];
-                    let hole = cw < MIN_WEIGHT;
-                    let alpha = if hole { 0.0 } else { q };
-                    let p = px[x];
-                    let mut v = [p.x * q, p.y * q, p.z * q, age[x] * q];
-                    for (c, v) in v.iter_mut().enumerate() {
-                        let (t, b) = (&top[c * coarse.w..], &bottom[c * coarse.w..]);
-                        let ut = t[x0] + (t[x1] - t[x0]) * tx;
-                        let ub = b[x0] + (b[x1] - b[x0]) * tx;
-                        let up = ut + (ub - ut) * ty;
-                        let own = if hole { 0.0 } else { *v };
-                        *v = own + (1.0 - alpha) * up;
-                    }
-                    px[x] = Vec3::new(v[0], v[1], v[2]);
-                    age[x] = v[3];
+                    let span = r * w..(r + 1) * w;
+                    self.push_row(
+                        b * PUSH_ROWS + r,
+                        coarse,
+                        &xt,
+                        &mut px[span.clone()],
+                        &mut age[span],
+                    );
                 }
             });
     }
+
+    /// [`Full::push_from`] into row `y` (`px`, `age`), at column taps `xt`.
+    fn push_row(
+        &self,
+        y: usize,
+        coarse: &Level,
+        xt: &[(usize, usize, f32)],
+        px: &mut [Vec3],
+        age: &mut [f32],
+    ) {
+        let w = self.w;
+        let weight = self.weights(y);
+        let (y0, y1, ty) = tap(y, coarse.h);
+        let from = Coarse {
+            top: coarse.row(y0),
+            bottom: coarse.row(y1),
+            w: coarse.w,
+            ty,
+        };
+        for x0 in (0..w).step_by(LANES) {
+            let run = x0..(x0 + LANES).min(w);
+            // Most runs are covered: one vector comparison skips them.
+            if !any_below(&weight[run.clone()], self.w0) {
+                continue;
+            }
+            for x in run {
+                self.push_pixel(weight[x], xt[x], &from, &mut px[x], &mut age[x]);
+            }
+        }
+    }
+
+    /// The last push into one pixel of weight `cw`, colour `px` and age `age`, at
+    /// column taps `(x0, x1, tx)` of the coarse rows `from`.
+    #[inline(always)]
+    fn push_pixel(
+        &self,
+        cw: f32,
+        (x0, x1, tx): (usize, usize, f32),
+        from: &Coarse,
+        px: &mut Vec3,
+        age: &mut f32,
+    ) {
+        // `cw ≥ w0` gives `q = 1` (division is monotonic and `w0 / w0 = 1`): most
+        // pixels are skipped on a comparison, without a division.
+        if cw >= self.w0 {
+            return;
+        }
+        let q = (cw / self.w0).min(1.0);
+        if q >= 1.0 {
+            return;
+        }
+        let hole = cw < MIN_WEIGHT;
+        let alpha = if hole { 0.0 } else { q };
+        let p = *px;
+        let mut v = [p.x * q, p.y * q, p.z * q, *age * q];
+        for (c, v) in v.iter_mut().enumerate() {
+            let (t, b) = (&from.top[c * from.w..], &from.bottom[c * from.w..]);
+            let ut = t[x0] + (t[x1] - t[x0]) * tx;
+            let ub = b[x0] + (b[x1] - b[x0]) * tx;
+            let up = ut + (ub - ut) * from.ty;
+            let own = if hole { 0.0 } else { *v };
+            *v = own + (1.0 - alpha) * up;
+        }
+        *px = Vec3::new(v[0], v[1], v[2]);
+        *age = v[3];
+    }
+}
+
+/// The two rows of the first level around a full-resolution row (`w` wide), and the
+/// weight `ty` of the second.
+struct Coarse<'a> {
+    top: &'a [f32],
+    bottom: &'a [f32],
+    w: usize,
+    ty: f32,
+}
+
+/// Whether any of `weights` is below `w0`: a fold without early exit, so that a run of
+/// [`LANES`] compiles to one vector comparison.
+#[inline(always)]
+pub(super) fn any_below(weights: &[f32], w0: f32) -> bool {
+    weights.iter().fold(false, |any, &cw| any | (cw < w0))
 }
 
 /// Pull: each level above the first the coverage-weighted 2×2 mean of the finer one,
@@ -255,28 +372,38 @@ fn premultiplied_row(weight: &[f32], w0: f32, px: &[Vec3], age: &[f32], out: &mu
     let (ag, al) = rest.split_at_mut(w);
     let al = &mut al[..w];
     for x in 0..w {
-        let cw = weight[x];
-        // A hole's colour is whatever an earlier refresh left there: zeroed, not
-        // multiplied by `α = 0`.
-        // Computed for every pixel, then selected: a division under a branch keeps
-        // the loop from becoming vector code.
-        let hole = cw < MIN_WEIGHT;
-        let q = (cw / w0).min(1.0);
         let p = px[x];
-        let sel = |v: f32| if hole { 0.0 } else { v };
-        r[x] = sel(p.x * q);
-        g[x] = sel(p.y * q);
-        b[x] = sel(p.z * q);
-        ag[x] = sel(age[x] * q);
-        al[x] = sel(q);
+        let v = premultiply(weight[x], w0, [p.x, p.y, p.z, age[x]]);
+        (r[x], g[x], b[x], ag[x], al[x]) = (v[0], v[1], v[2], v[3], v[4]);
     }
+}
+
+/// Premultiplied `(r, g, b, age, α)` of a pixel of accumulated weight `cw` and colour
+/// and age `c`, with coverage `α = min(cw / w0, 1)`; a hole (below `MIN_WEIGHT`) has
+/// no colour, so no coverage.
+#[inline(always)]
+pub(super) fn premultiply(cw: f32, w0: f32, c: [f32; 4]) -> [f32; CH] {
+    // A hole's colour is whatever an earlier refresh left there: zeroed, not
+    // multiplied by `α = 0`.
+    // Computed for every pixel, then selected: a division under a branch keeps the
+    // loop from becoming vector code.
+    let hole = cw < MIN_WEIGHT;
+    let q = (cw / w0).min(1.0);
+    let sel = |v: f32| if hole { 0.0 } else { v };
+    [
+        sel(c[0] * q),
+        sel(c[1] * q),
+        sel(c[2] * q),
+        sel(c[3] * q),
+        sel(q),
+    ]
 }
 
 /// One row of a coarser level (`nw` wide, `out` one run per channel) from two rows of
 /// the finer one (`fw` wide; `r1` zeros below the last row): the children summed in
 /// the order (0, 0), (1, 0), (0, 1), (1, 1) from zero (a missing child adds `+0`,
 /// which changes no sum that starts at `+0`), scaled to coverage 1 where it exceeds 1.
-fn pull_row(r0: &[f32], r1: &[f32], fw: usize, out: &mut [f32], nw: usize) {
+pub(super) fn pull_row(r0: &[f32], r1: &[f32], fw: usize, out: &mut [f32], nw: usize) {
     for (c, o) in out.chunks_exact_mut(nw).enumerate() {
         let (a, b) = (&r0[c * fw..(c + 1) * fw], &r1[c * fw..(c + 1) * fw]);
         for ((o, a), b) in o.iter_mut().zip(a.chunks_exact(2)).zip(b.chunks_exact(2)) {

@@ -1,92 +1,466 @@
 //! Resolving the accumulators into the image: weighted sums divided by weight, the
 //! coverage map and the splat scale it drives for the next refresh, the mean age;
 //! holes go to [`holes`](super::holes).
+//!
+//! Each band of rows runs a row at a time through loops over independent pixels
+//! (branch-free, so that they compile to vector code): the coverage (a running sum of
+//! differences, the one serial loop), the scale adaptation, the quotients. With the
+//! low-density fill the same pass forms the fill's first pyramid level from the
+//! quotients while they are in registers, instead of reading the image back.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    splat::{BAND_ROWS, CHANNELS},
-    Reconstructor,
+    lanes::{small_int, LANES},
+    pullpush::{any_below, premultiply, pull_row, CH},
+    splat::{channel_row, BAND_ROWS, CHANNELS},
+    ReconParams, Reconstructor,
 };
 
 /// Accumulated weight below which a pixel counts as a hole: far splat tails reach
 /// f32's denormal range, where `Σw·c / Σw` loses all precision.
 pub(super) const MIN_WEIGHT: f32 = 1e-24;
 
+/// Rows of the fill's first level per band of the resolve (two image rows each).
+const LEVEL_ROWS: usize = BAND_ROWS / 2;
+const _: () = assert!(BAND_ROWS % 2 == 0, "a band's rows pair up into level rows");
+
+/// Holes and thin pixels (weight below the fill weight) of a band.
+#[derive(Clone, Copy, Default)]
+struct Tally {
+    holes: usize,
+    thin: usize,
+}
+
+impl std::ops::Add for Tally {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Self {
+            holes: self.holes + o.holes,
+            thin: self.thin + o.thin,
+        }
+    }
+}
+
+/// A band's rows of the per-pixel maps the resolve writes (`w` per row).
+struct BandMaps<'a> {
+    px: &'a mut [Vec3],
+    coverage: &'a mut [u32],
+    scale: &'a mut [f32],
+    ages: &'a mut [f32],
+    cover: &'a mut [f32],
+}
+
+/// Per-thread rows of scratch: coverage counts of one row, and two premultiplied rows
+/// of the fill's first pull.
+struct Scratch {
+    counts: Vec<i32>,
+    quotients: Vec<f32>,
+    pre: Vec<f32>,
+}
+
+/// What every band of one resolve shares.
+struct Frame<'a> {
+    w: usize,
+    cs: usize,
+    p: ReconParams,
+    carrying: bool,
+    acc: &'a [f32],
+    cov: &'a [i32],
+}
+
 impl Reconstructor {
     /// Quotients, coverage, splat scale adaptation, hole filling, mean age.
     pub(super) fn resolve(&mut self) {
         let (w, h) = (self.width as usize, self.height as usize);
-        let (rs, cs, cstride) = (CHANNELS * self.cs, self.cs, w + 1);
         let p = self.params;
+        // With a fill weight the fill runs whenever a pixel is thin, the usual case:
+        // its first level is pulled here; unused otherwise.
+        let pulled = p.fill_weight > 0.0;
         // Carried coverage (decayed) adds to this refresh's (unread without carrying).
         let carrying = self.carries_now();
-        let per_band: Vec<(usize, usize, f64)> = self
+        let (nw, level) = self.pull.first_rows(w, h, LEVEL_ROWS, pulled);
+        let f = Frame {
+            w,
+            cs: self.cs,
+            p,
+            carrying,
+            acc: &self.acc,
+            cov: &self.cov,
+        };
+        let tallies: Vec<Tally> = self
             .image
             .pixels
             .par_chunks_mut(BAND_ROWS * w)
             .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
             .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
             .zip(self.age.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.acc.par_chunks(BAND_ROWS * rs))
-            .zip(self.cov.par_chunks(BAND_ROWS * cstride))
             .zip(self.cover.par_chunks_mut(BAND_ROWS * w))
-            .map(|((((((px, coverage), scale), ages), acc), cov), cover)| {
-                let (mut holes, mut thin, mut age) = (0usize, 0usize, 0f64);
-                for (r, ((((px, coverage), scale), ages), cover)) in px
-                    .chunks_mut(w)
-                    .zip(coverage.chunks_mut(w))
-                    .zip(scale.chunks_mut(w))
-                    .zip(ages.chunks_mut(w))
-                    .zip(cover.chunks_mut(w))
-                    .enumerate()
-                {
-                    let sums = &acc[r * rs..(r + 1) * rs];
-                    let ch = |c: usize| &sums[c * cs..c * cs + w];
-                    let (sr, sg, sb, sw, sa) = (ch(0), ch(1), ch(2), ch(3), ch(4));
-                    let cov = &cov[r * cstride..(r + 1) * cstride];
-                    let mut count = 0i32;
-                    for x in 0..w {
-                        let (cr, cg, cb, cw, ca) = (sr[x], sg[x], sb[x], sw[x], sa[x]);
-                        count += cov[x];
-                        let n = if carrying {
-                            cover[x] += count as f32;
-                            cover[x].round() as u32
-                        } else {
-                            count as u32
-                        };
-                        coverage[x] = n;
-                        let s = &mut scale[x];
-                        if n < p.undersampled {
-                            *s *= p.grow;
-                        } else if n > p.oversampled {
-                            *s *= p.shrink;
-                        }
-                        *s = s.clamp(p.scale_bounds.0, p.scale_bounds.1);
-                        thin += (cw < p.fill_weight) as usize;
+            .zip(level)
+            .enumerate()
+            .map_init(
+                || Scratch {
+                    counts: vec![0; w],
+                    quotients: vec![0.0; 4 * w],
+                    pre: vec![0.0; if pulled { 2 * CH * w } else { 0 }],
+                },
+                |scratch, (b, (((((px, coverage), scale), ages), cover), level))| {
+                    let maps = BandMaps {
+                        px,
+                        coverage,
+                        scale,
+                        ages,
+                        cover,
+                    };
+                    f.band(b * BAND_ROWS, maps, level.map(|l| (l, nw)), scratch)
+                },
+            )
+            .collect();
+        let holes: usize = tallies.iter().map(|t| t.holes).sum();
+        let thin: usize = tallies.iter().map(|t| t.thin).sum();
+        self.holes = holes;
+        let age_sum = if thin > 0 {
+            self.pull_push(p.fill_weight, pulled)
+        } else {
+            // Band order, so the sum does not depend on the thread count.
+            let mut age_sum: f64 = self.band_age_sums().iter().sum();
+            if holes > 0 {
+                age_sum += self.fill_holes(self.holes * 64 > w * h);
+            }
+            age_sum
+        };
+        self.mean_age = age_sum / (w * h).max(1) as f64;
+    }
+
+    /// Per band, the sum in pixel order of the ages of the pixels that are not holes.
+    fn band_age_sums(&self) -> Vec<f64> {
+        let (w, cs) = (self.width as usize, self.cs);
+        self.age
+            .par_chunks(BAND_ROWS * w)
+            .enumerate()
+            .map(|(b, ages)| {
+                let mut sum = 0f64;
+                for (r, ages) in ages.chunks_exact(w).enumerate() {
+                    let weight = &channel_row(&self.acc, cs, b * BAND_ROWS + r, 3)[..w];
+                    for (&a, &cw) in ages.iter().zip(weight) {
                         if cw >= MIN_WEIGHT {
-                            px[x] = Vec3::new(cr / cw, cg / cw, cb / cw);
-                            ages[x] = ca / cw;
-                            age += (ca / cw) as f64;
-                        } else {
-                            holes += 1;
+                            sum += a as f64;
                         }
                     }
                 }
-                (holes, thin, age)
+                sum
             })
-            .collect();
-        // Band order, so the sum does not depend on the thread count.
-        let mut age_sum: f64 = per_band.iter().map(|b| b.2).sum();
-        let holes: usize = per_band.iter().map(|b| b.0).sum();
-        let thin: usize = per_band.iter().map(|b| b.1).sum();
-        self.holes = holes;
-        if thin > 0 {
-            age_sum = self.pull_push(p.fill_weight);
-        } else if holes > 0 {
-            age_sum += self.fill_holes(self.holes * 64 > w * h);
+            .collect()
+    }
+}
+
+impl Frame<'_> {
+    /// One band from image row `y0`; with `level` (its rows of the fill's first
+    /// level, and that level's width) the band's first pull too.
+    fn band(
+        &self,
+        y0: usize,
+        m: BandMaps,
+        mut level: Option<(&mut [f32], usize)>,
+        scratch: &mut Scratch,
+    ) -> Tally {
+        let w = self.w;
+        let rows = m.px.len() / w;
+        let mut tally = Tally::default();
+        for r in 0..rows {
+            let span = r * w..(r + 1) * w;
+            let y = y0 + r;
+            self.coverage_row(
+                y,
+                &mut m.cover[span.clone()],
+                &mut m.coverage[span.clone()],
+                &mut scratch.counts,
+            );
+            scale_row(
+                &m.coverage[span.clone()],
+                &mut m.scale[span.clone()],
+                &self.p,
+            );
+            let sums: [&[f32]; CHANNELS] =
+                std::array::from_fn(|c| &channel_row(self.acc, self.cs, y, c)[..w]);
+            let (px, ages) = (&mut m.px[span.clone()], &mut m.ages[span]);
+            let t = match &mut level {
+                None => quotients_row(
+                    &sums,
+                    RowOut {
+                        px,
+                        ages,
+                        pre: None,
+                    },
+                    &mut scratch.quotients,
+                    self.p.fill_weight,
+                ),
+                Some((out, nw)) => {
+                    let (r0, r1) = scratch.pre.split_at_mut(CH * w);
+                    let pre = if r % 2 == 0 { &mut *r0 } else { &mut *r1 };
+                    let t = quotients_row(
+                        &sums,
+                        RowOut {
+                            px,
+                            ages,
+                            pre: Some(pre),
+                        },
+                        &mut scratch.quotients,
+                        self.p.fill_weight,
+                    );
+                    if r % 2 == 1 || r + 1 == rows {
+                        if r % 2 == 0 {
+                            // The image's last row, odd: no second row of children.
+                            r1.fill(0.0);
+                        }
+                        let nw = *nw;
+                        pull_row(r0, r1, w, &mut out[r / 2 * CH * nw..][..CH * nw], nw);
+                    }
+                    t
+                }
+            };
+            tally = tally + t;
         }
-        self.mean_age = age_sum / (w * h).max(1) as f64;
+        tally
+    }
+
+    /// Coverage of row `y` from its differences: a running sum, plus the decayed
+    /// coverage carried over when carrying.
+    fn coverage_row(&self, y: usize, cover: &mut [f32], coverage: &mut [u32], counts: &mut [i32]) {
+        let w = self.w;
+        let cov = &self.cov[y * (w + 1)..][..w];
+        let mut count = 0i32;
+        if !self.carrying {
+            for (n, &d) in coverage.iter_mut().zip(cov) {
+                count += d;
+                *n = count as u32;
+            }
+            return;
+        }
+        for (n, &d) in counts.iter_mut().zip(cov) {
+            count += d;
+            *n = count;
+        }
+        for (c, &k) in cover.iter_mut().zip(&counts[..w]) {
+            *c += k as f32;
+        }
+        // `as u32` saturates, which keeps a loop scalar: below 2²² (any real count)
+        // the rounded coverage converts exactly without it.
+        if cover
+            .iter()
+            .fold(true, |small, &c| small & (c < 4_194_000.0))
+        {
+            for (n, &c) in coverage.iter_mut().zip(&cover[..w]) {
+                *n = small_int(c.round().max(0.0)) as u32;
+            }
+        } else {
+            for (n, &c) in coverage.iter_mut().zip(&cover[..w]) {
+                *n = c.round() as u32;
+            }
+        }
+    }
+}
+
+/// Splat scale adaptation of a row: grow where undersampled, shrink where
+/// oversampled, clamped.
+fn scale_row(coverage: &[u32], scale: &mut [f32], p: &ReconParams) {
+    let (lo, hi) = p.scale_bounds;
+    for (s, &n) in scale.iter_mut().zip(coverage) {
+        // Both products computed, then selected: branch-free, so vector code.
+        let (grown, shrunk) = (*s * p.grow, *s * p.shrink);
+        let v = if n < p.undersampled {
+            grown
+        } else if n > p.oversampled {
+            shrunk
+        } else {
+            *s
+        };
+        *s = v.clamp(lo, hi);
+    }
+}
+
+/// Where a row of the resolve writes: pixels, ages, and with the fill the
+/// premultiplied row of its first pull (`CH` runs of `w`).
+struct RowOut<'a> {
+    px: &'a mut [Vec3],
+    ages: &'a mut [f32],
+    pre: Option<&'a mut [f32]>,
+}
+
+/// The quotients of a row of sums into its pixels and ages (a hole keeps what it had:
+/// the hole filling overwrites it), and with `out.pre` the row premultiplied for the
+/// fill's first pull. Each step is a loop over the row's pixels through `q` (4 runs
+/// of `w`: red, green, blue, age), so that the arithmetic is vector code and only the
+/// last loop writes the interleaved pixels.
+fn quotients_row(sums: &[&[f32]; CHANNELS], out: RowOut, q: &mut [f32], fill: f32) -> Tally {
+    let w = out.px.len();
+    let cw = &sums[3][..w];
+    let (qr, rest) = q.split_at_mut(w);
+    let (qg, rest) = rest.split_at_mut(w);
+    let (qb, qa) = rest.split_at_mut(w);
+    let qa = &mut qa[..w];
+    // Red, green, blue, then age (channel 4).
+    for (q, s) in [qr, qg, qb, qa].into_iter().zip([0, 1, 2, 4]) {
+        for ((q, &s), &cw) in q.iter_mut().zip(&sums[s][..w]).zip(cw) {
+            *q = s / cw;
+        }
+    }
+    let holes = cw.iter().map(|&v| (v < MIN_WEIGHT) as u32).sum::<u32>() as usize;
+    let thin = cw.iter().map(|&v| (v < fill) as u32).sum::<u32>() as usize;
+    let (qr, rest) = q.split_at(w);
+    let (qg, rest) = rest.split_at(w);
+    let (qb, qa) = rest.split_at(w);
+    let q = [qr, qg, qb, &qa[..w]];
+    if let Some(pre) = out.pre {
+        premultiplied(cw, &q, fill, pre);
+    }
+    let full = w - w % LANES;
+    let runs = out
+        .px
+        .chunks_exact_mut(LANES)
+        .zip(out.ages.chunks_exact_mut(LANES));
+    for (x, (px, ages)) in (0..full).step_by(LANES).zip(runs) {
+        if any_below(&cw[x..x + LANES], MIN_WEIGHT) {
+            store_covered(cw, &q, x, px, ages);
+        } else {
+            interleave(&q, x, px);
+            ages.copy_from_slice(&q[3][x..x + LANES]);
+        }
+    }
+    store_covered(cw, &q, full, &mut out.px[full..], &mut out.ages[full..]);
+    Tally { holes, thin }
+}
+
+/// The quotients `q` of the pixels from column `x` that are not holes (weight `cw`)
+/// into `px` and `ages`, one at a time.
+fn store_covered(cw: &[f32], q: &[&[f32]; 4], x: usize, px: &mut [Vec3], ages: &mut [f32]) {
+    for (i, (p, a)) in px.iter_mut().zip(ages.iter_mut()).enumerate() {
+        if cw[x + i] >= MIN_WEIGHT {
+            *p = Vec3::new(q[0][x + i], q[1][x + i], q[2][x + i]);
+            *a = q[3][x + i];
+        }
+    }
+}
+
+/// Pixels `x..x + LANES` of the planar colours `q` into `px`: the interleaving spelled
+/// out on whole runs, which compiles to permutations and full stores (a plain loop
+/// becomes scattered stores).
+#[inline(always)]
+fn interleave(q: &[&[f32]; 4], x: usize, px: &mut [Vec3]) {
+    let c: [[f32; LANES]; 3] = std::array::from_fn(|k| q[k][x..x + LANES].try_into().unwrap());
+    let flat: [f32; 3 * LANES] = std::array::from_fn(|i| c[i % 3][i / 3]);
+    for (l, p) in px.iter_mut().enumerate() {
+        *p = Vec3::new(flat[3 * l], flat[3 * l + 1], flat[3 * l + 2]);
+    }
+}
+
+/// A row of weights `cw` and quotients `q` premultiplied for the fill's first pull
+/// into `pre` (`CH` runs of `w`), as [`premultiply`] forms them.
+fn premultiplied(cw: &[f32], q: &[&[f32]; 4], fill: f32, pre: &mut [f32]) {
+    let w = cw.len();
+    let q: [&[f32]; 4] = std::array::from_fn(|k| &q[k][..w]);
+    let (pr, rest) = pre.split_at_mut(w);
+    let (pg, rest) = rest.split_at_mut(w);
+    let (pb, rest) = rest.split_at_mut(w);
+    let (pa, pal) = rest.split_at_mut(w);
+    let pal = &mut pal[..w];
+    for x in 0..w {
+        let v = premultiply(cw[x], fill, [q[0][x], q[1][x], q[2][x], q[3][x]]);
+        (pr[x], pg[x], pb[x], pa[x], pal[x]) = (v[0], v[1], v[2], v[3], v[4]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Awkward sums: holes, thin and covered weights, every width's tail.
+    fn sums(w: usize, seed: u32) -> Vec<Vec<f32>> {
+        let mut state = seed.wrapping_mul(2_654_435_761) | 1;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        let mut s: Vec<Vec<f32>> = (0..CHANNELS)
+            .map(|_| (0..w).map(|_| 3.0 * next()).collect())
+            .collect();
+        for (x, cw) in s[3].iter_mut().enumerate() {
+            *cw *= [0.0, 1e-30, 0.3, 1.0, 2.5, 1e-24][(x * 7 + seed as usize) % 6];
+        }
+        s
+    }
+
+    #[test]
+    fn quotient_rows_match_the_pixel_by_pixel_quotients() {
+        for w in [1, 3, 7, 8, 9, 16, 17, 31] {
+            for seed in 0..4 {
+                let s = sums(w, seed);
+                let rows: [&[f32]; CHANNELS] = std::array::from_fn(|c| &s[c][..]);
+                let old = Vec3::new(7.0, 8.0, 9.0);
+                let (mut px, mut ages) = (vec![old; w], vec![5.0; w]);
+                let (mut q, mut pre) = (vec![0.0; 4 * w], vec![0.0; CH * w]);
+                let out = RowOut {
+                    px: &mut px,
+                    ages: &mut ages,
+                    pre: Some(&mut pre),
+                };
+                let t = quotients_row(&rows, out, &mut q, 1.0);
+                let (mut holes, mut thin) = (0, 0);
+                for x in 0..w {
+                    let (cw, c) = (s[3][x], |k: usize| s[k][x] / s[3][x]);
+                    thin += (cw < 1.0) as usize;
+                    let (p, a) = if cw >= MIN_WEIGHT {
+                        (Vec3::new(c(0), c(1), c(2)), c(4))
+                    } else {
+                        holes += 1;
+                        (old, 5.0)
+                    };
+                    assert_eq!(
+                        px[x].to_array().map(f32::to_bits),
+                        p.to_array().map(f32::to_bits)
+                    );
+                    assert_eq!(ages[x].to_bits(), a.to_bits());
+                    let want = premultiply(cw, 1.0, [p.x, p.y, p.z, a]);
+                    for (k, v) in want.iter().enumerate() {
+                        assert_eq!(pre[k * w + x].to_bits(), v.to_bits(), "w {w} x {x} k {k}");
+                    }
+                }
+                assert_eq!((t.holes, t.thin), (holes, thin));
+            }
+        }
+    }
+
+    #[test]
+    fn carried_coverage_rounds_as_the_saturating_conversion() {
+        let cov: Vec<i32> = vec![3, -1, 0, 2, -4, 1, 0, 0, 5, -5, 2];
+        let w = cov.len() - 1;
+        for start in [
+            vec![0.4; w],
+            (0..w).map(|x| x as f32 * 0.5 - 2.0).collect(),
+            vec![f32::NAN; w],
+            vec![5e9; w],
+            vec![4_193_999.5; w],
+        ] {
+            let f = Frame {
+                w,
+                cs: 0,
+                p: ReconParams::paper(),
+                carrying: true,
+                acc: &[],
+                cov: &cov,
+            };
+            let (mut cover, mut coverage, mut counts) = (start.clone(), vec![0; w], vec![0; w]);
+            f.coverage_row(0, &mut cover, &mut coverage, &mut counts);
+            let mut count = 0;
+            for x in 0..w {
+                count += cov[x];
+                let c = start[x] + count as f32;
+                assert_eq!(cover[x].to_bits(), c.to_bits());
+                assert_eq!(coverage[x], c.round() as u32, "{c}");
+            }
+        }
     }
 }
