@@ -37,7 +37,8 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
-    lanes::{fast_exp_neg, prefetch, PREFETCH_AHEAD},
+    filter_table::Lookup,
+    lanes::{fast_exp_neg, prefetch, Lanes, LANES, PREFETCH_AHEAD},
     place::Projector,
     resolve::MIN_WEIGHT,
     ring::field,
@@ -70,8 +71,20 @@ impl Geo {
         v: Vec3::ZERO,
     };
 
+    /// What the cut leaves as a pixel's next geometry while no sample it offered
+    /// had a finite depth: none, but not [`Geo::NONE`], which says untouched.
+    const PENDING: Geo = Geo {
+        ox: f32::NAN,
+        ..Geo::NONE
+    };
+
     fn is_some(&self) -> bool {
         self.z.is_finite()
+    }
+
+    /// Whether this is exactly [`Geo::NONE`] (samples' offsets are never NaN).
+    fn is_untouched(&self) -> bool {
+        self.z == f32::INFINITY && self.ox == 0.0
     }
 }
 
@@ -84,7 +97,9 @@ pub(super) struct Carried {
     /// The accumulators of the previous refresh (the layout of `Reconstructor::acc`),
     /// swapped with them at each refresh.
     prev: Vec<f32>,
-    /// Each pixel's geometry after the previous refresh, and the one being built.
+    /// Each pixel's geometry after the previous refresh, and the one being built
+    /// (every pixel's [`Geo::NONE`] between refreshes, so that the cut finds the
+    /// pixels it touches first without a pass over them all).
     pub(super) geo: Vec<Geo>,
     next_geo: Vec<Geo>,
     /// The decayed coverage being moved (`Reconstructor::cover` holds the current).
@@ -99,13 +114,10 @@ pub(super) struct Carried {
     /// so that with exact motion the sums go where that point is, not where its
     /// velocity takes it.
     anchor: HashMap<u32, Anchor>,
-    /// Per pixel, the last refresh (`epoch`) a new sample landed on it.
-    stamp: Vec<u32>,
-    epoch: u32,
     /// Where each new sample lands (reused).
     ahead: Vec<Ahead>,
-    /// Where each pixel's sums go when the view moves, in pixel order (reused).
-    moves: Vec<(u32, u32, Move)>,
+    /// Where each pixel's sums go when the view moves (reused; empty until then).
+    dests: Vec<Dest>,
     /// The previous refresh re-splatted the ring: the next carried refresh starts
     /// from nothing and places the whole live ring as new.
     restart: bool,
@@ -124,10 +136,8 @@ impl Carried {
             pending: 0,
             moving: Vec::new(),
             anchor: HashMap::new(),
-            stamp: vec![0; n],
-            epoch: 0,
             ahead: Vec::new(),
-            moves: Vec::new(),
+            dests: Vec::new(),
             restart: false,
             view: None,
         }
@@ -161,6 +171,59 @@ struct Move {
     tx: usize,
     ty: usize,
     geo: Geo,
+}
+
+/// Where one pixel's sums go when they move with the view: the pixel `(tx, ty)`
+/// (`tx == u32::MAX`: nowhere) and their geometry there.
+#[derive(Clone, Copy)]
+struct Dest {
+    tx: u32,
+    ty: u32,
+    geo: Geo,
+}
+
+impl Dest {
+    const NONE: Dest = Dest {
+        tx: u32::MAX,
+        ty: u32::MAX,
+        geo: Geo::NONE,
+    };
+
+    /// Where `mover` takes the sums of pixel `(x, y)` of weight `weight`, with its
+    /// geometry in `geo` (borrowed from its neighbours' where it has none).
+    #[inline(always)]
+    fn of(mover: &Mover, geo: &[Geo], weight: f32, x: usize, y: usize, keep: f32) -> Dest {
+        if !holds(weight) {
+            return Dest::NONE;
+        }
+        let g = geo[y * mover.w + x];
+        let g = if g.is_some() {
+            Some(g)
+        } else {
+            borrow(geo, mover.w, mover.h, x, y, keep)
+        };
+        match g.and_then(|g| mover.target(x, y, g)) {
+            Some(m) => Dest {
+                tx: m.tx as u32,
+                ty: m.ty as u32,
+                geo: m.geo,
+            },
+            None => Dest::NONE,
+        }
+    }
+
+    /// The move, on an image `w` pixels wide (`None`: nowhere).
+    fn landing(self, w: usize) -> Option<Move> {
+        (self.tx != u32::MAX).then(|| {
+            let (tx, ty) = (self.tx as usize, self.ty as usize);
+            Move {
+                to: ty * w + tx,
+                tx,
+                ty,
+                geo: self.geo,
+            }
+        })
+    }
 }
 
 /// What moving the sums of one refresh needs: the map from a point seen through
@@ -317,15 +380,7 @@ impl Reconstructor {
             .par_chunks_mut(CHANNELS * cs)
             .zip(self.cover.par_chunks_mut(w))
             .zip(self.lookup.par_chunks(w))
-            .for_each_init(
-                || (vec![0f32; w], vec![0f32; w]),
-                |(k, kc), ((row, cover), lookup)| {
-                    for (x, l) in lookup.iter().enumerate() {
-                        [k[x], kc[x]] = decay[l.tile as usize];
-                    }
-                    decay_row(row, cover, cs, k, kc, dt);
-                },
-            );
+            .for_each(|((row, cover), lookup)| decay_row(row, cover, cs, lookup, decay, dt));
         if self.params.reproject {
             self.move_listed(c, dt, camera);
         }
@@ -394,7 +449,6 @@ impl Reconstructor {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         std::mem::swap(&mut self.acc, &mut c.prev);
         self.acc.fill(0.0);
-        c.next_geo.fill(Geo::NONE);
         c.next_cover.fill(0.0);
         c.moving.clear();
         // Moved with the view, moving sums follow their velocity.
@@ -405,38 +459,32 @@ impl Reconstructor {
         // the previous refresh's, which nothing changes here); then they land one
         // after another in pixel order, as conflicts are settled in that order.
         let (prev, geo) = (&c.prev, &c.geo);
-        let mut moves = std::mem::take(&mut c.moves);
-        moves.clear();
-        moves.par_extend((0..h).into_par_iter().flat_map_iter(|y| {
-            let mover = &mover;
-            (0..w).filter_map(move |x| {
-                if !holds(prev[(y * CHANNELS + 3) * cs + x]) {
-                    return None;
-                }
-                let g = geo[y * w + x];
-                let g = if g.is_some() {
-                    g
-                } else {
-                    borrow(geo, w, h, x, y, keep)?
-                };
-                mover.target(x, y, g).map(|m| (x as u32, y as u32, m))
-            })
-        }));
+        c.dests.resize(w * h, Dest::NONE);
+        c.dests.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let weight = &prev[(y * CHANNELS + 3) * cs..][..w];
+            for (x, d) in row.iter_mut().enumerate() {
+                *d = Dest::of(&mover, geo, weight[x], x, y, keep);
+            }
+        });
         let mut into = Target {
             acc: &mut self.acc,
             cs,
             geo: &mut c.next_geo,
             cover: &mut c.next_cover,
         };
-        for &(x, y, ref m) in &moves {
-            let (x, y) = (x as usize, y as usize);
-            let q = y * w + x;
-            let [k, kc] = decay[self.lookup[q].tile as usize];
-            let sums = decayed(&c.prev, cs, x, y, k, dt);
-            into.land_move(m, sums, self.cover[q] * kc, keep, &mut c.moving);
+        for (y, row) in c.dests.chunks(w).enumerate() {
+            for (x, d) in row.iter().enumerate() {
+                let Some(m) = d.landing(w) else {
+                    continue;
+                };
+                let q = y * w + x;
+                let [k, kc] = decay[self.lookup[q].tile as usize];
+                let sums = decayed(&c.prev, cs, x, y, k, dt);
+                into.land_move(&m, sums, self.cover[q] * kc, keep, &mut c.moving);
+            }
         }
-        c.moves = moves;
         std::mem::swap(&mut c.geo, &mut c.next_geo);
+        c.next_geo.fill(Geo::NONE);
         std::mem::swap(&mut self.cover, &mut c.next_cover);
     }
 
@@ -463,7 +511,6 @@ impl Reconstructor {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
         let proj = Projector::new(camera);
         let keep = self.carry_keep();
-        let epoch = c.next_epoch();
         let ring = &self.ring;
         // Each sample's pixel, depth and velocity first, in parallel, so that the
         // loop below can ask for the pixels of samples ahead of it (they are at
@@ -498,7 +545,6 @@ impl Reconstructor {
         let ctx = CutContext {
             ahead: &ahead,
             keep,
-            epoch,
             w,
             cs,
             start: samples.start,
@@ -507,17 +553,15 @@ impl Reconstructor {
             .acc
             .par_chunks_mut(CUT_ROWS * CHANNELS * cs)
             .zip(self.cover.par_chunks_mut(band_px))
-            .zip(c.stamp.par_chunks_mut(band_px))
             .zip(c.next_geo.par_chunks_mut(band_px))
             .zip(c.geo.par_chunks_mut(band_px))
             .enumerate()
-            .map(|(b, ((((acc, cover), stamp), next_geo), geo))| {
+            .map(|(b, (((acc, cover), next_geo), geo))| {
                 let mut band = CutBand {
                     y0: b * CUT_ROWS,
                     base: b * band_px,
                     acc,
                     cover,
-                    stamp,
                     next_geo,
                     geo,
                     touched: Vec::new(),
@@ -553,7 +597,6 @@ fn bucket_by_band(ahead: &[Ahead], rows: usize, bands: usize) -> Vec<Vec<u32>> {
 struct CutContext<'a> {
     ahead: &'a [Ahead],
     keep: f32,
-    epoch: u32,
     w: usize,
     cs: usize,
     /// Logical ring index of `ahead[0]`.
@@ -572,14 +615,13 @@ struct BandOut {
 }
 
 /// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
-/// pixels' coverage, stamps and next geometry.
+/// pixels' coverage and next geometry.
 struct CutBand<'a> {
     y0: usize,
     /// The band's first pixel.
     base: usize,
     acc: &'a mut [f32],
     cover: &'a mut [f32],
-    stamp: &'a mut [u32],
     next_geo: &'a mut [Geo],
     /// The carried geometry: read while the band's samples are cut, then settled.
     geo: &'a mut [Geo],
@@ -603,7 +645,6 @@ impl CutBand<'_> {
                 let (px, py) = (a.px as usize, a.py as usize);
                 let q = py * w + px;
                 prefetch(self.geo, q - base);
-                prefetch(self.stamp, q - base);
                 prefetch(self.next_geo, q - base);
                 prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
             }
@@ -642,20 +683,19 @@ impl CutBand<'_> {
             // visibility pass keeps), set once every sample has been tested against
             // the carried one.
             let i = ctx.start + k as usize;
-            self.offer(q, k, Geo { z, ox, oy, v }, ctx.epoch, || ring.anchor_of(i));
+            self.offer(q, k, Geo { z, ox, oy, v }, || ring.anchor_of(i));
         }
     }
 
-    /// A new sample (index `k` of the cut) of geometry `g` lands in pixel `q` at the
-    /// refresh of stamp `epoch`: it becomes the pixel's next geometry if it is the
-    /// nearest yet, with its anchor where it moves (`next_geo` is scratch until the
-    /// next refresh).
-    fn offer(&mut self, q: usize, k: u32, g: Geo, epoch: u32, anchor: impl FnOnce() -> Anchor) {
+    /// A new sample (index `k` of the cut) of geometry `g` lands in pixel `q`: it
+    /// becomes the pixel's next geometry if it is the nearest yet, with its anchor
+    /// where it moves. A pixel's first sample finds [`Geo::NONE`] there, and leaves
+    /// at least [`Geo::PENDING`].
+    fn offer(&mut self, q: usize, k: u32, g: Geo, anchor: impl FnOnce() -> Anchor) {
         let i = q - self.base;
-        if self.stamp[i] != epoch {
-            self.stamp[i] = epoch;
+        if self.next_geo[i].is_untouched() {
             self.touched.push(q as u32);
-            self.next_geo[i] = Geo::NONE;
+            self.next_geo[i] = Geo::PENDING;
         }
         let nearest = self.next_geo[i];
         if g.z < nearest.z {
@@ -674,7 +714,8 @@ impl CutBand<'_> {
     }
 
     /// Every pixel of the band new samples landed on takes its nearest one's
-    /// geometry; the anchors to drop and keep go to the merge.
+    /// geometry (its next one is none again); the anchors to drop and keep go to the
+    /// merge.
     fn settle(&mut self) {
         for &q in &self.touched {
             let i = q as usize - self.base;
@@ -682,27 +723,19 @@ impl CutBand<'_> {
                 self.out.unanchored.push(q);
             }
             let g = self.next_geo[i];
+            let g = if g.is_some() { g } else { Geo::NONE };
             if g.v != Vec3::ZERO {
                 if let Some(a) = self.next_anchor.remove(&q) {
                     self.out.anchored.push((q, a));
                 }
             }
             self.geo[i] = g;
+            self.next_geo[i] = Geo::NONE;
         }
     }
 }
 
 impl Carried {
-    /// A new refresh's stamp: every pixel's stamp is then older.
-    fn next_epoch(&mut self) -> u32 {
-        if self.epoch == u32::MAX {
-            self.stamp.fill(0);
-            self.epoch = 0;
-        }
-        self.epoch += 1;
-        self.epoch
-    }
-
     /// The bands' anchors and moving pixels, the moving ones in the order of their
     /// samples (as one pass over the samples lists them). A pixel's old anchor goes
     /// before its new one comes.
@@ -830,24 +863,86 @@ fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32;
 }
 
 /// One row of accumulators (`CHANNELS` runs of `cs` floats) and its coverage decayed
-/// by the per-pixel factors `k` (sums) and `kc` (coverage) over `dt` (the weighted age
-/// grows by `dt` per unit weight first).
-fn decay_row(row: &mut [f32], cover: &mut [f32], cs: usize, k: &[f32], kc: &[f32], dt: f32) {
+/// by the factors of each pixel's tile (`lookup` into `decay`: sums, coverage) over
+/// `dt` (the weighted age grows by `dt` per unit weight first), [`LANES`] pixels at a
+/// time: their factors gathered once, then every plane in vector code.
+pub(super) fn decay_row(
+    row: &mut [f32],
+    cover: &mut [f32],
+    cs: usize,
+    lookup: &[Lookup],
+    decay: &[[f32; 2]],
+    dt: f32,
+) {
     let w = cover.len();
-    let (rgb, rest) = row.split_at_mut(3 * cs);
+    let (r, rest) = row.split_at_mut(cs);
+    let (g, rest) = rest.split_at_mut(cs);
+    let (b, rest) = rest.split_at_mut(cs);
     let (wp, ap) = rest.split_at_mut(cs);
-    for x in 0..w {
-        ap[x] = k[x] * dt.mul_add(wp[x], ap[x]);
-        wp[x] *= k[x];
+    let planes = [
+        &mut r[..w],
+        &mut g[..w],
+        &mut b[..w],
+        &mut wp[..w],
+        &mut ap[..w],
+    ];
+    let mut spans = DecaySpans { planes, cover };
+    let whole = w - w % LANES;
+    for x in (0..whole).step_by(LANES) {
+        let l: &[Lookup; LANES] = lookup[x..x + LANES].try_into().unwrap();
+        let [k, kc] = gather_decay(l, decay);
+        spans.decay::<LANES>(x, &k, &kc, dt);
     }
-    for plane in rgb.chunks_exact_mut(cs) {
-        for x in 0..w {
-            plane[x] *= k[x];
+    for x in whole..w {
+        let [k, kc] = decay[lookup[x].tile as usize];
+        spans.decay::<1>(x, &[k], &[kc], dt);
+    }
+}
+
+/// The sum and coverage factors of `LANES` pixels from their tiles.
+#[inline(always)]
+fn gather_decay(lookup: &[Lookup; LANES], decay: &[[f32; 2]]) -> [Lanes; 2] {
+    let (mut k, mut kc) = ([0f32; LANES], [0f32; LANES]);
+    for (l, p) in lookup.iter().enumerate() {
+        [k[l], kc[l]] = decay[p.tile as usize];
+    }
+    [k, kc]
+}
+
+/// One row's five accumulator planes (weighted r, g, b, weight, weighted age) and its
+/// coverage, decayed a span at a time.
+struct DecaySpans<'a> {
+    planes: [&'a mut [f32]; CHANNELS],
+    cover: &'a mut [f32],
+}
+
+impl DecaySpans<'_> {
+    /// Pixels `x..x + N` decayed by `k` (sums) and `kc` (coverage) over `dt`.
+    #[inline(always)]
+    fn decay<const N: usize>(&mut self, x: usize, k: &[f32; N], kc: &[f32; N], dt: f32) {
+        let [r, g, b, wp, ap] = &mut self.planes;
+        let (wp, ap) = (span::<N>(wp, x), span::<N>(ap, x));
+        for l in 0..N {
+            ap[l] = k[l] * dt.mul_add(wp[l], ap[l]);
+            wp[l] *= k[l];
+        }
+        for p in [r, g, b] {
+            let p = span::<N>(p, x);
+            for l in 0..N {
+                p[l] *= k[l];
+            }
+        }
+        let c = span::<N>(self.cover, x);
+        for l in 0..N {
+            c[l] *= kc[l];
         }
     }
-    for (v, kc) in cover.iter_mut().zip(kc) {
-        *v *= kc;
-    }
+}
+
+/// `p[x..x + N]` as an array.
+#[inline(always)]
+fn span<const N: usize>(p: &mut [f32], x: usize) -> &mut [f32; N] {
+    (&mut p[x..x + N]).try_into().unwrap()
 }
 
 /// The accumulators, geometry and coverage that carried sums land in.
@@ -921,12 +1016,25 @@ impl Reconstructor {
             .enumerate()
             .for_each(|(y, (row, geo))| {
                 let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
-                for ((f, g), &wt) in row.iter_mut().zip(geo).zip(weight) {
-                    if holds(wt) && g.v == Vec3::ZERO {
-                        *f = f.min(g.z);
-                    }
-                }
+                lower_fronts(row, geo, weight);
             });
+    }
+}
+
+/// Fronts `front` lowered to the still geometry `geo` of the pixels whose `weight`
+/// holds sums, [`LANES`] pixels at a time without branches.
+pub(super) fn lower_fronts(front: &mut [f32], geo: &[Geo], weight: &[f32]) {
+    for ((f, g), wt) in front
+        .chunks_mut(LANES)
+        .zip(geo.chunks(LANES))
+        .zip(weight.chunks(LANES))
+    {
+        for l in 0..f.len() {
+            let g = g[l];
+            let still = (g.v.x == 0.0) & (g.v.y == 0.0) & (g.v.z == 0.0);
+            let lowered = f[l].min(g.z);
+            f[l] = if holds(wt[l]) & still { lowered } else { f[l] };
+        }
     }
 }
 

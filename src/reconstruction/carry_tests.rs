@@ -297,3 +297,84 @@ fn a_moving_view_resplats_the_ring_and_carrying_resumes_once_it_holds() {
     // And carrying changed the image from the ring's (its temporal weight differs).
     assert_ne!(a.image().pixels, b.image().pixels);
 }
+
+/// Values in `[−0.5, 1.5)` from a fixed seed, for the lane tests.
+fn values(n: usize, seed: u32) -> Vec<f32> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (s >> 8) as f32 / (1 << 24) as f32 * 2.0 - 0.5
+        })
+        .collect()
+}
+
+/// The row decay, [`LANES`](super::lanes::LANES) pixels at a time, gives the bits of
+/// the same operations pixel by pixel, on widths that leave a partial span, and leaves
+/// the row's padding alone.
+#[test]
+fn a_row_decays_bit_for_bit_as_pixel_by_pixel() {
+    use super::carry::decay_row;
+    let decay = [[0.9f32, 0.97], [0.5, 0.8], [0.0, 0.25]];
+    let dt = 0.033f32;
+    for w in [1usize, 7, 8, 9, 17, 30] {
+        let cs = w.next_multiple_of(8) + 8;
+        let row = values(CHANNELS * cs, w as u32);
+        let cover = values(w, 99);
+        let lookup: Vec<Lookup> = (0..w)
+            .map(|x| Lookup {
+                tile: (x * 7 % 3) as u32,
+                scale: 1.0,
+            })
+            .collect();
+        let (mut r, mut c) = (row.clone(), cover.clone());
+        decay_row(&mut r, &mut c, cs, &lookup, &decay, dt);
+        for x in 0..cs {
+            let [k, kc] = decay[lookup.get(x).map_or(0, |l| l.tile as usize)];
+            let (k, kc) = if x < w { (k, kc) } else { (1.0, 1.0) };
+            let at = |ch: usize| ch * cs + x;
+            let mut want: Vec<f32> = (0..CHANNELS).map(|ch| row[at(ch)] * k).collect();
+            want[4] = k * dt.mul_add(row[at(3)], row[at(4)]);
+            if x >= w {
+                want = (0..CHANNELS).map(|ch| row[at(ch)]).collect();
+            }
+            for (ch, v) in want.iter().enumerate() {
+                assert_eq!(r[at(ch)].to_bits(), v.to_bits(), "w {w} x {x} ch {ch}");
+            }
+            if x < w {
+                assert_eq!(c[x].to_bits(), (cover[x] * kc).to_bits(), "w {w} x {x}");
+            }
+        }
+    }
+}
+
+/// Fronts lowered without branches match the test pixel by pixel: held still
+/// geometry lowers the front, moving geometry and weights that hold nothing (NaN
+/// included) do not.
+#[test]
+fn fronts_are_lowered_as_pixel_by_pixel() {
+    use super::carry::{lower_fronts, Geo};
+    for w in [1usize, 7, 9, 17] {
+        let z = values(w, 3);
+        let front = values(w, 4);
+        let geo: Vec<Geo> = (0..w)
+            .map(|x| Geo {
+                z: z[x] + 0.5,
+                v: if x % 3 == 1 { Vec3::X } else { Vec3::ZERO },
+                ..Geo::NONE
+            })
+            .collect();
+        let weight: Vec<f32> = (0..w).map(|x| [1.0, 0.0, f32::NAN, 1e-30][x % 4]).collect();
+        let mut got = front.clone();
+        lower_fronts(&mut got, &geo, &weight);
+        for x in 0..w {
+            let lowers = weight[x] >= super::resolve::MIN_WEIGHT && geo[x].v == Vec3::ZERO;
+            let want = if lowers {
+                front[x].min(geo[x].z)
+            } else {
+                front[x]
+            };
+            assert_eq!(got[x].to_bits(), want.to_bits(), "w {w} x {x}");
+        }
+    }
+}
