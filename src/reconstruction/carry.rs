@@ -116,6 +116,8 @@ pub(super) struct Carried {
     anchor: HashMap<u32, Anchor>,
     /// Where each new sample lands (reused).
     ahead: Vec<Ahead>,
+    /// The same, with their indices, grouped by band of the cut (reused).
+    by_band: Vec<Vec<(u32, Ahead)>>,
     /// Where each pixel's sums go when the view moves (reused; empty until then).
     dests: Vec<Dest>,
     /// The previous refresh re-splatted the ring: the next carried refresh starts
@@ -137,6 +139,7 @@ impl Carried {
             moving: Vec::new(),
             anchor: HashMap::new(),
             ahead: Vec::new(),
+            by_band: Vec::new(),
             dests: Vec::new(),
             restart: false,
             view: None,
@@ -541,9 +544,9 @@ impl Reconstructor {
         // and each pixel sees its samples in ring order.
         let band_px = CUT_ROWS * w;
         let bands = h.div_ceil(CUT_ROWS);
-        let by_band = bucket_by_band(&ahead, CUT_ROWS, bands);
+        let mut by_band = std::mem::take(&mut c.by_band);
+        bucket_by_band(&ahead, CUT_ROWS, bands, &mut by_band);
         let ctx = CutContext {
-            ahead: &ahead,
             keep,
             w,
             cs,
@@ -574,6 +577,7 @@ impl Reconstructor {
             })
             .collect();
         c.ahead = ahead;
+        c.by_band = by_band;
         c.merge_bands(outs);
     }
 }
@@ -581,25 +585,31 @@ impl Reconstructor {
 /// Rows per band of the parallel cut.
 const CUT_ROWS: usize = 16;
 
-/// Indices of `ahead` grouped by band of `rows` rows (`bands` of them), in their
-/// order within each band; samples off the image are left out.
-fn bucket_by_band(ahead: &[Ahead], rows: usize, bands: usize) -> Vec<Vec<u32>> {
-    let mut by_band = vec![Vec::new(); bands];
+/// The entries of `ahead`, with their indices, grouped into `by_band` by band of `rows`
+/// rows (`bands` of them), in their order within each band (so that a band reads its
+/// samples one after another, not scattered over `ahead`); samples off the image are
+/// left out.
+fn bucket_by_band(
+    ahead: &[Ahead],
+    rows: usize,
+    bands: usize,
+    by_band: &mut Vec<Vec<(u32, Ahead)>>,
+) {
+    by_band.resize_with(bands, Vec::new);
+    by_band.iter_mut().for_each(Vec::clear);
     for (k, a) in ahead.iter().enumerate() {
         if a.px != u32::MAX {
-            by_band[a.py as usize / rows].push(k as u32);
+            by_band[a.py as usize / rows].push((k as u32, *a));
         }
     }
-    by_band
 }
 
 /// What every band of the cut reads.
-struct CutContext<'a> {
-    ahead: &'a [Ahead],
+struct CutContext {
     keep: f32,
     w: usize,
     cs: usize,
-    /// Logical ring index of `ahead[0]`.
+    /// Logical ring index of the sample of index 0.
     start: usize,
 }
 
@@ -633,22 +643,21 @@ struct CutBand<'a> {
 }
 
 impl CutBand<'_> {
-    /// The band's samples (indices of `ctx.ahead`, in ring order): where one lies in
+    /// The band's samples (with their indices in the cut, in ring order): where one lies in
     /// front of its pixel's carried sums beyond the tolerance they are cut; where
     /// behind, it is left to the visibility pass; the nearest not behind is offered as
     /// the pixel's geometry.
-    fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[u32], ring: &super::ring::Ring) {
+    fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[(u32, Ahead)], ring: &super::ring::Ring) {
         let (w, cs, base) = (ctx.w, ctx.cs, self.base);
-        for (j, &k) in ks.iter().enumerate() {
-            if let Some(&n) = ks.get(j + PREFETCH_AHEAD) {
-                let a = ctx.ahead[n as usize];
+        for (j, &(k, a)) in ks.iter().enumerate() {
+            if let Some((_, a)) = ks.get(j + PREFETCH_AHEAD) {
                 let (px, py) = (a.px as usize, a.py as usize);
                 let q = py * w + px;
                 prefetch(self.geo, q - base);
                 prefetch(self.next_geo, q - base);
                 prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
             }
-            let Ahead { px, py, z, v } = ctx.ahead[k as usize];
+            let Ahead { px, py, z, v } = a;
             let (px, ry) = (px as usize, py as usize - self.y0);
             let q = py as usize * w + px;
             let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
