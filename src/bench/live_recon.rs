@@ -85,7 +85,12 @@ pub struct LiveFigure {
 fn state_hash(r: &Reconstructor) -> String {
     let pixels = r.image().pixels.iter().flat_map(|p| p.to_array());
     let counts = r.history_counts().unwrap_or(&[]);
-    let rest = r.pixel_ages().iter().chain(r.splat_scale()).chain(counts).copied();
+    let rest = r
+        .pixel_ages()
+        .iter()
+        .chain(r.splat_scale())
+        .chain(counts)
+        .copied();
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for c in pixels.chain(rest) {
         for b in c.to_bits().to_le_bytes() {
