@@ -429,9 +429,9 @@ mod tests {
         let mut acc = Accum::new(n);
         let mut image = Image::new(w, h);
         let mut age = vec![0f32; n];
-        for q in 0..n {
+        for (q, a) in age.iter_mut().enumerate() {
             image.pixels[q] = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
-            age[q] = rng.uniform() * 0.3;
+            *a = rng.uniform() * 0.3;
             let count = match rng.uniform() {
                 u if u < 0.2 => 0.0,
                 u if u < 0.3 => 0.5,
