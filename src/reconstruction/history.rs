@@ -30,6 +30,9 @@
 //! reconstruction counts as `recon_weight` samples, so a pixel with no history shows
 //! the reconstruction unchanged and one with many shows the converged mean.
 
+mod blend;
+
+use blend::BLEND_ROWS;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -141,13 +144,10 @@ impl HistoryParams {
 
 const EMPTY_RANGE: (f32, f32) = (f32::INFINITY, f32::NEG_INFINITY);
 
-/// One pixel's history but its count: what a sample that joins it reads and writes,
-/// together in one cache line.
+/// One pixel's luminance range and newest hit point: what only taking samples in and
+/// moving the history read.
 #[derive(Clone, Copy, Debug)]
 struct Cell {
-    /// Sum of the samples' times, for the age of what is shown.
-    time_sum: f64,
-    sum: Vec3,
     /// Range of the luminances in the pixel's history (empty: `lo > hi`).
     range: (f32, f32),
     /// The hit point of the pixel's newest sample (for reprojection).
@@ -156,61 +156,133 @@ struct Cell {
 
 impl Cell {
     const EMPTY: Cell = Cell {
-        time_sum: 0.0,
-        sum: Vec3::ZERO,
         range: EMPTY_RANGE,
         point: Vec3::ZERO,
     };
 }
 
-/// Each pixel's accumulated history: its count (what most passes test first, and
-/// what the sampler reads), and the rest in one [`Cell`].
+/// Each pixel's accumulated history: its count (what most passes test first, and what
+/// the sampler reads), the sums the blend reads in planes (red, green, blue; the sum
+/// of the samples' times, for the age of what is shown), so that it loads 8 pixels at
+/// a time, and the rest in one [`Cell`].
 #[derive(Clone)]
 struct Accum {
-    cell: Vec<Cell>,
     count: Vec<f32>,
+    sum: [Vec<f32>; 3],
+    time_sum: Vec<f64>,
+    cell: Vec<Cell>,
 }
 
 impl Accum {
     fn new(n: usize) -> Self {
         Self {
-            cell: vec![Cell::EMPTY; n],
             count: vec![0.0; n],
+            sum: std::array::from_fn(|_| vec![0.0; n]),
+            time_sum: vec![0.0; n],
+            cell: vec![Cell::EMPTY; n],
         }
     }
 
     /// Every pixel empty.
     fn reset(&mut self) {
-        self.cell.fill(Cell::EMPTY);
         self.count.fill(0.0);
+        self.sum.iter_mut().for_each(|s| s.fill(0.0));
+        self.time_sum.fill(0.0);
+        self.cell.fill(Cell::EMPTY);
     }
 
     /// Pixel `q` empty (its point stays: it is read only where the count is not 0).
     fn clear(&mut self, q: usize) {
-        clear(&mut self.cell[q], &mut self.count[q]);
+        self.all().clear(q);
     }
 
     /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
     fn take(&mut self, d: usize, from: &Accum, q: usize, cap: f32) {
         let k = from.count[q].min(cap) / from.count[q];
-        let f = &from.cell[q];
-        self.cell[d] = Cell {
-            sum: f.sum * k,
-            time_sum: f.time_sum * k as f64,
-            range: f.range,
-            point: f.point,
-        };
+        for (s, f) in self.sum.iter_mut().zip(&from.sum) {
+            s[d] = f[q] * k;
+        }
+        self.time_sum[d] = from.time_sum[q] * k as f64;
+        self.cell[d] = from.cell[q];
         self.count[d] = from.count[q] * k;
+    }
+
+    /// Pixel `d` empty, its point too.
+    fn empty(&mut self, d: usize) {
+        self.clear(d);
+        self.cell[d] = Cell::EMPTY;
+    }
+
+    /// All pixels, borrowed.
+    fn all(&mut self) -> AccumMut<'_> {
+        let [r, g, b] = &mut self.sum;
+        AccumMut {
+            count: &mut self.count,
+            sum: [r, g, b],
+            time_sum: &mut self.time_sum,
+            cell: &mut self.cell,
+        }
+    }
+
+    /// The pixels in runs of `len` (the last may be shorter), borrowed.
+    fn runs_mut(&mut self, len: usize) -> Vec<AccumMut<'_>> {
+        let [r, g, b] = &mut self.sum;
+        self.count
+            .chunks_mut(len)
+            .zip(r.chunks_mut(len))
+            .zip(g.chunks_mut(len))
+            .zip(b.chunks_mut(len))
+            .zip(self.time_sum.chunks_mut(len))
+            .zip(self.cell.chunks_mut(len))
+            .map(|(((((count, r), g), b), time_sum), cell)| AccumMut {
+                count,
+                sum: [r, g, b],
+                time_sum,
+                cell,
+            })
+            .collect()
     }
 }
 
-/// Empty one pixel's cell and count (its point stays: it is read only where the count
-/// is not 0).
-fn clear(cell: &mut Cell, count: &mut f32) {
-    cell.sum = Vec3::ZERO;
-    cell.time_sum = 0.0;
-    cell.range = EMPTY_RANGE;
-    *count = 0.0;
+/// A run of consecutive pixels of an [`Accum`], borrowed.
+struct AccumMut<'a> {
+    count: &'a mut [f32],
+    sum: [&'a mut [f32]; 3],
+    time_sum: &'a mut [f64],
+    cell: &'a mut [Cell],
+}
+
+impl AccumMut<'_> {
+    /// Pixels `r` of the run.
+    fn sub(&mut self, r: std::ops::Range<usize>) -> AccumMut<'_> {
+        let [red, green, blue] = &mut self.sum;
+        AccumMut {
+            count: &mut self.count[r.clone()],
+            sum: [
+                &mut red[r.clone()],
+                &mut green[r.clone()],
+                &mut blue[r.clone()],
+            ],
+            time_sum: &mut self.time_sum[r.clone()],
+            cell: &mut self.cell[r],
+        }
+    }
+
+    fn sum(&self, q: usize) -> Vec3 {
+        Vec3::new(self.sum[0][q], self.sum[1][q], self.sum[2][q])
+    }
+
+    fn set_sum(&mut self, q: usize, s: Vec3) {
+        (self.sum[0][q], self.sum[1][q], self.sum[2][q]) = (s.x, s.y, s.z);
+    }
+
+    /// Empty pixel `q` (its point stays: it is read only where the count is not 0).
+    fn clear(&mut self, q: usize) {
+        self.set_sum(q, Vec3::ZERO);
+        self.time_sum[q] = 0.0;
+        self.cell[q].range = EMPTY_RANGE;
+        self.count[q] = 0.0;
+    }
 }
 
 /// A sample waiting to enter the history at the next refresh.
@@ -539,8 +611,8 @@ struct Pixels {
     /// The lowest and highest colour of the reconstruction before blending over each
     /// pixel and its two neighbours in the row: of the first and last row of every
     /// band, and three rows a band as it goes (reused).
-    edges: Vec<(Vec3, Vec3)>,
-    rolling: Vec<(Vec3, Vec3)>,
+    edges: Vec<f32>,
+    rolling: Vec<f32>,
     /// Where each pixel's history lands when the view moves: from, to, depth (reused).
     lands: Vec<(u32, u32, f32)>,
     /// Pixels cut during the step under way.
@@ -637,8 +709,7 @@ impl Pixels {
             .enumerate()
             .filter(|(_, z)| **z == f32::INFINITY)
         {
-            self.scratch.cell[d] = Cell::EMPTY;
-            self.scratch.count[d] = 0.0;
+            self.scratch.empty(d);
         }
         std::mem::swap(&mut self.acc, &mut self.scratch);
         self.drop_held();
@@ -653,19 +724,17 @@ impl Pixels {
         let order = &step.order;
         let per_band: Vec<(u64, Vec<u32>)> = self
             .acc
-            .cell
-            .par_chunks_mut(band)
-            .zip(self.acc.count.par_chunks_mut(band))
+            .runs_mut(band)
+            .into_par_iter()
             .zip(self.held.par_chunks_mut(band))
             .enumerate()
-            .map(|(b, ((cell, count), held))| {
+            .map(|(b, (acc, held))| {
                 let base = b * band;
                 let lo = order.partition_point(|&(q, _)| (q as usize) < base);
-                let hi = order.partition_point(|&(q, _)| (q as usize) < base + cell.len());
+                let hi = order.partition_point(|&(q, _)| (q as usize) < base + held.len());
                 let mut band = Band {
                     base,
-                    cell,
-                    count,
+                    acc,
                     held,
                     cuts: 0,
                     held_at: Vec::new(),
@@ -720,76 +789,8 @@ impl Pixels {
         image: &mut Image,
         age: &mut [f32],
     ) -> (u64, f64) {
-        let (w, h) = (image.width as usize, image.height as usize);
-        let bands = h.div_ceil(BLEND_ROWS);
-        // The 3×3 neighbourhood's range, separably: each pixel's range over its row
-        // neighbours, then over the ranges of the rows above, at and below (the same
-        // minima and maxima). A band computes its rows' ranges as it goes, before
-        // blending them; the rows next to it are blended by other bands, so their
-        // ranges are taken first.
-        self.edges.resize(2 * bands * w, (Vec3::ZERO, Vec3::ZERO));
-        let px = &image.pixels;
-        self.edges
-            .par_chunks_mut(2 * w)
-            .enumerate()
-            .for_each(|(b, e)| {
-                let (first, last) = e.split_at_mut(w);
-                let y0 = b * BLEND_ROWS;
-                let y1 = (y0 + BLEND_ROWS).min(h) - 1;
-                row_range(&px[y0 * w..][..w], first);
-                row_range(&px[y1 * w..][..w], last);
-            });
-        self.rolling.resize(3 * bands * w, (Vec3::ZERO, Vec3::ZERO));
-        let (edges, acc) = (&self.edges, &mut self.acc);
-        let rows: Vec<Vec<(u64, f64)>> = image
-            .pixels
-            .par_chunks_mut(BLEND_ROWS * w)
-            .zip(acc.cell.par_chunks_mut(BLEND_ROWS * w))
-            .zip(acc.count.par_chunks_mut(BLEND_ROWS * w))
-            .zip(age.par_chunks_mut(BLEND_ROWS * w))
-            .zip(self.rolling.par_chunks_mut(3 * w))
-            .enumerate()
-            .map(|(b, ((((out, cell), count), age), rolling))| {
-                let edge = |k: usize| &edges[k * w..][..w];
-                let rows = out.len() / w;
-                let mut slots: Vec<&mut [(Vec3, Vec3)]> = rolling.chunks_mut(w).collect();
-                // Slot 1 holds this row's ranges, 2 the next row's; the row above's is
-                // slot 0 or, for a band's first row, the previous band's edge.
-                row_range(&out[..w], slots[1]);
-                let mut per_row = Vec::with_capacity(rows);
-                for r in 0..rows {
-                    let next_own = r + 1 < rows;
-                    if next_own {
-                        row_range(&out[(r + 1) * w..][..w], slots[2]);
-                    }
-                    let above: &[(Vec3, Vec3)] = match (r, b) {
-                        (0, 0) => slots[1],
-                        (0, _) => edge(2 * b - 1),
-                        _ => slots[0],
-                    };
-                    let below: &[(Vec3, Vec3)] = match (next_own, b + 1 < bands) {
-                        (true, _) => slots[2],
-                        (false, true) => edge(2 * b + 2),
-                        (false, false) => slots[1],
-                    };
-                    let row = r * w..(r + 1) * w;
-                    per_row.push(blend_row(
-                        [above, slots[1], below],
-                        &mut out[row.clone()],
-                        &mut cell[row.clone()],
-                        &mut count[row.clone()],
-                        &mut age[row],
-                        t,
-                        p,
-                    ));
-                    slots.rotate_left(1);
-                }
-                per_row
-            })
-            .collect();
-        let rows = rows.iter().flatten();
-        let cuts = rows.clone().map(|r| r.0).sum::<u64>();
-        (cuts, rows.map(|r| r.1).sum())
+        let (edges, rolling) = (&mut self.edges, &mut self.rolling);
+        blend::blend_image(&mut self.acc, edges, rolling, (t, p), image, age)
     }
 }
 
@@ -797,8 +798,7 @@ impl Pixels {
 /// fresh samples; what it cut and the pixels it held a sample back in are merged after.
 struct Band<'a> {
     base: usize,
-    cell: &'a mut [Cell],
-    count: &'a mut [f32],
+    acc: AccumMut<'a>,
     held: &'a mut [Option<(Vec3, f64, Vec3)>],
     cuts: u64,
     held_at: Vec<u32>,
@@ -818,7 +818,8 @@ impl Band<'_> {
                 // Samples are visited in pixel order, but read at random.
                 let qa = qa as usize - self.base;
                 prefetch(fresh, ia as usize);
-                prefetch(self.cell, qa);
+                prefetch(self.acc.cell, qa);
+                prefetch(self.acc.time_sum, qa);
                 prefetch(self.held, qa);
             }
             self.take_in(q as usize - self.base, &fresh[i as usize], slack, p);
@@ -834,8 +835,9 @@ impl Band<'_> {
             return;
         }
         let l = luminance(f.color);
-        let (lo, hi) = self.cell[q].range;
-        let outside = self.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
+        let (lo, hi) = self.acc.cell[q].range;
+        let outside =
+            self.acc.count[q] >= p.min_count_to_test && (l < lo - slack || l > hi + slack);
         match (outside, self.held[q].take()) {
             (false, held) => {
                 // In range: a held sample was a rare part of the pixel after all.
@@ -859,117 +861,28 @@ impl Band<'_> {
     }
 
     fn cut(&mut self, q: usize) {
-        self.cuts += (self.count[q] > 0.0) as u64;
-        clear(&mut self.cell[q], &mut self.count[q]);
+        self.cuts += (self.acc.count[q] > 0.0) as u64;
+        self.acc.clear(q);
         self.held[q] = None;
     }
 
     fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
-        let (a, count) = (&mut self.cell[q], &mut self.count[q]);
-        a.point = hit;
-        a.sum += c;
-        a.time_sum += t;
-        *count += 1.0;
+        let a = &mut self.acc;
+        let (mut sum, mut time_sum) = (a.sum(q) + c, a.time_sum[q] + t);
+        let mut count = a.count[q] + 1.0;
         let l = luminance(c);
-        let r = &mut a.range;
-        *r = (r.0.min(l), r.1.max(l));
-        if *count > max {
-            let k = max / *count;
-            a.sum *= k;
-            a.time_sum *= k as f64;
-            *count = max;
+        let cell = &mut a.cell[q];
+        cell.point = hit;
+        cell.range = (cell.range.0.min(l), cell.range.1.max(l));
+        if count > max {
+            let k = max / count;
+            sum *= k;
+            time_sum *= k as f64;
+            count = max;
         }
-    }
-}
-
-/// Rows of a band of the history's blend.
-const BLEND_ROWS: usize = 16;
-
-/// Each pixel's lowest and highest colour over itself and its two neighbours in the
-/// row `px`.
-fn row_range(px: &[Vec3], out: &mut [(Vec3, Vec3)]) {
-    let w = px.len();
-    for x in 0..w {
-        let (a, b) = (px[x.saturating_sub(1)], px[(x + 1).min(w - 1)]);
-        out[x] = (px[x].min(a).min(b), px[x].max(a).max(b));
-    }
-}
-
-/// Clamp and blend one row's history over the reconstruction `out`, given the row
-/// ranges of the rows above, at and below it; returns the pixels cut and the sum of
-/// the shown ages.
-fn blend_row(
-    [ra, rm, rb]: [&[(Vec3, Vec3)]; 3],
-    out: &mut [Vec3],
-    cell: &mut [Cell],
-    count: &mut [f32],
-    age: &mut [f32],
-    t: f64,
-    p: &HistoryParams,
-) -> (u64, f64) {
-    let (mut cuts, mut age_sum) = (0u64, 0f64);
-    for x in 0..out.len() {
-        let shown_age = if count[x] > 0.0 {
-            let lo = ra[x].0.min(rm[x].0).min(rb[x].0);
-            let hi = ra[x].1.max(rm[x].1).max(rb[x].1);
-            let c = &mut cell[x];
-            let mut px = PixelHistory {
-                sum: &mut c.sum,
-                time_sum: &mut c.time_sum,
-                count: &mut count[x],
-                range: &mut c.range,
-            };
-            cuts += px.clamp_to(lo, hi, p) as u64;
-            px.blend_over(&mut out[x], age[x], t, p.recon_weight)
-        } else {
-            age[x] as f64
-        };
-        age[x] = shown_age as f32;
-        age_sum += shown_age;
-    }
-    (cuts, age_sum)
-}
-
-/// One pixel's history, borrowed from the arrays.
-struct PixelHistory<'a> {
-    sum: &'a mut Vec3,
-    time_sum: &'a mut f64,
-    count: &'a mut f32,
-    range: &'a mut (f32, f32),
-}
-
-impl PixelHistory<'_> {
-    /// Clamp the mean into the reconstruction's box `lo..hi` (widened); where that
-    /// moves it, the count falls to the clamped count. Whether it moved.
-    fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> bool {
-        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
-        let slack = half + Vec3::splat(p.tolerance);
-        let mean = *self.sum / *self.count;
-        let clamped = mean.clamp(mid - slack, mid + slack);
-        if clamped == mean {
-            return false;
-        }
-        let n = self.count.min(p.clamped_count);
-        let mean_t = *self.time_sum / *self.count as f64;
-        *self.count = n;
-        *self.sum = clamped * n;
-        *self.time_sum = mean_t * n as f64;
-        let l = luminance(clamped);
-        *self.range = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
-        true
-    }
-
-    /// Blend over the reconstruction's colour `out` of age `age`, which counts as
-    /// `k` samples; returns the age of what is shown.
-    fn blend_over(&self, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
-        let n = *self.count;
-        *out = (*out * k + *self.sum) / (k + n);
-        let hist_age = if n > 0.0 {
-            t - *self.time_sum / n as f64
-        } else {
-            0.0
-        };
-        (age as f64 * k as f64 + hist_age * n as f64) / (k + n) as f64
+        a.set_sum(q, sum);
+        a.time_sum[q] = time_sum;
+        a.count[q] = count;
     }
 }
 

@@ -1,0 +1,507 @@
+//! The history's blend over the reconstruction: each pixel's history clamped to the
+//! box of the reconstructed colours of the 3×3 pixels around it, then blended over
+//! it. Row by row, in planes (struct of arrays) and without branches, so that the
+//! loops over a row's pixels compile to vector code; each pixel sees the same
+//! operations in the same order as it would on its own.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{AccumMut, HistoryParams, EMPTY_RANGE};
+use crate::image::Image;
+
+/// Rows of a band of the history's blend.
+pub(super) const BLEND_ROWS: usize = 16;
+
+/// Planes of a row's slot, `width` values each: its colour (red, green, blue), then
+/// the lowest and the highest colour over each pixel and its two row neighbours.
+const ROW_PLANES: usize = 9;
+
+/// `a.min(b)` as glam's: `b` unless `a < b` (and so for NaN and signed zeros).
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `a.max(b)` as glam's: `b` unless `a > b`.
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The planes ([`ROW_PLANES`]) of the row `px` into `slot`.
+fn row_planes(px: &[Vec3], slot: &mut [f32]) {
+    let w = px.len();
+    let (colour, range) = slot.split_at_mut(3 * w);
+    let (lo, hi) = range.split_at_mut(3 * w);
+    let (r, gb) = colour.split_at_mut(w);
+    let (g, b) = gb.split_at_mut(w);
+    for (x, c) in px.iter().enumerate() {
+        (r[x], g[x], b[x]) = (c.x, c.y, c.z);
+    }
+    for c in 0..3 {
+        let plane = &colour[c * w..][..w];
+        row_range(plane, &mut lo[c * w..][..w], &mut hi[c * w..][..w]);
+    }
+}
+
+/// Each value's lowest and highest over itself and its two neighbours in `v`.
+fn row_range(v: &[f32], lo: &mut [f32], hi: &mut [f32]) {
+    let w = v.len();
+    let at = |x: usize| {
+        let (a, b) = (v[x.saturating_sub(1)], v[(x + 1).min(w - 1)]);
+        (min(min(v[x], a), b), max(max(v[x], a), b))
+    };
+    (lo[0], hi[0]) = at(0);
+    if w < 3 {
+        (lo[w - 1], hi[w - 1]) = at(w - 1);
+        return;
+    }
+    let inner = lo[1..w - 1].iter_mut().zip(&mut hi[1..w - 1]);
+    for (((l, h), &c), (&a, &b)) in inner.zip(&v[1..]).zip(v.iter().zip(&v[2..])) {
+        (*l, *h) = (min(min(c, a), b), max(max(c, a), b));
+    }
+    (lo[w - 1], hi[w - 1]) = at(w - 1);
+}
+
+/// Clamp each pixel's history in `acc` to the box of the reconstruction `image` around
+/// it, then blend it over `image` at time `t`, bands of [`BLEND_ROWS`] rows in
+/// parallel; `edges` and `rolling` are scratch. Returns the pixels the clamp cut and
+/// the sum of the shown ages (row by row, each in pixel order).
+pub(super) fn blend_image(
+    acc: &mut super::Accum,
+    edges: &mut Vec<f32>,
+    rolling: &mut Vec<f32>,
+    (t, p): (f64, &HistoryParams),
+    image: &mut Image,
+    age: &mut [f32],
+) -> (u64, f64) {
+    let (w, h) = (image.width as usize, image.height as usize);
+    let bands = h.div_ceil(BLEND_ROWS);
+    let slot = ROW_PLANES * w;
+    // The 3×3 neighbourhood's range, separably: each pixel's range over its row
+    // neighbours, then over the ranges of the rows above, at and below (the same
+    // minima and maxima). A band computes its rows' ranges as it goes, before
+    // blending them; the rows next to it are blended by other bands, so their
+    // ranges are taken first.
+    edges.resize(2 * bands * slot, 0.0);
+    let px = &image.pixels;
+    edges
+        .par_chunks_mut(2 * slot)
+        .enumerate()
+        .for_each(|(b, e)| {
+            let (first, last) = e.split_at_mut(slot);
+            let y0 = b * BLEND_ROWS;
+            let y1 = (y0 + BLEND_ROWS).min(h) - 1;
+            row_planes(&px[y0 * w..][..w], first);
+            row_planes(&px[y1 * w..][..w], last);
+        });
+    rolling.resize(3 * bands * slot, 0.0);
+    let edges = &edges[..];
+    let rows: Vec<Vec<(u64, f64)>> = image
+        .pixels
+        .par_chunks_mut(BLEND_ROWS * w)
+        .zip(acc.runs_mut(BLEND_ROWS * w))
+        .zip(age.par_chunks_mut(BLEND_ROWS * w))
+        .zip(rolling.par_chunks_mut(3 * slot))
+        .enumerate()
+        .map(|(b, (((out, acc), age), rolling))| {
+            let band = BandRows { b, bands, w, edges };
+            band.blend(out, acc, age, rolling, t, p)
+        })
+        .collect();
+    let rows = rows.iter().flatten();
+    let cuts = rows.clone().map(|r| r.0).sum::<u64>();
+    (cuts, rows.map(|r| r.1).sum())
+}
+
+/// Band `b` of `bands` of `w`-pixel rows, and the planes of every band's first and
+/// last row.
+struct BandRows<'a> {
+    b: usize,
+    bands: usize,
+    w: usize,
+    edges: &'a [f32],
+}
+
+impl BandRows<'_> {
+    /// Blend the band's rows `out` (its history `acc`, ages `age`), its row planes
+    /// made as it goes in `rolling`; each row's cuts and sum of shown ages.
+    fn blend(
+        &self,
+        out: &mut [Vec3],
+        mut acc: AccumMut,
+        age: &mut [f32],
+        rolling: &mut [f32],
+        t: f64,
+        p: &HistoryParams,
+    ) -> Vec<(u64, f64)> {
+        let (b, w) = (self.b, self.w);
+        let slot = ROW_PLANES * w;
+        let edge = |k: usize| &self.edges[k * slot..][..slot];
+        let rows = out.len() / w;
+        let mut slots: Vec<&mut [f32]> = rolling.chunks_mut(slot).collect();
+        // Slot 1 holds this row's planes, 2 the next row's; the row above's is slot 0
+        // or, for a band's first row, the previous band's edge.
+        row_planes(&out[..w], slots[1]);
+        let mut per_row = Vec::with_capacity(rows);
+        let mut planes = RowOut::default();
+        for r in 0..rows {
+            let next_own = r + 1 < rows;
+            if next_own {
+                row_planes(&out[(r + 1) * w..][..w], slots[2]);
+            }
+            let above: &[f32] = match (r, b) {
+                (0, 0) => slots[1],
+                (0, _) => edge(2 * b - 1),
+                _ => slots[0],
+            };
+            let below: &[f32] = match (next_own, b + 1 < self.bands) {
+                (true, _) => slots[2],
+                (false, true) => edge(2 * b + 2),
+                (false, false) => slots[1],
+            };
+            let row = r * w..(r + 1) * w;
+            per_row.push(blend_row(
+                [above, slots[1], below],
+                &mut out[row.clone()],
+                acc.sub(row.clone()),
+                &mut age[row],
+                (t, p),
+                &mut planes,
+            ));
+            slots.rotate_left(1);
+        }
+        per_row
+    }
+}
+
+/// The planes of the rows above, at and below one row.
+type Around<'a> = [&'a [f32]; 3];
+
+/// What the blend makes of one row's pixels, in planes (reused row after row): the
+/// colour shown, the age shown, whether the clamp moved the history, and the
+/// luminance it moved it to.
+#[derive(Default)]
+struct RowOut {
+    colour: [Vec<f32>; 3],
+    shown: Vec<f64>,
+    moved: Vec<bool>,
+    luminance: Vec<f32>,
+}
+
+/// Plane `k` of a row slot of `w`-pixel rows.
+fn plane(slot: &[f32], k: usize, w: usize) -> &[f32] {
+    &slot[k * w..][..w]
+}
+
+/// Clamp and blend one row's history `acc` over the reconstruction `out`, given the
+/// planes of the rows around it; returns the pixels cut and the sum of the shown ages
+/// (in pixel order).
+fn blend_row(
+    around: Around,
+    out: &mut [Vec3],
+    mut acc: AccumMut,
+    age: &mut [f32],
+    (t, p): (f64, &HistoryParams),
+    o: &mut RowOut,
+) -> (u64, f64) {
+    let w = out.len();
+    o.colour.iter_mut().for_each(|c| c.resize(w, 0.0));
+    o.shown.resize(w, 0.0);
+    o.moved.resize(w, false);
+    o.luminance.resize(w, 0.0);
+    for c in 0..3 {
+        clamp_plane(around, c, &mut acc, o, p);
+    }
+    blend_planes(around, &mut acc, age, o, (t, p));
+    let c = &o.colour;
+    for (x, px) in out.iter_mut().enumerate() {
+        *px = Vec3::new(c[0][x], c[1][x], c[2][x]);
+    }
+    for (a, &s) in age.iter_mut().zip(&o.shown) {
+        *a = s as f32;
+    }
+    let mut age_sum = 0f64;
+    for &s in &o.shown {
+        age_sum += s;
+    }
+    (cut_moved(&mut acc, o), age_sum)
+}
+
+/// Channel `c` of each pixel's mean clamped into its widened 3×3 box, in
+/// `o.colour[c]`, and whether that moved it (`o.moved`, or-ed over the channels).
+fn clamp_plane(around: Around, c: usize, acc: &mut AccumMut, o: &mut RowOut, p: &HistoryParams) {
+    let w = acc.count.len();
+    let plane = |s, k| plane(s, k, w);
+    let [a, m, b] = around;
+    let lows = (plane(a, 3 + c), plane(m, 3 + c), plane(b, 3 + c));
+    let highs = (plane(a, 6 + c), plane(m, 6 + c), plane(b, 6 + c));
+    let (sum, count) = (&acc.sum[c][..w], &acc.count[..w]);
+    let (clamped, moved) = (&mut o.colour[c][..w], &mut o.moved[..w]);
+    let (scale, tolerance) = (0.5 * p.box_scale, p.tolerance);
+    for x in 0..w {
+        let lo = min(min(lows.0[x], lows.1[x]), lows.2[x]);
+        let hi = max(max(highs.0[x], highs.1[x]), highs.2[x]);
+        let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * scale);
+        let slack = half + tolerance;
+        let mean = sum[x] / count[x];
+        clamped[x] = min(max(mean, mid - slack), mid + slack);
+        let differs = clamped[x] != mean;
+        moved[x] = if c == 0 { differs } else { moved[x] | differs };
+    }
+}
+
+/// Where the clamp moved a history (`o.colour`: its clamped mean) its count falls to
+/// the clamped count; then each history blended over the reconstructed colour (the
+/// middle row's planes), into `o.colour` and `o.shown`.
+fn blend_planes(
+    [_, m, _]: Around,
+    acc: &mut AccumMut,
+    age: &[f32],
+    o: &mut RowOut,
+    (t, p): (f64, &HistoryParams),
+) {
+    let w = acc.count.len();
+    let (k, kd) = (p.recon_weight, p.recon_weight as f64);
+    let [sr, sg, sb] = &mut acc.sum;
+    let (sr, sg, sb) = (&mut sr[..w], &mut sg[..w], &mut sb[..w]);
+    let (count, time_sum, age) = (&mut acc.count[..w], &mut acc.time_sum[..w], &age[..w]);
+    let [cr, cg, cb] = &mut o.colour;
+    let (cr, cg, cb) = (&mut cr[..w], &mut cg[..w], &mut cb[..w]);
+    let (moved, luminance, shown) = (&mut o.moved[..w], &mut o.luminance[..w], &mut o.shown[..w]);
+    let (mr, mg, mb) = (&m[..w], &m[w..][..w], &m[2 * w..][..w]);
+    for x in 0..w {
+        let n0 = count[x];
+        let mv = moved[x] && n0 > 0.0;
+        moved[x] = mv;
+        let nc = n0.min(p.clamped_count);
+        let n = if mv { nc } else { n0 };
+        let (r, g, b) = (cr[x], cg[x], cb[x]);
+        luminance[x] = crate::trace::luminance(Vec3::new(r, g, b));
+        let ts = if mv {
+            time_sum[x] / n0 as f64 * nc as f64
+        } else {
+            time_sum[x]
+        };
+        let s = if mv {
+            (r * nc, g * nc, b * nc)
+        } else {
+            (sr[x], sg[x], sb[x])
+        };
+        (sr[x], sg[x], sb[x], count[x], time_sum[x]) = (s.0, s.1, s.2, n, ts);
+        let show = |col: f32, s: f32| {
+            let blended = (col * k + s) / (k + n);
+            if n0 > 0.0 {
+                blended
+            } else {
+                col
+            }
+        };
+        (cr[x], cg[x], cb[x]) = (show(mr[x], s.0), show(mg[x], s.1), show(mb[x], s.2));
+        let a = age[x] as f64;
+        let hist_age = if n > 0.0 { t - ts / n as f64 } else { 0.0 };
+        let blended = (a * kd + hist_age * n as f64) / (k + n) as f64;
+        shown[x] = if n0 > 0.0 { blended } else { a };
+    }
+}
+
+/// The luminance range of each history the clamp moved (empty where it kept
+/// nothing); how many it moved.
+fn cut_moved(acc: &mut AccumMut, o: &RowOut) -> u64 {
+    let mut cuts = 0;
+    for (x, _) in o.moved.iter().enumerate().filter(|(_, &m)| m) {
+        let l = o.luminance[x];
+        acc.cell[x].range = if acc.count[x] > 0.0 {
+            (l, l)
+        } else {
+            EMPTY_RANGE
+        };
+        cuts += 1;
+    }
+    cuts
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{reconstruction::history::Accum, sampling::Rng, trace::luminance};
+
+    /// One pixel's history, as the blend's reference.
+    struct PixelHistory {
+        sum: Vec3,
+        time_sum: f64,
+        count: f32,
+        range: (f32, f32),
+    }
+
+    impl PixelHistory {
+        fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> bool {
+            let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
+            let slack = half + Vec3::splat(p.tolerance);
+            let mean = self.sum / self.count;
+            let clamped = mean.clamp(mid - slack, mid + slack);
+            if clamped == mean {
+                return false;
+            }
+            let n = self.count.min(p.clamped_count);
+            let mean_t = self.time_sum / self.count as f64;
+            self.count = n;
+            self.sum = clamped * n;
+            self.time_sum = mean_t * n as f64;
+            let l = luminance(clamped);
+            self.range = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
+            true
+        }
+
+        fn blend_over(&self, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
+            let n = self.count;
+            *out = (*out * k + self.sum) / (k + n);
+            let hist_age = if n > 0.0 {
+                t - self.time_sum / n as f64
+            } else {
+                0.0
+            };
+            (age as f64 * k as f64 + hist_age * n as f64) / (k + n) as f64
+        }
+    }
+
+    /// The blend pixel by pixel, each pixel's 3×3 box taken from `image` as it was.
+    fn reference(
+        acc: &mut Accum,
+        (t, p): (f64, &HistoryParams),
+        image: &mut Image,
+        age: &mut [f32],
+    ) -> (u64, f64) {
+        let (w, h) = (image.width as usize, image.height as usize);
+        let before = image.pixels.clone();
+        let at = |x: usize, y: usize| before[y * w + x];
+        let (mut cuts, mut rows) = (0, Vec::new());
+        for y in 0..h {
+            let mut age_sum = 0f64;
+            for x in 0..w {
+                let q = y * w + x;
+                let shown = if acc.count[q] > 0.0 {
+                    let ys = [y.saturating_sub(1), y, (y + 1).min(h - 1)];
+                    let xs = [x.saturating_sub(1), x, (x + 1).min(w - 1)];
+                    let row = |y| {
+                        let [a, m, b] = xs.map(|x| at(x, y));
+                        (m.min(a).min(b), m.max(a).max(b))
+                    };
+                    let [ra, rm, rb] = ys.map(row);
+                    let (lo, hi) = (ra.0.min(rm.0).min(rb.0), ra.1.max(rm.1).max(rb.1));
+                    let mut px = PixelHistory {
+                        sum: Vec3::new(acc.sum[0][q], acc.sum[1][q], acc.sum[2][q]),
+                        time_sum: acc.time_sum[q],
+                        count: acc.count[q],
+                        range: acc.cell[q].range,
+                    };
+                    cuts += px.clamp_to(lo, hi, p) as u64;
+                    let shown = px.blend_over(&mut image.pixels[q], age[q], t, p.recon_weight);
+                    (acc.sum[0][q], acc.sum[1][q], acc.sum[2][q]) = px.sum.into();
+                    (acc.time_sum[q], acc.count[q]) = (px.time_sum, px.count);
+                    acc.cell[q].range = px.range;
+                    shown
+                } else {
+                    age[q] as f64
+                };
+                age[q] = shown as f32;
+                age_sum += shown;
+            }
+            rows.push(age_sum);
+        }
+        (cuts, rows.into_iter().sum())
+    }
+
+    /// A `w × h` history and reconstruction: some pixels empty, some histories
+    /// far from the reconstruction (clamped), some with few samples.
+    fn case(w: u32, h: u32, seed: u64) -> (Accum, Image, Vec<f32>) {
+        let n = (w * h) as usize;
+        let mut rng = Rng::new(&[seed]);
+        let mut acc = Accum::new(n);
+        let mut image = Image::new(w, h);
+        let mut age = vec![0f32; n];
+        for (q, a) in age.iter_mut().enumerate() {
+            image.pixels[q] = Vec3::new(rng.uniform(), rng.uniform(), rng.uniform());
+            *a = rng.uniform() * 0.3;
+            let count = match rng.uniform() {
+                u if u < 0.2 => 0.0,
+                u if u < 0.3 => 0.5,
+                u => (u * 40.0).floor(),
+            };
+            let mean = match rng.uniform() {
+                u if u < 0.7 => image.pixels[q],
+                _ => Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()) * 3.0,
+            };
+            if count > 0.0 {
+                for c in 0..3 {
+                    acc.sum[c][q] = mean[c] * count;
+                }
+                acc.time_sum[q] = (1.0 + rng.uniform() as f64) * count as f64;
+                acc.count[q] = count;
+                acc.cell[q].range = (0.1, 0.9);
+            }
+        }
+        (acc, image, age)
+    }
+
+    #[test]
+    fn the_planar_blend_is_the_per_pixel_blend_bit_for_bit() {
+        let params = [
+            HistoryParams::default(),
+            HistoryParams {
+                recon_weight: 2.5,
+                clamped_count: 0.0,
+                ..Default::default()
+            },
+        ];
+        let sizes = [(1, 1), (1, 40), (7, 3), (9, 17), (37, 33), (64, 16)];
+        let mut clamped = 0;
+        for (k, p) in params.iter().enumerate() {
+            for (seed, &(w, h)) in sizes.iter().enumerate() {
+                let (mut acc, mut image, mut age) = case(w, h, seed as u64);
+                let (mut acc2, mut image2, mut age2) = (acc.clone(), image.clone(), age.clone());
+                let (mut edges, mut rolling) = (Vec::new(), Vec::new());
+                let got = blend_image(
+                    &mut acc,
+                    &mut edges,
+                    &mut rolling,
+                    (2.0, p),
+                    &mut image,
+                    &mut age,
+                );
+                let want = reference(&mut acc2, (2.0, p), &mut image2, &mut age2);
+                let at = format!("{w}×{h}, params {k}");
+                clamped += want.0;
+                assert_eq!(got.0, want.0, "{at}");
+                assert_eq!(got.1.to_bits(), want.1.to_bits(), "{at}");
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&age), bits(&age2), "{at}");
+                assert_eq!(bits(&acc.count), bits(&acc2.count), "{at}");
+                for c in 0..3 {
+                    assert_eq!(bits(&acc.sum[c]), bits(&acc2.sum[c]), "{at}");
+                    let ch = |im: &Image| im.pixels.iter().map(|v| v[c]).collect::<Vec<_>>();
+                    assert_eq!(bits(&ch(&image)), bits(&ch(&image2)), "{at}");
+                }
+                let tb = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(tb(&acc.time_sum), tb(&acc2.time_sum), "{at}");
+                let ranges = |a: &Accum| {
+                    a.cell
+                        .iter()
+                        .map(|c| (c.range.0.to_bits(), c.range.1.to_bits()))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(ranges(&acc), ranges(&acc2), "{at}");
+            }
+        }
+        assert!(clamped > 100, "{clamped} clamped");
+    }
+}
