@@ -40,9 +40,8 @@ use super::{
     filter_table::Lookup,
     lanes::{fast_exp_neg, prefetch, Lanes, LANES, PREFETCH_AHEAD},
     place::Projector,
-    resolve::MIN_WEIGHT,
     ring::field,
-    splat::{behind_front, CHANNELS},
+    splat::{behind_front, CHANNELS, MIN_WEIGHT},
     Reconstructor,
 };
 use crate::{

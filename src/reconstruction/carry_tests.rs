@@ -368,7 +368,7 @@ fn fronts_are_lowered_as_pixel_by_pixel() {
         let mut got = front.clone();
         lower_fronts(&mut got, &geo, &weight);
         for x in 0..w {
-            let lowers = weight[x] >= super::resolve::MIN_WEIGHT && geo[x].v == Vec3::ZERO;
+            let lowers = weight[x] >= super::splat::MIN_WEIGHT && geo[x].v == Vec3::ZERO;
             let want = if lowers {
                 front[x].min(geo[x].z)
             } else {

@@ -6,7 +6,10 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 
-use super::{resolve::MIN_WEIGHT, splat::CHANNELS, Reconstructor};
+use super::{
+    splat::{CHANNELS, MIN_WEIGHT},
+    Reconstructor,
+};
 
 impl Reconstructor {
     /// Accumulated sums of pixel `(x, y)` (zero for a hole).

@@ -22,8 +22,7 @@ use rayon::{iter::Either, prelude::*};
 
 use super::{
     lanes::{prefetch, LANES},
-    resolve::MIN_WEIGHT,
-    splat::channel_row,
+    splat::{channel_row, MIN_WEIGHT},
     Reconstructor,
 };
 

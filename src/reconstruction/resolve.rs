@@ -14,13 +14,9 @@ use rayon::prelude::*;
 use super::{
     lanes::{small_int, LANES},
     pullpush::{any_below, premultiply, pull_row, CH},
-    splat::{channel_row, BAND_ROWS, CHANNELS},
+    splat::{channel_row, BAND_ROWS, CHANNELS, MIN_WEIGHT},
     ReconParams, Reconstructor,
 };
-
-/// Accumulated weight below which a pixel counts as a hole: far splat tails reach
-/// f32's denormal range, where `Σw·c / Σw` loses all precision.
-pub(super) const MIN_WEIGHT: f32 = 1e-24;
 
 /// Rows of the fill's first level per band of the resolve (two image rows each).
 const LEVEL_ROWS: usize = BAND_ROWS / 2;

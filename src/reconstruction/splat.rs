@@ -20,6 +20,10 @@ pub(super) const SINGLE_THREAD_BAND_ROWS: usize = 32;
 /// Accumulated channels: weighted red, green, blue, weight, weighted age.
 pub(super) const CHANNELS: usize = 5;
 
+/// Accumulated weight below which a pixel counts as a hole: far splat tails reach
+/// f32's denormal range, where `Σw·c / Σw` loses all precision.
+pub(super) const MIN_WEIGHT: f32 = 1e-24;
+
 /// Floats per channel in one accumulator row: the width rounded up to whole [`LANES`]
 /// plus one more run of them, so that `LANES` floats from any pixel of the row stay
 /// within the channel (a footprint's last lanes, past its last column, add `+0` there).

@@ -519,7 +519,7 @@ fn direct_pull_push(
     age: &[f32],
 ) -> Vec<Vec3> {
     let pre = |i: usize| -> [f32; 5] {
-        if wt[i] < resolve::MIN_WEIGHT {
+        if wt[i] < splat::MIN_WEIGHT {
             return [0.0; 5];
         }
         let a = (wt[i] / w0).min(1.0);

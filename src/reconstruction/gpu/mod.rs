@@ -37,8 +37,8 @@ use glam::Vec3;
 use super::{
     filter_table::{Lookup, TileFilter},
     history::Step,
-    resolve::MIN_WEIGHT,
     ring::{field, Ring},
+    splat::MIN_WEIGHT,
     HistoryParams, ReconParams,
 };
 use crate::scene::CameraFrame;
