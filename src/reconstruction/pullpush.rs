@@ -365,16 +365,22 @@ fn premultiplied_row(weight: &[f32], w0: f32, px: &[Vec3], age: &[f32], out: &mu
     // Every slice exactly `w` long, so that the loop has no bounds checks and compiles
     // to vector code.
     let (px, age) = (&px[..w], &age[..w]);
-    let (r, rest) = out.split_at_mut(w);
-    let (g, rest) = rest.split_at_mut(w);
-    let (b, rest) = rest.split_at_mut(w);
-    let (ag, al) = rest.split_at_mut(w);
-    let al = &mut al[..w];
+    let [r, g, b, ag, al] = runs_mut(out, w);
     for x in 0..w {
         let p = px[x];
         let v = premultiply(weight[x], w0, [p.x, p.y, p.z, age[x]]);
         (r[x], g[x], b[x], ag[x], al[x]) = (v[0], v[1], v[2], v[3], v[4]);
     }
+}
+
+/// The first `CH` runs of `w` floats of `out`, one per channel, each exactly `w` long
+/// (so that loops over them need no bounds checks).
+pub(super) fn runs_mut(out: &mut [f32], w: usize) -> [&mut [f32]; CH] {
+    let (r, rest) = out.split_at_mut(w);
+    let (g, rest) = rest.split_at_mut(w);
+    let (b, rest) = rest.split_at_mut(w);
+    let (a, rest) = rest.split_at_mut(w);
+    [r, g, b, a, &mut rest[..w]]
 }
 
 /// Premultiplied `(r, g, b, age, α)` of a pixel of accumulated weight `cw` and colour

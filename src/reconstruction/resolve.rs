@@ -13,7 +13,7 @@ use rayon::prelude::*;
 
 use super::{
     lanes::{small_int, LANES},
-    pullpush::{any_below, premultiply, pull_row, CH},
+    pullpush::{any_below, premultiply, pull_row, runs_mut, CH},
     splat::{channel_row, BAND_ROWS, CHANNELS, MIN_WEIGHT},
     ReconParams, Reconstructor,
 };
@@ -356,11 +356,7 @@ fn interleave(q: &[&[f32]; 4], x: usize, px: &mut [Vec3]) {
 fn premultiplied(cw: &[f32], q: &[&[f32]; 4], fill: f32, pre: &mut [f32]) {
     let w = cw.len();
     let q: [&[f32]; 4] = std::array::from_fn(|k| &q[k][..w]);
-    let (pr, rest) = pre.split_at_mut(w);
-    let (pg, rest) = rest.split_at_mut(w);
-    let (pb, rest) = rest.split_at_mut(w);
-    let (pa, pal) = rest.split_at_mut(w);
-    let pal = &mut pal[..w];
+    let [pr, pg, pb, pa, pal] = runs_mut(pre, w);
     for x in 0..w {
         let v = premultiply(cw[x], fill, [q[0][x], q[1][x], q[2][x], q[3][x]]);
         (pr[x], pg[x], pb[x], pa[x], pal[x]) = (v[0], v[1], v[2], v[3], v[4]);
