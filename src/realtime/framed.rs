@@ -27,7 +27,10 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{lock, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown, Spawner},
+    shared::{
+        lock, take_queued, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown,
+        Spawner,
+    },
 };
 use crate::{
     image::Image,
@@ -248,7 +251,7 @@ impl ImageBuilder for Builder {
         // Frames completed in this build before a newer one: traced, never shown.
         let (mut dropped, mut replaced) = (0u64, false);
         let warp = self.warp.is_some();
-        for row in self.rx.try_iter() {
+        for row in take_queued(&self.rx) {
             let new = || {
                 let hits = if warp {
                     vec![GSample::default(); (w * h) as usize]

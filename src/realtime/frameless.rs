@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
+    shared::{take_queued, Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
 };
 use crate::{
     methods::frameless::NewestSamples,
@@ -41,8 +41,14 @@ type Batch = Vec<(u32, Vec3, f64)>;
 fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     let s = sp.shared().clone();
     // Bounded, so that a slow image thread slows the sampling threads instead of
-    // growing memory; ~100 ms of batches.
-    let (tx, rx) = bounded(256);
+    // growing memory: ~100 ms of the CPU's small batches, or two of each GPU feeder's
+    // large ones (256 of those were 33 M samples, over half a second at 1080p).
+    let queue = if s.config.rays.is_some() {
+        2 * batch::GPU_FEEDERS as usize
+    } else {
+        256
+    };
+    let (tx, rx) = bounded(queue);
     let s1 = s.clone();
     sp.sampling_threads(tx, move |i, tx| sample(&s1, i, tx))?;
     let (w, h) = s.tracer.size();
@@ -141,7 +147,7 @@ struct Builder {
 
 impl ImageBuilder for Builder {
     fn build(&mut self, t: f64) -> Option<Built> {
-        for batch in self.rx.try_iter() {
+        for batch in take_queued(&self.rx) {
             for (p, c, ts) in batch {
                 self.newest.set(p, c, ts);
             }

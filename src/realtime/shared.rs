@@ -30,6 +30,15 @@ use crate::{
 /// that channel traffic stays small next to tracing, short next to a refresh.
 pub(crate) const BATCH_S: f64 = 1e-3;
 
+/// What a builder's channel holds now, and no more: samples sent while an image is
+/// built wait for the next one. Draining until the channel is empty instead never ends
+/// while the senders outpace the builder, as a GPU tracer's feeders do (session 26: one
+/// image in two seconds at 1920x1080 with 53 M samples/s).
+pub(crate) fn take_queued<T>(rx: &crossbeam_channel::Receiver<T>) -> impl Iterator<Item = T> + '_ {
+    let queued = rx.len();
+    rx.try_iter().take(queued)
+}
+
 /// One displayed image.
 pub struct Frame {
     /// Increases with every new image.
@@ -505,5 +514,22 @@ mod tests {
         // Another thread's change leaves this one as it was.
         assert_eq!(nice(), base);
         assert_eq!(lowered, super::SAMPLING_NICE.max(base));
+    }
+
+    /// A build takes what was queued when it began: a sender that keeps up with it
+    /// (here, one more item for every item taken) cannot hold it forever.
+    #[test]
+    fn a_build_takes_only_what_was_queued() {
+        let (tx, rx) = crossbeam_channel::bounded(16);
+        for i in 0..3 {
+            tx.send(i).unwrap();
+        }
+        let mut got = Vec::new();
+        for x in super::take_queued(&rx) {
+            got.push(x);
+            tx.send(100 + x).unwrap();
+        }
+        assert_eq!(got, [0, 1, 2]);
+        assert_eq!(super::take_queued(&rx).collect::<Vec<_>>(), [100, 101, 102]);
     }
 }

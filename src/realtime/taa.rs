@@ -23,8 +23,8 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 use super::{
     config::RealtimeError,
     shared::{
-        lock, sampled_ages, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown,
-        Spawner,
+        lock, sampled_ages, take_queued, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared,
+        Shown, Spawner,
     },
 };
 use crate::{
@@ -323,7 +323,7 @@ impl ImageBuilder for Builder {
 
     fn build(&mut self, t: f64) -> Option<Built> {
         // Collected first: folding borrows the whole builder.
-        let rows: Vec<Row> = self.rx.try_iter().collect();
+        let rows: Vec<Row> = take_queued(&self.rx).collect();
         let mut complete: Option<Building> = None;
         let mut dropped = 0u64;
         for row in rows {

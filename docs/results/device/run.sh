@@ -16,6 +16,7 @@
 # removed from the working tree for the call, and restored after, to fit its 64 MiB):
 #   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
 #   BUDGET_S=330 bash docs/results/device/run.sh 2>&1 | tee $OUT/run.log
+# (ONLY=REGEX runs only the steps whose names match, for a short rerun.)
 # Only eight files come back from the device, so everything is written under a work
 # folder and packed into $OUT/results.tar.gz (images left out). Steps, in order of
 # value, each cut to what is left of the time budget:
@@ -52,6 +53,7 @@ fi
 # step NAME MAX_SECONDS COMMAND...: run with a timeout of at most what is left.
 step() {
   local name="$1" max="$2"; shift 2
+  if [ -n "${ONLY:-}" ] && ! [[ "$name" =~ $ONLY ]]; then return; fi
   local left=$((budget - (SECONDS - start)))
   local t=$((max < left ? max : left))
   if [ "$t" -lt 15 ]; then echo "skipped $name: time budget spent"; return; fi

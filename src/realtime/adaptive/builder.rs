@@ -14,7 +14,7 @@ use super::{overlays::TilingOverlays, published::Published, settings::AdaptiveSe
 use crate::{
     realtime::{
         config::RealtimeError,
-        shared::{lock, Built, ImageBuilder, Shared},
+        shared::{lock, take_queued, Built, ImageBuilder, Shared},
     },
     reconstruction::{device::ReconUsed, Reconstructor},
     trace::StreamSample,
@@ -257,7 +257,7 @@ impl ImageBuilder for Builder {
         let s = &*self.s;
         let (w, h) = s.tracer.size();
         let tiling = Arc::new(self.published.whole_tiling()?);
-        let batches: Vec<Vec<StreamSample>> = self.rx.try_iter().collect();
+        let batches: Vec<Vec<StreamSample>> = take_queued(&self.rx).collect();
         // The filters need the sample rate R, measured over the last second; a new
         // rate takes effect at the next refresh, keeping the ring, the splat scale and
         // the still-region history.
