@@ -174,7 +174,7 @@ impl Pipeline {
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
             // The image thread and the method's own.
-            other_threads: 1 + method.extra_threads(cfg.sampling_threads),
+            other_threads: 1 + method.extra_threads(cfg),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
             seconds,
             samples,

@@ -163,7 +163,7 @@ struct Facts {
     name: &'static str,
     about: &'static str,
     default_sampling_threads: fn(usize) -> usize,
-    extra_threads: fn(usize) -> usize,
+    extra_threads: fn(&RtConfig) -> usize,
     overlays: &'static [Overlay],
     traces_on_gpu: bool,
 }
@@ -197,8 +197,8 @@ impl RtMethod {
 
     /// Threads it runs besides `sampling_threads` sampling threads and the pipeline's
     /// image thread.
-    pub fn extra_threads(self, sampling_threads: usize) -> usize {
-        (self.facts().extra_threads)(sampling_threads)
+    pub fn extra_threads(self, config: &RtConfig) -> usize {
+        (self.facts().extra_threads)(config)
     }
 
     /// The images it offers besides the displayed one, which the viewer cycles.
@@ -465,8 +465,12 @@ mod tests {
         assert_eq!(threads(RtMethod::Taa), cores);
         assert_eq!(threads(RtMethod::TaaWarp), cores);
         // Adaptive's controllers: one per four sampling threads.
-        let extra = |n| RtMethod::Adaptive.extra_threads(n);
-        assert_eq!((extra(1), extra(4), extra(5), extra(15)), (1, 1, 2, 4));
-        assert_eq!(RtMethod::TraditionalFrameless.extra_threads(15), 0);
+        let extra = |m, n| RtMethod::extra_threads(m, &RtConfig::for_cores(m, n));
+        let adaptive = |n| extra(RtMethod::Adaptive, n);
+        assert_eq!(
+            (adaptive(1), adaptive(4), adaptive(5), adaptive(15)),
+            (1, 1, 2, 4)
+        );
+        assert_eq!(extra(RtMethod::TraditionalFrameless, 15), 0);
     }
 }

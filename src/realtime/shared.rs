@@ -282,7 +282,7 @@ pub(crate) struct MethodInfo<S: 'static = NoSettings> {
     pub default_sampling_threads: fn(usize) -> usize,
     /// Threads it runs besides its sampling threads and the pipeline's image thread,
     /// given how many sampling threads it runs.
-    pub extra_threads: fn(usize) -> usize,
+    pub extra_threads: fn(&RtConfig) -> usize,
     /// The images it offers besides the displayed one ([`Built::overlays`] draws them).
     pub overlays: &'static [Overlay],
     /// Whether its sampling traces on the GPU tracer when the run has one

@@ -586,6 +586,15 @@ impl Reconstructor {
             return Ok(());
         };
         let before = g.times();
+        if carrying {
+            let sums = gpu::carried::CarriedSums {
+                acc: &self.acc,
+                cs: self.cs,
+                w: self.width as usize,
+                cover: &self.cover,
+            };
+            g.upload_carried(&sums)?;
+        }
         let into = gpu::ReadInto {
             image: &mut self.image.pixels,
             age: &mut self.age,
@@ -641,16 +650,12 @@ impl Reconstructor {
     /// ([`Reconstructor::carried_front`]) over no new splat (`front` is scratch here).
     #[cfg(feature = "gpu")]
     fn pack_carried(&mut self) -> gpu::carried::CarriedIn {
-        let (w, cs) = (self.width as usize, self.cs);
         let front = self.visibility_keep().map(|_| {
             self.front.clear();
             self.front.resize(self.cover.len(), f32::INFINITY);
             self.carried_front();
             gpu::carried::front_bits(&self.front)
         });
-        gpu::carried::CarriedIn {
-            sums: gpu::carried::pack(&self.acc, cs, w, &self.cover),
-            front,
-        }
+        gpu::carried::CarriedIn { front }
     }
 }

@@ -55,7 +55,7 @@ use std::sync::Arc;
 use crossbeam_channel::bounded;
 
 pub use bench::{controller_bench, ControllerBench};
-pub use published::{bands, controllers, THREADS_PER_CONTROLLER};
+pub use published::{bands, controllers, controllers_for, THREADS_PER_CONTROLLER};
 pub use settings::{AdaptiveArgs, AdaptiveSettings};
 
 use crate::realtime::{
@@ -74,7 +74,7 @@ pub(crate) const METHOD: MethodInfo<AdaptiveSettings> = MethodInfo {
     // (on 2 cores, 1.3 times the samples of one thread per core but one, at the same
     // image rate; docs/performance.md).
     default_sampling_threads: |cores| cores,
-    extra_threads: controllers,
+    extra_threads: controllers_for,
     overlays: overlays::OVERLAYS,
     traces_on_gpu: true,
     // Its buffers (deep buffer, ring) include the display check.

@@ -11,11 +11,20 @@ use rayon::prelude::*;
 use super::PER_PIXEL;
 use crate::reconstruction::splat::{channel_row, CHANNELS};
 
-/// What a carrying refresh uploads.
+/// The carried sums a carrying refresh uploads: the CPU's planar accumulators `acc`
+/// (channel stride `cs`) of a `w`-wide image and its coverage `cover`, packed on the
+/// way into per-pixel runs of the weighted red, green, blue, weight, weighted age and
+/// coverage (the GPU accumulators' layout, [`PER_PIXEL`] floats).
+pub(in crate::reconstruction) struct CarriedSums<'a> {
+    pub(in crate::reconstruction) acc: &'a [f32],
+    pub(in crate::reconstruction) cs: usize,
+    pub(in crate::reconstruction) w: usize,
+    pub(in crate::reconstruction) cover: &'a [f32],
+}
+
+/// What a carrying refresh uploads besides the sums (which go first, see
+/// [`CarriedSums`]).
 pub(in crate::reconstruction) struct CarriedIn {
-    /// Per pixel: the carried weighted red, green, blue, weight, weighted age and
-    /// coverage (the GPU accumulators' layout).
-    pub(in crate::reconstruction) sums: Vec<f32>,
     /// With the visibility pass: each pixel's initial front depth as the shaders
     /// store it (see [`front_bits`]).
     pub(in crate::reconstruction) front: Option<Vec<u32>>,
@@ -23,24 +32,43 @@ pub(in crate::reconstruction) struct CarriedIn {
 
 /// Repack the planar CPU accumulators `acc` (channel stride `cs`) of a `w`-wide
 /// image and its coverage `cover` into per-pixel runs of [`PER_PIXEL`] floats.
+#[cfg(test)]
 pub(in crate::reconstruction) fn pack(acc: &[f32], cs: usize, w: usize, cover: &[f32]) -> Vec<f32> {
-    let mut out = vec![0f32; cover.len() * PER_PIXEL];
-    // Rows are independent: in parallel.
-    out.par_chunks_mut(w * PER_PIXEL)
-        .zip(cover.par_chunks(w))
-        .enumerate()
-        .for_each(|(y, (rows, cover))| {
-            for ch in 0..CHANNELS {
-                let src = &channel_row(acc, cs, y, ch)[..w];
-                for (px, &v) in rows.chunks_exact_mut(PER_PIXEL).zip(src) {
-                    px[ch] = v;
-                }
-            }
-            for (px, &c) in rows.chunks_exact_mut(PER_PIXEL).zip(cover) {
-                px[CHANNELS] = c;
-            }
-        });
+    let mut out = Vec::new();
+    pack_into(&CarriedSums { acc, cs, w, cover }, &mut out);
     out
+}
+
+/// [`pack`] into `out`, resized to fit: blocks of rows on every thread. `out` is
+/// kept between refreshes, so that the 50 MB of a 1080p image are not allocated and
+/// faulted in again each time. (The queue's write-only staging view cannot be split
+/// between threads, so the packed floats go to it in one copy.)
+pub(in crate::reconstruction) fn pack_into(c: &CarriedSums<'_>, out: &mut Vec<f32>) {
+    let row = c.w * PER_PIXEL;
+    out.resize(c.cover.len() * PER_PIXEL, 0.0);
+    out.par_chunks_mut(row * PACK_ROWS)
+        .enumerate()
+        .for_each(|(i, block)| pack_rows(c, i * PACK_ROWS, block));
+}
+
+/// Rows per task of [`pack_into`].
+const PACK_ROWS: usize = 8;
+
+/// Rows `y0..` of `c` packed into `out` (whole rows of [`PER_PIXEL`] floats a pixel).
+fn pack_rows(c: &CarriedSums<'_>, y0: usize, out: &mut [f32]) {
+    let CarriedSums { acc, cs, w, cover } = *c;
+    for (dy, rows) in out.chunks_exact_mut(w * PER_PIXEL).enumerate() {
+        let y = y0 + dy;
+        for ch in 0..CHANNELS {
+            let src = &channel_row(acc, cs, y, ch)[..w];
+            for (px, &v) in rows.chunks_exact_mut(PER_PIXEL).zip(src) {
+                px[ch] = v;
+            }
+        }
+        for (px, &c) in rows.chunks_exact_mut(PER_PIXEL).zip(&cover[y * w..][..w]) {
+            px[CHANNELS] = c;
+        }
+    }
 }
 
 /// The inverse of [`pack`]: the GPU's final sums into `acc`, its coverage into

@@ -42,7 +42,7 @@ use super::{
     HistoryParams, ReconParams,
 };
 use crate::scene::CameraFrame;
-use carried::CarriedIn;
+use carried::{CarriedIn, CarriedSums};
 
 /// Storage buffers the shaders bind at once.
 const STORAGE_BUFFERS: u32 = 12;
@@ -203,6 +203,10 @@ pub struct GpuRecon {
     epoch: Option<f64>,
     history: Option<history::GpuHistory>,
     times: GpuReconTimes,
+    /// The carried sums of the next refresh are in the accumulators.
+    carried_uploaded: bool,
+    /// The carried sums packed for the upload, kept between refreshes.
+    packed: Vec<f32>,
 }
 
 struct Pipelines {
@@ -402,6 +406,8 @@ impl GpuRecon {
             uploaded: 0,
             epoch: None,
             times: GpuReconTimes::default(),
+            carried_uploaded: false,
+            packed: Vec::new(),
         })
     }
 
@@ -517,8 +523,12 @@ impl GpuRecon {
             0
         };
         p.count = count as u32;
-        if let Some(c) = carried {
-            self.upload_carried(c)?;
+        if carried.is_some() {
+            if !std::mem::take(&mut self.carried_uploaded) {
+                return Err(GpuError::Failed(
+                    "a carrying refresh without its carried sums".into(),
+                ));
+            }
             p.carry = 1;
         }
         let front = carried.and_then(|c| c.front.as_deref());
@@ -540,24 +550,38 @@ impl GpuRecon {
     }
 
     /// Write the carried sums and coverage into the accumulators, which only the
-    /// gather reads (the front depths are written at each bin pass, which may run
-    /// again).
-    fn upload_carried(&self, c: &CarriedIn) -> Result<(), GpuError> {
+    /// gather reads, before a carrying [`refresh`](Self::refresh) (the front depths
+    /// are written at each bin pass, which may run again). Packed on every thread
+    /// into a buffer kept between refreshes, then copied to the staging memory.
+    pub(super) fn upload_carried(&mut self, c: &CarriedSums<'_>) -> Result<(), GpuError> {
+        let t0 = std::time::Instant::now();
         let n = self.width as usize * self.height as usize;
         if self.buffers.read_acc.is_none() {
             return Err(GpuError::Failed(
                 "carried sums for a GPU side made without carrying".into(),
             ));
         }
-        if c.sums.len() != n * PER_PIXEL {
+        if c.cover.len() != n || c.w != self.width as usize {
             return Err(GpuError::Failed(format!(
-                "carried sums of {} floats for {n} pixels",
-                c.sums.len()
+                "carried sums of {} pixels, {} wide, for {n} pixels, {} wide",
+                c.cover.len(),
+                c.w,
+                self.width
             )));
         }
-        self.ctx
-            .queue
-            .write_buffer(&self.buffers.acc, 0, bytemuck::cast_slice(&c.sums));
+        let bytes = (n * PER_PIXEL * 4) as u64;
+        let size = wgpu::BufferSize::new(bytes).expect("an image has pixels");
+        let q = &self.ctx.queue;
+        let Some(mut view) = q.write_buffer_with(&self.buffers.acc, 0, size) else {
+            return Err(GpuError::Failed(
+                "no staging memory for the carried sums".into(),
+            ));
+        };
+        carried::pack_into(c, &mut self.packed);
+        view.copy_from_slice(bytemuck::cast_slice(&self.packed));
+        drop(view);
+        self.carried_uploaded = true;
+        self.times.upload_s += t0.elapsed().as_secs_f64();
         Ok(())
     }
 
