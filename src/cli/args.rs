@@ -359,6 +359,9 @@ pub struct LiveArgs {
     /// the range.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
     pub repeat: u32,
+    /// Threads of the image build [default: half the cores `--threads` names, at least 1].
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
+    pub recon_threads: Option<u16>,
     /// Output folder.
     #[arg(short, long, default_value = "live-out")]
     pub out: PathBuf,

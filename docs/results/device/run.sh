@@ -28,6 +28,7 @@
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
+# - live_<size>_<cores>_recon<cores>/: adaptive with the image build on every core;
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
 # - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
 # - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU (`pass_ms` splits
@@ -96,6 +97,13 @@ for size in 640x480 1280x720; do
       --method adaptive,traditional-frameless
   done
 done
+# The image build on every core instead of half of them (sampling threads run niced).
+if "$bin" live --help 2>/dev/null | grep -q -- '--recon-threads'; then
+  for size in 640x480 1280x720; do
+    live "live_${size}_${all}_recon${all}" "$all" --size "$size" --refresh-hz 30 \
+      --method adaptive --recon-threads "$all"
+  done
+fi
 live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
   --method adaptive,traditional-frameless,late-warp
 if [ -x "$ex" ]; then

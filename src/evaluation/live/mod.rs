@@ -61,6 +61,8 @@ pub struct LiveConfig {
     pub repeat: usize,
     /// Cores the methods size their threads for (default: the machine's).
     pub cores: usize,
+    /// The image build's threads, where not the cores' default (half of them).
+    pub recon_threads: Option<usize>,
     /// The display: size and refresh rate.
     pub display: settings::DisplayGroup,
     /// How samples are traced, the ideal images' included: seed (of the methods'
@@ -89,6 +91,7 @@ impl LiveConfig {
             methods: RtMethod::ALL.to_vec(),
             repeat: 1,
             cores: machine::cores(),
+            recon_threads: None,
             display: settings::DisplayGroup::default(),
             quality: settings::QualityGroup::default(),
             reference: settings::ReferenceGroup::uncached(),
@@ -137,6 +140,9 @@ impl LiveConfig {
     /// The pipeline settings of `method`.
     pub fn rt_config(&self, method: RtMethod) -> RtConfig {
         let mut c = RtConfig::for_cores(method, self.cores);
+        if let Some(n) = self.recon_threads {
+            c.recon_threads = n;
+        }
         c.refresh_hz = self.display.refresh_hz;
         c.seed = self.quality.seed;
         c.start = self.start - self.warmup_refreshes() as f64 / self.display.refresh_hz;
@@ -834,5 +840,26 @@ mod tests {
         assert_eq!(cfg.warmup_refreshes(), 1, "at least one refresh of warm-up");
         cfg.warmup = 0.5;
         assert_eq!(cfg.warmup_refreshes(), 30);
+    }
+
+    /// `--recon-threads` sets the image build's threads of every method, and nothing
+    /// else; without it they are the cores' default.
+    #[test]
+    fn the_build_threads_can_be_set_apart_from_the_cores() {
+        let mut cfg = LiveConfig::new("toycar");
+        cfg.cores = 16;
+        let default = cfg.rt_config(RtMethod::Adaptive);
+        assert_eq!(default.recon_threads, 8);
+        cfg.recon_threads = Some(3);
+        for m in [RtMethod::Adaptive, RtMethod::TraditionalFrameless] {
+            let c = cfg.rt_config(m);
+            assert_eq!(c.recon_threads, 3);
+            assert_eq!(
+                c.sampling_threads,
+                RtConfig::for_cores(m, 16).sampling_threads
+            );
+        }
+        cfg.recon_threads = Some(0);
+        assert!(cfg.validate().is_err(), "no build threads is refused");
     }
 }
