@@ -29,6 +29,7 @@ fn main() {
         "{:.2} ms per image, {:.0} placed, image {}",
         f.ms_median, f.placed_per_image, f.image_hash
     );
+    println!("  taking the new samples in: {:.2} ms", f.take_in_ms_median);
     let passes: Vec<String> = f
         .pass_ms
         .iter()

@@ -70,6 +70,10 @@ pub struct LiveFigure {
     pub placed_per_image: f64,
     /// Median milliseconds of one image over the timed refreshes.
     pub ms_median: f64,
+    /// Median milliseconds of taking a refresh's new samples in (`Reconstructor::push`,
+    /// one at a time, as the real-time image thread does before it builds), not part
+    /// of `ms_median`.
+    pub take_in_ms_median: f64,
     /// Whether the camera turned between images (every carried pixel moves).
     pub turning: bool,
     /// Mean milliseconds of each step of a timed image, by name.
@@ -129,7 +133,7 @@ fn plane_hit(cam: &CameraFrame, x: f32, y: f32) -> Vec3 {
 /// Milliseconds per image of `params`' reconstructor at `case`, its ring holding
 /// `ring_spp` samples per pixel: one second of refreshes to warm up (filling the ring),
 /// then `images` timed refreshes, each after the samples traced since the previous
-/// one were pushed (pushing is not timed), the camera turning if `turning`. The tiling
+/// one were pushed (pushing timed apart), the camera turning if `turning`. The tiling
 /// is the bench fixture's.
 pub fn live_image_ms(
     case: LiveCase,
@@ -153,15 +157,18 @@ pub fn live_image_ms(
     let per = (case.rate / case.refresh_hz).round() as usize;
     let warm = case.refresh_hz.ceil() as usize;
     let mut times = Vec::with_capacity(images);
+    let mut take_in = Vec::with_capacity(images);
+    let mut batch = Vec::with_capacity(per);
     let mut placed = 0usize;
     let mut warm_passes = PassTimes::default();
     for i in 0..warm + images.max(1) {
         let t1 = (i + 1) as f64 / case.refresh_hz;
+        batch.clear();
         for k in 0..per {
             let t = (i as f64 + (k + 1) as f64 / per as f64) / case.refresh_hz;
             let cam = camera_at(t, w, h, turning);
             let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
-            r.push(RingSample {
+            batch.push(RingSample {
                 x,
                 y,
                 t,
@@ -170,6 +177,13 @@ pub fn live_image_ms(
                 velocity: Vec3::ZERO,
                 anchor: Default::default(),
             });
+        }
+        let t0 = Instant::now();
+        for s in &batch {
+            r.push(*s);
+        }
+        if i >= warm {
+            take_in.push(t0.elapsed().as_secs_f64() * 1e3);
         }
         let cam = camera_at(t1, w, h, turning);
         if i == warm {
@@ -183,12 +197,14 @@ pub fn live_image_ms(
         }
     }
     times.sort_by(f64::total_cmp);
+    take_in.sort_by(f64::total_cmp);
     LiveFigure {
         case,
         ring_spp,
         new_per_image: per,
         placed_per_image: placed as f64 / times.len() as f64,
         ms_median: times[times.len() / 2],
+        take_in_ms_median: take_in[take_in.len() / 2],
         turning,
         pass_ms: r.pass_times().since(&warm_passes).mean_ms(),
         image_hash: state_hash(&r),

@@ -206,11 +206,13 @@ fn bench_live_recon(json: bool) -> Result<()> {
     }
     let table = |title: &str, rows: &[bench::LiveFigure]| {
         println!("{title}");
-        println!("  size        rate/s   Hz  ring spp  new/image  placed/image  ms/image");
+        println!(
+            "  size        rate/s   Hz  ring spp  new/image  placed/image  ms/image  take-in ms"
+        );
         for f in rows {
             let c = &f.case;
             println!(
-                "  {:>4}x{:<5} {:>6.2}M {:>4} {:>9} {:>10} {:>13.0} {:>9.2}",
+                "  {:>4}x{:<5} {:>6.2}M {:>4} {:>9} {:>10} {:>13.0} {:>9.2} {:>11.2}",
                 c.width,
                 c.height,
                 c.rate / 1e6,
@@ -218,7 +220,8 @@ fn bench_live_recon(json: bool) -> Result<()> {
                 f.ring_spp,
                 f.new_per_image,
                 f.placed_per_image,
-                f.ms_median
+                f.ms_median,
+                f.take_in_ms_median
             );
         }
     };
