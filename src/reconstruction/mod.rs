@@ -412,6 +412,19 @@ impl Reconstructor {
         self.ring.push(&s);
     }
 
+    /// Give the still-region history samples no image will place (a live limit left
+    /// them out of the ring): it takes in every sample it is given at the next
+    /// refresh, and traced samples are worth as much to it placed or not.
+    pub fn push_history_only(&mut self, stream: &[StreamSample]) {
+        let Some(h) = &mut self.history else {
+            return;
+        };
+        for s in stream {
+            let r = RingSample::from(s);
+            h.push(&r, s.sample.dynamic || r.velocity != Vec3::ZERO);
+        }
+    }
+
     /// Append the sampler's stream.
     pub fn push_stream(&mut self, stream: &[StreamSample]) {
         for s in stream {

@@ -652,3 +652,40 @@ fn a_new_rate_gives_the_filters_of_a_reconstructor_built_for_it() {
     // Not finite or not positive: ignored.
     assert!(image(rate, &[f64::NAN, 0.0, -1.0, f64::INFINITY]) == at_rate);
 }
+
+/// Samples a live limit leaves out of the ring still reach the still-region history:
+/// two reconstructors given the same stream, one all of it and one its newest sample
+/// plus the rest history-only, count the same samples in every pixel's history.
+#[test]
+fn samples_left_unplaced_still_reach_the_history() {
+    use crate::trace::{Sample, StreamSample};
+    let (w, h) = (8, 4);
+    let c = cam(w, h);
+    let stream: Vec<StreamSample> = (0..24)
+        .map(|i| {
+            let (x, y) = ((i % 8) as f32 + 0.5, (i / 8 % 4) as f32 + 0.5);
+            StreamSample {
+                x,
+                y,
+                t: 0.001 * i as f64,
+                sample: Sample {
+                    color: Vec3::splat(0.5),
+                    hit_point: c.eye + c.direction(x, y) * 2.0,
+                    ..Default::default()
+                },
+            }
+        })
+        .collect();
+    let tiling = TilingSnapshot::whole(w, h);
+    let mut all = Reconstructor::new(w, h, 1000.0, ReconParams::realtime());
+    all.push_stream(&stream);
+    all.reconstruct(0.1, &c, &tiling);
+    let mut newest = Reconstructor::new(w, h, 1000.0, ReconParams::realtime());
+    newest.push_history_only(&stream[..23]);
+    newest.push_stream(&stream[23..]);
+    newest.reconstruct(0.1, &c, &tiling);
+    assert_eq!(newest.ring().len(), 1);
+    let counts = all.history_counts().expect("a history");
+    assert!(counts.iter().sum::<f32>() >= 24.0, "{counts:?}");
+    assert_eq!(newest.history_counts(), Some(counts));
+}

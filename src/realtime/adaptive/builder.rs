@@ -91,8 +91,9 @@ pub(super) struct ImageFigures {
 /// holds, and no more than the live limit (the newest samples an image places) when
 /// there is one. The image thread takes samples in one at a time, and on many cores
 /// more arrive between two images than it can take in and still build an image in
-/// its budget; the older ones would not be placed. (They are lost to the still-region
-/// history too, which gathers every sample taken in.)
+/// its budget; the older ones are not placed, but go to the still-region history,
+/// which costs a fraction of placing them (on 16 cores 60-80% of the samples traced
+/// were left out of every image, and the history starved).
 pub(super) fn push_newest(
     r: &mut Reconstructor,
     batches: &[Vec<StreamSample>],
@@ -104,6 +105,7 @@ pub(super) fn push_newest(
     for batch in batches {
         let from = skip.min(batch.len());
         skip -= from;
+        r.push_history_only(&batch[..from]);
         r.push_stream(&batch[from..]);
     }
 }
