@@ -6,7 +6,7 @@
 use rayon::prelude::*;
 
 use super::{
-    lanes::{gauss_lanes, Lanes, LANES, PREFIX},
+    lanes::{gauss_lanes, prefetch, Lanes, LANES, PREFETCH_AHEAD, PREFIX},
     Reconstructor,
 };
 
@@ -268,15 +268,23 @@ fn splat_band(
     cov.fill(0);
     let by0 = b * band_rows;
     let by1 = (by0 + band_rows).min(h);
-    let splats = binned.iter().flat_map(|c| c[b].iter());
     match front {
         Some((front, keep)) => {
-            for s in splats.filter(|s| visible(s, front, keep)) {
-                splat_one(s, by0, by1, cs, acc, cstride, cov);
+            for list in binned.iter().map(|c| &c[b]) {
+                for (i, s) in list.iter().enumerate() {
+                    // Landing pixels are random within the band: ask for the front
+                    // depth some splats ahead so the misses overlap.
+                    if let Some(a) = list.get(i + PREFETCH_AHEAD) {
+                        prefetch(front, a.pixel as usize);
+                    }
+                    if visible(s, front, keep) {
+                        splat_one(s, by0, by1, cs, acc, cstride, cov);
+                    }
+                }
             }
         }
         None => {
-            for s in splats {
+            for s in binned.iter().flat_map(|c| c[b].iter()) {
                 splat_one(s, by0, by1, cs, acc, cstride, cov);
             }
         }
