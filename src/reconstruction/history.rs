@@ -285,16 +285,26 @@ impl AccumMut<'_> {
     }
 }
 
-/// A sample waiting to enter the history at the next refresh.
-#[derive(Clone, Copy, Debug)]
+/// A sample waiting to enter the history at the next refresh: what taking it in
+/// reads, and its pixel once planned. Where it was traced and how its hit moves
+/// ([`Traced`]) are read once, to place it, so they stay behind when it is sorted
+/// (40 bytes moved, not 56).
+#[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Fresh {
-    pub(super) x: f32,
-    pub(super) y: f32,
-    pub(super) color: Vec3,
     pub(super) t: f64,
-    pub(super) still: bool,
+    pub(super) color: Vec3,
     pub(super) hit_point: Vec3,
-    pub(super) velocity: Vec3,
+    /// The pixel it enters (set by [`History::plan`]).
+    pub(super) pixel: u32,
+    pub(super) still: bool,
+}
+
+/// Where a fresh sample was traced, and the velocity of its hit.
+#[derive(Clone, Copy, Debug)]
+struct Traced {
+    x: f32,
+    y: f32,
+    velocity: Vec3,
 }
 
 /// What a refresh does to the view the history was gathered in.
@@ -317,9 +327,9 @@ pub(super) struct Step {
     pub(super) view: ViewChange,
     /// Slack of the range test at this refresh.
     pub(super) slack: f32,
-    /// The samples pushed since the last refresh, and the `(pixel, index)` of those
-    /// that enter, in pixel order (stably, so each pixel sees its samples in the
-    /// order they came).
+    /// The samples that enter, in pixel order (stably, so each pixel sees its
+    /// samples in the order they came), and their `(pixel, index)`: `index` counts
+    /// up from 0 (the order the GPU's upload reads).
     pub(super) fresh: Vec<Fresh>,
     pub(super) order: Vec<(u32, u32)>,
     /// Pixels where recent samples of moving surfaces are now, oldest first.
@@ -346,15 +356,14 @@ pub(super) struct History {
     last_camera: Option<CameraFrame>,
     /// Time since which the caller knows the view to have been the current one.
     view_since: Option<f64>,
+    /// The samples pushed since the last refresh, in arrival order.
     fresh: Vec<Fresh>,
-    /// A step's vectors between refreshes, and the counting sort's buckets and output
-    /// for large batches (reused).
+    traced: Vec<Traced>,
+    /// A step's vectors between refreshes, and the samples binned by band (reused).
+    sorted: Vec<Fresh>,
     order: Vec<(u32, u32)>,
     cut_pixels: Vec<u32>,
-    buckets: Vec<u32>,
-    sorted: Vec<(u32, u32)>,
-    /// The pixel each fresh sample is seen in now (`u32::MAX`: none), reused.
-    seen: Vec<u32>,
+    binned: Vec<Fresh>,
     /// Pixels whose history a moving sample or the clamp cut, in all.
     pub(super) cuts: u64,
 }
@@ -372,11 +381,11 @@ impl History {
             last_camera: None,
             view_since: None,
             fresh: Vec::new(),
-            order: Vec::new(),
-            seen: Vec::new(),
-            cut_pixels: Vec::new(),
-            buckets: Vec::new(),
+            traced: Vec::new(),
             sorted: Vec::new(),
+            order: Vec::new(),
+            cut_pixels: Vec::new(),
+            binned: Vec::new(),
             cuts: 0,
         }
     }
@@ -394,12 +403,15 @@ impl History {
             return;
         }
         self.fresh.push(Fresh {
+            t: s.t,
+            color: s.color,
+            hit_point: s.hit_point,
+            pixel: 0,
+            still: !moving,
+        });
+        self.traced.push(Traced {
             x,
             y,
-            color: s.color,
-            t: s.t,
-            still: !moving,
-            hit_point: s.hit_point,
             velocity: s.velocity,
         });
     }
@@ -490,68 +502,61 @@ impl History {
             ViewChange::Reset
         };
         self.camera = Some(*camera);
-        let order = self.order_fresh(t, camera, since);
+        let (fresh, order) = self.order_fresh(t, camera, since);
         let cuts = self.moving_cuts(t, camera);
         Step {
             t,
             camera: *camera,
             view,
             slack,
-            fresh: std::mem::take(&mut self.fresh),
+            fresh,
             order,
             cuts,
         }
     }
 
-    /// Each fresh sample's pixel, then the samples in pixel order: what a sample does
+    /// The samples that enter and their pixels, in pixel order: what a sample does
     /// touches only its own pixel, so the outcome is the same as in arrival order, and
-    /// the history's arrays are read in address order instead of at random.
-    fn order_fresh(&mut self, t: f64, camera: &CameraFrame, since: f64) -> Vec<(u32, u32)> {
-        let w = self.width as usize;
-        let mut order = std::mem::take(&mut self.order);
-        order.clear();
-        // Where each sample's surface point is seen now, in parallel.
-        let mut seen = std::mem::take(&mut self.seen);
-        if self.params.reproject {
-            let (w, h) = (self.width, self.height);
-            self.fresh
-                .par_iter()
-                .map(|f| {
-                    pixel_at(camera, f.hit_point + f.velocity * (t - f.t) as f32, w, h)
-                        .map_or(u32::MAX, |(q, _)| q as u32)
-                })
-                .collect_into_vec(&mut seen);
-        }
-        for (i, f) in self.fresh.iter().enumerate() {
-            let q = if self.params.reproject {
-                match seen[i] {
-                    u32::MAX => continue,
-                    q => q as usize,
-                }
+    /// the history's arrays and the samples are read in address order instead of at
+    /// random. The pushed samples are used up.
+    fn order_fresh(
+        &mut self,
+        t: f64,
+        camera: &CameraFrame,
+        since: f64,
+    ) -> (Vec<Fresh>, Vec<(u32, u32)>) {
+        let (w, h) = (self.width, self.height);
+        let reproject = self.params.reproject;
+        // Where each sample's surface point is seen now, or where it was traced if it
+        // was traced from this view.
+        let place = move |f: &Fresh, tr: &Traced| {
+            if reproject {
+                let p = f.hit_point + tr.velocity * (t - f.t) as f32;
+                pixel_at(camera, p, w, h).map_or(u32::MAX, |(q, _)| q as u32)
+            } else if f.t < since {
+                u32::MAX
             } else {
-                if f.t < since {
-                    // Traced from another view.
-                    continue;
-                }
-                f.y as usize * w + f.x as usize
-            };
-            if !f.still && f.velocity != Vec3::ZERO {
-                // In arrival order: `moving` is kept oldest first.
-                self.moving.push_back((f.hit_point, f.velocity, f.t));
+                (tr.y as usize * w as usize + tr.x as usize) as u32
             }
-            order.push((q as u32, i as u32));
-        }
-        self.seen = seen;
-        let pixels = w * self.height as usize;
-        let band = BLEND_ROWS * w;
-        sort_by_pixel(
-            &mut order,
-            pixels,
-            band,
-            &mut self.buckets,
-            &mut self.sorted,
+        };
+        let mut sorted = std::mem::take(&mut self.sorted);
+        let mut order = std::mem::take(&mut self.order);
+        let sort = SortFresh {
+            pixels: (w * h) as usize,
+            band: BLEND_ROWS * w as usize,
+            chunk: SORT_CHUNK,
+        };
+        let moving = sort.run(
+            (&self.fresh, &self.traced),
+            &place,
+            &mut self.binned,
+            (&mut sorted, &mut order),
         );
-        order
+        // In arrival order: `moving` is kept oldest first.
+        self.moving.extend(moving);
+        self.fresh.clear();
+        self.traced.clear();
+        (sorted, order)
     }
 
     /// Forget moving samples older than the memory; the pixels where the others are now.
@@ -570,13 +575,10 @@ impl History {
         cuts
     }
 
-    /// Keep a step's vectors for the next.
+    /// Keep a step's vectors for the next (samples pushed while the step was out
+    /// are in `self.fresh`).
     fn recycle(&mut self, step: Step) {
-        let mut fresh = step.fresh;
-        fresh.clear();
-        // Samples pushed while the step was out (none today) would be in `self.fresh`.
-        fresh.append(&mut self.fresh);
-        self.fresh = fresh;
+        self.sorted = step.fresh;
         self.order = step.order;
         self.cut_pixels = step.cuts;
     }
@@ -814,10 +816,9 @@ impl Band<'_> {
         p: &HistoryParams,
     ) {
         for (k, &(q, i)) in order.iter().enumerate() {
-            if let Some(&(qa, ia)) = order.get(k + PREFETCH_AHEAD) {
-                // Samples are visited in pixel order, but read at random.
+            if let Some(&(qa, _)) = order.get(k + PREFETCH_AHEAD) {
+                // Pixels are visited in order, but sparsely.
                 let qa = qa as usize - self.base;
-                prefetch(fresh, ia as usize);
                 prefetch(self.acc.cell, qa);
                 prefetch(self.acc.time_sum, qa);
                 prefetch(self.held, qa);
@@ -892,67 +893,180 @@ fn hidden(front: Option<(&[f32], f32)>, q: usize, z: f32) -> bool {
     front.is_some_and(|(f, keep)| super::splat::behind_front(f[q], z, keep))
 }
 
-/// Sort `(pixel, index)` pairs, indices increasing in input order, by pixel (of
-/// `pixels`): stably, so each pixel keeps its samples' order. The indices are distinct
-/// and increasing, so a sort by `(pixel, index)` is stable without a stable sort, and
-/// every way below gives the same order. A batch of at most 1/16 as many as the pixels
-/// goes through that comparison sort; a larger one (a burst, up to a whole ring) goes
-/// to its bands of `band` pixels first (a counting sort over the bands), each band then
-/// sorted in parallel; on one thread, through a counting sort over the pixels, linear
-/// in both. `buckets` and `out` are scratch.
-fn sort_by_pixel(
-    order: &mut Vec<(u32, u32)>,
+/// Samples a chunk of [`SortFresh::run`]'s first pass places and bins: a chunk
+/// (320 KB of samples) stays in L2 between the two.
+const SORT_CHUNK: usize = 1 << 13;
+
+/// A stable sort of fresh samples by pixel, as two counting sorts whose every pass
+/// reads and writes the samples in address order (or within a band's few hundred
+/// kilobytes): each chunk of `chunk` samples places its samples and bins those that
+/// enter by band of `band` of the `pixels` pixels, in its own part of a scratch
+/// vector; then each band gathers its samples from every chunk, in chunk order, and
+/// sorts them by pixel. Chunks, then bands, go in parallel; the order is the same on
+/// any number of threads.
+struct SortFresh {
     pixels: usize,
     band: usize,
-    buckets: &mut Vec<u32>,
-    out: &mut Vec<(u32, u32)>,
-) {
-    if order.len() * 16 <= pixels {
-        order.sort_unstable();
-        return;
-    }
-    let band = if rayon::current_num_threads() > 1 {
-        band.max(1)
-    } else {
-        1
-    };
-    // A counting sort by `pixel / band`, in input order (no division per sample on
-    // one thread).
-    let key = |q: u32| {
-        if band == 1 {
-            q as usize
-        } else {
-            q as usize / band
+    chunk: usize,
+}
+
+/// What one chunk binned: where each band's samples start in its part (and, last,
+/// where they end), and the moving samples among them `(hit point, velocity, time)`,
+/// in arrival order.
+struct Chunk {
+    starts: Vec<u32>,
+    moving: Vec<(Vec3, Vec3, f64)>,
+}
+
+impl SortFresh {
+    /// The samples `fresh` (traced at `traced`) that `place` puts on a pixel
+    /// (`u32::MAX`: none), each with its pixel, in pixel order into `sorted`, and
+    /// their `(pixel, index)` into `order`; returns the moving ones, in arrival
+    /// order. `binned` is scratch.
+    fn run(
+        &self,
+        (fresh, traced): (&[Fresh], &[Traced]),
+        place: &(impl Fn(&Fresh, &Traced) -> u32 + Sync),
+        binned: &mut Vec<Fresh>,
+        (sorted, order): (&mut Vec<Fresh>, &mut Vec<(u32, u32)>),
+    ) -> Vec<(Vec3, Vec3, f64)> {
+        let (band, chunk) = (self.band.max(1), self.chunk.max(1));
+        let bands = self.pixels.div_ceil(band);
+        fit(binned, fresh.len());
+        let chunks: Vec<Chunk> = fresh
+            .par_chunks(chunk)
+            .zip(traced.par_chunks(chunk))
+            .zip(binned.par_chunks_mut(chunk))
+            .map(|((f, tr), out)| bin_chunk((f, tr), place, (band, bands), out))
+            .collect();
+        let mut totals = vec![0usize; bands];
+        for c in &chunks {
+            for (b, n) in totals.iter_mut().enumerate() {
+                *n += (c.starts[b + 1] - c.starts[b]) as usize;
+            }
         }
-    };
-    let bands = pixels.div_ceil(band);
-    buckets.clear();
-    buckets.resize(bands + 1, 0);
-    for &(q, _) in order.iter() {
-        buckets[key(q) + 1] += 1;
+        fit(sorted, totals.iter().sum());
+        fit(order, sorted.len());
+        let binned = &binned[..];
+        band_parts(&totals, sorted, order).into_par_iter().for_each(
+            |(b, part, part_order, first)| {
+                let segments = chunks.iter().enumerate().map(|(c, ch)| {
+                    let at = c * chunk;
+                    &binned[at + ch.starts[b] as usize..at + ch.starts[b + 1] as usize]
+                });
+                let base = b * band;
+                sort_band(segments, base, band.min(self.pixels - base), part);
+                for (j, (o, f)) in part_order.iter_mut().zip(&*part).enumerate() {
+                    *o = (f.pixel, (first + j) as u32);
+                }
+            },
+        );
+        chunks.into_iter().flat_map(|c| c.moving).collect()
     }
-    for k in 1..buckets.len() {
-        buckets[k] += buckets[k - 1];
+}
+
+/// A band's part of the sorted samples and of their order, and where it starts.
+type BandPart<'a> = (usize, &'a mut [Fresh], &'a mut [(u32, u32)], usize);
+
+/// `sorted` and `order` split into the parts of bands of `totals` samples.
+fn band_parts<'a>(
+    totals: &[usize],
+    sorted: &'a mut [Fresh],
+    order: &'a mut [(u32, u32)],
+) -> Vec<BandPart<'a>> {
+    let mut parts = Vec::with_capacity(totals.len());
+    let (mut rest, mut rest_order, mut first) = (sorted, order, 0);
+    for (b, &len) in totals.iter().enumerate() {
+        let (part, tail) = rest.split_at_mut(len);
+        let (part_order, tail_order) = rest_order.split_at_mut(len);
+        parts.push((b, part, part_order, first));
+        (rest, rest_order, first) = (tail, tail_order, first + len);
     }
-    out.clear();
-    out.resize(order.len(), (0, 0));
-    for &(q, i) in order.iter() {
-        let slot = &mut buckets[key(q)];
-        out[*slot as usize] = (q, i);
+    parts
+}
+
+/// `v` with `n` elements, of which only those written next are read: growing fills
+/// with copies of what is there, and shrinking keeps them, so that a reused vector is
+/// not written twice.
+fn fit<T: Copy + Default>(v: &mut Vec<T>, n: usize) {
+    if v.len() < n {
+        v.resize(n, T::default());
+    } else {
+        v.truncate(n);
+    }
+}
+
+/// Place the samples `fresh` (traced at `traced`) and bin those that enter by band of
+/// `band` pixels (`bands` of them) into `out`, each band's in arrival order.
+fn bin_chunk(
+    (fresh, traced): (&[Fresh], &[Traced]),
+    place: &impl Fn(&Fresh, &Traced) -> u32,
+    (band, bands): (usize, usize),
+    out: &mut [Fresh],
+) -> Chunk {
+    // Counted two places up, so that after the scan `starts[b + 1]` is where band
+    // `b` starts, and after the binning where it ends.
+    let mut starts = vec![0u32; bands + 2];
+    let mut moving = Vec::new();
+    let mut placed = Vec::with_capacity(fresh.len());
+    for (f, tr) in fresh.iter().zip(traced) {
+        let q = place(f, tr);
+        let b = if q == u32::MAX {
+            u32::MAX
+        } else {
+            (q as usize / band) as u32
+        };
+        placed.push((q, b));
+        if b == u32::MAX {
+            continue;
+        }
+        starts[b as usize + 2] += 1;
+        if !f.still && tr.velocity != Vec3::ZERO {
+            moving.push((f.hit_point, tr.velocity, f.t));
+        }
+    }
+    for k in 2..starts.len() {
+        starts[k] += starts[k - 1];
+    }
+    for (f, &(q, b)) in fresh.iter().zip(&placed).filter(|(_, p)| p.1 != u32::MAX) {
+        let slot = &mut starts[b as usize + 1];
+        out[*slot as usize] = Fresh { pixel: q, ..*f };
         *slot += 1;
     }
-    if band > 1 {
-        // `buckets[b]` is now where band `b` ends: each band's run sorted on its own.
-        let mut runs = Vec::with_capacity(bands);
-        let (mut rest, mut start) = (&mut out[..], 0);
-        for &end in &buckets[..bands] {
-            let (run, tail) = rest.split_at_mut(end as usize - start);
-            runs.push(run);
-            (rest, start) = (tail, end as usize);
+    starts.truncate(bands + 1);
+    Chunk { starts, moving }
+}
+
+/// The samples of `segments`, in that order, all in the band of `len` pixels from
+/// pixel `base`, sorted stably by pixel into `out`: a counting sort over the band's
+/// pixels, or for a few samples a stable comparison sort.
+fn sort_band<'a>(
+    segments: impl Iterator<Item = &'a [Fresh]> + Clone,
+    base: usize,
+    len: usize,
+    out: &mut [Fresh],
+) {
+    if out.len() * 16 <= len {
+        let mut k = 0;
+        for s in segments {
+            out[k..k + s.len()].copy_from_slice(s);
+            k += s.len();
         }
-        runs.into_par_iter().for_each(|run| run.sort_unstable());
+        out.sort_by_key(|f| f.pixel);
+        return;
     }
-    std::mem::swap(order, out);
+    let mut starts = vec![0u32; len + 1];
+    for f in segments.clone().flatten() {
+        starts[f.pixel as usize - base + 1] += 1;
+    }
+    for k in 1..starts.len() {
+        starts[k] += starts[k - 1];
+    }
+    for f in segments.flatten() {
+        let slot = &mut starts[f.pixel as usize - base];
+        out[*slot as usize] = *f;
+        *slot += 1;
+    }
 }
 
 #[cfg(test)]
@@ -1002,27 +1116,104 @@ mod tests {
         img
     }
 
+    /// What [`SortFresh::run`] must give: the samples that enter, stably sorted by
+    /// pixel, and the moving ones in arrival order.
+    fn sorted_reference(
+        fresh: &[Fresh],
+        traced: &[Traced],
+        place: impl Fn(&Fresh, &Traced) -> u32,
+    ) -> (Vec<Fresh>, Vec<(Vec3, Vec3, f64)>) {
+        let placed = fresh
+            .iter()
+            .zip(traced)
+            .map(|(f, tr)| (place(f, tr), f, tr));
+        let entering: Vec<_> = placed.filter(|p| p.0 != u32::MAX).collect();
+        let moving = entering
+            .iter()
+            .filter(|(_, f, tr)| !f.still && tr.velocity != Vec3::ZERO);
+        let moving = moving
+            .map(|(_, f, tr)| (f.hit_point, tr.velocity, f.t))
+            .collect();
+        let mut sorted: Vec<Fresh> = entering
+            .iter()
+            .map(|&(q, f, _)| Fresh { pixel: q, ..*f })
+            .collect();
+        sorted.sort_by_key(|f| f.pixel);
+        (sorted, moving)
+    }
+
     #[test]
-    fn sorting_by_pixel_is_stable_for_small_and_large_batches() {
+    fn sorting_fresh_samples_by_pixel_is_stable_and_the_same_on_any_threads() {
         let mut rng = crate::sampling::Rng::new(&[5]);
-        for (n, pixels) in [(10, 1000), (5000, 1000), (3, 3), (0, 7), (20000, 4000)] {
-            let input: Vec<(u32, u32)> = (0..n)
-                .map(|i| ((rng.uniform() * pixels as f32) as u32 % pixels as u32, i))
+        let cases = [
+            (10, 1000, 64, 4),
+            (5000, 1000, 64, 700),
+            (3, 3, 2, 1),
+            (0, 7, 64, 8),
+            (20000, 4000, 300, 8192),
+            (20000, 4000, 4000, 3),
+            (9000, 1, 1, 1000),
+        ];
+        for (n, pixels, band, chunk) in cases {
+            // A quarter off screen, many in a few pixels, some moving.
+            let fresh: Vec<Fresh> = (0..n)
+                .map(|i| Fresh {
+                    t: i as f64,
+                    color: Vec3::splat(rng.uniform()),
+                    still: rng.uniform() < 0.8,
+                    ..Default::default()
+                })
                 .collect();
-            let mut want = input.clone();
-            want.sort_by_key(|&(q, _)| q);
-            let (got, mut buckets, mut out) = (input, Vec::new(), Vec::new());
+            let traced: Vec<Traced> = (0..n)
+                .map(|_| Traced {
+                    x: rng.uniform() * 1.3 * pixels as f32,
+                    y: rng.uniform(),
+                    velocity: Vec3::X * (rng.uniform() < 0.5) as u32 as f32,
+                })
+                .collect();
+            let place = |_: &Fresh, tr: &Traced| {
+                let q = if tr.y < 0.3 {
+                    tr.x as u32 % 5
+                } else {
+                    tr.x as u32
+                };
+                if q < pixels as u32 {
+                    q
+                } else {
+                    u32::MAX
+                }
+            };
+            let (want, want_moving) = sorted_reference(&fresh, &traced, place);
+            let sort = SortFresh {
+                pixels,
+                band,
+                chunk,
+            };
             for threads in [1, 3] {
-                let mut got = got.clone();
-                rayon::ThreadPoolBuilder::new()
+                let (mut binned, mut got, mut order) = (vec![], vec![Fresh::default(); 9], vec![]);
+                let moving = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .build()
                     .unwrap()
-                    .install(|| sort_by_pixel(&mut got, pixels, 64, &mut buckets, &mut out));
-                assert_eq!(
-                    got, want,
-                    "{n} samples over {pixels} pixels, {threads} threads"
-                );
+                    .install(|| {
+                        sort.run(
+                            (&fresh, &traced),
+                            &place,
+                            &mut binned,
+                            (&mut got, &mut order),
+                        )
+                    });
+                let at = format!("{n} samples over {pixels} pixels, {threads} threads");
+                let key = |v: &[Fresh]| {
+                    v.iter()
+                        .map(|f| (f.pixel, f.t.to_bits()))
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(key(&got), key(&want), "{at}");
+                let want_order: Vec<_> =
+                    (0..want.len()).map(|k| (want[k].pixel, k as u32)).collect();
+                assert_eq!(order, want_order, "{at}");
+                assert_eq!(moving, want_moving, "{at}");
             }
         }
     }
