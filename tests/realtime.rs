@@ -224,7 +224,9 @@ fn headless_runs_stop_on_time_and_write_stats() {
 #[test]
 fn an_image_budget_limits_the_samples_an_image_places() {
     // A budget far below any build's time (0.1% of a 60 Hz refresh, 17 µs) against
-    // none: the limit falls to its floor of half a sample per pixel and stays there.
+    // none: the limit binds and cuts, down to where the samples placed cost what the
+    // build's fixed part does (which includes the still-region history taking in the
+    // samples left out), so how deep depends on the machine.
     let run = |budget: f64| {
         let mut cfg = RtConfig::new(RtMethod::Adaptive);
         cfg.sampling_threads = 1;
@@ -248,10 +250,9 @@ fn an_image_budget_limits_the_samples_an_image_places() {
         |p: &frameless::realtime::PipelineStats, k: &str| p.method_stats[k].as_f64().unwrap();
     assert_eq!(figure(&none, "limited_share"), 0.0);
     assert!(figure(&tight, "limited_share") > 0.5, "{tight:?}");
-    let floor = (48 * 32 / 2) as f64;
     let (placed_tight, placed_none) = (figure(&tight, "placed_mean"), figure(&none, "placed_mean"));
     assert!(
-        placed_tight < 2.0 * floor && placed_tight < placed_none,
+        placed_tight < placed_none,
         "{placed_tight} placed under the budget, {placed_none} without"
     );
     let settings = RtSettings::Adaptive(AdaptiveSettings {
