@@ -195,8 +195,8 @@ impl RtMethod {
         self.facts().about
     }
 
-    /// Threads it runs besides `sampling_threads` sampling threads and the pipeline's
-    /// image thread.
+    /// Threads it runs, in a run of `config`, besides its sampling threads and the
+    /// pipeline's image thread.
     pub fn extra_threads(self, config: &RtConfig) -> usize {
         (self.facts().extra_threads)(config)
     }

@@ -281,7 +281,7 @@ pub(crate) struct MethodInfo<S: 'static = NoSettings> {
     /// Default sampling threads on a machine with this many cores.
     pub default_sampling_threads: fn(usize) -> usize,
     /// Threads it runs besides its sampling threads and the pipeline's image thread,
-    /// given how many sampling threads it runs.
+    /// given the run's settings (its sampling threads, whether it traces on a GPU).
     pub extra_threads: fn(&RtConfig) -> usize,
     /// The images it offers besides the displayed one ([`Built::overlays`] draws them).
     pub overlays: &'static [Overlay],

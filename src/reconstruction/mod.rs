@@ -403,9 +403,7 @@ impl Reconstructor {
     /// sample beyond its own velocity ([`crate::trace::Sample::dynamic`]): such a
     /// sample cuts its pixel's still-region history instead of joining it.
     pub fn push_marked(&mut self, s: RingSample, dynamic: bool) {
-        if let Some(h) = &mut self.history {
-            h.push(&s, dynamic || s.velocity != Vec3::ZERO);
-        }
+        self.push_to_history(&s, dynamic);
         if let Some(c) = &mut self.carried {
             c.pending += 1;
         }
@@ -416,12 +414,16 @@ impl Reconstructor {
     /// them out of the ring): it takes in every sample it is given at the next
     /// refresh, and traced samples are worth as much to it placed or not.
     pub fn push_history_only(&mut self, stream: &[StreamSample]) {
-        let Some(h) = &mut self.history else {
-            return;
-        };
         for s in stream {
-            let r = RingSample::from(s);
-            h.push(&r, s.sample.dynamic || r.velocity != Vec3::ZERO);
+            self.push_to_history(&RingSample::from(s), s.sample.dynamic);
+        }
+    }
+
+    /// Note `s` for the still-region history, if there is one; `dynamic` as
+    /// [`Reconstructor::push_marked`] takes it.
+    fn push_to_history(&mut self, s: &RingSample, dynamic: bool) {
+        if let Some(h) = &mut self.history {
+            h.push(s, dynamic || s.velocity != Vec3::ZERO);
         }
     }
 

@@ -41,8 +41,7 @@ pub(in crate::reconstruction) fn pack(acc: &[f32], cs: usize, w: usize, cover: &
 
 /// [`pack`] into `out`, resized to fit: blocks of rows on every thread. `out` is
 /// kept between refreshes, so that the 50 MB of a 1080p image are not allocated and
-/// faulted in again each time. (The queue's write-only staging view cannot be split
-/// between threads, so the packed floats go to it in one copy.)
+/// faulted in again each time.
 pub(in crate::reconstruction) fn pack_into(c: &CarriedSums<'_>, out: &mut Vec<f32>) {
     let row = c.w * PER_PIXEL;
     out.resize(c.cover.len() * PER_PIXEL, 0.0);

@@ -552,7 +552,7 @@ impl GpuRecon {
     /// Write the carried sums and coverage into the accumulators, which only the
     /// gather reads, before a carrying [`refresh`](Self::refresh) (the front depths
     /// are written at each bin pass, which may run again). Packed on every thread
-    /// into a buffer kept between refreshes, then copied to the staging memory.
+    /// into a buffer kept between refreshes, then written to the queue.
     pub(super) fn upload_carried(&mut self, c: &CarriedSums<'_>) -> Result<(), GpuError> {
         let t0 = std::time::Instant::now();
         let n = self.width as usize * self.height as usize;
@@ -569,17 +569,10 @@ impl GpuRecon {
                 self.width
             )));
         }
-        let bytes = (n * PER_PIXEL * 4) as u64;
-        let size = wgpu::BufferSize::new(bytes).expect("an image has pixels");
-        let q = &self.ctx.queue;
-        let Some(mut view) = q.write_buffer_with(&self.buffers.acc, 0, size) else {
-            return Err(GpuError::Failed(
-                "no staging memory for the carried sums".into(),
-            ));
-        };
         carried::pack_into(c, &mut self.packed);
-        view.copy_from_slice(bytemuck::cast_slice(&self.packed));
-        drop(view);
+        self.ctx
+            .queue
+            .write_buffer(&self.buffers.acc, 0, bytemuck::cast_slice(&self.packed));
         self.carried_uploaded = true;
         self.times.upload_s += t0.elapsed().as_secs_f64();
         Ok(())
