@@ -114,8 +114,18 @@ pub struct Sampler {
 
 /// Tiles examined per tiling adjustment.
 const ADJUST_CANDIDATES: usize = 64;
-/// Adjustments between full recomputations of the error normalisation sums.
+/// Adjustments between full recomputations of the error normalisation sums, at
+/// least; with more tiles than `ERROR_SUMS_EVERY · 2 · ADJUST_CANDIDATES` (4,096) the
+/// full pass waits until the adjustments since have examined as many tiles as it
+/// visits ([`error_sums_every`]), so that it never costs more than they do.
 const ERROR_SUMS_EVERY: u64 = 32;
+
+/// Adjustments between full recomputations of the error sums with `tiles` tiles: at
+/// 1280×720's 14,400 tiles, a pass every 32 adjustments was a fifth of a live
+/// controller's time.
+fn error_sums_every(tiles: usize) -> u64 {
+    ERROR_SUMS_EVERY.max((tiles / (2 * ADJUST_CANDIDATES)) as u64)
+}
 
 /// Shortest time span a temporal gradient is measured over, seconds.
 const MIN_GRADIENT_DT: f64 = 1e-3;
@@ -1005,7 +1015,7 @@ impl Sampler {
                 p.gain_smoothing * self.target_tiles + (1.0 - p.gain_smoothing) * target;
         }
         let stale = self.tiling.len().abs_diff(self.error_sums_tiles) * 10 > self.error_sums_tiles;
-        if self.counters.adjustments % ERROR_SUMS_EVERY == 1 || stale {
+        if self.counters.adjustments % error_sums_every(self.tiling.len()) == 1 || stale {
             self.refresh_error_sums(now);
         }
         let (me, w) = self.error_context(now);

@@ -20,8 +20,19 @@ use crate::{
     trace::StreamSample,
 };
 
-/// How often the sampling threads' snapshot is republished.
+/// How often the sampling threads' snapshot is republished, at most.
 pub(super) const SNAPSHOT_EVERY: Duration = Duration::from_millis(1);
+
+/// A snapshot copies every tile of the band (14,400 at 1280×720), and each sampling
+/// thread copies it again: republished every millisecond, that took about a fifth of
+/// a controller's time at 720p. The next snapshot waits this many times as long as
+/// the last took, so publishing costs at most about 1/ratio of the controller.
+pub(super) const SNAPSHOT_COST_RATIO: u32 = 20;
+
+/// When the next snapshot is due after one that took `cost`.
+pub(super) fn snapshot_interval(cost: Duration) -> Duration {
+    SNAPSHOT_EVERY.max(cost * SNAPSHOT_COST_RATIO)
+}
 
 /// How often a controller passes the samples it took in on to the image thread.
 pub(super) const PASS_ON_EVERY: Duration = Duration::from_millis(2);
@@ -127,6 +138,7 @@ pub(super) fn control(
     };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
+    let mut snap_every = SNAPSHOT_EVERY;
     let mut history_seen = 0;
     // Samples for the image thread, sent together every `PASS_ON_EVERY`: it drains
     // its channel once per image, and one message per batch (every sampling thread
@@ -165,9 +177,11 @@ pub(super) fn control(
             }
             out_at = Instant::now();
         }
-        if snap_at.elapsed() >= SNAPSHOT_EVERY {
+        if snap_at.elapsed() >= snap_every {
+            let t0 = Instant::now();
             published.snapshot(b, &sampler);
             snap_at = Instant::now();
+            snap_every = snapshot_interval(snap_at - t0);
         }
         if tiling_at.elapsed() >= tiling_every {
             if take_history_counts(published, b, &mut sampler, &mut history_seen) {
