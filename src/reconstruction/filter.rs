@@ -64,6 +64,46 @@ pub fn local_rate(rate: f64, tiles: usize, tile_area: u32) -> f64 {
 /// redistributed (equally in log space) over the dimensions not at the bound in the
 /// needed direction, so the volume constraint holds whenever the clamps allow it.
 pub fn extents(v_s: f64, gx: f64, gy: f64, gt: f64, bounds: &FilterBounds) -> Extents {
+    extents_in(v_s, gx, gy, gt, bounds, &bounds.logs())
+}
+
+/// The logarithms of a [`FilterBounds`]' extent ranges, `[x, y, t]`, worked out once
+/// for a whole table of tiles (six of the thirteen logarithms and exponentials a tile's
+/// extents would otherwise take).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogBounds {
+    lo: [f64; 3],
+    hi: [f64; 3],
+}
+
+impl FilterBounds {
+    /// The logarithms of the extent ranges, for [`extents_in`].
+    pub fn logs(&self) -> LogBounds {
+        LogBounds {
+            lo: [
+                self.extent_xy.0.ln(),
+                self.extent_xy.0.ln(),
+                self.extent_t.0.ln(),
+            ],
+            hi: [
+                self.extent_xy.1.ln(),
+                self.extent_xy.1.ln(),
+                self.extent_t.1.ln(),
+            ],
+        }
+    }
+}
+
+/// [`extents`] with the bounds' logarithms given (`logs` must be `bounds.logs()`): the
+/// same extents, bit for bit.
+pub fn extents_in(
+    v_s: f64,
+    gx: f64,
+    gy: f64,
+    gt: f64,
+    bounds: &FilterBounds,
+    logs: &LogBounds,
+) -> Extents {
     let v = if v_s.is_finite() {
         v_s.clamp(bounds.volume.0, bounds.volume.1)
     } else {
@@ -87,16 +127,7 @@ pub fn extents(v_s: f64, gx: f64, gy: f64, gt: f64, bounds: &FilterBounds) -> Ex
         (lv + lx + lt - 2.0 * ly) / 3.0,
         (lv + lx + ly - 2.0 * lt) / 3.0,
     ];
-    let lo = [
-        bounds.extent_xy.0.ln(),
-        bounds.extent_xy.0.ln(),
-        bounds.extent_t.0.ln(),
-    ];
-    let hi = [
-        bounds.extent_xy.1.ln(),
-        bounds.extent_xy.1.ln(),
-        bounds.extent_t.1.ln(),
-    ];
+    let (lo, hi) = (logs.lo, logs.hi);
     for k in 0..3 {
         l[k] = l[k].clamp(lo[k], hi[k]);
     }
@@ -105,17 +136,18 @@ pub fn extents(v_s: f64, gx: f64, gy: f64, gt: f64, bounds: &FilterBounds) -> Ex
         if deficit.abs() < 1e-12 {
             break;
         }
-        let free: Vec<usize> = (0..3)
-            .filter(|&k| {
-                (deficit > 0.0 && l[k] < hi[k] - 1e-12) || (deficit < 0.0 && l[k] > lo[k] + 1e-12)
-            })
-            .collect();
-        if free.is_empty() {
+        let free = [0, 1, 2].map(|k| {
+            (deficit > 0.0 && l[k] < hi[k] - 1e-12) || (deficit < 0.0 && l[k] > lo[k] + 1e-12)
+        });
+        let n_free = free.iter().filter(|&&f| f).count();
+        if n_free == 0 {
             break;
         }
-        let share = deficit / free.len() as f64;
-        for &k in &free {
-            l[k] = (l[k] + share).clamp(lo[k], hi[k]);
+        let share = deficit / n_free as f64;
+        for k in 0..3 {
+            if free[k] {
+                l[k] = (l[k] + share).clamp(lo[k], hi[k]);
+            }
         }
     }
     Extents {

@@ -76,13 +76,15 @@ impl Reconstructor {
         // The tiles that reach each band of rows, so that bands fill their part of
         // the map in parallel (tiles do not overlap: the order does not matter).
         let bands = h.div_ceil(MAP_ROWS);
+        let bounds = &self.params.bounds;
+        let logs = bounds.logs();
         let mut reach: Vec<Vec<u32>> = vec![Vec::new(); bands];
         for (k, tile) in tiling.tiles.iter().enumerate() {
             let r = tile.rect;
             let rl = filter::local_rate(self.rate, tiles, r.area());
             let (gx, gy, gt) = (tile.gx, tile.gy, tile.gt);
             let v_s = self.params.filter_volume / rl;
-            let e = filter::extents(v_s, gx, gy, gt, &self.params.bounds);
+            let e = filter::extents_in(v_s, gx, gy, gt, bounds, &logs);
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
