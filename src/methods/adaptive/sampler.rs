@@ -121,8 +121,8 @@ const ADJUST_CANDIDATES: usize = 64;
 const ERROR_SUMS_EVERY: u64 = 32;
 
 /// Adjustments between full recomputations of the error sums with `tiles` tiles: at
-/// 1280×720's 14,400 tiles, a pass every 32 adjustments was a fifth of a live
-/// controller's time.
+/// 1280×720's 14,400 tiles, a pass every 32 adjustments took about a seventh of a live
+/// controller's time (docs/performance.md, session 27).
 fn error_sums_every(tiles: usize) -> u64 {
     ERROR_SUMS_EVERY.max((tiles / (2 * ADJUST_CANDIDATES)) as u64)
 }
@@ -1001,7 +1001,7 @@ impl Sampler {
     ///
     /// Bounded work: candidates for splitting and merging come from a random subset of
     /// `ADJUST_CANDIDATES` tiles, and the sums that normalise tile error are refreshed
-    /// only every `ERROR_SUMS_EVERY` adjustments or when the tile count has moved by
+    /// only every [`error_sums_every`] adjustments or when the tile count has moved by
     /// more than 10%; at most `max_adjust_ops` splits and merges happen.
     fn adjust(&mut self, now: f64) {
         self.counters.adjustments += 1;
@@ -1159,5 +1159,21 @@ impl Sampler {
     /// Samples (rays) used so far.
     pub fn samples_used(&self) -> u64 {
         self.next_sample
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_error_sums_wait_longer_only_past_four_thousand_tiles() {
+        // Up to 4,096 tiles (every evaluation at 256×256) the pass runs every 32
+        // adjustments, as it always did; past that it costs what the candidates do.
+        for tiles in [1, 1024, 4096, 4223] {
+            assert_eq!(error_sums_every(tiles), ERROR_SUMS_EVERY, "{tiles} tiles");
+        }
+        assert_eq!(error_sums_every(14_400), 112);
+        assert_eq!(error_sums_every(32_400), 253);
     }
 }

@@ -6,6 +6,7 @@ use super::{
     bands,
     bench::{band_samplers, record},
     builder::{next_live_limit, push_newest, BuildCost},
+    controller::{snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
     controllers,
     published::{Published, MIN_BAND_ROWS},
     sampling::Visit,
@@ -223,4 +224,14 @@ fn the_live_limit_cuts_no_deeper_than_the_builds_fixed_part_pays() {
     let (fixed, per) = c.fit().expect("a fit");
     assert!((fixed - 4.0).abs() < 1e-6 && (per - 1e-4).abs() < 1e-12);
     assert_eq!(c.deepest_cut(), Some(40_000));
+}
+
+#[test]
+fn a_costly_snapshot_waits_in_proportion_and_a_cheap_one_every_millisecond() {
+    use std::time::Duration;
+    assert_eq!(snapshot_interval(Duration::ZERO), SNAPSHOT_EVERY);
+    assert_eq!(snapshot_interval(Duration::from_micros(20)), SNAPSHOT_EVERY);
+    let slow = Duration::from_micros(300);
+    assert_eq!(snapshot_interval(slow), slow * SNAPSHOT_COST_RATIO);
+    assert!(snapshot_interval(slow) > SNAPSHOT_EVERY);
 }
