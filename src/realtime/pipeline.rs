@@ -94,7 +94,8 @@ pub struct Pipeline {
 
 impl Pipeline {
     /// Start the threads of the method `settings` are for; scene time `config.start`
-    /// is now.
+    /// is when the first of them starts (what the method prepares before is not part
+    /// of the run).
     pub fn start(
         tracer: Arc<Tracer>,
         config: RtConfig,
@@ -129,7 +130,7 @@ impl Pipeline {
 
     /// The pipeline's clock.
     pub fn clock(&self) -> WallClock {
-        self.shared.clock
+        self.shared.clock.wall()
     }
 
     /// The tracer (set its live camera to move the view).

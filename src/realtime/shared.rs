@@ -16,7 +16,7 @@ use std::{
 };
 
 use super::{
-    clock::WallClock,
+    clock::PipelineClock,
     config::{RealtimeError, RtConfig},
     pixel_locks::PixelLocks,
 };
@@ -142,7 +142,7 @@ pub(crate) fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// State shared by every thread of one pipeline, whatever the method.
 pub(crate) struct Shared {
     pub tracer: Arc<Tracer>,
-    pub clock: WallClock,
+    pub clock: PipelineClock,
     pub config: RtConfig,
     pub stop: AtomicBool,
     pub locks: PixelLocks,
@@ -166,11 +166,12 @@ impl Shared {
             .fetch_add(busy.as_nanos() as u64, Ordering::Relaxed);
     }
 
-    /// Nothing running yet; scene time `config.start` is now.
+    /// Nothing running yet; scene time `config.start` will be when the first thread
+    /// starts.
     pub fn new(tracer: Arc<Tracer>, config: RtConfig) -> Self {
         let (w, h) = tracer.size();
         Self {
-            clock: WallClock::new(config.start),
+            clock: PipelineClock::new(config.start),
             locks: PixelLocks::new(w, h),
             tracer,
             config,
@@ -346,6 +347,9 @@ impl<'a> Spawner<'a> {
         what: &'static str,
         f: impl FnOnce() + Send + 'static,
     ) -> Result<(), RealtimeError> {
+        // The run's time starts with its first thread: what the method did before
+        // (allocating, backing buffers with memory) is not part of it.
+        self.shared.clock.begin();
         let h = std::thread::Builder::new()
             .name(format!("frameless-{what}"))
             .spawn(f)

@@ -127,6 +127,12 @@ pub(super) struct Carried {
 }
 
 impl Carried {
+    /// Back the zeroed sums with memory now ([`Reconstructor::prepare`]).
+    pub(super) fn prepare(&mut self) {
+        super::lanes::touch(&mut self.prev);
+        super::lanes::touch(&mut self.next_cover);
+    }
+
     pub(super) fn new(n: usize, acc_len: usize) -> Self {
         Self {
             prev: vec![0.0; acc_len],

@@ -443,6 +443,18 @@ impl History {
         pixel_at(camera, p, self.width, self.height)
     }
 
+    /// Allocate the per-pixel history now, backed with memory
+    /// ([`super::Reconstructor::prepare`]); for the CPU only (the GPU keeps its own).
+    pub(super) fn prepare(&mut self) {
+        let n = (self.width * self.height) as usize;
+        let px = self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)));
+        for a in [&mut px.acc, &mut px.scratch] {
+            super::lanes::touch(&mut a.count);
+            a.sum.iter_mut().for_each(|s| super::lanes::touch(s));
+            super::lanes::touch(&mut a.time_sum);
+        }
+    }
+
     /// Samples in each pixel's history.
     pub(super) fn counts(&self) -> &[f32] {
         match &self.pixels {

@@ -313,6 +313,31 @@ impl Reconstructor {
         }
     }
 
+    /// Allocate now, and back with memory, the per-pixel state that CPU refreshes
+    /// would otherwise allocate or first write during the first refreshes (the
+    /// still-region history, the fill's pyramid, the accumulators and carried sums):
+    /// a live pipeline calls it before its clock starts, so that its first images are
+    /// not held up by the system mapping in pages (at 1920×1080 about 400 MB, and first
+    /// builds of 0.2–0.3 s). The ring stays lazily backed: it fills over seconds.
+    /// Changes no result.
+    pub fn prepare(&mut self) {
+        use lanes::touch;
+        let (w, h) = (self.width as usize, self.height as usize);
+        touch(&mut self.acc);
+        touch(&mut self.cov);
+        touch(&mut self.cover);
+        touch(&mut self.coverage);
+        touch(&mut self.age);
+        touch(&mut self.image.pixels);
+        if let Some(c) = &mut self.carried {
+            c.prepare();
+        }
+        if let Some(hist) = &mut self.history {
+            hist.prepare();
+        }
+        self.pull.prepare(w, h);
+    }
+
     /// Run refreshes on `ctx`'s GPU from now on. An error if the adapter is too small
     /// for this display's buffers.
     #[cfg(feature = "gpu")]

@@ -54,6 +54,31 @@ pub(super) struct Pyramid {
     up: Vec<f32>,
 }
 
+impl Pyramid {
+    /// The levels of a `w × h` display (the display's size fixes them; every value is
+    /// rewritten at each fill).
+    fn levels_for(w: usize, h: usize) -> Vec<Level> {
+        let (mut lw, mut lh) = (w, h);
+        let mut levels = Vec::new();
+        while lw > 1 || lh > 1 {
+            (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
+            levels.push(Level::new(lw, lh));
+        }
+        levels
+    }
+
+    /// Allocate the levels of a `w × h` display now, backed with memory
+    /// ([`super::Reconstructor::prepare`]).
+    pub(super) fn prepare(&mut self, w: usize, h: usize) {
+        if self.levels.is_empty() {
+            self.levels = Self::levels_for(w, h);
+        }
+        for l in &mut self.levels {
+            super::lanes::touch(&mut l.v);
+        }
+    }
+}
+
 impl Level {
     fn new(w: usize, h: usize) -> Self {
         Self {
@@ -124,12 +149,7 @@ impl Reconstructor {
             w0,
         };
         if levels.is_empty() {
-            // The display's size fixes the levels; every value is rewritten below.
-            let (mut lw, mut lh) = (full.w, full.h);
-            while lw > 1 || lh > 1 {
-                (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
-                levels.push(Level::new(lw, lh));
-            }
+            levels = Pyramid::levels_for(full.w, full.h);
         }
         if let Some(first) = levels.first_mut().filter(|_| !pulled) {
             full.pull_into(first, &image, &ages);

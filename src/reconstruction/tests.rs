@@ -689,3 +689,48 @@ fn samples_left_unplaced_still_reach_the_history() {
     assert!(counts.iter().sum::<f32>() >= 24.0, "{counts:?}");
     assert_eq!(newest.history_counts(), Some(counts));
 }
+
+/// Backing the buffers with memory up front ([`Reconstructor::prepare`]) allocates
+/// the history before any refresh and changes no result: the same images, ages and
+/// history counts, carried refreshes included, as a reconstructor left to allocate
+/// as it goes.
+#[test]
+fn a_prepared_reconstructor_makes_the_same_images() {
+    let params = ReconParams::realtime();
+    let (w, h) = (40, 30);
+    let (mut lazy, c, tiling) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+    let (mut prepared, _, _) = random_setup(w, h, 3000, 1.0, false, params, GTS);
+    assert_eq!(lazy.history_counts().map(<[f32]>::len), Some(0));
+    prepared.prepare();
+    assert_eq!(
+        prepared.history_counts().map(<[f32]>::len),
+        Some((w * h) as usize)
+    );
+    let bits = |r: &Reconstructor| -> Vec<u32> {
+        let px = r.image().pixels.iter().flat_map(|p| p.to_array());
+        let rest = r
+            .pixel_ages()
+            .iter()
+            .chain(r.history_counts().unwrap_or(&[]));
+        px.chain(rest.copied()).map(f32::to_bits).collect()
+    };
+    for k in 0..3 {
+        let t = 1.0 + 0.02 * k as f64;
+        if k > 0 {
+            let s = RingSample {
+                x: 3.5,
+                y: 2.5,
+                t,
+                color: Vec3::ONE,
+                hit_point: c.eye + c.direction(3.5, 2.5) * 1.5,
+                velocity: Vec3::ZERO,
+                anchor: Default::default(),
+            };
+            lazy.push(s);
+            prepared.push(s);
+        }
+        lazy.reconstruct(t, &c, &tiling);
+        prepared.reconstruct(t, &c, &tiling);
+        assert_eq!(bits(&lazy), bits(&prepared), "refresh {k}");
+    }
+}
