@@ -109,6 +109,20 @@ pub(super) fn prefetch<T>(items: &[T], i: usize) {
     let _ = (items, i);
 }
 
+/// Write every memory page of `v` once (each page's first element, with the value it
+/// holds), so that a zeroed allocation, which the system maps in lazily, is backed now
+/// and not at its first use. `black_box` keeps the compiler from dropping the stores.
+pub(super) fn touch<T: Copy + Send>(v: &mut [T]) {
+    use rayon::prelude::*;
+    const PAGE: usize = 4096;
+    let step = (PAGE / std::mem::size_of::<T>().max(1)).max(1);
+    v.par_chunks_mut(step * 64).for_each(|chunk| {
+        for i in (0..chunk.len()).step_by(step) {
+            chunk[i] = std::hint::black_box(chunk[i]);
+        }
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -130,18 +144,4 @@ mod tests {
             assert!((a - b).abs() <= 1e-5 * b + 1e-30, "{x} {a} {b}");
         }
     }
-}
-
-/// Write every memory page of `v` once (each page's first element, with the value it
-/// holds), so that a zeroed allocation, which the system maps in lazily, is backed now
-/// and not at its first use. `black_box` keeps the compiler from dropping the stores.
-pub(super) fn touch<T: Copy + Send>(v: &mut [T]) {
-    use rayon::prelude::*;
-    const PAGE: usize = 4096;
-    let step = (PAGE / std::mem::size_of::<T>().max(1)).max(1);
-    v.par_chunks_mut(step * 64).for_each(|chunk| {
-        for i in (0..chunk.len()).step_by(step) {
-            chunk[i] = std::hint::black_box(chunk[i]);
-        }
-    });
 }
