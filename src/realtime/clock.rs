@@ -92,12 +92,6 @@ impl PipelineClock {
     pub(crate) fn instant_at(&self, s: f64) -> Instant {
         self.wall().instant_at(s)
     }
-
-    /// [`WallClock::start`].
-    #[allow(dead_code)]
-    pub(crate) fn start(&self) -> f64 {
-        self.start
-    }
 }
 
 #[cfg(test)]

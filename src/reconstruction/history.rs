@@ -446,13 +446,18 @@ impl History {
     /// Allocate the per-pixel history now, backed with memory
     /// ([`super::Reconstructor::prepare`]); for the CPU only (the GPU keeps its own).
     pub(super) fn prepare(&mut self) {
-        let n = (self.width * self.height) as usize;
-        let px = self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)));
+        let px = self.cpu_pixels();
         for a in [&mut px.acc, &mut px.scratch] {
             super::lanes::touch(&mut a.count);
             a.sum.iter_mut().for_each(|s| super::lanes::touch(s));
             super::lanes::touch(&mut a.time_sum);
         }
+    }
+
+    /// The per-pixel arrays of the CPU's history, allocated at the first call.
+    fn cpu_pixels(&mut self) -> &mut Pixels {
+        let n = (self.width * self.height) as usize;
+        self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)))
     }
 
     /// Samples in each pixel's history.
@@ -475,9 +480,10 @@ impl History {
         age: &mut [f32],
         front: Option<(&[f32], f32)>,
     ) -> f64 {
-        let n = (self.width * self.height) as usize;
-        let px = self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)));
-        let (cuts, age_sum) = px.apply(&step, &self.params, front, image, age);
+        let (cuts, age_sum) = {
+            let params = self.params;
+            self.cpu_pixels().apply(&step, &params, front, image, age)
+        };
         self.cuts += cuts;
         self.recycle(step);
         age_sum

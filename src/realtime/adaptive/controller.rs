@@ -25,8 +25,9 @@ pub(super) const SNAPSHOT_EVERY: Duration = Duration::from_millis(1);
 
 /// A snapshot copies every tile of the band (14,400 at 1280×720), and each sampling
 /// thread copies it again: republished every millisecond, that took about a fifth of
-/// a controller's time at 1280×720 (docs/performance.md, session 27). The next snapshot waits this many times as long as
-/// the last took, so publishing costs at most about 1/ratio of the controller.
+/// a controller's time at 1280×720 (docs/performance.md, session 27). The next
+/// snapshot waits this many times as long as the last took, so publishing costs at
+/// most about 1/ratio of the controller.
 pub(super) const SNAPSHOT_COST_RATIO: u32 = 20;
 
 /// When the next snapshot is due after one that took `cost`.
