@@ -37,6 +37,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
+    carry_edits::CarryEdits,
     filter_table::Lookup,
     lanes::{fast_exp_neg, prefetch, Lanes, LANES, PREFETCH_AHEAD},
     place::Projector,
@@ -124,6 +125,9 @@ pub(super) struct Carried {
     restart: bool,
     /// The view of the previous refresh, carried or not.
     view: Option<CameraFrame>,
+    /// What the last carry did, listed for a GPU that keeps the sums (`None`: not
+    /// listed).
+    pub(super) edits: Option<CarryEdits>,
 }
 
 impl Carried {
@@ -148,6 +152,7 @@ impl Carried {
             dests: Vec::new(),
             restart: false,
             view: None,
+            edits: None,
         }
     }
 }
@@ -331,6 +336,9 @@ impl Reconstructor {
         let Some(mut c) = self.carried.take() else {
             return;
         };
+        if let Some(e) = &mut c.edits {
+            e.clear();
+        }
         if std::mem::take(&mut c.restart) {
             self.acc.fill(0.0);
             self.cover.fill(0.0);
@@ -343,6 +351,11 @@ impl Reconstructor {
             let dt = (t - t0).max(0.0) as f32;
             let decay = self.tile_decay(dt);
             if !self.params.reproject || cam0.same_view(camera) {
+                if let Some(e) = &mut c.edits {
+                    e.complete = true;
+                    e.dt = dt;
+                    e.decay.clone_from(&decay);
+                }
                 self.carry_in_place(&mut c, dt, &decay, camera);
             } else {
                 self.carry_moved(&mut c, dt, &decay, &cam0, camera);
@@ -413,6 +426,9 @@ impl Reconstructor {
             });
             let anchor = c.anchor.remove(&(q as u32));
             out.push((x, y, g, anchor, sums, std::mem::take(&mut self.cover[q])));
+            if let Some(e) = &mut c.edits {
+                e.takes.push(q as u32);
+            }
             c.geo[q] = Geo::NONE;
         }
         c.moving.clear();
@@ -426,7 +442,7 @@ impl Reconstructor {
             geo: &mut c.geo,
             cover: &mut self.cover,
         };
-        for (x, y, g, anchor, sums, cover) in out {
+        for (i, (x, y, g, anchor, sums, cover)) in out.into_iter().enumerate() {
             let m = match (anchor, exact) {
                 (Some(a), Some(state)) => exact_target(state, &proj, a, g, w, h),
                 _ => mover.target(x, y, g),
@@ -434,7 +450,11 @@ impl Reconstructor {
             let Some(m) = m else {
                 continue;
             };
-            if into.land(&m, sums, cover, keep) == Some(true) {
+            let landed = into.land(&m, sums, cover, keep);
+            if let (Some(e), Some(l)) = (&mut c.edits, landed) {
+                e.lands.push((i as u32, m.to as u32, l.merged));
+            }
+            if landed.is_some_and(|l| l.took_geometry) {
                 c.moving.push(m.to as u32);
                 if let Some(a) = anchor {
                     c.anchor.insert(m.to as u32, a);
@@ -553,6 +573,7 @@ impl Reconstructor {
         bucket_by_band(&ahead, CUT_ROWS, bands, &mut by_band);
         let ctx = CutContext {
             keep,
+            list_cuts: c.edits.is_some(),
             w,
             cs,
             start: samples.start,
@@ -612,6 +633,8 @@ fn bucket_by_band(
 /// What every band of the cut reads.
 struct CutContext {
     keep: f32,
+    /// List the pixels cut ([`CarryEdits::cuts`]).
+    list_cuts: bool,
     w: usize,
     cs: usize,
     /// Logical ring index of the sample of index 0.
@@ -627,6 +650,8 @@ struct BandOut {
     /// those whose new geometry moves.
     unanchored: Vec<u32>,
     anchored: Vec<(u32, Anchor)>,
+    /// The pixels cut, when listed.
+    cuts: Vec<u32>,
 }
 
 /// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
@@ -684,6 +709,9 @@ impl CutBand<'_> {
                     self.acc[at(ch)] = 0.0;
                 }
                 self.cover[q - base] = 0.0;
+                if ctx.list_cuts {
+                    self.out.cuts.push(q as u32);
+                }
             }
             // Splats are centred on pixel centres; sums carried here keep their
             // position. (The sample's own sub-pixel position would scatter
@@ -757,6 +785,9 @@ impl Carried {
         let mut moving = Vec::new();
         let mut anchored = Vec::new();
         for o in outs {
+            if let Some(e) = &mut self.edits {
+                e.cuts.extend_from_slice(&o.cuts);
+            }
             for q in o.unanchored {
                 self.anchor.remove(&q);
             }
@@ -985,9 +1016,8 @@ impl Target<'_> {
 
     /// Sums `sums` with coverage `cover` arrive by move `m`: an
     /// empty pixel takes them; otherwise the nearer wins, and both merge within the
-    /// depth tolerance (`keep`). Whether they stayed (`None`: not), and if so whether
-    /// the pixel took their geometry.
-    fn land(&mut self, m: &Move, sums: [f32; CHANNELS], cover: f32, keep: f32) -> Option<bool> {
+    /// depth tolerance (`keep`). How they stayed (`None`: they did not).
+    fn land(&mut self, m: &Move, sums: [f32; CHANNELS], cover: f32, keep: f32) -> Option<Landed> {
         let (to, tx, ty, g) = (m.to, m.tx, m.ty, m.geo);
         let at = |ch: usize| (ty * CHANNELS + ch) * self.cs + tx;
         let old = self.geo[to];
@@ -1004,12 +1034,24 @@ impl Target<'_> {
         }
         let c = &mut self.cover[to];
         *c = if merge { *c + cover } else { cover };
-        let takes = !(merge && old.z <= g.z);
-        if takes {
+        let took_geometry = !(merge && old.z <= g.z);
+        if took_geometry {
             self.geo[to] = g;
         }
-        Some(takes)
+        Some(Landed {
+            merged: merge,
+            took_geometry,
+        })
     }
+}
+
+/// How carried sums stayed where they landed.
+#[derive(Clone, Copy)]
+struct Landed {
+    /// Added to the sums the pixel held (else they replaced them).
+    merged: bool,
+    /// The pixel took their geometry.
+    took_geometry: bool,
 }
 
 impl Reconstructor {

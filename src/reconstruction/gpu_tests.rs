@@ -394,3 +394,60 @@ fn gpu_carried_refreshes_match_the_cpu() {
         }
     }
 }
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
+    // A still view over a moving square: every refresh after the first two replays
+    // the CPU's carry (decay, moved sums, cuts) on the sums the GPU kept, instead of
+    // uploading them; the images stay the CPU's.
+    let ctx = context();
+    let converging = ReconParams::converging();
+    for params in [
+        converging,
+        ReconParams::realtime(),
+        ReconParams {
+            visibility: None,
+            ..converging
+        },
+    ] {
+        for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {
+            let (mut cpu, _, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+            let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+            gpu.use_gpu(ctx.clone()).expect("carrying runs on the GPU");
+            let mut rng = crate::sampling::Rng::new(&[17, per as u64]);
+            let cam = carry_camera(0, (w, h));
+            let mut listed = [0usize; 3];
+            let refreshes = 10;
+            for k in 0..refreshes {
+                let t = 1.0 + 0.05 * k as f64;
+                if k > 0 {
+                    for (s, dynamic) in carry_batch(&mut rng, &cam, t, per) {
+                        cpu.push_marked(s, dynamic);
+                        gpu.push_marked(s, dynamic);
+                    }
+                }
+                cpu.reconstruct(t, &cam, &tiling);
+                gpu.reconstruct(t, &cam, &tiling);
+                assert_eq!(gpu.gpu_failure(), None);
+                let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
+                if e.complete {
+                    listed[0] += e.takes.len();
+                    listed[1] += e.lands.len();
+                    listed[2] += e.cuts.len();
+                }
+                let what = format!("{w}x{h}, {per} per refresh, {params:?}, refresh {k}");
+                check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+            }
+            let (uploaded, replayed) = gpu.gpu_carried_sums().unwrap();
+            assert!(
+                replayed as usize >= refreshes - 3 && uploaded <= 2,
+                "{w}x{h}: {uploaded} uploads, {replayed} replays"
+            );
+            assert!(
+                listed.iter().all(|&n| n > 0),
+                "{w}x{h}: takes, landings and cuts listed {listed:?}"
+            );
+        }
+    }
+}

@@ -92,6 +92,7 @@ pub mod ring;
 pub use passes::{PassTimes, PASSES};
 
 mod carry;
+mod carry_edits;
 #[cfg(test)]
 mod carry_tests;
 mod filter_table;
@@ -352,6 +353,10 @@ impl Reconstructor {
             self.history.as_ref().map(|h| *h.params()),
             self.carried.is_some(),
         )?));
+        if let Some(c) = &mut self.carried {
+            // For the GPU to replay.
+            c.edits = Some(Default::default());
+        }
         Ok(())
     }
 
@@ -376,6 +381,18 @@ impl Reconstructor {
     /// Why the GPU side was given up at a refresh, if it was.
     pub fn gpu_failure(&self) -> Option<&str> {
         self.gpu_failure.as_deref()
+    }
+
+    /// With refreshes on a GPU that carry: of the carrying refreshes so far, how many
+    /// uploaded every pixel's carried sums and how many replayed the CPU's carry on
+    /// the sums the GPU kept (only the view's holding refreshes can).
+    pub fn gpu_carried_sums(&self) -> Option<(u64, u64)> {
+        #[cfg(feature = "gpu")]
+        if let (Some(g), Some(_)) = (&self.gpu, &self.carried) {
+            let by = g.carried_by();
+            return Some((by.upload, by.replay));
+        }
+        None
     }
 
     /// The sampler's rate `R` (samples per second) that the filters scale with, from
@@ -598,6 +615,9 @@ impl Reconstructor {
                 Err(e) => {
                     self.gpu = None;
                     self.gpu_failure = Some(e.to_string());
+                    if let Some(c) = &mut self.carried {
+                        c.edits = None;
+                    }
                 }
             }
         }
@@ -626,7 +646,10 @@ impl Reconstructor {
             return Ok(());
         };
         let before = g.times();
-        if carrying {
+        // The sums the GPU kept from its last refresh are the CPU's before its
+        // carry: replaying the carry there spares uploading every pixel's.
+        let edits = self.carried.as_ref().and_then(|c| c.edits.as_ref());
+        if carrying && !edits.is_some_and(|e| g.carry_by_replay(e)) {
             let sums = gpu::carried::CarriedSums {
                 acc: &self.acc,
                 cs: self.cs,

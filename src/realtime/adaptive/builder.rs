@@ -218,7 +218,9 @@ impl ImageBuilder for Builder {
     /// `build_ns_per_sample`, the build's time fitted over the last images as a fixed
     /// part and a part per sample placed ([`BuildCost`]), where the fit holds;
     /// `gpu_failure`, why the GPU reconstructor
-    /// was given up, if it was (the images after it were built on the CPU).
+    /// was given up, if it was (the images after it were built on the CPU);
+    /// `gpu_carried_sums`, how the GPU's carrying refreshes got their sums
+    /// ([`crate::reconstruction::Reconstructor::gpu_carried_sums`]).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
         let p = &*self.published;
         let (rv, sv) = (
@@ -249,6 +251,10 @@ impl ImageBuilder for Builder {
         }
         if let Some(why) = self.recon.gpu_failure() {
             figures.push(("gpu_failure", why.into()));
+        }
+        if let Some((uploaded, replayed)) = self.recon.gpu_carried_sums() {
+            let by = serde_json::json!({ "uploaded": uploaded, "replayed": replayed });
+            figures.push(("gpu_carried_sums", by));
         }
         figures
     }

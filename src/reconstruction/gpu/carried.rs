@@ -1,10 +1,11 @@
 //! The carried accumulators' trip to the GPU and back ([`super::super::carry`]).
 //!
-//! The carry step (decay, move, cut) stays on the CPU, which holds the geometry it
-//! needs; the GPU only adds the new splats onto what it carried. A refresh uploads
-//! the carried sums with the carried coverage in the accumulators' per-pixel layout,
-//! and with the visibility pass the initial front depths; it reads the final sums and
-//! coverage back, before any fill, so that the next carry starts from them.
+//! The carry step (decay, move, cut) is decided on the CPU, which holds the geometry
+//! it needs; the GPU adds the new splats onto what was carried. A refresh uploads the
+//! carried sums with the carried coverage in the accumulators' per-pixel layout where
+//! the GPU cannot replay the CPU's carry on the sums it kept ([`super::carry`]), and
+//! with the visibility pass the initial front depths; it reads the final sums and
+//! coverage back, before any fill, so that the CPU's next carry starts from them.
 
 use rayon::prelude::*;
 

@@ -19,11 +19,17 @@
 //! ([`history`]), whose per-pixel arrays stay here too: the CPU only plans each of its
 //! refreshes from the samples pushed since the last.
 //!
-//! With [`ReconParams::carry`] the accumulators are carried between refreshes
-//! ([`carried`]): the CPU decays, moves and cuts them as it would for itself, the GPU
-//! adds only the new samples' splats onto them, and they come back for the next.
+//! With [`ReconParams::carry`] the accumulators are carried between refreshes: the
+//! CPU decays, moves and cuts its copy as it would for itself, the GPU adds only the
+//! new samples' splats onto its own, and they come back for the CPU's next carry.
+//! While the view holds, the GPU carries the sums it kept from its last refresh itself
+//! by replaying the CPU's list of what its carry did ([`carry`]: a factor per tile,
+//! the pixels whose sums moved, the pixels cut); otherwise (the first refresh, sums
+//! moved with the view or started afresh, or sums not kept) every pixel's sums go up
+//! ([`carried`]).
 
 pub(super) mod carried;
+mod carry;
 mod history;
 #[cfg(test)]
 mod layout_tests;
@@ -34,6 +40,7 @@ pub use crate::gpu::{GpuContext, GpuError};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
+use super::carry_edits::CarryEdits;
 use super::{
     filter_table::{Lookup, TileFilter},
     history::Step,
@@ -207,6 +214,25 @@ pub struct GpuRecon {
     carried_uploaded: bool,
     /// The carried sums packed for the upload, kept between refreshes.
     packed: Vec<f32>,
+    /// With carrying: the carry's replay on the accumulators.
+    carry: Option<carry::GpuCarry>,
+    /// The accumulators hold the sums the last refresh carried to the CPU (it
+    /// succeeded, and carried), so that the next may replay the CPU's carry on them.
+    acc_carried: bool,
+    /// The CPU's carry, to replay at the next refresh once its filters are up.
+    replay: Option<wgpu::CommandBuffer>,
+    /// Carrying refreshes whose sums were uploaded, and those whose carry was
+    /// replayed here.
+    carried_by: CarriedBy,
+}
+
+/// How carrying refreshes got their carried sums on a GPU.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(super) struct CarriedBy {
+    /// Every pixel's sums uploaded.
+    pub(super) upload: u64,
+    /// The CPU's carry replayed on the sums kept here.
+    pub(super) replay: u64,
 }
 
 struct Pipelines {
@@ -390,6 +416,7 @@ impl GpuRecon {
         let history = history.map(|h| {
             history::GpuHistory::new(&ctx, width, height, h, &buffers.out, &buffers.front)
         });
+        let carry = carry.then(|| carry::GpuCarry::new(&ctx, width * height));
         Ok(Self {
             history,
             ctx,
@@ -408,6 +435,10 @@ impl GpuRecon {
             times: GpuReconTimes::default(),
             carried_uploaded: false,
             packed: Vec::new(),
+            carry,
+            acc_carried: false,
+            replay: None,
+            carried_by: CarriedBy::default(),
         })
     }
 
@@ -515,6 +546,12 @@ impl GpuRecon {
             self.upload_motion(ring, start);
         }
         self.upload_filters(tiles, lookup);
+        // The accumulators change from here: only a carrying refresh that succeeds
+        // leaves the CPU's carried sums in them.
+        self.acc_carried = false;
+        if let Some(work) = self.replay.take() {
+            self.ctx.queue.submit([work]);
+        }
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
         p.first = if count > 0 {
@@ -544,6 +581,7 @@ impl GpuRecon {
             self.grow_items(total);
         }
         let back = self.splat_pass(params.fill_weight > 0.0, step, p.keep, into);
+        self.acc_carried = p.carry == 1 && back.is_ok();
         let waited = (self.times.wait_s - before.wait_s) + (self.times.read_s - before.read_s);
         self.times.upload_s += t0.elapsed().as_secs_f64() - waited;
         back
@@ -570,12 +608,42 @@ impl GpuRecon {
             )));
         }
         carried::pack_into(c, &mut self.packed);
+        self.carried_by.upload += 1;
+        self.replay = None;
         self.ctx
             .queue
             .write_buffer(&self.buffers.acc, 0, bytemuck::cast_slice(&self.packed));
         self.carried_uploaded = true;
         self.times.upload_s += t0.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// Carry the sums this side kept from the last refresh by replaying `e`, the
+    /// CPU's carry of the same sums, at the next [`refresh`](Self::refresh) (after its
+    /// filters are up: the decay reads their pixel → tile map). False, and nothing
+    /// done, where the list is not the whole carry or the sums here are not the ones
+    /// the CPU carried: then they must be uploaded
+    /// ([`upload_carried`](Self::upload_carried)).
+    pub(super) fn carry_by_replay(&mut self, e: &CarryEdits) -> bool {
+        let t0 = std::time::Instant::now();
+        let Some(carry) = self
+            .carry
+            .as_mut()
+            .filter(|_| e.complete && self.acc_carried)
+        else {
+            return false;
+        };
+        let work = carry.encode(&self.ctx, e, &self.buffers.acc, &self.buffers.pix_tile);
+        self.replay = Some(work);
+        self.carried_uploaded = true;
+        self.carried_by.replay += 1;
+        self.times.upload_s += t0.elapsed().as_secs_f64();
+        true
+    }
+
+    /// How the carrying refreshes so far got their sums.
+    pub(super) fn carried_by(&self) -> CarriedBy {
+        self.carried_by
     }
 
     /// Upload the hit points and velocities of the live samples `start..` again.

@@ -1,0 +1,196 @@
+//! The carry on the GPU (`carry.wgsl`): the accumulators stay where the last refresh
+//! left them, and the CPU's list of what its own carry did ([`CarryEdits`]) is
+//! replayed on them, so that a carrying refresh whose view held uploads a few factors
+//! and pixel lists instead of every pixel's sums.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{buffer_entry, compute_pipeline, storage, GpuContext, GROUP, PER_PIXEL};
+use crate::reconstruction::carry_edits::CarryEdits;
+
+/// The shader's `CarryParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct CarryParams {
+    pixels: u32,
+    takes: u32,
+    lands: u32,
+    cuts: u32,
+    dt: f32,
+    pad: [u32; 3],
+}
+
+/// `carry.wgsl` after the constant it shares with this side.
+fn carry_source() -> String {
+    format!(
+        "const PER_PIXEL: u32 = {PER_PIXEL}u;\n{}",
+        include_str!("carry.wgsl")
+    )
+}
+
+/// The carry's pipelines and the buffers its lists go up in (grown as needed).
+pub(super) struct GpuCarry {
+    decay: wgpu::ComputePipeline,
+    take: wgpu::ComputePipeline,
+    land: wgpu::ComputePipeline,
+    cut: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    factors: wgpu::Buffer,
+    edits: wgpu::Buffer,
+    taken: wgpu::Buffer,
+    bind: Option<wgpu::BindGroup>,
+    words: Vec<u32>,
+    pixels: u32,
+}
+
+impl GpuCarry {
+    pub(super) fn new(ctx: &GpuContext, pixels: u32) -> Self {
+        let device = &ctx.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("carry.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(carry_source().into()),
+        });
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("carry"),
+            entries: &[
+                buffer_entry(0, Uniform, false),
+                buffer_entry(1, Storage { read_only: false }, false),
+                buffer_entry(2, Storage { read_only: true }, false),
+                buffer_entry(3, Storage { read_only: true }, false),
+                buffer_entry(4, Storage { read_only: true }, false),
+                buffer_entry(5, Storage { read_only: false }, false),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("carry"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let make = |name: &str| compute_pipeline(device, &pipeline_layout, &module, name);
+        let none = wgpu::BufferUsages::empty();
+        Self {
+            decay: make("decay_sums"),
+            take: make("take_sums"),
+            land: make("land_sums"),
+            cut: make("cut_sums"),
+            layout,
+            params: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("carry params"),
+                size: std::mem::size_of::<CarryParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            factors: storage(device, "decay factors", 64 * 8, none),
+            edits: storage(device, "carry edits", 256 * 4, none),
+            taken: storage(device, "taken sums", 64 * PER_PIXEL as u64 * 4, none),
+            bind: None,
+            words: Vec::new(),
+            pixels,
+        }
+    }
+
+    /// Upload `e` and encode its replay on `acc` (the accumulators, with
+    /// `pix_tile` the pixel → tile map of the refresh `e` was made for, uploaded
+    /// before the returned work runs).
+    pub(super) fn encode(
+        &mut self,
+        ctx: &GpuContext,
+        e: &CarryEdits,
+        acc: &wgpu::Buffer,
+        pix_tile: &wgpu::Buffer,
+    ) -> wgpu::CommandBuffer {
+        e.words(&mut self.words);
+        // Storage buffers may not be empty: one word more than the lists need.
+        self.words.push(0);
+        let factors: Vec<f32> = e
+            .decay
+            .iter()
+            .flatten()
+            .copied()
+            .chain([1.0, 1.0])
+            .collect();
+        let taken = (e.takes.len().max(1) * PER_PIXEL * 4) as u64;
+        self.fit(
+            ctx,
+            factors.len() as u64 * 4,
+            self.words.len() as u64 * 4,
+            taken,
+        );
+        let p = CarryParams {
+            pixels: self.pixels,
+            takes: e.takes.len() as u32,
+            lands: e.lands.len() as u32,
+            cuts: e.cuts.len() as u32,
+            dt: e.dt,
+            pad: [0; 3],
+        };
+        let q = &ctx.queue;
+        q.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
+        q.write_buffer(&self.factors, 0, bytemuck::cast_slice(&factors));
+        q.write_buffer(&self.edits, 0, bytemuck::cast_slice(&self.words));
+        let bind = self.bind.get_or_insert_with(|| {
+            super::bind_buffers(
+                &ctx.device,
+                &self.layout,
+                "carry",
+                &[
+                    &self.params,
+                    acc,
+                    pix_tile,
+                    &self.factors,
+                    &self.edits,
+                    &self.taken,
+                ],
+            )
+        });
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        let groups = |n: u32| n.div_ceil(GROUP);
+        // Separate passes, so that each step sees the last one's writes.
+        for (pipe, n) in [
+            (&self.decay, groups(p.pixels)),
+            (&self.take, groups(p.takes)),
+            (&self.land, (p.lands > 0) as u32),
+            (&self.cut, groups(p.cuts)),
+        ] {
+            if n == 0 {
+                continue;
+            }
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(pipe);
+            pass.set_bind_group(0, &*bind, &[]);
+            pass.dispatch_workgroups(n, 1, 1);
+        }
+        enc.finish()
+    }
+
+    /// Buffers at least `factors`, `edits` and `taken` bytes long (a new bind group
+    /// when one had to grow).
+    fn fit(&mut self, ctx: &GpuContext, factors: u64, edits: u64, taken: u64) {
+        let none = wgpu::BufferUsages::empty();
+        let grow = |b: &mut wgpu::Buffer, bytes: u64, label: &str| {
+            if b.size() < bytes {
+                *b = storage(
+                    &ctx.device,
+                    label,
+                    (bytes + bytes / 2).next_multiple_of(16),
+                    none,
+                );
+                true
+            } else {
+                false
+            }
+        };
+        let grew = [
+            grow(&mut self.factors, factors, "decay factors"),
+            grow(&mut self.edits, edits, "carry edits"),
+            grow(&mut self.taken, taken, "taken sums"),
+        ];
+        if grew.contains(&true) {
+            self.bind = None;
+        }
+    }
+}
