@@ -194,3 +194,28 @@ impl GpuCarry {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{carry_source, CarryParams};
+    use crate::reconstruction::gpu::layout_tests::{check_struct, parse, rust_fields};
+
+    #[test]
+    fn carry_wgsl_lays_out_its_parameters_as_the_rust_side() {
+        let m = parse(&carry_source());
+        let params = rust_fields!(CarryParams {
+            pixels,
+            takes,
+            lands,
+            cuts,
+            dt,
+            pad
+        });
+        check_struct(
+            &m,
+            "CarryParams",
+            params,
+            std::mem::size_of::<CarryParams>(),
+        );
+    }
+}
