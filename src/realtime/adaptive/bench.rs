@@ -8,8 +8,9 @@ use std::{
 
 use crossbeam_channel::bounded;
 
+pub(super) use super::controller::band_samplers;
 use super::{
-    controller::{controller_sampler, ingest},
+    controller::ingest,
     published::Published,
     sampling::{sample, Batch},
     settings::AdaptiveSettings,
@@ -21,18 +22,6 @@ use crate::{
         shared::Shared,
     },
 };
-
-/// A fresh controller sampler for every band.
-pub(super) fn band_samplers(
-    s: &Shared,
-    published: &Published,
-) -> Result<Vec<Sampler>, RealtimeError> {
-    let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
-    let bands = published.bands.iter();
-    bands
-        .map(|b| controller_sampler(s, &published.settings.sampler, b.rect).ok_or_else(invalid))
-        .collect()
-}
 
 /// Run one sampling thread for `seconds` of wall time, its batches taken in by the
 /// bands' `samplers` as they come (as live, with every reprojection step); returns the

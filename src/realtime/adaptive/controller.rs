@@ -16,7 +16,10 @@ use super::{
 use crate::{
     clock::Clock,
     methods::adaptive::{tiling::Rect, Sampler, SamplerParams},
-    realtime::shared::{lock, Shared},
+    realtime::{
+        config::RealtimeError,
+        shared::{lock, Shared},
+    },
     trace::StreamSample,
 };
 
@@ -63,6 +66,20 @@ pub(super) fn controller_sampler(
     params.fixed_tiles = part(params.fixed_tiles);
     // Validated by the pipeline before it started.
     Sampler::for_region(s.tracer.clone(), clock, params, s.config.seed, band).ok()
+}
+
+/// A fresh controller sampler for every band. Made before the pipeline's clock
+/// starts: at 1920×1080 one takes about 0.4 s (on 2 cores), which held up the first
+/// tiling, and with it the first image, by as much (docs/performance.md, session 28).
+pub(super) fn band_samplers(
+    s: &Shared,
+    published: &Published,
+) -> Result<Vec<Sampler>, RealtimeError> {
+    let invalid = || RealtimeError::Config("the sampler's parameters are invalid".into());
+    let bands = published.bands.iter();
+    bands
+        .map(|b| controller_sampler(s, &published.settings.sampler, b.rect).ok_or_else(invalid))
+        .collect()
 }
 
 /// What the controller did with one batch.
@@ -124,19 +141,14 @@ pub(super) fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: 
     }
 }
 
-/// Band `b`'s controller thread: its sampler's one owner.
+/// Band `b`'s controller thread: `sampler`'s one owner.
 pub(super) fn control(
     s: &Shared,
     published: &Published,
-    b: usize,
+    (b, mut sampler): (usize, Sampler),
     rx: Receiver<Batch>,
     tx: Sender<Vec<StreamSample>>,
 ) {
-    let Some(mut sampler) =
-        controller_sampler(s, &published.settings.sampler, published.bands[b].rect)
-    else {
-        return;
-    };
     let tiling_every = Duration::from_secs_f64(0.5 / s.config.refresh_hz);
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
     let mut snap_every = SNAPSHOT_EVERY;

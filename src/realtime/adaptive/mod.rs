@@ -102,12 +102,14 @@ fn start(
         to_ctrl.push(tx);
         ctrl_rx.push(rx);
     }
+    // Before the first thread starts the pipeline's clock.
+    let samplers = controller::band_samplers(&s, &published)?;
     let (s1, p1) = (s.clone(), published.clone());
     sp.sampling_threads(to_ctrl, move |i, tx| sampling::sample(&s1, &p1, i, tx))?;
-    for (b, rx) in ctrl_rx.into_iter().enumerate() {
+    for (band, rx) in samplers.into_iter().enumerate().zip(ctrl_rx) {
         let (s2, p2, tx) = (s.clone(), published.clone(), to_img.clone());
         sp.spawn("controller", move || {
-            controller::control(&s2, &p2, b, rx, tx)
+            controller::control(&s2, &p2, band, rx, tx)
         })?;
     }
     // The builder owns its reconstructor, on the settings' device, and the pool the
