@@ -134,6 +134,10 @@ impl Method for Traditional {
     }
 }
 
+/// Samples of a [`NewestSamples::set_batches`] below which one thread sets them all:
+/// each band reads every sample, so a few are cheaper in one pass.
+const SET_PARALLEL_FROM: usize = 1 << 15;
+
 /// The newest sample at every pixel, and when the information each pixel shows was
 /// traced: what a frameless display shows. Used by [`Traditional`] and by the real-time
 /// traditional frameless method.
@@ -160,6 +164,39 @@ impl NewestSamples {
         self.info_time[p as usize] = t;
     }
 
+    /// Every sample of `batches` (pixel, colour, time), leaving each pixel as
+    /// [`NewestSamples::set`] called on them one after another in their order would:
+    /// the image is split into as many bands of pixels as the thread pool has
+    /// threads, and each band takes, in order, the samples that fall in it (a
+    /// real-time display gets hundreds of thousands a refresh from a GPU tracer).
+    pub fn set_batches(&mut self, batches: &[Vec<(u32, glam::Vec3, f64)>]) {
+        use rayon::prelude::*;
+        let n = self.info_time.len();
+        let total: usize = batches.iter().map(Vec::len).sum();
+        let threads = rayon::current_num_threads();
+        if threads <= 1 || total < SET_PARALLEL_FROM {
+            for &(p, c, t) in batches.iter().flatten() {
+                self.set(p, c, t);
+            }
+            return;
+        }
+        let band = n.div_ceil(threads).max(1);
+        self.image
+            .pixels
+            .par_chunks_mut(band)
+            .zip(self.info_time.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(b, (colour, time))| {
+                let lo = b * band;
+                for &(p, c, t) in batches.iter().flatten() {
+                    if let Some(i) = (p as usize).checked_sub(lo).filter(|&i| i < time.len()) {
+                        colour[i] = c;
+                        time[i] = t;
+                    }
+                }
+            });
+    }
+
     /// When pixel `p`'s information was traced (NaN before its first sample).
     pub fn info_time(&self, p: usize) -> f64 {
         self.info_time.get(p).copied().unwrap_or(f64::NAN)
@@ -174,5 +211,49 @@ impl NewestSamples {
             return f64::NAN;
         }
         informed().map(|&s| t - s).sum::<f64>() / n as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::NewestSamples;
+
+    #[test]
+    fn batches_set_on_many_threads_leave_what_one_after_another_leaves() {
+        // Enough samples to go parallel, many on the same pixels, on 1, 2 and 3
+        // threads (the bands then end mid-row).
+        let (w, h) = (37, 23);
+        let n = w * h;
+        let mut rng = crate::sampling::Rng::new(&[5]);
+        let batches: Vec<Vec<(u32, Vec3, f64)>> = (0..40)
+            .map(|b| {
+                (0..1000)
+                    .map(|i| {
+                        let p = rng.below(n);
+                        let t = (b * 1000 + i) as f64 * 1e-3;
+                        (p, Vec3::splat(rng.uniform()), t)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut one = NewestSamples::new(w, h, f64::NAN);
+        for &(p, c, t) in batches.iter().flatten() {
+            one.set(p, c, t);
+        }
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut many = NewestSamples::new(w, h, f64::NAN);
+            pool.install(|| many.set_batches(&batches));
+            assert_eq!(many.image.pixels, one.image.pixels, "{threads} threads");
+            for i in 0..n as usize {
+                let (a, b) = (many.info_time(i), one.info_time(i));
+                assert_eq!(a.to_bits(), b.to_bits(), "{threads} threads, pixel {i}");
+            }
+        }
     }
 }
