@@ -122,7 +122,7 @@ pub(super) struct Carried {
     dests: Vec<Dest>,
     /// The previous refresh re-splatted the ring: the next carried refresh starts
     /// from nothing and places the whole live ring as new.
-    restart: bool,
+    pub(super) restart: bool,
     /// The view of the previous refresh, carried or not.
     view: Option<CameraFrame>,
     /// What the last carry did, listed for a GPU that keeps the sums (`None`: not

@@ -351,13 +351,28 @@ impl Reconstructor {
             self.capacity,
             scale0,
             self.history.as_ref().map(|h| *h.params()),
-            self.carried.is_some(),
+            self.gpu_sums_back(),
         )?));
         if let Some(c) = &mut self.carried {
             // For the GPU to replay.
             c.edits = Some(Default::default());
         }
         Ok(())
+    }
+
+    /// What a GPU side gives back of the carried sums, when carrying: a moving view
+    /// moves them on the CPU unless it re-splats the ring, and that needs them all;
+    /// otherwise the CPU's carry needs only which pixels hold sums.
+    #[cfg(feature = "gpu")]
+    fn gpu_sums_back(&self) -> Option<gpu::SumsBack> {
+        let p = &self.params;
+        self.carried.as_ref().map(|_| {
+            if !p.reproject || p.resplat_moving_view {
+                gpu::SumsBack::Holds
+            } else {
+                gpu::SumsBack::All
+            }
+        })
     }
 
     /// Run refreshes on a GPU: this build has none.
@@ -615,8 +630,15 @@ impl Reconstructor {
                 Err(e) => {
                     self.gpu = None;
                     self.gpu_failure = Some(e.to_string());
+                    let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
                     if let Some(c) = &mut self.carried {
                         c.edits = None;
+                        // The CPU's sums were only the GPU's holds mask: they start
+                        // afresh, from the whole live ring.
+                        c.restart |= holds_only;
+                    }
+                    if holds_only {
+                        plan.start = self.live_range(plan.t);
                     }
                 }
             }

@@ -96,6 +96,22 @@ pub(in crate::reconstruction) fn unpack(
         });
 }
 
+/// The holds mask the GPU reads back in place of the sums (bit `i` of word `k`: pixel
+/// `32k + i` of a `w`-wide image holds sums) into the weight plane of `acc` (channel
+/// stride `cs`): 1 where set, 0 elsewhere. The other planes are left as they are: the
+/// CPU's carry decides from the weights alone.
+pub(in crate::reconstruction) fn unpack_holds(mask: &[u32], acc: &mut [f32], cs: usize, w: usize) {
+    acc.par_chunks_mut(CHANNELS * cs)
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, wt) in row[3 * cs..][..w].iter_mut().enumerate() {
+                let p = y * w + x;
+                let set = mask.get(p / 32).is_some_and(|m| m >> (p % 32) & 1 == 1);
+                *wt = if set { 1.0 } else { 0.0 };
+            }
+        });
+}
+
 /// Front depths as the shaders keep them: the complement of a depth's bits, so that
 /// an atomic maximum keeps the nearest (positive) depth; none (infinite) is 0, as in
 /// a cleared buffer, which the history also reads as none.
@@ -131,6 +147,33 @@ mod tests {
                     channel_row(&acc2, cs, y, ch)[..w],
                     channel_row(&acc, cs, y, ch)[..w]
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_holds_mask_sets_the_weight_plane_alone() {
+        // 11 × 5 pixels: the bits of a row run on across words.
+        let (w, h) = (11, 5);
+        let cs = channel_stride(w);
+        let mut acc = vec![7.0f32; h * CHANNELS * cs];
+        let holds = |p: usize| p % 3 == 0 || p == 40;
+        let mut mask = vec![0u32; (w * h).div_ceil(32)];
+        for p in (0..w * h).filter(|&p| holds(p)) {
+            mask[p / 32] |= 1 << (p % 32);
+        }
+        unpack_holds(&mask, &mut acc, cs, w);
+        for y in 0..h {
+            for ch in 0..CHANNELS {
+                for x in 0..w {
+                    let v = channel_row(&acc, cs, y, ch)[x];
+                    let want = match ch {
+                        3 if holds(y * w + x) => 1.0,
+                        3 => 0.0,
+                        _ => 7.0,
+                    };
+                    assert_eq!(v, want, "pixel ({x}, {y}), channel {ch}");
+                }
             }
         }
     }

@@ -1,12 +1,13 @@
 //! The carry on the GPU (`carry.wgsl`): the accumulators stay where the last refresh
 //! left them, and the CPU's list of what its own carry did ([`CarryEdits`]) is
 //! replayed on them, so that a carrying refresh whose view held uploads a few factors
-//! and pixel lists instead of every pixel's sums.
+//! and pixel lists instead of every pixel's sums. What the CPU's carry decides from
+//! can come back as a bit per pixel ([`GpuCarry::encode_holds`]) instead of the sums.
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{buffer_entry, compute_pipeline, storage, GpuContext, GROUP, PER_PIXEL};
-use crate::reconstruction::carry_edits::CarryEdits;
+use super::{buffer_entry, compute_pipeline, readback, storage, GpuContext, GROUP, PER_PIXEL};
+use crate::reconstruction::{carry_edits::CarryEdits, splat::MIN_WEIGHT};
 
 /// The shader's `CarryParams`.
 #[repr(C)]
@@ -20,10 +21,10 @@ struct CarryParams {
     pad: [u32; 3],
 }
 
-/// `carry.wgsl` after the constant it shares with this side.
+/// `carry.wgsl` after the constants it shares with this side.
 fn carry_source() -> String {
     format!(
-        "const PER_PIXEL: u32 = {PER_PIXEL}u;\n{}",
+        "const PER_PIXEL: u32 = {PER_PIXEL}u;\nconst MIN_WEIGHT: f32 = {MIN_WEIGHT:e};\n{}",
         include_str!("carry.wgsl")
     )
 }
@@ -34,14 +35,23 @@ pub(super) struct GpuCarry {
     take: wgpu::ComputePipeline,
     land: wgpu::ComputePipeline,
     cut: wgpu::ComputePipeline,
+    mask: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     params: wgpu::Buffer,
     factors: wgpu::Buffer,
     edits: wgpu::Buffer,
     taken: wgpu::Buffer,
+    /// A bit per pixel: its weight holds sums; and where it is read back.
+    holds: wgpu::Buffer,
+    pub(super) read_holds: wgpu::Buffer,
     bind: Option<wgpu::BindGroup>,
     words: Vec<u32>,
     pixels: u32,
+}
+
+/// Words of a bit mask over `pixels` pixels.
+pub(super) fn mask_words(pixels: u32) -> u64 {
+    pixels.div_ceil(32) as u64
 }
 
 impl GpuCarry {
@@ -61,6 +71,7 @@ impl GpuCarry {
                 buffer_entry(3, Storage { read_only: true }, false),
                 buffer_entry(4, Storage { read_only: true }, false),
                 buffer_entry(5, Storage { read_only: false }, false),
+                buffer_entry(6, Storage { read_only: false }, false),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -70,18 +81,29 @@ impl GpuCarry {
         });
         let make = |name: &str| compute_pipeline(device, &pipeline_layout, &module, name);
         let none = wgpu::BufferUsages::empty();
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("carry params"),
+            size: std::mem::size_of::<CarryParams>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // The pixel count, which the mask reads, before any replay writes the rest.
+        let p = CarryParams {
+            pixels,
+            ..Default::default()
+        };
+        ctx.queue.write_buffer(&params, 0, bytemuck::bytes_of(&p));
+        let words = mask_words(pixels) * 4;
         Self {
             decay: make("decay_sums"),
             take: make("take_sums"),
             land: make("land_sums"),
             cut: make("cut_sums"),
+            mask: make("holds_mask"),
             layout,
-            params: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("carry params"),
-                size: std::mem::size_of::<CarryParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            params,
+            holds: storage(device, "holds mask", words, wgpu::BufferUsages::COPY_SRC),
+            read_holds: readback(device, "holds mask readback", words.max(16)),
             factors: storage(device, "decay factors", 64 * 8, none),
             edits: storage(device, "carry edits", 256 * 4, none),
             taken: storage(device, "taken sums", 64 * PER_PIXEL as u64 * 4, none),
@@ -130,21 +152,7 @@ impl GpuCarry {
         q.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
         q.write_buffer(&self.factors, 0, bytemuck::cast_slice(&factors));
         q.write_buffer(&self.edits, 0, bytemuck::cast_slice(&self.words));
-        let bind = self.bind.get_or_insert_with(|| {
-            super::bind_buffers(
-                &ctx.device,
-                &self.layout,
-                "carry",
-                &[
-                    &self.params,
-                    acc,
-                    pix_tile,
-                    &self.factors,
-                    &self.edits,
-                    &self.taken,
-                ],
-            )
-        });
+        let bind = self.bind(ctx, acc, pix_tile);
         let mut enc = ctx
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
@@ -161,10 +169,58 @@ impl GpuCarry {
             }
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
             pass.set_pipeline(pipe);
-            pass.set_bind_group(0, &*bind, &[]);
+            pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(n, 1, 1);
         }
         enc.finish()
+    }
+
+    /// Encode into `enc` the mask of the pixels of `acc` whose weight holds sums, and
+    /// its copy to [`GpuCarry::read_holds`].
+    pub(super) fn encode_holds(
+        &mut self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+        acc: &wgpu::Buffer,
+        pix_tile: &wgpu::Buffer,
+    ) {
+        let bind = self.bind(ctx, acc, pix_tile);
+        let words = mask_words(self.pixels);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            pass.set_pipeline(&self.mask);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups((words as u32).div_ceil(GROUP), 1, 1);
+        }
+        enc.copy_buffer_to_buffer(&self.holds, 0, &self.read_holds, 0, words * 4);
+    }
+
+    /// The bind group over `acc` and `pix_tile` and the carry's own buffers (made
+    /// again after one of those grew).
+    fn bind(
+        &mut self,
+        ctx: &GpuContext,
+        acc: &wgpu::Buffer,
+        pix_tile: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        self.bind
+            .get_or_insert_with(|| {
+                super::bind_buffers(
+                    &ctx.device,
+                    &self.layout,
+                    "carry",
+                    &[
+                        &self.params,
+                        acc,
+                        pix_tile,
+                        &self.factors,
+                        &self.edits,
+                        &self.taken,
+                        &self.holds,
+                    ],
+                )
+            })
+            .clone()
     }
 
     /// Buffers at least `factors`, `edits` and `taken` bytes long (a new bind group

@@ -12,7 +12,11 @@
 //         the geometry), in the CPU's order, so that pixels landed on twice agree.
 // cut     one thread per cut pixel: emptied (a new sample came in front).
 //
-// `PER_PIXEL` is prepended by the Rust side, which shares it.
+// After a refresh's splats, `holds_mask` gives the CPU what its carry decides from: a
+// bit per pixel, whether its weight holds sums (at least `MIN_WEIGHT`), instead of the
+// sums themselves.
+//
+// `PER_PIXEL` and `MIN_WEIGHT` are prepended by the Rust side, which shares them.
 
 struct CarryParams {
     pixels: u32,
@@ -36,6 +40,8 @@ struct CarryParams {
 @group(0) @binding(4) var<storage, read> edits: array<u32>;
 // The taken sums, `PER_PIXEL` floats each.
 @group(0) @binding(5) var<storage, read_write> taken: array<f32>;
+// Bit `i` of word `k`: pixel `32k + i` holds sums.
+@group(0) @binding(6) var<storage, read_write> holds: array<u32>;
 
 @compute @workgroup_size(256)
 fn decay_sums(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -92,4 +98,20 @@ fn cut_sums(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var c = 0u; c < PER_PIXEL; c++) {
         acc[b + c] = 0.0;
     }
+}
+
+@compute @workgroup_size(256)
+fn holds_mask(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let first = gid.x * 32u;
+    if first >= C.pixels {
+        return;
+    }
+    var bits = 0u;
+    for (var i = 0u; i < 32u; i++) {
+        let p = first + i;
+        if p < C.pixels && acc[p * PER_PIXEL + 3u] >= MIN_WEIGHT {
+            bits |= 1u << i;
+        }
+    }
+    holds[gid.x] = bits;
 }

@@ -226,6 +226,20 @@ pub struct GpuRecon {
     carried_by: CarriedBy,
 }
 
+/// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
+/// next carry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum SumsBack {
+    /// Every pixel's sums (24 bytes a pixel): where a moving view moves them on the
+    /// CPU ([`ReconParams::resplat_moving_view`] off), which needs them all.
+    All,
+    /// A bit per pixel, whether its weight holds sums: all the CPU's carry decides
+    /// from when the GPU replays it ([`carry`]). The CPU's copy of the sums then
+    /// holds weight 1 where the GPU's hold sums and 0 elsewhere, and nothing else
+    /// of use: a refresh that fails on the GPU starts the CPU's sums afresh.
+    Holds,
+}
+
 /// How carrying refreshes got their carried sums on a GPU.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(super) struct CarriedBy {
@@ -332,15 +346,16 @@ struct Sizes {
     /// Blocks of all pyramid levels together.
     blocks: u64,
     history: bool,
-    carry: bool,
+    /// The sums come back whole after each refresh (not only the holds mask).
+    sums_back: bool,
 }
 
 impl Sizes {
-    fn new(width: u32, height: u32, cap: usize, history: bool, carry: bool) -> Self {
+    fn new(width: u32, height: u32, cap: usize, history: bool, sums_back: bool) -> Self {
         let levels = pyramid_levels(width, height);
         Self {
             history,
-            carry,
+            sums_back,
             pixels: width as u64 * height as u64,
             cap: cap as u64,
             bins: (width.div_ceil(BIN), height.div_ceil(BIN)),
@@ -386,17 +401,19 @@ impl Sizes {
 impl GpuRecon {
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
     /// every pixel's splat scale starting at `scale0`, and a still-region history with
-    /// `history`; `carry`: refreshes carry their accumulators ([`ReconParams::carry`]).
+    /// `history`; `carry`: refreshes carry their accumulators ([`ReconParams::carry`]),
+    /// and what of them comes back ([`SumsBack`]).
     pub(super) fn new(
         ctx: Arc<GpuContext>,
         (width, height): (u32, u32),
         cap: usize,
         scale0: f32,
         history: Option<HistoryParams>,
-        carry: bool,
+        carry: Option<SumsBack>,
     ) -> Result<Self, GpuError> {
         ctx.require_storage_buffers(STORAGE_BUFFERS)?;
-        let sizes = Sizes::new(width, height, cap, history.is_some(), carry);
+        let sums_back = carry == Some(SumsBack::All);
+        let sizes = Sizes::new(width, height, cap, history.is_some(), sums_back);
         sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);
         let level_stride = (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(32);
@@ -416,7 +433,7 @@ impl GpuRecon {
         let history = history.map(|h| {
             history::GpuHistory::new(&ctx, width, height, h, &buffers.out, &buffers.front)
         });
-        let carry = carry.then(|| carry::GpuCarry::new(&ctx, width * height));
+        let carry = carry.map(|_| carry::GpuCarry::new(&ctx, width * height));
         Ok(Self {
             history,
             ctx,
@@ -594,7 +611,7 @@ impl GpuRecon {
     pub(super) fn upload_carried(&mut self, c: &CarriedSums<'_>) -> Result<(), GpuError> {
         let t0 = std::time::Instant::now();
         let n = self.width as usize * self.height as usize;
-        if self.buffers.read_acc.is_none() {
+        if self.carry.is_none() {
             return Err(GpuError::Failed(
                 "carried sums for a GPU side made without carrying".into(),
             ));
@@ -816,6 +833,13 @@ impl GpuRecon {
         // The fills write only the image, so the accumulators are still the sums.
         if let Some(r) = &self.buffers.read_acc {
             enc.copy_buffer_to_buffer(&self.buffers.acc, 0, r, 0, bytes);
+        } else if let Some(c) = &mut self.carry {
+            c.encode_holds(
+                &self.ctx,
+                &mut enc,
+                &self.buffers.acc,
+                &self.buffers.pix_tile,
+            );
         }
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
@@ -832,15 +856,32 @@ impl GpuRecon {
         ];
         bufs.extend(history.map(|h| h.read_buffers()).into_iter().flatten());
         bufs.extend(self.buffers.read_acc.as_ref().map(|r| (r, bytes)));
-        let (w, carrying) = (self.width as usize, self.buffers.read_acc.is_some());
+        let words = carry::mask_words(n as u32) * 4;
+        let holds = self
+            .carry
+            .as_ref()
+            .filter(|_| self.buffers.read_acc.is_none());
+        bufs.extend(holds.map(|c| (&c.read_holds, words)));
+        let w = self.width as usize;
+        let back = if self.buffers.read_acc.is_some() {
+            Some(SumsBack::All)
+        } else {
+            holds.map(|_| SumsBack::Holds)
+        };
         read_timed(&self.ctx, &mut self.times, &bufs, |v| {
             unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
             let rest = &v[2..];
             let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1]));
-            if carrying {
-                let (acc, cs, cover) = into.sums;
-                let sums = bytemuck::cast_slice(rest[rest.len() - 1]);
-                carried::unpack(sums, acc, cs, w, cover);
+            let (acc, cs, cover) = into.sums;
+            let last = rest[rest.len().saturating_sub(1)..].first().copied();
+            match (back, last) {
+                (Some(SumsBack::All), Some(b)) => {
+                    carried::unpack(bytemuck::cast_slice(b), acc, cs, w, cover)
+                }
+                (Some(SumsBack::Holds), Some(b)) => {
+                    carried::unpack_holds(bytemuck::cast_slice(b), acc, cs, w)
+                }
+                _ => {}
             }
             Readback {
                 holes: first_u32(v[0]) as usize,
@@ -945,7 +986,9 @@ impl Buffers {
             front: storage(d, "front depths", n * 4, src),
             read_out: readback(d, "image readback", image),
             read_counts: readback(d, "count readback", 8),
-            read_acc: z.carry.then(|| readback(d, "accumulator readback", image)),
+            read_acc: z
+                .sums_back
+                .then(|| readback(d, "accumulator readback", image)),
             tiles_cap: 64,
             items_cap: cap as usize,
         }
