@@ -32,7 +32,8 @@
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
 # - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
 # - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU (`pass_ms` splits
-#   the GPU's part into gpu_upload, gpu_wait and gpu_read);
+#   the GPU's part into gpu_upload, gpu_wait and gpu_read; `gpu_carried_sums` says how
+#   many refreshes replayed the CPU's carry on the sums the GPU kept);
 # - view_2cores_recon<N>.log: 1280x720 on 2 cores, the image build on 1 or 2 threads;
 # - bench_gpu.log: `frameless bench --recon gpu`.
 set -uo pipefail
