@@ -39,6 +39,7 @@ impl CarryEdits {
 
     /// The takes, the landings (three words each) and the cuts, one after another:
     /// the GPU's edit list.
+    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(super) fn words(&self, out: &mut Vec<u32>) {
         out.clear();
         out.extend_from_slice(&self.takes);
