@@ -134,10 +134,6 @@ impl Method for Traditional {
     }
 }
 
-/// Samples of a [`NewestSamples::set_batches`] below which one thread sets them all:
-/// each band reads every sample, so a few are cheaper in one pass.
-const SET_PARALLEL_FROM: usize = 1 << 15;
-
 /// The newest sample at every pixel, and when the information each pixel shows was
 /// traced: what a frameless display shows. Used by [`Traditional`] and by the real-time
 /// traditional frameless method.
@@ -168,13 +164,13 @@ impl NewestSamples {
     /// [`NewestSamples::set`] called on them one after another in their order would:
     /// the image is split into as many bands of pixels as the thread pool has
     /// threads, and each band takes, in order, the samples that fall in it (a
-    /// real-time display gets hundreds of thousands a refresh from a GPU tracer).
+    /// real-time display gets hundreds of thousands a refresh from a GPU tracer; each
+    /// band reads every sample, so the caller decides when there are enough).
     pub fn set_batches(&mut self, batches: &[Vec<(u32, glam::Vec3, f64)>]) {
         use rayon::prelude::*;
         let n = self.info_time.len();
-        let total: usize = batches.iter().map(Vec::len).sum();
         let threads = rayon::current_num_threads();
-        if threads <= 1 || total < SET_PARALLEL_FROM {
+        if threads <= 1 {
             for &(p, c, t) in batches.iter().flatten() {
                 self.set(p, c, t);
             }
@@ -200,6 +196,25 @@ impl NewestSamples {
     /// When pixel `p`'s information was traced (NaN before its first sample).
     pub fn info_time(&self, p: usize) -> f64 {
         self.info_time.get(p).copied().unwrap_or(f64::NAN)
+    }
+
+    /// [`NewestSamples::mean_age`] on every thread of the pool, summed in chunks (so
+    /// not to the same rounding, nor the same on every run): for a real-time display.
+    pub fn mean_age_on_every_core(&self, t: f64) -> f64 {
+        use rayon::prelude::*;
+        const CHUNK: usize = 1 << 16;
+        let (count, sum) = self
+            .info_time
+            .par_chunks(CHUNK)
+            .map(|c| {
+                let informed = c.iter().filter(|s| s.is_finite());
+                informed.fold((0usize, 0.0), |(k, a), &s| (k + 1, a + (t - s)))
+            })
+            .reduce(|| (0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        if count == 0 {
+            return f64::NAN;
+        }
+        sum / count as f64
     }
 
     /// Mean age at time `t` of the information of the pixels that have some (NaN when

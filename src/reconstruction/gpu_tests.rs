@@ -335,6 +335,41 @@ fn carry_batch(
         .collect()
 }
 
+/// A CPU and a GPU reconstructor with `params` on the same `w × h` setup, and its
+/// tiling: the two sides of a carrying test.
+fn carry_pair(
+    ctx: &Arc<GpuContext>,
+    params: ReconParams,
+    (w, h): (u32, u32),
+) -> (Reconstructor, Reconstructor, crate::tiles::TilingSnapshot) {
+    let (cpu, _, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+    let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
+    gpu.use_gpu(ctx.clone()).expect("carrying runs on the GPU");
+    (cpu, gpu, tiling)
+}
+
+/// Refresh `k` of a carrying test, at t = 1 + 0.05 k s seen by `cam`: `per` new
+/// samples ([`carry_batch`]) to both sides but at the first, then both reconstruct,
+/// the GPU without failing.
+fn refresh_both(
+    (cpu, gpu): (&mut Reconstructor, &mut Reconstructor),
+    rng: &mut crate::sampling::Rng,
+    (cam, tiling): (&CameraFrame, &crate::tiles::TilingSnapshot),
+    k: usize,
+    per: usize,
+) {
+    let t = 1.0 + 0.05 * k as f64;
+    if k > 0 {
+        for (s, dynamic) in carry_batch(rng, cam, t, per) {
+            cpu.push_marked(s, dynamic);
+            gpu.push_marked(s, dynamic);
+        }
+    }
+    cpu.reconstruct(t, cam, tiling);
+    gpu.reconstruct(t, cam, tiling);
+    assert_eq!(gpu.gpu_failure(), None);
+}
+
 #[test]
 #[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
 fn gpu_carried_refreshes_match_the_cpu() {
@@ -363,22 +398,11 @@ fn gpu_carried_refreshes_match_the_cpu() {
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {
-            let (mut cpu, _, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
-            let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
-            gpu.use_gpu(ctx.clone()).expect("carrying runs on the GPU");
+            let (mut cpu, mut gpu, tiling) = carry_pair(&ctx, params, (w, h));
             let mut rng = crate::sampling::Rng::new(&[13, per as u64]);
             for k in 0..8 {
-                let t = 1.0 + 0.05 * k as f64;
                 let cam = carry_camera(k, (w, h));
-                if k > 0 {
-                    for (s, dynamic) in carry_batch(&mut rng, &cam, t, per) {
-                        cpu.push_marked(s, dynamic);
-                        gpu.push_marked(s, dynamic);
-                    }
-                }
-                cpu.reconstruct(t, &cam, &tiling);
-                gpu.reconstruct(t, &cam, &tiling);
-                assert_eq!(gpu.gpu_failure(), None);
+                refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
                 assert_eq!(cpu.placed(), gpu.placed());
                 if k > 0 && !params.resplat_moving_view {
                     assert!(cpu.placed() <= per, "only the new samples are placed");
@@ -412,24 +436,13 @@ fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
         },
     ] {
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {
-            let (mut cpu, _, tiling) = random_setup(w, h, 1000, 1.0, false, params, GTS);
-            let (mut gpu, _, _) = random_setup(w, h, 1000, 1.0, false, params, GTS);
-            gpu.use_gpu(ctx.clone()).expect("carrying runs on the GPU");
+            let (mut cpu, mut gpu, tiling) = carry_pair(&ctx, params, (w, h));
             let mut rng = crate::sampling::Rng::new(&[17, per as u64]);
             let cam = carry_camera(0, (w, h));
             let mut listed = [0usize; 3];
             let refreshes = 10;
             for k in 0..refreshes {
-                let t = 1.0 + 0.05 * k as f64;
-                if k > 0 {
-                    for (s, dynamic) in carry_batch(&mut rng, &cam, t, per) {
-                        cpu.push_marked(s, dynamic);
-                        gpu.push_marked(s, dynamic);
-                    }
-                }
-                cpu.reconstruct(t, &cam, &tiling);
-                gpu.reconstruct(t, &cam, &tiling);
-                assert_eq!(gpu.gpu_failure(), None);
+                refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
                 let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
                 if e.complete {
                     listed[0] += e.takes.len();

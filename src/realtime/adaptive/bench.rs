@@ -8,9 +8,8 @@ use std::{
 
 use crossbeam_channel::bounded;
 
-pub(super) use super::controller::band_samplers;
 use super::{
-    controller::ingest,
+    controller::{band_samplers, ingest},
     published::Published,
     sampling::{sample, Batch},
     settings::AdaptiveSettings,

@@ -4,9 +4,9 @@ use std::sync::Arc;
 
 use super::{
     bands,
-    bench::{band_samplers, record},
+    bench::record,
     builder::{next_live_limit, push_newest, BuildCost},
-    controller::{snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
+    controller::{band_samplers, snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
     controllers,
     published::{Published, MIN_BAND_ROWS},
     sampling::Visit,

@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 
-use super::PER_PIXEL;
+use super::{SumsBack, PER_PIXEL};
 use crate::reconstruction::splat::{channel_row, CHANNELS};
 
 /// The carried sums a carrying refresh uploads: the CPU's planar accumulators `acc`
@@ -94,6 +94,21 @@ pub(in crate::reconstruction) fn unpack(
                 *c = px[CHANNELS];
             }
         });
+}
+
+/// What came back of the carried sums (`bytes`, as [`SumsBack`] says) into the CPU's
+/// planar accumulators and coverage `sums` (channel stride between them) of a
+/// `w`-wide image.
+pub(in crate::reconstruction) fn unpack_back(
+    back: SumsBack,
+    bytes: &[u8],
+    (acc, cs, cover): (&mut [f32], usize, &mut [f32]),
+    w: usize,
+) {
+    match back {
+        SumsBack::All => unpack(bytemuck::cast_slice(bytes), acc, cs, w, cover),
+        SumsBack::Holds => unpack_holds(bytemuck::cast_slice(bytes), acc, cs, w),
+    }
 }
 
 /// The holds mask the GPU reads back in place of the sums (bit `i` of word `k`: pixel

@@ -43,14 +43,14 @@ pub(super) struct GpuCarry {
     taken: wgpu::Buffer,
     /// A bit per pixel: its weight holds sums; and where it is read back.
     holds: wgpu::Buffer,
-    pub(super) read_holds: wgpu::Buffer,
+    read_holds: wgpu::Buffer,
     bind: Option<wgpu::BindGroup>,
     words: Vec<u32>,
     pixels: u32,
 }
 
 /// Words of a bit mask over `pixels` pixels.
-pub(super) fn mask_words(pixels: u32) -> u64 {
+fn mask_words(pixels: u32) -> u64 {
     pixels.div_ceil(32) as u64
 }
 
@@ -124,16 +124,8 @@ impl GpuCarry {
         pix_tile: &wgpu::Buffer,
     ) -> wgpu::CommandBuffer {
         e.words(&mut self.words);
-        // Storage buffers may not be empty: one word more than the lists need.
-        self.words.push(0);
-        let factors: Vec<f32> = e
-            .decay
-            .iter()
-            .flatten()
-            .copied()
-            .chain([1.0, 1.0])
-            .collect();
-        let taken = (e.takes.len().max(1) * PER_PIXEL * 4) as u64;
+        let factors: &[f32] = bytemuck::cast_slice(&e.decay);
+        let taken = (e.takes.len() * PER_PIXEL * 4) as u64;
         self.fit(
             ctx,
             factors.len() as u64 * 4,
@@ -150,8 +142,16 @@ impl GpuCarry {
         };
         let q = &ctx.queue;
         q.write_buffer(&self.params, 0, bytemuck::bytes_of(&p));
-        q.write_buffer(&self.factors, 0, bytemuck::cast_slice(&factors));
-        q.write_buffer(&self.edits, 0, bytemuck::cast_slice(&self.words));
+        // The buffers are never empty (16 bytes at least); the lists may be.
+        let edits: &[u8] = bytemuck::cast_slice(&self.words);
+        for (b, bytes) in [
+            (&self.factors, bytemuck::cast_slice(factors)),
+            (&self.edits, edits),
+        ] {
+            if !bytes.is_empty() {
+                q.write_buffer(b, 0, bytes);
+            }
+        }
         let bind = self.bind(ctx, acc, pix_tile);
         let mut enc = ctx
             .device
@@ -193,6 +193,11 @@ impl GpuCarry {
             pass.dispatch_workgroups((words as u32).div_ceil(GROUP), 1, 1);
         }
         enc.copy_buffer_to_buffer(&self.holds, 0, &self.read_holds, 0, words * 4);
+    }
+
+    /// Where [`GpuCarry::encode_holds`] copies the mask to, and its bytes.
+    pub(super) fn holds_readback(&self) -> (&wgpu::Buffer, u64) {
+        (&self.read_holds, mask_words(self.pixels) * 4)
     }
 
     /// The bind group over `acc` and `pix_tile` and the carry's own buffers (made

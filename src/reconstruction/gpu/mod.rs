@@ -224,6 +224,8 @@ pub struct GpuRecon {
     /// Carrying refreshes whose sums were uploaded, and those whose carry was
     /// replayed here.
     carried_by: CarriedBy,
+    /// With carrying: what comes back of the sums after each refresh.
+    sums_back: Option<SumsBack>,
 }
 
 /// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
@@ -401,19 +403,19 @@ impl Sizes {
 impl GpuRecon {
     /// The GPU side of a `width × height` reconstructor with a ring of `cap` samples,
     /// every pixel's splat scale starting at `scale0`, and a still-region history with
-    /// `history`; `carry`: refreshes carry their accumulators ([`ReconParams::carry`]),
-    /// and what of them comes back ([`SumsBack`]).
+    /// `history`; `sums_back`: refreshes carry their accumulators ([`ReconParams::carry`]),
+    /// and this comes back of them ([`SumsBack`]).
     pub(super) fn new(
         ctx: Arc<GpuContext>,
         (width, height): (u32, u32),
         cap: usize,
         scale0: f32,
         history: Option<HistoryParams>,
-        carry: Option<SumsBack>,
+        sums_back: Option<SumsBack>,
     ) -> Result<Self, GpuError> {
         ctx.require_storage_buffers(STORAGE_BUFFERS)?;
-        let sums_back = carry == Some(SumsBack::All);
-        let sizes = Sizes::new(width, height, cap, history.is_some(), sums_back);
+        let all_back = sums_back == Some(SumsBack::All);
+        let sizes = Sizes::new(width, height, cap, history.is_some(), all_back);
         sizes.check(&ctx)?;
         let pipelines = Pipelines::new(&ctx.device);
         let level_stride = (ctx.limits.min_uniform_buffer_offset_alignment as u64).max(32);
@@ -433,7 +435,7 @@ impl GpuRecon {
         let history = history.map(|h| {
             history::GpuHistory::new(&ctx, width, height, h, &buffers.out, &buffers.front)
         });
-        let carry = carry.map(|_| carry::GpuCarry::new(&ctx, width * height));
+        let carry = sums_back.map(|_| carry::GpuCarry::new(&ctx, width * height));
         Ok(Self {
             history,
             ctx,
@@ -456,6 +458,7 @@ impl GpuRecon {
             acc_carried: false,
             replay: None,
             carried_by: CarriedBy::default(),
+            sums_back,
         })
     }
 
@@ -830,17 +833,7 @@ impl GpuRecon {
             shown = &h.shown;
         }
         enc.copy_buffer_to_buffer(shown, 0, &self.buffers.read_out, 0, bytes);
-        // The fills write only the image, so the accumulators are still the sums.
-        if let Some(r) = &self.buffers.read_acc {
-            enc.copy_buffer_to_buffer(&self.buffers.acc, 0, r, 0, bytes);
-        } else if let Some(c) = &mut self.carry {
-            c.encode_holds(
-                &self.ctx,
-                &mut enc,
-                &self.buffers.acc,
-                &self.buffers.pix_tile,
-            );
-        }
+        self.encode_sums_back(&mut enc);
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
             (2 * nb + 1) * 4,
@@ -855,39 +848,38 @@ impl GpuRecon {
             (&self.buffers.read_out, bytes),
         ];
         bufs.extend(history.map(|h| h.read_buffers()).into_iter().flatten());
-        bufs.extend(self.buffers.read_acc.as_ref().map(|r| (r, bytes)));
-        let words = carry::mask_words(n as u32) * 4;
-        let holds = self
-            .carry
-            .as_ref()
-            .filter(|_| self.buffers.read_acc.is_none());
-        bufs.extend(holds.map(|c| (&c.read_holds, words)));
-        let w = self.width as usize;
-        let back = if self.buffers.read_acc.is_some() {
-            Some(SumsBack::All)
-        } else {
-            holds.map(|_| SumsBack::Holds)
-        };
+        // What `encode_sums_back` copied the sums' part into.
+        bufs.extend(match self.sums_back {
+            Some(SumsBack::All) => self.buffers.read_acc.as_ref().map(|r| (r, r.size())),
+            Some(SumsBack::Holds) => self.carry.as_ref().map(carry::GpuCarry::holds_readback),
+            None => None,
+        });
+        let (back, w) = (self.sums_back, self.width as usize);
         read_timed(&self.ctx, &mut self.times, &bufs, |v| {
             unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
             let rest = &v[2..];
             let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1]));
-            let (acc, cs, cover) = into.sums;
-            let last = rest[rest.len().saturating_sub(1)..].first().copied();
-            match (back, last) {
-                (Some(SumsBack::All), Some(b)) => {
-                    carried::unpack(bytemuck::cast_slice(b), acc, cs, w, cover)
-                }
-                (Some(SumsBack::Holds), Some(b)) => {
-                    carried::unpack_holds(bytemuck::cast_slice(b), acc, cs, w)
-                }
-                _ => {}
+            if let (Some(back), Some(bytes)) = (back, rest.last()) {
+                carried::unpack_back(back, bytes, into.sums, w);
             }
             Readback {
                 holes: first_u32(v[0]) as usize,
                 history,
             }
         })
+    }
+
+    /// Encode the copy of what comes back of the carried sums ([`SumsBack`]), after the
+    /// fills (which write only the image, so the accumulators are still the sums).
+    fn encode_sums_back(&mut self, enc: &mut wgpu::CommandEncoder) {
+        let (acc, bytes) = (&self.buffers.acc, self.buffers.acc.size());
+        match (self.sums_back, &self.buffers.read_acc, &mut self.carry) {
+            (Some(SumsBack::All), Some(r), _) => enc.copy_buffer_to_buffer(acc, 0, r, 0, bytes),
+            (Some(SumsBack::Holds), _, Some(c)) => {
+                c.encode_holds(&self.ctx, enc, acc, &self.buffers.pix_tile)
+            }
+            _ => {}
+        }
     }
 
     /// The pull-push fill's passes: pull up every level, normalise the top, push down
