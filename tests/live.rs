@@ -212,6 +212,44 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
 }
 
 #[test]
+fn a_warp_shows_the_scene_at_the_refresh_it_is_meant_for() {
+    let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
+    let (w, h) = (64, 48);
+    let tracer = Arc::new(Tracer::new(
+        Arc::new(sliding_bar()),
+        w,
+        h,
+        TraceOptions::default(),
+    ));
+    let mut config = RtConfig::new(RtMethod::LateWarp);
+    config.refresh_hz = 60.0;
+    config.start = 0.25;
+    let window = Window {
+        warmup: 12,
+        refreshes: 24,
+    };
+    let settings = RtMethod::LateWarp.settings();
+    let rec = record(tracer, config.clone(), settings, window).expect("records");
+    let period = 1.0 / config.refresh_hz;
+    let mut warped = 0;
+    for (j, i) in rec.shown.iter().enumerate() {
+        let Some(i) = i else { continue };
+        let scan_out = config.start + (window.warmup as f64 + j as f64) * period;
+        let t = rec.images[*i as usize].time;
+        // Warped to the scene of a refresh (not of the instant its build began), and
+        // never to one more than a refresh after where it is shown.
+        let refresh = (t - config.start) / period;
+        assert!(
+            (refresh - refresh.round()).abs() < 1e-6,
+            "refresh {j} shows an image of t = {t}, between refreshes"
+        );
+        assert!(t <= scan_out + period + 1e-9, "{t} against {scan_out}");
+        warped += 1;
+    }
+    assert!(warped > 0, "no image was shown");
+}
+
+#[test]
 fn bad_input_is_refused_before_any_work() {
     let dir = std::env::temp_dir().join(format!("frameless-live-bad-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

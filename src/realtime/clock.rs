@@ -88,6 +88,11 @@ impl PipelineClock {
         self.wall().elapsed()
     }
 
+    /// Scene time at the origin.
+    pub(crate) fn start(&self) -> f64 {
+        self.start
+    }
+
     /// [`WallClock::instant_at`].
     pub(crate) fn instant_at(&self, s: f64) -> Instant {
         self.wall().instant_at(s)

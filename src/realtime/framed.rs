@@ -28,8 +28,8 @@ use glam::Vec3;
 use super::{
     config::RealtimeError,
     shared::{
-        lock, take_queued, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared, Shown,
-        Spawner,
+        lock, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo, Pooled, Shared,
+        Shown, Spawner,
     },
 };
 use crate::{
@@ -246,7 +246,7 @@ impl ImageBuilder for Builder {
         vec![("dropped_frames", self.dropped_frames.into())]
     }
 
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
         let (w, h) = self.size;
         // Frames completed in this build before a newer one: traced, never shown.
         let (mut dropped, mut replaced) = (0u64, false);
@@ -291,16 +291,18 @@ impl ImageBuilder for Builder {
         dropped += self.building.take_abandoned();
         self.dropped_frames += dropped;
         let n = self.front.pixels.len();
-        let age = (t - self.front_time.1) as f32;
-        // The warp moves what the frame saw to where it is now; it adds no new
-        // information, so the age stays the frame's.
-        let (image, view_time) = match (&mut self.warp, &self.front_g) {
+        // The warp moves what the frame saw to where it will be at the refresh the
+        // image is meant for; it adds no new information, so the age stays the
+        // frame's, measured from the time it shows.
+        let (image, view_time, t) = match (&mut self.warp, &self.front_g) {
             (Some(warp), Some(g)) => {
+                let t = at.shown;
                 let camera = self.s.tracer.state_at(t).camera;
-                (warp.apply(&self.front, g, t, &camera).clone(), t)
+                (warp.apply(&self.front, g, t, &camera).clone(), t, t)
             }
-            _ => (self.front.clone(), self.front_time.1),
+            _ => (self.front.clone(), self.front_time.1, at.now),
         };
+        let age = (t - self.front_time.1) as f32;
         Some(Built {
             image,
             mean_age: t - self.front_time.1,

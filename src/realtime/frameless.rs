@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{take_queued, Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
+    shared::{take_queued, BuildAt, Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
 };
 use crate::{
     image::Image,
@@ -154,7 +154,9 @@ struct Builder {
 }
 
 impl ImageBuilder for Builder {
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
+        // Each sample is shown where it was traced: nothing to show as it will be.
+        let t = at.now;
         let batches: Vec<Batch> = take_queued(&self.rx).collect();
         let samples: usize = batches.iter().map(Vec::len).sum();
         let (image, mean_age) = if self.on_every_core && samples >= EVERY_CORE_FROM {

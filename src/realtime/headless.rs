@@ -215,13 +215,16 @@ impl StepWatch {
     fn observe(&mut self, f: &Frame, elapsed: f64) {
         let (scene_t, figures) = (self.scene_t, &mut self.figures);
         let shown_ms = (elapsed - self.wall) * 1e3;
-        if f.time >= scene_t && figures.first_image_ms.is_none() {
+        // Built after the step: an image meant for a later refresh but begun before
+        // the step shows the camera as it was.
+        let after = f.began >= scene_t;
+        if after && figures.first_image_ms.is_none() {
             figures.first_image_ms = Some(shown_ms);
         }
-        if f.view_time >= scene_t && figures.view_ms.is_none() {
+        if after && f.view_time >= scene_t && figures.view_ms.is_none() {
             figures.view_ms = Some(shown_ms);
         }
-        if figures.half_new_ms.is_none() && f.time >= scene_t {
+        if figures.half_new_ms.is_none() && after {
             let since = f.time - scene_t;
             let (informed, new) = f
                 .ages

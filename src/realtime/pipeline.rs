@@ -19,7 +19,7 @@ use super::{
     clock::WallClock,
     config::{RealtimeError, RtConfig},
     registry::RtSettings,
-    shared::{lock, ImageBuilder, Shared, Spawner},
+    shared::{lock, BuildAt, ImageBuilder, Shared, Spawner},
 };
 use crate::{reconstruction::device::ReconUsed, trace::Tracer};
 
@@ -283,6 +283,17 @@ impl Lead {
             .unwrap_or(0.0)
     }
 
+    /// The refresh a build that begins `elapsed` wall seconds into the run is
+    /// expected to be done by: after the median of the recent builds and the margin.
+    /// A build whose refresh is due sooner is shown at this one instead, and should
+    /// show the scene as it will be then.
+    fn done_by(&self, elapsed: f64) -> u64 {
+        let mut recent = self.recent;
+        recent.sort_by(f64::total_cmp);
+        let median = recent[recent.len() / 2];
+        ((elapsed + median + Self::MARGIN_S) / self.period).ceil() as u64
+    }
+
     fn record(&mut self, build_s: f64) {
         self.recent[self.next] = build_s;
         self.next = (self.next + 1) % self.recent.len();
@@ -312,8 +323,14 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         // a period late; the next build is for the refresh after.
         k = ((s.clock.elapsed() + ahead) / period).round().max(k as f64) as u64 + 1;
         let t0 = Instant::now();
-        let t = s.clock.now();
-        let Some(built) = builder.build(t) else {
+        let now = s.clock.now();
+        // Refresh j is scanned out at scene time `start + j·period`.
+        let shown_refresh = lead.done_by(s.clock.elapsed()).max(k - 1);
+        let at = BuildAt {
+            now,
+            shown: now.max(s.clock.start() + shown_refresh as f64 * period),
+        };
+        let Some(built) = builder.build(at) else {
             continue;
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -322,10 +339,11 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         let mean_age = built.mean_age;
         let ages = Arc::new(built.ages);
         // The build drains what the threads traced until it runs, so an image can show
-        // a view from after `t` (a small frame started and finished meanwhile): its
+        // a view from after `now` (a small frame started and finished meanwhile), and
+        // a method that reprojects shows the view of the refresh it is meant for: its
         // time is then that view's, never earlier than what it shows.
-        // (`f64::max` keeps `t` where the view time is NaN: no single view.)
-        let time = t.max(built.view_time);
+        // (`f64::max` keeps `now` where the view time is NaN: no single view.)
+        let time = now.max(built.view_time);
         *lock(&s.latest) = Some(Arc::new(Frame {
             seq,
             image: built.image,
@@ -334,6 +352,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             overlays: built.overlays,
             ages: ages.clone(),
             view_time: built.view_time,
+            began: now,
             published_s: s.clock.elapsed(),
         }));
         let mut st = lock(&s.image_stats);
@@ -384,5 +403,30 @@ mod tests {
         assert!((lead_after(p, &[10e-3; 16]) - (10e-3 + Lead::MARGIN_S)).abs() < 1e-12);
         assert_eq!(lead_after(p, &[14e-3; 16]), 0.0);
         assert_eq!(lead_after(p, &[0.1; 16]), 0.0);
+    }
+
+    #[test]
+    fn a_build_is_meant_for_the_refresh_it_is_expected_to_be_done_by() {
+        let p = 1.0 / 60.0;
+        let mut l = Lead::new(p);
+        for _ in 0..16 {
+            l.record(6e-3);
+        }
+        // Begun 10 ms before refresh 5: done by it.
+        assert_eq!(l.done_by(5.0 * p - 10e-3), 5);
+        // Begun 5 ms before it: done 2.5 ms after it, shown at the next.
+        assert_eq!(l.done_by(5.0 * p - 5e-3), 6);
+        // Builds longer than a period: shown two refreshes on.
+        let mut slow = Lead::new(p);
+        for _ in 0..16 {
+            slow.record(20e-3);
+        }
+        assert_eq!(slow.done_by(5.0 * p), 7);
+        // The median, not the slowest: a rare long build is the one shown late.
+        let mut mixed = Lead::new(p);
+        for i in 0..16 {
+            mixed.record(if i % 4 == 0 { 14e-3 } else { 2e-3 });
+        }
+        assert_eq!(mixed.done_by(5.0 * p - 5e-3), 5);
     }
 }

@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{display_only, Built, ImageBuilder, MethodInfo, MethodSettings, Spawner},
+    shared::{display_only, BuildAt, Built, ImageBuilder, MethodInfo, MethodSettings, Spawner},
 };
 use crate::image::Image;
 
@@ -84,7 +84,7 @@ struct Builder {
 }
 
 impl ImageBuilder for Builder {
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
         self.batches += self.rx.try_iter().sum::<u64>();
         let mut image = Image::new(self.size.0, self.size.1);
         image.pixels.fill(Vec3::splat(self.grey));
@@ -93,7 +93,7 @@ impl ImageBuilder for Builder {
             mean_age: 0.0,
             overlays: None,
             ages: vec![0.0],
-            view_time: t,
+            view_time: at.now,
         })
     }
 

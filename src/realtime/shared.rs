@@ -57,6 +57,10 @@ pub struct Frame {
     pub ages: Arc<Vec<f32>>,
     /// Scene time of the camera it shows the scene from (NaN: no single camera).
     pub view_time: f64,
+    /// Scene time its build began: it knows nothing that happened after. A method
+    /// that reprojects shows the scene as it will be at the refresh the image is
+    /// meant for (`time`, `view_time`), later than this ([`BuildAt`]).
+    pub began: f64,
     /// Wall-clock seconds since the pipeline started when it became the newest image:
     /// a display refresh due before then still showed the previous one.
     pub published_s: f64,
@@ -215,14 +219,29 @@ pub(crate) struct Built {
     /// Ages of a subset of its pixels ([`sampled_ages`]).
     pub ages: Vec<f32>,
     /// Scene time of the camera it shows the scene from (NaN: each pixel from the
-    /// camera of its own sample, as traditional frameless shows it).
+    /// camera of its own sample, as traditional frameless shows it). A method that
+    /// reprojects to [`BuildAt::shown`] measures its ages from that time too.
     pub view_time: f64,
 }
 
+/// When an image is built and when it will be seen.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct BuildAt {
+    /// Scene time the build begins: the samples it drains were traced before.
+    pub now: f64,
+    /// Scene time of the refresh the image is expected to be shown at first (not
+    /// before `now`). A method that reprojects what it holds (adaptive, the warps)
+    /// shows the scene as it will be then, not as it was when the build began: the
+    /// scene's animation and a scripted camera are known ahead, and a camera a person
+    /// steers is the one last set (nothing of their input is predicted). Built at
+    /// `now`, an image would show the view a build time and more out of date.
+    pub shown: f64,
+}
+
 /// A method's side of the image thread: it drains what the method's threads sent and
-/// builds the image shown at scene time `t`. `None`: nothing to show yet.
+/// builds the image for the display ([`BuildAt`]). `None`: nothing to show yet.
 pub(crate) trait ImageBuilder: Send {
-    fn build(&mut self, t: f64) -> Option<Built>;
+    fn build(&mut self, at: BuildAt) -> Option<Built>;
 
     /// The method's own figures so far, by the names the pipeline statistics give
     /// them (beside the figures every method has).
@@ -401,10 +420,10 @@ impl<B: ImageBuilder> Pooled<B> {
 }
 
 impl<B: ImageBuilder> ImageBuilder for Pooled<B> {
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
         match &self.pool {
-            Some(p) => p.install(|| self.builder.build(t)),
-            None => self.builder.build(t),
+            Some(p) => p.install(|| self.builder.build(at)),
+            None => self.builder.build(at),
         }
     }
 

@@ -23,8 +23,8 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 use super::{
     config::RealtimeError,
     shared::{
-        lock, sampled_ages, take_queued, Assembly, Built, ImageBuilder, MethodInfo, Pooled, Shared,
-        Shown, Spawner,
+        lock, sampled_ages, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo,
+        Pooled, Shared, Shown, Spawner,
     },
 };
 use crate::{
@@ -321,7 +321,7 @@ impl ImageBuilder for Builder {
         vec![("dropped_frames", self.dropped_frames.into())]
     }
 
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
         // Collected first: folding borrows the whole builder.
         let rows: Vec<Row> = take_queued(&self.rx).collect();
         let mut complete: Option<Building> = None;
@@ -356,11 +356,14 @@ impl ImageBuilder for Builder {
         }
         self.dropped_frames += dropped;
         let (_, newest) = self.folded?;
+        // The warp moves what the history holds to where it will be at the refresh
+        // the image is meant for; it adds no information, so the ages stay the
+        // history's, measured from the time it shows.
+        let warp = self.warp.is_some() && self.history.shown_gbuffer().is_some();
+        let t = if warp { at.shown } else { at.now };
         let times = self.history.output_times();
         let ages = sampled_ages(times.len(), |i| (t - times[i]) as f32);
         let mean_age = self.history.mean_age(t).unwrap_or(f64::NAN);
-        // The warp moves what the history holds to where it is now; it adds no
-        // information, so the ages stay the history's.
         let (image, view_time) = match (&mut self.warp, self.history.shown_gbuffer()) {
             (Some(warp), Some(g)) => {
                 let camera = self.s.tracer.state_at(t).camera;

@@ -14,7 +14,7 @@ use super::{overlays::TilingOverlays, published::Published, settings::AdaptiveSe
 use crate::{
     realtime::{
         config::RealtimeError,
-        shared::{lock, take_queued, Built, ImageBuilder, Shared},
+        shared::{lock, take_queued, BuildAt, Built, ImageBuilder, Shared},
     },
     reconstruction::{device::ReconUsed, Reconstructor},
     trace::StreamSample,
@@ -263,8 +263,10 @@ impl ImageBuilder for Builder {
         self.recon.used()
     }
 
-    fn build(&mut self, t: f64) -> Option<Built> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
         let t0 = Instant::now();
+        // Samples are reprojected to the scene of the refresh the image is meant for.
+        let t = at.shown;
         let s = &*self.s;
         let (w, h) = s.tracer.size();
         let tiling = Arc::new(self.published.whole_tiling()?);
@@ -331,7 +333,6 @@ impl ImageBuilder for Builder {
             mean_age: r.mean_age(),
             overlays: Some(Arc::new(TilingOverlays(tiling))),
             ages: crate::realtime::shared::sampled_ages(ages.len(), |i| ages[i]),
-            // Samples are reprojected to the camera of `t`.
             view_time: t,
         })
     }
