@@ -88,6 +88,9 @@ pub enum Setting {
     Repeat,
     /// The cores the real-time pipeline's threads are sized for.
     Threads,
+    /// The adaptive method's real-time options (image budget, ring, largest splat
+    /// radius); the reason names which.
+    Adaptive,
 }
 
 impl Setting {
@@ -107,6 +110,7 @@ impl Setting {
             Setting::Size => "size",
             Setting::Repeat => "repeat",
             Setting::Threads => "threads",
+            Setting::Adaptive => "adaptive",
         }
     }
 
@@ -129,6 +133,8 @@ impl Setting {
             Setting::Size => "--size",
             Setting::Repeat => "--repeat",
             Setting::Threads => "--threads",
+            // The reason names the option (`ring factor 100 out of range …`).
+            Setting::Adaptive => "adaptive:",
         }
     }
 
@@ -148,6 +154,7 @@ impl Setting {
             Setting::Size => "size",
             Setting::Repeat => "repeat count",
             Setting::Threads => "threads",
+            Setting::Adaptive => "adaptive:",
         }
     }
 }

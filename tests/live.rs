@@ -291,6 +291,10 @@ fn bad_input_is_refused_before_any_work() {
     );
     let err = run(&["--repeat", "0"]);
     assert!(err.contains("--repeat"), "{err}");
+    let err = run(&["--ring-factor", "100"]);
+    assert!(err.contains("ring factor 100 out of range"), "{err}");
+    let err = run(&["--image-budget", "2"]);
+    assert!(err.contains("image budget 2 out of range"), "{err}");
     // An old name is the new one: twice, with the new name in the reason.
     let err = run(&["--method", "framed,framed-full"]);
     assert!(err.contains("lists framed-full twice"), "{err}");

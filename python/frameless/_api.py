@@ -370,13 +370,18 @@ def live(
     progress: Progress = True,
     seconds: Optional[float] = None,
     trace: str = "cpu",
+    image_budget: Optional[float] = None,
+    ring_factor: Optional[float] = None,
+    max_radius: Optional[float] = None,
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
     scored against the ideal image at its scan-out time. ``threads`` sizes the pipeline
     as ``--threads`` does. Ctrl-C stops it when the run in progress ends. ``seconds``
     is ``duration``'s old name (a FutureWarning says so). ``recon`` and ``trace`` are
-    ``--recon`` and ``--trace`` (see ``evaluate``)."""
+    ``--recon`` and ``--trace`` (see ``evaluate``). ``image_budget``, ``ring_factor``
+    and ``max_radius`` are the adaptive method's ``--image-budget``, ``--ring-factor``
+    and ``--max-radius`` (None: its defaults)."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)
@@ -388,6 +393,7 @@ def live(
             native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
             texture_filter, _cache_dir(cache_dir, no_cache), recon, cb, trace,
+            image_budget, ring_factor, max_radius,
         )
     return Evaluation._from_json(summary, frames)
 

@@ -106,6 +106,9 @@ def live(
     recon: str = "cpu",
     progress: ProgressCallback = None,
     trace: str = "cpu",
+    image_budget: Optional[float] = None,
+    ring_factor: Optional[float] = None,
+    max_radius: Optional[float] = None,
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 

@@ -38,6 +38,8 @@ fn keyword(setting: Setting) -> &'static str {
     match setting {
         // `live`'s recorded seconds are its `duration=`, as on the command line.
         Setting::Seconds => "duration",
+        // The reason names the keyword (`ring factor 100 out of range …`).
+        Setting::Adaptive => "adaptive:",
         s => s.key(),
     }
 }

@@ -78,14 +78,15 @@ fn evaluate(
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
 ///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
-///      trace="cpu")
+///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None)
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
 #[pyfunction]
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
-                    progress=None, trace="cpu"))]
+                    progress=None, trace="cpu", image_budget=None, ring_factor=None,
+                    max_radius=None))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -106,6 +107,9 @@ fn live(
     recon: &str,
     progress: Option<Bound<'_, PyAny>>,
     trace: &str,
+    image_budget: Option<f64>,
+    ring_factor: Option<f64>,
+    max_radius: Option<f64>,
 ) -> PyResult<(String, String)> {
     args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
@@ -131,6 +135,11 @@ fn live(
         args::in_range("threads", n, 1, 1024)?;
         cfg.cores = n as usize;
     }
+    if let Some(b) = image_budget {
+        cfg.adaptive.image_budget = args::finite("image_budget", b)?;
+    }
+    cfg.adaptive.ring_factor = ring_factor.map(|f| args::finite("ring_factor", f)).transpose()?;
+    cfg.adaptive.max_radius = max_radius.map(|r| args::finite("max_radius", r)).transpose()?;
     cfg.validate().map_err(errors::eval)?;
     cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();

@@ -136,6 +136,7 @@ LIBRARY_CHECKED = [
     (["eval", "--size", "4096x4097"], lambda s: frameless.evaluate(s, size=(4096, 4097))),
     (["render", "--warmup", "-2"], lambda s: frameless.render(s, warmup=-2)),
     (["live", "--duration", "0"], lambda s: frameless.live(s, duration=0)),
+    (["live", "--ring-factor", "100"], lambda s: frameless.live(s, ring_factor=100)),
 ]
 
 # Values clap parses on the command line ("invalid value '…' for '--opt <OPT>':

@@ -362,6 +362,8 @@ pub struct LiveArgs {
     /// Threads of the image build [default: half the cores `--threads` names, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
+    #[command(flatten)]
+    pub adaptive: frameless::realtime::AdaptiveArgs,
     /// Output folder.
     #[arg(short, long, default_value = "live-out")]
     pub out: PathBuf,

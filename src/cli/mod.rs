@@ -993,6 +993,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
         cfg.cores = n as usize;
     }
     cfg.recon_threads = a.recon_threads.map(usize::from);
+    cfg.adaptive = a.adaptive.clone();
     cfg.validate()?;
     cfg.devices = realtime_devices(&a.devices, &cfg.methods)?;
     // Again with the GPU: a method it cannot reconstruct for fails before any run.

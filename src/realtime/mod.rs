@@ -49,7 +49,7 @@ mod shared;
 pub mod taa;
 pub mod viewer;
 
-pub use adaptive::{AdaptiveArgs, AdaptiveSettings};
+pub use adaptive::{AdaptiveArgs, AdaptiveSettings, AdaptiveTuning};
 pub use camera::{CameraRecorder, FlyCamera};
 pub use clock::WallClock;
 pub use config::{RealtimeError, RtConfig};

@@ -28,7 +28,7 @@ use crate::{
     realtime::{
         machine,
         record::{self, LiveFigures, Recording, Window},
-        RtConfig, RtMethod, RtSettings,
+        AdaptiveArgs, AdaptiveSettings, AdaptiveTuning, RtConfig, RtMethod, RtSettings,
     },
     reconstruction::device::ReconUsed,
     render::cache::{self, IdealCache, Lookup},
@@ -63,6 +63,9 @@ pub struct LiveConfig {
     pub cores: usize,
     /// The image build's threads, where not the cores' default (half of them).
     pub recon_threads: Option<usize>,
+    /// The adaptive method's options, as `view` takes them (image budget, ring, largest
+    /// splat radius); nothing asked for by default.
+    pub adaptive: AdaptiveArgs,
     /// The display: size and refresh rate.
     pub display: settings::DisplayGroup,
     /// How samples are traced, the ideal images' included: seed (of the methods'
@@ -92,6 +95,7 @@ impl LiveConfig {
             repeat: 1,
             cores: machine::cores(),
             recon_threads: None,
+            adaptive: AdaptiveArgs::default(),
             display: settings::DisplayGroup::default(),
             quality: settings::QualityGroup::default(),
             reference: settings::ReferenceGroup::uncached(),
@@ -149,11 +153,24 @@ impl LiveConfig {
         c
     }
 
-    /// `method`'s own settings: its defaults, with the run's GPU.
+    /// `method`'s own settings: its defaults with the adaptive options asked for, and
+    /// the run's GPU.
     pub fn rt_settings(&self, method: RtMethod) -> RtSettings {
         let mut s = method.settings();
+        if let RtSettings::Adaptive(a) = &mut s {
+            self.adaptive.apply(a);
+        }
         s.use_gpu(self.devices.recon.clone());
         s
+    }
+
+    /// The adaptive settings the runs go with, if adaptive is one of the methods.
+    pub fn adaptive_tuning(&self) -> Option<AdaptiveTuning> {
+        self.methods.contains(&RtMethod::Adaptive).then(|| {
+            let mut a = AdaptiveSettings::default();
+            self.adaptive.apply(&mut a);
+            a.tuning()
+        })
     }
 
     /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
@@ -200,6 +217,16 @@ impl LiveConfig {
         }
         if self.reference.ideal_spp == 0 {
             return bad(Setting::IdealSpp, "must be at least 1".into());
+        }
+        // Refused even where adaptive does not run: an option out of range is a mistake.
+        let mut adaptive = AdaptiveSettings::default();
+        self.adaptive.apply(&mut adaptive);
+        if let Err(e) = RtSettings::Adaptive(adaptive).validate() {
+            let why = match e {
+                crate::realtime::RealtimeError::Config(why) => why,
+                e => e.to_string(),
+            };
+            return bad(Setting::Adaptive, why);
         }
         for &m in &self.methods {
             // Only the thread counts of a method's defaults depend on the cores, so an
@@ -441,6 +468,10 @@ pub struct LiveSummary {
     /// failed part way (`trace_failure`).
     #[serde(default = "crate::gpu::DeviceUsed::cpu")]
     pub trace: crate::gpu::DeviceUsed,
+    /// The adaptive method's settings, where it ran (summaries written before they
+    /// were recorded ran its defaults of then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveTuning>,
     /// Runs of each method.
     pub repeat: usize,
     /// Cores of the machine.
@@ -782,6 +813,7 @@ fn assemble(
             camera_path: cfg.camera_path.is_some(),
             recon: cfg.devices.recon_used(),
             trace: cfg.devices.trace_used(),
+            adaptive: cfg.adaptive_tuning(),
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,
@@ -861,5 +893,44 @@ mod tests {
         }
         cfg.recon_threads = Some(0);
         assert!(cfg.validate().is_err(), "no build threads is refused");
+    }
+
+    /// The adaptive options reach the adaptive runs alone, are recorded where adaptive
+    /// runs, and are checked before any work.
+    #[test]
+    fn the_adaptive_options_reach_its_runs_and_the_summary() {
+        let mut cfg = LiveConfig::new("toycar");
+        let defaults = AdaptiveSettings::default().tuning();
+        assert_eq!(cfg.adaptive_tuning(), Some(defaults));
+        cfg.adaptive.ring_factor = Some(3.0);
+        cfg.adaptive.max_radius = Some(12.0);
+        cfg.adaptive.image_budget = 0.5;
+        let RtSettings::Adaptive(a) = cfg.rt_settings(RtMethod::Adaptive) else {
+            panic!("adaptive's settings are adaptive's");
+        };
+        assert_eq!(
+            (a.recon.ring_factor, a.recon.max_radius, a.image_budget),
+            (3.0, 12.0, 0.5)
+        );
+        let t = cfg.adaptive_tuning().expect("adaptive runs");
+        assert_eq!(
+            (t.ring_factor, t.max_radius, t.image_budget),
+            (3.0, 12.0, 0.5)
+        );
+        assert!(cfg.validate().is_ok(), "{:?}", cfg.validate());
+        cfg.adaptive.ring_factor = Some(100.0);
+        let err = cfg.validate().unwrap_err().to_string();
+        assert!(err.contains("ring factor 100"), "{err}");
+        cfg.methods = vec![RtMethod::LateWarp];
+        assert!(
+            cfg.validate().is_err(),
+            "refused where adaptive does not run too"
+        );
+        cfg.adaptive.ring_factor = None;
+        assert_eq!(
+            cfg.adaptive_tuning(),
+            None,
+            "nothing recorded without adaptive"
+        );
     }
 }

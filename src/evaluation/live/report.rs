@@ -108,7 +108,7 @@ fn heading(s: &LiveSummary) -> String {
     format!(
         "{} at {}x{}, {} Hz, t = {} s + {} s live (warm-up {} s; {} run{} of each method, \
          alternated; threads for {} of the machine's {} cores; seed {}, ideal {} spp{}; \
-         reconstructor: {})",
+         reconstructor: {}{})",
         s.scene,
         s.width,
         s.height,
@@ -124,7 +124,27 @@ fn heading(s: &LiveSummary) -> String {
         s.ideal_spp,
         if s.camera_path { ", camera path" } else { "" },
         s.recon,
+        adaptive_note(s),
     )
+}
+
+/// The adaptive settings of the runs where they are not the defaults.
+fn adaptive_note(s: &LiveSummary) -> String {
+    let defaults = crate::realtime::AdaptiveSettings::default().tuning();
+    match s.adaptive {
+        Some(t) if t != defaults => format!(
+            "; adaptive: image budget {}, ring {}× the pixels, splat radius at most {} px{}",
+            t.image_budget,
+            t.ring_factor,
+            t.max_radius,
+            if t.sampler_reprojection {
+                ", the sampler reprojecting"
+            } else {
+                ""
+            }
+        ),
+        _ => String::new(),
+    }
 }
 
 /// Every run's warnings: (method, run, warning).

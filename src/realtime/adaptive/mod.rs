@@ -56,7 +56,7 @@ use crossbeam_channel::bounded;
 
 pub use bench::{controller_bench, ControllerBench};
 pub use published::{bands, controllers, controllers_for, THREADS_PER_CONTROLLER};
-pub use settings::{AdaptiveArgs, AdaptiveSettings};
+pub use settings::{AdaptiveArgs, AdaptiveSettings, AdaptiveTuning};
 
 use crate::realtime::{
     config::RealtimeError,

@@ -1,8 +1,9 @@
 //! The adaptive method's own settings of a real-time run: its sampler, its
 //! reconstructor and where that runs, and how long a build may take; their defaults,
 //! their range checks, and the command-line options that set them
-//! ([`AdaptiveArgs`], flattened into `frameless view`). The registry holds them as the
-//! payload of `RtSettings::Adaptive`; the shared `RtConfig` never sees them.
+//! ([`AdaptiveArgs`], flattened into `frameless view` and `frameless live`), and what a
+//! run records of them ([`AdaptiveTuning`]). The registry holds them as the payload of
+//! `RtSettings::Adaptive`; the shared `RtConfig` never sees them.
 
 use std::sync::Arc;
 
@@ -55,6 +56,32 @@ impl Default for AdaptiveSettings {
     }
 }
 
+impl AdaptiveSettings {
+    /// What a run records of these settings.
+    pub fn tuning(&self) -> AdaptiveTuning {
+        AdaptiveTuning {
+            image_budget: self.image_budget,
+            ring_factor: self.recon.ring_factor,
+            max_radius: self.recon.max_radius as f64,
+            sampler_reprojection: self.sampler.reprojection,
+        }
+    }
+}
+
+/// The adaptive settings a run went with, as `frameless live` records them in its
+/// `summary.json`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AdaptiveTuning {
+    /// [`AdaptiveSettings::image_budget`].
+    pub image_budget: f64,
+    /// The reconstructor's ring, multiples of the pixel count.
+    pub ring_factor: f64,
+    /// The reconstructor's largest splat radius, pixels.
+    pub max_radius: f64,
+    /// Whether the sampler's controllers reproject.
+    pub sampler_reprojection: bool,
+}
+
 impl MethodSettings for AdaptiveSettings {
     fn use_gpu(&mut self, gpu: Option<Arc<GpuContext>>) {
         self.gpu = gpu;
@@ -88,8 +115,8 @@ impl MethodSettings for AdaptiveSettings {
 }
 
 /// The command-line options of the adaptive method's settings; the binary flattens them
-/// into `view`, and [`AdaptiveArgs::apply`] sets them, leaving the range checks to
-/// [`AdaptiveSettings::validate`].
+/// into `view` and `live`, and [`AdaptiveArgs::apply`] sets them, leaving the range
+/// checks to [`AdaptiveSettings::validate`].
 #[derive(clap::Args, Clone, Debug)]
 pub struct AdaptiveArgs {
     /// Adaptive: share of a refresh period an image may take to build; when one takes
@@ -107,6 +134,18 @@ pub struct AdaptiveArgs {
     /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
+}
+
+impl Default for AdaptiveArgs {
+    /// Nothing asked for: the method's defaults.
+    fn default() -> Self {
+        Self {
+            image_budget: IMAGE_BUDGET,
+            ring_factor: None,
+            max_radius: None,
+            no_reprojection: false,
+        }
+    }
 }
 
 impl AdaptiveArgs {
