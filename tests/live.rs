@@ -17,7 +17,7 @@ use frameless::{
         metrics, Silent,
     },
     realtime::{
-        record::{record, Window},
+        record::{record, Recording, Window},
         RtConfig, RtMethod,
     },
     render::still,
@@ -128,30 +128,34 @@ fn error_shifted(tracer: &Tracer, images: &[(f64, Vec<u8>)], period: f64, shift:
     sum / images.len() as f64
 }
 
+/// `method` on the sliding bar at 64×48 and 60 Hz from scene time `start`, recorded
+/// over `window`: the tracer, the pipeline's settings and what the display showed.
+fn record_sliding_bar(
+    method: RtMethod,
+    start: f64,
+    window: Window,
+) -> (Arc<Tracer>, RtConfig, Recording) {
+    let tracer = Arc::new(Tracer::new(
+        Arc::new(sliding_bar()),
+        64,
+        48,
+        TraceOptions::default(),
+    ));
+    let mut config = RtConfig::new(method);
+    config.refresh_hz = 60.0;
+    config.start = start;
+    let rec = record(tracer.clone(), config.clone(), method.settings(), window).expect("records");
+    (tracer, config, rec)
+}
+
 #[test]
 fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
     let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (w, h) = (64, 48);
-    let tracer = Arc::new(Tracer::new(
-        Arc::new(sliding_bar()),
-        w,
-        h,
-        TraceOptions::default(),
-    ));
-    let mut config = RtConfig::new(RtMethod::FramedFull);
-    config.refresh_hz = 60.0;
-    config.start = 0.0;
     let window = Window {
         warmup: 18,
         refreshes: 30,
     };
-    let rec = record(
-        tracer.clone(),
-        config.clone(),
-        RtMethod::FramedFull.settings(),
-        window,
-    )
-    .expect("records");
+    let (tracer, config, rec) = record_sliding_bar(RtMethod::FramedFull, 0.0, window);
     assert_eq!(rec.shown.len(), 30);
     let period = 1.0 / config.refresh_hz;
     let shown: Vec<(f64, usize)> = rec
@@ -214,22 +218,11 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
 #[test]
 fn a_warp_shows_the_scene_at_the_refresh_it_is_meant_for() {
     let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
-    let (w, h) = (64, 48);
-    let tracer = Arc::new(Tracer::new(
-        Arc::new(sliding_bar()),
-        w,
-        h,
-        TraceOptions::default(),
-    ));
-    let mut config = RtConfig::new(RtMethod::LateWarp);
-    config.refresh_hz = 60.0;
-    config.start = 0.25;
     let window = Window {
         warmup: 12,
         refreshes: 24,
     };
-    let settings = RtMethod::LateWarp.settings();
-    let rec = record(tracer, config.clone(), settings, window).expect("records");
+    let (_, config, rec) = record_sliding_bar(RtMethod::LateWarp, 0.25, window);
     let period = 1.0 / config.refresh_hz;
     let mut warped = 0;
     for (j, i) in rec.shown.iter().enumerate() {
