@@ -359,18 +359,21 @@ impl ImageBuilder for Builder {
         // The warp moves what the history holds to where it will be at the refresh
         // the image is meant for; it adds no information, so the ages stay the
         // history's, measured from the time it shows.
-        let warp = self.warp.is_some() && self.history.shown_gbuffer().is_some();
-        let t = if warp { at.shown } else { at.now };
+        let (image, view_time, t) = match (&mut self.warp, self.history.shown_gbuffer()) {
+            (Some(warp), Some(g)) => {
+                let t = at.shown;
+                let camera = self.s.tracer.state_at(t).camera;
+                (
+                    warp.apply(self.history.output(), g, t, &camera).clone(),
+                    t,
+                    t,
+                )
+            }
+            _ => (self.history.output().clone(), newest, at.now),
+        };
         let times = self.history.output_times();
         let ages = sampled_ages(times.len(), |i| (t - times[i]) as f32);
         let mean_age = self.history.mean_age(t).unwrap_or(f64::NAN);
-        let (image, view_time) = match (&mut self.warp, self.history.shown_gbuffer()) {
-            (Some(warp), Some(g)) => {
-                let camera = self.s.tracer.state_at(t).camera;
-                (warp.apply(self.history.output(), g, t, &camera).clone(), t)
-            }
-            _ => (self.history.output().clone(), newest),
-        };
         Some(Built {
             image,
             mean_age,

@@ -164,13 +164,18 @@ impl LiveConfig {
         s
     }
 
+    /// The adaptive method's settings with the options asked for (no GPU).
+    fn adaptive_settings(&self) -> AdaptiveSettings {
+        let mut a = AdaptiveSettings::default();
+        self.adaptive.apply(&mut a);
+        a
+    }
+
     /// The adaptive settings the runs go with, if adaptive is one of the methods.
     pub fn adaptive_tuning(&self) -> Option<AdaptiveTuning> {
-        self.methods.contains(&RtMethod::Adaptive).then(|| {
-            let mut a = AdaptiveSettings::default();
-            self.adaptive.apply(&mut a);
-            a.tuning()
-        })
+        self.methods
+            .contains(&RtMethod::Adaptive)
+            .then(|| self.adaptive_settings().tuning())
     }
 
     /// Bytes a run holds: the images it recorded (at most one a refresh) and the ideal
@@ -219,9 +224,7 @@ impl LiveConfig {
             return bad(Setting::IdealSpp, "must be at least 1".into());
         }
         // Refused even where adaptive does not run: an option out of range is a mistake.
-        let mut adaptive = AdaptiveSettings::default();
-        self.adaptive.apply(&mut adaptive);
-        if let Err(e) = RtSettings::Adaptive(adaptive).validate() {
+        if let Err(e) = RtSettings::Adaptive(self.adaptive_settings()).validate() {
             let why = match e {
                 crate::realtime::RealtimeError::Config(why) => why,
                 e => e.to_string(),
