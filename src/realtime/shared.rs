@@ -61,9 +61,40 @@ pub struct Frame {
     /// that reprojects shows the scene as it will be at the refresh the image is
     /// meant for (`time`, `view_time`), later than this ([`BuildAt`]).
     pub began: f64,
-    /// Wall-clock seconds since the pipeline started when it became the newest image:
-    /// a display refresh due before then still showed the previous one.
+    /// Wall-clock seconds since the pipeline started from which it is the newest image
+    /// (when it was done, or half a period before the refresh it is meant for if it
+    /// was done earlier and shows that refresh's view): a display refresh due before
+    /// then still showed the previous one.
     pub published_s: f64,
+}
+
+/// The image on screen, and one built for a later refresh, held until that refresh is
+/// near: an image that reprojects to the refresh it is meant for and is done early
+/// would otherwise be shown a period early and take the place of the one before it.
+#[derive(Default)]
+pub struct Newest {
+    shown: Option<Arc<Frame>>,
+    held: Option<Arc<Frame>>,
+}
+
+impl Newest {
+    /// The image to show `now_s` wall seconds into the run.
+    pub fn at(&mut self, now_s: f64) -> Option<Arc<Frame>> {
+        if self.held.as_ref().is_some_and(|f| f.published_s <= now_s) {
+            self.shown = self.held.take();
+        }
+        self.shown.clone()
+    }
+
+    /// A new image, `now_s` wall seconds into the run, shown from its `published_s`.
+    pub fn publish(&mut self, frame: Arc<Frame>, now_s: f64) {
+        self.at(now_s);
+        if frame.published_s <= now_s {
+            self.shown = Some(frame);
+        } else {
+            self.held = Some(frame);
+        }
+    }
 }
 
 /// Most pixels whose ages an image reports: enough for percentiles to a fraction of a
@@ -156,7 +187,7 @@ pub(crate) struct Shared {
     pub rays: AtomicU64,
     /// Nanoseconds sampling threads spent tracing (summed over threads).
     pub busy_ns: AtomicU64,
-    pub latest: Mutex<Option<Arc<Frame>>>,
+    pub latest: Mutex<Newest>,
     pub image_stats: Mutex<ImageThreadStats>,
 }
 
@@ -183,7 +214,7 @@ impl Shared {
             samples: AtomicU64::new(0),
             rays: AtomicU64::new(0),
             busy_ns: AtomicU64::new(0),
-            latest: Mutex::new(None),
+            latest: Mutex::new(Newest::default()),
             image_stats: Mutex::new(ImageThreadStats::default()),
         }
     }
