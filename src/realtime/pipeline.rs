@@ -238,8 +238,9 @@ impl Drop for Pipeline {
 /// candidate, never less than their median): for builds of even cost, just above the
 /// slowest; for builds that now and then take much longer, short, letting those miss;
 /// up to [`Lead::MOST`] periods, so that builds of uneven cost near a period are
-/// started a period early rather than missing often. Builds slower than that run back
-/// to back, each for the refresh it is expected to be done by.
+/// started a period early rather than missing often. Builds whose median is longer
+/// than a period run back to back instead ([`Schedule::due`]), each for the refresh it
+/// is expected to be done by.
 struct Lead {
     /// The last few builds' wall times, seconds.
     recent: [f64; 16],
@@ -386,12 +387,11 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
         // (`f64::max` keeps `now` where the view time is NaN: no single view.)
         let time = now.max(built.view_time);
         let done_s = s.clock.elapsed();
-        // An image showing its refresh's view is not shown before that refresh.
-        let from_s = if built.view_time > now {
-            (shown_refresh as f64 - 0.5) * period
-        } else {
-            done_s
-        };
+        let mut published_s = done_s;
+        if built.view_time > now {
+            // It shows its refresh's view: not before that refresh.
+            published_s = published_s.max((shown_refresh as f64 - 0.5) * period);
+        }
         let frame = Arc::new(Frame {
             seq,
             image: built.image,
@@ -401,7 +401,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             ages: ages.clone(),
             view_time: built.view_time,
             began: now,
-            published_s: done_s.max(from_s),
+            published_s,
         });
         lock(&s.latest).publish(frame, done_s);
         let mut st = lock(&s.image_stats);
