@@ -1,14 +1,18 @@
 //! One figure of `frameless bench --live-recon`, for profiling:
-//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still]`.
+//! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still] [gpu]`
+//! (`gpu`: the refreshes on the best GPU adapter there is, a software one included).
 //! The hash it prints (the last image, its ages, splat scales and history counts)
 //! tells whether two builds make the same images.
 
-use frameless::{bench, reconstruction::ReconParams};
+use frameless::{
+    bench,
+    reconstruction::{device, ReconParams},
+};
 
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     if a.len() < 5 {
-        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still]");
+        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still] [gpu]");
         std::process::exit(2);
     }
     let num = |i: usize| -> f64 { a[i].parse().expect("a number") };
@@ -24,7 +28,28 @@ fn main() {
         resplat_moving_view: !flag("carried"),
         ..ReconParams::realtime()
     };
-    let f = bench::live_image_ms(case, num(4), params, 30, !flag("still"));
+    let gpu = if flag("gpu") {
+        match device::acquire(device::ReconDevice::Gpu) {
+            Ok(Some(c)) => {
+                eprintln!("reconstructing on {}", c.describe());
+                Some(c)
+            }
+            Ok(None) => None,
+            Err(e) => {
+                eprintln!("live_recon: {e}");
+                std::process::exit(1);
+            }
+        }
+    } else {
+        None
+    };
+    let f = match bench::live_image_ms(case, num(4), params, 30, !flag("still"), gpu) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("live_recon: {e}");
+            std::process::exit(1);
+        }
+    };
     println!(
         "{:.2} ms per image, {:.0} placed, image {}",
         f.ms_median, f.placed_per_image, f.image_hash

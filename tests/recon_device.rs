@@ -252,3 +252,54 @@ fn gpu_bench_figures_run_on_the_gpu_or_say_why_not() {
         (got, want) => panic!("benchmark {got:?}, use_gpu {want:?}"),
     }
 }
+
+/// `bench --live-recon` times the reconstructor alone: a GPU tracer asked of it is an
+/// error before any work, not an option silently left unused.
+#[test]
+fn live_recon_bench_refuses_a_gpu_tracer() {
+    let o = Command::new(env!("CARGO_BIN_EXE_frameless"))
+        .args(["bench", "--live-recon", "--trace", "gpu"])
+        .output()
+        .expect("the binary runs");
+    assert!(!o.status.success());
+    let e = stderr(&o);
+    assert!(e.contains("--trace gpu") && e.contains("--live-recon"), "{e}");
+    assert!(!e.contains("measuring"), "it measured before refusing: {e}");
+}
+
+/// `bench --live-recon --recon gpu`'s figures are the GPU's: every timed refresh ran
+/// there (a fallback to the CPU is an error), and the pass times say what the GPU
+/// waited on apart from the CPU's parts.
+#[cfg(feature = "gpu")]
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_live_recon_figures_are_the_gpus() {
+    use frameless::{bench, reconstruction::ReconParams};
+    let case = bench::LiveCase {
+        width: 96,
+        height: 64,
+        rate: 2.0e5,
+        refresh_hz: 30.0,
+    };
+    for turning in [false, true] {
+        let gpu = bench::live_image_ms(
+            case,
+            2.0,
+            ReconParams::realtime(),
+            4,
+            turning,
+            Some(gpu_context()),
+        )
+        .expect("the GPU measures the figure");
+        assert_eq!(gpu.recon, gpu_context().used(), "turning {turning}");
+        let ms = |name: &str| gpu.pass_ms.iter().find(|(n, _)| *n == name).unwrap().1;
+        assert!(ms("gpu_wait") > 0.0, "{:?}", gpu.pass_ms);
+        assert_eq!(ms("splat"), 0.0, "the CPU splatted: {:?}", gpu.pass_ms);
+        let cpu = bench::live_image_ms(case, 2.0, ReconParams::realtime(), 4, turning, None)
+            .expect("the CPU measures the figure");
+        assert_eq!(cpu.recon.device, "cpu");
+        let on_gpu = |(n, v): &(&str, f64)| n.starts_with("gpu_") && *v > 0.0;
+        assert!(!cpu.pass_ms.iter().any(on_gpu), "{:?}", cpu.pass_ms);
+        assert_eq!(gpu.placed_per_image, cpu.placed_per_image, "turning {turning}");
+    }
+}

@@ -359,7 +359,9 @@ fn carried_moved_and_resplatted_images_are_identical_for_any_thread_count() {
                     resplat_moving_view,
                     ..ReconParams::realtime()
                 };
-                bench::live_image_ms(case, 2.0, params, 6, turning).image_hash
+                bench::live_image_ms(case, 2.0, params, 6, turning, None)
+                    .unwrap()
+                    .image_hash
             })
     };
     for (resplat, turning) in [(false, true), (true, true), (false, false)] {

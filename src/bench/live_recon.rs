@@ -8,7 +8,10 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::{
-    reconstruction::{PassTimes, ReconParams, Reconstructor, RingSample},
+    reconstruction::{
+        device::{GpuContext, GpuError, ReconUsed},
+        PassTimes, ReconParams, Reconstructor, RingSample,
+    },
     sampling::Rng,
     scene::{Camera, CameraFrame},
 };
@@ -76,6 +79,10 @@ pub struct LiveFigure {
     pub take_in_ms_median: f64,
     /// Whether the camera turned between images (every carried pixel moves).
     pub turning: bool,
+    /// Where the refreshes ran: the CPU, or the GPU adapter in words (on a GPU the
+    /// filters, the carry and the history's plan still run on the CPU; `pass_ms`
+    /// says how long each part took).
+    pub recon: ReconUsed,
     /// Mean milliseconds of each step of a timed image, by name.
     pub pass_ms: Vec<(&'static str, f64)>,
     /// FNV-1a hash of the last image's pixel bits, with its pixel ages, the splat
@@ -134,14 +141,17 @@ fn plane_hit(cam: &CameraFrame, x: f32, y: f32) -> Vec3 {
 /// `ring_spp` samples per pixel: one second of refreshes to warm up (filling the ring),
 /// then `images` timed refreshes, each after the samples traced since the previous
 /// one were pushed (pushing timed apart), the camera turning if `turning`. The tiling
-/// is the bench fixture's.
+/// is the bench fixture's. With `gpu`, the refreshes run on that GPU (the CPU's parts on
+/// the calling thread's pool); an error if it cannot take this size, or if a refresh
+/// failed on it (a figure partly measured on the CPU would not be the GPU's).
 pub fn live_image_ms(
     case: LiveCase,
     ring_spp: f64,
     params: ReconParams,
     images: usize,
     turning: bool,
-) -> LiveFigure {
+    gpu: Option<std::sync::Arc<GpuContext>>,
+) -> Result<LiveFigure, GpuError> {
     let (w, h) = (case.width, case.height);
     let mut r = Reconstructor::new(
         w,
@@ -152,6 +162,9 @@ pub fn live_image_ms(
             ..params
         },
     );
+    if let Some(ctx) = gpu {
+        r.use_gpu(ctx)?;
+    }
     let tiling = super::synthetic_tiling(w, h, 1);
     let mut rng = Rng::new(&[2, 0x11fe]);
     let per = (case.rate / case.refresh_hz).round() as usize;
@@ -196,9 +209,15 @@ pub fn live_image_ms(
             placed += r.placed();
         }
     }
+    #[cfg(feature = "gpu")]
+    if let Some(why) = r.gpu_failure() {
+        return Err(GpuError::Failed(format!(
+            "a {w}x{h} refresh of `bench --live-recon` fell back to the CPU: {why}"
+        )));
+    }
     times.sort_by(f64::total_cmp);
     take_in.sort_by(f64::total_cmp);
-    LiveFigure {
+    Ok(LiveFigure {
         case,
         ring_spp,
         new_per_image: per,
@@ -206,9 +225,10 @@ pub fn live_image_ms(
         ms_median: times[times.len() / 2],
         take_in_ms_median: take_in[take_in.len() / 2],
         turning,
+        recon: r.used(),
         pass_ms: r.pass_times().since(&warm_passes).mean_ms(),
         image_hash: state_hash(&r),
-    }
+    })
 }
 
 /// What `frameless bench --live-recon` measures, on one thread, with the real-time
@@ -231,6 +251,10 @@ pub struct LiveReport {
     pub ring_growth_turning: Vec<LiveFigure>,
     /// The same, the camera turning, the sums moved with the view.
     pub ring_growth_turning_carried: Vec<LiveFigure>,
+    /// On a GPU, the figures it could not measure (a buffer over the adapter's limits,
+    /// a refresh that fell back to the CPU) and why: left out of the tables above,
+    /// never measured on the CPU in their place.
+    pub not_measured: Vec<(String, String)>,
 }
 
 impl LiveReport {
@@ -266,8 +290,13 @@ impl LiveReport {
 const RING_SPPS: [f64; 4] = [0.5, 1.0, 2.0, 4.0];
 
 /// Measure a [`LiveReport`] on a pool of one thread, `images` timed images per figure,
-/// calling `progress` with a line before each figure.
-pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport {
+/// calling `progress` with a line before each figure; on `gpu` if given, where a figure
+/// the GPU cannot measure is left out and listed with the reason.
+pub fn live_report(
+    images: usize,
+    gpu: Option<std::sync::Arc<GpuContext>>,
+    mut progress: impl FnMut(&str),
+) -> LiveReport {
     let one = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
@@ -278,8 +307,9 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
         ..realtime
     };
     let spp = realtime.ring_factor;
+    let mut not_measured = Vec::new();
     let mut run = |case: LiveCase, spp: f64, p: ReconParams, turning: bool| {
-        progress(&format!(
+        let what = format!(
             "{}x{}, ring {spp} per pixel, camera {}{}",
             case.width,
             case.height,
@@ -289,13 +319,16 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
             } else {
                 ", sums moved with the view"
             },
-        ));
-        one.install(|| live_image_ms(case, spp, p, images, turning))
+        );
+        progress(&what);
+        one.install(|| live_image_ms(case, spp, p, images, turning, gpu.clone()))
+            .map_err(|e| not_measured.push((what, e.to_string())))
+            .ok()
     };
     let mut sizes = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
         LIVE_CASES
             .iter()
-            .map(|&c| run(c, spp, p, turning))
+            .filter_map(|&c| run(c, spp, p, turning))
             .collect()
     };
     let sizes_still = sizes(realtime, false);
@@ -303,14 +336,21 @@ pub fn live_report(images: usize, mut progress: impl FnMut(&str)) -> LiveReport 
     let sizes_turning_carried = sizes(carried, true);
     let vga = LIVE_CASES[1];
     let mut growth = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
-        RING_SPPS.iter().map(|&s| run(vga, s, p, turning)).collect()
+        RING_SPPS
+            .iter()
+            .filter_map(|&s| run(vga, s, p, turning))
+            .collect()
     };
+    let ring_growth_still = growth(realtime, false);
+    let ring_growth_turning = growth(realtime, true);
+    let ring_growth_turning_carried = growth(carried, true);
     LiveReport {
         sizes_still,
         sizes_turning,
         sizes_turning_carried,
-        ring_growth_still: growth(realtime, false),
-        ring_growth_turning: growth(realtime, true),
-        ring_growth_turning_carried: growth(carried, true),
+        ring_growth_still,
+        ring_growth_turning,
+        ring_growth_turning_carried,
+        not_measured,
     }
 }

@@ -419,8 +419,10 @@ pub struct BenchArgs {
     pub json: bool,
     /// Measure only the reconstructor's cost per image at live sample rates, on one
     /// thread: at 256x256, 640x480, 1280x720 and 1920x1080, and at 640x480 as the ring
-    /// grows from 0.5 to 4 samples per pixel (about 2 minutes; `--scene` and the ray
-    /// options are not used).
+    /// grows from 0.5 to 4 samples per pixel (about 3 minutes; `--scene` and the ray
+    /// options are not used, `--trace` must stay cpu). With `--recon gpu|auto` the
+    /// refreshes run on the GPU, their CPU parts on one thread, each pass's time
+    /// printed.
     #[arg(long)]
     pub live_recon: bool,
     #[command(flatten)]

@@ -148,7 +148,15 @@ fn folder_and_inputs(cmd: &Command) -> Option<(&Path, Vec<std::path::PathBuf>)> 
 /// device) and the real-time controllers.
 fn bench(a: args::BenchArgs) -> Result<()> {
     if a.live_recon {
-        return bench_live_recon(a.json);
+        if a.devices.trace.trace != ReconDevice::Cpu {
+            bail!(
+                "--live-recon measures the reconstructor alone and traces no ray: \
+                 --trace {} has nothing to do there (leave it out)",
+                a.devices.trace.trace
+            );
+        }
+        let gpu = acquire_recon(a.devices.recon)?;
+        return bench_live_recon(a.json, gpu);
     }
     let Devices {
         recon: gpu,
@@ -197,12 +205,25 @@ fn bench(a: args::BenchArgs) -> Result<()> {
 /// Timed images per figure of `frameless bench --live-recon`.
 const LIVE_RECON_IMAGES: usize = 15;
 
-/// `frameless bench --live-recon`: the reconstructor's cost per image at live rates.
-fn bench_live_recon(json: bool) -> Result<()> {
-    let report = bench::live_report(LIVE_RECON_IMAGES, |what| eprintln!("measuring {what}"));
+/// `frameless bench --live-recon`: the reconstructor's cost per image at live rates,
+/// on `gpu` if given.
+fn bench_live_recon(json: bool, gpu: Option<Arc<GpuContext>>) -> Result<()> {
+    let software = gpu.as_ref().is_some_and(|g| g.is_software());
+    let used = gpu.as_ref().map(|g| g.used());
+    let report = bench::live_report(LIVE_RECON_IMAGES, gpu, |what| {
+        eprintln!("measuring {what}")
+    });
     if json {
         println!("{}", serde_json::to_string(&report)?);
         return Ok(());
+    }
+    if let Some(used) = &used {
+        let label = if software {
+            " (a software driver on the CPU, not a GPU's speed; the CPU's parts are real)"
+        } else {
+            ""
+        };
+        println!("reconstructor on {used}{label}");
     }
     let table = |title: &str, rows: &[bench::LiveFigure]| {
         println!("{title}");
@@ -223,12 +244,28 @@ fn bench_live_recon(json: bool) -> Result<()> {
                 f.ms_median,
                 f.take_in_ms_median
             );
+            if f.recon.device != "cpu" {
+                println!("      {}", pass_split(&f.pass_ms));
+            }
         }
     };
     for (title, rows) in report.sections() {
         table(title, rows);
     }
+    for (what, why) in &report.not_measured {
+        println!("not measured on the GPU: {what}: {why}");
+    }
     Ok(())
+}
+
+/// A figure's mean milliseconds per pass, the passes that took any time.
+fn pass_split(pass_ms: &[(&str, f64)]) -> String {
+    let parts: Vec<String> = pass_ms
+        .iter()
+        .filter(|(_, ms)| *ms > 0.0)
+        .map(|(name, ms)| format!("{name} {ms:.1}"))
+        .collect();
+    format!("ms per pass (mean): {}", parts.join(", "))
 }
 
 /// `frameless bench`'s table.
