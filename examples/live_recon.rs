@@ -12,7 +12,9 @@ use frameless::{
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     if a.len() < 5 {
-        eprintln!("usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still] [gpu]");
+        eprintln!(
+            "usage: live_recon WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still] [gpu]"
+        );
         std::process::exit(2);
     }
     let num = |i: usize| -> f64 { a[i].parse().expect("a number") };

@@ -263,7 +263,10 @@ fn live_recon_bench_refuses_a_gpu_tracer() {
         .expect("the binary runs");
     assert!(!o.status.success());
     let e = stderr(&o);
-    assert!(e.contains("--trace gpu") && e.contains("--live-recon"), "{e}");
+    assert!(
+        e.contains("--trace gpu") && e.contains("--live-recon"),
+        "{e}"
+    );
     assert!(!e.contains("measuring"), "it measured before refusing: {e}");
 }
 
@@ -300,6 +303,9 @@ fn gpu_live_recon_figures_are_the_gpus() {
         assert_eq!(cpu.recon.device, "cpu");
         let on_gpu = |(n, v): &(&str, f64)| n.starts_with("gpu_") && *v > 0.0;
         assert!(!cpu.pass_ms.iter().any(on_gpu), "{:?}", cpu.pass_ms);
-        assert_eq!(gpu.placed_per_image, cpu.placed_per_image, "turning {turning}");
+        assert_eq!(
+            gpu.placed_per_image, cpu.placed_per_image,
+            "turning {turning}"
+        );
     }
 }

@@ -210,9 +210,7 @@ const LIVE_RECON_IMAGES: usize = 15;
 fn bench_live_recon(json: bool, gpu: Option<Arc<GpuContext>>) -> Result<()> {
     let software = gpu.as_ref().is_some_and(|g| g.is_software());
     let used = gpu.as_ref().map(|g| g.used());
-    let report = bench::live_report(LIVE_RECON_IMAGES, gpu, |what| {
-        eprintln!("measuring {what}")
-    });
+    let report = bench::live_report(LIVE_RECON_IMAGES, gpu, |what| eprintln!("measuring {what}"));
     if json {
         println!("{}", serde_json::to_string(&report)?);
         return Ok(());
