@@ -27,9 +27,10 @@
 #   live_1920x1080_gputrace_cpurecon/: adaptive traced on the GPU, built on the CPU;
 # - live_recon_gpu.log: the reconstructor alone on the GPU at live rates (the live-recon
 #   bench's cases; `per pass` splits the CPU's parts from gpu_wait), its CPU parts on 1
-#   thread and on every core: what a GPU image costs the CPU, with the sums carried
-#   (still), the ring re-splatted under a still camera (resplat still: no carry, which
-#   spares the CPU most of its part) and under a turning one;
+#   thread and on every core: what a GPU image costs the CPU and the GPU, with the sums
+#   carried (still), the ring of 2 or 6 samples a pixel re-splatted under a still camera
+#   (resplat still: no carry, which spares the CPU two thirds of its part; 6 matches the
+#   carry's images), at 1920x1080, 1280x720 and 640x480;
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
@@ -96,9 +97,9 @@ if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
     --trace gpu --method adaptive
 fi
 if [ -x "$ex" ]; then
-  step live_recon_gpu 120 bash -c "for c in '1920 1080 4e6 30' '1280 720 4e6 30' '640 480 3e6 30' '256 256 1e6 60'; do
-    for t in 1 $all; do for m in still 'resplat still' turning; do
-      echo \"\$c 2spp \$m threads=\$t gpu:\"; RAYON_NUM_THREADS=\$t '$ex' \$c 2 \$m gpu; done; done; done"
+  step live_recon_gpu 150 bash -c "for c in '1920 1080 4e6 30' '1280 720 4e6 30' '640 480 3e6 30'; do
+    for t in 1 $all; do for m in '2 still' '2 resplat still' '6 resplat still'; do
+      echo \"\$c ring \$m threads=\$t gpu:\"; RAYON_NUM_THREADS=\$t '$ex' \$c \$m gpu; done; done; done"
 fi
 # All cores first: its ideals fill the cache for the smaller core counts.
 for size in 640x480 1280x720; do
