@@ -17,6 +17,13 @@ fn main() {
         );
         std::process::exit(2);
     }
+    if let Some(bad) = a[5..]
+        .iter()
+        .find(|x| !["resplat", "carried", "still", "gpu"].contains(&x.as_str()))
+    {
+        eprintln!("live_recon: unknown option {bad:?} (resplat, carried, still or gpu)");
+        std::process::exit(2);
+    }
     let num = |i: usize| -> f64 { a[i].parse().expect("a number") };
     let flag = |f: &str| a[5..].iter().any(|x| x == f);
     let case = bench::LiveCase {
