@@ -284,6 +284,7 @@ fn gpu_live_recon_figures_are_the_gpus() {
         rate: 2.0e5,
         refresh_hz: 30.0,
     };
+    let ctx = gpu_context();
     for turning in [false, true] {
         let gpu = bench::live_image_ms(
             case,
@@ -291,10 +292,10 @@ fn gpu_live_recon_figures_are_the_gpus() {
             ReconParams::realtime(),
             4,
             turning,
-            Some(gpu_context()),
+            Some(ctx.clone()),
         )
         .expect("the GPU measures the figure");
-        assert_eq!(gpu.recon, gpu_context().used(), "turning {turning}");
+        assert_eq!(gpu.recon, ctx.used(), "turning {turning}");
         let ms = |name: &str| gpu.pass_ms.iter().find(|(n, _)| *n == name).unwrap().1;
         assert!(ms("gpu_wait") > 0.0, "{:?}", gpu.pass_ms);
         assert_eq!(ms("splat"), 0.0, "the CPU splatted: {:?}", gpu.pass_ms);

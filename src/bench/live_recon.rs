@@ -137,6 +137,34 @@ fn plane_hit(cam: &CameraFrame, x: f32, y: f32) -> Vec3 {
     cam.eye + d * s.max(0.1)
 }
 
+/// The `per` samples traced during refresh period `i` of `case` into `batch`, evenly in
+/// time, at random pixels of the bench camera's plane.
+fn traced_during(
+    i: usize,
+    per: usize,
+    case: LiveCase,
+    turning: bool,
+    rng: &mut Rng,
+    batch: &mut Vec<RingSample>,
+) {
+    let (w, h) = (case.width, case.height);
+    batch.clear();
+    for k in 0..per {
+        let t = (i as f64 + (k + 1) as f64 / per as f64) / case.refresh_hz;
+        let cam = camera_at(t, w, h, turning);
+        let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+        batch.push(RingSample {
+            x,
+            y,
+            t,
+            color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+            hit_point: plane_hit(&cam, x, y),
+            velocity: Vec3::ZERO,
+            anchor: Default::default(),
+        });
+    }
+}
+
 /// Milliseconds per image of `params`' reconstructor at `case`, its ring holding
 /// `ring_spp` samples per pixel: one second of refreshes to warm up (filling the ring),
 /// then `images` timed refreshes, each after the samples traced since the previous
@@ -171,26 +199,12 @@ pub fn live_image_ms(
     let warm = case.refresh_hz.ceil() as usize;
     let mut times = Vec::with_capacity(images);
     let mut take_in = Vec::with_capacity(images);
-    let mut batch = Vec::with_capacity(per);
+    let mut batch = Vec::new();
     let mut placed = 0usize;
     let mut warm_passes = PassTimes::default();
     for i in 0..warm + images.max(1) {
         let t1 = (i + 1) as f64 / case.refresh_hz;
-        batch.clear();
-        for k in 0..per {
-            let t = (i as f64 + (k + 1) as f64 / per as f64) / case.refresh_hz;
-            let cam = camera_at(t, w, h, turning);
-            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
-            batch.push(RingSample {
-                x,
-                y,
-                t,
-                color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
-                hit_point: plane_hit(&cam, x, y),
-                velocity: Vec3::ZERO,
-                anchor: Default::default(),
-            });
-        }
+        traced_during(i, per, case, turning, &mut rng, &mut batch);
         let t0 = Instant::now();
         for s in &batch {
             r.push(*s);
@@ -325,25 +339,20 @@ pub fn live_report(
             .map_err(|e| not_measured.push((what, e.to_string())))
             .ok()
     };
-    let mut sizes = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
-        LIVE_CASES
-            .iter()
-            .filter_map(|&c| run(c, spp, p, turning))
-            .collect()
+    // Each of `cases` with its ring, the figures the device could measure.
+    let mut each = |cases: &mut dyn Iterator<Item = (LiveCase, f64)>, p, turning| {
+        cases
+            .filter_map(|(c, s)| run(c, s, p, turning))
+            .collect::<Vec<_>>()
     };
-    let sizes_still = sizes(realtime, false);
-    let sizes_turning = sizes(realtime, true);
-    let sizes_turning_carried = sizes(carried, true);
-    let vga = LIVE_CASES[1];
-    let mut growth = |p: ReconParams, turning: bool| -> Vec<LiveFigure> {
-        RING_SPPS
-            .iter()
-            .filter_map(|&s| run(vga, s, p, turning))
-            .collect()
-    };
-    let ring_growth_still = growth(realtime, false);
-    let ring_growth_turning = growth(realtime, true);
-    let ring_growth_turning_carried = growth(carried, true);
+    let sizes = || LIVE_CASES.iter().map(|&c| (c, spp));
+    let growth = || RING_SPPS.iter().map(|&s| (LIVE_CASES[1], s));
+    let sizes_still = each(&mut sizes(), realtime, false);
+    let sizes_turning = each(&mut sizes(), realtime, true);
+    let sizes_turning_carried = each(&mut sizes(), carried, true);
+    let ring_growth_still = each(&mut growth(), realtime, false);
+    let ring_growth_turning = each(&mut growth(), realtime, true);
+    let ring_growth_turning_carried = each(&mut growth(), carried, true);
     LiveReport {
         sizes_still,
         sizes_turning,
