@@ -31,6 +31,9 @@
 #   carried (still), the ring of 2 or 6 samples a pixel re-splatted under a still camera
 #   (resplat still: no carry, which spares the CPU two thirds of its part; 6 matches the
 #   carry's images), at 1920x1080, 1280x720 and 640x480;
+# - live_<size>_2cores_gpu/: adaptive, traditional frameless and late warp at 640x480,
+#   1280x720 and 1920x1080, 30 Hz, on 2 cores with rays and images on the GPU (the
+#   image-cost issue's live bars are on 2 cores);
 # - live_<size>_<cores>/: `frameless live` of adaptive against traditional frameless at
 #   640x480 and 1280x720 on 4, 8 and 16 cores (the image-cost issue's scaling: new
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
@@ -100,6 +103,16 @@ if [ -x "$ex" ]; then
   step live_recon_gpu 150 bash -c "for c in '1920 1080 4e6 30' '1280 720 4e6 30' '640 480 3e6 30'; do
     for t in 1 $all; do for m in '2 still' '2 resplat still' '6 resplat still'; do
       echo \"\$c ring \$m threads=\$t gpu:\"; RAYON_NUM_THREADS=\$t '$ex' \$c \$m gpu; done; done; done"
+fi
+# The image-cost issue's live bars are on 2 cores: with rays and images on the GPU, do
+# adaptive's new images keep up with 30 Hz, and does it beat the others there? (What a
+# GPU image still costs the CPU, the carry's cut of each new sample among it, is what
+# these 2 cores are left to pay.)
+if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
+  for size in 640x480 1280x720 1920x1080; do
+    live "live_${size}_2cores_gpu" 2 --size "$size" --refresh-hz 30 --trace gpu \
+      --recon gpu --method adaptive,traditional-frameless,late-warp
+  done
 fi
 # All cores first: its ideals fill the cache for the smaller core counts.
 for size in 640x480 1280x720; do
