@@ -209,6 +209,56 @@ fn a_nearer_new_sample_cuts_what_was_carried_at_its_pixel() {
     assert!(next.y > 0.05, "a neighbour lost the carried plane: {next}");
 }
 
+/// Each band of the cut builds its next geometry in a scratch band its thread reuses
+/// for the next band: every pixel new samples land on must take the nearest one's
+/// geometry, whatever pixel of an earlier band the same scratch entry served.
+#[test]
+fn every_band_takes_its_nearest_new_geometry_on_one_thread() {
+    let (w, h) = (24, 5 * 16 + 3);
+    let c = cam_at(0.0, w, h);
+    let tiling = TilingSnapshot::whole(w, h);
+    let proj = super::place::Projector::new(&c);
+    let mut r = Reconstructor::new(w, h, 3000.0, bare(0.2));
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let times = [1.0, 1.016, 1.033, 1.05];
+    for (i, (b, &t)) in batches(&c, &times, 300, 11).iter().zip(&times).enumerate() {
+        // Each batch nearer than the last, so that it cuts what was carried.
+        let nearest = b
+            .iter()
+            .map(|s| {
+                let hit = c.eye + (s.hit_point - c.eye) * (1.0 - 0.2 * i as f32);
+                RingSample {
+                    hit_point: hit,
+                    ..*s
+                }
+            })
+            .collect::<Vec<_>>();
+        let mut want = vec![f32::INFINITY; (w * h) as usize];
+        for s in &nearest {
+            r.push(*s);
+            let (x, y, z) = proj.project(s.hit_point);
+            let q = y as usize * w as usize + x as usize;
+            want[q] = want[q].min(z);
+        }
+        one.install(|| r.reconstruct(t, &c, &tiling));
+        let geo = &r.carried.as_ref().unwrap().geo;
+        let landed = want.iter().filter(|z| z.is_finite()).count();
+        assert!(
+            landed > 150,
+            "refresh {i}: only {landed} pixels got samples"
+        );
+        for (q, z) in want.iter().enumerate().filter(|(_, z)| z.is_finite()) {
+            assert_eq!(
+                geo[q].z, *z,
+                "refresh {i}, pixel {q}: not its nearest new sample's depth"
+            );
+        }
+    }
+}
+
 #[test]
 fn images_do_not_depend_on_the_ring_size() {
     // Only the samples since the previous refresh are placed: a ring that holds them
