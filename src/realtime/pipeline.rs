@@ -346,6 +346,35 @@ impl Schedule {
     }
 }
 
+/// The images the image thread published last, until nothing else holds them: then
+/// their buffers go back to the builder ([`ImageBuilder::recycle`]), so that a large
+/// image is not allocated and copied anew at every refresh.
+#[derive(Default)]
+struct Recent(std::collections::VecDeque<Arc<Frame>>);
+
+impl Recent {
+    /// Images older than this many are let go, held or not (recorded ones, say).
+    const MOST: usize = 4;
+
+    /// Keep `frame`; hand `builder` the oldest image nothing else holds any more.
+    fn keep(&mut self, frame: Arc<Frame>, builder: &mut dyn ImageBuilder) {
+        self.0.push_back(frame);
+        while let Some(oldest) = self.0.pop_front() {
+            match Arc::try_unwrap(oldest) {
+                Ok(f) => {
+                    builder.recycle(f.image);
+                    break;
+                }
+                Err(held) if self.0.len() < Self::MOST => {
+                    self.0.push_front(held);
+                    break;
+                }
+                Err(_) => {}
+            }
+        }
+    }
+}
+
 /// Build an image for every display refresh with the method's builder, concurrently
 /// with sampling, each started [`Lead`] seconds before its refresh. When building an
 /// image takes longer than a refresh period the thread starts the next one at once:
@@ -356,6 +385,7 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
     let mut lead = Lead::new(period);
     let mut schedule = Schedule { next: 1 };
     let mut seq = 0;
+    let mut recent = Recent::default();
     while !s.stopped() {
         let due = s.clock.instant_at(schedule.due(&lead));
         let now = Instant::now();
@@ -403,7 +433,8 @@ fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
             began: now,
             published_s,
         });
-        lock(&s.latest).publish(frame, done_s);
+        lock(&s.latest).publish(frame.clone(), done_s);
+        recent.keep(frame, builder.as_mut());
         let mut st = lock(&s.image_stats);
         st.method = builder.stats();
         st.recon = Some(builder.recon());

@@ -274,6 +274,11 @@ pub(crate) struct BuildAt {
 pub(crate) trait ImageBuilder: Send {
     fn build(&mut self, at: BuildAt) -> Option<Built>;
 
+    /// One of its images that nothing shows or holds any more: its buffer, for a
+    /// later image to be built in instead of a new one (ignored unless the method
+    /// can use it).
+    fn recycle(&mut self, _image: Image) {}
+
     /// The method's own figures so far, by the names the pipeline statistics give
     /// them (beside the figures every method has).
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
@@ -456,6 +461,10 @@ impl<B: ImageBuilder> ImageBuilder for Pooled<B> {
             Some(p) => p.install(|| self.builder.build(at)),
             None => self.builder.build(at),
         }
+    }
+
+    fn recycle(&mut self, image: Image) {
+        self.builder.recycle(image);
     }
 
     fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {

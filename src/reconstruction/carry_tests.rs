@@ -295,6 +295,53 @@ fn images_do_not_depend_on_the_ring_size() {
 }
 
 #[test]
+fn an_image_handed_over_leaves_a_spare_whose_pixels_are_never_read() {
+    // `take_image` swaps the image for a spare instead of copying it: the refreshes
+    // after must not read what the spare held. Garbage spares, a view that holds
+    // (carried, with the history) and then moves (the ring re-splatted), must give
+    // the images of a reconstructor whose image stays.
+    let (w, h) = (20, 36);
+    let tiling = TilingSnapshot::whole(w, h);
+    let times: Vec<f64> = (0..8).map(|k| 1.0 + k as f64 / 60.0).collect();
+    let cams: Vec<CameraFrame> = (0..times.len())
+        .map(|k| cam_at(0.02 * k.saturating_sub(4) as f32, w, h))
+        .collect();
+    let bs = batches(&cams[0], &times, 200, 5);
+    let run = |hand_over: bool| {
+        let mut r = Reconstructor::new(w, h, 12000.0, ReconParams::realtime());
+        let mut images = Vec::new();
+        for (k, (b, &t)) in bs.iter().zip(&times).enumerate() {
+            for s in b {
+                r.push(*s);
+            }
+            r.reconstruct(t, &cams[k], &tiling);
+            images.push(if hand_over {
+                let mut spare = Image::new(w, h);
+                spare.pixels.fill(Vec3::splat(f32::NAN));
+                r.take_image(spare).pixels
+            } else {
+                r.image().pixels.clone()
+            });
+        }
+        images
+    };
+    let (kept, handed) = (run(false), run(true));
+    for (k, (a, b)) in kept.iter().zip(&handed).enumerate() {
+        let same = a
+            .iter()
+            .zip(b)
+            .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits));
+        assert!(same, "refresh {k}: a spare's pixels showed through");
+    }
+    // A spare of another size is not taken: the image is copied.
+    let mut r = Reconstructor::new(w, h, 12000.0, ReconParams::realtime());
+    r.reconstruct(1.0, &cams[0], &tiling);
+    let before = r.image().pixels.clone();
+    assert_eq!(r.take_image(Image::new(w + 1, h)).pixels, before);
+    assert_eq!(r.image().pixels, before);
+}
+
+#[test]
 fn a_moving_view_resplats_the_ring_and_carrying_resumes_once_it_holds() {
     // While the view moves the refresh is the ring's (the same images as without
     // carrying); the first refresh after the view stops re-splats the ring too, onto

@@ -576,6 +576,18 @@ impl Reconstructor {
         &self.image
     }
 
+    /// The image of the last refresh, handing it over instead of copying it: `spare`,
+    /// an image of the same size whose pixels are of no further use (one shown
+    /// before, say), becomes the buffer the next refresh writes, as every refresh
+    /// writes every pixel. A spare of another size is dropped, and the image copied.
+    pub fn take_image(&mut self, spare: Image) -> Image {
+        if (spare.width, spare.height) == (self.image.width, self.image.height) {
+            std::mem::replace(&mut self.image, spare)
+        } else {
+            self.image.clone()
+        }
+    }
+
     /// [`Reconstructor::reconstruct`]'s steps: the plan, then its passes on the GPU if
     /// there is one, else (or if it failed now) on the CPU.
     fn refresh(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {

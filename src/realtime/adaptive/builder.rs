@@ -12,6 +12,7 @@ use crossbeam_channel::Receiver;
 
 use super::{overlays::TilingOverlays, published::Published, settings::AdaptiveSettings};
 use crate::{
+    image::Image,
     realtime::{
         config::RealtimeError,
         shared::{lock, take_queued, BuildAt, Built, ImageBuilder, Shared},
@@ -54,6 +55,9 @@ pub(super) struct Builder {
     live_limit: Option<usize>,
     cost: BuildCost,
     figures: ImageFigures,
+    /// An image shown before that nothing holds any more, to hand the next image over
+    /// in ([`ImageBuilder::recycle`]): a refresh's image then costs no copy.
+    spare: Option<Image>,
 }
 
 impl Builder {
@@ -73,6 +77,7 @@ impl Builder {
             live_limit: None,
             cost: BuildCost::default(),
             figures: ImageFigures::default(),
+            spare: None,
         }
     }
 }
@@ -208,6 +213,10 @@ pub(super) fn next_live_limit(
 }
 
 impl ImageBuilder for Builder {
+    fn recycle(&mut self, image: Image) {
+        self.spare = Some(image);
+    }
+
     /// `tiles` now; `reprojected_share` of visits whose reprojection step ran (the
     /// controllers skip it while behind their input); `history_maps` the controllers
     /// received ([`crate::methods::adaptive::SamplerParams::discount_converged`]); the
@@ -295,7 +304,11 @@ impl ImageBuilder for Builder {
         let camera = state.camera;
         r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
-        let image = r.reconstruct(t, &camera, &tiling).clone();
+        let image = r.reconstruct(t, &camera, &tiling);
+        let image = match self.spare.take() {
+            Some(spare) => r.take_image(spare),
+            None => image.clone(),
+        };
         let settings = &self.published.settings;
         if settings.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
