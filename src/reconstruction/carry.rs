@@ -534,37 +534,12 @@ impl Reconstructor {
         camera: &CameraFrame,
         samples: std::ops::Range<usize>,
     ) {
-        use field::*;
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
-        let proj = Projector::new(camera);
         let keep = self.carry_keep();
         let ring = &self.ring;
-        // Each sample's pixel, depth and velocity first, in parallel, so that the
-        // loop below can ask for the pixels of samples ahead of it (they are at
-        // random: one miss after another otherwise).
         let mut ahead = std::mem::take(&mut c.ahead);
-        ahead.clear();
-        samples
-            .clone()
-            .into_par_iter()
-            .map(|i| {
-                let p = ring.phys(i);
-                let dt = (t - ring.t[p]) as f32;
-                let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
-                let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
-                let (x, y, z) = proj.project(hit + v * dt);
-                match pixel_at(x, y, z, w, h) {
-                    Some((px, py)) => Ahead {
-                        px: px as u32,
-                        py: py as u32,
-                        z,
-                        v,
-                    },
-                    None => Ahead::OFF,
-                }
-            })
-            .collect_into_vec(&mut ahead);
-        // Then band by band of rows in parallel: a sample touches only its own pixel,
+        self.locate_new(t, camera, samples.clone(), &mut ahead);
+        // Band by band of rows in parallel: a sample touches only its own pixel,
         // and each pixel sees its samples in ring order.
         let band_px = CUT_ROWS * w;
         let bands = h.div_ceil(CUT_ROWS);
@@ -607,6 +582,45 @@ impl Reconstructor {
         c.ahead = ahead;
         c.by_band = by_band;
         c.merge_bands(outs);
+    }
+}
+
+impl Reconstructor {
+    /// Where each new sample (logical ring indices `samples`) lands at the refresh at
+    /// `t` seen by `camera`, into `ahead`, in parallel: found first, so that the cut
+    /// can ask for the pixels of samples ahead of it (they are at random: one miss
+    /// after another otherwise).
+    fn locate_new(
+        &self,
+        t: f64,
+        camera: &CameraFrame,
+        samples: std::ops::Range<usize>,
+        ahead: &mut Vec<Ahead>,
+    ) {
+        use field::*;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let proj = Projector::new(camera);
+        let ring = &self.ring;
+        ahead.clear();
+        samples
+            .into_par_iter()
+            .map(|i| {
+                let p = ring.phys(i);
+                let dt = (t - ring.t[p]) as f32;
+                let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+                let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
+                let (x, y, z) = proj.project(hit + v * dt);
+                match pixel_at(x, y, z, w, h) {
+                    Some((px, py)) => Ahead {
+                        px: px as u32,
+                        py: py as u32,
+                        z,
+                        v,
+                    },
+                    None => Ahead::OFF,
+                }
+            })
+            .collect_into_vec(ahead);
     }
 }
 

@@ -318,7 +318,7 @@ fn an_image_handed_over_leaves_a_spare_whose_pixels_are_never_read() {
             images.push(if hand_over {
                 let mut spare = Image::new(w, h);
                 spare.pixels.fill(Vec3::splat(f32::NAN));
-                r.take_image(spare).pixels
+                r.take_image(Some(spare)).pixels
             } else {
                 r.image().pixels.clone()
             });
@@ -337,7 +337,7 @@ fn an_image_handed_over_leaves_a_spare_whose_pixels_are_never_read() {
     let mut r = Reconstructor::new(w, h, 12000.0, ReconParams::realtime());
     r.reconstruct(1.0, &cams[0], &tiling);
     let before = r.image().pixels.clone();
-    assert_eq!(r.take_image(Image::new(w + 1, h)).pixels, before);
+    assert_eq!(r.take_image(Some(Image::new(w + 1, h))).pixels, before);
     assert_eq!(r.image().pixels, before);
 }
 

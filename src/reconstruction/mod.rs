@@ -579,12 +579,14 @@ impl Reconstructor {
     /// The image of the last refresh, handing it over instead of copying it: `spare`,
     /// an image of the same size whose pixels are of no further use (one shown
     /// before, say), becomes the buffer the next refresh writes, as every refresh
-    /// writes every pixel. A spare of another size is dropped, and the image copied.
-    pub fn take_image(&mut self, spare: Image) -> Image {
-        if (spare.width, spare.height) == (self.image.width, self.image.height) {
-            std::mem::replace(&mut self.image, spare)
-        } else {
-            self.image.clone()
+    /// writes every pixel. Without a spare, or with one of another size (dropped),
+    /// the image is copied.
+    pub fn take_image(&mut self, spare: Option<Image>) -> Image {
+        match spare {
+            Some(s) if (s.width, s.height) == (self.image.width, self.image.height) => {
+                std::mem::replace(&mut self.image, s)
+            }
+            _ => self.image.clone(),
         }
     }
 

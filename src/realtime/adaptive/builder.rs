@@ -304,11 +304,8 @@ impl ImageBuilder for Builder {
         let camera = state.camera;
         r.set_motion(Some(state));
         r.set_live_limit(self.live_limit);
-        let image = r.reconstruct(t, &camera, &tiling);
-        let image = match self.spare.take() {
-            Some(spare) => r.take_image(spare),
-            None => image.clone(),
-        };
+        r.reconstruct(t, &camera, &tiling);
+        let image = r.take_image(self.spare.take());
         let settings = &self.published.settings;
         if settings.sampler.discount_converged {
             if let Some(counts) = r.history_counts() {
