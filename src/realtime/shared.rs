@@ -533,11 +533,12 @@ impl<F> Assembly<F> {
     }
 }
 
-/// Niceness of the sampling threads on Linux: below the controller and image threads,
-/// so that where they all share too few cores, the latter get a core when they need one
-/// (an image late by a time slice is a missed refresh) and sampling takes the rest
-/// (measured: docs/performance.md, tuning records).
-const SAMPLING_NICE: i32 = 10;
+/// Niceness of the sampling threads on Linux: the lowest, below the controller and
+/// image threads, so that where they all share too few cores, the latter get a core
+/// when they need one (an image late by a time slice is a missed refresh) and sampling
+/// takes the rest. At niceness 10 a build still waited 1–4 ms a refresh behind them on
+/// 2 cores (measured: docs/performance.md, tuning records).
+const SAMPLING_NICE: i32 = 19;
 
 /// Give the calling thread [`SAMPLING_NICE`] (Linux; elsewhere nothing changes).
 fn lower_priority() {
