@@ -118,8 +118,10 @@ impl Pipeline {
         let builder = started?;
         lock(&p.shared.image_stats).recon = Some(builder.recon());
         let s = p.shared.clone();
-        Spawner::new(&p.shared, &mut p.handles)
-            .spawn("image", move || image_thread(&s, builder))?;
+        Spawner::new(&p.shared, &mut p.handles).spawn("image", move || {
+            super::shared::prompt_wakeups();
+            image_thread(&s, builder)
+        })?;
         Ok(p)
     }
 

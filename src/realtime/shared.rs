@@ -449,6 +449,7 @@ impl<B: ImageBuilder> Pooled<B> {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(config.recon_threads)
             .thread_name(|i| format!("frameless-recon-{i}"))
+            .start_handler(|_| prompt_wakeups())
             .build()
             .ok();
         Self { builder, pool }
@@ -555,6 +556,68 @@ fn lower_priority() {
     }
 }
 
+/// The scheduling slice the image and reconstruction threads ask for, nanoseconds: the
+/// shortest Linux grants. With a slice shorter than the running thread's (1.4 ms by
+/// default on the development machine), a woken thread takes the core at once instead
+/// of waiting out that slice (Linux 6.12 and later; earlier kernels keep their own).
+const PROMPT_SLICE_NS: u64 = 100_000;
+
+/// Ask that the calling thread, when woken, preempt the threads of its priority and
+/// below at once ([`PROMPT_SLICE_NS`]): a build that starts a few milliseconds late
+/// misses its refresh (measured: docs/performance.md, session 33). Its niceness and
+/// policy stay as they were. Linux only; a refusal leaves the thread as it was.
+pub(crate) fn prompt_wakeups() {
+    #[cfg(target_os = "linux")]
+    let _ = request_slice(PROMPT_SLICE_NS);
+}
+
+/// `sched_setattr(2)`'s argument, the layout of its first version (48 bytes).
+#[cfg(target_os = "linux")]
+#[repr(C)]
+struct SchedAttr {
+    size: u32,
+    policy: u32,
+    flags: u64,
+    nice: i32,
+    priority: u32,
+    runtime: u64,
+    deadline: u64,
+    period: u64,
+}
+
+/// Give the calling thread a scheduling slice of `ns` under the normal policy, keeping
+/// its niceness.
+#[cfg(target_os = "linux")]
+fn request_slice(ns: u64) -> std::io::Result<()> {
+    // SAFETY: `gettid` and `getpriority` take and return plain integers and touch no
+    // memory of ours.
+    let nice = unsafe {
+        let tid = libc::gettid();
+        libc::getpriority(libc::PRIO_PROCESS, tid as libc::id_t)
+    };
+    let attr = SchedAttr {
+        size: std::mem::size_of::<SchedAttr>() as u32,
+        policy: libc::SCHED_OTHER as u32,
+        flags: 0,
+        nice,
+        priority: 0,
+        runtime: ns,
+        deadline: 0,
+        period: 0,
+    };
+    // SAFETY: the kernel reads `attr.size` bytes from the pointer, and `size` is the
+    // size of the live, `repr(C)` struct it points to, laid out as the kernel's
+    // `struct sched_attr` of that size; pid 0 is the calling thread, flags 0. It
+    // writes nothing of ours. Exercised by
+    // `tests::a_prompt_thread_keeps_its_niceness_and_gets_its_slice`.
+    let r = unsafe { libc::syscall(libc::SYS_sched_setattr, 0, &attr as *const SchedAttr, 0u32) };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     /// The calling thread's niceness, from `/proc` (field 19 of its `stat`).
@@ -578,6 +641,45 @@ mod tests {
         // Another thread's change leaves this one as it was.
         assert_eq!(nice(), base);
         assert_eq!(lowered, super::SAMPLING_NICE.max(base));
+    }
+
+    /// The calling thread's scheduling slice in nanoseconds, where the kernel shows it.
+    #[cfg(target_os = "linux")]
+    fn slice() -> Option<u64> {
+        let sched = std::fs::read_to_string("/proc/thread-self/sched").ok()?;
+        let line = sched.lines().find(|l| l.starts_with("se.slice"))?;
+        line.split(':').nth(1)?.trim().parse().ok()
+    }
+
+    /// Whether the running kernel is at least `major.minor`.
+    #[cfg(target_os = "linux")]
+    fn kernel_at_least(major: u32, minor: u32) -> bool {
+        let release = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap();
+        let mut v = release
+            .trim()
+            .split(|c: char| !c.is_ascii_digit())
+            .map(|p| p.parse::<u32>().unwrap_or(0));
+        (v.next().unwrap_or(0), v.next().unwrap_or(0)) >= (major, minor)
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_prompt_thread_keeps_its_niceness_and_gets_its_slice() {
+        let (before, after, result, got) = std::thread::spawn(|| {
+            // A thread below the default priority, as a process run under `nice` is.
+            super::lower_priority();
+            let before = nice();
+            let result = super::request_slice(super::PROMPT_SLICE_NS);
+            (before, nice(), result, slice())
+        })
+        .join()
+        .unwrap();
+        result.expect("sched_setattr under the normal policy at the same niceness");
+        assert_eq!(after, before, "the niceness is kept");
+        // Custom slices for the normal policy came with Linux 6.12.
+        if kernel_at_least(6, 12) {
+            assert_eq!(got, Some(super::PROMPT_SLICE_NS));
+        }
     }
 
     /// A build takes what was queued when it began: a sender that keeps up with it
