@@ -564,8 +564,9 @@ const PROMPT_SLICE_NS: u64 = 100_000;
 
 /// Ask that the calling thread, when woken, preempt the threads of its priority and
 /// below at once ([`PROMPT_SLICE_NS`]): a build that starts a few milliseconds late
-/// misses its refresh (measured: docs/performance.md, session 33). Its niceness and
-/// policy stay as they were. Linux only; a refusal leaves the thread as it was.
+/// misses its refresh (measured: docs/performance.md, session 33). It keeps its
+/// niceness, under the normal policy (which the pipeline's threads have). Linux only;
+/// a refusal leaves the thread as it was.
 pub(crate) fn prompt_wakeups() {
     #[cfg(target_os = "linux")]
     let _ = request_slice(PROMPT_SLICE_NS);
@@ -584,6 +585,12 @@ struct SchedAttr {
     deadline: u64,
     period: u64,
 }
+
+#[cfg(target_os = "linux")]
+const _: () = assert!(
+    std::mem::size_of::<SchedAttr>() == 48,
+    "the kernel's first `struct sched_attr` is 48 bytes"
+);
 
 /// Give the calling thread a scheduling slice of `ns` under the normal policy, keeping
 /// its niceness.
