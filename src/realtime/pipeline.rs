@@ -118,10 +118,8 @@ impl Pipeline {
         let builder = started?;
         lock(&p.shared.image_stats).recon = Some(builder.recon());
         let s = p.shared.clone();
-        Spawner::new(&p.shared, &mut p.handles).spawn("image", move || {
-            super::shared::prompt_wakeups();
-            image_thread(&s, builder)
-        })?;
+        Spawner::new(&p.shared, &mut p.handles)
+            .spawn("image", move || image_thread(&s, builder))?;
         Ok(p)
     }
 
@@ -383,6 +381,8 @@ impl Recent {
 /// images then come at a lower rate, while the display keeps refreshing on time with
 /// the newest one.
 fn image_thread(s: &Shared, mut builder: Box<dyn ImageBuilder>) {
+    // It wakes at each build's due time: late by a slice, the build misses its refresh.
+    super::shared::prompt_wakeups();
     let period = 1.0 / s.config.refresh_hz;
     let mut lead = Lead::new(period);
     let mut schedule = Schedule { next: 1 };
