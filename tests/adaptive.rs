@@ -146,6 +146,30 @@ fn tiling_matches_the_deep_buffer_after_a_run() {
 }
 
 #[test]
+fn tiles_keep_their_unconverged_fraction_through_splits_and_merges() {
+    // The sampler keeps each tile's share of unconverged pixels instead of reading the
+    // count map's summed-area table at every error it computes; after new maps and the
+    // splits and merges of a moving scene, every tile's kept share must still be its
+    // pixels'.
+    let size = 48u32;
+    let c = ctx(motion_scene(0.0), size, 200_000.0);
+    let mut s = Sampler::new(c.tracer.clone(), c.clock, SamplerParams::ours(), 1).unwrap();
+    let (mut splits, mut merges) = (0, 0);
+    for k in 1..=40u32 {
+        if k % 8 == 1 {
+            let counts: Vec<f32> = (0..size * size)
+                .map(|i| ((i * 7 + k * 13) % 97) as f32)
+                .collect();
+            s.set_history_counts(&counts);
+        }
+        s.run_until(k as f64 / 60.0);
+        s.validate().unwrap();
+        (splits, merges) = (s.counters().splits, s.counters().merges);
+    }
+    assert!(splits > 0 && merges > 0, "{splits} splits, {merges} merges");
+}
+
+#[test]
 fn samples_concentrate_at_a_sharp_edge() {
     let size = 64;
     let c = ctx(edge_scene(), size, 200_000.0);

@@ -110,6 +110,12 @@ pub struct Sampler {
     /// Summed-area table of each pixel's `1 / (1 + n)`, `n` its samples in the
     /// reconstructor's still-region history (`(width + 1) × (height + 1)`; empty: none).
     unconverged: Vec<f64>,
+    /// Each tile's unconverged fraction (its mean of `1 / (1 + n)` from `unconverged`),
+    /// by node: the tiling's adjustments ask for it several times per crosshair, and
+    /// four reads scattered over an image-sized table each time were about half of
+    /// the error terms' cost in a live controller at 1280×720. Set for every tile when
+    /// the table is, and for the new tiles of every split and merge.
+    unconverged_of: Vec<f64>,
 }
 
 /// Tiles examined per tiling adjustment.
@@ -362,6 +368,7 @@ impl Sampler {
             error_sums_tiles: 1,
             v_prior: 0.0,
             unconverged: Vec::new(),
+            unconverged_of: Vec::new(),
         };
         if params.uniform_tiling || !params.gain_control {
             // Start from a balanced grid of the fixed size (uniform tiling keeps it).
@@ -843,8 +850,13 @@ impl Sampler {
             return;
         }
         let stride = w + 1;
-        self.unconverged.clear();
-        self.unconverged.resize(stride * (h + 1), 0.0);
+        // Row 0 and column 0 stay zero and every other entry is written below, so a
+        // table of the right size is reused as it is: zeroing it again cost as much as
+        // filling it (docs/performance.md, session 34).
+        if self.unconverged.len() != stride * (h + 1) {
+            self.unconverged.clear();
+            self.unconverged.resize(stride * (h + 1), 0.0);
+        }
         for y in 0..h {
             let mut row = 0.0;
             for x in 0..w {
@@ -852,6 +864,29 @@ impl Sampler {
                 self.unconverged[(y + 1) * stride + x + 1] = self.unconverged[y * stride + x + 1] + row;
             }
         }
+        for i in 0..self.tiling.leaves().len() {
+            self.note_unconverged(self.tiling.leaves()[i]);
+        }
+    }
+
+    /// The mean of `1 / (1 + n)` over `r`, from the summed-area table (which must be set).
+    fn unconverged_in(&self, r: Rect) -> f64 {
+        let stride = self.width as usize + 1;
+        let at = |x: u32, y: u32| self.unconverged[y as usize * stride + x as usize];
+        let sum = at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0);
+        (sum / r.area() as f64).max(0.0)
+    }
+
+    /// Keep tile `node`'s unconverged fraction, if there is a history count map.
+    fn note_unconverged(&mut self, node: u32) {
+        if self.unconverged.is_empty() {
+            return;
+        }
+        let i = node as usize;
+        if self.unconverged_of.len() <= i {
+            self.unconverged_of.resize(i + 1, 0.0);
+        }
+        self.unconverged_of[i] = self.unconverged_in(self.tiling.node(node).rect);
     }
 
     /// The raw terms `(v, u, o)` of one tile's error.
@@ -861,11 +896,7 @@ impl Sampler {
         let s = n.rect.area() as f64;
         let mut v = n.stats.variance().max(self.v_prior);
         if !self.unconverged.is_empty() {
-            let r = n.rect;
-            let stride = self.width as usize + 1;
-            let at = |x: u32, y: u32| self.unconverged[y as usize * stride + x as usize];
-            let sum = at(r.x1, r.y1) - at(r.x0, r.y1) - at(r.x1, r.y0) + at(r.x0, r.y0);
-            v *= (sum / s).max(0.0);
+            v *= self.unconverged_of[leaf as usize];
         }
         // Undersampling compares empty *fractions* of the tile's and the image's slots.
         // The paper compares counts (empty slots in the tile against the mean per tile);
@@ -977,7 +1008,9 @@ impl Sampler {
             }
         };
         let s = self.stats_of(half);
-        self.tiling.split(leaf, |_| s);
+        let (a, b) = self.tiling.split(leaf, |_| s);
+        self.note_unconverged(a);
+        self.note_unconverged(b);
         self.counters.splits += 1;
     }
 
@@ -1066,6 +1099,7 @@ impl Sampler {
                     break;
                 };
                 self.tiling.merge(parent);
+                self.note_unconverged(parent);
                 self.counters.merges += 1;
                 ops += 1;
             } else {
@@ -1077,6 +1111,7 @@ impl Sampler {
                         splits.next();
                         pairs.next();
                         self.tiling.merge(parent);
+                self.note_unconverged(parent);
                         self.counters.merges += 1;
                         self.split_tile(l);
                         ops += 2;
@@ -1153,7 +1188,20 @@ impl Sampler {
     /// Check the tiling against the deep buffer (tests; expensive).
     pub fn validate(&self) -> Result<(), MethodError> {
         let f = |r: Rect| self.stats_of(r);
-        self.tiling.validate(Some(&f), 1e-6)
+        self.tiling.validate(Some(&f), 1e-6)?;
+        if self.unconverged.is_empty() {
+            return Ok(());
+        }
+        for &l in self.tiling.leaves() {
+            let (kept, want) = (self.unconverged_of[l as usize], self.unconverged_in(self.tiling.node(l).rect));
+            if kept.to_bits() != want.to_bits() {
+                return Err(MethodError::Inconsistent {
+                    what: "sampler",
+                    why: format!("tile {l} keeps unconverged fraction {kept}, its pixels give {want}"),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Samples (rays) used so far.

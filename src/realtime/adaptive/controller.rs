@@ -153,6 +153,10 @@ pub(super) fn control(
     let (mut snap_at, mut tiling_at) = (Instant::now(), Instant::now() - tiling_every);
     let mut snap_every = SNAPSHOT_EVERY;
     let mut history_seen = 0;
+    // The band's rows of the newest history count map, copied out of the lock into
+    // a buffer kept across maps: a fresh one each time was several megabytes mapped,
+    // faulted in and unmapped again at 1280×720 (docs/performance.md, session 34).
+    let mut history_rows = Vec::new();
     // Samples for the image thread, sent together every `PASS_ON_EVERY`: it drains
     // its channel once per image, and one message per batch (every sampling thread
     // sends each band a batch a millisecond) would fill it within an image's time on
@@ -197,7 +201,8 @@ pub(super) fn control(
             snap_every = snapshot_interval(snap_at - t0);
         }
         if tiling_at.elapsed() >= tiling_every {
-            if take_history_counts(published, b, &mut sampler, &mut history_seen) {
+            let seen = &mut history_seen;
+            if take_history_counts(published, b, &mut sampler, seen, &mut history_rows) {
                 published.history_maps.fetch_add(1, Ordering::Relaxed);
             }
             published.tiling(b, &sampler);
@@ -207,14 +212,15 @@ pub(super) fn control(
 }
 
 /// Give band `b`'s sampler its rows of the newest history count map, if it is newer
-/// than map `seen`; whether there was one.
+/// than map `seen`, copied through `rows`; whether there was one.
 pub(super) fn take_history_counts(
     published: &Published,
     b: usize,
     sampler: &mut Sampler,
     seen: &mut u64,
+    rows: &mut Vec<f32>,
 ) -> bool {
-    let rows = {
+    {
         let maps = lock(&published.history_counts);
         if maps.0 == *seen || maps.1.is_empty() {
             return false;
@@ -222,8 +228,9 @@ pub(super) fn take_history_counts(
         *seen = maps.0;
         let r = published.bands[b].rect;
         let w = r.width() as usize;
-        maps.1[r.y0 as usize * w..r.y1 as usize * w].to_vec()
-    };
-    sampler.set_history_counts(&rows);
+        rows.clear();
+        rows.extend_from_slice(&maps.1[r.y0 as usize * w..r.y1 as usize * w]);
+    }
+    sampler.set_history_counts(rows);
     true
 }
