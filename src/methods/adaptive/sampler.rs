@@ -495,11 +495,8 @@ impl Sampler {
         };
         let leaf = self.tiling.leaf_at(px, py);
         let add = self.contribution(&c);
-        self.tiling.add_path(leaf, &add, 1.0);
-        if let Some(old) = self.buffer.push_front(px, py, c) {
-            let sub = self.contribution(&old);
-            self.tiling.add_path(leaf, &sub, -1.0);
-        }
+        let sub = self.buffer.push_front(px, py, c).map(|old| self.contribution(&old));
+        self.tiling.replace_on_path(leaf, &add, sub.as_ref());
     }
 
     fn record_occlusion(&mut self, px: u32, py: u32, now: f64) {

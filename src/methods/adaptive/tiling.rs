@@ -307,6 +307,21 @@ impl Tiling {
         }
     }
 
+    /// Add `add` to a node and all its ancestors and, where given, subtract `sub`
+    /// from each right after: one walk up the tree where two would visit the same
+    /// nodes, each node's sums changing exactly as they would with two.
+    #[inline]
+    pub fn replace_on_path(&mut self, mut i: u32, add: &TileStats, sub: Option<&TileStats>) {
+        while i != NONE {
+            let n = &mut self.nodes[i as usize];
+            n.stats.add(add, 1.0);
+            if let Some(sub) = sub {
+                n.stats.add(sub, -1.0);
+            }
+            i = n.parent;
+        }
+    }
+
     /// Whether a tile may be split (both halves keep at least `min_side` pixels).
     pub fn splittable(&self, leaf: u32, min_side: u32) -> bool {
         let r = self.nodes[leaf as usize].rect;
