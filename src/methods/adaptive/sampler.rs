@@ -496,14 +496,14 @@ impl Sampler {
         let leaf = self.tiling.leaf_at(px, py);
         let add = self.contribution(&c);
         let sub = self.buffer.push_front(px, py, c).map(|old| self.contribution(&old));
-        self.tiling.replace_on_path(leaf, &add, sub.as_ref());
+        self.tiling.replace_in_tile(leaf, &add, sub.as_ref());
     }
 
     fn record_occlusion(&mut self, px: u32, py: u32, now: f64) {
         let w = self.weight(now);
         self.occl_px[(py * self.width + px) as usize] += w;
         let leaf = self.tiling.leaf_at(px, py);
-        self.tiling.add_path(
+        self.tiling.add_to_tile(
             leaf,
             &TileStats {
                 occl: w,
@@ -692,13 +692,13 @@ impl Sampler {
                 Some(back) if back.t < c.t => {
                     let old = self.buffer.pop_back(px, py).expect("full queue");
                     let sub = self.contribution(&old);
-                    self.tiling.add_path(leaf, &sub, -1.0);
+                    self.tiling.add_to_tile(leaf, &sub, -1.0);
                 }
                 _ => return,
             }
         }
         let add = self.contribution(&c);
-        self.tiling.add_path(leaf, &add, 1.0);
+        self.tiling.add_to_tile(leaf, &add, 1.0);
         let _ = self.buffer.push_back(px, py, c);
     }
 
@@ -715,7 +715,7 @@ impl Sampler {
             }
             if let Some(c) = self.buffer.pop_front(px, py) {
                 let sub = self.contribution(&c);
-                self.tiling.add_path(leaf, &sub, -1.0);
+                self.tiling.add_to_tile(leaf, &sub, -1.0);
                 self.reproject(state, c, now);
             }
         }

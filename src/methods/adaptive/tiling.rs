@@ -297,28 +297,26 @@ impl Tiling {
         }
     }
 
-    /// Add `delta` (times `sign`) to a node and all its ancestors.
+    /// Add `delta` (times `sign`) to tile `leaf` and to the whole image's sums.
+    ///
+    /// Only the tiles and the root keep statistics: an inner node's are needed only
+    /// when it becomes a tile again, and are then formed from its two tiles
+    /// ([`Tiling::merge`]). Walking every ancestor instead (a dozen levels at
+    /// 1280×720) was a fifth of a live controller (docs/performance.md, session 34).
     #[inline]
-    pub fn add_path(&mut self, mut i: u32, delta: &TileStats, sign: f64) {
-        while i != NONE {
-            let n = &mut self.nodes[i as usize];
-            n.stats.add(delta, sign);
-            i = n.parent;
+    pub fn add_to_tile(&mut self, leaf: u32, delta: &TileStats, sign: f64) {
+        self.nodes[leaf as usize].stats.add(delta, sign);
+        if leaf != 0 {
+            self.nodes[0].stats.add(delta, sign);
         }
     }
 
-    /// Add `add` to a node and all its ancestors and, where given, subtract `sub`
-    /// from each right after: one walk up the tree where two would visit the same
-    /// nodes, each node's sums changing exactly as they would with two.
+    /// [`Tiling::add_to_tile`] of `add`, then, where given, of `sub` subtracted.
     #[inline]
-    pub fn replace_on_path(&mut self, mut i: u32, add: &TileStats, sub: Option<&TileStats>) {
-        while i != NONE {
-            let n = &mut self.nodes[i as usize];
-            n.stats.add(add, 1.0);
-            if let Some(sub) = sub {
-                n.stats.add(sub, -1.0);
-            }
-            i = n.parent;
+    pub fn replace_in_tile(&mut self, leaf: u32, add: &TileStats, sub: Option<&TileStats>) {
+        self.add_to_tile(leaf, add, 1.0);
+        if let Some(sub) = sub {
+            self.add_to_tile(leaf, sub, -1.0);
         }
     }
 
@@ -372,6 +370,9 @@ impl Tiling {
         parent.children = c;
         parent.leaf_slot = NONE;
         parent.pending = None;
+        if leaf != 0 {
+            parent.stats = TileStats::default(); // kept by its tiles now
+        }
         self.leaves[slot as usize] = c;
         self.nodes[c as usize].leaf_slot = slot;
         self.nodes[c as usize + 1].leaf_slot = self.leaves.len() as u32;
@@ -409,7 +410,12 @@ impl Tiling {
         self.remove_leaf(c);
         self.remove_leaf(c + 1);
         self.free_pairs.push(c);
+        let mut stats = self.nodes[c as usize].stats;
+        stats.add(&self.nodes[c as usize + 1].stats, 1.0);
         let n = &mut self.nodes[node as usize];
+        if node != 0 {
+            n.stats = stats;
+        }
         n.children = NONE;
         n.pending = pending;
         n.leaf_slot = self.leaves.len() as u32;
@@ -426,8 +432,9 @@ impl Tiling {
     }
 
     /// Check every invariant: the tiles partition the image exactly, links are
-    /// consistent, each inner node's statistics are the sum of its children's, and (with
-    /// `stats_of`) each tile's statistics match the deep buffer within `tol`.
+    /// consistent, the root's statistics are the sum of the tiles' and other inner
+    /// nodes keep none, and (with `stats_of`) each tile's statistics match the deep
+    /// buffer within `tol`.
     pub fn validate(
         &self,
         stats_of: Option<&dyn Fn(Rect) -> TileStats>,
@@ -458,7 +465,7 @@ impl Tiling {
                 leaf_count += 1;
                 self.validate_tile(i, &mut covered, stats_of, tol)?;
             } else {
-                self.validate_split(i, tol)?;
+                self.validate_split(i)?;
                 stack.push(n.children);
                 stack.push(n.children + 1);
             }
@@ -474,6 +481,16 @@ impl Tiling {
             return Err(inconsistent(format!(
                 "pixel {p} covered {} times",
                 covered[p]
+            )));
+        }
+        let mut sum = TileStats::default();
+        for &l in &self.leaves {
+            sum.add(&self.nodes[l as usize].stats, 1.0);
+        }
+        if !self.nodes[0].stats.approx_eq(&sum, tol) {
+            return Err(inconsistent(format!(
+                "the root's statistics {:?} are not the sum of the tiles' {sum:?}",
+                self.nodes[0].stats
             )));
         }
         Ok(())
@@ -525,8 +542,8 @@ impl Tiling {
     }
 
     /// [`Self::validate`] of the inner node `i`: its children point back, split it
-    /// exactly in two, and their statistics sum to its own.
-    fn validate_split(&self, i: u32, tol: f64) -> Result<(), MethodError> {
+    /// exactly in two, and (but for the root) it keeps no statistics of its own.
+    fn validate_split(&self, i: u32) -> Result<(), MethodError> {
         let n = &self.nodes[i as usize];
         let (a, b) = (
             &self.nodes[n.children as usize],
@@ -553,11 +570,9 @@ impl Tiling {
                 "children of {i} do not split it exactly"
             )));
         }
-        let mut sum = a.stats;
-        sum.add(&b.stats, 1.0);
-        if !n.stats.approx_eq(&sum, tol) {
+        if i != 0 && n.stats != TileStats::default() {
             return Err(inconsistent(format!(
-                "node {i} statistics are not the sum of its children's"
+                "inner node {i} keeps statistics its tiles keep"
             )));
         }
         Ok(())
