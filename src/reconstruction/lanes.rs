@@ -95,7 +95,7 @@ pub(super) const PREFETCH_AHEAD: usize = 16;
 /// bounds, and nothing off x86-64): passes that visit pixels at random issue it some
 /// samples ahead, so that the misses of several samples overlap instead of queueing.
 #[inline(always)]
-pub(super) fn prefetch<T>(items: &[T], i: usize) {
+pub(crate) fn prefetch<T>(items: &[T], i: usize) {
     #[cfg(target_arch = "x86_64")]
     if let Some(item) = items.get(i) {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};

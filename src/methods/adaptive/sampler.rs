@@ -1052,8 +1052,22 @@ impl Sampler {
         let n_leaves = self.tiling.len();
         let mut splits: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
         let mut pairs: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
-        for _ in 0..ADJUST_CANDIDATES.min(n_leaves * 2) {
-            let l = self.tiling.leaves()[self.rng.below(n_leaves as u32) as usize];
+        // The candidates are drawn first and their nodes (and then their parents) asked
+        // of the cache, so that their misses overlap instead of queueing one after
+        // another (docs/performance.md, session 34); the same draws as one at a time.
+        let mut drawn = [0u32; ADJUST_CANDIDATES];
+        let drawn = &mut drawn[..ADJUST_CANDIDATES.min(n_leaves * 2)];
+        for d in drawn.iter_mut() {
+            *d = self.tiling.leaves()[self.rng.below(n_leaves as u32) as usize];
+            self.tiling.prefetch_node(*d);
+        }
+        for &l in drawn.iter() {
+            let parent = self.tiling.node(l).parent;
+            if parent != NONE {
+                self.tiling.prefetch_node(parent);
+            }
+        }
+        for &l in drawn.iter() {
             let e = self.error(l, me, w);
             if self.tiling.splittable(l, p.min_tile_side) {
                 splits.push((e, l));

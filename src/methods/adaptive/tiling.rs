@@ -216,6 +216,12 @@ impl Tiling {
         &self.nodes[i as usize]
     }
 
+    /// Ask the cache for node `i` ahead of its use.
+    #[inline]
+    pub fn prefetch_node(&self, i: u32) {
+        crate::reconstruction::prefetch(&self.nodes, i as usize);
+    }
+
     /// Mutable node `i`.
     #[inline]
     pub fn node_mut(&mut self, i: u32) -> &mut Node {
