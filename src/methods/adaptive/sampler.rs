@@ -854,11 +854,17 @@ impl Sampler {
             self.unconverged.clear();
             self.unconverged.resize(stride * (h + 1), 0.0);
         }
-        for y in 0..h {
+        // A row's terms first, in vector form (a division each), then its running sums.
+        let mut terms = vec![0.0f64; w];
+        for (y, counts) in counts.chunks_exact(w).enumerate() {
+            for (t, &n) in terms.iter_mut().zip(counts) {
+                *t = 1.0 / (1.0 + n as f64);
+            }
+            let (above, this) = self.unconverged[y * stride..(y + 2) * stride].split_at_mut(stride);
             let mut row = 0.0;
             for x in 0..w {
-                row += 1.0 / (1.0 + counts[y * w + x] as f64);
-                self.unconverged[(y + 1) * stride + x + 1] = self.unconverged[y * stride + x + 1] + row;
+                row += terms[x];
+                this[x + 1] = above[x + 1] + row;
             }
         }
         for i in 0..self.tiling.leaves().len() {
@@ -926,18 +932,15 @@ impl Sampler {
             // Until a tile's own samples say otherwise, assume the image's mean variance
             // there, fading as the view stays put (a still view concentrates samples
             // where the variance is known to be).
-            let leaves = self.tiling.leaves();
-            let mean: f64 = leaves
-                .iter()
-                .map(|&l| self.tiling.node(l).stats.variance())
-                .sum::<f64>()
-                / leaves.len().max(1) as f64;
+            let leaves = self.tiling.leaf_nodes();
+            let mean: f64 = leaves.map(|(_, n)| n.stats.variance()).sum::<f64>()
+                / self.tiling.len().max(1) as f64;
             // Only a change of view: a run that starts still concentrates its samples
             // from the start, as before.
             let still = (now - self.view_changed_at).max(0.0);
             self.v_prior = mean * (-still / tau).exp();
         }
-        for &l in self.tiling.leaves() {
+        for (l, _) in self.tiling.leaf_nodes() {
             let (v, u, o) = self.error_terms(l, me, w);
             sums.0 += v;
             sums.1 += u;

@@ -233,6 +233,19 @@ impl Tiling {
         &self.leaves
     }
 
+    /// The tiles' nodes in the order of [`Tiling::leaves`], each asked of the cache
+    /// some tiles ahead: the tiles lie scattered over the node array, and passes over
+    /// all of them (snapshots, the error sums) otherwise wait on one miss at a time.
+    pub fn leaf_nodes(&self) -> impl Iterator<Item = (u32, &Node)> + '_ {
+        const AHEAD: usize = 16;
+        self.leaves.iter().enumerate().map(move |(k, &l)| {
+            if let Some(&next) = self.leaves.get(k + AHEAD) {
+                self.prefetch_node(next);
+            }
+            (l, &self.nodes[l as usize])
+        })
+    }
+
     /// Number of tiles.
     pub fn len(&self) -> usize {
         self.leaves.len()
@@ -242,10 +255,8 @@ impl Tiling {
     pub fn snapshot(&self) -> TilingSnapshot {
         TilingSnapshot {
             tiles: self
-                .leaves
-                .iter()
-                .map(|&l| {
-                    let n = self.node(l);
+                .leaf_nodes()
+                .map(|(_, n)| {
                     let (gx, gy, gt) = n.stats.gradients();
                     TileGradients {
                         rect: n.rect,

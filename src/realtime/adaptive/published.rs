@@ -194,16 +194,13 @@ impl TileSnapshot {
     pub(super) fn of(sampler: &Sampler) -> Self {
         let t = sampler.tiling();
         let (ox, oy) = sampler.origin();
-        let leaves = t.leaves();
-        Self {
-            rects: leaves
-                .iter()
-                .map(|&l| t.node(l).rect.offset(ox, oy))
-                .collect(),
-            pending: leaves
-                .iter()
-                .map(|&l| t.node(l).pending.map(|p| p.moved(ox as f32, oy as f32)))
-                .collect(),
-        }
+        let (rects, pending) = t
+            .leaf_nodes()
+            .map(|(_, n)| {
+                let p = n.pending.map(|p| p.moved(ox as f32, oy as f32));
+                (n.rect.offset(ox, oy), p)
+            })
+            .unzip();
+        Self { rects, pending }
     }
 }
