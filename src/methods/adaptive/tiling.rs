@@ -1,7 +1,8 @@
 //! The sampler's K-D tree tiling: a flat `Vec` of nodes with `u32` links; the current
-//! tiles are the leaves (a cut across the tree). Every node carries the statistics of
-//! its block (the deep-buffer samples inside its rectangle), so merging two tiles is
-//! free and splitting one needs a scan of one child only.
+//! tiles are the leaves (a cut across the tree). Each tile carries the statistics of
+//! its block (the deep-buffer samples inside its rectangle), and the root those of the
+//! whole image; merging two tiles adds theirs, and splitting one needs a scan of one
+//! child only.
 
 pub use crate::tiles::Rect;
 use crate::{
