@@ -2,6 +2,8 @@
 
 use glam::Vec3;
 
+use crate::reconstruction::{prefetch, prefetch_addr};
+
 /// Five co-temporal samples: a center at sub-pixel `(x, y)` and its neighbours one pixel
 /// away in ±x and ±y, with the gradients they measure.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -126,6 +128,33 @@ impl DeepBuffer {
         evicted
     }
 
+    /// Ask the cache for pixel `(x, y)`'s queue length and head: the first of two steps
+    /// ahead of a [`DeepBuffer::push_front`] there.
+    #[inline]
+    pub fn prefetch_queue(&self, x: u32, y: u32) {
+        let p = self.index(x, y);
+        prefetch(&self.len, p);
+        prefetch(&self.head, p);
+    }
+
+    /// Ask the cache for the slot a [`DeepBuffer::push_front`] at `(x, y)` writes (and,
+    /// with the queue full, evicts from): the second step, once the head is at hand.
+    #[inline]
+    pub fn prefetch_front_slot(&self, x: u32, y: u32) {
+        let p = self.index(x, y);
+        let Some(&head) = self.head.get(p) else {
+            return;
+        };
+        let s = p * self.depth + (head as usize + self.depth - 1) % self.depth;
+        let Some(slot) = self.slots.get(s) else {
+            return;
+        };
+        // A slot spans two or three cache lines: ask for its first and last bytes.
+        let first = (slot as *const Crosshair).cast::<u8>();
+        prefetch_addr(first);
+        prefetch_addr(first.wrapping_add(std::mem::size_of::<Crosshair>() - 1));
+    }
+
     /// Insert as the oldest if there is room; returns the crosshair back if not.
     pub fn push_back(&mut self, x: u32, y: u32, c: Crosshair) -> Result<(), Crosshair> {
         let p = self.index(x, y);
@@ -174,6 +203,21 @@ mod tests {
             t,
             ..Default::default()
         }
+    }
+
+    #[test]
+    fn prefetches_leave_the_queues_alone() {
+        let mut b = DeepBuffer::new(3, 2, 2);
+        for k in 0..5 {
+            b.push_front(2, 1, c(k as f64));
+        }
+        for (x, y) in [(0, 0), (2, 1), (1, 1)] {
+            b.prefetch_queue(x, y);
+            b.prefetch_front_slot(x, y);
+        }
+        let ts: Vec<f64> = b.iter_at(2, 1).map(|c| c.t).collect();
+        assert_eq!(ts, vec![4.0, 3.0]);
+        assert_eq!(b.total(), 2);
     }
 
     #[test]

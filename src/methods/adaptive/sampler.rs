@@ -1136,6 +1136,24 @@ impl Sampler {
         }
     }
 
+    /// Real-time mode: ask the cache for what taking in something at `(x, y)` reads,
+    /// in two steps a few visits apart (`late`: the second, which reads what the first
+    /// asked for): the pixel's queue and tile first, then the deep-buffer slot and the
+    /// tile's node. The controller's visits land at scattered pixels, and each waited
+    /// on several misses in turn (docs/performance.md, session 34).
+    pub fn prefetch_visit(&self, x: f32, y: f32, late: bool) {
+        let Some((px, py)) = self.pixel_of(x, y) else {
+            return;
+        };
+        if late {
+            self.buffer.prefetch_front_slot(px, py);
+            self.tiling.prefetch_node(self.tiling.leaf_at(px, py));
+        } else {
+            self.buffer.prefetch_queue(px, py);
+            self.tiling.prefetch_leaf_at(px, py);
+        }
+    }
+
     /// Real-time mode: take in a crosshair traced elsewhere (by a sampling thread) at
     /// time `now`, then adjust the tiling after every chunk, as a visit would.
     /// `rays` is what tracing it cost.

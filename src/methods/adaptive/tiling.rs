@@ -280,6 +280,14 @@ impl Tiling {
         &self.nodes[0].stats
     }
 
+    /// Ask the cache for pixel `(x, y)`'s entry of the pixel → tile map.
+    #[inline]
+    pub fn prefetch_leaf_at(&self, x: u32, y: u32) {
+        if x < self.width && y < self.height {
+            crate::reconstruction::prefetch(&self.leaf_of, y as usize * self.width as usize + x as usize);
+        }
+    }
+
     /// The tile containing pixel `(x, y)`.
     #[inline]
     pub fn leaf_at(&self, x: u32, y: u32) -> u32 {

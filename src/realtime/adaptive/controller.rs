@@ -38,6 +38,11 @@ pub(super) fn snapshot_interval(cost: Duration) -> Duration {
     SNAPSHOT_EVERY.max(cost * SNAPSHOT_COST_RATIO)
 }
 
+/// Visits ahead of its turn that a visit's pixel queue and tile are asked for, and
+/// that its deep-buffer slot and tile node are.
+const PREFETCH_EARLY: usize = 16;
+const PREFETCH_LATE: usize = 8;
+
 /// How often a controller passes the samples it took in on to the image thread.
 pub(super) const PASS_ON_EVERY: Duration = Duration::from_millis(2);
 
@@ -105,8 +110,26 @@ pub(super) fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: 
     let (mut own_rays, mut reprojected, mut skipped) = (0, 0, 0);
     let (ox, oy) = sampler.origin();
     let (dx, dy) = (-(ox as f32), -(oy as f32));
-    for v in batch.visits {
-        match v {
+    // Where each visit lands (a completed crosshair's centre, an initiated sample),
+    // asked of the cache in two steps ahead of its turn.
+    let at = |v: &Visit| match v {
+        Visit::Completed { crosshair, .. } => (crosshair.x + dx, crosshair.y + dy),
+        Visit::Initiated(p) => (p.x + dx, p.y + dy),
+    };
+    for v in batch.visits.iter().take(PREFETCH_EARLY) {
+        let (x, y) = at(v);
+        sampler.prefetch_visit(x, y, false);
+    }
+    for (j, v) in batch.visits.iter().enumerate() {
+        if let Some(v) = batch.visits.get(j + PREFETCH_EARLY) {
+            let (x, y) = at(v);
+            sampler.prefetch_visit(x, y, false);
+        }
+        if let Some(v) = batch.visits.get(j + PREFETCH_LATE) {
+            let (x, y) = at(v);
+            sampler.prefetch_visit(x, y, true);
+        }
+        match *v {
             Visit::Completed {
                 mut crosshair,
                 rays,
