@@ -96,17 +96,9 @@ pub(super) const PREFETCH_AHEAD: usize = 16;
 /// samples ahead, so that the misses of several samples overlap instead of queueing.
 #[inline(always)]
 pub(crate) fn prefetch<T>(items: &[T], i: usize) {
-    #[cfg(target_arch = "x86_64")]
     if let Some(item) = items.get(i) {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // SAFETY: `_mm_prefetch` needs SSE, which every x86-64 processor has (it is
-        // in the target's baseline features), and it only hints the cache: it never
-        // faults and reads nothing into the program, whatever the address; here the
-        // address is that of a live element besides.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>((item as *const T).cast()) };
+        prefetch_addr((item as *const T).cast());
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (items, i);
 }
 
 /// Ask the cache for the line holding `addr`, whatever it points at (nothing off

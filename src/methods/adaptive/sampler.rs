@@ -118,6 +118,9 @@ pub struct Sampler {
     unconverged_of: Vec<f64>,
 }
 
+/// Nodes ranked by an error: `(error, node)`.
+type Ranked = Vec<(f64, u32)>;
+
 /// Tiles examined per tiling adjustment.
 const ADJUST_CANDIDATES: usize = 64;
 /// Adjustments between full recomputations of the error normalisation sums, at
@@ -495,8 +498,11 @@ impl Sampler {
         };
         let leaf = self.tiling.leaf_at(px, py);
         let add = self.contribution(&c);
-        let sub = self.buffer.push_front(px, py, c).map(|old| self.contribution(&old));
-        self.tiling.replace_in_tile(leaf, &add, sub.as_ref());
+        self.tiling.add_to_tile(leaf, &add, 1.0);
+        if let Some(old) = self.buffer.push_front(px, py, c) {
+            let sub = self.contribution(&old);
+            self.tiling.add_to_tile(leaf, &sub, -1.0);
+        }
     }
 
     fn record_occlusion(&mut self, px: u32, py: u32, now: f64) {
@@ -1030,6 +1036,49 @@ impl Sampler {
         }
     }
 
+    /// The candidates of one adjustment, from `ADJUST_CANDIDATES` random tiles: the
+    /// splittable tiles by error, largest first, and the mergeable pairs by their summed
+    /// error, smallest first (each once).
+    fn adjustment_candidates(&mut self, now: f64) -> (Ranked, Ranked) {
+        let min_side = self.params.min_tile_side;
+        let (me, w) = self.error_context(now);
+        let n_leaves = self.tiling.len();
+        let mut splits: Ranked = Vec::with_capacity(ADJUST_CANDIDATES);
+        let mut pairs: Ranked = Vec::with_capacity(ADJUST_CANDIDATES);
+        // The candidates are drawn first and their nodes (and then their parents) asked
+        // of the cache, so that their misses overlap instead of queueing one after
+        // another (docs/performance.md, session 34); the same draws as one at a time.
+        let mut drawn = [0u32; ADJUST_CANDIDATES];
+        let drawn = &mut drawn[..ADJUST_CANDIDATES.min(n_leaves * 2)];
+        for d in drawn.iter_mut() {
+            *d = self.tiling.leaves()[self.rng.below(n_leaves as u32) as usize];
+            self.tiling.prefetch_node(*d);
+        }
+        for &l in drawn.iter() {
+            let parent = self.tiling.node(l).parent;
+            if parent != NONE {
+                self.tiling.prefetch_node(parent);
+            }
+        }
+        for &l in drawn.iter() {
+            let e = self.error(l, me, w);
+            if self.tiling.splittable(l, min_side) {
+                splits.push((e, l));
+            }
+            let parent = self.tiling.node(l).parent;
+            if parent != NONE && self.tiling.mergeable(parent) {
+                let c = self.tiling.node(parent).children;
+                let sib = if c == l { c + 1 } else { c };
+                pairs.push((e + self.error(sib, me, w), parent));
+            }
+        }
+        splits.sort_by(|a, b| b.0.total_cmp(&a.0));
+        splits.dedup_by_key(|x| x.1);
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        pairs.dedup_by_key(|x| x.1);
+        (splits, pairs)
+    }
+
     /// After a chunk of crosshairs: steer the tile count, then balance tile errors.
     ///
     /// Bounded work: candidates for splitting and merging come from a random subset of
@@ -1051,41 +1100,7 @@ impl Sampler {
         if self.counters.adjustments % error_sums_every(self.tiling.len()) == 1 || stale {
             self.refresh_error_sums(now);
         }
-        let (me, w) = self.error_context(now);
-        let n_leaves = self.tiling.len();
-        let mut splits: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
-        let mut pairs: Vec<(f64, u32)> = Vec::with_capacity(ADJUST_CANDIDATES);
-        // The candidates are drawn first and their nodes (and then their parents) asked
-        // of the cache, so that their misses overlap instead of queueing one after
-        // another (docs/performance.md, session 34); the same draws as one at a time.
-        let mut drawn = [0u32; ADJUST_CANDIDATES];
-        let drawn = &mut drawn[..ADJUST_CANDIDATES.min(n_leaves * 2)];
-        for d in drawn.iter_mut() {
-            *d = self.tiling.leaves()[self.rng.below(n_leaves as u32) as usize];
-            self.tiling.prefetch_node(*d);
-        }
-        for &l in drawn.iter() {
-            let parent = self.tiling.node(l).parent;
-            if parent != NONE {
-                self.tiling.prefetch_node(parent);
-            }
-        }
-        for &l in drawn.iter() {
-            let e = self.error(l, me, w);
-            if self.tiling.splittable(l, p.min_tile_side) {
-                splits.push((e, l));
-            }
-            let parent = self.tiling.node(l).parent;
-            if parent != NONE && self.tiling.mergeable(parent) {
-                let c = self.tiling.node(parent).children;
-                let sib = if c == l { c + 1 } else { c };
-                pairs.push((e + self.error(sib, me, w), parent));
-            }
-        }
-        splits.sort_by(|a, b| b.0.total_cmp(&a.0));
-        splits.dedup_by_key(|x| x.1);
-        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
-        pairs.dedup_by_key(|x| x.1);
+        let (splits, pairs) = self.adjustment_candidates(now);
         let mut splits = splits.into_iter().peekable();
         let mut pairs = pairs.into_iter().peekable();
         let mut ops = 0;

@@ -337,15 +337,6 @@ impl Tiling {
         }
     }
 
-    /// [`Tiling::add_to_tile`] of `add`, then, where given, of `sub` subtracted.
-    #[inline]
-    pub fn replace_in_tile(&mut self, leaf: u32, add: &TileStats, sub: Option<&TileStats>) {
-        self.add_to_tile(leaf, add, 1.0);
-        if let Some(sub) = sub {
-            self.add_to_tile(leaf, sub, -1.0);
-        }
-    }
-
     /// Whether a tile may be split (both halves keep at least `min_side` pixels).
     pub fn splittable(&self, leaf: u32, min_side: u32) -> bool {
         let r = self.nodes[leaf as usize].rect;
