@@ -234,16 +234,20 @@ impl Drop for Pipeline {
 /// before it is shown. So an image is on screen `L + MISS × period × P(build > L)`
 /// after its build started, on average, counting a missed refresh as [`Lead::MISS`]
 /// periods (the period it is late and the repeated image). The lead is the `L` that
-/// minimises that over the last few builds (each build's time plus a margin is a
-/// candidate, never less than their median): for builds of even cost, just above the
-/// slowest; for builds that now and then take much longer, short, letting those miss;
+/// minimises that over the builds of about the last second ([`Lead::window`]; each
+/// build's time plus a margin is a candidate, never less than their median): for
+/// builds of even cost, just above the slowest; for builds that now and then take much
+/// longer, short, letting those miss;
 /// up to [`Lead::MOST`] periods, so that builds of uneven cost near a period are
 /// started a period early rather than missing often. Builds whose median is longer
 /// than a period run back to back instead ([`Schedule::due`]), each for the refresh it
 /// is expected to be done by.
 struct Lead {
-    /// The last few builds' wall times, seconds.
-    recent: [f64; 16],
+    /// The last [`Lead::window`] builds' wall times, seconds (a ring, at most
+    /// [`Lead::MOST_BUILDS`]).
+    recent: [f64; Lead::MOST_BUILDS],
+    /// Builds it looks back over.
+    window: usize,
     next: usize,
     period: f64,
 }
@@ -257,30 +261,52 @@ impl Lead {
     /// late, for the repeated image is a visible stutter (measured against 2 and 8:
     /// docs/performance.md, session 30).
     const MISS: f64 = 4.0;
+    /// The fewest and most builds it looks back over.
+    const FEWEST_BUILDS: usize = 16;
+    const MOST_BUILDS: usize = 64;
 
     fn new(period: f64) -> Self {
         Self {
-            recent: [0.0; 16],
+            recent: [0.0; Self::MOST_BUILDS],
+            window: Self::window(period),
             next: 0,
             period,
         }
     }
 
+    /// Builds it looks back over at refresh period `period`: about a second's. The
+    /// share of builds that miss their refresh at a given lead is read off them, and
+    /// it is a few percent: over 16 builds (a quarter of a second at 60 Hz) about half
+    /// the windows hold none of the slow ones, the lead is then set too short, and the
+    /// slow builds that follow miss (measured: docs/performance.md, session 35).
+    fn window(period: f64) -> usize {
+        let per_second = (1.0 / period).round();
+        if per_second.is_nan() {
+            return Self::FEWEST_BUILDS;
+        }
+        per_second.clamp(Self::FEWEST_BUILDS as f64, Self::MOST_BUILDS as f64) as usize
+    }
+
+    /// The builds it looks back over.
+    fn recent(&self) -> &[f64] {
+        &self.recent[..self.window]
+    }
+
     /// Seconds before the refresh it is for that a build starts.
     fn seconds(&self) -> f64 {
-        let n = self.recent.len() as f64;
+        let n = self.window as f64;
         let floor = self.median() + Self::MARGIN_S;
         let most = (Self::MOST * self.period).max(floor);
         let delay = |lead: f64| {
             let late = self
-                .recent
+                .recent()
                 .iter()
                 .filter(|&&b| b + Self::MARGIN_S > lead)
                 .count();
             lead + Self::MISS * self.period * late as f64 / n
         };
         let candidates = self
-            .recent
+            .recent()
             .iter()
             .map(|b| (b + Self::MARGIN_S).clamp(floor, most));
         std::iter::once(floor)
@@ -304,13 +330,14 @@ impl Lead {
     /// The median of the recent builds' wall times, seconds.
     fn median(&self) -> f64 {
         let mut recent = self.recent;
+        let recent = &mut recent[..self.window];
         recent.sort_by(f64::total_cmp);
         recent[recent.len() / 2]
     }
 
     fn record(&mut self, build_s: f64) {
         self.recent[self.next] = build_s;
-        self.next = (self.next + 1) % self.recent.len();
+        self.next = (self.next + 1) % self.window;
     }
 }
 
@@ -464,6 +491,7 @@ mod tests {
     #[test]
     fn the_lead_covers_builds_unless_few_are_long() {
         let p = 1.0 / 60.0;
+        let n = Lead::window(p);
         let covers = |builds: &[f64], b: f64| {
             let lead = lead_after(p, builds);
             assert!(
@@ -472,30 +500,58 @@ mod tests {
             );
         };
         // Builds of 4–6 ms: start just before the slowest would finish.
-        let even: Vec<f64> = (0..16)
-            .map(|i| 4e-3 + 2e-3 * (i % 5) as f64 / 4.0)
-            .collect();
+        let even: Vec<f64> = (0..n).map(|i| 4e-3 + 2e-3 * (i % 5) as f64 / 4.0).collect();
         covers(&even, 6e-3);
         // Warps of 2 ms and, once in 16 refreshes, a fold of 12 ms: waiting 13.5 ms
         // for every image would cost more than one refresh shown again.
-        let rare: Vec<f64> = (0..16).map(|i| if i == 0 { 12e-3 } else { 2e-3 }).collect();
+        let rare: Vec<f64> = (0..n)
+            .map(|i| if i % 16 == 0 { 12e-3 } else { 2e-3 })
+            .collect();
         covers(&rare, 2e-3);
         // A fold every fourth refresh: so many repeated images cost more than the wait.
-        let mixed: Vec<f64> = (0..16)
+        let mixed: Vec<f64> = (0..n)
             .map(|i| if i % 4 == 0 { 12e-3 } else { 2e-3 })
             .collect();
         covers(&mixed, 12e-3);
         // Never less than the median.
-        let half: Vec<f64> = (0..16)
+        let half: Vec<f64> = (0..n)
             .map(|i| if i % 2 == 0 { 9e-3 } else { 2e-3 })
             .collect();
         covers(&half, 9e-3);
         // Builds up to two periods are covered (those over one start before the refresh
         // before theirs), and slower ones get their median and the margin: they run
         // back to back.
-        covers(&[14e-3; 16], 14e-3);
-        covers(&[25e-3; 16], 25e-3);
-        covers(&[0.1; 16], 0.1);
+        covers(&vec![14e-3; n], 14e-3);
+        covers(&vec![25e-3; n], 25e-3);
+        covers(&vec![0.1; n], 0.1);
+    }
+
+    #[test]
+    fn the_lead_looks_back_about_a_second() {
+        assert_eq!(Lead::window(1.0 / 60.0), 60);
+        assert_eq!(Lead::window(1.0 / 30.0), 30);
+        // Bounded both ways, and for any period.
+        assert_eq!(Lead::window(1.0 / 240.0), Lead::MOST_BUILDS);
+        assert_eq!(Lead::window(1.0 / 5.0), Lead::FEWEST_BUILDS);
+        assert_eq!(Lead::window(f64::INFINITY), Lead::FEWEST_BUILDS);
+        assert_eq!(Lead::window(0.0), Lead::MOST_BUILDS);
+        assert_eq!(Lead::window(f64::NAN), Lead::FEWEST_BUILDS);
+        // Nearly a fifth of the builds are slow, all in the first part of the second: the
+        // last 16 builds hold none, but the second's share of repeated refreshes
+        // still outweighs starting each build earlier, so the lead covers them.
+        let p = 1.0 / 60.0;
+        let n = Lead::window(p);
+        let builds: Vec<f64> = (0..n)
+            .map(|i| {
+                if i < n - 16 && i % 4 == 0 {
+                    12e-3
+                } else {
+                    2e-3
+                }
+            })
+            .collect();
+        let lead = lead_after(p, &builds);
+        assert!((lead - (12e-3 + Lead::MARGIN_S)).abs() < 1e-12, "{lead}");
     }
 
     /// Builds of uneven cost one after another on the image thread's schedule, and
@@ -588,7 +644,7 @@ mod tests {
             // margin): one for every refresh.
             t = t.max(schedule.due(&lead)) + 0.3e-3;
             let shown = schedule.begin(&lead, t);
-            if i > 16 {
+            if i > Lead::window(p) {
                 assert_eq!(shown, last + 1, "build {i}");
             }
             last = shown;
@@ -602,8 +658,8 @@ mod tests {
         let p = 1.0 / 60.0;
         for b in [20e-3, 30e-3, 120e-3] {
             let (done, _) = schedule_builds(p, &[b; 100]);
-            // After the lead has seen 16 builds.
-            for w in done[16..].windows(2) {
+            // After the lead has seen a window of builds.
+            for w in done[Lead::window(p)..].windows(2) {
                 // The next starts as the last ends, for a later refresh.
                 assert!((w[1].1 - w[0].2).abs() < 1e-12, "{w:?}");
                 assert!(w[1].0 > w[0].0);
@@ -641,7 +697,7 @@ mod tests {
     fn a_build_is_meant_for_the_refresh_it_is_expected_to_be_done_by() {
         let p = 1.0 / 60.0;
         let mut l = Lead::new(p);
-        for _ in 0..16 {
+        for _ in 0..Lead::window(p) {
             l.record(6e-3);
         }
         // Begun 10 ms before refresh 5: done by it.
@@ -650,13 +706,13 @@ mod tests {
         assert_eq!(l.done_by(5.0 * p - 5e-3), 6);
         // Builds longer than a period: shown two refreshes on.
         let mut slow = Lead::new(p);
-        for _ in 0..16 {
+        for _ in 0..Lead::window(p) {
             slow.record(20e-3);
         }
         assert_eq!(slow.done_by(5.0 * p), 7);
         // The median, not the slowest: a rare long build is the one shown late.
         let mut mixed = Lead::new(p);
-        for i in 0..16 {
+        for i in 0..Lead::window(p) {
             mixed.record(if i % 4 == 0 { 14e-3 } else { 2e-3 });
         }
         assert_eq!(mixed.done_by(5.0 * p - 5e-3), 5);
