@@ -243,11 +243,8 @@ impl Drop for Pipeline {
 /// than a period run back to back instead ([`Schedule::due`]), each for the refresh it
 /// is expected to be done by.
 struct Lead {
-    /// The last [`Lead::window`] builds' wall times, seconds (a ring, at most
-    /// [`Lead::MOST_BUILDS`]).
-    recent: [f64; Lead::MOST_BUILDS],
-    /// Builds it looks back over.
-    window: usize,
+    /// The last [`Lead::window`] builds' wall times, seconds (a ring).
+    recent: Vec<f64>,
     next: usize,
     period: f64,
 }
@@ -267,8 +264,7 @@ impl Lead {
 
     fn new(period: f64) -> Self {
         Self {
-            recent: [0.0; Self::MOST_BUILDS],
-            window: Self::window(period),
+            recent: vec![0.0; Self::window(period)],
             next: 0,
             period,
         }
@@ -287,26 +283,21 @@ impl Lead {
         per_second.clamp(Self::FEWEST_BUILDS as f64, Self::MOST_BUILDS as f64) as usize
     }
 
-    /// The builds it looks back over.
-    fn recent(&self) -> &[f64] {
-        &self.recent[..self.window]
-    }
-
     /// Seconds before the refresh it is for that a build starts.
     fn seconds(&self) -> f64 {
-        let n = self.window as f64;
+        let n = self.recent.len() as f64;
         let floor = self.median() + Self::MARGIN_S;
         let most = (Self::MOST * self.period).max(floor);
         let delay = |lead: f64| {
             let late = self
-                .recent()
+                .recent
                 .iter()
                 .filter(|&&b| b + Self::MARGIN_S > lead)
                 .count();
             lead + Self::MISS * self.period * late as f64 / n
         };
         let candidates = self
-            .recent()
+            .recent
             .iter()
             .map(|b| (b + Self::MARGIN_S).clamp(floor, most));
         std::iter::once(floor)
@@ -329,15 +320,14 @@ impl Lead {
 
     /// The median of the recent builds' wall times, seconds.
     fn median(&self) -> f64 {
-        let mut recent = self.recent;
-        let recent = &mut recent[..self.window];
+        let mut recent = self.recent.clone();
         recent.sort_by(f64::total_cmp);
         recent[recent.len() / 2]
     }
 
     fn record(&mut self, build_s: f64) {
         self.recent[self.next] = build_s;
-        self.next = (self.next + 1) % self.window;
+        self.next = (self.next + 1) % self.recent.len();
     }
 }
 

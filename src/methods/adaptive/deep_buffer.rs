@@ -142,11 +142,11 @@ impl DeepBuffer {
     #[inline]
     pub fn prefetch_front_slot(&self, x: u32, y: u32) {
         let p = self.index(x, y);
-        let Some(&head) = self.head.get(p) else {
+        if p >= self.head.len() {
             return;
-        };
-        let s = p * self.depth + (head as usize + self.depth - 1) % self.depth;
-        let Some(slot) = self.slots.get(s) else {
+        }
+        // The new front goes where the back is now: `push_front` moves the head back one.
+        let Some(slot) = self.slots.get(self.slot(p, self.depth - 1)) else {
             return;
         };
         // A slot spans two or three cache lines: ask for its first and last bytes.

@@ -666,26 +666,8 @@ impl Sampler {
         };
         c.gx = (grad(1) + grad(2)) * 0.5;
         c.gy = (grad(3) + grad(4)) * 0.5;
-        // Temporal gradient against the newest crosshair at the destination. The paper
-        // divides by that sample's age; we divide by the time between the two samples,
-        // over which the difference arose: a very recent newest sample otherwise
-        // inflates the gradient without bound.
-        // With `same_surface_gradients`, only where that crosshair saw the same surface
-        // point (within a pixel and 5% in depth, both moved to now): a crosshair traced
-        // there under an earlier camera saw another surface, and their difference
-        // measures camera motion, which the reconstructor undoes by reprojecting.
-        if let Some(n) = self.buffer.newest(px, py) {
-            let same = !self.params.same_surface_gradients || {
-                let z = (moved[0] - cam.eye).dot(cam.forward);
-                cam.project(n.p[0] + n.velocity * (now - n.t) as f32)
-                    .is_some_and(|(nx, ny, nz)| {
-                        (nx - x).abs() <= 1.0 && (ny - y).abs() <= 1.0 && (nz - z).abs() <= 0.05 * z
-                    })
-            };
-            if same {
-                let dt = (n.t - c.t).abs().max(MIN_GRADIENT_DT);
-                c.gt = ((c.lum[0] - n.lum[0]).abs() as f64 / dt) as f32;
-            }
+        if let Some(gt) = self.temporal_gradient(&c, moved[0], &cam, (x, y), (px, py), now) {
+            c.gt = gt;
         }
         c.x = x;
         c.y = y;
@@ -706,6 +688,38 @@ impl Sampler {
         let add = self.contribution(&c);
         self.tiling.add_to_tile(leaf, &add, 1.0);
         let _ = self.buffer.push_back(px, py, c);
+    }
+
+    /// The temporal gradient of crosshair `c`, reprojected to `(x, y)` (pixel `(px,
+    /// py)`, its centre at `centre` now), against the newest crosshair there; `None`
+    /// where there is none to compare with.
+    ///
+    /// The paper divides by that sample's age; we divide by the time between the two
+    /// samples, over which the difference arose: a very recent newest sample otherwise
+    /// inflates the gradient without bound. With `same_surface_gradients`, only where
+    /// that crosshair saw the same surface point (within a pixel and 5% in depth, both
+    /// moved to now): a crosshair traced there under an earlier camera saw another
+    /// surface, and their difference measures camera motion, which the reconstructor
+    /// undoes by reprojecting.
+    fn temporal_gradient(
+        &self,
+        c: &Crosshair,
+        centre: Vec3,
+        cam: &CameraFrame,
+        (x, y): (f32, f32),
+        (px, py): (u32, u32),
+        now: f64,
+    ) -> Option<f32> {
+        let n = self.buffer.newest(px, py)?;
+        let same = !self.params.same_surface_gradients || {
+            let z = (centre - cam.eye).dot(cam.forward);
+            cam.project(n.p[0] + n.velocity * (now - n.t) as f32)
+                .is_some_and(|(nx, ny, nz)| {
+                    (nx - x).abs() <= 1.0 && (ny - y).abs() <= 1.0 && (nz - z).abs() <= 0.05 * z
+                })
+        };
+        let dt = (n.t - c.t).abs().max(MIN_GRADIENT_DT);
+        same.then(|| ((c.lum[0] - n.lum[0]).abs() as f64 / dt) as f32)
     }
 
     /// The reprojection step of a visit to `leaf`: `reprojections_per_visit` random
