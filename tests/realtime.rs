@@ -207,6 +207,13 @@ fn headless_runs_stop_on_time_and_write_stats() {
         }
         assert!(json["pipeline"]["sampling_threads"] == 2);
         assert!(json["pipeline"]["reconstruct_ms_mean"].is_number());
+        // Every method's sampling threads take turns with the image thread.
+        let yields = json["pipeline"]["sampling_yields_per_s"].as_f64();
+        assert!(
+            yields.is_some_and(|y| y > 0.0),
+            "{}: {yields:?} yields a second",
+            method.name()
+        );
         // The adaptive sampler hears which pixels have converged, as in the evaluation;
         // the figure is adaptive's own, absent for the other methods.
         let maps = json["pipeline"]["history_maps"].as_u64();

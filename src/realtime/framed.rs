@@ -29,7 +29,7 @@ use super::{
     config::RealtimeError,
     shared::{
         lock, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo, Pooled, Shared,
-        Shown, Spawner,
+        Shown, Spawner, Turns,
     },
 };
 use crate::{
@@ -147,7 +147,9 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, shown: Shown)
     let warp = shown == Shown::Warped;
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
+    let mut turns = Turns::new();
     while !s.stopped() {
+        turns.between(s);
         let cur = lock(job).clone();
         let y = cur.next_row.fetch_add(1, Ordering::Relaxed);
         if y >= h {

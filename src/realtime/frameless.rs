@@ -11,7 +11,9 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    shared::{take_queued, BuildAt, Built, ImageBuilder, MethodInfo, Shared, Spawner, BATCH_S},
+    shared::{
+        take_queued, BuildAt, Built, ImageBuilder, MethodInfo, Shared, Spawner, Turns, BATCH_S,
+    },
 };
 use crate::{
     image::Image,
@@ -78,7 +80,9 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
     let mut batch = Vec::with_capacity(1024);
     let mut sent = Instant::now();
     let mut busy = std::time::Duration::ZERO;
+    let mut turns = Turns::new();
     while !s.stopped() {
+        turns.between(s);
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
         let t0 = Instant::now();

@@ -57,6 +57,9 @@ pub struct PipelineStats {
     pub sampling_ms_per_image: f64,
     /// Share of the sampling threads' wall time spent tracing.
     pub sampling_busy_share: f64,
+    /// Times per second the sampling threads offered their cores to a waiting thread
+    /// (every [`super::shared::SAMPLING_TURN`] of work).
+    pub sampling_yields_per_s: f64,
     /// Mean over images of their mean information age, seconds.
     pub mean_age_s: f64,
     /// Percentiles of the age of the information on screen, seconds: pixel ages of
@@ -190,6 +193,7 @@ impl Pipeline {
                 0.0
             },
             sampling_busy_share: busy / (seconds * cfg.sampling_threads as f64),
+            sampling_yields_per_s: s.yields.load(Ordering::Relaxed) as f64 / seconds,
             mean_age_s: mean(&img.ages),
             age_p50_s: img.age_hist.quantile(0.5),
             age_p95_s: img.age_hist.quantile(0.95),
@@ -251,7 +255,7 @@ struct Lead {
 
 impl Lead {
     /// Slack on top of a build's time, seconds: scheduling jitter.
-    const MARGIN_S: f64 = 1.5e-3;
+    const MARGIN_S: f64 = super::shared::SCHEDULING_MARGIN.as_secs_f64();
     /// The largest lead where the recent builds' median is shorter, in periods.
     const MOST: f64 = 2.0;
     /// What a missed refresh costs, in periods of delay: more than the period it is

@@ -13,6 +13,7 @@ use std::{
         Arc, Mutex,
     },
     thread::JoinHandle,
+    time::{Duration, Instant},
 };
 
 use super::{
@@ -189,6 +190,8 @@ pub(crate) struct Shared {
     pub busy_ns: AtomicU64,
     pub latest: Mutex<Newest>,
     pub image_stats: Mutex<ImageThreadStats>,
+    /// Times sampling threads gave up their core ([`Turns`]).
+    pub yields: AtomicU64,
 }
 
 impl Shared {
@@ -216,6 +219,7 @@ impl Shared {
             busy_ns: AtomicU64::new(0),
             latest: Mutex::new(Newest::default()),
             image_stats: Mutex::new(ImageThreadStats::default()),
+            yields: AtomicU64::new(0),
         }
     }
 
@@ -556,6 +560,51 @@ fn lower_priority() {
     }
 }
 
+/// The slack the image thread's lead leaves a build for scheduling jitter: a build
+/// started up to this late still makes its refresh.
+pub(crate) const SCHEDULING_MARGIN: Duration = Duration::from_micros(1500);
+
+/// Longest a sampling thread keeps its core before it offers it to a waiting thread
+/// ([`Turns`]): half the [`SCHEDULING_MARGIN`], so that a build woken behind a
+/// sampling thread still starts within it.
+pub(crate) const SAMPLING_TURN: Duration =
+    Duration::from_nanos(SCHEDULING_MARGIN.as_nanos() as u64 / 2);
+
+/// A sampling thread's turns on its core. Linux wakes the image and reconstruction
+/// threads at once only where the scheduler finds them due; otherwise a thread woken
+/// behind a running sampling thread waits for the scheduler's next tick (4 ms at 250
+/// Hz), whatever their priorities, and a build that starts 4 ms late misses its
+/// refresh. A sampling thread that yields every [`SAMPLING_TURN`] bounds that wait
+/// (measured: docs/performance.md, session 36). A yield with nothing waiting returns at
+/// once.
+pub(crate) struct Turns {
+    since: Instant,
+}
+
+impl Turns {
+    pub fn new() -> Self {
+        Self {
+            since: Instant::now(),
+        }
+    }
+
+    /// Between two pieces of a sampling thread's work: yield the core if its turn is
+    /// over, counting the yield in `s`.
+    pub fn between(&mut self, s: &Shared) {
+        let now = Instant::now();
+        if self.over(now) {
+            std::thread::yield_now();
+            s.yields.fetch_add(1, Ordering::Relaxed);
+            self.since = now;
+        }
+    }
+
+    /// Whether the turn that began at `self.since` is over at `now`.
+    fn over(&self, now: Instant) -> bool {
+        now.saturating_duration_since(self.since) >= SAMPLING_TURN
+    }
+}
+
 /// The scheduling slice the image and reconstruction threads ask for, nanoseconds: the
 /// shortest Linux grants. With a slice shorter than the running thread's (1.4 ms by
 /// default on the development machine), a woken thread takes the core at once instead
@@ -687,6 +736,22 @@ mod tests {
         if kernel_at_least(6, 12) {
             assert_eq!(got, Some(super::PROMPT_SLICE_NS));
         }
+    }
+
+    /// A sampling thread's turn lasts [`super::SAMPLING_TURN`] from its last yield,
+    /// within the lead's margin for scheduling.
+    #[test]
+    fn a_sampling_turn_ends_after_its_length() {
+        use std::time::Duration;
+        let turns = super::Turns::new();
+        let t0 = turns.since;
+        let turn = super::SAMPLING_TURN;
+        assert!(!turns.over(t0));
+        assert!(!turns.over(t0 + turn - Duration::from_nanos(1)));
+        assert!(turns.over(t0 + turn));
+        // A clock read before the turn began (another core's) is not past it.
+        assert!(!turns.over(t0.checked_sub(turn).unwrap_or(t0)));
+        assert!(turn > Duration::ZERO && 2 * turn <= super::SCHEDULING_MARGIN);
     }
 
     /// A build takes what was queued when it began: a sender that keeps up with it

@@ -24,7 +24,7 @@ use super::{
     config::RealtimeError,
     shared::{
         lock, sampled_ages, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo,
-        Pooled, Shared, Shown, Spawner,
+        Pooled, Shared, Shown, Spawner, Turns,
     },
 };
 use crate::{
@@ -205,7 +205,9 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
 /// A sampling thread: rows of the current frame until stopped.
 fn sample(s: &Shared, frames: &Mutex<Frames>, params: &TaaParams, tx: Sender<Row>) {
     let tracer: &Tracer = &s.tracer;
+    let mut turns = Turns::new();
     while !s.stopped() {
+        turns.between(s);
         let cur = lock(frames).current.clone();
         let y = cur.next_row.fetch_add(1, Ordering::Relaxed);
         if y >= cur.grid.1 {

@@ -17,7 +17,7 @@ use crate::{
         tiling::{Pending, Rect},
         SamplerParams,
     },
-    realtime::shared::{lock, Shared, BATCH_S},
+    realtime::shared::{lock, Shared, Turns, BATCH_S},
     sampling::Rng,
     trace::{
         batch::{self, GpuRays},
@@ -147,7 +147,9 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
     let mut states = StateCache::new();
     let mut view = View::new(published);
     let mut out = Outbox::new(tx);
+    let mut turns = Turns::new();
     while !s.stopped() {
+        turns.between(s);
         view.refresh(published);
         let now = s.clock.now();
         let state = states.at(tracer, now).0;
