@@ -116,17 +116,27 @@ impl Reconstructor {
         let holes: usize = tallies.iter().map(|t| t.holes).sum();
         let thin: usize = tallies.iter().map(|t| t.thin).sum();
         self.holes = holes;
+        // The still-region history, where there is one, blends every pixel's age and
+        // sums the ages shown: a sum here would be overwritten (a serial pass over
+        // every pixel, a millisecond at 1280×720).
+        let sum_ages = self.history.is_none();
         let age_sum = if thin > 0 {
-            self.pull_push(p.fill_weight, pulled)
+            self.pull_push(p.fill_weight, pulled, sum_ages)
         } else {
             // Band order, so the sum does not depend on the thread count.
-            let mut age_sum: f64 = self.band_age_sums().iter().sum();
+            let mut age_sum: f64 = if sum_ages {
+                self.band_age_sums().iter().sum()
+            } else {
+                0.0
+            };
             if holes > 0 {
                 age_sum += self.fill_holes(self.holes * 64 > w * h);
             }
             age_sum
         };
-        self.mean_age = age_sum / (w * h).max(1) as f64;
+        if sum_ages {
+            self.mean_age = age_sum / (w * h).max(1) as f64;
+        }
     }
 
     /// Per band, the sum in pixel order of the ages of the pixels that are not holes.

@@ -734,3 +734,42 @@ fn a_prepared_reconstructor_makes_the_same_images() {
         assert_eq!(bits(&lazy), bits(&prepared), "refresh {k}");
     }
 }
+
+/// The mean age a refresh reports is the mean of the ages of its pixels, whichever
+/// step sets it last: the resolve (no history; with and without the fill), or the
+/// still-region history, which blends every pixel's age after the resolve (which then
+/// leaves the sum to it).
+#[test]
+fn the_mean_age_is_the_mean_of_the_pixel_ages() {
+    let no_fill = ReconParams {
+        fill_weight: 0.0,
+        ..ReconParams::converging()
+    };
+    let presets = [
+        ("paper", ReconParams::paper()),
+        ("converging", ReconParams::converging()),
+        ("realtime", ReconParams::realtime()),
+        (
+            "no history, fill",
+            ReconParams {
+                history: None,
+                ..ReconParams::converging()
+            },
+        ),
+        ("history, no fill", no_fill),
+    ];
+    for (name, params) in presets {
+        let (mut r, c, tiling) = random_setup(40, 24, 600, 0.5, false, params, [0.1; 4]);
+        for k in 0..3 {
+            r.reconstruct(1.0 + 0.01 * k as f64, &c, &tiling);
+            let ages = r.pixel_ages();
+            let mean = ages.iter().map(|&a| a as f64).sum::<f64>() / ages.len() as f64;
+            assert!(mean > 0.0, "{name}: no ages");
+            assert!(
+                (r.mean_age() - mean).abs() <= 1e-6 * mean,
+                "{name}, refresh {k}: mean age {} against {mean}",
+                r.mean_age()
+            );
+        }
+    }
+}
