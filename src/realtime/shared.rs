@@ -570,12 +570,12 @@ pub(crate) const SCHEDULING_MARGIN: Duration = Duration::from_micros(1500);
 pub(crate) const SAMPLING_TURN: Duration =
     Duration::from_nanos(SCHEDULING_MARGIN.as_nanos() as u64 / 2);
 
-/// A sampling thread's turns on its core. Linux wakes the image and reconstruction
-/// threads at once only where the scheduler finds them due; otherwise a thread woken
-/// behind a running sampling thread waits for the scheduler's next tick (4 ms at 250
-/// Hz), whatever their priorities, and a build that starts 4 ms late misses its
-/// refresh. A sampling thread that yields every [`SAMPLING_TURN`] bounds that wait
-/// (measured: docs/performance.md, session 36). A yield with nothing waiting returns at
+/// A sampling thread's turns on its core. Linux (6.18, measured) gives a woken image or
+/// reconstruction thread the core at once only where the scheduler finds it due;
+/// otherwise it waits for the scheduler's next tick (4 ms at 250 Hz), even behind a
+/// sampling thread at the lowest priority, and a build that starts 4 ms late misses a
+/// 60 Hz refresh. A sampling thread that yields every [`SAMPLING_TURN`] bounds that
+/// wait (docs/performance.md, session 36). A yield with nothing waiting returns at
 /// once.
 pub(crate) struct Turns {
     since: Instant,
