@@ -601,15 +601,25 @@ impl Reconstructor {
         let (w, h) = (self.width as usize, self.height as usize);
         let proj = Projector::new(camera);
         let ring = &self.ring;
+        // Where the place pass put them, if it placed these samples this refresh.
+        let located = (self.located_from == Some(samples.start)
+            && self.located.len() == samples.len())
+        .then_some(&self.located[..]);
+        let start = samples.start;
         ahead.clear();
         samples
             .into_par_iter()
             .map(|i| {
                 let p = ring.phys(i);
-                let dt = (t - ring.t[p]) as f32;
-                let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
                 let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
-                let (x, y, z) = proj.project(hit + v * dt);
+                let (x, y, z) = match located {
+                    Some(l) => (l[i - start][0], l[i - start][1], l[i - start][2]),
+                    None => {
+                        let dt = (t - ring.t[p]) as f32;
+                        let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
+                        proj.project(hit + v * dt)
+                    }
+                };
                 match pixel_at(x, y, z, w, h) {
                     Some((px, py)) => Ahead {
                         px: px as u32,

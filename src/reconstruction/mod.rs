@@ -216,6 +216,12 @@ pub struct Reconstructor {
     binned: Vec<Vec<Vec<Splat>>>,
     /// Pieces of `binned` filled at the last refresh.
     pieces: usize,
+    /// Where the place pass put each sample it placed, `(x, y, depth)` in logical ring
+    /// order from index `located_from`, for the carry's cut to read instead of
+    /// projecting every new sample again (the same arithmetic); `None` once read, and
+    /// where no place pass ran (a refresh on the GPU).
+    located: Vec<[f32; 3]>,
+    located_from: Option<usize>,
     /// Dense pull pyramid of the hole filling (levels 1 and up), reused.
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
     /// Pull-push levels of the low-density fill (level 1 and up), reused.
@@ -301,6 +307,8 @@ impl Reconstructor {
             band_rows: BAND_ROWS,
             binned: Vec::new(),
             pieces: 0,
+            located: Vec::new(),
+            located_from: None,
             pyramid: Vec::new(),
             pull: pullpush::Pyramid::default(),
             image: Image::new(width, height),
@@ -613,6 +621,7 @@ impl Reconstructor {
             self.carry_over(plan.t, &plan.camera, start);
             self.carried_front();
         }
+        self.located_from = None;
         lap = self.passes.lap(3, lap);
         self.splat();
         lap = self.passes.lap(4, lap);

@@ -351,8 +351,8 @@ fn bin_piece(
     ring: &Ring,
     piece: std::ops::Range<usize>,
     out: &mut Vec<Vec<Splat>>,
-    bands: usize,
-    band_rows: usize,
+    located: &mut [[f32; 3]],
+    (bands, band_rows): (usize, usize),
 ) {
     debug_assert!(band_rows.is_power_of_two());
     let band_shift = band_rows.trailing_zeros();
@@ -364,6 +364,12 @@ fn bin_piece(
     while p0 < piece.end {
         let n = LOCATE_BLOCK.min(piece.end - p0);
         placer.locate_block(ring, p0, n, &mut b);
+        if !located.is_empty() {
+            let at = &mut located[p0 - piece.start..][..n];
+            for (i, l) in at.iter_mut().enumerate() {
+                *l = [b.x[i], b.y[i], b.z[i]];
+            }
+        }
         b.look_up_filters(placer, n);
         b.weigh(
             placer,
@@ -602,13 +608,42 @@ impl Reconstructor {
             binned.resize_with(pieces.len(), Vec::new);
         }
         self.pieces = pieces.len();
+        // Carrying, the cut reads where each sample landed (pieces are in ring order:
+        // each one's part of `located` follows the one before).
+        let record = self.carries_now() && self.placer_projects();
+        let mut located = std::mem::take(&mut self.located);
+        located.resize(if record { live } else { 0 }, [0.0; 3]);
+        let mut parts: Vec<&mut [[f32; 3]]> = Vec::with_capacity(pieces.len());
+        let mut rest = &mut located[..];
+        for piece in &pieces {
+            let take = if record { piece.len() } else { 0 };
+            let (part, tail) = rest.split_at_mut(take);
+            parts.push(part);
+            rest = tail;
+        }
         let placer = self.placer(plan.t, &plan.camera);
         pieces
             .par_iter()
             .zip(binned.par_iter_mut())
-            .for_each(|(piece, out)| {
-                bin_piece(&placer, &self.ring, piece.clone(), out, bands, band_rows)
+            .zip(parts.into_par_iter())
+            .for_each(|((piece, out), at)| {
+                bin_piece(
+                    &placer,
+                    &self.ring,
+                    piece.clone(),
+                    out,
+                    at,
+                    (bands, band_rows),
+                )
             });
         self.binned = binned;
+        self.located = located;
+        self.located_from = record.then_some(start);
+    }
+
+    /// Whether the place pass projects samples from their hit points (reprojection on),
+    /// as the carry's cut does.
+    fn placer_projects(&self) -> bool {
+        self.params.reproject
     }
 }
