@@ -609,8 +609,9 @@ impl Reconstructor {
         }
         self.pieces = pieces.len();
         // Carrying, the cut reads where each sample landed (pieces are in ring order:
-        // each one's part of `located` follows the one before).
-        let record = self.carries_now() && self.placer_projects();
+        // each one's part of `located` follows the one before); it cuts only where the
+        // samples are reprojected, as they are placed then.
+        let record = self.carries_now() && self.params.reproject;
         let mut located = std::mem::take(&mut self.located);
         located.resize(if record { live } else { 0 }, [0.0; 3]);
         let mut parts: Vec<&mut [[f32; 3]]> = Vec::with_capacity(pieces.len());
@@ -639,11 +640,5 @@ impl Reconstructor {
         self.binned = binned;
         self.located = located;
         self.located_from = record.then_some(start);
-    }
-
-    /// Whether the place pass projects samples from their hit points (reprojection on),
-    /// as the carry's cut does.
-    fn placer_projects(&self) -> bool {
-        self.params.reproject
     }
 }

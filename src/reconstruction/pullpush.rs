@@ -131,14 +131,13 @@ impl Pyramid {
 
 impl Reconstructor {
     /// Complete the pixels whose accumulated weight is below `w0` from the pull-push
-    /// interpolation; with `sum_ages`, returns the sum of all pixels' ages afterwards
-    /// (else 0).
+    /// interpolation.
     ///
     /// The full-resolution level is never stored: its coverage and colours are
     /// recomputed a row at a time from the accumulators (and the resolved image)
     /// where the first pull and the last push need them. With `pulled` the resolve
     /// has pulled the first level already ([`Pyramid::first_rows`]).
-    pub(super) fn pull_push(&mut self, w0: f32, pulled: bool, sum_ages: bool) -> f64 {
+    pub(super) fn pull_push(&mut self, w0: f32, pulled: bool) {
         let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
         let mut image = std::mem::take(&mut self.image.pixels);
         let mut ages = std::mem::take(&mut self.age);
@@ -163,10 +162,6 @@ impl Reconstructor {
         self.image.pixels = image;
         self.age = ages;
         self.pull = Pyramid { levels, up };
-        if !sum_ages {
-            return 0.0;
-        }
-        self.age.iter().map(|&a| a as f64).sum()
     }
 }
 

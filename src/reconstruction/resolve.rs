@@ -121,7 +121,12 @@ impl Reconstructor {
         // every pixel, a millisecond at 1280×720).
         let sum_ages = self.history.is_none();
         let age_sum = if thin > 0 {
-            self.pull_push(p.fill_weight, pulled, sum_ages)
+            self.pull_push(p.fill_weight, pulled);
+            if sum_ages {
+                self.age.iter().map(|&a| a as f64).sum()
+            } else {
+                0.0
+            }
         } else {
             // Band order, so the sum does not depend on the thread count.
             let mut age_sum: f64 = if sum_ages {

@@ -526,7 +526,28 @@ fn direct_pull_push(
         [px[i].x * a, px[i].y * a, px[i].z * a, age[i] * a, a]
     };
     let full: Vec<[f32; 5]> = (0..w * h).map(pre).collect();
-    let mut levels: Vec<(usize, usize, Vec<[f32; 5]>)> = vec![(w, h, full.clone())];
+    let mut levels = direct_pull(w, h, full.clone());
+    direct_push(&mut levels);
+    (0..w * h)
+        .map(|i| {
+            let v = levels[0].2[i];
+            if full[i][4] >= 1.0 {
+                px[i]
+            } else {
+                Vec3::new(v[0], v[1], v[2])
+            }
+        })
+        .collect()
+}
+
+/// A direct pull-push level: width, height, premultiplied values and coverage.
+type DirectLevel = (usize, usize, Vec<[f32; 5]>);
+
+/// The pull of [`direct_pull_push`]: from the full level (`w × h`) up to 1×1, each
+/// level the 2×2 sums of the finer one, normalised where their coverage passes 1, the
+/// top normalised to full coverage.
+fn direct_pull(w: usize, h: usize, full: Vec<[f32; 5]>) -> Vec<DirectLevel> {
+    let mut levels: Vec<DirectLevel> = vec![(w, h, full)];
     while levels.last().is_some_and(|l| l.0 > 1 || l.1 > 1) {
         let (fw, fh, fine) = levels.last().unwrap().clone();
         let (nw, nh) = (fw.div_ceil(2), fh.div_ceil(2));
@@ -556,6 +577,13 @@ fn direct_pull_push(
         let k = 1.0 / top[4];
         *top = top.map(|v| v * k);
     }
+    levels
+}
+
+/// The push of [`direct_pull_push`]: each level, coarsest first, completes the finer
+/// one's pixels below full coverage from its bilinear upsample (at the full level
+/// only those; the others all).
+fn direct_push(levels: &mut [DirectLevel]) {
     let tap = |i: usize, n: usize| {
         let f = ((i as f32 + 0.5) * 0.5 - 0.5).clamp(0.0, (n - 1) as f32);
         let i0 = f as usize;
@@ -582,16 +610,6 @@ fn direct_pull_push(
             }
         }
     }
-    (0..w * h)
-        .map(|i| {
-            let v = levels[0].2[i];
-            if full[i][4] >= 1.0 {
-                px[i]
-            } else {
-                Vec3::new(v[0], v[1], v[2])
-            }
-        })
-        .collect()
 }
 
 #[test]
