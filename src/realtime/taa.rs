@@ -22,9 +22,10 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 
 use super::{
     config::RealtimeError,
+    pools::Pooled,
     shared::{
         lock, sampled_ages, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo,
-        Pooled, Shared, Shown, Spawner, Turns,
+        Shared, Shown, Spawner, Turns,
     },
 };
 use crate::{

@@ -78,17 +78,19 @@ impl Reconstructor {
         let bands = h.div_ceil(MAP_ROWS);
         let bounds = &self.params.bounds;
         let logs = bounds.logs();
+        let (rate, volume) = (self.rate, self.params.filter_volume);
+        // Each tile's filter on its own (logarithms and exponentials, a tenth of a
+        // microsecond a tile: 30,000 tiles at 1920×1080), in parallel.
+        self.tiles
+            .par_extend(tiling.tiles.par_iter().with_min_len(256).map(|tile| {
+                let rl = filter::local_rate(rate, tiles, tile.rect.area());
+                let v_s = volume / rl;
+                let e = filter::extents_in(v_s, tile.gx, tile.gy, tile.gt, bounds, &logs);
+                TileFilter::new([e.ex as f32, e.ey as f32, e.et as f32], cut)
+            }));
         let mut reach: Vec<Vec<u32>> = vec![Vec::new(); bands];
         for (k, tile) in tiling.tiles.iter().enumerate() {
             let r = tile.rect;
-            let rl = filter::local_rate(self.rate, tiles, r.area());
-            let (gx, gy, gt) = (tile.gx, tile.gy, tile.gt);
-            let v_s = self.params.filter_volume / rl;
-            let e = filter::extents_in(v_s, gx, gy, gt, bounds, &logs);
-            self.tiles.push(TileFilter::new(
-                [e.ex as f32, e.ey as f32, e.et as f32],
-                cut,
-            ));
             let y1 = (r.y1 as usize).min(h);
             if (r.y0 as usize) < y1 {
                 for band in &mut reach[r.y0 as usize / MAP_ROWS..=(y1 - 1) / MAP_ROWS] {

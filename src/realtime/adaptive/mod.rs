@@ -60,7 +60,8 @@ pub use settings::{AdaptiveArgs, AdaptiveSettings, AdaptiveTuning};
 
 use crate::realtime::{
     config::RealtimeError,
-    shared::{ImageBuilder, MethodInfo, Pooled, Spawner},
+    pools::Pooled,
+    shared::{ImageBuilder, MethodInfo, Spawner},
 };
 use builder::Builder;
 use published::Published;
