@@ -201,8 +201,7 @@ pub struct ViewArgs {
     /// Sampling threads [default: one per core].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub sampling_threads: Option<u16>,
-    /// Threads of the reconstructor, fixed [default: half the cores, at least 1, and twice
-    /// that, at most all, while builds cannot keep up with the refresh].
+    /// Threads of the reconstructor [default: half the cores, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
     #[command(flatten)]
@@ -360,8 +359,7 @@ pub struct LiveArgs {
     /// the range.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100), allow_negative_numbers = true)]
     pub repeat: u32,
-    /// Threads of the image build, fixed [default: half the cores `--threads` names, at
-    /// least 1, and twice that, at most all, while builds cannot keep up with the refresh].
+    /// Threads of the image build [default: half the cores `--threads` names, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
     #[command(flatten)]

@@ -925,7 +925,7 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
         cfg.sampling_threads = n as usize;
     }
     if let Some(n) = a.recon_threads {
-        cfg.fix_recon_threads(n as usize);
+        cfg.recon_threads = n as usize;
     }
     cfg.set_groups(&a.display, &a.quality);
     cfg.start = a.start;

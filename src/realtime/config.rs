@@ -14,10 +14,6 @@ pub struct RtConfig {
     /// splatting, a warp, a fold: a pool of their own, so that building cannot take
     /// every core from sampling and the display).
     pub recon_threads: usize,
-    /// Threads the builds may use while builds on `recon_threads` take longer than a
-    /// refresh period (a pool of their own too; no more than `recon_threads`: never
-    /// wider).
-    pub wide_recon_threads: usize,
     /// Display refresh rate, Hz: the image thread builds at most this often.
     pub refresh_hz: f64,
     /// Scene time when the pipeline starts.
@@ -42,12 +38,6 @@ impl RtConfig {
         self.seed = quality.seed;
     }
 
-    /// Builds on `n` threads, never wider (a number asked for: `--recon-threads`).
-    pub fn fix_recon_threads(&mut self, n: usize) {
-        self.recon_threads = n;
-        self.wide_recon_threads = n;
-    }
-
     /// Check ranges.
     pub fn validate(&self) -> Result<(), RealtimeError> {
         if !(1..=256).contains(&self.sampling_threads) {
@@ -60,12 +50,6 @@ impl RtConfig {
             return Err(RealtimeError::Config(format!(
                 "reconstruction threads {} out of range 1..=256",
                 self.recon_threads
-            )));
-        }
-        if !(1..=256).contains(&self.wide_recon_threads) {
-            return Err(RealtimeError::Config(format!(
-                "wide reconstruction threads {} out of range 1..=256",
-                self.wide_recon_threads
             )));
         }
         if let Err(why) = crate::limits::check_refresh_hz(self.refresh_hz) {

@@ -27,10 +27,9 @@ use glam::Vec3;
 
 use super::{
     config::RealtimeError,
-    pools::Pooled,
     shared::{
-        lock, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo, Shared, Shown,
-        Spawner, Turns,
+        lock, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo, Pooled, Shared,
+        Shown, Spawner, Turns,
     },
 };
 use crate::{

@@ -41,7 +41,6 @@ pub mod machine;
 pub mod pacing;
 pub mod pipeline;
 pub mod pixel_locks;
-mod pools;
 #[cfg(test)]
 mod probe;
 pub mod record;

@@ -34,9 +34,6 @@ pub struct PipelineStats {
     pub sampling_threads: usize,
     /// Threads of the reconstructor's pool.
     pub recon_threads: usize,
-    /// Threads of the wider pool builds move to while they cannot keep up with the
-    /// refresh (the method's `wide_build_share` says how often they did).
-    pub wide_recon_threads: usize,
     /// Other threads of the pipeline (the image thread, and the method's own, such as
     /// the adaptive controller).
     pub other_threads: usize,
@@ -180,7 +177,6 @@ impl Pipeline {
             method: method.name(),
             sampling_threads: cfg.sampling_threads,
             recon_threads: cfg.recon_threads,
-            wide_recon_threads: cfg.wide_recon_threads,
             // The image thread and the method's own.
             other_threads: 1 + method.extra_threads(cfg),
             cores: std::thread::available_parallelism().map_or(1, |n| n.get()),

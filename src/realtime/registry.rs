@@ -355,8 +355,7 @@ pub fn cannot_trace_on_gpu(method: RtMethod) -> String {
 
 impl RtConfig {
     /// Defaults for `method`: the sampling threads its description asks for on this
-    /// machine, and reconstruction on half the cores, or on twice that (at most every
-    /// core) while builds cannot keep up with the refresh.
+    /// machine, and reconstruction on half the cores.
     pub fn new(method: RtMethod) -> Self {
         Self::for_cores(method, machine::cores())
     }
@@ -364,11 +363,9 @@ impl RtConfig {
     /// [`RtConfig::new`] with threads sized for `cores` cores instead of the machine's.
     pub fn for_cores(method: RtMethod, cores: usize) -> Self {
         let cores = cores.max(1);
-        let recon_threads = (cores / 2).max(1);
         Self {
             sampling_threads: (method.facts().default_sampling_threads)(cores),
-            recon_threads,
-            wide_recon_threads: (2 * recon_threads).min(cores),
+            recon_threads: (cores / 2).max(1),
             refresh_hz: crate::settings::REFRESH_HZ,
             start: 0.0,
             seed: crate::settings::SEED,

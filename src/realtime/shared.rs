@@ -439,6 +439,48 @@ impl<'a> Spawner<'a> {
     }
 }
 
+/// A builder whose builds run their parallel loops (rayon) on a pool of their own of
+/// `config.recon_threads` threads, so that building cannot take every core from
+/// sampling and the display; without a pool (it could not be made) they run on the
+/// calling thread.
+pub(crate) struct Pooled<B> {
+    builder: B,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl<B: ImageBuilder> Pooled<B> {
+    pub fn new(config: &RtConfig, builder: B) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(config.recon_threads)
+            .thread_name(|i| format!("frameless-recon-{i}"))
+            .start_handler(|_| prompt_wakeups())
+            .build()
+            .ok();
+        Self { builder, pool }
+    }
+}
+
+impl<B: ImageBuilder> ImageBuilder for Pooled<B> {
+    fn build(&mut self, at: BuildAt) -> Option<Built> {
+        match &self.pool {
+            Some(p) => p.install(|| self.builder.build(at)),
+            None => self.builder.build(at),
+        }
+    }
+
+    fn recycle(&mut self, image: Image) {
+        self.builder.recycle(image);
+    }
+
+    fn stats(&self) -> Vec<(&'static str, serde_json::Value)> {
+        self.builder.stats()
+    }
+
+    fn recon(&self) -> ReconUsed {
+        self.builder.recon()
+    }
+}
+
 /// Frames assembled on the image thread from rows that several sampling threads traced:
 /// a frame is complete once all its rows arrived, and then every older unfinished
 /// frame is given up (it could never be shown) and counted in `abandoned`. Used by the

@@ -22,10 +22,9 @@ use crossbeam_channel::{bounded, Receiver, Sender};
 
 use super::{
     config::RealtimeError,
-    pools::Pooled,
     shared::{
         lock, sampled_ages, take_queued, Assembly, BuildAt, Built, ImageBuilder, MethodInfo,
-        Shared, Shown, Spawner, Turns,
+        Pooled, Shared, Shown, Spawner, Turns,
     },
 };
 use crate::{

@@ -145,7 +145,7 @@ impl LiveConfig {
     pub fn rt_config(&self, method: RtMethod) -> RtConfig {
         let mut c = RtConfig::for_cores(method, self.cores);
         if let Some(n) = self.recon_threads {
-            c.fix_recon_threads(n);
+            c.recon_threads = n;
         }
         c.refresh_hz = self.display.refresh_hz;
         c.seed = self.quality.seed;

@@ -60,8 +60,7 @@ pub use settings::{AdaptiveArgs, AdaptiveSettings, AdaptiveTuning};
 
 use crate::realtime::{
     config::RealtimeError,
-    pools::Pooled,
-    shared::{ImageBuilder, MethodInfo, Spawner},
+    shared::{ImageBuilder, MethodInfo, Pooled, Spawner},
 };
 use builder::Builder;
 use published::Published;
