@@ -850,6 +850,15 @@ impl Reconstructor {
         p.resplat_moving_view && p.reproject && moved
     }
 
+    /// Whether a refresh seen by `camera` restarts the carried sums: the view holds
+    /// after refreshes that re-splatted the ring, so it places, splats and cuts the
+    /// whole live ring, the costliest refresh there is.
+    pub fn restarts_at(&self, camera: &CameraFrame) -> bool {
+        self.carried
+            .as_ref()
+            .is_some_and(|c| c.restart && c.view.is_some_and(|v| v.same_view(camera)))
+    }
+
     /// After a refresh that re-splatted the ring: the next carried refresh starts
     /// from nothing, placing the whole live ring (a re-splat whose sums it carries on).
     pub(super) fn restart_carry(&mut self) {

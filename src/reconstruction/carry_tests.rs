@@ -395,6 +395,35 @@ fn a_moving_view_resplats_the_ring_and_carrying_resumes_once_it_holds() {
     assert_ne!(a.image().pixels, b.image().pixels);
 }
 
+#[test]
+fn only_the_first_refresh_where_the_view_holds_after_moving_restarts() {
+    // The view moves for refreshes 1 to 3 and holds from 4: refresh 4 restarts the
+    // carried sums (placing the live ring, or the newest samples a live limit allows),
+    // and none other does.
+    let (w, h) = (24, 18);
+    let tiling = TilingSnapshot::whole(w, h);
+    let eye = |k: usize| 0.02 * k.min(3) as f32;
+    let params = ReconParams {
+        resplat_moving_view: true,
+        ..bare(0.03)
+    };
+    let mut r = Reconstructor::new(w, h, 5000.0, params);
+    for k in 0..7 {
+        let t = 1.0 + k as f64 / 60.0;
+        let c = cam_at(eye(k), w, h);
+        for s in batches(&c, &[t - 1.0 / 60.0, t], 80, 40 + k as u64).remove(1) {
+            r.push(s);
+        }
+        assert_eq!(r.restarts_at(&c), k == 4, "refresh {k}");
+        let limit = (k == 4).then_some(50);
+        r.set_live_limit(limit);
+        r.reconstruct(t, &c, &tiling);
+        if k == 4 {
+            assert_eq!(r.placed(), 50, "the restart keeps to the live limit");
+        }
+    }
+}
+
 /// Values in `[−0.5, 1.5)` from a fixed seed, for the lane tests.
 fn values(n: usize, seed: u32) -> Vec<f32> {
     let mut s = seed;

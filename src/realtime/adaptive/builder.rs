@@ -125,6 +125,21 @@ pub(super) fn push_newest(
 /// live limit on many cores").
 const LIVE_LIMIT_FLOOR_DIVISOR: usize = 16;
 
+/// The share of the samples the image before placed that an image restarting the
+/// carried sums places: it cuts them as well as placing and splatting them, which about
+/// doubles their cost (museum4 live on 2 cores, where its camera stops: 114 ns a sample
+/// against 56 for the refreshes before it, whole rings of 131,072 samples; such a build
+/// took 19 ms against 11–13 and missed its 60 Hz refresh in every run), so that it
+/// takes about as long as the images before it.
+const RESTART_SHARE: f64 = 0.5;
+
+/// The live limit of an image that restarts the carried sums, after an image that
+/// placed `placed` samples under the live limit `limit`.
+pub(super) fn restart_limit(limit: Option<usize>, placed: usize) -> Option<usize> {
+    let share = ((placed as f64 * RESTART_SHARE) as usize).max(1);
+    Some(limit.map_or(share, |l| l.min(share)))
+}
+
 /// Images whose build times [`BuildCost`] fits.
 const COST_WINDOW: usize = 32;
 
@@ -303,7 +318,12 @@ impl ImageBuilder for Builder {
         let state = s.tracer.state_at(t);
         let camera = state.camera;
         r.set_motion(Some(state));
-        r.set_live_limit(self.live_limit);
+        let limit = if r.restarts_at(&camera) {
+            restart_limit(self.live_limit, r.placed())
+        } else {
+            self.live_limit
+        };
+        r.set_live_limit(limit);
         r.reconstruct(t, &camera, &tiling);
         let image = r.take_image(self.spare.take());
         let settings = &self.published.settings;

@@ -5,7 +5,7 @@ use std::sync::Arc;
 use super::{
     bands,
     bench::record,
-    builder::{next_live_limit, push_newest, BuildCost},
+    builder::{next_live_limit, push_newest, restart_limit, BuildCost},
     controller::{band_samplers, snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
     controllers,
     published::{Published, MIN_BAND_ROWS},
@@ -138,6 +138,16 @@ fn each_controller_adapts_its_own_band() {
         whole.tiles.len(),
         samplers.iter().map(|s| s.tiling().len()).sum::<usize>()
     );
+}
+
+#[test]
+fn an_image_that_restarts_the_carried_sums_places_half_what_the_one_before_placed() {
+    assert_eq!(restart_limit(None, 131_072), Some(65_536));
+    // A live limit below that half stays; one above it gives way.
+    assert_eq!(restart_limit(Some(30_000), 131_072), Some(30_000));
+    assert_eq!(restart_limit(Some(100_000), 131_072), Some(65_536));
+    // Never nothing at all.
+    assert_eq!(restart_limit(None, 0), Some(1));
 }
 
 #[test]
