@@ -318,7 +318,9 @@ impl ImageBuilder for Builder {
         let state = s.tracer.state_at(t);
         let camera = state.camera;
         r.set_motion(Some(state));
-        let limit = if r.restarts_at(&camera) {
+        // Without an image budget (`--image-budget 0`) every sample is placed.
+        let budgeted = self.published.settings.image_budget > 0.0;
+        let limit = if budgeted && r.restarts_at(&camera) {
             restart_limit(self.live_limit, r.placed())
         } else {
             self.live_limit
