@@ -230,11 +230,22 @@ fn blend_row(
     for (a, &s) in age.iter_mut().zip(&o.shown) {
         *a = s as f32;
     }
-    let mut age_sum = 0f64;
-    for &s in &o.shown {
-        age_sum += s;
+    (cut_moved(&mut acc, o), row_sum(&o.shown))
+}
+
+/// The sum of a row's shown ages in four interleaved running sums, added at the end:
+/// one running sum is a chain of dependent additions, a millisecond at 1280×720; the
+/// order is fixed, so the sum does not depend on the thread count.
+fn row_sum(v: &[f64]) -> f64 {
+    let mut lanes = [0f64; 4];
+    let chunks = v.chunks_exact(4);
+    let rest: f64 = chunks.remainder().iter().sum();
+    for c in chunks {
+        for (l, &x) in lanes.iter_mut().zip(c) {
+            *l += x;
+        }
     }
-    (cut_moved(&mut acc, o), age_sum)
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + rest
 }
 
 /// Channel `c` of each pixel's mean clamped into its widened 3×3 box, in
@@ -386,7 +397,9 @@ mod tests {
         let at = |x: usize, y: usize| before[y * w + x];
         let (mut cuts, mut rows) = (0, Vec::new());
         for y in 0..h {
-            let mut age_sum = 0f64;
+            // The shown ages of the row, summed as the blend sums them: in four
+            // interleaved running sums.
+            let mut shown_row = Vec::with_capacity(w);
             for x in 0..w {
                 let q = y * w + x;
                 let shown = if acc.count[q] > 0.0 {
@@ -414,9 +427,15 @@ mod tests {
                     age[q] as f64
                 };
                 age[q] = shown as f32;
-                age_sum += shown;
+                shown_row.push(shown);
             }
-            rows.push(age_sum);
+            let lanes = (0..4).map(|l| {
+                let whole = shown_row.len() / 4 * 4;
+                shown_row[..whole].iter().skip(l).step_by(4).sum::<f64>()
+            });
+            let [a, b, c, d]: [f64; 4] = lanes.collect::<Vec<_>>().try_into().unwrap();
+            let rest: f64 = shown_row[shown_row.len() / 4 * 4..].iter().sum();
+            rows.push((a + b) + (c + d) + rest);
         }
         (cuts, rows.into_iter().sum())
     }
