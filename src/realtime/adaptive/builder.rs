@@ -227,6 +227,36 @@ pub(super) fn next_live_limit(
     (next < capacity).then_some(next.max(floor))
 }
 
+/// The sample rate over about the last second, after `rays` traced by `el` seconds
+/// into the run; `window` holds the ray counts of recent images.
+fn measured_rate(window: &mut VecDeque<(f64, u64)>, el: f64, rays: u64) -> f64 {
+    window.push_back((el, rays));
+    while window.len() > 2 && el - window[0].0 > 1.0 {
+        window.pop_front();
+    }
+    let (e0, r0) = window[0];
+    if el - e0 > 0.05 {
+        (rays - r0) as f64 / (el - e0)
+    } else {
+        rays as f64 / el.max(1e-3)
+    }
+    .max(1.0)
+}
+
+impl Builder {
+    /// The live limit of the image seen by `camera`: a restart of the carried sums
+    /// under an image budget places fewer samples ([`restart_limit`]); without a budget
+    /// (`--image-budget 0`) every sample is placed.
+    fn limit_at(&self, camera: &crate::scene::CameraFrame) -> Option<usize> {
+        let budgeted = self.published.settings.image_budget > 0.0;
+        if budgeted && self.recon.restarts_at(camera) {
+            restart_limit(self.live_limit, self.recon.placed())
+        } else {
+            self.live_limit
+        }
+    }
+}
+
 impl ImageBuilder for Builder {
     fn recycle(&mut self, image: Image) {
         self.spare = Some(image);
@@ -299,32 +329,14 @@ impl ImageBuilder for Builder {
         // rate takes effect at the next refresh, keeping the ring, the splat scale and
         // the still-region history.
         let rays = s.rays.load(Ordering::Relaxed);
-        let el = s.clock.elapsed();
-        let window = &mut self.rate_window;
-        window.push_back((el, rays));
-        while window.len() > 2 && el - window[0].0 > 1.0 {
-            window.pop_front();
-        }
-        let (e0, r0) = window[0];
-        let rate = if el - e0 > 0.05 {
-            (rays - r0) as f64 / (el - e0)
-        } else {
-            rays as f64 / el.max(1e-3)
-        }
-        .max(1.0);
+        let rate = measured_rate(&mut self.rate_window, s.clock.elapsed(), rays);
+        let state = s.tracer.state_at(t);
+        let camera = state.camera;
+        let limit = self.limit_at(&camera);
         let r = &mut self.recon;
         r.set_rate(rate);
         push_newest(r, &batches, self.live_limit);
-        let state = s.tracer.state_at(t);
-        let camera = state.camera;
         r.set_motion(Some(state));
-        // Without an image budget (`--image-budget 0`) every sample is placed.
-        let budgeted = self.published.settings.image_budget > 0.0;
-        let limit = if budgeted && r.restarts_at(&camera) {
-            restart_limit(self.live_limit, r.placed())
-        } else {
-            self.live_limit
-        };
         r.set_live_limit(limit);
         r.reconstruct(t, &camera, &tiling);
         let image = r.take_image(self.spare.take());

@@ -397,8 +397,7 @@ mod tests {
         let at = |x: usize, y: usize| before[y * w + x];
         let (mut cuts, mut rows) = (0, Vec::new());
         for y in 0..h {
-            // The shown ages of the row, summed as the blend sums them: in four
-            // interleaved running sums.
+            // The shown ages of the row, summed in the blend's order.
             let mut shown_row = Vec::with_capacity(w);
             for x in 0..w {
                 let q = y * w + x;
@@ -429,13 +428,7 @@ mod tests {
                 age[q] = shown as f32;
                 shown_row.push(shown);
             }
-            let lanes = (0..4).map(|l| {
-                let whole = shown_row.len() / 4 * 4;
-                shown_row[..whole].iter().skip(l).step_by(4).sum::<f64>()
-            });
-            let [a, b, c, d]: [f64; 4] = lanes.collect::<Vec<_>>().try_into().unwrap();
-            let rest: f64 = shown_row[shown_row.len() / 4 * 4..].iter().sum();
-            rows.push((a + b) + (c + d) + rest);
+            rows.push(row_sum(&shown_row));
         }
         (cuts, rows.into_iter().sum())
     }
