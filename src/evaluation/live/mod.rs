@@ -12,6 +12,7 @@
 //! a method for the cores. Runs repeat in alternation (A B C A B C …) and each metric is
 //! reported as the median over the repeats with its range.
 
+mod builds;
 mod report;
 
 pub use report::{markdown, read_summary, rewrite, write_all};
@@ -833,6 +834,18 @@ fn assemble(
 mod tests {
     use super::*;
 
+    /// A run of adaptive with these pipeline figures and default scores.
+    pub(super) fn a_run(pipeline: serde_json::Value) -> LiveRun {
+        LiveRun {
+            method: RtMethod::Adaptive,
+            repeat: 1,
+            scores: Scores::default(),
+            sampling_threads: 1,
+            warnings: Vec::new(),
+            pipeline,
+        }
+    }
+
     /// The memory bound admits a 640×480 run of 10 s at 60 Hz and refuses what would
     /// not fit, before any work.
     #[test]
@@ -859,6 +872,33 @@ mod tests {
         let s = read_summary(&p).expect("reads");
         assert_eq!(s.recon, ReconUsed::cpu());
         assert!(markdown(&s).contains("reconstructor: cpu)"));
+    }
+
+    /// The committed 1280×720 tables say in words what held each method's new images
+    /// back: adaptive's image build, longer than the period, with its largest steps.
+    #[test]
+    fn the_summary_names_what_held_the_new_images_back() {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("docs/results/live/session37/toycar_1280x720/summary.json");
+        let md = markdown(&read_summary(&p).expect("committed summary"));
+        let section = md
+            .split("## What held the new images back")
+            .nth(1)
+            .expect("a section");
+        let adaptive = section
+            .lines()
+            .find(|l| l.starts_with("- adaptive: "))
+            .expect("adaptive's line");
+        assert!(
+            adaptive.contains("the image build is the first bottleneck"),
+            "{adaptive}"
+        );
+        assert!(adaptive.contains("its largest steps: "), "{adaptive}");
+        let tf = section
+            .lines()
+            .find(|l| l.starts_with("- traditional-frameless: "))
+            .expect("traditional frameless's line");
+        assert!(tf.contains("keeps up"), "{tf}");
     }
 
     /// The window lies on `eval`'s refresh grid, after whole refreshes of warm-up.

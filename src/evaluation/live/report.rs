@@ -7,7 +7,7 @@ use std::{
     path::{Path, PathBuf},
 };
 
-use super::{LiveFrameRow, LiveOutput, LiveRow, LiveSummary, Scores};
+use super::{builds::Build, LiveFrameRow, LiveOutput, LiveRow, LiveSummary, Scores};
 use crate::{
     evaluation::{
         report::{
@@ -183,6 +183,12 @@ pub fn markdown(s: &LiveSummary) -> String {
         }
         out.push('\n');
     }
+    let held: Vec<String> = held_back(s)
+        .map(|(m, why)| format!("- {m}: {why}."))
+        .collect();
+    if !held.is_empty() {
+        let _ = writeln!(out, "## {HELD_BACK}\n\n{}\n", held.join("\n"));
+    }
     let warned: Vec<String> = warnings(s)
         .map(|(m, k, w)| format!("- {m} run {k}: {w}"))
         .collect();
@@ -190,6 +196,23 @@ pub fn markdown(s: &LiveSummary) -> String {
         let _ = writeln!(out, "## Warnings\n\n{}\n", warned.join("\n"));
     }
     out
+}
+
+/// The title of what held each method's new images back.
+const HELD_BACK: &str =
+    "What held the new images back (each method's median run, its warm-up included)";
+
+/// Each method's image build in its median run, in a sentence: (method, sentence), for
+/// the methods whose runs report their builds.
+fn held_back(s: &LiveSummary) -> impl Iterator<Item = (&'static str, String)> + '_ {
+    s.results.iter().filter_map(|r| {
+        let repeat = median_run(s, r);
+        let run = s
+            .runs
+            .iter()
+            .find(|run| run.method == r.method && run.repeat == repeat)?;
+        Some((r.method.name(), Build::of(run)?.sentence(s.refresh_hz)))
+    })
 }
 
 /// Write every output as the folder `dir`, replacing what was there only once all are
@@ -377,6 +400,17 @@ fn html(s: &LiveSummary, strips: &[StripEntry]) -> String {
         ("What each method got of the machine", &LIVE[..]),
     ] {
         table(&mut h, s, title, columns);
+    }
+    let held: Vec<String> = held_back(s)
+        .map(|(m, why)| format!("<li>{m}: {}.</li>", escape(&why)))
+        .collect();
+    if !held.is_empty() {
+        let _ = write!(
+            h,
+            "<h2>{}</h2><ul>{}</ul>",
+            escape(HELD_BACK),
+            held.concat()
+        );
     }
     let warned: Vec<String> = warnings(s)
         .map(|(m, k, w)| format!("<li>{m} run {k}: {}</li>", escape(w)))
