@@ -9,13 +9,13 @@ use super::LiveRun;
 
 /// The share of the refresh rate at which a method's new images keep up (the bar the
 /// live tables are held to).
-pub(super) const KEEPS_UP: f64 = 0.97;
+const KEEPS_UP: f64 = 0.97;
 
 /// The image build's steps a sentence names, the largest first.
 const STEPS_NAMED: usize = 3;
 
 /// One run's image build, from its pipeline's figures.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub(super) struct Build {
     /// New images shown a second.
     pub new_images_per_s: f64,
@@ -72,7 +72,8 @@ impl Build {
             "{:.1} new images a second of {refresh_hz}",
             self.new_images_per_s
         );
-        let verdict = if self.new_images_per_s >= KEEPS_UP * refresh_hz {
+        let keeps_up = self.new_images_per_s >= KEEPS_UP * refresh_hz;
+        let verdict = if keeps_up {
             format!("keeps up ({shown}); {took}, within the {period:.1} ms refresh period")
         } else if self.mean_ms > period {
             format!(
@@ -90,11 +91,9 @@ impl Build {
                  else holds its images back (its samples, or other work on the machine)"
             )
         };
-        match self.largest_steps() {
-            Some(steps) if self.new_images_per_s < KEEPS_UP * refresh_hz => {
-                format!("{verdict}; its largest steps: {steps}")
-            }
-            _ => verdict,
+        match self.largest_steps().filter(|_| !keeps_up) {
+            Some(steps) => format!("{verdict}; its largest steps: {steps}"),
+            None => verdict,
         }
     }
 
