@@ -17,6 +17,12 @@
 #   for f in .gl/*.deb; do dpkg -x $f /; done; ldconfig
 #   BUDGET_S=330 bash docs/results/device/run.sh 2>&1 | tee $OUT/run.log
 # (ONLY=REGEX runs only the steps whose names match, for a short rerun.)
+# SMOKE=1 runs every step at a twentieth of each side (the reconstructor alone at 10K
+# samples a second), to check before a device session, on lavapipe, that each step
+# still runs with this version (each step's exit status is in run.log); its figures
+# mean nothing:
+#   SMOKE=1 BUDGET_S=900 FRAMELESS=target/device/release/frameless \
+#     LIVE_RECON=target/device/release/examples/live_recon bash docs/results/device/run.sh
 # Only eight files come back from the device, so everything is written under a work
 # folder and packed into $OUT/results.tar.gz (images left out). Steps, in order of
 # value, each cut to what is left of the time budget:
@@ -57,6 +63,14 @@ mkdir -p "$out" "$cache"
 bin="$(realpath "$bin")"
 [ -x "$ex" ] && ex="$(realpath "$ex")"
 start=$SECONDS
+smoke="${SMOKE:-}"
+# sz WxH: the size a step runs at (a twentieth of each side with SMOKE).
+sz() { if [ -z "$smoke" ]; then echo "$1"; else echo "$((${1%x*} / 20))x$((${1#*x} / 20))"; fi; }
+# case 'W H RATE HZ': a live_recon case at the size and sample rate a step runs at.
+case_of() {
+  set -- $1
+  if [ -z "$smoke" ]; then echo "$1 $2 $3 $4"; else echo "$(($1 / 20)) $(($2 / 20)) 1e4 $4"; fi
+}
 if [ -z "${VK_DRIVER_FILES:-}" ] && [ -e /usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json ]; then
   export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 fi
@@ -81,8 +95,13 @@ step() {
   ldconfig -p | grep -i libvulkan || echo "no Vulkan loader"
 } > "$work/machine.txt"
 
-live() { # live NAME CORES ARGS...
-  local name="$1" n="$2"; shift 2
+live() { # live NAME CORES ARGS... (a `--size` among ARGS goes through sz)
+  local name="$1" n="$2" a prev="" args=(); shift 2
+  for a in "$@"; do
+    if [ "$prev" = --size ]; then args+=("$(sz "$a")"); else args+=("$a"); fi
+    prev="$a"
+  done
+  set -- "${args[@]}"
   step "$name" 110 taskset -c "0-$((n - 1))" "$bin" --threads "$n" live --scene toycar \
     --start 1 --duration 2 --warmup 1 --repeat 1 --ideal-spp 4 \
     --cache-dir "$cache" -o "$work/$name" "$@"
@@ -91,7 +110,7 @@ live() { # live NAME CORES ARGS...
 all=$(nproc)
 # The GPU tracer first: its figures were never taken with methods sampling through it.
 if "$bin" bench --help 2>/dev/null | grep -q -- '--trace'; then
-  step bench_trace_gpu 90 "$bin" bench --trace gpu --size 1920x1080 --json
+  step bench_trace_gpu 90 "$bin" bench --trace gpu --size "$(sz 1920x1080)" --json
 fi
 if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
   live live_1920x1080_gputrace "$all" --size 1920x1080 --refresh-hz 60 --trace gpu \
@@ -100,7 +119,8 @@ if "$bin" live --help 2>/dev/null | grep -q -- '--trace'; then
     --trace gpu --method adaptive
 fi
 if [ -x "$ex" ]; then
-  step live_recon_gpu 150 bash -c "for c in '1920 1080 4e6 30' '1280 720 4e6 30' '640 480 3e6 30'; do
+  cases="'$(case_of '1920 1080 4e6 30')' '$(case_of '1280 720 4e6 30')' '$(case_of '640 480 3e6 30')'"
+  step live_recon_gpu 150 bash -c "for c in $cases; do
     for t in 1 $all; do for m in '2 still' '2 resplat still' '6 resplat still'; do
       echo \"\$c ring \$m threads=\$t gpu:\"; RAYON_NUM_THREADS=\$t '$ex' \$c \$m gpu; done; done; done"
 fi
@@ -133,7 +153,7 @@ live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
   --method adaptive,traditional-frameless,late-warp
 if [ -x "$ex" ]; then
   step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
-    echo \"1280x720 4M/s 30Hz 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' 1280 720 4e6 30 2 \$m; done; done"
+    echo \"$(case_of '1280 720 4e6 30') 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' $(case_of '1280 720 4e6 30') 2 \$m; done; done"
 fi
 for size in 1280x720 1920x1080; do
   live "live_${size}_gpurecon" "$all" --size "$size" --refresh-hz 30 --method adaptive --recon gpu
@@ -141,7 +161,7 @@ done
 for r in 1 2; do
   mkdir -p "$work/view_2cores_recon$r"
   step "view_2cores_recon$r" 20 bash -c "cd '$work/view_2cores_recon$r' && taskset -c 0-1 '$bin' \
-    view --headless --size 1280x720 --refresh-hz 30 --duration 3 --method adaptive \
+    view --headless --size $(sz 1280x720) --refresh-hz 30 --duration 3 --method adaptive \
     --recon-threads $r"
 done
 step bench_gpu 40 "$bin" bench --recon gpu --json

@@ -871,7 +871,21 @@ mod tests {
         assert!(v.get("recon").is_none(), "written before `recon`");
         let s = read_summary(&p).expect("reads");
         assert_eq!(s.recon, ReconUsed::cpu());
-        assert!(markdown(&s).contains("reconstructor: cpu)"));
+        assert!(markdown(&s).contains("tracer: cpu; reconstructor: cpu)"));
+    }
+
+    /// The heading names the tracer as well as the reconstructor.
+    #[test]
+    fn the_heading_names_the_tracer() {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("docs/results/live/kitchen_toycar/summary.json");
+        let mut s = read_summary(&p).expect("reads");
+        s.trace = crate::gpu::DeviceUsed {
+            device: "gpu".into(),
+            adapter: Some("a test adapter".into()),
+        };
+        let md = markdown(&s);
+        assert!(md.contains("tracer: gpu (a test adapter); reconstructor: cpu)"), "{md}");
     }
 
     /// The committed 1280×720 tables say in words what held each method's new images

@@ -108,7 +108,7 @@ fn heading(s: &LiveSummary) -> String {
     format!(
         "{} at {}x{}, {} Hz, t = {} s + {} s live (warm-up {} s; {} run{} of each method, \
          alternated; threads for {} of the machine's {} cores; seed {}, ideal {} spp{}; \
-         reconstructor: {}{})",
+         tracer: {}; reconstructor: {}{})",
         s.scene,
         s.width,
         s.height,
@@ -123,6 +123,7 @@ fn heading(s: &LiveSummary) -> String {
         s.seed,
         s.ideal_spp,
         if s.camera_path { ", camera path" } else { "" },
+        s.trace,
         s.recon,
         adaptive_note(s),
     )
