@@ -375,6 +375,23 @@ pub fn targets(t: &TableSummary) -> String {
     out
 }
 
+/// Where the table's samples were traced and adaptive's images reconstructed, from
+/// its animations' summaries: one line, each animation named where they differ.
+fn devices(t: &TableSummary) -> String {
+    let words = |s: &Summary| format!("Tracer: {}; reconstructor: {}", s.trace, s.recon);
+    let all: Vec<String> = t.animations.iter().map(|a| words(&a.summary)).collect();
+    match all.first() {
+        Some(first) if all.iter().all(|w| w == first) => first.clone(),
+        _ => t
+            .animations
+            .iter()
+            .zip(&all)
+            .map(|(a, w)| format!("{}: {w}", a.name))
+            .collect::<Vec<_>>()
+            .join(". "),
+    }
+}
+
 /// The HTML index: the table and each animation's report, plots and strips.
 pub fn html(t: &TableSummary, cost: &str) -> String {
     let mut h = String::from(
@@ -383,6 +400,7 @@ pub fn html(t: &TableSummary, cost: &str) -> String {
          td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}img{max-width:100%}</style></head><body>\
          <h1>Paper Table 1 and Fig. 8 on the BART kitchen</h1>",
     );
+    let _ = write!(h, "<p>{}</p>", escape(&devices(t)));
     let md = markdown(t);
     let mut in_table = false;
     for line in md.lines() {
@@ -481,7 +499,8 @@ fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), EvalEr
         let p = dir.join(name);
         std::fs::write(&p, text).map_err(|e| io(&p, e))
     };
-    let mut md = markdown(t);
+    let mut md = format!("{}\n\n", devices(t));
+    md.push_str(&markdown(t));
     md.push_str("### Targets\n\n");
     md.push_str(&targets(t));
     write("table.md", &md)?;
@@ -498,6 +517,35 @@ fn write_combined(t: &TableSummary, dir: &Path, cost: &str) -> Result<(), EvalEr
 mod tests {
     use super::*;
     use crate::scene::CameraPath;
+
+    /// The committed Table 1 (written before the devices were recorded: the CPU's).
+    fn committed() -> TableSummary {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("docs/results/table1/summary.json");
+        serde_json::from_str(&std::fs::read_to_string(p).expect("committed table"))
+            .expect("reads as a table summary")
+    }
+
+    /// The combined table names its tracer and reconstructor once where every
+    /// animation ran on the same, and each animation's where they differ.
+    #[test]
+    fn the_table_names_its_devices() {
+        let mut t = committed();
+        assert_eq!(devices(&t), "Tracer: cpu; reconstructor: cpu");
+        assert!(html(&t, "").contains("<p>Tracer: cpu; reconstructor: cpu</p>"));
+        t.animations[1].summary.trace = crate::gpu::DeviceUsed {
+            device: "gpu".into(),
+            adapter: Some("an adapter".into()),
+        };
+        let d = devices(&t);
+        let second = format!(
+            "{}: Tracer: gpu (an adapter); reconstructor: cpu",
+            t.animations[1].name
+        );
+        assert!(d.contains(&second), "{d}");
+        let first = format!("{}: Tracer: cpu; reconstructor: cpu", t.animations[0].name);
+        assert!(d.starts_with(&first), "{d}");
+    }
 
     #[test]
     fn committed_camera_paths_parse() {

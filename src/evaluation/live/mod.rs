@@ -885,7 +885,10 @@ mod tests {
             adapter: Some("a test adapter".into()),
         };
         let md = markdown(&s);
-        assert!(md.contains("tracer: gpu (a test adapter); reconstructor: cpu)"), "{md}");
+        assert!(
+            md.contains("tracer: gpu (a test adapter); reconstructor: cpu)"),
+            "{md}"
+        );
     }
 
     /// The committed 1280×720 tables say in words what held each method's new images
