@@ -127,6 +127,10 @@ pub(super) struct Carried {
     /// What the last carry did, listed for a GPU that keeps the sums (`None`: not
     /// listed).
     pub(super) edits: Option<CarryEdits>,
+    /// The sums here are only which pixels hold sums (a GPU keeps the sums and gives
+    /// back no more): the carry decides from the weights alone, and a weight of 1
+    /// decayed still holds, so the decay in place is skipped (the GPU replays it).
+    pub(super) holds_only: bool,
 }
 
 impl Carried {
@@ -152,6 +156,7 @@ impl Carried {
             restart: false,
             view: None,
             edits: None,
+            holds_only: false,
         }
     }
 }
@@ -395,12 +400,14 @@ impl Reconstructor {
         camera: &CameraFrame,
     ) {
         let (w, cs) = (self.width as usize, self.cs);
-        // Rows are independent: in parallel, each row decayed as a whole.
-        self.acc
-            .par_chunks_mut(CHANNELS * cs)
-            .zip(self.cover.par_chunks_mut(w))
-            .zip(self.lookup.par_chunks(w))
-            .for_each(|((row, cover), lookup)| decay_row(row, cover, cs, lookup, decay, dt));
+        if !c.holds_only {
+            // Rows are independent: in parallel, each row decayed as a whole.
+            self.acc
+                .par_chunks_mut(CHANNELS * cs)
+                .zip(self.cover.par_chunks_mut(w))
+                .zip(self.lookup.par_chunks(w))
+                .for_each(|((row, cover), lookup)| decay_row(row, cover, cs, lookup, decay, dt));
+        }
         if self.params.reproject {
             self.move_listed(c, dt, camera);
         }

@@ -362,9 +362,11 @@ impl Reconstructor {
             self.history.as_ref().map(|h| *h.params()),
             self.gpu_sums_back(),
         )?));
+        let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
         if let Some(c) = &mut self.carried {
             // For the GPU to replay.
             c.edits = Some(Default::default());
+            c.holds_only = holds_only;
         }
         Ok(())
     }
@@ -657,6 +659,7 @@ impl Reconstructor {
                     let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
                     if let Some(c) = &mut self.carried {
                         c.edits = None;
+                        c.holds_only = false;
                         // The CPU's sums were only the GPU's holds mask: they start
                         // afresh, from the whole live ring.
                         c.restart |= holds_only;
