@@ -148,6 +148,12 @@ fn record_sliding_bar(
     (tracer, config, rec)
 }
 
+/// What the display shows at a refresh is nearer the ideal at its scan-out than two
+/// refreshes either side. Traditional frameless, whose pixels are at most a few
+/// milliseconds old at a scan-out: framed rendering's content is about a period old
+/// there by design (a frame shows the time it was started at), about halfway between
+/// the scan-out and two refreshes early, which made this a near toss (it failed twice
+/// in about 35 runs on the 2-core development machine).
 #[test]
 fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
     let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
@@ -155,7 +161,7 @@ fn recorded_refreshes_match_the_ideal_at_their_scan_out_time() {
         warmup: 18,
         refreshes: 30,
     };
-    let (tracer, config, rec) = record_sliding_bar(RtMethod::FramedFull, 0.0, window);
+    let (tracer, config, rec) = record_sliding_bar(RtMethod::TraditionalFrameless, 0.0, window);
     assert_eq!(rec.shown.len(), 30);
     let period = 1.0 / config.refresh_hz;
     let shown: Vec<(f64, usize)> = rec
