@@ -29,7 +29,8 @@ use frameless::{
 };
 use glam::Vec3;
 
-/// Live runs measure time: one at a time, so that they do not slow each other.
+/// Live runs measure time: one at a time, and with no other test of this file beside
+/// them (not even one that only starts the program), so that nothing slows them.
 static MACHINE: Mutex<()> = Mutex::new(());
 
 /// A lit matte wall filling the view: a smooth image with no edge, still.
@@ -250,6 +251,7 @@ fn a_warp_shows_the_scene_at_the_refresh_it_is_meant_for() {
 
 #[test]
 fn bad_input_is_refused_before_any_work() {
+    let _one = MACHINE.lock().unwrap_or_else(|e| e.into_inner());
     let dir = std::env::temp_dir().join(format!("frameless-live-bad-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
