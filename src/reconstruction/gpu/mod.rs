@@ -20,8 +20,10 @@
 //! refreshes from the samples pushed since the last.
 //!
 //! With [`ReconParams::carry`] the accumulators are carried between refreshes: the
-//! CPU decays, moves and cuts its copy as it would for itself, the GPU adds only the
-//! new samples' splats onto its own, and they come back for the CPU's next carry.
+//! CPU decays, moves and cuts its copy as it would for itself (where only which pixels
+//! hold sums comes back, [`SumsBack::Holds`], it does not decay it: a weight that holds
+//! still holds decayed), the GPU adds only the new samples' splats onto its own, and
+//! they come back for the CPU's next carry.
 //! While the view holds, the GPU carries the sums it kept from its last refresh itself
 //! by replaying the CPU's list of what its carry did ([`carry`]: a factor per tile,
 //! the pixels whose sums moved, the pixels cut); otherwise (the first refresh, sums
