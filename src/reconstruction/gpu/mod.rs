@@ -21,7 +21,7 @@
 //!
 //! With [`ReconParams::carry`] the accumulators are carried between refreshes: the
 //! CPU decays, moves and cuts its copy as it would for itself (where only which pixels
-//! hold sums comes back, [`SumsBack::Holds`], it does not decay it: a weight that holds
+//! hold sums comes back, `SumsBack::Holds`, it does not decay it: a weight that holds
 //! still holds decayed), the GPU adds only the new samples' splats onto its own, and
 //! they come back for the CPU's next carry.
 //! While the view holds, the GPU carries the sums it kept from its last refresh itself
