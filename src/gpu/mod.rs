@@ -4,7 +4,7 @@
 //!
 //! With the `gpu` feature (the default) this is wgpu's adapter and device
 //! ([`GpuContext`]); without it, a [`GpuContext`] that cannot exist and a
-//! [`GpuError::NotBuilt`], so that callers compile unchanged and `gpu` choices fail
+//! `GpuError::NotBuilt`, so that callers compile unchanged and `gpu` choices fail
 //! with a clear message.
 
 use std::{fmt, sync::Arc};

@@ -58,7 +58,7 @@ pub struct PipelineStats {
     /// Share of the sampling threads' wall time spent tracing.
     pub sampling_busy_share: f64,
     /// Times per second the sampling threads offered their cores to a waiting thread
-    /// (every [`super::shared::SAMPLING_TURN`] of work).
+    /// (every `SAMPLING_TURN` of work).
     pub sampling_yields_per_s: f64,
     /// Mean over images of their mean information age, seconds.
     pub mean_age_s: f64,

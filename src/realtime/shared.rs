@@ -60,7 +60,7 @@ pub struct Frame {
     pub view_time: f64,
     /// Scene time its build began: it knows nothing that happened after. A method
     /// that reprojects shows the scene as it will be at the refresh the image is
-    /// meant for (`time`, `view_time`), later than this ([`BuildAt`]).
+    /// meant for (`time`, `view_time`), later than this (`BuildAt`).
     pub began: f64,
     /// Wall-clock seconds since the pipeline started from which it is the newest image
     /// (when it was done, or half a period before the refresh it is meant for if it

@@ -16,7 +16,7 @@
 //! velocities of the live moving samples on the CPU first, which are uploaded again),
 //! the adaptive (or fixed) filter, adaptive splat size, the visibility pass, the
 //! hole-filling pyramid and the pull-push fill, and the still-region history
-//! ([`history`]), whose per-pixel arrays stay here too: the CPU only plans each of its
+//! (`history`), whose per-pixel arrays stay here too: the CPU only plans each of its
 //! refreshes from the samples pushed since the last.
 //!
 //! With [`ReconParams::carry`] the accumulators are carried between refreshes: the
@@ -25,10 +25,10 @@
 //! still holds decayed), the GPU adds only the new samples' splats onto its own, and
 //! they come back for the CPU's next carry.
 //! While the view holds, the GPU carries the sums it kept from its last refresh itself
-//! by replaying the CPU's list of what its carry did ([`carry`]: a factor per tile,
+//! by replaying the CPU's list of what its carry did (`carry`: a factor per tile,
 //! the pixels whose sums moved, the pixels cut); otherwise (the first refresh, sums
 //! moved with the view or started afresh, or sums not kept) every pixel's sums go up
-//! ([`carried`]).
+//! (`carried`).
 
 pub(super) mod carried;
 mod carry;

@@ -5,7 +5,7 @@
 //! The CPU [`Tracer`] stays the reference and the owner of everything: it builds the
 //! static world's and the rigid groups' trees once, and per 1 ms quantum the scene
 //! state (instance transforms, the top level, the morphing triangles' refit tree,
-//! lights, camera). This side uploads those as they are ([`layout`]) and traces a batch
+//! lights, camera). This side uploads those as they are (`layout`) and traces a batch
 //! of samples of one state in one dispatch, one invocation per sample: the primary
 //! ray, shading as `shade.rs` does it (ambient, every light with a shadow ray,
 //! textures filtered by ray cones), and the Whitted tree of reflections and
