@@ -45,6 +45,8 @@
 #   images/s, samples/s, and `pass_ms`, the image build's steps), 4-spp ideals;
 # - live_<size>_<cores>_recon<cores>/: adaptive with the image build on every core;
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
+# - live_<size>_2cores_gpurecon/: the 2-core cases at 1280x720 and 1920x1080 (where
+#   adaptive's CPU build misses 30 Hz) with rays on the CPU and images on the GPU;
 # - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
 # - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU (`pass_ms` splits
 #   the GPU's part into gpu_upload, gpu_wait and gpu_read; `gpu_carried_sums` says how
@@ -151,6 +153,13 @@ if "$bin" live --help 2>/dev/null | grep -q -- '--recon-threads'; then
 fi
 live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
   --method adaptive,traditional-frameless,late-warp
+# The image-cost issue's 2-core bars with only the images on the GPU: rays traced on
+# the CPU, as in the committed 2-core tables (the CPU's ideals come from the cache the
+# runs above filled).
+for size in 1280x720 1920x1080; do
+  live "live_${size}_2cores_gpurecon" 2 --size "$size" --refresh-hz 30 --recon gpu \
+    --method adaptive,traditional-frameless,late-warp
+done
 if [ -x "$ex" ]; then
   step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
     echo \"$(case_of '1280 720 4e6 30') 2spp \$m threads=\$t:\"; RAYON_NUM_THREADS=\$t '$ex' $(case_of '1280 720 4e6 30') 2 \$m; done; done"
