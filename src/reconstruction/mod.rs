@@ -751,8 +751,7 @@ impl Reconstructor {
         {
             h.done_on_gpu(step, hb.counts, hb.cuts);
         }
-        let age_sum: f64 = self.age.iter().map(|&a| a as f64).sum();
-        self.mean_age = age_sum / self.age.len().max(1) as f64;
+        self.mean_age = lanes::lane_sum(&self.age) / self.age.len().max(1) as f64;
         self.passes.lap(9, lap);
         Ok(())
     }

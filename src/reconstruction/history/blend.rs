@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use super::{AccumMut, HistoryParams, EMPTY_RANGE};
 use crate::image::Image;
+use crate::reconstruction::lanes::lane_sum;
 
 /// Rows of a band of the history's blend.
 pub(super) const BLEND_ROWS: usize = 16;
@@ -230,22 +231,7 @@ fn blend_row(
     for (a, &s) in age.iter_mut().zip(&o.shown) {
         *a = s as f32;
     }
-    (cut_moved(&mut acc, o), row_sum(&o.shown))
-}
-
-/// The sum of a row's shown ages in four interleaved running sums, added at the end:
-/// one running sum is a chain of dependent additions, a millisecond at 1280×720; the
-/// order is fixed, so the sum does not depend on the thread count.
-fn row_sum(v: &[f64]) -> f64 {
-    let mut lanes = [0f64; 4];
-    let chunks = v.chunks_exact(4);
-    let rest: f64 = chunks.remainder().iter().sum();
-    for c in chunks {
-        for (l, &x) in lanes.iter_mut().zip(c) {
-            *l += x;
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + rest
+    (cut_moved(&mut acc, o), lane_sum(&o.shown))
 }
 
 /// Channel `c` of each pixel's mean clamped into its widened 3×3 box, in
@@ -428,7 +414,7 @@ mod tests {
                 age[q] = shown as f32;
                 shown_row.push(shown);
             }
-            rows.push(row_sum(&shown_row));
+            rows.push(lane_sum(&shown_row));
         }
         (cuts, rows.into_iter().sum())
     }
