@@ -46,7 +46,8 @@
 # - live_<size>_<cores>_recon<cores>/: adaptive with the image build on every core;
 # - live_1920x1080_all/: 1920x1080 at 30 Hz on every core against the best others;
 # - live_<size>_2cores_gpurecon/: the 2-core cases at 1280x720 and 1920x1080 (where
-#   adaptive's CPU build misses 30 Hz) with rays on the CPU and images on the GPU;
+#   adaptive's CPU build misses 30 Hz) with rays on the CPU and images on the GPU, and
+#   live_<size>_2cores_gpurecon_nolimit/: adaptive there without the live limit;
 # - live_recon.log: the reconstructor alone at 1280x720 on 1 and 8 threads;
 # - live_<size>_gpurecon/: adaptive with the reconstructor on the GPU (`pass_ms` splits
 #   the GPU's part into gpu_upload, gpu_wait and gpu_read; `gpu_carried_sums` says how
@@ -159,6 +160,14 @@ live live_1920x1080_all "$all" --size 1920x1080 --refresh-hz 30 \
 for size in 1280x720 1920x1080; do
   live "live_${size}_2cores_gpurecon" 2 --size "$size" --refresh-hz 30 --recon gpu \
     --method adaptive,traditional-frameless,late-warp
+done
+# The same without the live limit: it cuts the samples an image places to fit its build
+# in 80% of a period, as if the build cost followed them, which a GPU build's need not
+# (session 26's GPU builds placed about the floor, a sixteenth of the pixels, and
+# lavapipe's near none); does placing every sample that arrives do better there?
+for size in 1280x720 1920x1080; do
+  live "live_${size}_2cores_gpurecon_nolimit" 2 --size "$size" --refresh-hz 30 \
+    --recon gpu --method adaptive --image-budget 0
 done
 if [ -x "$ex" ]; then
   step live_recon 60 bash -c "for t in 1 8; do for m in carried still; do
