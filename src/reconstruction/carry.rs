@@ -127,10 +127,6 @@ pub(super) struct Carried {
     /// What the last carry did, listed for a GPU that keeps the sums (`None`: not
     /// listed).
     pub(super) edits: Option<CarryEdits>,
-    /// The sums here are only which pixels hold sums (a GPU keeps the sums and gives
-    /// back no more): the carry decides from the weights alone, and a weight of 1
-    /// decayed still holds, so the decay in place is skipped (the GPU replays it).
-    pub(super) holds_only: bool,
 }
 
 impl Carried {
@@ -156,7 +152,6 @@ impl Carried {
             restart: false,
             view: None,
             edits: None,
-            holds_only: false,
         }
     }
 }
@@ -400,7 +395,12 @@ impl Reconstructor {
         camera: &CameraFrame,
     ) {
         let (w, cs) = (self.width as usize, self.cs);
-        if !c.holds_only {
+        // Where a GPU keeps the sums (it lists the carry to replay) and gives back only
+        // which pixels hold some, the sums here are those weights alone: the carry
+        // decides from them, and a weight of 1 decayed still holds, so the GPU's
+        // replay is the only decay needed.
+        let holds_only = c.edits.is_some() && self.holds_only_back();
+        if !holds_only {
             // Rows are independent: in parallel, each row decayed as a whole.
             self.acc
                 .par_chunks_mut(CHANNELS * cs)

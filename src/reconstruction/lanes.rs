@@ -51,21 +51,6 @@ pub(super) fn small_int(v: f32) -> i32 {
 
 /// Lanes of the vectorised splat loops (one 256-bit register of f32).
 pub(super) const LANES: usize = 8;
-
-/// The sum of `v` in four interleaved running sums of f64, added at the end: one
-/// running sum is a chain of dependent additions, a millisecond over the pixels of a
-/// 1280×720 image; the order is fixed, so the sum does not depend on the thread count.
-pub(super) fn lane_sum<T: Copy + Into<f64>>(v: &[T]) -> f64 {
-    let mut lanes = [0f64; 4];
-    let chunks = v.chunks_exact(4);
-    let rest: f64 = chunks.remainder().iter().map(|&x| x.into()).sum();
-    for c in chunks {
-        for (l, &x) in lanes.iter_mut().zip(c) {
-            *l += x.into();
-        }
-    }
-    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + rest
-}
 pub(super) type Lanes = [f32; LANES];
 /// `1, 2, …, LANES`: lane `l`'s index plus one. Lane indices are added as `(o − 1) +
 /// (l + 1)` (exact for small integers): with a `0` in the table, the compiler drops
@@ -145,6 +130,21 @@ pub(super) fn touch<T: Copy + Send>(v: &mut [T]) {
             chunk[i] = std::hint::black_box(chunk[i]);
         }
     });
+}
+
+/// The sum of `v` in four interleaved running sums of f64, added at the end: one
+/// running sum is a chain of dependent additions, a millisecond over the pixels of a
+/// 1280×720 image; the order is fixed, so the sum does not depend on the thread count.
+pub(super) fn lane_sum<T: Copy + Into<f64>>(v: &[T]) -> f64 {
+    let mut lanes = [0f64; 4];
+    let chunks = v.chunks_exact(4);
+    let rest: f64 = chunks.remainder().iter().map(|&x| x.into()).sum();
+    for c in chunks {
+        for (l, &x) in lanes.iter_mut().zip(c) {
+            *l += x.into();
+        }
+    }
+    (lanes[0] + lanes[1]) + (lanes[2] + lanes[3]) + rest
 }
 
 #[cfg(test)]

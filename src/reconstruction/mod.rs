@@ -362,11 +362,9 @@ impl Reconstructor {
             self.history.as_ref().map(|h| *h.params()),
             self.gpu_sums_back(),
         )?));
-        let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
         if let Some(c) = &mut self.carried {
             // For the GPU to replay.
             c.edits = Some(Default::default());
-            c.holds_only = holds_only;
         }
         Ok(())
     }
@@ -376,14 +374,19 @@ impl Reconstructor {
     /// otherwise the CPU's carry needs only which pixels hold sums.
     #[cfg(feature = "gpu")]
     fn gpu_sums_back(&self) -> Option<gpu::SumsBack> {
-        let p = &self.params;
         self.carried.as_ref().map(|_| {
-            if !p.reproject || p.resplat_moving_view {
+            if self.holds_only_back() {
                 gpu::SumsBack::Holds
             } else {
                 gpu::SumsBack::All
             }
         })
+    }
+
+    /// Whether a GPU that keeps the carried sums gives back only which pixels hold
+    /// some (`SumsBack::Holds`): unless a moving view moves them on the CPU.
+    fn holds_only_back(&self) -> bool {
+        !self.params.reproject || self.params.resplat_moving_view
     }
 
     /// Run refreshes on a GPU: this build has none.
@@ -659,7 +662,6 @@ impl Reconstructor {
                     let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
                     if let Some(c) = &mut self.carried {
                         c.edits = None;
-                        c.holds_only = false;
                         // The CPU's sums were only the GPU's holds mask: they start
                         // afresh, from the whole live ring.
                         c.restart |= holds_only;
