@@ -593,10 +593,12 @@ impl Reconstructor {
 }
 
 impl Reconstructor {
-    /// Where each new sample (logical ring indices `samples`) lands at the refresh at
-    /// `t` seen by `camera`, into `ahead`, in parallel: found first, so that the cut
-    /// can ask for the pixels of samples ahead of it (they are at random: one miss
-    /// after another otherwise).
+    /// Where each new sample (logical ring indices `samples`, up to the ring's end)
+    /// lands at the refresh at `t` seen by `camera`, into `ahead`, in parallel: found
+    /// first, so that the cut can ask for the pixels of samples ahead of it (they are
+    /// at random: one miss after another otherwise). The ring is read a run of
+    /// physical slots at a time, as slices, so that no sample pays for finding its slot
+    /// and each field is read in one stream.
     fn locate_new(
         &self,
         t: f64,
@@ -604,40 +606,79 @@ impl Reconstructor {
         samples: std::ops::Range<usize>,
         ahead: &mut Vec<Ahead>,
     ) {
-        use field::*;
-        let (w, h) = (self.width as usize, self.height as usize);
+        debug_assert_eq!(samples.end, self.ring.len());
         let proj = Projector::new(camera);
-        let ring = &self.ring;
         // Where the place pass put them, if it placed these samples this refresh.
         let located = (self.located_from == Some(samples.start)
             && self.located.len() == samples.len())
         .then_some(&self.located[..]);
-        let start = samples.start;
+        let to = LocateTo {
+            ring: &self.ring,
+            proj: &proj,
+            t,
+            w: self.width as usize,
+            h: self.height as usize,
+        };
         ahead.clear();
-        samples
-            .into_par_iter()
-            .map(|i| {
-                let p = ring.phys(i);
-                let v = Vec3::new(ring.f[VX][p], ring.f[VY][p], ring.f[VZ][p]);
-                let (x, y, z) = match located {
-                    Some(l) => (l[i - start][0], l[i - start][1], l[i - start][2]),
-                    None => {
-                        let dt = (t - ring.t[p]) as f32;
-                        let hit = Vec3::new(ring.f[HX][p], ring.f[HY][p], ring.f[HZ][p]);
-                        proj.project(hit + v * dt)
-                    }
-                };
-                match pixel_at(x, y, z, w, h) {
-                    Some((px, py)) => Ahead {
-                        px: px as u32,
-                        py: py as u32,
-                        z,
-                        v,
-                    },
-                    None => Ahead::OFF,
-                }
-            })
-            .collect_into_vec(ahead);
+        ahead.resize(samples.len(), Ahead::OFF);
+        let [r0, r1] = self.ring.runs(samples.start);
+        let (a0, a1) = ahead.split_at_mut(r0.len());
+        for (run, out, k0) in [(r0.start, a0, 0), (r1.start, a1, r0.len())] {
+            out.par_chunks_mut(LOCATE_CHUNK)
+                .enumerate()
+                .for_each(|(c, out)| {
+                    let (p, k) = (run + c * LOCATE_CHUNK, k0 + c * LOCATE_CHUNK);
+                    to.run(p, located.map(|l| &l[k..k + out.len()]), out);
+                });
+        }
+    }
+}
+
+/// Samples per task of [`Reconstructor::locate_new`].
+const LOCATE_CHUNK: usize = 1 << 13;
+
+/// What [`Reconstructor::locate_new`] reads: the ring, the view's projector, the
+/// refresh's time and the image's size.
+struct LocateTo<'a> {
+    ring: &'a super::ring::Ring,
+    proj: &'a Projector,
+    t: f64,
+    w: usize,
+    h: usize,
+}
+
+impl LocateTo<'_> {
+    /// Where the samples of physical slots `p..p + out.len()` land, into `out`: as
+    /// `located` says where given, else projected by their velocity.
+    fn run(&self, p: usize, located: Option<&[[f32; 3]]>, out: &mut [Ahead]) {
+        use field::*;
+        let n = out.len();
+        let f = |k: usize| &self.ring.f[k][p..p + n];
+        let (vx, vy, vz) = (f(VX), f(VY), f(VZ));
+        let v = |j: usize| Vec3::new(vx[j], vy[j], vz[j]);
+        let (w, h) = (self.w, self.h);
+        let land = |(x, y, z): (f32, f32, f32), v: Vec3| match pixel_at(x, y, z, w, h) {
+            Some((px, py)) => Ahead {
+                px: px as u32,
+                py: py as u32,
+                z,
+                v,
+            },
+            None => Ahead::OFF,
+        };
+        if let Some(l) = located {
+            for (j, (a, l)) in out.iter_mut().zip(l).enumerate() {
+                *a = land((l[0], l[1], l[2]), v(j));
+            }
+            return;
+        }
+        let (hx, hy, hz, ts) = (f(HX), f(HY), f(HZ), &self.ring.t[p..p + n]);
+        for (j, a) in out.iter_mut().enumerate() {
+            let dt = (self.t - ts[j]) as f32;
+            let hit = Vec3::new(hx[j], hy[j], hz[j]);
+            let v = v(j);
+            *a = land(self.proj.project(hit + v * dt), v);
+        }
     }
 }
 
@@ -1124,6 +1165,48 @@ impl Reconstructor {
     }
 }
 
+impl Reconstructor {
+    /// [`Reconstructor::carried_front`] over no new splat, as the shaders store it
+    /// ([`super::gpu::carried::front_bit`]), into `bits`: rows in parallel, each
+    /// lowered a few pixels at a time on the stack, so that no image of f32 fronts is
+    /// filled, lowered and read again on the way (the GPU's initial front depths).
+    #[cfg(feature = "gpu")]
+    pub(super) fn carried_front_bits(&self, bits: &mut Vec<u32>) {
+        let (w, cs) = (self.width as usize, self.cs);
+        bits.resize(self.cover.len(), 0);
+        let Some(c) = &self.carried else {
+            bits.fill(0);
+            return;
+        };
+        let acc = &self.acc;
+        bits.par_chunks_mut(w)
+            .zip(c.geo.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, geo))| {
+                let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
+                lowered_front_bits(row, geo, weight);
+            });
+    }
+}
+
+/// The bits ([`super::gpu::carried::front_bit`]) of fronts that start infinite and are
+/// lowered by [`lower_fronts`] to `geo` where `weight` holds sums.
+#[cfg(feature = "gpu")]
+pub(super) fn lowered_front_bits(bits: &mut [u32], geo: &[Geo], weight: &[f32]) {
+    for ((b, g), wt) in bits
+        .chunks_mut(LANES)
+        .zip(geo.chunks(LANES))
+        .zip(weight.chunks(LANES))
+    {
+        let mut front = [f32::INFINITY; LANES];
+        let front = &mut front[..b.len()];
+        lower_fronts(front, g, wt);
+        for (b, &z) in b.iter_mut().zip(&*front) {
+            *b = super::gpu::carried::front_bit(z);
+        }
+    }
+}
+
 /// Fronts `front` lowered to the still geometry `geo` of the pixels whose `weight`
 /// holds sums, [`LANES`] pixels at a time without branches.
 pub(super) fn lower_fronts(front: &mut [f32], geo: &[Geo], weight: &[f32]) {
@@ -1151,4 +1234,88 @@ fn holds(weight: f32) -> bool {
 fn pixel_at(x: f32, y: f32, z: f32, w: usize, h: usize) -> Option<(usize, usize)> {
     let inside = z > 1e-6 && x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
     inside.then_some((x as usize, y as usize))
+}
+
+#[cfg(test)]
+mod locate_tests {
+    use super::*;
+    use crate::{
+        reconstruction::{ReconParams, RingSample},
+        scene::Camera,
+    };
+
+    /// Where the sample of logical index `i` lands, one sample at a time.
+    fn one(r: &Reconstructor, t: f64, proj: &Projector, i: usize) -> (u32, u32, f32, Vec3) {
+        let s = r.ring.get(i).unwrap();
+        let dt = (t - s.t) as f32;
+        let (x, y, z) = proj.project(s.hit_point + s.velocity * dt);
+        match pixel_at(x, y, z, r.width as usize, r.height as usize) {
+            Some((px, py)) => (px as u32, py as u32, z, s.velocity),
+            None => (u32::MAX, u32::MAX, 0.0, Vec3::ZERO),
+        }
+    }
+
+    #[test]
+    fn new_samples_land_where_each_projects_across_the_ring_wrap_and_chunks() {
+        let (w, h) = (100u32, 100u32);
+        let params = ReconParams {
+            ring_factor: 2.0,
+            ..ReconParams::realtime()
+        };
+        let mut r = Reconstructor::new(w, h, 1e6, params);
+        let cam = Camera {
+            eye: Vec3::new(0.0, 0.0, 3.0),
+            at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+            hither: 1e-3,
+        }
+        .frame(w, h);
+        let mut rng = crate::sampling::Rng::new(&[7]);
+        let mut u = || rng.uniform() * 2.0 - 1.0;
+        // Past the capacity (20 000), so that the live samples wrap around the slots.
+        for k in 0..27_000 {
+            r.push(RingSample {
+                x: 0.0,
+                y: 0.0,
+                t: k as f64 * 1e-4,
+                color: Vec3::ONE,
+                hit_point: Vec3::new(u() * 1.5, u() * 1.5, u()),
+                velocity: if k % 3 == 0 {
+                    Vec3::new(u(), u(), u())
+                } else {
+                    Vec3::ZERO
+                },
+                anchor: Default::default(),
+            });
+        }
+        let (t, proj, n) = (2.8, Projector::new(&cam), r.ring.len());
+        let mut ahead = Vec::new();
+        for start in [0, 5, 12_345, n - 3, n] {
+            r.located_from = None;
+            r.locate_new(t, &cam, start..n, &mut ahead);
+            assert_eq!(ahead.len(), n - start);
+            for (k, a) in ahead.iter().enumerate() {
+                let want = one(&r, t, &proj, start + k);
+                assert_eq!(
+                    (a.px, a.py, a.z.to_bits(), a.v),
+                    (want.0, want.1, want.2.to_bits(), want.3),
+                    "start {start}, sample {k}"
+                );
+            }
+            // Where the place pass located them, that is read instead.
+            r.located = (start..n)
+                .map(|i| [(i % w as usize) as f32 + 0.5, 7.5, i as f32 + 1.0])
+                .collect();
+            r.located_from = Some(start);
+            r.locate_new(t, &cam, start..n, &mut ahead);
+            for (k, a) in ahead.iter().enumerate() {
+                let i = start + k;
+                assert_eq!(
+                    (a.px as usize, a.py, a.z),
+                    (i % w as usize, 7, i as f32 + 1.0)
+                );
+            }
+        }
+    }
 }

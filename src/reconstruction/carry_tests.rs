@@ -504,3 +504,25 @@ fn fronts_are_lowered_as_pixel_by_pixel() {
         }
     }
 }
+
+#[cfg(feature = "gpu")]
+#[test]
+fn front_bits_are_those_of_fronts_lowered_from_none() {
+    use super::carry::{lower_fronts, lowered_front_bits, Geo};
+    for w in [1usize, 7, 9, 17] {
+        let z = values(w, 5);
+        let geo: Vec<Geo> = (0..w)
+            .map(|x| Geo {
+                z: [z[x] + 0.5, f32::INFINITY, z[x] + 1.0][x % 3],
+                v: if x % 5 == 2 { Vec3::Y } else { Vec3::ZERO },
+                ..Geo::NONE
+            })
+            .collect();
+        let weight: Vec<f32> = (0..w).map(|x| [1.0, 0.0, f32::NAN, 1e-30][x % 4]).collect();
+        let mut front = vec![f32::INFINITY; w];
+        lower_fronts(&mut front, &geo, &weight);
+        let mut got = vec![7u32; w];
+        lowered_front_bits(&mut got, &geo, &weight);
+        assert_eq!(got, super::gpu::carried::front_bits(&front), "w {w}");
+    }
+}

@@ -236,6 +236,10 @@ pub struct Reconstructor {
     /// The GPU side, when refreshes run there ([`Reconstructor::use_gpu`]).
     #[cfg(feature = "gpu")]
     gpu: Option<Box<gpu::GpuRecon>>,
+    /// The initial front depths a carrying refresh on the GPU uploads, kept between
+    /// refreshes (4 bytes a pixel: not allocated and faulted in again each time).
+    #[cfg(feature = "gpu")]
+    gpu_front: Vec<u32>,
     /// Why the GPU side was given up, if it failed at a refresh (they then run on the
     /// CPU).
     gpu_failure: Option<String>,
@@ -318,6 +322,8 @@ impl Reconstructor {
             history: params.history.map(|h| History::new(width, height, h)),
             #[cfg(feature = "gpu")]
             gpu: None,
+            #[cfg(feature = "gpu")]
+            gpu_front: Vec::new(),
             gpu_failure: None,
             passes: PassTimes::default(),
         }
@@ -730,6 +736,9 @@ impl Reconstructor {
             carried.as_ref(),
             into,
         );
+        if let Some(bits) = carried.and_then(|c| c.front) {
+            self.gpu_front = bits;
+        }
         let after = g.times();
         self.passes
             .add(7, pack_s + after.upload_s - before.upload_s);
@@ -760,14 +769,14 @@ impl Reconstructor {
 
     /// With carried accumulators, what the GPU adds the new splats to: the carried
     /// sums and, with the visibility pass, the initial front depths, by the CPU's rule
-    /// ([`Reconstructor::carried_front`]) over no new splat (`front` is scratch here).
+    /// ([`Reconstructor::carried_front`]) over no new splat (in the vector kept for
+    /// them, handed back after the refresh).
     #[cfg(feature = "gpu")]
     fn pack_carried(&mut self) -> gpu::carried::CarriedIn {
         let front = self.visibility_keep().map(|_| {
-            self.front.clear();
-            self.front.resize(self.cover.len(), f32::INFINITY);
-            self.carried_front();
-            gpu::carried::front_bits(&self.front)
+            let mut bits = std::mem::take(&mut self.gpu_front);
+            self.carried_front_bits(&mut bits);
+            bits
         });
         gpu::carried::CarriedIn { front }
     }

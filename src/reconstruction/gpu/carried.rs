@@ -130,11 +130,19 @@ pub(in crate::reconstruction) fn unpack_holds(mask: &[u32], acc: &mut [f32], cs:
 /// Front depths as the shaders keep them: the complement of a depth's bits, so that
 /// an atomic maximum keeps the nearest (positive) depth; none (infinite) is 0, as in
 /// a cleared buffer, which the history also reads as none.
+#[cfg(test)]
 pub(in crate::reconstruction) fn front_bits(front: &[f32]) -> Vec<u32> {
-    front
-        .iter()
-        .map(|&z| if z.is_finite() { !z.to_bits() } else { 0 })
-        .collect()
+    front.iter().map(|&z| front_bit(z)).collect()
+}
+
+/// One depth of [`front_bits`].
+#[inline(always)]
+pub(in crate::reconstruction) fn front_bit(z: f32) -> u32 {
+    if z.is_finite() {
+        !z.to_bits()
+    } else {
+        0
+    }
 }
 
 #[cfg(test)]
