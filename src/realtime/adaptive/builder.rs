@@ -148,9 +148,11 @@ const COST_WINDOW: usize = 32;
 ///
 /// It sets the deepest cut worth making: below `fixed / per_sample` samples the fixed
 /// part is most of a build, so cutting further buys at most twice the images while
-/// dropping most of the samples (and starving the still-region history, which takes in
-/// only the samples placed): images come more often but noisier (docs/performance.md,
-/// "The live limit on many cores").
+/// each image places few of the samples: images come more often but noisier. That cut
+/// never holds an image above what the budget affords, though: where the fixed part
+/// alone outlasts the budget, holding the cut made every build several periods long
+/// (16 cores, docs/performance.md, "Session 41"), while the samples an image leaves
+/// out still reach the still-region history.
 #[derive(Default)]
 pub(super) struct BuildCost {
     recent: VecDeque<(f64, f64)>,
@@ -189,10 +191,14 @@ impl BuildCost {
         (per_sample > 0.0 && fixed > 0.0).then_some((fixed, per_sample))
     }
 
-    /// The fewest samples an image should place: as many as cost the build's fixed
-    /// part, when that is known.
-    pub(super) fn deepest_cut(&self) -> Option<usize> {
-        self.fit().map(|(fixed, per)| (fixed / per) as usize)
+    /// The fewest samples an image should place within `budget_ms`: as many as cost
+    /// the build's fixed part, when that is known, but no more than the budget has
+    /// room for beside it (none where the fixed part alone outlasts it).
+    pub(super) fn deepest_cut(&self, budget_ms: f64) -> Option<usize> {
+        self.fit().map(|(fixed, per)| {
+            let room = (budget_ms - fixed).max(0.0);
+            (fixed.min(room) / per) as usize
+        })
     }
 }
 
@@ -356,7 +362,7 @@ impl ImageBuilder for Builder {
         let budget_ms = settings.image_budget * 1e3 / s.config.refresh_hz;
         self.cost.add(r.placed(), ms);
         let pixel_floor = ((w as usize * h as usize) / LIVE_LIMIT_FLOOR_DIVISOR).max(1);
-        let floor = pixel_floor.max(self.cost.deepest_cut().unwrap_or(0));
+        let floor = pixel_floor.max(self.cost.deepest_cut(budget_ms).unwrap_or(0));
         let limited = self.live_limit.is_some();
         self.live_limit = next_live_limit(
             self.live_limit,

@@ -204,7 +204,7 @@ fn settle(cost: impl Fn(f64) -> f64, arrivals: usize, budget: f64) -> (usize, f6
     for _ in 0..200 {
         let ms = cost(placed as f64);
         fit.add(placed, ms);
-        let floor = pixel_floor.max(fit.deepest_cut().unwrap_or(0));
+        let floor = pixel_floor.max(fit.deepest_cut(budget).unwrap_or(0));
         limit = next_live_limit(limit, placed, ms, budget, floor, cap);
         placed = limit.unwrap_or(cap).min(arrivals);
     }
@@ -212,14 +212,19 @@ fn settle(cost: impl Fn(f64) -> f64, arrivals: usize, budget: f64) -> (usize, f6
 }
 
 #[test]
-fn the_live_limit_cuts_no_deeper_than_the_builds_fixed_part_pays() {
+fn the_live_limit_cuts_no_deeper_than_pays_nor_holds_a_build_over_its_budget() {
     // Fixed part 2 ms, 0.2 µs a sample, budget 13 ms: the budget decides (55K).
     let (placed, ms) = settle(|k| 2.0 + k * 2e-4, 300_000, 13.0);
     assert!((12.0..=13.5).contains(&ms), "{ms} ms with {placed}");
-    // Fixed part 40 ms over the budget: cutting below 200K samples would buy at most
-    // twice the images, so the limit stays near there instead of at the pixel floor.
+    // Fixed part 8 ms: cutting below 40K samples would buy at most twice the images,
+    // but the budget's room beside the fixed part (25K) decides first.
+    let (placed, ms) = settle(|k| 8.0 + k * 2e-4, 300_000, 13.0);
+    assert!((12.0..=13.5).contains(&ms), "{ms} ms with {placed}");
+    // Fixed part 40 ms, over the budget on its own: no cut makes the build fit, and
+    // holding 200K samples would keep each build at six budgets instead of three, so
+    // the limit goes down to the pixel floor.
     let (placed, _) = settle(|k| 40.0 + k * 2e-4, 300_000, 13.0);
-    assert!((150_000..=300_000).contains(&placed), "{placed}");
+    assert_eq!(placed, 1000);
     // The fit needs spread sample counts and a positive fixed part and slope.
     let mut c = BuildCost::default();
     for _ in 0..20 {
@@ -233,7 +238,9 @@ fn the_live_limit_cuts_no_deeper_than_the_builds_fixed_part_pays() {
     }
     let (fixed, per) = c.fit().expect("a fit");
     assert!((fixed - 4.0).abs() < 1e-6 && (per - 1e-4).abs() < 1e-12);
-    assert_eq!(c.deepest_cut(), Some(40_000));
+    assert_eq!(c.deepest_cut(100.0), Some(40_000));
+    assert_eq!(c.deepest_cut(6.0), Some(20_000));
+    assert_eq!(c.deepest_cut(3.0), Some(0));
 }
 
 #[test]
