@@ -1152,41 +1152,39 @@ impl Reconstructor {
         let (Some(c), Some(_)) = (&self.carried, self.visibility_keep()) else {
             return;
         };
-        let (w, cs) = (self.width as usize, self.cs);
-        let acc = &self.acc;
-        self.front
-            .par_chunks_mut(w)
-            .zip(c.geo.par_chunks(w))
-            .enumerate()
-            .for_each(|(y, (row, geo))| {
-                let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
-                lower_fronts(row, geo, weight);
-            });
+        let rows = (&self.acc[..], self.width as usize, self.cs);
+        by_front_row(&mut self.front, c, rows, lower_fronts);
     }
 }
 
 impl Reconstructor {
     /// [`Reconstructor::carried_front`] over no new splat, as the shaders store it
-    /// ([`super::gpu::carried::front_bit`]), into `bits`: rows in parallel, each
-    /// lowered a few pixels at a time on the stack, so that no image of f32 fronts is
-    /// filled, lowered and read again on the way (the GPU's initial front depths).
+    /// ([`super::gpu::carried::front_bit`]), into `bits`: each row lowered a few pixels
+    /// at a time on the stack, so that no image of f32 fronts is filled, lowered and
+    /// read again on the way (the GPU's initial front depths).
     #[cfg(feature = "gpu")]
     pub(super) fn carried_front_bits(&self, bits: &mut Vec<u32>) {
-        let (w, cs) = (self.width as usize, self.cs);
         bits.resize(self.cover.len(), 0);
-        let Some(c) = &self.carried else {
-            bits.fill(0);
-            return;
-        };
-        let acc = &self.acc;
-        bits.par_chunks_mut(w)
-            .zip(c.geo.par_chunks(w))
-            .enumerate()
-            .for_each(|(y, (row, geo))| {
-                let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
-                lowered_front_bits(row, geo, weight);
-            });
+        let rows = (&self.acc[..], self.width as usize, self.cs);
+        match &self.carried {
+            Some(c) => by_front_row(bits, c, rows, lowered_front_bits),
+            None => bits.fill(0),
+        }
     }
+}
+
+/// `lower` applied to each row of `out` (one entry a pixel, rows of `w`) with that
+/// row's carried geometry and weights (rows `cs` apart in `acc`), rows in parallel.
+fn by_front_row<T: Send>(
+    out: &mut [T],
+    c: &Carried,
+    (acc, w, cs): (&[f32], usize, usize),
+    lower: impl Fn(&mut [T], &[Geo], &[f32]) + Sync,
+) {
+    out.par_chunks_mut(w)
+        .zip(c.geo.par_chunks(w))
+        .enumerate()
+        .for_each(|(y, (row, geo))| lower(row, geo, &acc[(y * CHANNELS + 3) * cs..][..w]));
 }
 
 /// The bits ([`super::gpu::carried::front_bit`]) of fronts that start infinite and are

@@ -751,7 +751,14 @@ impl Reconstructor {
                 c.pending = n;
             }
         })?;
-        // Taking in what came back counts as reading it.
+        self.take_in_gpu_back(plan, back);
+        Ok(())
+    }
+
+    /// What a GPU refresh gave back besides the image, taken in (which counts as
+    /// reading it back).
+    #[cfg(feature = "gpu")]
+    fn take_in_gpu_back(&mut self, plan: &mut RefreshPlan, back: gpu::Readback) {
         let lap = std::time::Instant::now();
         if self.resplat {
             self.restart_carry();
@@ -764,7 +771,6 @@ impl Reconstructor {
         }
         self.mean_age = lanes::lane_sum(&self.age) / self.age.len().max(1) as f64;
         self.passes.lap(9, lap);
-        Ok(())
     }
 
     /// With carried accumulators, what the GPU adds the new splats to: the carried
