@@ -401,6 +401,7 @@ impl Reconstructor {
         // replay is the only decay needed.
         let holds_only = c.edits.is_some() && self.holds_only_back();
         if !holds_only {
+            self.ensure_lookup();
             // Rows are independent: in parallel, each row decayed as a whole.
             self.acc
                 .par_chunks_mut(CHANNELS * cs)
@@ -481,6 +482,7 @@ impl Reconstructor {
         camera: &CameraFrame,
     ) {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        self.ensure_lookup();
         std::mem::swap(&mut self.acc, &mut c.prev);
         self.acc.fill(0.0);
         c.next_cover.fill(0.0);

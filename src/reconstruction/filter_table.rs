@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use super::{filter, Reconstructor};
-use crate::tiles::TilingSnapshot;
+use crate::tiles::{Rect, TilingSnapshot};
 
 /// A tile's filter at one refresh, with the per-sample constants derived from it.
 #[derive(Clone, Copy, Debug)]
@@ -48,34 +48,40 @@ pub(super) struct Lookup {
 }
 
 impl Reconstructor {
-    /// Rebuild the per-tile filters and the pixel → tile map from the sampler's tiling.
+    /// Rebuild the per-tile filters and their rectangles from the sampler's tiling, and
+    /// the pixel → tile map where the CPU places this refresh's samples (a GPU paints
+    /// its own from the rectangles; the CPU's is then made only if something here
+    /// reads it, [`Reconstructor::ensure_lookup`]).
     pub(super) fn update_filters(&mut self, tiling: &TilingSnapshot) {
         let cut = self.params.spatial_cutoff;
         self.filters = OnceLock::new();
         self.tiles.clear();
+        self.tile_rects.clear();
         if let Some(e) = self.params.fixed_filter {
             self.tiles.push(TileFilter::new(
                 [e.ex as f32, e.ey as f32, e.et as f32],
                 cut,
             ));
-            self.lookup
-                .par_iter_mut()
-                .zip(&self.scale)
-                .for_each(|(l, &sc)| *l = Lookup { tile: 0, scale: sc });
+            self.tile_rects.push(Rect {
+                x0: 0,
+                y0: 0,
+                x1: self.width,
+                y1: self.height,
+            });
         } else {
             self.tile_filters(tiling);
         }
+        self.lookup_stale = true;
+        if !self.refreshes_on_gpu() {
+            self.ensure_lookup();
+        }
     }
 
-    /// The adaptive filter of every tile of `tiling`, and the pixel → tile map with
-    /// each pixel's splat scale.
+    /// The adaptive filter of every tile of `tiling`, and its rectangle on the image.
     fn tile_filters(&mut self, tiling: &TilingSnapshot) {
-        let (w, h) = (self.width as usize, self.height as usize);
+        let (w, h) = (self.width, self.height);
         let cut = self.params.spatial_cutoff;
         let tiles = tiling.tiles.len();
-        // The tiles that reach each band of rows, so that bands fill their part of
-        // the map in parallel (tiles do not overlap: the order does not matter).
-        let bands = h.div_ceil(MAP_ROWS);
         let bounds = &self.params.bounds;
         let logs = bounds.logs();
         let (rate, volume) = (self.rate, self.params.filter_volume);
@@ -88,17 +94,37 @@ impl Reconstructor {
                 let e = filter::extents_in(v_s, tile.gx, tile.gy, tile.gt, bounds, &logs);
                 TileFilter::new([e.ex as f32, e.ey as f32, e.et as f32], cut)
             }));
+        self.tile_rects.extend(tiling.tiles.iter().map(|t| {
+            let r = t.rect;
+            let (x1, y1) = (r.x1.min(w), r.y1.min(h));
+            Rect {
+                x0: r.x0.min(x1),
+                y0: r.y0.min(y1),
+                x1,
+                y1,
+            }
+        }));
+    }
+
+    /// The pixel → tile map with each pixel's splat scale, from this refresh's tile
+    /// rectangles and the splat scales, if not made since the filters were.
+    pub(super) fn ensure_lookup(&mut self) {
+        if !std::mem::take(&mut self.lookup_stale) {
+            return;
+        }
+        let w = self.width as usize;
+        let bands = (self.height as usize).div_ceil(MAP_ROWS);
+        // The tiles that reach each band of rows, so that bands fill their part of
+        // the map in parallel (tiles do not overlap: the order does not matter).
         let mut reach: Vec<Vec<u32>> = vec![Vec::new(); bands];
-        for (k, tile) in tiling.tiles.iter().enumerate() {
-            let r = tile.rect;
-            let y1 = (r.y1 as usize).min(h);
-            if (r.y0 as usize) < y1 {
-                for band in &mut reach[r.y0 as usize / MAP_ROWS..=(y1 - 1) / MAP_ROWS] {
+        for (k, r) in self.tile_rects.iter().enumerate() {
+            if r.y0 < r.y1 {
+                for band in &mut reach[r.y0 as usize / MAP_ROWS..=(r.y1 as usize - 1) / MAP_ROWS] {
                     band.push(k as u32);
                 }
             }
         }
-        let rects = &tiling.tiles;
+        let rects = &self.tile_rects;
         // Each band takes its splat scales too, while its part of the map is in cache.
         self.lookup
             .par_chunks_mut(MAP_ROWS * w)
@@ -112,8 +138,8 @@ impl Reconstructor {
                 let y0 = b * MAP_ROWS;
                 let rows = band.len() / w.max(1);
                 for &k in ks {
-                    let r = rects[k as usize].rect;
-                    let (x0, x1) = (r.x0 as usize, (r.x1 as usize).min(w));
+                    let r = rects[k as usize];
+                    let (x0, x1) = (r.x0 as usize, r.x1 as usize);
                     let ys = (r.y0 as usize).max(y0)..(r.y1 as usize).min(y0 + rows);
                     for y in ys {
                         for l in &mut band[(y - y0) * w + x0..(y - y0) * w + x1] {
@@ -122,6 +148,14 @@ impl Reconstructor {
                     }
                 }
             });
+    }
+
+    /// Whether a GPU carries out the refreshes (it may fail over to the CPU).
+    fn refreshes_on_gpu(&self) -> bool {
+        #[cfg(feature = "gpu")]
+        return self.gpu.is_some();
+        #[cfg(not(feature = "gpu"))]
+        false
     }
 }
 

@@ -189,7 +189,11 @@ pub struct Reconstructor {
     /// Each pixel's tile and splat scale (the scale also in `scale`, the public map),
     /// together so a sample finds both in one cache line.
     lookup: Vec<Lookup>,
-    /// Per-pixel filter map, built on request from `tiles` and `tile_of`.
+    /// Where each of `tiles` lies on the image (clipped to it).
+    tile_rects: Vec<crate::tiles::Rect>,
+    /// `lookup` is not yet this refresh's (a GPU refresh needs none on the CPU).
+    lookup_stale: bool,
+    /// Per-pixel filter map, built on request from `tiles` and `tile_rects`.
     filters: OnceLock<Vec<[f32; 3]>>,
     scale: Vec<f32>,
     coverage: Vec<u32>,
@@ -296,6 +300,13 @@ impl Reconstructor {
                 };
                 n
             ],
+            tile_rects: vec![crate::tiles::Rect {
+                x0: 0,
+                y0: 0,
+                x1: width,
+                y1: height,
+            }],
+            lookup_stale: false,
             filters: OnceLock::new(),
             scale: vec![scale0; n],
             coverage: vec![0; n],
@@ -556,10 +567,14 @@ impl Reconstructor {
     /// The filter extents each pixel had at the last refresh (`[e_x, e_y, e_t]`).
     pub fn filter_map(&self) -> &[[f32; 3]] {
         self.filters.get_or_init(|| {
-            self.lookup
-                .iter()
-                .map(|l| self.tiles[l.tile as usize].e)
-                .collect()
+            let w = self.width as usize;
+            let mut map = vec![[0.0; 3]; w * self.height as usize];
+            for (f, r) in self.tiles.iter().zip(&self.tile_rects) {
+                for y in r.y0 as usize..r.y1 as usize {
+                    map[y * w + r.x0 as usize..y * w + r.x1 as usize].fill(f.e);
+                }
+            }
+            map
         })
     }
 
@@ -729,7 +744,7 @@ impl Reconstructor {
             t,
             self.params.reproject.then_some(&camera),
             &self.tiles,
-            &self.lookup,
+            &self.tile_rects,
             &self.params,
             max_r,
             plan.history.as_ref(),

@@ -574,6 +574,7 @@ impl Reconstructor {
     /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
     /// of it.
     pub(super) fn prepare_splats(&mut self, plan: &RefreshPlan) {
+        self.ensure_lookup();
         let start = plan.start;
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever

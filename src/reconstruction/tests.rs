@@ -791,3 +791,30 @@ fn the_mean_age_is_the_mean_of_the_pixel_ages() {
         }
     }
 }
+
+#[test]
+fn a_stale_pixel_tile_map_is_made_again_from_the_tile_rectangles_when_read() {
+    let (w, h) = (61u32, 47u32);
+    let (mut r, _, tiling) = random_setup(w, h, 500, 1.0, false, ReconParams::realtime(), GTS);
+    r.update_filters(&tiling);
+    let check = |r: &Reconstructor| {
+        for (q, l) in r.lookup.iter().enumerate() {
+            let (x, y) = ((q % w as usize) as u32, (q / w as usize) as u32);
+            let rect = tiling.tiles[l.tile as usize].rect;
+            assert!(
+                (rect.x0..rect.x1).contains(&x) && (rect.y0..rect.y1).contains(&y),
+                "pixel ({x}, {y}) mapped to tile {} at {rect:?}",
+                l.tile
+            );
+            assert_eq!(l.scale, r.scale[q]);
+        }
+    };
+    check(&r);
+    // As a GPU refresh leaves it: not made for this refresh (and here wrong).
+    r.lookup.iter_mut().for_each(|l| l.tile = 0);
+    r.scale.iter_mut().for_each(|s| *s = 1.5);
+    r.lookup_stale = true;
+    r.ensure_lookup();
+    check(&r);
+    assert!(!r.lookup_stale);
+}

@@ -122,6 +122,7 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         setter_age,
         fill_weight,
         carry,
+        tiles,
         pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());
@@ -131,6 +132,10 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         ay,
         cx,
         cy,
+        x0,
+        y0,
+        x1,
+        y1,
         pad
     });
     check_struct(&m, "TileFilter", tile, std::mem::size_of::<GpuTile>());

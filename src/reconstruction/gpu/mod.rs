@@ -44,13 +44,13 @@ use glam::Vec3;
 
 use super::carry_edits::CarryEdits;
 use super::{
-    filter_table::{Lookup, TileFilter},
+    filter_table::TileFilter,
     history::Step,
     ring::{field, Ring},
     splat::MIN_WEIGHT,
     HistoryParams, ReconParams,
 };
-use crate::scene::CameraFrame;
+use crate::{scene::CameraFrame, tiles::Rect};
 use carried::{CarriedIn, CarriedSums};
 
 /// Storage buffers the shaders bind at once.
@@ -65,6 +65,8 @@ const PER_PIXEL: usize = 6;
 const PER_BLOCK: usize = 5;
 /// Workgroup size of the one-dimensional passes.
 const GROUP: u32 = 256;
+/// Most workgroups a dispatch may have along a side (WebGPU's least limit).
+const MAX_GROUPS: u32 = 65535;
 
 /// `recon.wgsl` after the constants it shares with this side.
 fn recon_source() -> String {
@@ -107,7 +109,9 @@ struct Params {
     setter_age: f32,
     fill_weight: f32,
     carry: u32,
-    pad: [u32; 3],
+    /// Tiles of this refresh's filter table.
+    tiles: u32,
+    pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -118,6 +122,11 @@ struct GpuTile {
     ay: f32,
     cx: f32,
     cy: f32,
+    /// The tile's rectangle on the image, clipped to it (right and bottom exclusive).
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
     pad: [f32; 3],
 }
 
@@ -223,6 +232,9 @@ pub struct GpuRecon {
     acc_carried: bool,
     /// The CPU's carry, to replay at the next refresh once its filters are up.
     replay: Option<wgpu::CommandBuffer>,
+    /// This refresh's work to submit ahead of its next encoder's (the tile map's
+    /// painting, the carry's replay), in order: one submission instead of three.
+    ahead: Vec<wgpu::CommandBuffer>,
     /// Carrying refreshes whose sums were uploaded, and those whose carry was
     /// replayed here.
     carried_by: CarriedBy,
@@ -254,6 +266,7 @@ pub(super) struct CarriedBy {
 }
 
 struct Pipelines {
+    paint: wgpu::ComputePipeline,
     place: wgpu::ComputePipeline,
     count: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
@@ -459,6 +472,7 @@ impl GpuRecon {
             carry,
             acc_carried: false,
             replay: None,
+            ahead: Vec::new(),
             carried_by: CarriedBy::default(),
             sums_back,
         })
@@ -506,37 +520,49 @@ impl GpuRecon {
         self.uploaded = ring.pushed;
     }
 
-    /// Upload the filter table of this refresh.
-    fn upload_filters(&mut self, tiles: &[TileFilter], lookup: &[Lookup]) {
+    /// Upload the filter table of this refresh, each tile with its rectangle, and
+    /// paint the pixel → tile map from them here (the rectangles cover the image
+    /// without overlap): a few hundred kilobytes go up, not a word a pixel. The
+    /// painting goes ahead of the carry's replay, whose decay reads the map. `p`: this
+    /// refresh's parameters, with its tile count, written first.
+    fn upload_filters(&mut self, tiles: &[TileFilter], rects: &[Rect], p: &Params) {
         if tiles.len() > self.buffers.tiles_cap {
             self.buffers.tiles_cap = tiles.len().next_power_of_two();
             self.buffers.tiles = storage(
                 &self.ctx.device,
                 "tiles",
-                self.buffers.tiles_cap as u64 * 32,
+                self.buffers.tiles_cap as u64 * std::mem::size_of::<GpuTile>() as u64,
                 wgpu::BufferUsages::empty(),
             );
             self.rebind();
         }
         let gt: Vec<GpuTile> = tiles
             .iter()
-            .map(|f| GpuTile {
+            .zip(rects)
+            .map(|(f, r)| GpuTile {
                 inv_et: f.inv_et,
                 ax: f.ax,
                 ay: f.ay,
                 cx: f.cx,
                 cy: f.cy,
+                x0: r.x0,
+                y0: r.y0,
+                x1: r.x1,
+                y1: r.y1,
                 pad: [0.0; 3],
             })
             .collect();
-        // Two million pixels at 1920×1080: on every thread.
-        let ids: Vec<u32> = {
-            use rayon::prelude::*;
-            lookup.par_iter().map(|l| l.tile).collect()
-        };
-        let q = &self.ctx.queue;
-        q.write_buffer(&self.buffers.tiles, 0, bytemuck::cast_slice(&gt));
-        q.write_buffer(&self.buffers.pix_tile, 0, bytemuck::cast_slice(&ids));
+        self.ctx
+            .queue
+            .write_buffer(&self.buffers.tiles, 0, bytemuck::cast_slice(&gt));
+        self.write_params(p);
+        let mut enc = self.encoder();
+        // A workgroup a tile, in rows of at most the largest dispatch a side.
+        let n = gt.len() as u32;
+        let across = n.min(MAX_GROUPS);
+        let groups = (across, n.div_ceil(across.max(1)));
+        self.dispatch(&mut enc, &self.pipelines.paint, groups, None);
+        self.ahead.push(enc.finish());
     }
 
     /// One refresh at time `t` seen by `camera` (`None`: no reprojection) of the ring's
@@ -555,7 +581,7 @@ impl GpuRecon {
         t: f64,
         camera: Option<&CameraFrame>,
         tiles: &[TileFilter],
-        lookup: &[Lookup],
+        rects: &[Rect],
         params: &ReconParams,
         max_r: f32,
         step: Option<&Step>,
@@ -563,16 +589,11 @@ impl GpuRecon {
         into: ReadInto,
     ) -> Result<Readback, GpuError> {
         let (t0, before) = (std::time::Instant::now(), self.times);
+        // Work left by a refresh that failed before submitting it is not this one's.
+        self.ahead.clear();
         self.upload_ring(ring);
         if moved {
             self.upload_motion(ring, start);
-        }
-        self.upload_filters(tiles, lookup);
-        // The accumulators change from here: only a carrying refresh that succeeds
-        // leaves the CPU's carried sums in them.
-        self.acc_carried = false;
-        if let Some(work) = self.replay.take() {
-            self.ctx.queue.submit([work]);
         }
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
@@ -582,6 +603,12 @@ impl GpuRecon {
             0
         };
         p.count = count as u32;
+        p.tiles = tiles.len() as u32;
+        self.upload_filters(tiles, rects, &p);
+        // The accumulators change from here: only a carrying refresh that succeeds
+        // leaves the CPU's carried sums in them.
+        self.acc_carried = false;
+        self.ahead.extend(self.replay.take());
         if carried.is_some() {
             if !std::mem::take(&mut self.carried_uploaded) {
                 return Err(GpuError::Failed(
@@ -591,18 +618,30 @@ impl GpuRecon {
             p.carry = 1;
         }
         let front = carried.and_then(|c| c.front.as_deref());
-        loop {
-            p.items_cap = self.buffers.items_cap as u32;
-            self.ctx
-                .queue
-                .write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(&p));
-            let total = self.bin_pass(count, front)?;
-            if total <= self.buffers.items_cap {
-                break;
+        let enc = match self.items_bound(count, max_r) {
+            // Room for every item the footprints can list: the bins go in the same
+            // submission as the splats, with no wait for their count between.
+            Some(bound) => {
+                if bound > self.buffers.items_cap {
+                    self.grow_items(bound);
+                }
+                p.items_cap = self.buffers.items_cap as u32;
+                self.write_params(&p);
+                let mut enc = self.encoder();
+                self.encode_bins(&mut enc, count, front);
+                enc
             }
-            self.grow_items(total);
-        }
-        let back = self.splat_pass(params.fill_weight > 0.0, step, p.keep, into);
+            None => loop {
+                p.items_cap = self.buffers.items_cap as u32;
+                self.write_params(&p);
+                let total = self.bin_pass(count, front)?;
+                if total <= self.buffers.items_cap {
+                    break self.encoder();
+                }
+                self.grow_items(total);
+            },
+        };
+        let back = self.splat_pass(enc, params.fill_weight > 0.0, step, p.keep, into);
         self.acc_carried = p.carry == 1 && back.is_ok();
         let waited = (self.times.wait_s - before.wait_s) + (self.times.read_s - before.read_s);
         self.times.upload_s += t0.elapsed().as_secs_f64() - waited;
@@ -761,13 +800,45 @@ impl GpuRecon {
         pass.dispatch_workgroups(groups.0, groups.1, 1);
     }
 
-    /// Place, count, scan and list the splats by bin, the front depths starting from
-    /// `front` (as [`carried::front_bits`] gives them; `None`: from none); returns the
-    /// items listed.
-    fn bin_pass(&mut self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
-        let nb = self.bins.0 as u64 * self.bins.1 as u64;
+    /// Items (a splat listed in a bin) that `count` splats of radius at most `max_r`
+    /// can list, where a buffer of them fits the adapter's limit (`None`: the count
+    /// must be read back first, [`GpuRecon::bin_pass`]). A footprint's first and last
+    /// columns are at most `2 max_r` apart (`ceil(x − ½ − r)` to `floor(x − ½ + r)`),
+    /// so it touches at most `ceil(2 max_r / BIN) + 1` bins across, and as many down.
+    fn items_bound(&self, count: usize, max_r: f32) -> Option<usize> {
+        let across = bins_across(max_r)?;
+        let bound = (count as u64).checked_mul(across * across)?;
+        let lim = &self.ctx.limits;
+        let most = lim.max_storage_buffer_binding_size.min(lim.max_buffer_size);
+        // As `grow_items` grows it, four bytes an item.
+        let bytes = bound.saturating_add(bound / 4 + 1024).saturating_mul(4);
+        (bytes <= most).then_some(bound as usize)
+    }
+
+    fn write_params(&self, p: &Params) {
+        self.ctx
+            .queue
+            .write_buffer(&self.buffers.params, 0, bytemuck::bytes_of(p));
+    }
+
+    /// Submit the work waiting to go ahead of `enc`'s ([`GpuRecon::ahead`]), then its,
+    /// in one submission.
+    fn submit(&mut self, enc: wgpu::CommandEncoder) {
+        let mut work = std::mem::take(&mut self.ahead);
+        work.push(enc.finish());
+        self.ctx.queue.submit(work);
+    }
+
+    fn encoder(&self) -> wgpu::CommandEncoder {
         let d = &self.ctx.device;
-        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default())
+    }
+
+    /// Encode placing, counting, scanning and listing the splats by bin, the front
+    /// depths starting from `front` (as [`carried::front_bits`] gives them; `None`:
+    /// from none).
+    fn encode_bins(&self, enc: &mut wgpu::CommandEncoder, count: usize, front: Option<&[u32]>) {
+        let nb = self.bins.0 as u64 * self.bins.1 as u64;
         enc.clear_buffer(&self.buffers.bins, 0, Some(nb * 4));
         match front {
             // Written before this encoder's work runs: queue writes go ahead of the
@@ -780,10 +851,18 @@ impl GpuRecon {
         }
         let groups = (count as u32).div_ceil(GROUP);
         let pl = &self.pipelines;
-        self.dispatch(&mut enc, &pl.place, (groups, 1), None);
-        self.dispatch(&mut enc, &pl.count, (groups, 1), None);
-        self.dispatch(&mut enc, &pl.scan, (1, 1), None);
-        self.dispatch(&mut enc, &pl.fill, (groups, 1), None);
+        self.dispatch(enc, &pl.place, (groups, 1), None);
+        self.dispatch(enc, &pl.count, (groups, 1), None);
+        self.dispatch(enc, &pl.scan, (1, 1), None);
+        self.dispatch(enc, &pl.fill, (groups, 1), None);
+    }
+
+    /// The bins' work ([`GpuRecon::encode_bins`]) on its own, with the items listed
+    /// read back.
+    fn bin_pass(&mut self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
+        let nb = self.bins.0 as u64 * self.bins.1 as u64;
+        let mut enc = self.encoder();
+        self.encode_bins(&mut enc, count, front);
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
             2 * nb * 4,
@@ -791,7 +870,7 @@ impl GpuRecon {
             0,
             4,
         );
-        self.ctx.queue.submit([enc.finish()]);
+        self.submit(enc);
         let bufs = [(&self.buffers.read_counts, 4)];
         read_timed(&self.ctx, &mut self.times, &bufs, |v| {
             first_u32(v[0]) as usize
@@ -803,6 +882,7 @@ impl GpuRecon {
     /// arrays.
     fn splat_pass(
         &mut self,
+        mut enc: wgpu::CommandEncoder,
         pull_push: bool,
         step: Option<&Step>,
         keep: f32,
@@ -810,8 +890,6 @@ impl GpuRecon {
     ) -> Result<Readback, GpuError> {
         let n = self.width as u64 * self.height as u64;
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
-        let d = &self.ctx.device;
-        let mut enc = d.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
         let pl = &self.pipelines;
         let pixels = (n as u32).div_ceil(GROUP);
         self.dispatch(&mut enc, &pl.sort, self.bins, None);
@@ -836,17 +914,18 @@ impl GpuRecon {
         }
         enc.copy_buffer_to_buffer(shown, 0, &self.buffers.read_out, 0, bytes);
         self.encode_sums_back(&mut enc);
+        // The items listed, then the holes.
         enc.copy_buffer_to_buffer(
             &self.buffers.bins,
-            (2 * nb + 1) * 4,
+            2 * nb * 4,
             &self.buffers.read_counts,
             0,
-            4,
+            8,
         );
-        self.ctx.queue.submit([enc.finish()]);
+        self.submit(enc);
         let history = self.history.as_ref().filter(|_| step.is_some());
         let mut bufs = vec![
-            (&self.buffers.read_counts, 4),
+            (&self.buffers.read_counts, 8),
             (&self.buffers.read_out, bytes),
         ];
         bufs.extend(history.map(|h| h.read_buffers()).into_iter().flatten());
@@ -857,18 +936,26 @@ impl GpuRecon {
             None => None,
         });
         let (back, w) = (self.sums_back, self.width as usize);
+        let cap = self.buffers.items_cap;
         read_timed(&self.ctx, &mut self.times, &bufs, |v| {
+            let listed = first_u32(v[0]) as usize;
+            if listed > cap {
+                // Past the bound `items_bound` proves: the image lacks splats.
+                return Err(GpuError::Failed(format!(
+                    "{listed} bin items listed, over the {cap} there was room for"
+                )));
+            }
             unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
             let rest = &v[2..];
             let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1]));
             if let (Some(back), Some(bytes)) = (back, rest.last()) {
                 carried::unpack_back(back, bytes, into.sums, w);
             }
-            Readback {
-                holes: first_u32(v[0]) as usize,
+            Ok(Readback {
+                holes: first_u32(&v[0][4..]) as usize,
                 history,
-            }
-        })
+            })
+        })?
     }
 
     /// Encode the copy of what comes back of the carried sums ([`SumsBack`]), after the
@@ -907,6 +994,13 @@ impl GpuRecon {
             Some(0),
         );
     }
+}
+
+/// Most bins a footprint of radius at most `max_r` touches along a side (`None`: no
+/// finite bound): its first and last pixels are at most `2 max_r` apart.
+fn bins_across(max_r: f32) -> Option<u64> {
+    (max_r.is_finite() && max_r >= 0.0)
+        .then(|| (2.0 * f64::from(max_r) / f64::from(BIN)).ceil() as u64 + 1)
 }
 
 /// `take` of the mapped `bufs` ([`GpuContext::read_mapped_all`], after all work
@@ -966,7 +1060,7 @@ impl Buffers {
         Self {
             params: uniform("params", std::mem::size_of::<Params>() as u64),
             ring: storage(d, "ring", cap * RING_FIELDS as u64 * 4, none),
-            tiles: storage(d, "tiles", 64 * 32, none),
+            tiles: storage(d, "tiles", 64 * std::mem::size_of::<GpuTile>() as u64, none),
             pix_tile: storage(d, "pixel tiles", n * 4, none),
             scale: storage(d, "splat scale", n * 4, none),
             splats: storage(d, "splats", cap * SPLAT_BYTES, none),
@@ -1114,8 +1208,8 @@ impl Pipelines {
             label: Some("recon.wgsl"),
             source: wgpu::ShaderSource::Wgsl(recon_source().into()),
         });
-        // The ring, the tile filters and the pixel → tile map are only read.
-        let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2, 3]);
+        // The ring and the tile filters are only read.
+        let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2]);
         let layout1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("level"),
             entries: &[buffer_entry(0, wgpu::BufferBindingType::Uniform, true)],
@@ -1127,6 +1221,7 @@ impl Pipelines {
         });
         let make = |name: &str| compute_pipeline(device, &layout, &module, name);
         Self {
+            paint: make("paint_tiles"),
             place: make("place"),
             count: make("count"),
             scan: make("scan"),
@@ -1143,6 +1238,39 @@ impl Pipelines {
             layout0,
             layout1,
         }
+    }
+}
+
+#[cfg(test)]
+mod bound_tests {
+    use super::{bins_across, BIN};
+    use proptest::prelude::*;
+
+    proptest! {
+        /// A footprint spans `ceil(x − ½ − r)` to `floor(x − ½ + r)` in f32, as the
+        /// placing shader computes it, clipped to the image: the bins it lists along a
+        /// side never outnumber the bound the one-submission refresh sizes its items by.
+        #[test]
+        fn no_footprint_touches_more_bins_than_the_bound(
+            x in -20.0f32..5000.0,
+            max_r in 0.0f32..80.0,
+            share in 0.0f32..=1.0,
+        ) {
+            let r = max_r * share;
+            let w = 4096.0f32;
+            let x0 = (x - 0.5 - r).ceil().max(0.0);
+            let x1 = (x - 0.5 + r).floor().min(w);
+            prop_assume!(x0 <= x1);
+            let bins = (x1 as u32 / BIN - x0 as u32 / BIN + 1) as u64;
+            prop_assert!(bins <= bins_across(max_r).unwrap(), "{bins} bins");
+        }
+    }
+
+    #[test]
+    fn no_bound_without_a_finite_radius() {
+        assert_eq!(bins_across(f32::INFINITY), None);
+        assert_eq!(bins_across(f32::NAN), None);
+        assert_eq!(bins_across(8.0), Some(2));
     }
 }
 

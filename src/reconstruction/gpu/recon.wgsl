@@ -54,9 +54,10 @@ struct Params {
     // Nonzero: `acc` holds the sums carried from the previous refresh, and its last
     // float per pixel the carried coverage (a float) instead of this refresh's count.
     carry: u32,
+    // Tiles of this refresh's filter table.
+    tiles: u32,
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }
 
 struct TileFilter {
@@ -65,6 +66,11 @@ struct TileFilter {
     ay: f32,
     cx: f32,
     cy: f32,
+    // The tile's rectangle on the image, clipped to it (right and bottom exclusive).
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
     pad0: f32,
     pad1: f32,
     pad2: f32,
@@ -116,7 +122,7 @@ const T: u32 = 11u;
 @group(0) @binding(0) var<uniform> P: Params;
 @group(0) @binding(1) var<storage, read> ring: array<f32>;
 @group(0) @binding(2) var<storage, read> tiles: array<TileFilter>;
-@group(0) @binding(3) var<storage, read> pix_tile: array<u32>;
+@group(0) @binding(3) var<storage, read_write> pix_tile: array<u32>;
 @group(0) @binding(4) var<storage, read_write> scale: array<f32>;
 @group(0) @binding(5) var<storage, read_write> splats: array<Splat>;
 // Per bin: counts, then cursors; then the total of items and the hole count.
@@ -163,6 +169,26 @@ fn empty_splat() -> Splat {
 fn hidden(p: u32, z: f32) -> bool {
     let f = atomicLoad(&front[p]);
     return f != 0u && bitcast<f32>(~f) < z * P.keep;
+}
+
+// The pixel → tile map, a workgroup a tile writing its index over its rectangle
+// (the rectangles cover the image without overlap).
+@compute @workgroup_size(64)
+fn paint_tiles(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let k = wg.y * groups.x + wg.x;
+    if k >= P.tiles {
+        return;
+    }
+    let f = tiles[k];
+    let w = f.x1 - f.x0;
+    let n = w * (f.y1 - f.y0);
+    for (var j = li; j < n; j += 64u) {
+        pix_tile[(f.y0 + j / w) * P.width + f.x0 + j % w] = k;
+    }
 }
 
 @compute @workgroup_size(256)
