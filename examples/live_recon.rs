@@ -64,6 +64,9 @@ fn main() {
         f.ms_median, f.placed_per_image, f.image_hash
     );
     println!("  taking the new samples in: {:.2} ms", f.take_in_ms_median);
+    if let Some(cpu) = f.cpu_ms_mean {
+        println!("  CPU time of the whole process per image (mean): {cpu:.1} ms");
+    }
     let passes: Vec<String> = f
         .pass_ms
         .iter()

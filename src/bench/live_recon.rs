@@ -8,6 +8,7 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::{
+    realtime::machine::process_cpu_seconds,
     reconstruction::{
         device::{GpuContext, GpuError, ReconUsed},
         PassTimes, ReconParams, Reconstructor, RingSample,
@@ -77,6 +78,12 @@ pub struct LiveFigure {
     /// one at a time, as the real-time image thread does before it builds), not part
     /// of `ms_median`.
     pub take_in_ms_median: f64,
+    /// Mean CPU milliseconds of one timed image over the whole process: every thread's
+    /// (the reconstructor's pool and, on a GPU, its driver's; a software adapter's
+    /// include the GPU's own work). Against `ms_median` it says how much of a GPU
+    /// image's time is CPU work and how much waiting. `None` where the system does not
+    /// say (not Linux).
+    pub cpu_ms_mean: Option<f64>,
     /// Whether the camera turned between images (every carried pixel moves).
     pub turning: bool,
     /// Where the refreshes ran: the CPU, or the GPU adapter in words (on a GPU the
@@ -202,6 +209,7 @@ pub fn live_image_ms(
     let mut batch = Vec::new();
     let mut placed = 0usize;
     let mut warm_passes = PassTimes::default();
+    let mut cpu_s = Some(0.0);
     for i in 0..warm + images.max(1) {
         let t1 = (i + 1) as f64 / case.refresh_hz;
         traced_during(i, per, case, turning, &mut rng, &mut batch);
@@ -216,11 +224,13 @@ pub fn live_image_ms(
         if i == warm {
             warm_passes = r.pass_times().clone();
         }
-        let t0 = Instant::now();
+        let (t0, cpu0) = (Instant::now(), process_cpu_seconds());
         std::hint::black_box(r.reconstruct(t1, &cam, &tiling));
         if i >= warm {
             times.push(t0.elapsed().as_secs_f64() * 1e3);
             placed += r.placed();
+            let used = cpu0.zip(process_cpu_seconds()).map(|(a, b)| b - a);
+            cpu_s = cpu_s.zip(used).map(|(s, u)| s + u);
         }
     }
     #[cfg(feature = "gpu")]
@@ -238,6 +248,7 @@ pub fn live_image_ms(
         placed_per_image: placed as f64 / times.len() as f64,
         ms_median: times[times.len() / 2],
         take_in_ms_median: take_in[take_in.len() / 2],
+        cpu_ms_mean: cpu_s.map(|s| s * 1e3 / times.len() as f64),
         turning,
         recon: r.used(),
         pass_ms: r.pass_times().since(&warm_passes).mean_ms(),

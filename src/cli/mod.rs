@@ -244,6 +244,11 @@ fn bench_live_recon(json: bool, gpu: Option<Arc<GpuContext>>) -> Result<()> {
             );
             if f.recon.device != "cpu" {
                 println!("      {}", pass_split(&f.pass_ms));
+                if let Some(cpu) = f.cpu_ms_mean {
+                    println!(
+                        "      CPU ms per image, every thread of the process (mean): {cpu:.1}"
+                    );
+                }
             }
         }
     };

@@ -489,6 +489,13 @@ impl History {
         age_sum
     }
 
+    /// The counts the GPU last gave back, as a vector to read the next ones into
+    /// (left empty: the next refresh's come back or the CPU takes over).
+    #[cfg(feature = "gpu")]
+    pub(super) fn take_gpu_counts(&mut self) -> Vec<f32> {
+        std::mem::take(&mut self.gpu_counts)
+    }
+
     /// After the GPU carried out `step`: its counts and the pixels it cut.
     #[cfg(feature = "gpu")]
     pub(super) fn done_on_gpu(&mut self, step: Step, counts: Vec<f32>, cuts: u64) {

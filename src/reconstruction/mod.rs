@@ -736,6 +736,11 @@ impl Reconstructor {
             coverage: &mut self.coverage,
             scale: &mut self.scale,
             sums: (&mut self.acc, self.cs, &mut self.cover),
+            // Given back with the step's outcome (`take_in_gpu_back`).
+            counts: match (&mut self.history, &plan.history) {
+                (Some(h), Some(_)) => h.take_gpu_counts(),
+                _ => Vec::new(),
+            },
         };
         let back = g.refresh(
             &self.ring,

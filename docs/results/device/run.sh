@@ -132,10 +132,12 @@ for size in 1280x720 1920x1080; do
     --recon gpu --method adaptive --image-budget 0
 done
 # The reconstructor alone on the GPU at live rates (`per pass` splits the CPU's parts
-# from gpu_wait), on 1 thread and every core: the sums carried (still), and the ring
-# re-splatted under a still camera (no carry).
+# from gpu_wait, and the process's CPU time per image tells CPU work from waiting), on
+# 1 thread and every core: the sums carried (still), and the ring re-splatted under a
+# still camera (no carry). 1280x720 at 1 M samples/s first: about what 2 cores trace
+# live (33K new samples an image, where a GPU image's per-pixel costs lead).
 if [ -x "$ex" ]; then
-  cases="'$(case_of '1920 1080 4e6 30')' '$(case_of '1280 720 4e6 30')' '$(case_of '640 480 3e6 30')'"
+  cases="'$(case_of '1280 720 1e6 30')' '$(case_of '1920 1080 4e6 30')' '$(case_of '1280 720 4e6 30')' '$(case_of '640 480 3e6 30')'"
   step live_recon_gpu 100 bash -c "for c in $cases; do
     for t in 1 $all; do for m in '2 still' '6 resplat still'; do
       echo \"\$c ring \$m threads=\$t gpu:\"; RAYON_NUM_THREADS=\$t '$ex' \$c \$m gpu; done; done; done"

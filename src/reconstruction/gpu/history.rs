@@ -78,6 +78,8 @@ pub(super) struct GpuHistory {
     counts: wgpu::Buffer,
     read_counts: wgpu::Buffer,
     read_cuts: wgpu::Buffer,
+    /// The fresh samples packed for the upload, kept between refreshes.
+    fresh_packed: Vec<f32>,
     /// Fresh samples and cut pixels the buffers hold.
     fresh_cap: usize,
     cuts_cap: usize,
@@ -126,6 +128,7 @@ impl GpuHistory {
             }),
             read_counts: readback(d, "history count readback", n * 4),
             read_cuts: readback(d, "history cut readback", 4),
+            fresh_packed: Vec::new(),
             fresh_cap: 1024,
             cuts_cap: 1024,
             bind: None,
@@ -191,10 +194,13 @@ impl GpuHistory {
         [(&self.read_counts, n * 4), (&self.read_cuts, 4)]
     }
 
-    /// What [`GpuHistory::read_buffers`] mapped, as the CPU history takes it.
-    pub(super) fn back(counts: &[u8], cuts: &[u8]) -> HistoryBack {
+    /// What [`GpuHistory::read_buffers`] mapped, as the CPU history takes it: the
+    /// counts into `into` (the vector the last refresh's came in, so that no refresh
+    /// allocates and faults in a new one).
+    pub(super) fn back(counts: &[u8], cuts: &[u8], mut into: Vec<f32>) -> HistoryBack {
+        super::copy_par_into(bytemuck::cast_slice(counts), &mut into);
         HistoryBack {
-            counts: super::copy_par(bytemuck::cast_slice(counts)),
+            counts: into,
             cuts: bytemuck::cast_slice::<u8, u32>(cuts)[0] as u64,
         }
     }
@@ -209,7 +215,8 @@ impl GpuHistory {
         epoch: f64,
         buffers: (&wgpu::Buffer, &wgpu::Buffer),
     ) -> u32 {
-        let mut fresh = Vec::with_capacity(step.order.len() * FRESH);
+        let mut fresh = std::mem::take(&mut self.fresh_packed);
+        fresh.clear();
         for &(q, i) in &step.order {
             let f = &step.fresh[i as usize];
             fresh.extend_from_slice(&[f32::from_bits(q), f.still as u32 as f32]);
@@ -240,6 +247,7 @@ impl GpuHistory {
         }
         ctx.queue
             .write_buffer(&self.fresh, 0, bytemuck::cast_slice(&fresh));
+        self.fresh_packed = fresh;
         ctx.queue
             .write_buffer(&self.cut_list, 0, bytemuck::cast_slice(&cuts));
         cuts.len() as u32

@@ -4,9 +4,10 @@
 //! The CPU [`Reconstructor`](super::Reconstructor) stays the reference and keeps
 //! everything between refreshes but the splat scale map: its ring, the filter table it
 //! builds from the sampler's tiling, the stale cut. At a refresh this side uploads the
-//! samples pushed since the last one (into a ring of the same layout on the GPU), the
-//! per-tile filters and the pixel → tile map, and reads back the image, ages,
-//! coverage and splat scale. Splatting becomes a gather: each footprint is listed in
+//! samples pushed since the last one (into a ring of the same layout on the GPU) and
+//! the per-tile filters with their rectangles (the shaders paint the pixel → tile map
+//! from those), submits its work at once, and reads back the image, ages, coverage and
+//! splat scale. Splatting becomes a gather: each footprint is listed in
 //! the 16×16-pixel bins it touches, each bin's list is sorted into ring order, and each
 //! pixel adds the weights of its bin's splats in that order. The arithmetic is the
 //! CPU's, but for `exp` and the pyramid sums (f32 here, f64 there), so images agree
@@ -164,6 +165,8 @@ pub(super) struct ReadInto<'a> {
     /// The planar accumulators (channel stride `cs`) and the carried coverage, which
     /// a GPU side made for carrying fills with its final sums, before any fill.
     pub(super) sums: (&'a mut [f32], usize, &'a mut [f32]),
+    /// The vector the history's counts came back in last time, to take them again.
+    pub(super) counts: Vec<f32>,
 }
 
 /// Seconds a GPU reconstructor has spent in each part of its refreshes.
@@ -947,7 +950,8 @@ impl GpuRecon {
             }
             unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
             let rest = &v[2..];
-            let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1]));
+            let counts = std::mem::take(&mut into.counts);
+            let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1], counts));
             if let (Some(back), Some(bytes)) = (back, rest.last()) {
                 carried::unpack_back(back, bytes, into.sums, w);
             }
@@ -1029,18 +1033,20 @@ fn first_u32(b: &[u8]) -> u32 {
     bytemuck::cast_slice::<u8, u32>(&b[..4])[0]
 }
 
-/// `src` copied on every thread: a refresh reads back its image and its carried sums,
-/// tens of megabytes at 1920×1080, and one thread's copy out of the mapping (and its
-/// page faults on the new vector) was a large share of the GPU reconstructor's time.
-fn copy_par(src: &[f32]) -> Vec<f32> {
+/// `src` copied into `out` on every thread, reusing `out` where it has `src`'s
+/// length: a refresh reads back its history's counts, megabytes at 1920×1080, and one
+/// thread's copy out of the mapping (and its page faults on a new vector) was a large
+/// share of the GPU reconstructor's time.
+fn copy_par_into(src: &[f32], out: &mut Vec<f32>) {
     use rayon::prelude::*;
     const CHUNK: usize = 1 << 16;
-    // Zeroed pages are mapped on first write, so each thread faults in its own part.
-    let mut out = vec![0.0; src.len()];
+    if out.len() != src.len() {
+        // Zeroed pages are mapped on first write, so each thread faults in its own part.
+        *out = vec![0.0; src.len()];
+    }
     out.par_chunks_mut(CHUNK)
         .zip(src.par_chunks(CHUNK))
         .for_each(|(d, s)| d.copy_from_slice(s));
-    out
 }
 
 impl Buffers {
@@ -1280,7 +1286,14 @@ mod copy_tests {
     fn a_parallel_copy_keeps_every_float_in_order() {
         // Chunks of 2^16 floats, the last one short.
         let src: Vec<f32> = (0..(3 << 16) + 123).map(|i| i as f32 * 0.5).collect();
-        assert_eq!(super::copy_par(&src), src);
-        assert!(super::copy_par(&[]).is_empty());
+        let mut out = Vec::new();
+        super::copy_par_into(&src, &mut out);
+        assert_eq!(out, src);
+        // Reused at the same length: every float written again.
+        let again: Vec<f32> = src.iter().map(|x| x + 1.0).collect();
+        super::copy_par_into(&again, &mut out);
+        assert_eq!(out, again);
+        super::copy_par_into(&[], &mut out);
+        assert!(out.is_empty());
     }
 }
