@@ -525,9 +525,9 @@ impl GpuRecon {
 
     /// Upload the filter table of this refresh, each tile with its rectangle, and
     /// paint the pixel → tile map from them here (the rectangles cover the image
-    /// without overlap): a few hundred kilobytes go up, not a word a pixel. The
-    /// painting goes ahead of the carry's replay, whose decay reads the map. `p`: this
-    /// refresh's parameters, with its tile count, written first.
+    /// without overlap): 48 bytes a tile go up, not 4 a pixel (tiles average tens of
+    /// pixels). The painting goes ahead of the carry's replay, whose decay reads the
+    /// map. `p`: this refresh's parameters, with its tile count, written first.
     fn upload_filters(&mut self, tiles: &[TileFilter], rects: &[Rect], p: &Params) {
         if tiles.len() > self.buffers.tiles_cap {
             self.buffers.tiles_cap = tiles.len().next_power_of_two();
