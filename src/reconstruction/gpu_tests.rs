@@ -98,6 +98,22 @@ fn check(d: &Differences, pixels: usize, what: &str) {
     );
 }
 
+/// Refresh `k` of both sides at t = 1 + 0.01 k s (at and after the last sample of
+/// [`random_setup`]: splat scales evolve), the GPU without failing, its images as the
+/// CPU's (`what` names the case).
+fn refresh_and_compare(
+    (cpu, gpu): (&mut Reconstructor, &mut Reconstructor),
+    k: usize,
+    (cam, tiling): (&CameraFrame, &crate::tiles::TilingSnapshot),
+    what: &str,
+) {
+    let t = 1.0 + 0.01 * k as f64;
+    cpu.reconstruct(t, cam, tiling);
+    gpu.reconstruct(t, cam, tiling);
+    assert_eq!(gpu.gpu_failure(), None);
+    check(&differences(cpu, gpu), cpu.image().pixels.len(), what);
+}
+
 #[test]
 #[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
 fn gpu_refreshes_match_the_cpu() {
@@ -129,20 +145,12 @@ fn gpu_refreshes_match_the_cpu() {
             gpu.use_gpu(ctx.clone())
                 .expect("the paper's steps run on the GPU");
             for k in 0..3 {
-                // Refreshes at and after the last sample: splat scales evolve.
-                let t = 1.0 + 0.01 * k as f64;
-                cpu.reconstruct(t, &c, &tiling);
-                gpu.reconstruct(t, &c, &tiling);
-                assert_eq!(gpu.gpu_failure(), None);
-                assert_eq!(cpu.placed(), gpu.placed());
-                check(
-                    &differences(&cpu, &gpu),
-                    (w * h) as usize,
-                    &format!(
-                        "{w}x{h}, {n} samples, fill {}, refresh {k}",
-                        params.fill_weight
-                    ),
+                let what = format!(
+                    "{w}x{h}, {n} samples, fill {}, refresh {k}",
+                    params.fill_weight
                 );
+                refresh_and_compare((&mut cpu, &mut gpu), k, (&c, &tiling), &what);
+                assert_eq!(cpu.placed(), gpu.placed());
             }
             assert_eq!(gpu.used().device, "gpu");
         }
@@ -163,15 +171,8 @@ fn gpu_refreshes_that_count_their_bin_items_first_match_the_cpu() {
             .expect("these steps run on the GPU");
         gpu.gpu.as_mut().expect("a GPU side").count_items_first();
         for k in 0..3 {
-            let t = 1.0 + 0.01 * k as f64;
-            cpu.reconstruct(t, &c, &tiling);
-            gpu.reconstruct(t, &c, &tiling);
-            assert_eq!(gpu.gpu_failure(), None);
-            check(
-                &differences(&cpu, &gpu),
-                (w * h) as usize,
-                &format!("{w}x{h}, {n} samples, counted first, refresh {k}"),
-            );
+            let what = format!("{w}x{h}, {n} samples, counted first, refresh {k}");
+            refresh_and_compare((&mut cpu, &mut gpu), k, (&c, &tiling), &what);
         }
         assert_eq!(gpu.used().device, "gpu");
     }

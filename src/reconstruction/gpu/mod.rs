@@ -533,8 +533,9 @@ impl GpuRecon {
     /// paint the pixel → tile map from them here (the rectangles cover the image
     /// without overlap): 48 bytes a tile go up, not 4 a pixel (tiles average tens of
     /// pixels). The painting goes ahead of the carry's replay, whose decay reads the
-    /// map. `p`: this refresh's parameters, with its tile count, written first.
-    fn upload_filters(&mut self, tiles: &[TileFilter], rects: &[Rect], p: &Params) {
+    /// map. The painting reads the tile count from this refresh's parameters, written
+    /// before anything is submitted.
+    fn upload_filters(&mut self, tiles: &[TileFilter], rects: &[Rect]) {
         if tiles.len() > self.buffers.tiles_cap {
             self.buffers.tiles_cap = tiles.len().next_power_of_two();
             self.buffers.tiles = storage(
@@ -564,7 +565,6 @@ impl GpuRecon {
         self.ctx
             .queue
             .write_buffer(&self.buffers.tiles, 0, bytemuck::cast_slice(&gt));
-        self.write_params(p);
         let mut enc = self.encoder();
         // A workgroup a tile, in rows of at most the largest dispatch a side.
         let n = gt.len() as u32;
@@ -613,7 +613,7 @@ impl GpuRecon {
         };
         p.count = count as u32;
         p.tiles = tiles.len() as u32;
-        self.upload_filters(tiles, rects, &p);
+        self.upload_filters(tiles, rects);
         // The accumulators change from here: only a carrying refresh that succeeds
         // leaves the CPU's carried sums in them.
         self.acc_carried = false;
