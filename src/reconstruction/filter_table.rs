@@ -151,7 +151,7 @@ impl Reconstructor {
     }
 
     /// Whether a GPU carries out the refreshes (it may fail over to the CPU).
-    fn refreshes_on_gpu(&self) -> bool {
+    pub(super) fn refreshes_on_gpu(&self) -> bool {
         #[cfg(feature = "gpu")]
         return self.gpu.is_some();
         #[cfg(not(feature = "gpu"))]

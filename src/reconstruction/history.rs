@@ -329,9 +329,12 @@ pub(super) struct Step {
     pub(super) slack: f32,
     /// The samples that enter, in pixel order (stably, so each pixel sees its
     /// samples in the order they came), and their `(pixel, index)`: `index` counts
-    /// up from 0 (the order the GPU's upload reads).
+    /// up from 0 (the order the GPU's upload reads). Unless `in_pixel_order` is
+    /// false: then `order` lists them in the order they came, `index` into `fresh`
+    /// (every sample pushed, each with its pixel), for a GPU that orders them itself.
     pub(super) fresh: Vec<Fresh>,
     pub(super) order: Vec<(u32, u32)>,
+    pub(super) in_pixel_order: bool,
     /// Pixels where recent samples of moving surfaces are now, oldest first.
     pub(super) cuts: Vec<u32>,
 }
@@ -475,11 +478,17 @@ impl History {
     /// `1 / (1 + tolerance)`.
     pub(super) fn apply(
         &mut self,
-        step: Step,
+        mut step: Step,
         image: &mut Image,
         age: &mut [f32],
         front: Option<(&[f32], f32)>,
     ) -> f64 {
+        if !step.in_pixel_order {
+            // Planned for a GPU that failed: a stable sort keeps each pixel's samples
+            // in the order they came.
+            step.order.sort_by_key(|&(q, _)| q);
+            step.in_pixel_order = true;
+        }
         let (cuts, age_sum) = {
             let params = self.params;
             self.cpu_pixels().apply(&step, &params, front, image, age)
@@ -505,8 +514,10 @@ impl History {
     }
 
     /// Decide the refresh at `t` seen by `camera`: the view change, the samples that
-    /// enter and where, and the pixels moving surfaces cut.
-    pub(super) fn plan(&mut self, t: f64, camera: &CameraFrame) -> Step {
+    /// enter and where, and the pixels moving surfaces cut. `in_pixel_order`: the
+    /// entering samples sorted by pixel (for the CPU's arrays), or left in the order
+    /// they came (for a GPU, which sorts them there).
+    pub(super) fn plan(&mut self, t: f64, camera: &CameraFrame, in_pixel_order: bool) -> Step {
         let since = self.view_since.take().unwrap_or(
             if self.last_camera.is_some_and(|c| c.same_view(camera)) {
                 f64::NEG_INFINITY
@@ -527,7 +538,19 @@ impl History {
             ViewChange::Reset
         };
         self.camera = Some(*camera);
-        let (fresh, order) = self.order_fresh(t, camera, since);
+        let place = Placing {
+            t,
+            camera: *camera,
+            since,
+            width: self.width,
+            height: self.height,
+            reproject: self.params.reproject,
+        };
+        let (fresh, order) = if in_pixel_order {
+            self.order_fresh(&place)
+        } else {
+            self.place_fresh(&place)
+        };
         let cuts = self.moving_cuts(t, camera);
         Step {
             t,
@@ -536,6 +559,7 @@ impl History {
             slack,
             fresh,
             order,
+            in_pixel_order,
             cuts,
         }
     }
@@ -544,36 +568,17 @@ impl History {
     /// touches only its own pixel, so the outcome is the same as in arrival order, and
     /// the history's arrays and the samples are read in address order instead of at
     /// random. The pushed samples are used up.
-    fn order_fresh(
-        &mut self,
-        t: f64,
-        camera: &CameraFrame,
-        since: f64,
-    ) -> (Vec<Fresh>, Vec<(u32, u32)>) {
-        let (w, h) = (self.width, self.height);
-        let reproject = self.params.reproject;
-        // Where each sample's surface point is seen now, or where it was traced if it
-        // was traced from this view.
-        let place = move |f: &Fresh, tr: &Traced| {
-            if reproject {
-                let p = f.hit_point + tr.velocity * (t - f.t) as f32;
-                pixel_at(camera, p, w, h).map_or(u32::MAX, |(q, _)| q as u32)
-            } else if f.t < since {
-                u32::MAX
-            } else {
-                (tr.y as usize * w as usize + tr.x as usize) as u32
-            }
-        };
+    fn order_fresh(&mut self, place: &Placing) -> (Vec<Fresh>, Vec<(u32, u32)>) {
         let mut sorted = std::mem::take(&mut self.sorted);
         let mut order = std::mem::take(&mut self.order);
         let sort = SortFresh {
-            pixels: (w * h) as usize,
-            band: BLEND_ROWS * w as usize,
+            pixels: (self.width * self.height) as usize,
+            band: BLEND_ROWS * self.width as usize,
             chunk: SORT_CHUNK,
         };
         let moving = sort.run(
             (&self.fresh, &self.traced),
-            &place,
+            &|f: &Fresh, tr: &Traced| place.pixel(f, tr),
             &mut self.binned,
             (&mut sorted, &mut order),
         );
@@ -582,6 +587,37 @@ impl History {
         self.fresh.clear();
         self.traced.clear();
         (sorted, order)
+    }
+
+    /// The pushed samples (used up) in the order they came, each with its pixel, and
+    /// the `(pixel, index)` of those that enter: what a GPU sorts by pixel itself, so
+    /// that the CPU does not move the samples.
+    fn place_fresh(&mut self, place: &Placing) -> (Vec<Fresh>, Vec<(u32, u32)>) {
+        let mut fresh = std::mem::take(&mut self.fresh);
+        fresh
+            .par_chunks_mut(SORT_CHUNK)
+            .zip(self.traced.par_chunks(SORT_CHUNK))
+            .for_each(|(f, tr)| {
+                for (f, tr) in f.iter_mut().zip(tr) {
+                    f.pixel = place.pixel(f, tr);
+                }
+            });
+        let mut order = std::mem::take(&mut self.order);
+        order.clear();
+        for (i, (f, tr)) in fresh.iter().zip(&self.traced).enumerate() {
+            if f.pixel == u32::MAX {
+                continue;
+            }
+            order.push((f.pixel, i as u32));
+            if !f.still && tr.velocity != Vec3::ZERO {
+                self.moving.push_back((f.hit_point, tr.velocity, f.t));
+            }
+        }
+        // The spare vector takes the samples pushed from now on.
+        self.fresh = std::mem::take(&mut self.sorted);
+        self.fresh.clear();
+        self.traced.clear();
+        (fresh, order)
     }
 
     /// Forget moving samples older than the memory; the pixels where the others are now.
@@ -606,6 +642,33 @@ impl History {
         self.sorted = step.fresh;
         self.order = step.order;
         self.cut_pixels = step.cuts;
+    }
+}
+
+/// Where a fresh sample enters the history at a refresh at `t` seen by `camera`:
+/// where its surface point is seen now, or where it was traced if it was traced from
+/// this view (since `since`).
+struct Placing {
+    t: f64,
+    camera: CameraFrame,
+    since: f64,
+    width: u32,
+    height: u32,
+    reproject: bool,
+}
+
+impl Placing {
+    /// The pixel sample `f` (traced at `tr`) enters, `u32::MAX` for none.
+    fn pixel(&self, f: &Fresh, tr: &Traced) -> u32 {
+        let (w, h) = (self.width, self.height);
+        if self.reproject {
+            let p = f.hit_point + tr.velocity * (self.t - f.t) as f32;
+            pixel_at(&self.camera, p, w, h).map_or(u32::MAX, |(q, _)| q as u32)
+        } else if f.t < self.since {
+            u32::MAX
+        } else {
+            (tr.y as usize * w as usize + tr.x as usize) as u32
+        }
     }
 }
 
@@ -1136,7 +1199,7 @@ mod tests {
     fn refresh(h: &mut History, t: f64, cam: &CameraFrame, recon: f32) -> Image {
         let mut img = Image::new(4, 4);
         img.pixels.fill(Vec3::splat(recon));
-        let step = h.plan(t, cam);
+        let step = h.plan(t, cam, true);
         h.apply(step, &mut img, &mut [0.0; 16], None);
         img
     }
@@ -1240,6 +1303,87 @@ mod tests {
                 assert_eq!(order, want_order, "{at}");
                 assert_eq!(moving, want_moving, "{at}");
             }
+        }
+    }
+
+    /// Many samples in few pixels of a `4 × 40` view `cam` (three bands of rows), a
+    /// fifth far brighter than the rest (so that the order within a pixel decides
+    /// what is held back and what is cut), some moving, some off the image.
+    fn crowded_batch(
+        rng: &mut crate::sampling::Rng,
+        cam: &CameraFrame,
+        t: f64,
+    ) -> Vec<(RingSample, bool)> {
+        (0..2000)
+            .map(|i| {
+                let (x, y) = (rng.uniform() * 4.4, rng.uniform() * 40.0);
+                let c = if rng.uniform() < 0.2 {
+                    0.9
+                } else {
+                    0.5 + 0.02 * rng.uniform()
+                };
+                let moving = i % 50 == 0;
+                let s = RingSample {
+                    x,
+                    y,
+                    t: t + 0.0001 * i as f64,
+                    color: Vec3::splat(c),
+                    hit_point: cam.eye + cam.direction(x.min(3.99), y),
+                    velocity: if moving { Vec3::X } else { Vec3::ZERO },
+                    anchor: Default::default(),
+                };
+                (s, moving)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_plan_in_arrival_order_comes_out_as_one_in_pixel_order() {
+        // What a GPU is given, carried out on the CPU (a GPU that failed), against
+        // the CPU's own plan: the same images, counts and cuts at every refresh.
+        let mut rng = crate::sampling::Rng::new(&[3]);
+        let mut cam = camera(0.0);
+        cam = Camera {
+            eye: cam.eye,
+            at: Vec3::ZERO,
+            up: Vec3::Y,
+            fov_y_deg: 90.0,
+            hither: 1e-3,
+        }
+        .frame(4, 40);
+        let (w, h) = (4, 40);
+        for params in [cutting(), HistoryParams::default()] {
+            let mut sides = [History::new(w, h, params), History::new(w, h, params)];
+            let (mut unsorted, mut grown) = (0, 0f32);
+            for k in 0..6 {
+                let t = 0.1 * k as f64;
+                for (s, moving) in crowded_batch(&mut rng, &cam, t) {
+                    sides.iter_mut().for_each(|h| h.push(&s, moving));
+                }
+                let [a, b] = &mut sides;
+                let (sa, sb) = (a.plan(t + 0.05, &cam, true), b.plan(t + 0.05, &cam, false));
+                assert!(!sb.in_pixel_order);
+                assert_eq!(sa.order.len(), sb.order.len(), "refresh {k}");
+                let pixels = |s: &Step| s.order.iter().map(|o| o.0).collect::<Vec<_>>();
+                unsorted += pixels(&sb).windows(2).any(|w| w[0] > w[1]) as usize;
+                let mut images = [Image::new(w, h), Image::new(w, h)];
+                let mut ages = vec![0.0; (w * h) as usize];
+                for (img, (h, step)) in images.iter_mut().zip([(a, sa), (b, sb)]) {
+                    img.pixels.fill(Vec3::splat(0.5));
+                    h.apply(step, img, &mut ages, None);
+                }
+                assert_eq!(images[0].pixels, images[1].pixels, "refresh {k}");
+                assert_eq!(sides[0].counts(), sides[1].counts(), "refresh {k}");
+                assert_eq!(sides[0].cuts, sides[1].cuts, "refresh {k}");
+                assert_eq!(sides[0].moving, sides[1].moving, "refresh {k}");
+                grown = grown.max(sides[0].counts().iter().copied().fold(0.0, f32::max));
+            }
+            assert!(
+                sides[0].cuts > 0 && grown >= 3.0,
+                "{} cuts, {grown}",
+                sides[0].cuts
+            );
+            assert!(unsorted >= 5, "the arrival order should not come sorted");
         }
     }
 

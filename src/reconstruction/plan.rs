@@ -41,7 +41,11 @@ impl Reconstructor {
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);
         let lap = self.passes.lap(1, lap);
-        let history = self.history.as_mut().map(|h| h.plan(t, camera));
+        let in_pixel_order = !self.refreshes_on_gpu();
+        let history = self
+            .history
+            .as_mut()
+            .map(|h| h.plan(t, camera, in_pixel_order));
         self.passes.lap(6, lap);
         RefreshPlan {
             t,

@@ -1,13 +1,14 @@
 //! The still-region history on the GPU (`history.wgsl`): the per-pixel arrays live
 //! there, and a refresh uploads only the CPU's plan of it ([`Step`]): the view change,
-//! the fresh samples in pixel order and the pixels moving surfaces cut. What comes back
+//! the fresh samples with their pixels in the order they came (sorted by pixel here,
+//! so that the CPU does not move them) and the pixels moving surfaces cut. What comes back
 //! is the shown image (through the reconstructor's read-back) and the counts the
 //! sampler reads.
 
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, GROUP, PER_PIXEL,
+    compute_pipeline, readback, storage, uniform_and_storage, GpuContext, BIN, GROUP, PER_PIXEL,
 };
 use crate::reconstruction::{
     history::{Step, ViewChange},
@@ -20,7 +21,7 @@ const ACC: u64 = 12;
 const HELD: u64 = 8;
 const FRESH: usize = 10;
 /// Storage buffers the history's shaders bind.
-const BUFFERS: u32 = 10;
+const BUFFERS: u32 = 11;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -46,7 +47,7 @@ struct HParams {
     clamped_count: f32,
     min_count_to_test: f32,
     reprojected_count: f32,
-    pad: f32,
+    bins_x: u32,
 }
 
 struct Pipelines {
@@ -54,6 +55,10 @@ struct Pipelines {
     depth: wgpu::ComputePipeline,
     pick: wgpu::ComputePipeline,
     take: wgpu::ComputePipeline,
+    count: wgpu::ComputePipeline,
+    scan: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
+    sort: wgpu::ComputePipeline,
     fresh: wgpu::ComputePipeline,
     cut: wgpu::ComputePipeline,
     blend: wgpu::ComputePipeline,
@@ -72,6 +77,9 @@ pub(super) struct GpuHistory {
     held: wgpu::Buffer,
     pick: wgpu::Buffer,
     fresh: wgpu::Buffer,
+    /// The fresh samples sorted by bin: per bin a count, a cursor and a start, then
+    /// an index a sample (`history.wgsl`'s `order`).
+    order: wgpu::Buffer,
     cut_list: wgpu::Buffer,
     /// What is shown: the reconstruction's read-back layout.
     pub(super) shown: wgpu::Buffer,
@@ -109,6 +117,7 @@ impl GpuHistory {
         let src = wgpu::BufferUsages::COPY_SRC;
         let pipelines = Pipelines::new(d);
         let fresh = storage(d, "fresh samples", 1024 * FRESH as u64 * 4, none);
+        let order = storage(d, "fresh order", order_bytes(width, height, 1024), none);
         let cut_list = storage(d, "cut pixels", 1024 * 4, none);
         let acc = storage(d, "history", n * ACC * 4, wgpu::BufferUsages::COPY_DST);
         let scratch = storage(d, "history scratch", n * ACC * 4, src);
@@ -137,6 +146,7 @@ impl GpuHistory {
             held,
             pick,
             fresh,
+            order,
             cut_list,
             shown,
             counts,
@@ -170,6 +180,8 @@ impl GpuHistory {
         let pixels = n.div_ceil(GROUP);
         let pl = &self.pipelines;
         enc.clear_buffer(&self.pick, 0, None);
+        let bins = bins(self.width, self.height);
+        enc.clear_buffer(&self.order, 0, Some(bins.0 as u64 * bins.1 as u64 * 4));
         match step.view {
             ViewChange::Same => {}
             ViewChange::Reset => self.dispatch(enc, &pl.reset, pixels),
@@ -180,7 +192,14 @@ impl GpuHistory {
                 enc.copy_buffer_to_buffer(&self.scratch, 0, &self.acc, 0, n as u64 * ACC * 4);
             }
         }
-        self.dispatch(enc, &pl.fresh, (step.order.len() as u32).div_ceil(GROUP));
+        if hp.n_fresh > 0 {
+            let samples = hp.n_fresh.div_ceil(GROUP);
+            self.dispatch(enc, &pl.count, samples);
+            self.dispatch(enc, &pl.scan, 1);
+            self.dispatch(enc, &pl.fill, samples);
+            self.dispatch_2d(enc, &pl.sort, bins);
+            self.dispatch_2d(enc, &pl.fresh, bins);
+        }
         self.dispatch(enc, &pl.cut, (hp.n_cuts).div_ceil(GROUP));
         self.dispatch(enc, &pl.blend, pixels);
         enc.copy_buffer_to_buffer(&self.counts, 0, &self.read_counts, 0, n as u64 * 4);
@@ -205,7 +224,7 @@ impl GpuHistory {
         }
     }
 
-    /// Upload the step's fresh samples (in pixel order, times relative to `epoch`)
+    /// Upload the step's fresh samples (in its order, times relative to `epoch`)
     /// and cut pixels (each once: a second cut of a pixel does nothing), growing
     /// their buffers if needed.
     fn upload(
@@ -234,6 +253,8 @@ impl GpuHistory {
             self.fresh_cap = step.order.len().next_power_of_two();
             let bytes = self.fresh_cap as u64 * FRESH as u64 * 4;
             self.fresh = storage(d, "fresh samples", bytes, wgpu::BufferUsages::empty());
+            let bytes = order_bytes(self.width, self.height, self.fresh_cap);
+            self.order = storage(d, "fresh order", bytes, wgpu::BufferUsages::empty());
             grown = true;
         }
         if cuts.len() > self.cuts_cap {
@@ -277,7 +298,7 @@ impl GpuHistory {
             clamped_count: p.clamped_count,
             min_count_to_test: p.min_count_to_test,
             reprojected_count: p.reprojected_count,
-            pad: 0.0,
+            bins_x: bins(self.width, self.height).0,
         }
     }
 
@@ -289,6 +310,18 @@ impl GpuHistory {
         pass.set_pipeline(pipe);
         pass.set_bind_group(0, self.bind.as_ref(), &[]);
         pass.dispatch_workgroups(groups, 1, 1);
+    }
+
+    fn dispatch_2d(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        pipe: &wgpu::ComputePipeline,
+        (x, y): (u32, u32),
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+        pass.set_pipeline(pipe);
+        pass.set_bind_group(0, self.bind.as_ref(), &[]);
+        pass.dispatch_workgroups(x, y, 1);
     }
 
     /// The bind group again, over the reconstruction's `image` and `front` buffers.
@@ -305,6 +338,7 @@ impl GpuHistory {
             front,
             &self.shown,
             &self.counts,
+            &self.order,
         ];
         self.bind = Some(super::bind_buffers(
             d,
@@ -315,10 +349,22 @@ impl GpuHistory {
     }
 }
 
-/// `history.wgsl` after the constant it shares with the reconstruction's side.
+/// Bins of [`BIN`]×[`BIN`] pixels across and down a `width × height` image.
+fn bins(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(BIN), height.div_ceil(BIN))
+}
+
+/// Bytes of the fresh samples' order for `cap` samples: per bin a count, a cursor and
+/// a start, one start more, and an index a sample.
+fn order_bytes(width: u32, height: u32, cap: usize) -> u64 {
+    let (x, y) = bins(width, height);
+    (3 * x as u64 * y as u64 + 1 + cap as u64) * 4
+}
+
+/// `history.wgsl` after the constants it shares with the reconstruction's side.
 fn source() -> String {
     format!(
-        "const IMAGE: u32 = {}u;\n{}",
+        "const IMAGE: u32 = {}u;\nconst BIN: u32 = {BIN}u;\n{}",
         super::PER_PIXEL,
         include_str!("history.wgsl")
     )
@@ -343,6 +389,10 @@ impl Pipelines {
             depth: make("depth"),
             pick: make("pick_winner"),
             take: make("take"),
+            count: make("count_fresh"),
+            scan: make("scan_fresh"),
+            fill: make("fill_fresh"),
+            sort: make("sort_fresh"),
             fresh: make("take_fresh"),
             cut: make("cut_moving"),
             blend: make("blend"),
@@ -381,7 +431,7 @@ mod layout_tests {
             clamped_count,
             min_count_to_test,
             reprojected_count,
-            pad,
+            bins_x,
         });
         check_struct(&m, "H", p, std::mem::size_of::<HParams>());
         assert_eq!(wgsl_u32(&m, "ACC") as u64, ACC);

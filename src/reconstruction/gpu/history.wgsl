@@ -1,8 +1,8 @@
 // The still-region history's refresh in compute shaders: the same steps and the same
 // arithmetic as the CPU's, over per-pixel arrays that stay on the GPU. The CPU decides
-// each refresh (the view change, which samples enter and where, in pixel order, and
-// which pixels moving surfaces cut) and uploads that; these passes carry it out over
-// the reconstruction in `image`, writing what is shown to `shown`.
+// each refresh (the view change, which samples enter and where, in the order they
+// came, and which pixels moving surfaces cut) and uploads that; these passes carry it
+// out over the reconstruction in `image`, writing what is shown to `shown`.
 //
 // reset   one thread per pixel: every pixel's history empty (a new view, not followed).
 // depth   one thread per pixel with history: where its surface point is seen now; the
@@ -10,7 +10,13 @@
 // pick    the same, the lowest source pixel among those at the nearest depth (the CPU
 //         visits pixels in order and keeps the first nearest).
 // take    one thread per pixel: the winner's history, its count capped, into `scratch`.
-// fresh   one thread per run of fresh samples of a pixel: the samples in order.
+// count   one thread per fresh sample (in the order they came): counted in its pixel's
+//         16×16 bin.
+// scan    one workgroup: each bin's first item (exclusive prefix sum of the counts).
+// fill    one thread per fresh sample: its index into its bin.
+// sort    one workgroup per bin: the bin's sample indices in the order they came,
+//         whatever order the atomic counters handed out the slots in.
+// fresh   one thread per pixel: its bin's samples that are its own, in order.
 // cut     one thread per pixel a moving surface covers now.
 // blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend.
 
@@ -37,7 +43,8 @@ struct H {
     clamped_count: f32,
     min_count_to_test: f32,
     reprojected_count: f32,
-    pad: f32,
+    // Bins of `BIN`×`BIN` pixels across the image.
+    bins_x: u32,
 }
 
 // Floats per pixel of the history: sum (3), mean time, count, luminance range (2),
@@ -55,7 +62,8 @@ const HELD: u32 = 8u;
 // padding.
 const FRESH: u32 = 10u;
 // `IMAGE`, floats per pixel of the reconstruction and of what is shown (red, green,
-// blue, age, coverage (bits), splat scale), is prepended by the Rust side.
+// blue, age, coverage (bits), splat scale), and `BIN`, the side of a bin, are
+// prepended by the Rust side.
 const OUTSIDE: u32 = 0xffffffffu;
 
 @group(0) @binding(0) var<uniform> P: H;
@@ -72,6 +80,9 @@ const OUTSIDE: u32 = 0xffffffffu;
 @group(0) @binding(8) var<storage, read> front: array<u32>;
 @group(0) @binding(9) var<storage, read_write> shown: array<f32>;
 @group(0) @binding(10) var<storage, read_write> counts: array<f32>;
+// The fresh samples by bin: per bin their count, then a cursor, then (one more) where
+// its items start; then the items, each a sample's index.
+@group(0) @binding(11) var<storage, read_write> order: array<atomic<u32>>;
 
 fn pixels() -> u32 {
     return P.width * P.height;
@@ -275,18 +286,125 @@ fn take_in(q: u32, i: u32) {
     }
 }
 
+fn bin_count() -> u32 {
+    return P.bins_x * ((P.height + BIN - 1u) / BIN);
+}
+
+fn bin_of(q: u32) -> u32 {
+    return (q / P.width) / BIN * P.bins_x + (q % P.width) / BIN;
+}
+
+// Where bin `b`'s first item is in `order`, once scanned (`b` up to the bin count).
+fn bin_start(b: u32) -> u32 {
+    return 3u * bin_count() + 1u + atomicLoad(&order[2u * bin_count() + b]);
+}
+
 @compute @workgroup_size(256)
-fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn count_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x < P.n_fresh {
+        atomicAdd(&order[bin_of(fresh_pixel(gid.x))], 1u);
+    }
+}
+
+var<workgroup> partial: array<u32, 256>;
+
+@compute @workgroup_size(256)
+fn scan_fresh(@builtin(local_invocation_index) li: u32) {
+    let nb = bin_count();
+    let per = (nb + 255u) / 256u;
+    let b0 = min(li * per, nb);
+    let b1 = min(b0 + per, nb);
+    var sum = 0u;
+    for (var b = b0; b < b1; b++) {
+        sum += atomicLoad(&order[b]);
+    }
+    partial[li] = sum;
+    workgroupBarrier();
+    for (var off = 1u; off < 256u; off *= 2u) {
+        var v = 0u;
+        if li >= off {
+            v = partial[li - off];
+        }
+        workgroupBarrier();
+        partial[li] += v;
+        workgroupBarrier();
+    }
+    var run = partial[li] - sum;
+    for (var b = b0; b < b1; b++) {
+        atomicStore(&order[2u * nb + b], run);
+        run += atomicLoad(&order[b]);
+        atomicStore(&order[nb + b], 0u);
+    }
+    if li == 255u {
+        atomicStore(&order[3u * nb], partial[255]);
+    }
+}
+
+@compute @workgroup_size(256)
+fn fill_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     if i >= P.n_fresh {
         return;
     }
-    let q = fresh_pixel(i);
-    if i > 0u && fresh_pixel(i - 1u) == q {
+    let b = bin_of(fresh_pixel(i));
+    let slot = bin_start(b) + atomicAdd(&order[bin_count() + b], 1u);
+    atomicStore(&order[slot], i);
+}
+
+var<workgroup> sort_n: u32;
+var<workgroup> sort_o: u32;
+
+// A bitonic network whose comparators all put the smaller index first (the first
+// step of each merge compares mirrored positions), so the list need not be a power
+// of two long: positions past its end act as +∞ and are never moved into it.
+@compute @workgroup_size(256)
+fn sort_fresh(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    if li == 0u {
+        let b = wid.y * P.bins_x + wid.x;
+        sort_o = bin_start(b);
+        sort_n = bin_start(b + 1u) - sort_o;
+    }
+    let n = workgroupUniformLoad(&sort_n);
+    let o = workgroupUniformLoad(&sort_o);
+    var m = 1u;
+    while m < n {
+        m *= 2u;
+    }
+    for (var k = 2u; k <= m; k *= 2u) {
+        for (var j = k / 2u; j > 0u; j /= 2u) {
+            for (var i = li; i < m; i += 256u) {
+                var q = i ^ j;
+                if j == k / 2u {
+                    q = i ^ (k - 1u);
+                }
+                if q > i && q < n {
+                    let a = atomicLoad(&order[o + i]);
+                    let b = atomicLoad(&order[o + q]);
+                    if b < a {
+                        atomicStore(&order[o + i], b);
+                        atomicStore(&order[o + q], a);
+                    }
+                }
+            }
+            storageBarrier();
+            workgroupBarrier();
+        }
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    if gid.x >= P.width || gid.y >= P.height {
         return;
     }
-    for (var j = i; j < P.n_fresh && fresh_pixel(j) == q; j++) {
-        take_in(q, j);
+    let q = gid.y * P.width + gid.x;
+    let b = wid.y * P.bins_x + wid.x;
+    let e = bin_start(b + 1u);
+    for (var k = bin_start(b); k < e; k++) {
+        let i = atomicLoad(&order[k]);
+        if fresh_pixel(i) == q {
+            take_in(q, i);
+        }
     }
 }
 
