@@ -36,6 +36,7 @@ mod carry;
 mod history;
 #[cfg(test)]
 mod layout_tests;
+mod pack;
 
 use std::sync::Arc;
 
@@ -180,30 +181,6 @@ pub(super) struct GpuReconTimes {
     pub(super) read_s: f64,
 }
 
-/// Pixels per task of the read-back's unpacking.
-const UNPACK_CHUNK: usize = 1 << 14;
-
-/// The read-back image (red, green, blue, age, coverage bits, splat scale per pixel)
-/// into `into`'s image, ages, coverage and splat scale.
-fn unpack_pixels(src: &[f32], into: &mut ReadInto) {
-    use rayon::prelude::*;
-    let c = UNPACK_CHUNK;
-    into.image
-        .par_chunks_mut(c)
-        .zip(into.age.par_chunks_mut(c))
-        .zip(into.coverage.par_chunks_mut(c))
-        .zip(into.scale.par_chunks_mut(c))
-        .zip(src.par_chunks(c * PER_PIXEL))
-        .for_each(|((((image, age), coverage), scale), src)| {
-            for (i, p) in src.chunks_exact(PER_PIXEL).enumerate() {
-                image[i] = Vec3::new(p[0], p[1], p[2]);
-                age[i] = p[3];
-                coverage[i] = p[4].to_bits();
-                scale[i] = p[5];
-            }
-        });
-}
-
 /// The GPU side of one reconstructor (see the module doc).
 pub struct GpuRecon {
     ctx: Arc<GpuContext>,
@@ -223,6 +200,8 @@ pub struct GpuRecon {
     /// hours of scene time only relative to a nearby origin).
     epoch: Option<f64>,
     history: Option<history::GpuHistory>,
+    /// What is shown, repacked for the read-back.
+    pack: pack::ReadPack,
     times: GpuReconTimes,
     /// The carried sums of the next refresh are in the accumulators.
     carried_uploaded: bool,
@@ -457,10 +436,13 @@ impl GpuRecon {
             history::GpuHistory::new(&ctx, width, height, h, &buffers.out, &buffers.front)
         });
         let carry = sums_back.map(|_| carry::GpuCarry::new(&ctx, width * height));
+        let shown = history.as_ref().map(|h| &h.shown);
+        let pack = pack::ReadPack::new(&ctx.device, sizes.pixels, &buffers.out, shown);
         let lim = &ctx.limits;
         let items_limit = lim.max_storage_buffer_binding_size.min(lim.max_buffer_size);
         Ok(Self {
             history,
+            pack,
             ctx,
             width,
             height,
@@ -928,14 +910,15 @@ impl GpuRecon {
             self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
         }
         let bytes = n * PER_PIXEL as u64 * 4;
-        let mut shown = &self.buffers.out;
+        let mut shown = false;
         if let (Some(h), Some(step)) = (&mut self.history, step) {
             let epoch = self.epoch.unwrap_or(step.t);
             let image = (&self.buffers.out, &self.buffers.front);
             h.encode(&self.ctx, &mut enc, step, epoch, keep, image);
-            shown = &h.shown;
+            shown = true;
         }
-        enc.copy_buffer_to_buffer(shown, 0, &self.buffers.read_out, 0, bytes);
+        self.pack.encode(&mut enc, shown);
+        enc.copy_buffer_to_buffer(&self.pack.planes, 0, &self.buffers.read_out, 0, bytes);
         self.encode_sums_back(&mut enc);
         // The items listed, then the holes.
         enc.copy_buffer_to_buffer(
@@ -968,7 +951,7 @@ impl GpuRecon {
                     "{listed} bin items listed, over the {cap} there was room for"
                 )));
             }
-            unpack_pixels(bytemuck::cast_slice(v[1]), &mut into);
+            pack::unpack(bytemuck::cast_slice(v[1]), &mut into);
             let rest = &v[2..];
             let counts = std::mem::take(&mut into.counts);
             let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1], counts));
