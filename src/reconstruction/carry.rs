@@ -556,7 +556,7 @@ impl Reconstructor {
         bucket_by_band(&ahead, CUT_ROWS, bands, &mut by_band);
         let ctx = CutContext {
             keep,
-            list_cuts: c.edits.is_some(),
+            list_edits: c.edits.is_some(),
             w,
             cs,
             start: samples.start,
@@ -584,6 +584,9 @@ impl Reconstructor {
                     };
                     band.cut_and_offer(&ctx, &by_band[b], ring);
                     band.settle();
+                    if ctx.list_edits {
+                        band.out.settled = std::mem::take(&mut band.touched);
+                    }
                     band.out
                 },
             )
@@ -709,8 +712,8 @@ fn bucket_by_band(
 /// What every band of the cut reads.
 struct CutContext {
     keep: f32,
-    /// List the pixels cut ([`CarryEdits::cuts`]).
-    list_cuts: bool,
+    /// List the pixels cut and settled ([`CarryEdits::cuts`], [`CarryEdits::settled`]).
+    list_edits: bool,
     w: usize,
     cs: usize,
     /// Logical ring index of the sample of index 0.
@@ -726,8 +729,9 @@ struct BandOut {
     /// those whose new geometry moves.
     unanchored: Vec<u32>,
     anchored: Vec<(u32, Anchor)>,
-    /// The pixels cut, when listed.
+    /// The pixels cut, and those whose geometry was settled, when listed.
     cuts: Vec<u32>,
+    settled: Vec<u32>,
 }
 
 /// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
@@ -790,7 +794,7 @@ impl CutBand<'_> {
                     self.acc[at(ch)] = 0.0;
                 }
                 self.cover[q - base] = 0.0;
-                if ctx.list_cuts {
+                if ctx.list_edits {
                     self.out.cuts.push(q as u32);
                 }
             }
@@ -868,6 +872,7 @@ impl Carried {
         for o in outs {
             if let Some(e) = &mut self.edits {
                 e.cuts.extend_from_slice(&o.cuts);
+                e.settled.extend_from_slice(&o.settled);
             }
             for q in o.unanchored {
                 self.anchor.remove(&q);
@@ -1171,6 +1176,32 @@ impl Reconstructor {
         match &self.carried {
             Some(c) => by_front_row(bits, c, rows, lowered_front_bits),
             None => bits.fill(0),
+        }
+    }
+}
+
+/// The front bits of [`Reconstructor::carried_front_bits`] brought up to date in
+/// `kept`, which held them for the carried state of the last refresh, where only the
+/// pixels `dirty` (any order, repeats allowed) may have changed since (their weight's
+/// holding or their geometry): each recomputed by the same rule, and listed in
+/// `changes` as `[pixel, bits]` where it differs.
+#[cfg(feature = "gpu")]
+pub(super) fn changed_front_bits(
+    c: &Carried,
+    (acc, w, cs): (&[f32], usize, usize),
+    dirty: impl Iterator<Item = u32>,
+    kept: &mut [u32],
+    changes: &mut Vec<[u32; 2]>,
+) {
+    changes.clear();
+    for q in dirty {
+        let p = q as usize;
+        let weight = acc[((p / w) * CHANNELS + 3) * cs + p % w];
+        let mut bits = [0];
+        lowered_front_bits(&mut bits, &c.geo[p..p + 1], &[weight]);
+        if kept[p] != bits[0] {
+            kept[p] = bits[0];
+            changes.push([q, bits[0]]);
         }
     }
 }

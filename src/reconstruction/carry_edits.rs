@@ -24,6 +24,10 @@ pub(super) struct CarryEdits {
     /// Pixels emptied because a new sample came in front (in any order; a pixel may
     /// be listed more than once).
     pub(super) cuts: Vec<u32>,
+    /// Pixels whose geometry new samples set, in any order. Not replayed (the GPU
+    /// keeps no geometry): with the takes, landings and cuts, they are where the
+    /// carried front depths may have changed ([`super::gpu::carried`]).
+    pub(super) settled: Vec<u32>,
 }
 
 impl CarryEdits {
@@ -35,6 +39,7 @@ impl CarryEdits {
         self.takes.clear();
         self.lands.clear();
         self.cuts.clear();
+        self.settled.clear();
     }
 
     /// The takes, the landings (three words each) and the cuts, one after another:
@@ -63,6 +68,7 @@ mod tests {
             takes: vec![7, 9],
             lands: vec![(1, 3, true), (0, 4, false)],
             cuts: vec![2],
+            settled: vec![5],
         };
         let mut w = vec![99];
         e.words(&mut w);

@@ -493,3 +493,72 @@ fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
         }
     }
 }
+
+/// The camera of refresh `k` of the kept fronts' test: still, then moving for two
+/// refreshes (the carry restarts after them, or moves the sums with the view), then
+/// still again.
+fn fronts_camera(k: usize, size: (u32, u32)) -> CameraFrame {
+    carry_camera(
+        match k {
+            0..5 => 0,
+            5..7 => k,
+            _ => 6,
+        },
+        size,
+    )
+}
+
+#[test]
+#[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
+fn gpu_kept_fronts_match_a_full_recompute() {
+    // A still view over a moving square (cuts, moved sums taken and landing, new
+    // geometry settled, holds bits that change), a moving view, then still again:
+    // the initial front depths brought up to date at the pixels that may have changed
+    // are a full recompute's at every refresh (`check_kept_fronts`, in the tests),
+    // the GPU's kept copy is the CPU's, and the images stay the CPU's. Where the sums
+    // come back whole, every refresh sends every pixel's.
+    let ctx = context();
+    let converging = ReconParams::converging();
+    let whole_back = ReconParams {
+        resplat_moving_view: false,
+        ..converging
+    };
+    for params in [converging, ReconParams::realtime(), whole_back] {
+        for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {
+            let (mut cpu, mut gpu, tiling) = carry_pair(&ctx, params, (w, h));
+            let mut rng = crate::sampling::Rng::new(&[19, per as u64]);
+            let mut listed = [0usize; 4];
+            let refreshes = 12;
+            for k in 0..refreshes {
+                let cam = fronts_camera(k, (w, h));
+                refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
+                let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
+                if e.complete {
+                    listed[0] += e.takes.len();
+                    listed[1] += e.lands.len();
+                    listed[2] += e.cuts.len();
+                    listed[3] += e.settled.len();
+                }
+                let kept = gpu.gpu.as_ref().and_then(|g| g.kept_fronts()).unwrap();
+                let n = gpu.gpu_front.len();
+                assert_eq!(n, (w * h) as usize);
+                assert!(
+                    kept[..n] == gpu.gpu_front,
+                    "{w}x{h}, refresh {k}: the GPU's kept fronts are not the CPU's"
+                );
+                let what = format!("{w}x{h}, {per} per refresh, {params:?}, refresh {k}");
+                check(&differences(&cpu, &gpu), n, &what);
+            }
+            let checked = gpu.kept_fronts_checked;
+            if params.resplat_moving_view {
+                // The first two refreshes of a still stretch send every pixel's: the
+                // carry of the first (0, and 7, which restarts) is not listed whole,
+                // and the read-back after it writes every weight.
+                assert!(checked >= refreshes - 6, "{w}x{h}: {checked} kept");
+                assert!(listed.iter().all(|&n| n > 0), "{w}x{h}: listed {listed:?}");
+            } else {
+                assert_eq!(checked, 0, "{w}x{h}: sums back whole, fronts kept");
+            }
+        }
+    }
+}

@@ -240,10 +240,16 @@ pub struct Reconstructor {
     /// The GPU side, when refreshes run there ([`Reconstructor::use_gpu`]).
     #[cfg(feature = "gpu")]
     gpu: Option<Box<gpu::GpuRecon>>,
-    /// The initial front depths a carrying refresh on the GPU uploads, kept between
-    /// refreshes (4 bytes a pixel: not allocated and faulted in again each time).
+    /// The initial front depths a carrying refresh on the GPU sent last, kept between
+    /// refreshes: the GPU keeps them too, and the next refresh sends only those that
+    /// changed (`gpu_front_changes`, `[pixel, bits]`) where it can.
     #[cfg(feature = "gpu")]
     gpu_front: Vec<u32>,
+    #[cfg(feature = "gpu")]
+    gpu_front_changes: Vec<[u32; 2]>,
+    /// Refreshes whose kept fronts were checked against a full recompute.
+    #[cfg(all(test, feature = "gpu"))]
+    kept_fronts_checked: usize,
     /// Why the GPU side was given up, if it failed at a refresh (they then run on the
     /// CPU).
     gpu_failure: Option<String>,
@@ -335,6 +341,10 @@ impl Reconstructor {
             gpu: None,
             #[cfg(feature = "gpu")]
             gpu_front: Vec::new(),
+            #[cfg(feature = "gpu")]
+            gpu_front_changes: Vec::new(),
+            #[cfg(all(test, feature = "gpu"))]
+            kept_fronts_checked: 0,
             gpu_failure: None,
             passes: PassTimes::default(),
         }
@@ -711,7 +721,13 @@ impl Reconstructor {
             self.carry_over(t, &camera, start);
         }
         let lap = self.passes.lap(3, lap);
-        let carried = carrying.then(|| self.pack_carried());
+        let fronts = if carrying { self.pack_fronts() } else { None };
+        let carried = carrying.then(|| gpu::carried::CarriedIn {
+            front: fronts.map(|sent| match sent {
+                FrontsSent::All => gpu::carried::FrontsIn::All(&self.gpu_front),
+                FrontsSent::Changes => gpu::carried::FrontsIn::Changes(&self.gpu_front_changes),
+            }),
+        });
         let pack_s = lap.elapsed().as_secs_f64();
         let max_r = self.max_footprint_radius();
         let Some(g) = self.gpu.as_mut() else {
@@ -741,6 +757,7 @@ impl Reconstructor {
                 (Some(h), Some(_)) => h.take_gpu_counts(),
                 _ => Vec::new(),
             },
+            edited: edits.filter(|e| e.complete),
         };
         let back = g.refresh(
             &self.ring,
@@ -756,9 +773,6 @@ impl Reconstructor {
             carried.as_ref(),
             into,
         );
-        if let Some(bits) = carried.and_then(|c| c.front) {
-            self.gpu_front = bits;
-        }
         let after = g.times();
         self.passes
             .add(7, pack_s + after.upload_s - before.upload_s);
@@ -793,17 +807,66 @@ impl Reconstructor {
         self.passes.lap(9, lap);
     }
 
-    /// With carried accumulators, what the GPU adds the new splats to: the carried
-    /// sums and, with the visibility pass, the initial front depths, by the CPU's rule
-    /// ([`Reconstructor::carried_front`]) over no new splat (in the vector kept for
-    /// them, handed back after the refresh).
+    /// With the visibility pass, the initial front depths a carrying refresh on the
+    /// GPU adds the new splats to, by the CPU's rule ([`Reconstructor::carried_front`])
+    /// over no new splat, into `gpu_front`, and which of them go up. Where the GPU kept
+    /// the last refresh's and this carry is listed whole, a front can have changed
+    /// only where the last read-back changed a weight or this carry edited a pixel
+    /// (its takes, landings, cuts and settled geometry): those alone are recomputed,
+    /// and the ones that changed go up. Otherwise (the first refresh, a carry that
+    /// restarted or moved with the view, sums that come back whole, a new GPU side)
+    /// every pixel's.
     #[cfg(feature = "gpu")]
-    fn pack_carried(&mut self) -> gpu::carried::CarriedIn {
-        let front = self.visibility_keep().map(|_| {
-            let mut bits = std::mem::take(&mut self.gpu_front);
-            self.carried_front_bits(&mut bits);
-            bits
-        });
-        gpu::carried::CarriedIn { front }
+    fn pack_fronts(&mut self) -> Option<FrontsSent> {
+        self.visibility_keep()?;
+        let (n, w, cs) = (self.cover.len(), self.width as usize, self.cs);
+        let since = self.gpu.as_ref().and_then(|g| g.fronts_since());
+        let carried = self.carried.as_deref();
+        let edits = carried
+            .and_then(|c| c.edits.as_ref())
+            .filter(|e| e.complete);
+        if let (Some(changed), Some(c), Some(e)) = (since, carried, edits) {
+            if self.gpu_front.len() == n {
+                let lands = e.lands.iter().map(|l| l.1);
+                let dirty = changed.iter().chain(&e.takes).chain(&e.cuts);
+                let dirty = dirty.chain(&e.settled).copied().chain(lands);
+                let (kept, changes) = (&mut self.gpu_front, &mut self.gpu_front_changes);
+                carry::changed_front_bits(c, (&self.acc, w, cs), dirty, kept, changes);
+                let few = changes.len() <= n / 4;
+                #[cfg(test)]
+                self.check_kept_fronts();
+                // Eight bytes a change against four a pixel.
+                return Some(if few {
+                    FrontsSent::Changes
+                } else {
+                    FrontsSent::All
+                });
+            }
+        }
+        let mut bits = std::mem::take(&mut self.gpu_front);
+        self.carried_front_bits(&mut bits);
+        self.gpu_front = bits;
+        Some(FrontsSent::All)
     }
+
+    /// The fronts kept and brought up to date at the pixels that may have changed are
+    /// those a full recompute gives.
+    #[cfg(all(test, feature = "gpu"))]
+    fn check_kept_fronts(&mut self) {
+        let mut full = Vec::new();
+        self.carried_front_bits(&mut full);
+        let wrong = full.iter().zip(&self.gpu_front).position(|(a, b)| a != b);
+        assert_eq!(wrong, None, "kept fronts differ from a full recompute");
+        self.kept_fronts_checked += 1;
+    }
+}
+
+/// Which of the initial front depths a carrying GPU refresh sends.
+#[cfg(feature = "gpu")]
+#[derive(Clone, Copy)]
+enum FrontsSent {
+    /// Every pixel's (`gpu_front`).
+    All,
+    /// Those that changed since the last refresh (`gpu_front_changes`).
+    Changes,
 }

@@ -6,11 +6,22 @@
 //! the GPU cannot replay the CPU's carry on the sums it kept ([`super::carry`]), and
 //! with the visibility pass the initial front depths; it reads the final sums and
 //! coverage back, before any fill, so that the CPU's next carry starts from them.
+//!
+//! Where only which pixels hold sums comes back ([`SumsBack::Holds`]) and the view
+//! holds, little changes from one refresh to the next: the mask is compared with the
+//! last one word by word ([`HoldsKept`]), and only the weights whose bit changed, or
+//! that the CPU's carry edited since, are written. Those pixels, with the ones the
+//! carry edited next, are the only ones whose initial front depth can change, so a
+//! refresh uploads those alone ([`FrontsIn::Changes`], kept on the GPU by
+//! [`super::fronts`]) instead of every pixel's.
 
 use rayon::prelude::*;
 
 use super::{SumsBack, PER_PIXEL};
-use crate::reconstruction::splat::{channel_row, CHANNELS};
+use crate::reconstruction::{
+    carry_edits::CarryEdits,
+    splat::{channel_row, CHANNELS},
+};
 
 /// The carried sums a carrying refresh uploads: the CPU's planar accumulators `acc`
 /// (channel stride `cs`) of a `w`-wide image and its coverage `cover`, packed on the
@@ -25,10 +36,30 @@ pub(in crate::reconstruction) struct CarriedSums<'a> {
 
 /// What a carrying refresh uploads besides the sums (which go first, see
 /// [`CarriedSums`]).
-pub(in crate::reconstruction) struct CarriedIn {
-    /// With the visibility pass: each pixel's initial front depth as the shaders
-    /// store it (see [`front_bits`]).
-    pub(in crate::reconstruction) front: Option<Vec<u32>>,
+pub(in crate::reconstruction) struct CarriedIn<'a> {
+    /// With the visibility pass: the initial front depths as the shaders store them
+    /// (see [`front_bits`]).
+    pub(in crate::reconstruction) front: Option<FrontsIn<'a>>,
+}
+
+/// The initial front depths a carrying refresh uploads.
+#[derive(Clone, Copy)]
+pub(in crate::reconstruction) enum FrontsIn<'a> {
+    /// Every pixel's.
+    All(&'a [u32]),
+    /// `[pixel, bits]` where they changed since the last refresh's, which the GPU
+    /// kept ([`super::GpuRecon::fronts_since`] says whether it did).
+    Changes(&'a [[u32; 2]]),
+}
+
+/// The holds mask the CPU's weight plane was last set from, and the pixels whose
+/// weight that changed.
+#[derive(Default)]
+pub(in crate::reconstruction) struct HoldsKept {
+    /// The mask last unpacked (empty: none yet).
+    words: Vec<u32>,
+    /// The pixels whose weight the last unpack wrote (`None`: every pixel's).
+    pub(in crate::reconstruction) changed: Option<Vec<u32>>,
 }
 
 /// Repack the planar CPU accumulators `acc` (channel stride `cs`) of a `w`-wide
@@ -98,17 +129,35 @@ pub(in crate::reconstruction) fn unpack(
 
 /// What came back of the carried sums (`bytes`, as [`SumsBack`] says) into the CPU's
 /// planar accumulators and coverage `sums` (channel stride between them) of a
-/// `w`-wide image.
+/// `w`-wide image. `edited`: where the weight plane is the last mask's but for the
+/// pixels this carry edited, that carry (see [`unpack_holds_since`]); `kept`, the
+/// last mask.
 pub(in crate::reconstruction) fn unpack_back(
     back: SumsBack,
     bytes: &[u8],
     (acc, cs, cover): (&mut [f32], usize, &mut [f32]),
     w: usize,
+    (edited, kept): (Option<&CarryEdits>, &mut HoldsKept),
 ) {
-    match back {
-        SumsBack::All => unpack(bytemuck::cast_slice(bytes), acc, cs, w, cover),
-        SumsBack::Holds => unpack_holds(bytemuck::cast_slice(bytes), acc, cs, w),
+    let mask: &[u32] = bytemuck::cast_slice(bytes);
+    match (back, edited) {
+        (SumsBack::All, _) => {
+            unpack(bytemuck::cast_slice(bytes), acc, cs, w, cover);
+            *kept = HoldsKept::default();
+            return;
+        }
+        (SumsBack::Holds, Some(e)) if kept.words.len() == mask.len() => {
+            let mut changed = kept.changed.take().unwrap_or_default();
+            unpack_holds_since(mask, (acc, cs, w), (&kept.words, e), &mut changed);
+            kept.changed = Some(changed);
+        }
+        (SumsBack::Holds, _) => {
+            unpack_holds(mask, acc, cs, w);
+            kept.changed = None;
+        }
     }
+    kept.words.clear();
+    kept.words.extend_from_slice(mask);
 }
 
 /// The holds mask the GPU reads back in place of the sums (bit `i` of word `k`: pixel
@@ -125,6 +174,44 @@ pub(in crate::reconstruction) fn unpack_holds(mask: &[u32], acc: &mut [f32], cs:
                 *wt = if set { 1.0 } else { 0.0 };
             }
         });
+}
+
+/// [`unpack_holds`] where the weight plane of `acc` (channel stride `cs`, `w` wide)
+/// is 1 or 0 by the mask `last` but at the pixels carry `e` edited (its takes,
+/// landings and cuts): only the weights whose bit changed since `last`, 32 pixels a
+/// compare, and those pixels are written, and listed in `changed`.
+pub(in crate::reconstruction) fn unpack_holds_since(
+    mask: &[u32],
+    (acc, cs, w): (&mut [f32], usize, usize),
+    (last, e): (&[u32], &CarryEdits),
+    changed: &mut Vec<u32>,
+) {
+    let pixels = (acc.len() / (CHANNELS * cs)) * w;
+    let bit = |p: usize| mask[p / 32] >> (p % 32) & 1 == 1;
+    changed.clear();
+    for (k, (&m, &l)) in mask.iter().zip(last).enumerate() {
+        let mut diff = m ^ l;
+        while diff != 0 {
+            changed.push((32 * k) as u32 + diff.trailing_zeros());
+            diff &= diff - 1;
+        }
+    }
+    let lands = e.lands.iter().map(|l| &l.1);
+    changed.extend(e.takes.iter().chain(lands).chain(&e.cuts));
+    changed.retain(|&p| (p as usize) < pixels);
+    for &p in changed.iter() {
+        let p = p as usize;
+        acc[((p / w) * CHANNELS + 3) * cs + p % w] = if bit(p) { 1.0 } else { 0.0 };
+    }
+    #[cfg(test)]
+    for p in 0..pixels {
+        let wt = acc[((p / w) * CHANNELS + 3) * cs + p % w];
+        assert_eq!(
+            wt,
+            bit(p) as u32 as f32,
+            "pixel {p}: the weight is not the mask's"
+        );
+    }
 }
 
 /// Front depths as the shaders keep them: the complement of a depth's bits, so that
@@ -199,6 +286,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_mask_since_the_last_writes_what_the_whole_mask_writes() {
+        // 11 × 5 pixels from the last mask, then a carry that took, landed on and cut
+        // pixels (weights 0 or the sums landed), then a new mask: only the changed
+        // bits and the edited pixels are written, and listed.
+        let (w, h) = (11, 5);
+        let cs = channel_stride(w);
+        let mask_of = |holds: &dyn Fn(usize) -> bool| {
+            let mut m = vec![0u32; (w * h).div_ceil(32)];
+            for p in (0..w * h).filter(|&p| holds(p)) {
+                m[p / 32] |= 1 << (p % 32);
+            }
+            m
+        };
+        let last = mask_of(&|p| p % 3 == 0);
+        let mask = mask_of(&|p| p % 3 == 0 && p != 9 || p == 40 || p == 7 || p == 12);
+        let mut acc = vec![7.0f32; h * CHANNELS * cs];
+        unpack_holds(&last, &mut acc, cs, w);
+        let e = CarryEdits {
+            takes: vec![3, 12],
+            lands: vec![(0, 7, false), (1, 21, true)],
+            cuts: vec![30],
+            ..Default::default()
+        };
+        let weight = |p: usize| ((p / w) * CHANNELS + 3) * cs + p % w;
+        for (p, wt) in [(3, 0.0), (12, 0.0), (7, 1.5), (21, 2.5), (30, 0.0)] {
+            acc[weight(p)] = wt;
+        }
+        let mut whole = acc.clone();
+        unpack_holds(&mask, &mut whole, cs, w);
+        let mut changed = Vec::new();
+        unpack_holds_since(&mask, (&mut acc, cs, w), (&last, &e), &mut changed);
+        assert_eq!(acc, whole);
+        changed.sort_unstable();
+        changed.dedup();
+        assert_eq!(changed, [3, 7, 9, 12, 21, 30, 40]);
     }
 
     #[test]

@@ -29,10 +29,12 @@
 //! by replaying the CPU's list of what its carry did (`carry`: a factor per tile,
 //! the pixels whose sums moved, the pixels cut); otherwise (the first refresh, sums
 //! moved with the view or started afresh, or sums not kept) every pixel's sums go up
-//! (`carried`).
+//! (`carried`). With the visibility pass the initial front depths are kept here too
+//! (`fronts`): while the view holds, only the pixels whose front changed go up.
 
 pub(super) mod carried;
 mod carry;
+mod fronts;
 mod history;
 #[cfg(test)]
 mod layout_tests;
@@ -53,7 +55,7 @@ use super::{
     HistoryParams, ReconParams,
 };
 use crate::{scene::CameraFrame, tiles::Rect};
-use carried::{CarriedIn, CarriedSums};
+use carried::{CarriedIn, CarriedSums, FrontsIn, HoldsKept};
 
 /// Storage buffers the shaders bind at once.
 const STORAGE_BUFFERS: u32 = 12;
@@ -168,6 +170,10 @@ pub(super) struct ReadInto<'a> {
     pub(super) sums: (&'a mut [f32], usize, &'a mut [f32]),
     /// The vector the history's counts came back in last time, to take them again.
     pub(super) counts: Vec<f32>,
+    /// Where only the holds mask comes back and the CPU's weights are the last mask's
+    /// but where this carry edited them: that carry, so that only the weights that
+    /// changed are written ([`carried::unpack_holds_since`]).
+    pub(super) edited: Option<&'a CarryEdits>,
 }
 
 /// Seconds a GPU reconstructor has spent in each part of its refreshes.
@@ -225,6 +231,11 @@ pub struct GpuRecon {
     carried_by: CarriedBy,
     /// With carrying: what comes back of the sums after each refresh.
     sums_back: Option<SumsBack>,
+    /// The holds mask the CPU's weights were last set from, and which that changed.
+    holds_kept: HoldsKept,
+    /// With the visibility pass and carrying: the initial front depths kept between
+    /// refreshes (made at the first that sends them).
+    fronts: Option<fronts::GpuFronts>,
 }
 
 /// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
@@ -466,6 +477,8 @@ impl GpuRecon {
             items_limit,
             carried_by: CarriedBy::default(),
             sums_back,
+            holds_kept: HoldsKept::default(),
+            fronts: None,
         })
     }
 
@@ -608,7 +621,7 @@ impl GpuRecon {
             }
             p.carry = 1;
         }
-        let front = carried.and_then(|c| c.front.as_deref());
+        let front = self.upload_fronts(carried.and_then(|c| c.front))?;
         let enc = match self.items_bound(count, max_r) {
             // Room for every item the footprints can list: the bins go in the same
             // submission as the splats, with no wait for their count between.
@@ -634,6 +647,9 @@ impl GpuRecon {
         };
         let back = self.splat_pass(enc, params.fill_weight > 0.0, step, p.keep, into);
         self.acc_carried = p.carry == 1 && back.is_ok();
+        if let Some(f) = &mut self.fronts {
+            f.valid = front && back.is_ok();
+        }
         let waited = (self.times.wait_s - before.wait_s) + (self.times.read_s - before.read_s);
         self.times.upload_s += t0.elapsed().as_secs_f64() - waited;
         back
@@ -696,6 +712,48 @@ impl GpuRecon {
     /// How the carrying refreshes so far got their sums.
     pub(super) fn carried_by(&self) -> CarriedBy {
         self.carried_by
+    }
+
+    /// The kept front depths, read back (`None`: none kept).
+    #[cfg(test)]
+    pub(super) fn kept_fronts(&self) -> Option<Vec<u32>> {
+        let kept = &self.fronts.as_ref()?.kept;
+        let read = readback(&self.ctx.device, "kept fronts readback", kept.size());
+        let mut enc = self.encoder();
+        enc.copy_buffer_to_buffer(kept, 0, &read, 0, kept.size());
+        self.ctx.queue.submit([enc.finish()]);
+        let got = self.ctx.read_mapped(&read, kept.size(), None, |b| {
+            bytemuck::cast_slice::<u8, u32>(b).to_vec()
+        });
+        got.ok()
+    }
+
+    /// Bring the kept front depths to `front`, this refresh's (its changes' scatter
+    /// goes ahead of the bins' passes, which copy them into the front depths). Whether
+    /// there are any: without, the front depths start from none, and the kept ones are
+    /// no longer the last refresh's.
+    fn upload_fronts(&mut self, front: Option<FrontsIn>) -> Result<bool, GpuError> {
+        let Some(front) = front else {
+            if let Some(f) = &mut self.fronts {
+                f.valid = false;
+            }
+            return Ok(false);
+        };
+        let pixels = self.width * self.height;
+        let f = self
+            .fronts
+            .get_or_insert_with(|| fronts::GpuFronts::new(&self.ctx, pixels));
+        self.ahead.extend(f.upload(&self.ctx, front)?);
+        Ok(true)
+    }
+
+    /// The pixels whose weight the last refresh's read-back changed, where this side
+    /// kept the front depths the CPU sent for that refresh: the CPU may then send only
+    /// the fronts that changed ([`FrontsIn::Changes`]). `None`: every pixel's must go
+    /// up.
+    pub(super) fn fronts_since(&self) -> Option<&[u32]> {
+        self.fronts.as_ref().filter(|f| f.valid)?;
+        self.holds_kept.changed.as_deref()
     }
 
     /// Upload the hit points and velocities of the live samples `start..` again.
@@ -840,18 +898,16 @@ impl GpuRecon {
     }
 
     /// Encode placing, counting, scanning and listing the splats by bin, the front
-    /// depths starting from `front` (as [`carried::front_bits`] gives them; `None`:
-    /// from none).
-    fn encode_bins(&self, enc: &mut wgpu::CommandEncoder, count: usize, front: Option<&[u32]>) {
+    /// depths starting from the kept ones where `front` (brought up to date by work
+    /// that runs ahead of this encoder's, [`GpuRecon::upload_fronts`]), else from none.
+    fn encode_bins(&self, enc: &mut wgpu::CommandEncoder, count: usize, front: bool) {
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         enc.clear_buffer(&self.buffers.bins, 0, Some(nb * 4));
-        match front {
-            // Written before this encoder's work runs: queue writes go ahead of the
-            // next submission.
-            Some(f) => self
-                .ctx
-                .queue
-                .write_buffer(&self.buffers.front, 0, bytemuck::cast_slice(f)),
+        match self.fronts.as_ref().filter(|_| front) {
+            Some(f) => {
+                let bytes = self.buffers.front.size().min(f.kept.size());
+                enc.copy_buffer_to_buffer(&f.kept, 0, &self.buffers.front, 0, bytes);
+            }
             None => enc.clear_buffer(&self.buffers.front, 0, None),
         }
         let groups = (count as u32).div_ceil(GROUP);
@@ -864,7 +920,7 @@ impl GpuRecon {
 
     /// The bins' work ([`GpuRecon::encode_bins`]) on its own, with the items listed
     /// read back.
-    fn bin_pass(&mut self, count: usize, front: Option<&[u32]>) -> Result<usize, GpuError> {
+    fn bin_pass(&mut self, count: usize, front: bool) -> Result<usize, GpuError> {
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
         let mut enc = self.encoder();
         self.encode_bins(&mut enc, count, front);
@@ -942,6 +998,7 @@ impl GpuRecon {
             None => None,
         });
         let (back, w) = (self.sums_back, self.width as usize);
+        let holds_kept = &mut self.holds_kept;
         let cap = self.buffers.items_cap;
         read_timed(&self.ctx, &mut self.times, &bufs, |v| {
             let listed = first_u32(v[0]) as usize;
@@ -956,7 +1013,7 @@ impl GpuRecon {
             let counts = std::mem::take(&mut into.counts);
             let history = history.map(|_| history::GpuHistory::back(rest[0], rest[1], counts));
             if let (Some(back), Some(bytes)) = (back, rest.last()) {
-                carried::unpack_back(back, bytes, into.sums, w);
+                carried::unpack_back(back, bytes, into.sums, w, (into.edited, holds_kept));
             }
             Ok(Readback {
                 holes: first_u32(&v[0][4..]) as usize,
