@@ -15,7 +15,8 @@
 // scan    one workgroup: each bin's first item (exclusive prefix sum of the counts).
 // fill    one thread per fresh sample: its index into its bin.
 // sort    one workgroup per bin: the bin's sample indices in the order they came,
-//         whatever order the atomic counters handed out the slots in.
+//         whatever order the atomic counters handed out the slots in (one thread
+//         for a bin of few, a bitonic network for more).
 // fresh   one thread per pixel: its bin's samples that are its own, in order.
 // cut     one thread per pixel a moving surface covers now.
 // blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend.
@@ -366,6 +367,14 @@ fn sort_fresh(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
     }
     let n = workgroupUniformLoad(&sort_n);
     let o = workgroupUniformLoad(&sort_o);
+    if n <= SMALL_BIN {
+        // Most bins hold a few samples: one thread sorts them, without the network's
+        // barriers (each a pause of the whole workgroup).
+        if li == 0u {
+            insertion_sort(o, n);
+        }
+        return;
+    }
     var m = 1u;
     while m < n {
         m *= 2u;
@@ -389,6 +398,22 @@ fn sort_fresh(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
             storageBarrier();
             workgroupBarrier();
         }
+    }
+}
+
+// Bins of at most this many samples are sorted by one thread.
+const SMALL_BIN: u32 = 32u;
+
+// The `n` indices from `order[o]` in increasing order.
+fn insertion_sort(o: u32, n: u32) {
+    for (var i = 1u; i < n; i++) {
+        let v = atomicLoad(&order[o + i]);
+        var j = i;
+        while j > 0u && atomicLoad(&order[o + j - 1u]) > v {
+            atomicStore(&order[o + j], atomicLoad(&order[o + j - 1u]));
+            j--;
+        }
+        atomicStore(&order[o + j], v);
     }
 }
 
