@@ -198,7 +198,7 @@ impl GpuHistory {
             self.dispatch(enc, &pl.scan, 1);
             self.dispatch(enc, &pl.fill, samples);
             self.dispatch_2d(enc, &pl.sort, bins);
-            self.dispatch_2d(enc, &pl.fresh, bins);
+            self.dispatch(enc, &pl.fresh, samples);
         }
         self.dispatch(enc, &pl.cut, (hp.n_cuts).div_ceil(GROUP));
         self.dispatch(enc, &pl.blend, pixels);

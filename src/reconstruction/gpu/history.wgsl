@@ -14,10 +14,10 @@
 //         16×16 bin.
 // scan    one workgroup: each bin's first item (exclusive prefix sum of the counts).
 // fill    one thread per fresh sample: its index into its bin.
-// sort    one workgroup per bin: the bin's sample indices in the order they came,
-//         whatever order the atomic counters handed out the slots in (one thread
-//         for a bin of few, a bitonic network for more).
-// fresh   one thread per pixel: its bin's samples that are its own, in order.
+// sort    one workgroup per bin: the bin's sample indices by pixel and, within a
+//         pixel, in the order they came, whatever order the atomic counters handed
+//         out the slots in (one thread for a bin of few, a bitonic network for more).
+// fresh   one thread per run of fresh samples of a pixel: the samples in order.
 // cut     one thread per pixel a moving surface covers now.
 // blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend.
 
@@ -389,7 +389,7 @@ fn sort_fresh(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
                 if q > i && q < n {
                     let a = atomicLoad(&order[o + i]);
                     let b = atomicLoad(&order[o + q]);
-                    if b < a {
+                    if before(b, a) {
                         atomicStore(&order[o + i], b);
                         atomicStore(&order[o + q], a);
                     }
@@ -404,12 +404,20 @@ fn sort_fresh(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_i
 // Bins of at most this many samples are sorted by one thread.
 const SMALL_BIN: u32 = 32u;
 
-// The `n` indices from `order[o]` in increasing order.
+// Whether fresh sample `a` goes before `b`: in a lower pixel, or in the same one
+// and earlier.
+fn before(a: u32, b: u32) -> bool {
+    let pa = fresh_pixel(a);
+    let pb = fresh_pixel(b);
+    return pa < pb || (pa == pb && a < b);
+}
+
+// The `n` indices from `order[o]` sorted by `before`.
 fn insertion_sort(o: u32, n: u32) {
     for (var i = 1u; i < n; i++) {
         let v = atomicLoad(&order[o + i]);
         var j = i;
-        while j > 0u && atomicLoad(&order[o + j - 1u]) > v {
+        while j > 0u && before(v, atomicLoad(&order[o + j - 1u])) {
             atomicStore(&order[o + j], atomicLoad(&order[o + j - 1u]));
             j--;
         }
@@ -417,19 +425,25 @@ fn insertion_sort(o: u32, n: u32) {
     }
 }
 
-@compute @workgroup_size(16, 16)
-fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    if gid.x >= P.width || gid.y >= P.height {
+// The fresh sample at position `k` of the sorted items.
+fn sorted_at(k: u32) -> u32 {
+    return atomicLoad(&order[3u * bin_count() + 1u + k]);
+}
+
+@compute @workgroup_size(256)
+fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= P.n_fresh {
         return;
     }
-    let q = gid.y * P.width + gid.x;
-    let b = wid.y * P.bins_x + wid.x;
-    let e = bin_start(b + 1u);
-    for (var k = bin_start(b); k < e; k++) {
-        let i = atomicLoad(&order[k]);
-        if fresh_pixel(i) == q {
-            take_in(q, i);
-        }
+    let q = fresh_pixel(sorted_at(k));
+    // Bins are listed in order and sorted by pixel within: a pixel's samples are one
+    // run, taken in by the thread at its start.
+    if k > 0u && fresh_pixel(sorted_at(k - 1u)) == q {
+        return;
+    }
+    for (var j = k; j < P.n_fresh && fresh_pixel(sorted_at(j)) == q; j++) {
+        take_in(q, sorted_at(j));
     }
 }
 
