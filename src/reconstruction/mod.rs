@@ -247,6 +247,10 @@ pub struct Reconstructor {
     gpu_front: Vec<u32>,
     #[cfg(feature = "gpu")]
     gpu_front_changes: Vec<[u32; 2]>,
+    /// [`FEW_FRONTS`]; the tests lift it (`None`) so that their small images, dense
+    /// with samples, go the incremental way too.
+    #[cfg(feature = "gpu")]
+    few_fronts: Option<usize>,
     /// Refreshes whose kept fronts were checked against a full recompute.
     #[cfg(all(test, feature = "gpu"))]
     kept_fronts_checked: usize,
@@ -256,6 +260,11 @@ pub struct Reconstructor {
     /// Wall time of each step of the CPU refreshes.
     passes: PassTimes,
 }
+
+/// Where more than one pixel in this many may have a changed carried front, they are
+/// all recomputed in order rather than one by one ([`Reconstructor::pack_fronts`]).
+#[cfg(feature = "gpu")]
+const FEW_FRONTS: usize = 16;
 
 impl Reconstructor {
     /// Check that a reconstructor for a `width × height` display with `params` fits the
@@ -341,6 +350,8 @@ impl Reconstructor {
             gpu: None,
             #[cfg(feature = "gpu")]
             gpu_front: Vec::new(),
+            #[cfg(feature = "gpu")]
+            few_fronts: Some(FEW_FRONTS),
             #[cfg(feature = "gpu")]
             gpu_front_changes: Vec::new(),
             #[cfg(all(test, feature = "gpu"))]
@@ -826,7 +837,14 @@ impl Reconstructor {
             .and_then(|c| c.edits.as_ref())
             .filter(|e| e.complete);
         if let (Some(changed), Some(c), Some(e)) = (since, carried, edits) {
-            if self.gpu_front.len() == n {
+            let dirty = changed.len() + e.takes.len() + e.cuts.len() + e.settled.len();
+            // The dirty pixels are read at random, the whole image in order: on
+            // lavapipe at 1280×720 33K dirty pixels of 922K were cheaper one by one,
+            // 133K were not, nor 33K of 307K at 640×480 (performance.md, session 43).
+            let few = self
+                .few_fronts
+                .is_none_or(|f| dirty + e.lands.len() <= n / f);
+            if self.gpu_front.len() == n && few {
                 let lands = e.lands.iter().map(|l| l.1);
                 let dirty = changed.iter().chain(&e.takes).chain(&e.cuts);
                 let dirty = dirty.chain(&e.settled).copied().chain(lands);
