@@ -468,16 +468,11 @@ fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
             let (mut cpu, mut gpu, tiling) = carry_pair(&ctx, params, (w, h));
             let mut rng = crate::sampling::Rng::new(&[17, per as u64]);
             let cam = carry_camera(0, (w, h));
-            let mut listed = [0usize; 3];
+            let mut listed = [0usize; 4];
             let refreshes = 10;
             for k in 0..refreshes {
                 refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
-                let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
-                if e.complete {
-                    listed[0] += e.takes.len();
-                    listed[1] += e.lands.len();
-                    listed[2] += e.cuts.len();
-                }
+                tally_edits(&gpu, &mut listed);
                 let what = format!("{w}x{h}, {per} per refresh, {params:?}, refresh {k}");
                 check(&differences(&cpu, &gpu), (w * h) as usize, &what);
             }
@@ -487,10 +482,23 @@ fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
                 "{w}x{h}: {uploaded} uploads, {replayed} replays"
             );
             assert!(
-                listed.iter().all(|&n| n > 0),
-                "{w}x{h}: takes, landings and cuts listed {listed:?}"
+                listed[..3].iter().all(|&n| n > 0),
+                "{w}x{h}: takes, landings and cuts listed {:?}",
+                &listed[..3]
             );
         }
+    }
+}
+
+/// Add the takes, landings, cuts and settled pixels of `gpu`'s last carry, where it
+/// was listed whole, to `listed`.
+fn tally_edits(gpu: &Reconstructor, listed: &mut [usize; 4]) {
+    let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
+    if e.complete {
+        listed[0] += e.takes.len();
+        listed[1] += e.lands.len();
+        listed[2] += e.cuts.len();
+        listed[3] += e.settled.len();
     }
 }
 
@@ -534,13 +542,7 @@ fn gpu_kept_fronts_match_a_full_recompute() {
             for k in 0..refreshes {
                 let cam = fronts_camera(k, (w, h));
                 refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
-                let e = gpu.carried.as_ref().and_then(|c| c.edits.as_ref()).unwrap();
-                if e.complete {
-                    listed[0] += e.takes.len();
-                    listed[1] += e.lands.len();
-                    listed[2] += e.cuts.len();
-                    listed[3] += e.settled.len();
-                }
+                tally_edits(&gpu, &mut listed);
                 let kept = gpu.gpu.as_ref().and_then(|g| g.kept_fronts()).unwrap();
                 let n = gpu.gpu_front.len();
                 assert_eq!(n, (w * h) as usize);
