@@ -598,7 +598,7 @@ impl Reconstructor {
                     band.cut_and_offer(&ctx, ks, ring);
                     band.settle();
                     if ctx.list_edits {
-                        band.out.settled = std::mem::take(&mut band.touched);
+                        band.out.settled = band.settled_fronts(&ctx);
                     }
                     band.out
                 },
@@ -758,9 +758,10 @@ struct BandOut {
     /// those whose new geometry moves.
     unanchored: Vec<u32>,
     anchored: Vec<(u32, Anchor)>,
-    /// The pixels cut, and those whose geometry was settled, when listed.
+    /// The pixels cut, and those whose geometry was settled with their fronts, when
+    /// listed.
     cuts: Vec<u32>,
-    settled: Vec<u32>,
+    settled: Vec<(u32, f32)>,
 }
 
 /// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
@@ -889,6 +890,24 @@ impl CutBand<'_> {
             self.geo[i] = g;
             self.next_geo[i] = Geo::NONE;
         }
+    }
+}
+
+impl CutBand<'_> {
+    /// After [`CutBand::settle`]: each pixel settled, with its front depth as
+    /// [`lower_fronts`] lowers none to it.
+    fn settled_fronts(&self, ctx: &CutContext) -> Vec<(u32, f32)> {
+        let (w, cs) = (ctx.w, ctx.cs);
+        let at = |q: usize| ((q / w - self.y0) * CHANNELS + 3) * cs + q % w;
+        self.touched
+            .iter()
+            .map(|&q| {
+                let i = q as usize - self.base;
+                let mut front = [f32::INFINITY];
+                lower_fronts(&mut front, &self.geo[i..=i], &[self.acc[at(q as usize)]]);
+                (q, front[0])
+            })
+            .collect()
     }
 }
 
@@ -1212,18 +1231,26 @@ impl Reconstructor {
 
 /// The front bits of [`Reconstructor::carried_front_bits`] brought up to date in
 /// `kept`, which held them for the carried state of the last refresh, where only the
-/// pixels `dirty` (any order, repeats allowed) may have changed since (their weight's
-/// holding or their geometry): each recomputed by the same rule, and listed in
-/// `changes` as `[pixel, bits]` where it differs.
+/// pixels `settled` (with their fronts now) and `dirty` (any order, repeats allowed)
+/// may have changed since (their weight's holding or their geometry): the dirty ones
+/// recomputed by the same rule, and each listed in `changes` as `[pixel, bits]` where
+/// it differs.
 #[cfg(feature = "gpu")]
 pub(super) fn changed_front_bits(
     c: &Carried,
     (acc, w, cs): (&[f32], usize, usize),
-    dirty: impl Iterator<Item = u32>,
+    (settled, dirty): (&[(u32, f32)], impl Iterator<Item = u32>),
     kept: &mut [u32],
     changes: &mut Vec<[u32; 2]>,
 ) {
     changes.clear();
+    for &(q, z) in settled {
+        let bits = super::gpu::carried::front_bit(z);
+        if kept[q as usize] != bits {
+            kept[q as usize] = bits;
+            changes.push([q, bits]);
+        }
+    }
     for q in dirty {
         let p = q as usize;
         let weight = acc[((p / w) * CHANNELS + 3) * cs + p % w];

@@ -24,10 +24,12 @@ pub(super) struct CarryEdits {
     /// Pixels emptied because a new sample came in front (in any order; a pixel may
     /// be listed more than once).
     pub(super) cuts: Vec<u32>,
-    /// Pixels whose geometry new samples set, in any order. Not replayed (the GPU
-    /// keeps no geometry): with the takes, landings and cuts, they are where the
-    /// carried front depths may have changed ([`super::gpu::carried`]).
-    pub(super) settled: Vec<u32>,
+    /// Pixels whose geometry new samples set, in any order, each with its front
+    /// depth after this carry (infinite: none). Not replayed (the GPU keeps no
+    /// geometry): with the takes, landings and cuts, they are where the carried front
+    /// depths may have changed ([`super::gpu::carried`]); found where the cut has the
+    /// pixel at hand, their fronts cost no second visit.
+    pub(super) settled: Vec<(u32, f32)>,
 }
 
 impl CarryEdits {
@@ -68,7 +70,7 @@ mod tests {
             takes: vec![7, 9],
             lands: vec![(1, 3, true), (0, 4, false)],
             cuts: vec![2],
-            settled: vec![5],
+            settled: vec![(5, 1.5)],
         };
         let mut w = vec![99];
         e.words(&mut w);

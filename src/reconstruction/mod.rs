@@ -261,8 +261,9 @@ pub struct Reconstructor {
     passes: PassTimes,
 }
 
-/// Where more than one pixel in this many may have a changed carried front, they are
-/// all recomputed in order rather than one by one ([`Reconstructor::pack_fronts`]).
+/// Where more than one pixel in this many may have a changed carried front beyond
+/// those the cut settled (which come with theirs), they are all recomputed in order
+/// rather than one by one ([`Reconstructor::pack_fronts`]).
 #[cfg(feature = "gpu")]
 const FEW_FRONTS: usize = 16;
 
@@ -823,8 +824,8 @@ impl Reconstructor {
     /// over no new splat, into `gpu_front`, and which of them go up. Where the GPU kept
     /// the last refresh's and this carry is listed whole, a front can have changed
     /// only where the last read-back changed a weight or this carry edited a pixel
-    /// (its takes, landings, cuts and settled geometry): those alone are recomputed,
-    /// and the ones that changed go up. Otherwise (the first refresh, a carry that
+    /// (its takes, landings, cuts and settled geometry): those alone are recomputed
+    /// (the settled ones the cut found already), and the ones that changed go up. Otherwise (the first refresh, a carry that
     /// restarted or moved with the view, sums that come back whole, a new GPU side)
     /// every pixel's.
     #[cfg(feature = "gpu")]
@@ -837,17 +838,16 @@ impl Reconstructor {
             .and_then(|c| c.edits.as_ref())
             .filter(|e| e.complete);
         if let (Some(changed), Some(c), Some(e)) = (since, carried, edits) {
-            let dirty = changed.len() + e.takes.len() + e.cuts.len() + e.settled.len();
-            // The dirty pixels are read at random, the whole image in order: on
+            // The settled pixels come with their fronts, in the cut's order; the
+            // other dirty ones are read at random, the whole image in order: on
             // lavapipe at 1280×720 33K dirty pixels of 922K were cheaper one by one,
             // 133K were not, nor 33K of 307K at 640×480 (performance.md, session 43).
-            let few = self
-                .few_fronts
-                .is_none_or(|f| dirty + e.lands.len() <= n / f);
+            let dirty = changed.len() + e.takes.len() + e.cuts.len() + e.lands.len();
+            let few = self.few_fronts.is_none_or(|f| dirty <= n / f);
             if self.gpu_front.len() == n && few {
                 let lands = e.lands.iter().map(|l| l.1);
                 let dirty = changed.iter().chain(&e.takes).chain(&e.cuts);
-                let dirty = dirty.chain(&e.settled).copied().chain(lands);
+                let dirty = (&e.settled[..], dirty.copied().chain(lands));
                 let (kept, changes) = (&mut self.gpu_front, &mut self.gpu_front_changes);
                 carry::changed_front_bits(c, (&self.acc, w, cs), dirty, kept, changes);
                 let few = changes.len() <= n / 4;
