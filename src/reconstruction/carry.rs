@@ -596,10 +596,7 @@ impl Reconstructor {
                         out: BandOut::default(),
                     };
                     band.cut_and_offer(&ctx, ks, ring);
-                    band.settle();
-                    if ctx.list_edits {
-                        band.out.settled = band.settled_fronts(&ctx);
-                    }
+                    band.settle(&ctx);
                     band.out
                 },
             )
@@ -873,8 +870,17 @@ impl CutBand<'_> {
 
     /// Every pixel of the band new samples landed on takes its nearest one's
     /// geometry (its next one is none again); the anchors to drop and keep go to the
-    /// merge.
-    fn settle(&mut self) {
+    /// merge. Where edits are listed, so does each such pixel with its front depth
+    /// after the carry, as [`lower_fronts`] lowers none to it, while its geometry and
+    /// weight are at hand.
+    fn settle(&mut self, ctx: &CutContext) {
+        let (w, cs) = (ctx.w, ctx.cs);
+        if ctx.list_edits {
+            self.out.settled.reserve(self.touched.len());
+        }
+        // The band's row of the pixel: in the cut's order the rows only grow, but for
+        // a group across two, so no pixel costs a division.
+        let mut y = 0;
         for &q in &self.touched {
             let i = q as usize - self.base;
             if self.geo[i].v != Vec3::ZERO {
@@ -889,25 +895,19 @@ impl CutBand<'_> {
             }
             self.geo[i] = g;
             self.next_geo[i] = Geo::NONE;
-        }
-    }
-}
-
-impl CutBand<'_> {
-    /// After [`CutBand::settle`]: each pixel settled, with its front depth as
-    /// [`lower_fronts`] lowers none to it.
-    fn settled_fronts(&self, ctx: &CutContext) -> Vec<(u32, f32)> {
-        let (w, cs) = (ctx.w, ctx.cs);
-        let at = |q: usize| ((q / w - self.y0) * CHANNELS + 3) * cs + q % w;
-        self.touched
-            .iter()
-            .map(|&q| {
-                let i = q as usize - self.base;
+            if ctx.list_edits {
+                while i >= (y + 1) * w {
+                    y += 1;
+                }
+                while i < y * w {
+                    y -= 1;
+                }
+                let weight = self.acc[(y * CHANNELS + 3) * cs + i - y * w];
                 let mut front = [f32::INFINITY];
-                lower_fronts(&mut front, &self.geo[i..=i], &[self.acc[at(q as usize)]]);
-                (q, front[0])
-            })
-            .collect()
+                lower_fronts(&mut front, &[g], &[weight]);
+                self.out.settled.push((q, front[0]));
+            }
+        }
     }
 }
 
