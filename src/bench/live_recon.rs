@@ -214,9 +214,7 @@ pub fn live_image_ms(
         let t1 = (i + 1) as f64 / case.refresh_hz;
         traced_during(i, per, case, turning, &mut rng, &mut batch);
         let t0 = Instant::now();
-        for s in &batch {
-            r.push(*s);
-        }
+        r.push_all(&batch);
         if i >= warm {
             take_in.push(t0.elapsed().as_secs_f64() * 1e3);
         }

@@ -520,6 +520,22 @@ impl Reconstructor {
         self.ring.push(&s);
     }
 
+    /// [`Reconstructor::push`] each of `ss`, in order.
+    pub fn push_all(&mut self, ss: &[RingSample]) {
+        for s in ss {
+            self.push_to_history(s, false);
+        }
+        self.push_all_to_ring(ss);
+    }
+
+    /// The ring's part of pushing each of `ss`.
+    fn push_all_to_ring(&mut self, ss: &[RingSample]) {
+        if let Some(c) = &mut self.carried {
+            c.pending += ss.len();
+        }
+        self.ring.extend(ss);
+    }
+
     /// Give the still-region history samples no image will place (a live limit left
     /// them out of the ring): it takes in every sample it is given at the next
     /// refresh, and traced samples are worth as much to it placed or not.
@@ -537,10 +553,17 @@ impl Reconstructor {
         }
     }
 
-    /// Append the sampler's stream.
+    /// Append the sampler's stream, as [`Reconstructor::push_marked`] each sample (the
+    /// ring takes them a run at a time: one at a time cost twice as much).
     pub fn push_stream(&mut self, stream: &[StreamSample]) {
-        for s in stream {
-            self.push_marked(RingSample::from(s), s.sample.dynamic);
+        let mut run = Vec::with_capacity(stream.len().min(ring::EXTEND_CHUNK));
+        for part in stream.chunks(ring::EXTEND_CHUNK) {
+            run.clear();
+            run.extend(part.iter().map(RingSample::from));
+            for (r, s) in run.iter().zip(part) {
+                self.push_to_history(r, s.sample.dynamic);
+            }
+            self.push_all_to_ring(&run);
         }
     }
 

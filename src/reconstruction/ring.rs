@@ -21,6 +21,10 @@ use crate::trace::Anchor;
 /// Pushes per block of the ring's running largest time (see [`Ring::live_start`]).
 pub(crate) const TIME_BLOCK: u64 = 256;
 
+/// Samples per run of [`Ring::extend`]: a run's samples stay in the first-level cache
+/// while each of their fields is written.
+pub(super) const EXTEND_CHUNK: usize = 256;
+
 /// Field indices of [`Ring::f`].
 pub(crate) mod field {
     /// Sub-pixel position where the sample was traced.
@@ -170,14 +174,45 @@ impl Ring {
         (0..self.len()).map(|i| self.at(self.phys(i)))
     }
 
+    /// Append samples in order, as [`Ring::push`] each would: their fields written a
+    /// run of slots at a time, one field after another.
+    pub fn extend(&mut self, ss: &[RingSample]) {
+        use field::*;
+        let chunk = EXTEND_CHUNK.min(self.capacity);
+        for part in ss.chunks(chunk) {
+            let p0 = self.phys(self.len);
+            let first = part.len().min(self.capacity - p0);
+            for (p, run) in [(p0, &part[..first]), (0, &part[first..])] {
+                let n = run.len();
+                let mut put = |k: usize, get: &dyn Fn(&RingSample) -> f32| {
+                    for (d, s) in self.f[k][p..p + n].iter_mut().zip(run) {
+                        *d = get(s);
+                    }
+                };
+                put(X, &|s| s.x);
+                put(Y, &|s| s.y);
+                put(R, &|s| s.color.x);
+                put(G, &|s| s.color.y);
+                put(B, &|s| s.color.z);
+                put(HX, &|s| s.hit_point.x);
+                put(HY, &|s| s.hit_point.y);
+                put(HZ, &|s| s.hit_point.z);
+                put(VX, &|s| s.velocity.x);
+                put(VY, &|s| s.velocity.y);
+                put(VZ, &|s| s.velocity.z);
+                for (d, s) in self.t[p..p + n].iter_mut().zip(run) {
+                    *d = s.t;
+                }
+            }
+            for s in part {
+                self.note(s);
+            }
+        }
+    }
+
     /// Append a sample, dropping the oldest once the ring is full.
     pub fn push(&mut self, s: &RingSample) {
         use field::*;
-        // Written so that a NaN time also lands here.
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        if !(s.t <= self.max_t) {
-            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
-        }
         let mut v = [0f32; COUNT];
         v[X] = s.x;
         v[Y] = s.y;
@@ -191,6 +226,17 @@ impl Ring {
             f[p] = v;
         }
         self.t[p] = s.t;
+        self.note(s);
+    }
+
+    /// The bookkeeping of a push of `s`, whose fields are in the slot after the newest.
+    fn note(&mut self, s: &RingSample) {
+        // Written so that a NaN time also lands here.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
+        if !(s.t <= self.max_t) {
+            self.max_t = if s.t.is_nan() { f64::INFINITY } else { s.t };
+        }
+        let p = self.phys(self.len);
         if s.anchor != Anchor::Still {
             self.moving.push_back((self.pushed, s.anchor));
         }
@@ -253,6 +299,50 @@ mod tests {
             hit_point: Vec3::new(4.0, 5.0, 6.0) * t as f32,
             velocity: Vec3::new(7.0, 8.0, 9.0) * t as f32,
             anchor: Default::default(),
+        }
+    }
+
+    proptest::proptest! {
+        /// Extending by a slice leaves the ring as pushing each sample does: its
+        /// samples and anchors, its time blocks and its stale prefix, across the wrap
+        /// and the runs of `extend`.
+        #[test]
+        fn extending_is_pushing_each(
+            capacity in 1usize..700,
+            before in 0usize..900,
+            times in proptest::collection::vec(
+                proptest::prop_oneof![8 => 0.0..50.0f64, 1 => proptest::strategy::Just(f64::NAN)],
+                0..1200,
+            ),
+        ) {
+            let anchored = |k: usize, t: f64| RingSample {
+                anchor: if k % 5 == 1 {
+                    Anchor::Instance { group: k as u32, local: Vec3::splat(t as f32) }
+                } else {
+                    Anchor::Still
+                },
+                ..sample(t)
+            };
+            let ss: Vec<RingSample> = times.iter().enumerate().map(|(k, &t)| anchored(k, t)).collect();
+            let (mut pushed, mut extended) = (Ring::new(capacity), Ring::new(capacity));
+            for k in 0..before {
+                pushed.push(&anchored(k, k as f64 * 0.1));
+                extended.push(&anchored(k, k as f64 * 0.1));
+            }
+            for s in &ss {
+                pushed.push(s);
+            }
+            extended.extend(&ss);
+            let same = |r: &Ring| {
+                let samples: Vec<String> = r.iter().map(|s| format!("{s:?}")).collect();
+                (samples, r.len, r.head, r.pushed, r.max_t.to_bits(), r.first_block,
+                 r.block_max_t.iter().map(|m| m.to_bits()).collect::<Vec<_>>(),
+                 format!("{:?}", r.moving))
+            };
+            proptest::prop_assert_eq!(same(&pushed), same(&extended));
+            for cutoff in [0.0, 1.0, 25.0, 49.0, f64::INFINITY] {
+                proptest::prop_assert_eq!(pushed.live_start(cutoff), extended.live_start(cutoff));
+            }
         }
     }
 

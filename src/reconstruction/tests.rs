@@ -708,6 +708,48 @@ fn samples_left_unplaced_still_reach_the_history() {
     assert_eq!(newest.history_counts(), Some(counts));
 }
 
+/// The stream taken in a run at a time is the stream taken in one sample at a time:
+/// the same ring, pending samples, history and images, over more than one run, with
+/// samples marked dynamic and moving ones among them.
+#[test]
+fn a_stream_pushed_at_once_is_the_stream_pushed_one_by_one() {
+    use crate::trace::{Sample, StreamSample};
+    let (w, h) = (16, 12);
+    let c = cam(w, h);
+    let stream: Vec<StreamSample> = (0..700)
+        .map(|i| {
+            let (x, y) = ((i * 7 % 16) as f32 + 0.25, (i * 5 / 16 % 12) as f32 + 0.5);
+            StreamSample {
+                x,
+                y,
+                t: 0.0001 * i as f64,
+                sample: Sample {
+                    color: Vec3::splat((i % 9) as f32 / 9.0),
+                    hit_point: c.eye + c.direction(x, y) * 2.0,
+                    velocity: if i % 11 == 0 { Vec3::X } else { Vec3::ZERO },
+                    dynamic: i % 13 == 0,
+                    ..Default::default()
+                },
+            }
+        })
+        .collect();
+    let tiling = TilingSnapshot::whole(w, h);
+    let params = ReconParams::realtime();
+    let mut at_once = Reconstructor::new(w, h, 1000.0, params);
+    let mut one_by_one = Reconstructor::new(w, h, 1000.0, params);
+    at_once.push_stream(&stream);
+    for s in &stream {
+        one_by_one.push_marked(RingSample::from(s), s.sample.dynamic);
+    }
+    let ring = |r: &Reconstructor| r.ring().iter().collect::<Vec<_>>();
+    assert_eq!(ring(&at_once), ring(&one_by_one));
+    assert_eq!(at_once.pending_start(), one_by_one.pending_start());
+    at_once.reconstruct(0.1, &c, &tiling);
+    one_by_one.reconstruct(0.1, &c, &tiling);
+    assert_eq!(at_once.image().pixels, one_by_one.image().pixels);
+    assert_eq!(at_once.history_counts(), one_by_one.history_counts());
+}
+
 /// Backing the buffers with memory up front ([`Reconstructor::prepare`]) allocates
 /// the history before any refresh and changes no result: the same images, ages and
 /// history counts, carried refreshes included, as a reconstructor left to allocate
