@@ -878,9 +878,6 @@ impl CutBand<'_> {
         if ctx.list_edits {
             self.out.settled.reserve(self.touched.len());
         }
-        // The band's row of the pixel: in the cut's order the rows only grow, but for
-        // a group across two, so no pixel costs a division.
-        let mut y = 0;
         for &q in &self.touched {
             let i = q as usize - self.base;
             if self.geo[i].v != Vec3::ZERO {
@@ -896,13 +893,7 @@ impl CutBand<'_> {
             self.geo[i] = g;
             self.next_geo[i] = Geo::NONE;
             if ctx.list_edits {
-                while i >= (y + 1) * w {
-                    y += 1;
-                }
-                while i < y * w {
-                    y -= 1;
-                }
-                let weight = self.acc[(y * CHANNELS + 3) * cs + i - y * w];
+                let weight = self.acc[((i / w) * CHANNELS + 3) * cs + i % w];
                 let mut front = [f32::INFINITY];
                 lower_fronts(&mut front, &[g], &[weight]);
                 self.out.settled.push((q, front[0]));

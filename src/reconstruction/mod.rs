@@ -848,9 +848,9 @@ impl Reconstructor {
     /// the last refresh's and this carry is listed whole, a front can have changed
     /// only where the last read-back changed a weight or this carry edited a pixel
     /// (its takes, landings, cuts and settled geometry): those alone are recomputed
-    /// (the settled ones the cut found already), and the ones that changed go up. Otherwise (the first refresh, a carry that
-    /// restarted or moved with the view, sums that come back whole, a new GPU side)
-    /// every pixel's.
+    /// (the settled ones the cut found already), and the ones that changed go up.
+    /// Otherwise (the first refresh, a carry that restarted or moved with the view,
+    /// sums that come back whole, a new GPU side) every pixel's.
     #[cfg(feature = "gpu")]
     fn pack_fronts(&mut self) -> Option<FrontsSent> {
         self.visibility_keep()?;

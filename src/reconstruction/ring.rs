@@ -44,6 +44,17 @@ pub(crate) mod field {
     pub const VZ: usize = 10;
     /// Number of f32 fields.
     pub const COUNT: usize = 11;
+
+    /// The f32 fields of `s`, by index.
+    pub(super) fn of(s: &super::RingSample) -> [f32; COUNT] {
+        let mut v = [0f32; COUNT];
+        v[X] = s.x;
+        v[Y] = s.y;
+        [v[R], v[G], v[B]] = s.color.to_array();
+        [v[HX], v[HY], v[HZ]] = s.hit_point.to_array();
+        [v[VX], v[VY], v[VZ]] = s.velocity.to_array();
+        v
+    }
 }
 
 /// A fixed-capacity ring of samples, oldest first (see the module doc).
@@ -174,33 +185,25 @@ impl Ring {
         (0..self.len()).map(|i| self.at(self.phys(i)))
     }
 
-    /// Append samples in order, as [`Ring::push`] each would: their fields written a
-    /// run of slots at a time, one field after another.
+    /// Append samples in order, as [`Ring::push`] each would: a run of them at a
+    /// time, each field of the run written in one stream.
     pub fn extend(&mut self, ss: &[RingSample]) {
-        use field::*;
         let chunk = EXTEND_CHUNK.min(self.capacity);
+        let mut fields = [[0f32; field::COUNT]; EXTEND_CHUNK];
         for part in ss.chunks(chunk) {
+            for (v, s) in fields.iter_mut().zip(part) {
+                *v = field::of(s);
+            }
             let p0 = self.phys(self.len);
             let first = part.len().min(self.capacity - p0);
-            for (p, run) in [(p0, &part[..first]), (0, &part[first..])] {
-                let n = run.len();
-                let mut put = |k: usize, get: &dyn Fn(&RingSample) -> f32| {
-                    for (d, s) in self.f[k][p..p + n].iter_mut().zip(run) {
-                        *d = get(s);
+            for (p, j0, n) in [(p0, 0, first), (0, first, part.len() - first)] {
+                let run = &fields[j0..j0 + n];
+                for (k, f) in self.f.iter_mut().enumerate() {
+                    for (d, v) in f[p..p + n].iter_mut().zip(run) {
+                        *d = v[k];
                     }
-                };
-                put(X, &|s| s.x);
-                put(Y, &|s| s.y);
-                put(R, &|s| s.color.x);
-                put(G, &|s| s.color.y);
-                put(B, &|s| s.color.z);
-                put(HX, &|s| s.hit_point.x);
-                put(HY, &|s| s.hit_point.y);
-                put(HZ, &|s| s.hit_point.z);
-                put(VX, &|s| s.velocity.x);
-                put(VY, &|s| s.velocity.y);
-                put(VZ, &|s| s.velocity.z);
-                for (d, s) in self.t[p..p + n].iter_mut().zip(run) {
+                }
+                for (d, s) in self.t[p..p + n].iter_mut().zip(&part[j0..j0 + n]) {
                     *d = s.t;
                 }
             }
@@ -212,17 +215,10 @@ impl Ring {
 
     /// Append a sample, dropping the oldest once the ring is full.
     pub fn push(&mut self, s: &RingSample) {
-        use field::*;
-        let mut v = [0f32; COUNT];
-        v[X] = s.x;
-        v[Y] = s.y;
-        [v[R], v[G], v[B]] = s.color.to_array();
-        [v[HX], v[HY], v[HZ]] = s.hit_point.to_array();
-        [v[VX], v[VY], v[VZ]] = s.velocity.to_array();
         // The slot after the newest: a free one until the ring is full, then the
         // oldest's.
         let p = self.phys(self.len);
-        for (f, v) in self.f.iter_mut().zip(v) {
+        for (f, v) in self.f.iter_mut().zip(field::of(s)) {
             f[p] = v;
         }
         self.t[p] = s.t;
