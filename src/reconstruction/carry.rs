@@ -160,22 +160,39 @@ impl Carried {
 }
 
 /// Where a new sample lands at a refresh: its pixel (`u32::MAX`: off the image or
-/// behind the eye), depth and velocity.
+/// behind the eye) and its depth, negated where the sample moves (a depth on the
+/// image is positive). Eight bytes: the cut's sort and its bands stream these, and a
+/// velocity in each (most are none) more than tripled what they moved.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Ahead {
-    px: u32,
-    py: u32,
-    z: f32,
-    v: Vec3,
+    q: u32,
+    signed_z: f32,
 }
 
 impl Ahead {
     const OFF: Ahead = Ahead {
-        px: u32::MAX,
-        py: u32::MAX,
-        z: 0.0,
-        v: Vec3::ZERO,
+        q: u32::MAX,
+        signed_z: 0.0,
     };
+
+    fn new(q: usize, z: f32, moves: bool) -> Self {
+        Ahead {
+            q: q as u32,
+            signed_z: if moves { -z } else { z },
+        }
+    }
+
+    fn is_on(self) -> bool {
+        self.q != u32::MAX
+    }
+
+    fn z(self) -> f32 {
+        self.signed_z.abs()
+    }
+
+    fn moves(self) -> bool {
+        self.signed_z.is_sign_negative()
+    }
 }
 
 /// Where one pixel's sums go at a refresh: the pixel its point is seen in now, with
@@ -557,7 +574,6 @@ impl Reconstructor {
         let (mut in_order, mut starts) = (take(&mut c.in_order), take(&mut c.group_starts));
         sort_by_group(
             &ahead,
-            w,
             (w * h).div_ceil(GROUP),
             &mut starts,
             &mut in_order,
@@ -674,12 +690,7 @@ impl LocateTo<'_> {
         let v = |j: usize| Vec3::new(vx[j], vy[j], vz[j]);
         let (w, h) = (self.w, self.h);
         let land = |(x, y, z): (f32, f32, f32), v: Vec3| match pixel_at(x, y, z, w, h) {
-            Some((px, py)) => Ahead {
-                px: px as u32,
-                py: py as u32,
-                z,
-                v,
-            },
+            Some((px, py)) => Ahead::new(py * w + px, z, v != Vec3::ZERO),
             None => Ahead::OFF,
         };
         if let Some(l) = located {
@@ -707,27 +718,26 @@ const CUT_ROWS: usize = 16;
 const _: () = assert!(CUT_ROWS % GROUP == 0);
 
 /// The entries of `ahead` (samples off the image left out), with their indices, into
-/// `sorted`, ordered stably by group of [`GROUP`] pixels of the image `w` wide
-/// (`groups` of them): so each pixel's in ring order. `starts[g]` is where group `g`
+/// `sorted`, ordered stably by group of [`GROUP`] pixels (`groups` of them): so each
+/// pixel's in ring order. `starts[g]` is where group `g`
 /// starts, `starts[groups]` the end. A counting sort.
 fn sort_by_group(
     ahead: &[Ahead],
-    w: usize,
     groups: usize,
     starts: &mut Vec<u32>,
     sorted: &mut Vec<(u32, Ahead)>,
 ) {
-    let group = |a: &Ahead| (a.py as usize * w + a.px as usize) / GROUP;
+    let group = |a: &Ahead| a.q as usize / GROUP;
     starts.clear();
     starts.resize(groups + 2, 0);
-    for a in ahead.iter().filter(|a| a.px != u32::MAX) {
+    for a in ahead.iter().filter(|a| a.is_on()) {
         starts[group(a) + 2] += 1;
     }
     for g in 2..starts.len() {
         starts[g] += starts[g - 1];
     }
     sorted.resize(starts[groups + 1] as usize, (0, Ahead::OFF));
-    for (k, a) in ahead.iter().enumerate().filter(|(_, a)| a.px != u32::MAX) {
+    for (k, a) in ahead.iter().enumerate().filter(|(_, a)| a.is_on()) {
         let slot = &mut starts[group(a) + 1];
         sorted[*slot as usize] = (k as u32, *a);
         *slot += 1;
@@ -792,17 +802,19 @@ impl CutBand<'_> {
     /// the pixel's geometry.
     fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[(u32, Ahead)], ring: &super::ring::Ring) {
         let (w, cs, base) = (ctx.w, ctx.cs, self.base);
+        // A pixel's row in the band and column, and its weight's place in `acc`.
+        let row_col = |q: usize| ((q - base) / w, (q - base) % w);
         for (j, &(k, a)) in ks.iter().enumerate() {
             if let Some((_, a)) = ks.get(j + PREFETCH_AHEAD) {
-                let (px, py) = (a.px as usize, a.py as usize);
-                let q = py * w + px;
+                let (q, (ry, px)) = (a.q as usize, row_col(a.q as usize));
                 prefetch(self.geo, q - base);
                 prefetch(self.next_geo, q - base);
-                prefetch(self.acc, ((py - self.y0) * CHANNELS + 3) * cs + px);
+                prefetch(self.acc, (ry * CHANNELS + 3) * cs + px);
             }
-            let Ahead { px, py, z, v } = a;
-            let (px, ry) = (px as usize, py as usize - self.y0);
-            let q = py as usize * w + px;
+            let (q, z) = (a.q as usize, a.z());
+            let (ry, px) = row_col(q);
+            let i = ctx.start + k as usize;
+            let v = if a.moves() { ring.velocity_of(i) } else { Vec3::ZERO };
             let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
             let g = self.geo[q - base];
             let held = g.is_some() && holds(self.acc[at(3)]);
@@ -837,7 +849,6 @@ impl CutBand<'_> {
             // The nearest new sample of a pixel gives its geometry (the one the
             // visibility pass keeps), set once every sample has been tested against
             // the carried one.
-            let i = ctx.start + k as usize;
             self.offer(q, k, Geo { z, ox, oy, v }, || ring.anchor_of(i));
         }
     }
@@ -1331,16 +1342,16 @@ mod order_tests {
             let groups = (w * 11usize).div_ceil(GROUP);
             let ahead: Vec<Ahead> = pixels
                 .iter()
-                .map(|&(px, py, on)| if on { Ahead { px, py, z: 1.0, v: Vec3::ZERO } } else { Ahead::OFF })
+                .map(|&(px, py, on)| if on { Ahead::new(py as usize * w + px as usize, 1.0, px % 3 == 0) } else { Ahead::OFF })
                 .collect();
-            let group = |a: &Ahead| (a.py as usize * w + a.px as usize) / GROUP;
+            let group = |a: &Ahead| a.q as usize / GROUP;
             let mut want: Vec<(u32, Ahead)> = ahead.iter().copied().enumerate()
-                .filter(|(_, a)| a.px != u32::MAX)
+                .filter(|(_, a)| a.is_on())
                 .map(|(k, a)| (k as u32, a))
                 .collect();
             want.sort_by_key(|(_, a)| group(a));
             let (mut starts, mut sorted) = (Vec::new(), Vec::new());
-            sort_by_group(&ahead, w, groups, &mut starts, &mut sorted);
+            sort_by_group(&ahead, groups, &mut starts, &mut sorted);
             prop_assert_eq!(&sorted, &want);
             prop_assert_eq!(starts.len(), groups + 1);
             for g in 0..groups {
@@ -1359,14 +1370,15 @@ mod locate_tests {
         scene::Camera,
     };
 
-    /// Where the sample of logical index `i` lands, one sample at a time.
-    fn one(r: &Reconstructor, t: f64, proj: &Projector, i: usize) -> (u32, u32, f32, Vec3) {
+    /// Where the sample of logical index `i` lands, one sample at a time: its pixel,
+    /// depth and velocity.
+    fn one(r: &Reconstructor, t: f64, proj: &Projector, i: usize) -> (u32, f32, Vec3) {
         let s = r.ring.get(i).unwrap();
         let dt = (t - s.t) as f32;
         let (x, y, z) = proj.project(s.hit_point + s.velocity * dt);
         match pixel_at(x, y, z, r.width as usize, r.height as usize) {
-            Some((px, py)) => (px as u32, py as u32, z, s.velocity),
-            None => (u32::MAX, u32::MAX, 0.0, Vec3::ZERO),
+            Some((px, py)) => ((py * r.width as usize + px) as u32, z, s.velocity),
+            None => (u32::MAX, 0.0, Vec3::ZERO),
         }
     }
 
@@ -1413,10 +1425,13 @@ mod locate_tests {
             for (k, a) in ahead.iter().enumerate() {
                 let want = one(&r, t, &proj, start + k);
                 assert_eq!(
-                    (a.px, a.py, a.z.to_bits(), a.v),
-                    (want.0, want.1, want.2.to_bits(), want.3),
+                    (a.q, a.z().to_bits(), a.moves()),
+                    (want.0, want.1.to_bits(), want.2 != Vec3::ZERO),
                     "start {start}, sample {k}"
                 );
+                if a.is_on() {
+                    assert_eq!(r.ring.velocity_of(start + k), want.2);
+                }
             }
             // Where the place pass located them, that is read instead.
             r.located = (start..n)
@@ -1426,9 +1441,10 @@ mod locate_tests {
             r.locate_new(t, &cam, start..n, &mut ahead);
             for (k, a) in ahead.iter().enumerate() {
                 let i = start + k;
+                let moves = r.ring.velocity_of(i) != Vec3::ZERO;
                 assert_eq!(
-                    (a.px as usize, a.py, a.z),
-                    (i % w as usize, 7, i as f32 + 1.0)
+                    (a.q as usize, a.z(), a.moves()),
+                    (7 * w as usize + i % w as usize, i as f32 + 1.0, moves)
                 );
             }
         }

@@ -36,7 +36,7 @@ use blend::BLEND_ROWS;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::lanes::{prefetch, PREFETCH_AHEAD};
+use super::lanes::{prefetch, Lanes, LANES, PREFETCH_AHEAD};
 use crate::{image::Image, scene::CameraFrame, trace::luminance};
 
 /// Parameters of the still-region history.
@@ -578,7 +578,7 @@ impl History {
         };
         let moving = sort.run(
             (&self.fresh, &self.traced),
-            &|f: &Fresh, tr: &Traced| place.pixel(f, tr),
+            &|f: &[Fresh], tr: &[Traced], out: &mut [u32]| place.pixels(f, tr, out),
             &mut self.binned,
             (&mut sorted, &mut order),
         );
@@ -598,8 +598,11 @@ impl History {
             .par_chunks_mut(SORT_CHUNK)
             .zip(self.traced.par_chunks(SORT_CHUNK))
             .for_each(|(f, tr)| {
-                for (f, tr) in f.iter_mut().zip(tr) {
-                    f.pixel = place.pixel(f, tr);
+                for (f, tr) in f.chunks_mut(LANES).zip(tr.chunks(LANES)) {
+                    let q = place.lanes(f, tr);
+                    for (f, q) in f.iter_mut().zip(q) {
+                        f.pixel = q;
+                    }
                 }
             });
         let mut order = std::mem::take(&mut self.order);
@@ -658,6 +661,38 @@ struct Placing {
 }
 
 impl Placing {
+    /// [`Placing::pixel`] of each sample of `fresh` (traced at `traced`) into `out`.
+    fn pixels(&self, fresh: &[Fresh], traced: &[Traced], out: &mut [u32]) {
+        for ((f, tr), out) in fresh
+            .chunks(LANES)
+            .zip(traced.chunks(LANES))
+            .zip(out.chunks_mut(LANES))
+        {
+            out.copy_from_slice(&self.lanes(f, tr)[..out.len()]);
+        }
+    }
+
+    /// [`Placing::pixel`] of up to [`LANES`] samples `fresh` (traced at `traced`), in
+    /// the first lanes. Reprojected, they go through the camera a lane at a time: the
+    /// divisions were most of a history's plan when each sample went alone.
+    fn lanes(&self, fresh: &[Fresh], traced: &[Traced]) -> [u32; LANES] {
+        let mut out = [u32::MAX; LANES];
+        if !self.reproject {
+            for ((f, tr), o) in fresh.iter().zip(traced).zip(&mut out) {
+                *o = self.pixel(f, tr);
+            }
+            return out;
+        }
+        // Lanes past the samples start at the eye, which no pixel sees.
+        let mut d = [[0.0; LANES]; 3];
+        for (l, (f, tr)) in fresh.iter().zip(traced).enumerate() {
+            let p = f.hit_point + tr.velocity * (self.t - f.t) as f32;
+            let e = p - self.camera.eye;
+            (d[0][l], d[1][l], d[2][l]) = (e.x, e.y, e.z);
+        }
+        pixels_of(&self.camera, d, self.width, self.height)
+    }
+
     /// The pixel sample `f` (traced at `tr`) enters, `u32::MAX` for none.
     fn pixel(&self, f: &Fresh, tr: &Traced) -> u32 {
         let (w, h) = (self.width, self.height);
@@ -670,6 +705,42 @@ impl Placing {
             (tr.y as usize * w as usize + tr.x as usize) as u32
         }
     }
+}
+
+/// [`pixel_at`]'s pixel (`u32::MAX`: none) of each lane's point, given as its offset
+/// `d` from the eye: the same pixels, in vector code.
+fn pixels_of(camera: &CameraFrame, d: [Lanes; 3], width: u32, height: u32) -> [u32; LANES] {
+    let [x, y, z] = project_lanes(camera, d);
+    let (w, h) = (width as f32, height as f32);
+    let mut out = [0; LANES];
+    for l in 0..LANES {
+        let (x, y) = (x[l], y[l]);
+        let on = z[l] > 1e-6 && x >= 0.0 && y >= 0.0 && x < w && y < h;
+        out[l] = if on {
+            y as u32 * width + x as u32
+        } else {
+            u32::MAX
+        };
+    }
+    out
+}
+
+/// [`CameraFrame::project`] of each lane's point, given as its offset `d` from the eye,
+/// by the same operations in the same order (so to the bit where that gives a
+/// projection), the depth whatever it is.
+fn project_lanes(camera: &CameraFrame, d: [Lanes; 3]) -> [Lanes; 3] {
+    let (f, c, du, dv) = (camera.forward, camera.corner, camera.du, camera.dv);
+    let (su, sv) = (du.length_squared(), dv.length_squared());
+    let mut out = [[0.0; LANES]; 3];
+    for l in 0..LANES {
+        let (dx, dy, dz) = (d[0][l], d[1][l], d[2][l]);
+        let z = dx * f.x + dy * f.y + dz * f.z;
+        let (qx, qy, qz) = (dx / z - c.x, dy / z - c.y, dz / z - c.z);
+        out[0][l] = (qx * du.x + qy * du.y + qz * du.z) / su;
+        out[1][l] = (qx * dv.x + qy * dv.y + qz * dv.z) / sv;
+        out[2][l] = z;
+    }
+    out
 }
 
 /// The pixel of a `width × height` view `camera` where world point `p` is seen, and
@@ -1014,7 +1085,7 @@ impl SortFresh {
     fn run(
         &self,
         (fresh, traced): (&[Fresh], &[Traced]),
-        place: &(impl Fn(&Fresh, &Traced) -> u32 + Sync),
+        place: &(impl Fn(&[Fresh], &[Traced], &mut [u32]) + Sync),
         binned: &mut Vec<Fresh>,
         (sorted, order): (&mut Vec<Fresh>, &mut Vec<(u32, u32)>),
     ) -> Vec<(Vec3, Vec3, f64)> {
@@ -1088,7 +1159,7 @@ fn fit<T: Copy + Default>(v: &mut Vec<T>, n: usize) {
 /// `band` pixels (`bands` of them) into `out`, each band's in arrival order.
 fn bin_chunk(
     (fresh, traced): (&[Fresh], &[Traced]),
-    place: &impl Fn(&Fresh, &Traced) -> u32,
+    place: &impl Fn(&[Fresh], &[Traced], &mut [u32]),
     (band, bands): (usize, usize),
     out: &mut [Fresh],
 ) -> Chunk {
@@ -1096,9 +1167,10 @@ fn bin_chunk(
     // `b` starts, and after the binning where it ends.
     let mut starts = vec![0u32; bands + 2];
     let mut moving = Vec::new();
+    let mut pixels = vec![0; fresh.len()];
+    place(fresh, traced, &mut pixels);
     let mut placed = Vec::with_capacity(fresh.len());
-    for (f, tr) in fresh.iter().zip(traced) {
-        let q = place(f, tr);
+    for ((f, tr), &q) in fresh.iter().zip(traced).zip(&pixels) {
         let b = if q == u32::MAX {
             u32::MAX
         } else {
@@ -1286,7 +1358,11 @@ mod tests {
                     .install(|| {
                         sort.run(
                             (&fresh, &traced),
-                            &place,
+                            &|f: &[Fresh], tr: &[Traced], out: &mut [u32]| {
+                                for ((f, tr), o) in f.iter().zip(tr).zip(out) {
+                                    *o = place(f, tr);
+                                }
+                            },
                             &mut binned,
                             (&mut got, &mut order),
                         )
@@ -1506,5 +1582,82 @@ mod tests {
         };
         assert!(bad.check().unwrap_err().0.contains("still_range_tolerance"));
         assert!(HistoryParams::default().check().is_ok());
+    }
+
+    proptest::proptest! {
+        /// Placed a lane at a time, samples go where each alone goes: on or off the
+        /// image, behind the eye, moving or not, in runs that fill part of the lanes.
+        #[test]
+        fn placing_in_lanes_is_placing_each(
+            eye in proptest::array::uniform3(-3.0..3.0f32),
+            at in proptest::array::uniform3(-3.0..3.0f32),
+            (width, height) in (1..300u32, 1..200u32),
+            reproject in proptest::bool::ANY,
+            samples in proptest::collection::vec(
+                (
+                    proptest::array::uniform3(-6.0..6.0f32),
+                    proptest::array::uniform3(-2.0..2.0f32),
+                    0.0..2.0f64,
+                    (0.0..300.0f32, 0.0..200.0f32),
+                ),
+                0..40,
+            ),
+        ) {
+            let camera = Camera {
+                eye: Vec3::from(eye),
+                at: Vec3::from(at) + Vec3::new(0.0, 0.0, -0.5),
+                up: Vec3::Y,
+                fov_y_deg: 70.0,
+                hither: 1e-3,
+            }
+            .frame(width, height);
+            let place = Placing { t: 1.5, camera, since: 1.0, width, height, reproject };
+            let fresh: Vec<Fresh> = samples
+                .iter()
+                .map(|&(p, _, t, _)| Fresh { t, hit_point: Vec3::from(p), ..Default::default() })
+                .collect();
+            let traced: Vec<Traced> = samples
+                .iter()
+                .map(|&(_, v, _, (x, y))| Traced {
+                    x: x.min(width as f32 - 1.0),
+                    y: y.min(height as f32 - 1.0),
+                    velocity: Vec3::from(v),
+                })
+                .collect();
+            let each: Vec<u32> = fresh.iter().zip(&traced).map(|(f, tr)| place.pixel(f, tr)).collect();
+            let mut lanes = vec![7; fresh.len()];
+            place.pixels(&fresh, &traced, &mut lanes);
+            proptest::prop_assert_eq!(lanes, each);
+        }
+
+        /// Where the camera projects a point, its lanes give the same coordinates and
+        /// depth to the bit.
+        #[test]
+        fn projecting_in_lanes_is_projecting_each(
+            eye in proptest::array::uniform3(-3.0..3.0f32),
+            at in proptest::array::uniform3(-3.0..3.0f32),
+            points in proptest::collection::vec(proptest::array::uniform3(-6.0..6.0f32), 8),
+        ) {
+            let camera = Camera {
+                eye: Vec3::from(eye),
+                at: Vec3::from(at) + Vec3::new(0.0, 0.0, -0.5),
+                up: Vec3::Y,
+                fov_y_deg: 70.0,
+                hither: 1e-3,
+            }
+            .frame(640, 480);
+            let mut d = [[0.0; LANES]; 3];
+            for (l, p) in points.iter().enumerate() {
+                let e = Vec3::from(*p) - camera.eye;
+                (d[0][l], d[1][l], d[2][l]) = (e.x, e.y, e.z);
+            }
+            let got = project_lanes(&camera, d);
+            for (l, p) in points.iter().enumerate() {
+                if let Some((x, y, z)) = camera.project(Vec3::from(*p)) {
+                    let bits = |v: [f32; 3]| v.map(f32::to_bits);
+                    proptest::prop_assert_eq!(bits([got[0][l], got[1][l], got[2][l]]), bits([x, y, z]));
+                }
+            }
+        }
     }
 }

@@ -151,6 +151,13 @@ impl Ring {
         self.pushed - self.len as u64 + i as u64
     }
 
+    /// The velocity of the `i`-th oldest sample's hit.
+    pub(crate) fn velocity_of(&self, i: usize) -> Vec3 {
+        use field::*;
+        let p = self.phys(i);
+        Vec3::new(self.f[VX][p], self.f[VY][p], self.f[VZ][p])
+    }
+
     /// What the `i`-th oldest sample is fixed to.
     pub(crate) fn anchor_of(&self, i: usize) -> Anchor {
         let k = self.push_index(i);
