@@ -572,12 +572,7 @@ impl Reconstructor {
         // and each pixel sees its samples in ring order.
         let band_px = CUT_ROWS * w;
         let (mut in_order, mut starts) = (take(&mut c.in_order), take(&mut c.group_starts));
-        sort_by_group(
-            &ahead,
-            (w * h).div_ceil(GROUP),
-            &mut starts,
-            &mut in_order,
-        );
+        sort_by_group(&ahead, (w * h).div_ceil(GROUP), &mut starts, &mut in_order);
         let ctx = CutContext {
             keep,
             list_edits: c.edits.is_some(),
@@ -601,7 +596,6 @@ impl Reconstructor {
                     );
                     let ks = &in_order[starts[g0] as usize..starts[g1] as usize];
                     let mut band = CutBand {
-                        y0: b * CUT_ROWS,
                         base: b * band_px,
                         acc,
                         cover,
@@ -771,10 +765,9 @@ struct BandOut {
     settled: Vec<(u32, f32)>,
 }
 
-/// One band of rows of the cut: its rows of the accumulators (from row `y0`), and its
-/// pixels' coverage and next geometry.
+/// One band of rows of the cut: its rows of the accumulators (from pixel `base`'s
+/// row), and its pixels' coverage and next geometry.
 struct CutBand<'a> {
-    y0: usize,
     /// The band's first pixel.
     base: usize,
     acc: &'a mut [f32],
@@ -814,7 +807,11 @@ impl CutBand<'_> {
             let (q, z) = (a.q as usize, a.z());
             let (ry, px) = row_col(q);
             let i = ctx.start + k as usize;
-            let v = if a.moves() { ring.velocity_of(i) } else { Vec3::ZERO };
+            let v = if a.moves() {
+                ring.velocity_of(i)
+            } else {
+                Vec3::ZERO
+            };
             let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
             let g = self.geo[q - base];
             let held = g.is_some() && holds(self.acc[at(3)]);
