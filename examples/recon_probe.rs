@@ -19,11 +19,11 @@ const SIG_EDGES: [f32; 4] = [1.0, 2.0, 3.0, 4.0];
 /// Sigmas beyond which a footprint's pixels are counted.
 const BEYOND: [f32; 4] = [3.0, 4.0, 6.0, 13.2];
 
-fn stats(r: &Reconstructor, cam: &CameraFrame, t: f64) {
+fn stats(r: &mut Reconstructor, cam: &CameraFrame, t: f64) {
+    let sc = r.splat_scale().to_vec();
     let (w, h) = (r.image().width as usize, r.image().height as usize);
     let p = *r.params();
     let f = r.filter_map();
-    let sc = r.splat_scale();
     let (mut kept, mut area, mut wide, mut tall) = (0usize, 0f64, 0f64, 0f64);
     let mut hist_w = [0usize; 8];
     let mut old = 0usize;
@@ -172,7 +172,7 @@ fn main() {
         for _ in 0..2 {
             r.reconstruct(1.0, &cam, &tiling);
         }
-        stats(&r, &cam, 1.0);
+        stats(&mut r, &cam, 1.0);
         for _ in 0..reps {
             let t0 = Instant::now();
             r.reconstruct(1.0, &cam, &tiling);
@@ -226,7 +226,7 @@ fn main() {
         q(&gs[1]),
         q(&gs[2])
     );
-    stats(m.reconstructor(), &cam, end);
+    stats(m.reconstructor_mut(), &cam, end);
     for _ in 0..reps {
         let t0 = Instant::now();
         m.display(end);

@@ -100,15 +100,11 @@ pub struct LiveFigure {
 
 /// FNV-1a over the bits of every pixel's channels, then of its age, splat scale and
 /// history count.
-fn state_hash(r: &Reconstructor) -> String {
+fn state_hash(r: &mut Reconstructor) -> String {
+    let scale = r.splat_scale().to_vec();
     let pixels = r.image().pixels.iter().flat_map(|p| p.to_array());
     let counts = r.history_counts().unwrap_or(&[]);
-    let rest = r
-        .pixel_ages()
-        .iter()
-        .chain(r.splat_scale())
-        .chain(counts)
-        .copied();
+    let rest = r.pixel_ages().iter().chain(&scale).chain(counts).copied();
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for c in pixels.chain(rest) {
         for b in c.to_bits().to_le_bytes() {
@@ -250,7 +246,7 @@ pub fn live_image_ms(
         turning,
         recon: r.used(),
         pass_ms: r.pass_times().since(&warm_passes).mean_ms(),
-        image_hash: state_hash(&r),
+        image_hash: state_hash(&mut r),
     })
 }
 

@@ -37,7 +37,9 @@ struct Differences {
     cuts: (u64, u64),
 }
 
-fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
+fn differences(a: &mut Reconstructor, b: &mut Reconstructor) -> Differences {
+    let (cov_a, cov_b) = (a.coverage().to_vec(), b.coverage().to_vec());
+    let (scale_a, scale_b) = (a.splat_scale().to_vec(), b.splat_scale().to_vec());
     let max = |x: &[f32], y: &[f32]| {
         x.iter()
             .zip(y)
@@ -49,18 +51,8 @@ fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
     Differences {
         max_colour: max(&ca, &cb),
         max_age: max(a.pixel_ages(), b.pixel_ages()),
-        coverage: a
-            .coverage()
-            .iter()
-            .zip(b.coverage())
-            .filter(|(p, q)| p != q)
-            .count(),
-        scale: a
-            .splat_scale()
-            .iter()
-            .zip(b.splat_scale())
-            .filter(|(p, q)| p != q)
-            .count(),
+        coverage: cov_a.iter().zip(&cov_b).filter(|(p, q)| p != q).count(),
+        scale: scale_a.iter().zip(&scale_b).filter(|(p, q)| p != q).count(),
         holes: (a.holes(), b.holes()),
         counts: match (a.history_counts(), b.history_counts()) {
             (Some(x), Some(y)) => x
@@ -68,7 +60,7 @@ fn differences(a: &Reconstructor, b: &Reconstructor) -> Differences {
                 .zip(y)
                 .filter(|(p, q)| (*p - *q).abs() > 1e-3 * p.abs().max(1.0))
                 .count(),
-            (x, y) => (x.is_some() != y.is_some()) as usize * a.coverage().len(),
+            (x, y) => (x.is_some() != y.is_some()) as usize * cov_a.len(),
         },
         cuts: (a.history_cuts(), b.history_cuts()),
     }
@@ -213,7 +205,7 @@ fn gpu_follows_pushes_across_the_ring_wrap() {
         gpu.reconstruct(t, &c, &tiling);
         assert_eq!(gpu.gpu_failure(), None);
         check(
-            &differences(&cpu, &gpu),
+            &differences(&mut cpu, &mut gpu),
             (w * h) as usize,
             &format!("refresh {k}"),
         );
@@ -295,7 +287,7 @@ fn gpu_history_matches_the_cpu_through_view_changes() {
             gpu.reconstruct(t, &cam, &tiling);
             assert_eq!(gpu.gpu_failure(), None);
             let what = format!("reproject {reproject}, refresh {k}");
-            check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+            check(&differences(&mut cpu, &mut gpu), (w * h) as usize, &what);
         }
         let counts = cpu.history_counts().unwrap();
         assert!(
@@ -442,7 +434,7 @@ fn gpu_carried_refreshes_match_the_cpu() {
                     params.history.is_some(),
                     params.resplat_moving_view
                 );
-                check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+                check(&differences(&mut cpu, &mut gpu), (w * h) as usize, &what);
             }
         }
     }
@@ -474,7 +466,7 @@ fn gpu_carry_replayed_on_kept_sums_matches_the_cpu() {
                 refresh_both((&mut cpu, &mut gpu), &mut rng, (&cam, &tiling), k, per);
                 tally_edits(&gpu, &mut listed);
                 let what = format!("{w}x{h}, {per} per refresh, {params:?}, refresh {k}");
-                check(&differences(&cpu, &gpu), (w * h) as usize, &what);
+                check(&differences(&mut cpu, &mut gpu), (w * h) as usize, &what);
             }
             let (uploaded, replayed) = gpu.gpu_carried_sums().unwrap();
             assert!(
@@ -551,7 +543,7 @@ fn gpu_kept_fronts_match_a_full_recompute() {
                     "{w}x{h}, refresh {k}: the GPU's kept fronts are not the CPU's"
                 );
                 let what = format!("{w}x{h}, {per} per refresh, {params:?}, refresh {k}");
-                check(&differences(&cpu, &gpu), n, &what);
+                check(&differences(&mut cpu, &mut gpu), n, &what);
             }
             let checked = gpu.kept_fronts_checked;
             if params.resplat_moving_view {

@@ -93,6 +93,7 @@ pub use passes::{PassTimes, PASSES};
 
 mod carry;
 mod carry_edits;
+
 #[cfg(test)]
 mod carry_tests;
 mod filter_table;
@@ -296,7 +297,7 @@ impl Reconstructor {
         let n = (width * height) as usize;
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);
         let cs = splat::channel_stride(width as usize);
-        let scale0 = params.scale_bounds.0.max(1e-3);
+        let scale0 = initial_scale(&params);
         Self {
             motion: None,
             params,
@@ -391,7 +392,7 @@ impl Reconstructor {
     /// for this display's buffers.
     #[cfg(feature = "gpu")]
     pub fn use_gpu(&mut self, ctx: std::sync::Arc<gpu::GpuContext>) -> Result<(), gpu::GpuError> {
-        let scale0 = self.params.scale_bounds.0.max(1e-3);
+        let scale0 = initial_scale(&self.params);
         self.scale.fill(scale0);
         self.gpu = Some(Box::new(gpu::GpuRecon::new(
             ctx,
@@ -599,14 +600,30 @@ impl Reconstructor {
         self.holes
     }
 
-    /// Samples that reached each pixel at the last refresh.
-    pub fn coverage(&self) -> &[u32] {
+    /// Samples that reached each pixel at the last refresh (read back now where a GPU
+    /// made that refresh and kept them).
+    pub fn coverage(&mut self) -> &[u32] {
+        self.read_gpu_extras();
         &self.coverage
     }
 
-    /// Per-pixel splat scale used by the next refresh.
-    pub fn splat_scale(&self) -> &[f32] {
+    /// Per-pixel splat scale used by the next refresh (read back now where a GPU made
+    /// the last refresh and kept them).
+    pub fn splat_scale(&mut self) -> &[f32] {
+        self.read_gpu_extras();
         &self.scale
+    }
+
+    /// Bring up the coverage and splat scales a GPU's last refresh kept there (where
+    /// the CPU's sums are its holds mask, nothing on the CPU reads them between
+    /// refreshes). A GPU that cannot is given up, as after a refresh that fails there.
+    fn read_gpu_extras(&mut self) {
+        #[cfg(feature = "gpu")]
+        if let Some(g) = &mut self.gpu {
+            if let Err(e) = g.read_extras(&mut self.coverage, &mut self.scale) {
+                self.give_up_gpu(e);
+            }
+        }
     }
 
     /// The filter extents each pixel had at the last refresh (`[e_x, e_y, e_t]`).
@@ -723,16 +740,7 @@ impl Reconstructor {
             match self.reconstruct_on_gpu(plan) {
                 Ok(()) => return true,
                 Err(e) => {
-                    self.gpu = None;
-                    self.gpu_failure = Some(e.to_string());
-                    let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
-                    if let Some(c) = &mut self.carried {
-                        c.edits = None;
-                        // The CPU's sums were only the GPU's holds mask: they start
-                        // afresh, from the whole live ring.
-                        c.restart |= holds_only;
-                    }
-                    if holds_only {
+                    if self.give_up_gpu(e) {
                         plan.start = self.live_range(plan.t);
                     }
                 }
@@ -740,6 +748,27 @@ impl Reconstructor {
         }
         let _ = plan;
         false
+    }
+
+    /// Refresh on the CPU from now on, the GPU having failed with `e`. Whether the
+    /// CPU starts afresh: where its sums were only the GPU's holds mask, they start
+    /// from the whole live ring, and the coverage and splat scales, which the GPU
+    /// kept, from their first.
+    #[cfg(feature = "gpu")]
+    fn give_up_gpu(&mut self, e: gpu::GpuError) -> bool {
+        self.gpu = None;
+        self.gpu_failure = Some(e.to_string());
+        let holds_only = self.gpu_sums_back() == Some(gpu::SumsBack::Holds);
+        if let Some(c) = &mut self.carried {
+            c.edits = None;
+            c.restart |= holds_only;
+        }
+        if holds_only {
+            self.scale.fill(initial_scale(&self.params));
+            self.coverage.fill(0);
+            self.lookup_stale = true;
+        }
+        holds_only
     }
 
     /// `plan`'s splat, resolve, fill and history on the GPU (when carrying, the carry
@@ -910,4 +939,9 @@ enum FrontsSent {
     All,
     /// Those that changed since the last refresh (`gpu_front_changes`).
     Changes,
+}
+
+/// Every pixel's splat scale before any refresh.
+fn initial_scale(params: &ReconParams) -> f32 {
+    params.scale_bounds.0.max(1e-3)
 }

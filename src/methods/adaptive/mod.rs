@@ -182,6 +182,12 @@ impl Adaptive {
     pub fn reconstructor(&self) -> &Reconstructor {
         &self.recon
     }
+
+    /// The reconstructor, for what it reads back on request (its coverage and splat
+    /// scales, which a GPU keeps).
+    pub fn reconstructor_mut(&mut self) -> &mut Reconstructor {
+        &mut self.recon
+    }
 }
 
 impl Method for Adaptive {

@@ -236,6 +236,9 @@ pub struct GpuRecon {
     /// With the visibility pass and carrying: the initial front depths kept between
     /// refreshes (made at the first that sends them).
     fronts: Option<fronts::GpuFronts>,
+    /// The last refresh succeeded and left its coverage and splat scales here, not
+    /// read back ([`GpuRecon::read_extras`]).
+    extras_left: bool,
 }
 
 /// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
@@ -479,6 +482,7 @@ impl GpuRecon {
             sums_back,
             holds_kept: HoldsKept::default(),
             fronts: None,
+            extras_left: false,
         })
     }
 
@@ -965,7 +969,16 @@ impl GpuRecon {
             }
             self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
         }
-        let bytes = n * PER_PIXEL as u64 * 4;
+        // Where a failed refresh starts the CPU afresh, its coverage and splat scales
+        // are of no use to it: they stay here unless asked for.
+        let extras_here = self.sums_back == Some(SumsBack::Holds);
+        let planes = if extras_here {
+            pack::SHOWN_PLANES
+        } else {
+            PER_PIXEL as u64
+        };
+        let bytes = n * planes * 4;
+        self.extras_left = false;
         let mut shown = false;
         if let (Some(h), Some(step)) = (&mut self.history, step) {
             let epoch = self.epoch.unwrap_or(step.t);
@@ -1000,7 +1013,7 @@ impl GpuRecon {
         let (back, w) = (self.sums_back, self.width as usize);
         let holds_kept = &mut self.holds_kept;
         let cap = self.buffers.items_cap;
-        read_timed(&self.ctx, &mut self.times, &bufs, |v| {
+        let readback = read_timed(&self.ctx, &mut self.times, &bufs, |v| {
             let listed = first_u32(v[0]) as usize;
             if listed > cap {
                 // Past the bound `items_bound` proves: the image lacks splats.
@@ -1019,7 +1032,32 @@ impl GpuRecon {
                 holes: first_u32(&v[0][4..]) as usize,
                 history,
             })
-        })?
+        })??;
+        self.extras_left = extras_here;
+        Ok(readback)
+    }
+
+    /// Read the coverage and splat scales the last refresh left here into `coverage`
+    /// and `scale` (nothing done where it left none).
+    pub(super) fn read_extras(
+        &mut self,
+        coverage: &mut [u32],
+        scale: &mut [f32],
+    ) -> Result<(), GpuError> {
+        if !self.extras_left {
+            return Ok(());
+        }
+        let n = self.width as u64 * self.height as u64;
+        let (from, bytes) = (pack::SHOWN_PLANES * n * 4, 2 * n * 4);
+        let mut enc = self.encoder();
+        let (planes, read) = (&self.pack.planes, &self.buffers.read_out);
+        enc.copy_buffer_to_buffer(planes, from, read, 0, bytes);
+        self.ctx.queue.submit([enc.finish()]);
+        read_timed(&self.ctx, &mut self.times, &[(read, bytes)], |v| {
+            pack::unpack_extras(bytemuck::cast_slice(v[0]), coverage, scale)
+        })?;
+        self.extras_left = false;
+        Ok(())
     }
 
     /// Encode the copy of what comes back of the carried sums ([`SumsBack`]), after the

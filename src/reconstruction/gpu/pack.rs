@@ -82,16 +82,29 @@ fn source() -> String {
     )
 }
 
-/// The read-back planes `src` into `into`'s image, ages, coverage and splat scales.
+/// Planes of what is shown, which come back at every refresh: red, green and blue (a
+/// pixel after another), then the ages. The coverage and the splat scales follow them
+/// (the planes' [`PER_PIXEL`] in all).
+pub(super) const SHOWN_PLANES: u64 = 4;
+
+/// The read-back planes `src` into `into`'s image and ages, and where `src` holds all
+/// the planes, its coverage and splat scales.
 pub(super) fn unpack(src: &[f32], into: &mut ReadInto) {
     let n = into.age.len();
     let (rgb, rest) = src.split_at(3 * n);
-    let (age, rest) = rest.split_at(n);
-    let (coverage, scale) = rest.split_at(n);
+    let (age, extras) = rest.split_at(n);
     copy(rgb, bytemuck::cast_slice_mut(into.image));
     copy(age, into.age);
-    copy(bytemuck::cast_slice(coverage), into.coverage);
-    copy(scale, into.scale);
+    if !extras.is_empty() {
+        unpack_extras(extras, into.coverage, into.scale);
+    }
+}
+
+/// The read-back coverage and splat scale planes `src` into `coverage` and `scale`.
+pub(super) fn unpack_extras(src: &[f32], coverage: &mut [u32], scale: &mut [f32]) {
+    let (c, s) = src.split_at(coverage.len());
+    copy(bytemuck::cast_slice(c), coverage);
+    copy(s, scale);
 }
 
 /// `src` into `dst` (of the same length) on every thread.
