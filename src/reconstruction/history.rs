@@ -1584,6 +1584,18 @@ mod tests {
         assert!(HistoryParams::default().check().is_ok());
     }
 
+    /// A `width × height` view from `eye` towards `at` moved half a unit down −z.
+    fn looking(eye: [f32; 3], at: [f32; 3], width: u32, height: u32) -> CameraFrame {
+        Camera {
+            eye: Vec3::from(eye),
+            at: Vec3::from(at) + Vec3::new(0.0, 0.0, -0.5),
+            up: Vec3::Y,
+            fov_y_deg: 70.0,
+            hither: 1e-3,
+        }
+        .frame(width, height)
+    }
+
     proptest::proptest! {
         /// Placed a lane at a time, samples go where each alone goes: on or off the
         /// image, behind the eye, moving or not, in runs that fill part of the lanes.
@@ -1603,14 +1615,7 @@ mod tests {
                 0..40,
             ),
         ) {
-            let camera = Camera {
-                eye: Vec3::from(eye),
-                at: Vec3::from(at) + Vec3::new(0.0, 0.0, -0.5),
-                up: Vec3::Y,
-                fov_y_deg: 70.0,
-                hither: 1e-3,
-            }
-            .frame(width, height);
+            let camera = looking(eye, at, width, height);
             let place = Placing { t: 1.5, camera, since: 1.0, width, height, reproject };
             let fresh: Vec<Fresh> = samples
                 .iter()
@@ -1638,14 +1643,7 @@ mod tests {
             at in proptest::array::uniform3(-3.0..3.0f32),
             points in proptest::collection::vec(proptest::array::uniform3(-6.0..6.0f32), 8),
         ) {
-            let camera = Camera {
-                eye: Vec3::from(eye),
-                at: Vec3::from(at) + Vec3::new(0.0, 0.0, -0.5),
-                up: Vec3::Y,
-                fov_y_deg: 70.0,
-                hither: 1e-3,
-            }
-            .frame(640, 480);
+            let camera = looking(eye, at, 640, 480);
             let mut d = [[0.0; LANES]; 3];
             for (l, p) in points.iter().enumerate() {
                 let e = Vec3::from(*p) - camera.eye;
