@@ -713,8 +713,8 @@ const _: () = assert!(CUT_ROWS % GROUP == 0);
 
 /// The entries of `ahead` (samples off the image left out), with their indices, into
 /// `sorted`, ordered stably by group of [`GROUP`] pixels (`groups` of them): so each
-/// pixel's in ring order. `starts[g]` is where group `g`
-/// starts, `starts[groups]` the end. A counting sort.
+/// pixel's in ring order. `starts[g]` is where group `g` starts, `starts[groups]` the
+/// end. A counting sort.
 fn sort_by_group(
     ahead: &[Ahead],
     groups: usize,
@@ -795,7 +795,7 @@ impl CutBand<'_> {
     /// the pixel's geometry.
     fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[(u32, Ahead)], ring: &super::ring::Ring) {
         let (w, cs, base) = (ctx.w, ctx.cs, self.base);
-        // A pixel's row in the band and column, and its weight's place in `acc`.
+        // A pixel's row in the band, and its column.
         let row_col = |q: usize| ((q - base) / w, (q - base) % w);
         for (j, &(k, a)) in ks.iter().enumerate() {
             if let Some((_, a)) = ks.get(j + PREFETCH_AHEAD) {

@@ -93,7 +93,6 @@ pub use passes::{PassTimes, PASSES};
 
 mod carry;
 mod carry_edits;
-
 #[cfg(test)]
 mod carry_tests;
 mod filter_table;
