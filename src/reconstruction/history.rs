@@ -1169,18 +1169,12 @@ fn bin_chunk(
     let mut moving = Vec::new();
     let mut pixels = vec![0; fresh.len()];
     place(fresh, traced, &mut pixels);
-    let mut placed = Vec::with_capacity(fresh.len());
-    for ((f, tr), &q) in fresh.iter().zip(traced).zip(&pixels) {
-        let b = if q == u32::MAX {
-            u32::MAX
-        } else {
-            (q as usize / band) as u32
-        };
-        placed.push((q, b));
-        if b == u32::MAX {
-            continue;
-        }
-        starts[b as usize + 2] += 1;
+    let entering = || {
+        let placed = fresh.iter().zip(traced).zip(&pixels);
+        placed.filter(|(_, &q)| q != u32::MAX)
+    };
+    for ((f, tr), &q) in entering() {
+        starts[q as usize / band + 2] += 1;
         if !f.still && tr.velocity != Vec3::ZERO {
             moving.push((f.hit_point, tr.velocity, f.t));
         }
@@ -1188,8 +1182,8 @@ fn bin_chunk(
     for k in 2..starts.len() {
         starts[k] += starts[k - 1];
     }
-    for (f, &(q, b)) in fresh.iter().zip(&placed).filter(|(_, p)| p.1 != u32::MAX) {
-        let slot = &mut starts[b as usize + 1];
+    for ((f, _), &q) in entering() {
+        let slot = &mut starts[q as usize / band + 1];
         out[*slot as usize] = Fresh { pixel: q, ..*f };
         *slot += 1;
     }

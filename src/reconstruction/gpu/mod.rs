@@ -955,20 +955,7 @@ impl GpuRecon {
     ) -> Result<Readback, GpuError> {
         let n = self.width as u64 * self.height as u64;
         let nb = self.bins.0 as u64 * self.bins.1 as u64;
-        let pl = &self.pipelines;
-        let pixels = (n as u32).div_ceil(GROUP);
-        self.dispatch(&mut enc, &pl.sort, self.bins, None);
-        self.dispatch(&mut enc, &pl.gather, self.bins, None);
-        self.dispatch(&mut enc, &pl.resolve, (pixels, 1), None);
-        if pull_push {
-            self.pull_push(&mut enc);
-        } else {
-            for (k, l) in self.levels.iter().enumerate() {
-                let groups = (l.dst_w * l.dst_h).div_ceil(GROUP);
-                self.dispatch(&mut enc, &pl.pull, (groups, 1), Some(k));
-            }
-            self.dispatch(&mut enc, &pl.holes, (pixels, 1), None);
-        }
+        self.encode_image(&mut enc, pull_push);
         // Where a failed refresh starts the CPU afresh, its coverage and splat scales
         // are of no use to it: they stay here unless asked for.
         let extras_here = self.sums_back == Some(SumsBack::Holds);
@@ -1058,6 +1045,26 @@ impl GpuRecon {
         })?;
         self.extras_left = false;
         Ok(())
+    }
+
+    /// Encode the image from the listed splats: each bin's list sorted into ring
+    /// order, gathered per pixel, resolved, then filled (by pull-push, or from the
+    /// hole pyramid).
+    fn encode_image(&self, enc: &mut wgpu::CommandEncoder, pull_push: bool) {
+        let pl = &self.pipelines;
+        let pixels = (self.width * self.height).div_ceil(GROUP);
+        self.dispatch(enc, &pl.sort, self.bins, None);
+        self.dispatch(enc, &pl.gather, self.bins, None);
+        self.dispatch(enc, &pl.resolve, (pixels, 1), None);
+        if pull_push {
+            self.pull_push(enc);
+        } else {
+            for (k, l) in self.levels.iter().enumerate() {
+                let groups = (l.dst_w * l.dst_h).div_ceil(GROUP);
+                self.dispatch(enc, &pl.pull, (groups, 1), Some(k));
+            }
+            self.dispatch(enc, &pl.holes, (pixels, 1), None);
+        }
     }
 
     /// Encode the copy of what comes back of the carried sums ([`SumsBack`]), after the
