@@ -86,6 +86,18 @@ impl Geo {
     fn is_untouched(&self) -> bool {
         self.z == f32::INFINITY && self.ox == 0.0
     }
+
+    /// The depth this geometry hides what lies behind at: its own where it is still
+    /// (moving geometry is placed by extrapolation and hides nothing), infinite
+    /// otherwise. [`Carried::still_z`] keeps it for every pixel.
+    pub(super) fn still_z(&self) -> f32 {
+        let still = (self.v.x == 0.0) & (self.v.y == 0.0) & (self.v.z == 0.0);
+        if still {
+            self.z
+        } else {
+            f32::INFINITY
+        }
+    }
 }
 
 /// Neighbours searched for the geometry of a pixel that holds sums but got no sample
@@ -101,6 +113,11 @@ pub(super) struct Carried {
     /// with the view land on (every pixel's [`Geo::NONE`] between refreshes).
     pub(super) geo: Vec<Geo>,
     next_geo: Vec<Geo>,
+    /// [`Geo::still_z`] of each pixel's geometry, kept wherever the geometry is set:
+    /// the carried fronts read four bytes a pixel, not the geometry's twenty-four
+    /// (the fronts' pass over every pixel took 2.0 of a 41.5 ms image at 1280×720,
+    /// performance.md, session 46).
+    still_z: Vec<f32>,
     /// The decayed coverage being moved (`Reconstructor::cover` holds the current).
     next_cover: Vec<f32>,
     /// Time and camera of the previous refresh.
@@ -143,6 +160,7 @@ impl Carried {
             prev: vec![0.0; acc_len],
             geo: vec![Geo::NONE; n],
             next_geo: vec![Geo::NONE; n],
+            still_z: vec![f32::INFINITY; n],
             next_cover: vec![0.0; n],
             last: None,
             pending: 0,
@@ -362,6 +380,7 @@ impl Reconstructor {
             self.acc.fill(0.0);
             self.cover.fill(0.0);
             c.geo.fill(Geo::NONE);
+            c.still_z.fill(f32::INFINITY);
             c.moving.clear();
             c.anchor.clear();
             c.last = None;
@@ -385,6 +404,8 @@ impl Reconstructor {
         }
         c.last = Some((t, *camera));
         c.pending = 0;
+        #[cfg(test)]
+        c.check_still_z();
         self.carried = Some(c);
     }
 
@@ -457,6 +478,7 @@ impl Reconstructor {
                 e.takes.push(q as u32);
             }
             c.geo[q] = Geo::NONE;
+            c.still_z[q] = f32::INFINITY;
         }
         c.moving.clear();
         let mover = Mover::new(w, h, dt, camera, camera);
@@ -467,6 +489,7 @@ impl Reconstructor {
             acc: &mut self.acc,
             cs,
             geo: &mut c.geo,
+            still_z: Some(&mut c.still_z),
             cover: &mut self.cover,
         };
         for (i, (x, y, g, anchor, sums, cover)) in out.into_iter().enumerate() {
@@ -526,6 +549,8 @@ impl Reconstructor {
             acc: &mut self.acc,
             cs,
             geo: &mut c.next_geo,
+            // Every pixel's is made again below.
+            still_z: None,
             cover: &mut c.next_cover,
         };
         for (y, row) in c.dests.chunks(w).enumerate() {
@@ -541,6 +566,10 @@ impl Reconstructor {
         }
         std::mem::swap(&mut c.geo, &mut c.next_geo);
         c.next_geo.fill(Geo::NONE);
+        c.still_z
+            .par_chunks_mut(w)
+            .zip(c.geo.par_chunks(w))
+            .for_each(|(z, g)| z.iter_mut().zip(g).for_each(|(z, g)| *z = g.still_z()));
         std::mem::swap(&mut self.cover, &mut c.next_cover);
     }
 
@@ -585,10 +614,11 @@ impl Reconstructor {
             .par_chunks_mut(CUT_ROWS * CHANNELS * cs)
             .zip(self.cover.par_chunks_mut(band_px))
             .zip(c.geo.par_chunks_mut(band_px))
+            .zip(c.still_z.par_chunks_mut(band_px))
             .enumerate()
             .map_init(
                 || vec![Geo::NONE; band_px],
-                |scratch, (b, ((acc, cover), geo))| {
+                |scratch, (b, (((acc, cover), geo), still_z))| {
                     let next_geo = &mut scratch[..geo.len()];
                     let (g0, g1) = (
                         b * band_px / GROUP,
@@ -601,6 +631,7 @@ impl Reconstructor {
                         cover,
                         next_geo,
                         geo,
+                        still_z,
                         touched: Vec::new(),
                         next_anchor: HashMap::new(),
                         out: BandOut::default(),
@@ -778,8 +809,10 @@ struct CutBand<'a> {
     /// the array's band was a refresh cold, and each sample's first visit a cache miss
     /// (the cut took a third longer at 640×480 and 1280×720).
     next_geo: &'a mut [Geo],
-    /// The carried geometry: read while the band's samples are cut, then settled.
+    /// The carried geometry: read while the band's samples are cut, then settled;
+    /// and its [`Geo::still_z`].
     geo: &'a mut [Geo],
+    still_z: &'a mut [f32],
     /// The pixels new samples landed on, each once, and the anchors of their nearest
     /// new samples where those move.
     touched: Vec<u32>,
@@ -899,11 +932,12 @@ impl CutBand<'_> {
                 }
             }
             self.geo[i] = g;
+            self.still_z[i] = g.still_z();
             self.next_geo[i] = Geo::NONE;
             if ctx.list_edits {
                 let weight = self.acc[((i / w) * CHANNELS + 3) * cs + i % w];
                 let mut front = [f32::INFINITY];
-                lower_fronts(&mut front, &[g], &[weight]);
+                lower_fronts(&mut front, &[g.still_z()], &[weight]);
                 self.out.settled.push((q, front[0]));
             }
         }
@@ -911,6 +945,14 @@ impl CutBand<'_> {
 }
 
 impl Carried {
+    /// Every pixel's kept [`Geo::still_z`] is its geometry's.
+    #[cfg(test)]
+    fn check_still_z(&self) {
+        let wrong = (self.geo.iter().zip(&self.still_z))
+            .position(|(g, z)| g.still_z().to_bits() != z.to_bits());
+        assert_eq!(wrong, None, "a kept still depth is not its geometry's");
+    }
+
     /// The bands' anchors and moving pixels, the moving ones in the order of their
     /// samples (as one pass over the samples lists them). A pixel's old anchor goes
     /// before its new one comes.
@@ -1138,6 +1180,9 @@ struct Target<'a> {
     acc: &'a mut [f32],
     cs: usize,
     geo: &'a mut [Geo],
+    /// The geometry's [`Geo::still_z`], where it is kept as the geometry lands
+    /// (`None`: made afresh after every landing).
+    still_z: Option<&'a mut [f32]>,
     cover: &'a mut [f32],
 }
 
@@ -1180,6 +1225,9 @@ impl Target<'_> {
         let took_geometry = !(merge && old.z <= g.z);
         if took_geometry {
             self.geo[to] = g;
+            if let Some(z) = &mut self.still_z {
+                z[to] = g.still_z();
+            }
         }
         Some(Landed {
             merged: merge,
@@ -1254,7 +1302,7 @@ pub(super) fn changed_front_bits(
         let p = q as usize;
         let weight = acc[((p / w) * CHANNELS + 3) * cs + p % w];
         let mut bits = [0];
-        lowered_front_bits(&mut bits, &c.geo[p..p + 1], &[weight]);
+        lowered_front_bits(&mut bits, &c.still_z[p..p + 1], &[weight]);
         if kept[p] != bits[0] {
             kept[p] = bits[0];
             changes.push([q, bits[0]]);
@@ -1263,26 +1311,27 @@ pub(super) fn changed_front_bits(
 }
 
 /// `lower` applied to each row of `out` (one entry a pixel, rows of `w`) with that
-/// row's carried geometry and weights (rows `cs` apart in `acc`), rows in parallel.
+/// row's carried [`Geo::still_z`] and weights (rows `cs` apart in `acc`), rows in
+/// parallel.
 fn by_front_row<T: Send>(
     out: &mut [T],
     c: &Carried,
     (acc, w, cs): (&[f32], usize, usize),
-    lower: impl Fn(&mut [T], &[Geo], &[f32]) + Sync,
+    lower: impl Fn(&mut [T], &[f32], &[f32]) + Sync,
 ) {
     out.par_chunks_mut(w)
-        .zip(c.geo.par_chunks(w))
+        .zip(c.still_z.par_chunks(w))
         .enumerate()
         .for_each(|(y, (row, geo))| lower(row, geo, &acc[(y * CHANNELS + 3) * cs..][..w]));
 }
 
 /// The bits ([`super::gpu::carried::front_bit`]) of fronts that start infinite and are
-/// lowered by [`lower_fronts`] to `geo` where `weight` holds sums.
+/// lowered by [`lower_fronts`] to `still_z` where `weight` holds sums.
 #[cfg(feature = "gpu")]
-pub(super) fn lowered_front_bits(bits: &mut [u32], geo: &[Geo], weight: &[f32]) {
+pub(super) fn lowered_front_bits(bits: &mut [u32], still_z: &[f32], weight: &[f32]) {
     for ((b, g), wt) in bits
         .chunks_mut(LANES)
-        .zip(geo.chunks(LANES))
+        .zip(still_z.chunks(LANES))
         .zip(weight.chunks(LANES))
     {
         let mut front = [f32::INFINITY; LANES];
@@ -1294,19 +1343,19 @@ pub(super) fn lowered_front_bits(bits: &mut [u32], geo: &[Geo], weight: &[f32]) 
     }
 }
 
-/// Fronts `front` lowered to the still geometry `geo` of the pixels whose `weight`
-/// holds sums, [`LANES`] pixels at a time without branches.
-pub(super) fn lower_fronts(front: &mut [f32], geo: &[Geo], weight: &[f32]) {
-    for ((f, g), wt) in front
+/// Fronts `front` lowered to the depths of still geometry `still_z` ([`Geo::still_z`],
+/// infinite where none or moving) of the pixels whose `weight` holds sums, [`LANES`]
+/// pixels at a time without branches. (A front is never NaN: it starts infinite and
+/// is lowered to depths, so lowering it to an infinite one leaves it as it was.)
+pub(super) fn lower_fronts(front: &mut [f32], still_z: &[f32], weight: &[f32]) {
+    for ((f, z), wt) in front
         .chunks_mut(LANES)
-        .zip(geo.chunks(LANES))
+        .zip(still_z.chunks(LANES))
         .zip(weight.chunks(LANES))
     {
         for l in 0..f.len() {
-            let g = g[l];
-            let still = (g.v.x == 0.0) & (g.v.y == 0.0) & (g.v.z == 0.0);
-            let lowered = f[l].min(g.z);
-            f[l] = if holds(wt[l]) & still { lowered } else { f[l] };
+            let lowered = f[l].min(z[l]);
+            f[l] = if holds(wt[l]) { lowered } else { f[l] };
         }
     }
 }

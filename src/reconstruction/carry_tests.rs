@@ -491,8 +491,9 @@ fn fronts_are_lowered_as_pixel_by_pixel() {
             })
             .collect();
         let weight: Vec<f32> = (0..w).map(|x| [1.0, 0.0, f32::NAN, 1e-30][x % 4]).collect();
+        let still_z: Vec<f32> = geo.iter().map(Geo::still_z).collect();
         let mut got = front.clone();
-        lower_fronts(&mut got, &geo, &weight);
+        lower_fronts(&mut got, &still_z, &weight);
         for x in 0..w {
             let lowers = weight[x] >= super::splat::MIN_WEIGHT && geo[x].v == Vec3::ZERO;
             let want = if lowers {
@@ -519,10 +520,11 @@ fn front_bits_are_those_of_fronts_lowered_from_none() {
             })
             .collect();
         let weight: Vec<f32> = (0..w).map(|x| [1.0, 0.0, f32::NAN, 1e-30][x % 4]).collect();
+        let still_z: Vec<f32> = geo.iter().map(Geo::still_z).collect();
         let mut front = vec![f32::INFINITY; w];
-        lower_fronts(&mut front, &geo, &weight);
+        lower_fronts(&mut front, &still_z, &weight);
         let mut got = vec![7u32; w];
-        lowered_front_bits(&mut got, &geo, &weight);
+        lowered_front_bits(&mut got, &still_z, &weight);
         assert_eq!(got, super::gpu::carried::front_bits(&front), "w {w}");
     }
 }
