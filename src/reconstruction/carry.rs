@@ -1245,34 +1245,46 @@ struct Landed {
     took_geometry: bool,
 }
 
-impl Reconstructor {
-    /// With the visibility pass: the carried geometry of still surfaces is a front too
-    /// (the front depths lowered to it where the accumulators hold sums; moving ones
-    /// are placed by extrapolation, and do not hide what new samples show), so that a
-    /// new sample seen through what is carried (traced from an earlier view) is not
-    /// splatted over it.
-    pub(super) fn carried_front(&mut self) {
-        let (Some(c), Some(_)) = (&self.carried, self.visibility_keep()) else {
-            return;
-        };
-        let rows = (&self.acc[..], self.width as usize, self.cs);
-        by_front_row(&mut self.front, c, rows, lower_fronts);
+/// With the visibility pass, the carried geometry of still surfaces is a front too
+/// (moving ones are placed by extrapolation, and do not hide what new samples show),
+/// so that a new sample seen through what is carried (traced from an earlier view) is
+/// not splatted over it: the fronts of `out`'s rows (from row `y0`, `w` pixels each)
+/// start from it where the accumulators `acc` (channel stride `cs`) hold sums, else
+/// from none. The new splats' fronts are lowered into them after
+/// ([`Reconstructor::front_depths`]): a minimum, so the order does not matter.
+pub(super) fn carried_fronts(
+    c: &Carried,
+    (acc, w, cs): (&[f32], usize, usize),
+    y0: usize,
+    out: &mut [f32],
+) {
+    for (r, row) in out.chunks_mut(w).enumerate() {
+        let (y, q) = (y0 + r, (y0 + r) * w);
+        row.fill(f32::INFINITY);
+        let weight = &acc[(y * CHANNELS + 3) * cs..][..w];
+        lower_fronts(row, &c.still_z[q..q + w], weight);
     }
 }
 
 impl Reconstructor {
-    /// [`Reconstructor::carried_front`] over no new splat, as the shaders store it
+    /// [`carried_fronts`] over no new splat, as the shaders store it
     /// ([`super::gpu::carried::front_bit`]), into `bits`: each row lowered a few pixels
     /// at a time on the stack, so that no image of f32 fronts is filled, lowered and
     /// read again on the way (the GPU's initial front depths).
     #[cfg(feature = "gpu")]
     pub(super) fn carried_front_bits(&self, bits: &mut Vec<u32>) {
         bits.resize(self.cover.len(), 0);
-        let rows = (&self.acc[..], self.width as usize, self.cs);
-        match &self.carried {
-            Some(c) => by_front_row(bits, c, rows, lowered_front_bits),
-            None => bits.fill(0),
-        }
+        let (w, cs) = (self.width as usize, self.cs);
+        let Some(c) = &self.carried else {
+            bits.fill(0);
+            return;
+        };
+        bits.par_chunks_mut(w)
+            .zip(c.still_z.par_chunks(w))
+            .enumerate()
+            .for_each(|(y, (row, z))| {
+                lowered_front_bits(row, z, &self.acc[(y * CHANNELS + 3) * cs..][..w]);
+            });
     }
 }
 
@@ -1308,21 +1320,6 @@ pub(super) fn changed_front_bits(
             changes.push([q, bits[0]]);
         }
     }
-}
-
-/// `lower` applied to each row of `out` (one entry a pixel, rows of `w`) with that
-/// row's carried [`Geo::still_z`] and weights (rows `cs` apart in `acc`), rows in
-/// parallel.
-fn by_front_row<T: Send>(
-    out: &mut [T],
-    c: &Carried,
-    (acc, w, cs): (&[f32], usize, usize),
-    lower: impl Fn(&mut [T], &[f32], &[f32]) + Sync,
-) {
-    out.par_chunks_mut(w)
-        .zip(c.still_z.par_chunks(w))
-        .enumerate()
-        .for_each(|(y, (row, geo))| lower(row, geo, &acc[(y * CHANNELS + 3) * cs..][..w]));
 }
 
 /// The bits ([`super::gpu::carried::front_bit`]) of fronts that start infinite and are

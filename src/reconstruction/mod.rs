@@ -701,15 +701,15 @@ impl Reconstructor {
         let mut lap = std::time::Instant::now();
         self.prepare_splats(plan);
         lap = self.passes.lap(1, lap);
-        self.front_depths();
-        lap = self.passes.lap(2, lap);
         if self.carries_now() {
             let start = self.ring.len() - self.placed;
             self.carry_over(plan.t, &plan.camera, start);
-            self.carried_front();
         }
         self.located_from = None;
         lap = self.passes.lap(3, lap);
+        // After the carry: the fronts start from the still geometry it carried.
+        self.front_depths();
+        lap = self.passes.lap(2, lap);
         self.splat();
         lap = self.passes.lap(4, lap);
         self.resolve();
@@ -871,7 +871,7 @@ impl Reconstructor {
     }
 
     /// With the visibility pass, the initial front depths a carrying refresh on the
-    /// GPU adds the new splats to, by the CPU's rule ([`Reconstructor::carried_front`])
+    /// GPU adds the new splats to, by the CPU's rule ([`carry::carried_fronts`])
     /// over no new splat, into `gpu_front`, and which of them go up. Where the GPU kept
     /// the last refresh's and this carry is listed whole, a front can have changed
     /// only where the last read-back changed a weight or this carry edited a pixel

@@ -230,10 +230,9 @@ pub(super) fn behind_front(front: f32, z: f32, keep: f32) -> bool {
     front < z * keep
 }
 
-/// The front depths of rows `by0..by1` (`front`, rows of `w`): the nearest `z_front` of
-/// the splats that land there among those binned to the band.
+/// The front depths of rows `by0..by1` (`front`, rows of `w`) lowered to the nearest
+/// `z_front` of the splats that land there among those binned to the band.
 fn front_band(binned: &[Vec<Vec<Splat>>], b: usize, by0: usize, w: usize, front: &mut [f32]) {
-    front.fill(f32::INFINITY);
     let (p0, p1) = (by0 * w, by0 * w + front.len());
     for s in binned.iter().flat_map(|c| c[b].iter()) {
         let p = s.pixel as usize;
@@ -300,18 +299,28 @@ fn splat_band(
 
 impl Reconstructor {
     /// With the visibility pass: each pixel's front depth, the nearest `z_front` of the
-    /// splats binned at this refresh that land in it, bands in parallel.
+    /// splats binned at this refresh that land in it and, when carrying (after the
+    /// carry), of the still geometry carried there ([`super::carry::carried_fronts`]),
+    /// bands in parallel.
     pub(super) fn front_depths(&mut self) {
         if self.visibility_keep().is_none() {
             return;
         }
         let (w, h) = (self.width as usize, self.height as usize);
         let (binned, rows) = (&self.binned[..self.pieces], self.band_rows);
+        let carried = self.carried.as_deref().filter(|_| self.carries_now());
+        let sums = (&self.acc[..], w, self.cs);
         self.front.resize(h * w, f32::INFINITY);
         self.front
             .par_chunks_mut(rows * w)
             .enumerate()
-            .for_each(|(b, front)| front_band(binned, b, b * rows, w, front));
+            .for_each(|(b, front)| {
+                match carried {
+                    Some(c) => super::carry::carried_fronts(c, sums, b * rows, front),
+                    None => front.fill(f32::INFINITY),
+                }
+                front_band(binned, b, b * rows, w, front);
+            });
     }
 
     /// Accumulate every band from the splats binned at this refresh, bands in parallel,
