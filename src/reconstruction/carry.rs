@@ -1370,6 +1370,10 @@ fn pixel_at(x: f32, y: f32, z: f32, w: usize, h: usize) -> Option<(usize, usize)
 }
 
 #[cfg(test)]
+#[path = "carry_cut_tests.rs"]
+mod cut_tests;
+
+#[cfg(test)]
 mod order_tests {
     use super::*;
     use proptest::prelude::*;
