@@ -710,13 +710,10 @@ impl Reconstructor {
         // After the carry: the fronts start from the still geometry it carried.
         self.front_depths();
         lap = self.passes.lap(2, lap);
-        self.splat();
-        lap = self.passes.lap(4, lap);
-        self.resolve();
+        lap = self.splat_and_resolve(lap);
         if self.resplat {
             self.restart_carry();
         }
-        lap = self.passes.lap(5, lap);
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let (Some(h), Some(step)) = (&mut self.history, plan.history.take()) {
             let age_sum = h.apply(step, &mut self.image, &mut self.age, front);

@@ -3,7 +3,9 @@
 
 use std::time::Instant;
 
-/// The steps of a refresh, in the order they run: on the GPU, the filters, the carry
+/// The steps of a refresh, in the order they run (on the CPU the splat and the resolve
+/// share one pass over bands of rows, each band resolved once splatted; that pass's time
+/// goes to the two as its bands' time did): on the GPU, the filters, the carry
 /// and the history's plan stay on the CPU, and the rest is the GPU's three parts:
 /// `gpu_upload` (packing the carried sums, uploads, encoding, submission), `gpu_wait`
 /// (until the read-back buffers are mapped: the shaders and the copies) and
@@ -58,7 +60,6 @@ impl PassTimes {
     }
 
     /// `seconds` more of pass `k` (an index of [`PASSES`]), timed elsewhere.
-    #[cfg_attr(not(feature = "gpu"), allow(dead_code))]
     pub(super) fn add(&mut self, k: usize, seconds: f64) {
         self.seconds[k] += seconds;
     }

@@ -2,11 +2,14 @@
 //! coverage map and the splat scale it drives for the next refresh, the mean age;
 //! holes go to [`holes`](super::holes).
 //!
-//! Each band of rows runs a row at a time through loops over independent pixels
-//! (branch-free, so that they compile to vector code): the coverage (a running sum of
-//! differences, the one serial loop), the scale adaptation, the quotients. With the
-//! low-density fill the same pass forms the fill's first pyramid level from the
-//! quotients while they are in registers, instead of reading the image back.
+//! Each band of rows is resolved as soon as it is splatted, while its sums are in the
+//! cache, a row at a time through loops over independent pixels (branch-free, so that
+//! they compile to vector code): the coverage (a running sum of differences, the one
+//! serial loop), the scale adaptation, the quotients. With the low-density fill the
+//! same pass forms the fill's first pyramid level from the quotients while they are in
+//! registers, instead of reading the image back.
+
+use std::time::{Duration, Instant};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -18,9 +21,8 @@ use super::{
     ReconParams, Reconstructor,
 };
 
-/// Rows of the fill's first level per band of the resolve (two image rows each).
-const LEVEL_ROWS: usize = BAND_ROWS / 2;
-const _: () = assert!(BAND_ROWS % 2 == 0, "a band's rows pair up into level rows");
+// The fill's first level has a row for two image rows: a band's rows pair up.
+const _: () = assert!(BAND_ROWS % 2 == 0 && super::splat::SINGLE_THREAD_BAND_ROWS % 2 == 0);
 
 /// Holes and thin pixels (weight below the fill weight) of a band.
 #[derive(Clone, Copy, Default)]
@@ -67,32 +69,41 @@ struct Frame<'a> {
 }
 
 impl Reconstructor {
-    /// Quotients, coverage, splat scale adaptation, hole filling, mean age.
-    pub(super) fn resolve(&mut self) {
+    /// The splats, then quotients, coverage, splat scale adaptation, hole filling and
+    /// mean age, timed as two passes from `since`; returns when it ended. Each band of
+    /// rows is resolved as soon as it is splatted, while its sums and coverage
+    /// differences are still in the cache: resolving them in a pass of its own read
+    /// every pixel's sums back from memory (2 ms of a 40 ms image at 1280×720,
+    /// performance.md, session 46).
+    pub(super) fn splat_and_resolve(&mut self, since: Instant) -> Instant {
         let (w, h) = (self.width as usize, self.height as usize);
         let p = self.params;
         // With a fill weight the fill runs whenever a pixel is thin, the usual case:
         // its first level is pulled here; unused otherwise.
         let pulled = p.fill_weight > 0.0;
-        // Carried coverage (decayed) adds to this refresh's (unread without carrying).
+        // Carried sums and coverage (decayed) add to this refresh's.
         let carrying = self.carries_now();
-        let (nw, level) = self.pull.first_rows(w, h, LEVEL_ROWS, pulled);
-        let f = Frame {
-            w,
-            cs: self.cs,
-            p,
-            carrying,
-            acc: &self.acc,
-            cov: &self.cov,
+        let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
+        let keep = self.visibility_keep();
+        let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
+        let splats = super::splat::BandSplats {
+            binned: &self.binned[..self.pieces],
+            rows,
+            h,
+            cs,
+            cstride,
+            front: keep.map(|k| (&self.front[..], k)),
+            carried: carrying,
         };
-        let tallies: Vec<Tally> = self
-            .image
-            .pixels
-            .par_chunks_mut(BAND_ROWS * w)
-            .zip(self.coverage.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.scale.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.age.par_chunks_mut(BAND_ROWS * w))
-            .zip(self.cover.par_chunks_mut(BAND_ROWS * w))
+        let bands: Vec<(Tally, Duration, Duration)> = self
+            .acc
+            .par_chunks_mut(rows * CHANNELS * cs)
+            .zip(self.cov.par_chunks_mut(rows * cstride))
+            .zip(self.image.pixels.par_chunks_mut(rows * w))
+            .zip(self.coverage.par_chunks_mut(rows * w))
+            .zip(self.scale.par_chunks_mut(rows * w))
+            .zip(self.age.par_chunks_mut(rows * w))
+            .zip(self.cover.par_chunks_mut(rows * w))
             .zip(level)
             .enumerate()
             .map_init(
@@ -101,7 +112,18 @@ impl Reconstructor {
                     quotients: vec![0.0; 4 * w],
                     pre: vec![0.0; if pulled { 2 * CH * w } else { 0 }],
                 },
-                |scratch, (b, (((((px, coverage), scale), ages), cover), level))| {
+                |scratch, (b, (((((((acc, cov), px), coverage), scale), ages), cover), level))| {
+                    let t0 = Instant::now();
+                    splats.band(b, acc, cov);
+                    let t1 = Instant::now();
+                    let f = Frame {
+                        w,
+                        cs,
+                        p,
+                        carrying,
+                        acc,
+                        cov,
+                    };
                     let maps = BandMaps {
                         px,
                         coverage,
@@ -109,10 +131,14 @@ impl Reconstructor {
                         ages,
                         cover,
                     };
-                    f.band(b * BAND_ROWS, maps, level.map(|l| (l, nw)), scratch)
+                    // The band's own rows: its sums and differences start at its first.
+                    let tally = f.band(0, maps, level.map(|l| (l, nw)), scratch);
+                    (tally, t1 - t0, t1.elapsed())
                 },
             )
             .collect();
+        let since = self.split_band_time(since, &bands);
+        let tallies: Vec<Tally> = bands.into_iter().map(|b| b.0).collect();
         let holes: usize = tallies.iter().map(|t| t.holes).sum();
         let thin: usize = tallies.iter().map(|t| t.thin).sum();
         self.holes = holes;
@@ -142,6 +168,30 @@ impl Reconstructor {
         if sum_ages {
             self.mean_age = age_sum / (w * h).max(1) as f64;
         }
+        self.passes.lap(5, since)
+    }
+
+    /// The wall time from `since` to now of the bands' pass, shared between the splat
+    /// and the resolve as its bands' time was (their time in each, from `bands`); returns
+    /// now.
+    fn split_band_time(
+        &mut self,
+        since: Instant,
+        bands: &[(Tally, Duration, Duration)],
+    ) -> Instant {
+        let now = Instant::now();
+        let (splat, resolve) = bands.iter().fold((0.0, 0.0), |(s, r), b| {
+            (s + b.1.as_secs_f64(), r + b.2.as_secs_f64())
+        });
+        let wall = (now - since).as_secs_f64();
+        let share = if splat + resolve > 0.0 {
+            splat / (splat + resolve)
+        } else {
+            0.5
+        };
+        self.passes.add(4, wall * share);
+        self.passes.add(5, wall * (1.0 - share));
+        now
     }
 
     /// Per band, the sum in pixel order of the ages of the pixels that are not holes.

@@ -10,9 +10,9 @@ use super::{
     Reconstructor,
 };
 
-/// Rows per band of the splat with several threads (tasks for the thread pool), and
-/// per task of the resolve pass (whose fixed bands make its sums thread-independent).
-/// Band heights are powers of two.
+/// Rows per band of the splat and the resolve with several threads (tasks for the
+/// thread pool), and of the mean age's sums, whose bands are fixed so that their sum
+/// does not depend on the thread count. Band heights are powers of two.
 pub(super) const BAND_ROWS: usize = 16;
 /// Rows per band of the splat on one thread.
 pub(super) const SINGLE_THREAD_BAND_ROWS: usize = 32;
@@ -243,6 +243,41 @@ fn front_band(binned: &[Vec<Vec<Splat>>], b: usize, by0: usize, w: usize, front:
     }
 }
 
+/// What every band's splats read: the splats binned at this refresh by band of
+/// `rows` rows (of an image `h` rows high, accumulators of channel stride `cs`,
+/// coverage differences in rows of `cstride`), the
+/// front depths of [`Reconstructor::front_depths`] and `1 / (1 + tolerance)` with the
+/// visibility pass, and whether the accumulators hold carried sums.
+pub(super) struct BandSplats<'a> {
+    pub(super) binned: &'a [Vec<Vec<Splat>>],
+    pub(super) rows: usize,
+    pub(super) h: usize,
+    pub(super) cs: usize,
+    pub(super) cstride: usize,
+    pub(super) front: Option<(&'a [f32], f32)>,
+    pub(super) carried: bool,
+}
+
+impl BandSplats<'_> {
+    /// Accumulate band `b` into its rows `acc` and coverage differences `cov`.
+    pub(super) fn band(&self, b: usize, acc: &mut [f32], cov: &mut [i32]) {
+        let (binned, rows, h, cs, cstride) =
+            (self.binned, self.rows, self.h, self.cs, self.cstride);
+        splat_band(
+            binned,
+            b,
+            rows,
+            h,
+            cs,
+            acc,
+            cstride,
+            cov,
+            self.front,
+            self.carried,
+        );
+    }
+}
+
 /// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
 /// ring order, over what `acc` holds when `carried` (else from zero); with `front`
 /// (the image's front depths and `1 / (1 + tolerance)`), only the splats [`visible`]
@@ -320,25 +355,6 @@ impl Reconstructor {
                     None => front.fill(f32::INFINITY),
                 }
                 front_band(binned, b, b * rows, w, front);
-            });
-    }
-
-    /// Accumulate every band from the splats binned at this refresh, bands in parallel,
-    /// behind the front depths of [`Reconstructor::front_depths`] with the visibility
-    /// pass.
-    pub(super) fn splat(&mut self) {
-        let h = self.height as usize;
-        let (cs, cstride) = (self.cs, self.width as usize + 1);
-        let binned = &self.binned[..self.pieces];
-        let rows = self.band_rows;
-        let front = self.visibility_keep().map(|k| (&self.front[..], k));
-        let carried = self.carries_now();
-        self.acc
-            .par_chunks_mut(rows * CHANNELS * cs)
-            .zip(self.cov.par_chunks_mut(rows * cstride))
-            .enumerate()
-            .for_each(|(b, (acc, cov))| {
-                splat_band(binned, b, rows, h, cs, acc, cstride, cov, front, carried)
             });
     }
 
