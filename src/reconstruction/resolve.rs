@@ -138,16 +138,24 @@ impl Reconstructor {
             )
             .collect();
         let since = self.split_band_time(since, &bands);
-        let tallies: Vec<Tally> = bands.into_iter().map(|b| b.0).collect();
-        let holes: usize = tallies.iter().map(|t| t.holes).sum();
-        let thin: usize = tallies.iter().map(|t| t.thin).sum();
+        let tally = bands.iter().fold(Tally::default(), |sum, b| sum + b.0);
+        self.fill_and_mean_age(tally, pulled);
+        self.passes.lap(5, since)
+    }
+
+    /// After the bands' quotients (`tally`: their holes and thin pixels; `pulled`:
+    /// whether they pulled the fill's first level), the fill of thin pixels or the
+    /// holes, and the mean age where no history blends the ages after.
+    fn fill_and_mean_age(&mut self, tally: Tally, pulled: bool) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let Tally { holes, thin } = tally;
         self.holes = holes;
         // The still-region history, where there is one, blends every pixel's age and
         // sums the ages shown: a sum here would be overwritten (a serial pass over
         // every pixel, a millisecond at 1280×720).
         let sum_ages = self.history.is_none();
         let age_sum = if thin > 0 {
-            self.pull_push(p.fill_weight, pulled);
+            self.pull_push(self.params.fill_weight, pulled);
             if sum_ages {
                 self.age.iter().map(|&a| a as f64).sum()
             } else {
@@ -168,7 +176,6 @@ impl Reconstructor {
         if sum_ages {
             self.mean_age = age_sum / (w * h).max(1) as f64;
         }
-        self.passes.lap(5, since)
     }
 
     /// The wall time from `since` to now of the bands' pass, shared between the splat
