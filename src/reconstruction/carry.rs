@@ -1245,6 +1245,33 @@ struct Landed {
     took_geometry: bool,
 }
 
+impl Reconstructor {
+    /// With the visibility pass: each pixel's front depth, the nearest `z_front` of the
+    /// splats binned at this refresh that land in it ([`super::splat::front_band`])
+    /// and, when carrying (after the carry), of the still geometry carried there
+    /// ([`carried_fronts`]), bands in parallel.
+    pub(super) fn front_depths(&mut self) {
+        if self.visibility_keep().is_none() {
+            return;
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (binned, rows) = (&self.binned[..self.pieces], self.band_rows);
+        let carried = self.carried.as_deref().filter(|_| self.carries_now());
+        let sums = (&self.acc[..], w, self.cs);
+        self.front.resize(h * w, f32::INFINITY);
+        self.front
+            .par_chunks_mut(rows * w)
+            .enumerate()
+            .for_each(|(b, front)| {
+                match carried {
+                    Some(c) => carried_fronts(c, sums, b * rows, front),
+                    None => front.fill(f32::INFINITY),
+                }
+                super::splat::front_band(binned, b, b * rows, w, front);
+            });
+    }
+}
+
 /// With the visibility pass, the carried geometry of still surfaces is a front too
 /// (moving ones are placed by extrapolation, and do not hide what new samples show),
 /// so that a new sample seen through what is carried (traced from an earlier view) is

@@ -3,8 +3,6 @@
 //! corner differences. Bands write disjoint rows, so they run in parallel and give the
 //! same sums whatever the thread count.
 
-use rayon::prelude::*;
-
 use super::{
     lanes::{gauss_lanes, prefetch, Lanes, LANES, PREFETCH_AHEAD, PREFIX},
     Reconstructor,
@@ -232,7 +230,13 @@ pub(super) fn behind_front(front: f32, z: f32, keep: f32) -> bool {
 
 /// The front depths of rows `by0..by1` (`front`, rows of `w`) lowered to the nearest
 /// `z_front` of the splats that land there among those binned to the band.
-fn front_band(binned: &[Vec<Vec<Splat>>], b: usize, by0: usize, w: usize, front: &mut [f32]) {
+pub(super) fn front_band(
+    binned: &[Vec<Vec<Splat>>],
+    b: usize,
+    by0: usize,
+    w: usize,
+    front: &mut [f32],
+) {
     let (p0, p1) = (by0 * w, by0 * w + front.len());
     for s in binned.iter().flat_map(|c| c[b].iter()) {
         let p = s.pixel as usize;
@@ -333,31 +337,6 @@ fn splat_band(
 }
 
 impl Reconstructor {
-    /// With the visibility pass: each pixel's front depth, the nearest `z_front` of the
-    /// splats binned at this refresh that land in it and, when carrying (after the
-    /// carry), of the still geometry carried there ([`super::carry::carried_fronts`]),
-    /// bands in parallel.
-    pub(super) fn front_depths(&mut self) {
-        if self.visibility_keep().is_none() {
-            return;
-        }
-        let (w, h) = (self.width as usize, self.height as usize);
-        let (binned, rows) = (&self.binned[..self.pieces], self.band_rows);
-        let carried = self.carried.as_deref().filter(|_| self.carries_now());
-        let sums = (&self.acc[..], w, self.cs);
-        self.front.resize(h * w, f32::INFINITY);
-        self.front
-            .par_chunks_mut(rows * w)
-            .enumerate()
-            .for_each(|(b, front)| {
-                match carried {
-                    Some(c) => super::carry::carried_fronts(c, sums, b * rows, front),
-                    None => front.fill(f32::INFINITY),
-                }
-                front_band(binned, b, b * rows, w, front);
-            });
-    }
-
     /// Channel `ch` of the accumulated sums of pixel `(x, y)`.
     #[inline(always)]
     pub(super) fn sum_at(&self, x: usize, y: usize, ch: usize) -> f32 {
