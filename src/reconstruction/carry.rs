@@ -91,8 +91,7 @@ impl Geo {
     /// (moving geometry is placed by extrapolation and hides nothing), infinite
     /// otherwise. [`Carried::still_z`] keeps it for every pixel.
     pub(super) fn still_z(&self) -> f32 {
-        let still = (self.v.x == 0.0) & (self.v.y == 0.0) & (self.v.z == 0.0);
-        if still {
+        if self.v == Vec3::ZERO {
             self.z
         } else {
             f32::INFINITY

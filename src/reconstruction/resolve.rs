@@ -58,7 +58,9 @@ struct Scratch {
     pre: Vec<f32>,
 }
 
-/// What every band of one resolve shares.
+/// What one band of the resolve reads: besides the image's width, the accumulators'
+/// channel stride, the parameters and whether the sums are carried, the band's own
+/// sums and coverage differences (from its first row).
 struct Frame<'a> {
     w: usize,
     cs: usize,

@@ -100,7 +100,7 @@ fn splat_one(
         3 => cols.add::<3>(rows, y1 - y0, cs),
         _ => cols.add_any(rows, y1 - y0, cs),
     }
-    // Coverage corners within the band (made per-row differences in `splat_band`).
+    // Coverage corners within the band (made per-row differences in `BandSplats::band`).
     let r0 = (y0 - by0) * cstride;
     cov[r0 + x0] += 1;
     cov[r0 + x1 + 1] -= 1;
@@ -247,11 +247,11 @@ pub(super) fn front_band(
     }
 }
 
-/// What every band's splats read: the splats binned at this refresh by band of
-/// `rows` rows (of an image `h` rows high, accumulators of channel stride `cs`,
-/// coverage differences in rows of `cstride`), the
-/// front depths of [`Reconstructor::front_depths`] and `1 / (1 + tolerance)` with the
-/// visibility pass, and whether the accumulators hold carried sums.
+/// What every band's splats read: the splats binned at this refresh by band of `rows`
+/// rows (of an image `h` rows high, accumulators of channel stride `cs`, coverage
+/// differences in rows of `cstride`), the front depths of
+/// [`Reconstructor::front_depths`] and `1 / (1 + tolerance)` with the visibility pass,
+/// and whether the accumulators hold carried sums.
 pub(super) struct BandSplats<'a> {
     pub(super) binned: &'a [Vec<Vec<Splat>>],
     pub(super) rows: usize,
@@ -263,75 +263,45 @@ pub(super) struct BandSplats<'a> {
 }
 
 impl BandSplats<'_> {
-    /// Accumulate band `b` into its rows `acc` and coverage differences `cov`.
+    /// Accumulate band `b` into its rows `acc` and coverage differences `cov` from the
+    /// splats binned to it, in ring order, over what `acc` holds when carried (else
+    /// from zero); with the front depths, only the splats [`visible`] there.
+    #[inline(never)]
     pub(super) fn band(&self, b: usize, acc: &mut [f32], cov: &mut [i32]) {
-        let (binned, rows, h, cs, cstride) =
-            (self.binned, self.rows, self.h, self.cs, self.cstride);
-        splat_band(
-            binned,
-            b,
-            rows,
-            h,
-            cs,
-            acc,
-            cstride,
-            cov,
-            self.front,
-            self.carried,
-        );
-    }
-}
-
-/// Accumulate band `b` (of an image `h` rows high) from the splats binned to it, in
-/// ring order, over what `acc` holds when `carried` (else from zero); with `front`
-/// (the image's front depths and `1 / (1 + tolerance)`), only the splats [`visible`]
-/// there.
-#[inline(never)]
-#[allow(clippy::too_many_arguments)]
-fn splat_band(
-    binned: &[Vec<Vec<Splat>>],
-    b: usize,
-    band_rows: usize,
-    h: usize,
-    cs: usize,
-    acc: &mut [f32],
-    cstride: usize,
-    cov: &mut [i32],
-    front: Option<(&[f32], f32)>,
-    carried: bool,
-) {
-    if !carried {
-        acc.fill(0.0);
-    }
-    cov.fill(0);
-    let by0 = b * band_rows;
-    let by1 = (by0 + band_rows).min(h);
-    match front {
-        Some((front, keep)) => {
-            for list in binned.iter().map(|c| &c[b]) {
-                for (i, s) in list.iter().enumerate() {
-                    // Landing pixels are random within the band: ask for the front
-                    // depth some splats ahead so the misses overlap.
-                    if let Some(a) = list.get(i + PREFETCH_AHEAD) {
-                        prefetch(front, a.pixel as usize);
-                    }
-                    if visible(s, front, keep) {
-                        splat_one(s, by0, by1, cs, acc, cstride, cov);
+        let (cs, cstride) = (self.cs, self.cstride);
+        if !self.carried {
+            acc.fill(0.0);
+        }
+        cov.fill(0);
+        let by0 = b * self.rows;
+        let by1 = (by0 + self.rows).min(self.h);
+        match self.front {
+            Some((front, keep)) => {
+                for list in self.binned.iter().map(|c| &c[b]) {
+                    for (i, s) in list.iter().enumerate() {
+                        // Landing pixels are random within the band: ask for the front
+                        // depth some splats ahead so the misses overlap.
+                        if let Some(a) = list.get(i + PREFETCH_AHEAD) {
+                            prefetch(front, a.pixel as usize);
+                        }
+                        if visible(s, front, keep) {
+                            splat_one(s, by0, by1, cs, acc, cstride, cov);
+                        }
                     }
                 }
             }
-        }
-        None => {
-            for s in binned.iter().flat_map(|c| c[b].iter()) {
-                splat_one(s, by0, by1, cs, acc, cstride, cov);
+            None => {
+                for s in self.binned.iter().flat_map(|c| c[b].iter()) {
+                    splat_one(s, by0, by1, cs, acc, cstride, cov);
+                }
             }
         }
-    }
-    // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
-    for r in 1..by1 - by0 {
-        let (prev, row) = cov[(r - 1) * cstride..(r + 1) * cstride].split_at_mut(cstride);
-        for (d, &p) in row.iter_mut().zip(prev.iter()) {
-            *d += p;
+        // Corner differences → per-row differences (`+1` at `x0`, `−1` past `x1`).
+        for r in 1..by1 - by0 {
+            let (prev, row) = cov[(r - 1) * cstride..(r + 1) * cstride].split_at_mut(cstride);
+            for (d, &p) in row.iter_mut().zip(prev.iter()) {
+                *d += p;
+            }
         }
     }
 }
