@@ -315,17 +315,30 @@ fn blend_planes(
 /// nothing); how many it moved.
 fn cut_moved(acc: &mut AccumMut, o: &RowOut) -> u64 {
     let mut cuts = 0;
-    for (x, _) in o.moved.iter().enumerate().filter(|(_, &m)| m) {
-        let l = o.luminance[x];
-        acc.cell[x].range = if acc.count[x] > 0.0 {
-            (l, l)
-        } else {
-            EMPTY_RANGE
-        };
-        cuts += 1;
+    // Few pixels move in a refresh: a block is looked into only if an or over its
+    // flags (a vector reduction) finds one. A plain filter compiled to a pass that
+    // stored every pixel's range back, bringing the whole cell array in (about 2 ms
+    // of a 1280x720 image).
+    for (b, block) in o.moved.chunks(MOVED_BLOCK).enumerate() {
+        if !block.iter().fold(false, |any, &m| any | m) {
+            continue;
+        }
+        for (i, _) in block.iter().enumerate().filter(|(_, &m)| m) {
+            let x = b * MOVED_BLOCK + i;
+            let l = o.luminance[x];
+            acc.cell[x].range = if acc.count[x] > 0.0 {
+                (l, l)
+            } else {
+                EMPTY_RANGE
+            };
+            cuts += 1;
+        }
     }
     cuts
 }
+
+/// Pixels whose moved flags [`cut_moved`] tests at once.
+const MOVED_BLOCK: usize = 64;
 
 #[cfg(test)]
 mod tests {
