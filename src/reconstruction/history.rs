@@ -476,12 +476,28 @@ impl History {
     /// per-pixel age is `age`, replaced by the age of what is shown); returns the sum
     /// over pixels of the shown age. `front`: the reconstruction's front depths and
     /// `1 / (1 + tolerance)`.
+    #[cfg(test)]
     pub(super) fn apply(
         &mut self,
-        mut step: Step,
+        step: Step,
         image: &mut Image,
         age: &mut [f32],
         front: Option<(&[f32], f32)>,
+    ) -> f64 {
+        let finished = |_: &mut (), _, _: &mut [Vec3], _: &mut [f32]| {};
+        self.apply_finishing(step, (image, age), front, &finished)
+    }
+
+    /// [`History::apply`] over an image whose rows are made final as the blend first
+    /// reads them: `finish(scratch, y, pixels, ages)` on row `y`, once per row, each
+    /// task with a scratch of its own, so that a pass that completes the image (the
+    /// fill's last push) is done while the blend has the row in the cache.
+    pub(super) fn apply_finishing<S: Default + Send>(
+        &mut self,
+        mut step: Step,
+        (image, age): (&mut Image, &mut [f32]),
+        front: Option<(&[f32], f32)>,
+        finish: &(impl Fn(&mut S, usize, &mut [Vec3], &mut [f32]) + Sync),
     ) -> f64 {
         if !step.in_pixel_order {
             // Planned for a GPU that failed: a stable sort keeps each pixel's samples
@@ -491,7 +507,8 @@ impl History {
         }
         let (cuts, age_sum) = {
             let params = self.params;
-            self.cpu_pixels().apply(&step, &params, front, image, age)
+            let pixels = self.cpu_pixels();
+            pixels.apply(&step, &params, front, (image, age), finish)
         };
         self.cuts += cuts;
         self.recycle(step);
@@ -797,13 +814,13 @@ impl Pixels {
 
     /// Carry out `step` over `image` and `age`; returns the pixels cut and the sum of
     /// the shown ages.
-    fn apply(
+    fn apply<S: Default + Send>(
         &mut self,
         step: &Step,
         p: &HistoryParams,
         front: Option<(&[f32], f32)>,
-        image: &mut Image,
-        age: &mut [f32],
+        (image, age): (&mut Image, &mut [f32]),
+        finish: &(impl Fn(&mut S, usize, &mut [Vec3], &mut [f32]) + Sync),
     ) -> (u64, f64) {
         self.cuts = 0;
         match step.view {
@@ -820,7 +837,7 @@ impl Pixels {
         for &q in &step.cuts {
             self.cut(q as usize);
         }
-        let (cuts, age_sum) = self.blend(step.t, p, image, age);
+        let (cuts, age_sum) = self.blend(step.t, p, (image, age), finish);
         (self.cuts + cuts, age_sum)
     }
 
@@ -941,17 +958,23 @@ impl Pixels {
     }
 
     /// Clamp each pixel's history to the box of the reconstruction around it, then
-    /// blend it over `image` at time `t`; returns the pixels the clamp cut and the
-    /// sum of the shown ages.
-    fn blend(
+    /// blend it over `image` at time `t`, each row made final by `finish` first;
+    /// returns the pixels the clamp cut and the sum of the shown ages.
+    fn blend<S: Default + Send>(
         &mut self,
         t: f64,
         p: &HistoryParams,
-        image: &mut Image,
-        age: &mut [f32],
+        (image, age): (&mut Image, &mut [f32]),
+        finish: &(impl Fn(&mut S, usize, &mut [Vec3], &mut [f32]) + Sync),
     ) -> (u64, f64) {
         let (edges, rolling) = (&mut self.edges, &mut self.rolling);
-        blend::blend_image(&mut self.acc, edges, rolling, (t, p), image, age)
+        blend::blend_image(
+            &mut self.acc,
+            (edges, rolling),
+            (t, p),
+            (image, age),
+            finish,
+        )
     }
 }
 

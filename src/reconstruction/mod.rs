@@ -230,6 +230,9 @@ pub struct Reconstructor {
     pyramid: Vec<(usize, usize, Vec<[f64; CHANNELS]>)>,
     /// Pull-push levels of the low-density fill (level 1 and up), reused.
     pull: pullpush::Pyramid,
+    /// The coverage weight of a fill whose last push into the image is still to come
+    /// (the history's blend does it a row at a time, as it reads the rows).
+    pending_push: Option<f32>,
     image: Image,
     /// Weight-averaged sample age of each pixel at the last refresh.
     age: Vec<f32>,
@@ -342,6 +345,7 @@ impl Reconstructor {
             located_from: None,
             pyramid: Vec::new(),
             pull: pullpush::Pyramid::default(),
+            pending_push: None,
             image: Image::new(width, height),
             age: vec![0.0; n],
             mean_age: 0.0,
@@ -710,13 +714,23 @@ impl Reconstructor {
         // After the carry: the fronts start from the still geometry it carried.
         self.front_depths();
         lap = self.passes.lap(2, lap);
-        lap = self.splat_and_resolve(lap);
+        let blend_follows = self.history.is_some() && plan.history.is_some();
+        lap = self.splat_and_resolve(lap, blend_follows);
         if self.resplat {
             self.restart_carry();
         }
         let front = self.visibility_keep().map(|k| (&self.front[..], k));
         if let (Some(h), Some(step)) = (&mut self.history, plan.history.take()) {
-            let age_sum = h.apply(step, &mut self.image, &mut self.age, front);
+            // The fill's last push, row by row as the blend reads the rows.
+            let size = (self.width as usize, self.height as usize);
+            let last = (self.pending_push.take())
+                .and_then(|w0| self.pull.last_push(&self.acc, self.cs, size, w0));
+            let push = |rows: &mut pullpush::PushRows, y, px: &mut [Vec3], age: &mut [f32]| {
+                if let Some(l) = &last {
+                    l.row(rows, y, px, age);
+                }
+            };
+            let age_sum = h.apply_finishing(step, (&mut self.image, &mut self.age), front, &push);
             self.mean_age = age_sum / self.age.len().max(1) as f64;
         }
         self.passes.lap(6, lap);

@@ -75,6 +75,24 @@ impl Pyramid {
     }
 }
 
+impl Pyramid {
+    /// The last push from the first level into a `w × h` image whose accumulators are
+    /// `acc` (rows of stride `cs`), at coverage weight `w0`; `None` for an image of
+    /// one pixel (no levels).
+    pub(super) fn last_push<'a>(
+        &'a self,
+        acc: &'a [f32],
+        cs: usize,
+        (w, h): (usize, usize),
+        w0: f32,
+    ) -> Option<LastPush<'a>> {
+        let coarse = self.levels.first()?;
+        let full = Full { acc, cs, w, h, w0 };
+        let xt = taps(w, coarse.w);
+        Some(LastPush { full, coarse, xt })
+    }
+}
+
 impl Level {
     fn new(w: usize, h: usize) -> Self {
         Self {
@@ -132,32 +150,41 @@ impl Reconstructor {
     /// The full-resolution level is never stored: its coverage and colours are
     /// recomputed a row at a time from the accumulators (and the resolved image)
     /// where the first pull and the last push need them. With `pulled` the resolve
-    /// has pulled the first level already ([`Pyramid::first_rows`]).
-    pub(super) fn pull_push(&mut self, w0: f32, pulled: bool) {
+    /// has pulled the first level already ([`Pyramid::first_rows`]). With
+    /// `defer_last` the last push, into the image, is left to whoever reads the
+    /// image next, a row at a time ([`Reconstructor::last_push`]).
+    pub(super) fn pull_push(&mut self, w0: f32, pulled: bool, defer_last: bool) {
         let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
-        let mut image = std::mem::take(&mut self.image.pixels);
-        let mut ages = std::mem::take(&mut self.age);
-        let full = Full {
+        let (w, h) = (self.width as usize, self.height as usize);
+        if levels.is_empty() {
+            levels = Pyramid::levels_for(w, h);
+        }
+        if let Some(first) = levels.first_mut().filter(|_| !pulled) {
+            self.full(w0)
+                .pull_into(first, &self.image.pixels, &self.age);
+        }
+        pull_levels(&mut levels);
+        push_levels(&mut levels, &mut up);
+        self.pull = Pyramid { levels, up };
+        self.pending_push = Some(w0);
+        if !defer_last {
+            let (w0, size) = (self.pending_push.take(), (w, h));
+            if let Some(last) = w0.and_then(|w0| self.pull.last_push(&self.acc, self.cs, size, w0))
+            {
+                last.image(&mut self.image.pixels, &mut self.age);
+            }
+        }
+    }
+
+    /// The full-resolution level at coverage weight `w0`.
+    fn full(&self, w0: f32) -> Full<'_> {
+        Full {
             acc: &self.acc,
             cs: self.cs,
             w: self.width as usize,
             h: self.height as usize,
             w0,
-        };
-        if levels.is_empty() {
-            levels = Pyramid::levels_for(full.w, full.h);
         }
-        if let Some(first) = levels.first_mut().filter(|_| !pulled) {
-            full.pull_into(first, &image, &ages);
-        }
-        pull_levels(&mut levels);
-        push_levels(&mut levels, &mut up);
-        if let Some(coarse) = levels.first() {
-            full.push_from(coarse, &mut image, &mut ages);
-        }
-        self.image.pixels = image;
-        self.age = ages;
-        self.pull = Pyramid { levels, up };
     }
 }
 
@@ -202,45 +229,14 @@ impl Full<'_> {
         );
     }
 
-    /// The last push, from the first level `coarse` into the image: only pixels below
-    /// full coverage change, each with the same operations as [`upsampled`] and
-    /// [`push_row`] apply to a whole level (the same bits). A band of rows first
-    /// interpolates the coarse rows it reads along x, once, into scratch that stays in
-    /// the cache (upsampling every row of the image first would write twice its
-    /// floats). A row that holds a pixel below coverage is then computed whole, in
-    /// vector code, and its covered pixels kept as they were: live, about a third of
-    /// the pixels are below coverage, scattered, so a branch per pixel mispredicted
-    /// often and the pixel-at-a-time push cost about 2 ms of a 1280x720 image.
-    fn push_from(&self, coarse: &Level, image: &mut [Vec3], ages: &mut [f32]) {
-        let w = self.w;
-        let xt = taps(w, coarse.w);
-        image
-            .par_chunks_mut(PUSH_ROWS * w)
-            .zip(ages.par_chunks_mut(PUSH_ROWS * w))
-            .enumerate()
-            .for_each_init(Vec::new, |up, (b, (px, age))| {
-                let (y0, rows) = (b * PUSH_ROWS, px.len() / w);
-                if !(y0..y0 + rows).any(|y| any_below(self.weights(y), self.w0)) {
-                    return;
-                }
-                // The coarse rows the band's rows read, each interpolated along x.
-                let (c0, c1) = (tap(y0, coarse.h).0, tap(y0 + rows - 1, coarse.h).1);
-                up.resize((c1 + 1 - c0) * 4 * w, 0.0);
-                for (cy, out) in up.chunks_exact_mut(4 * w).enumerate() {
-                    upsample_row(coarse, c0 + cy, &xt, out);
-                }
-                for r in 0..rows {
-                    let (t0, t1, ty) = tap(y0 + r, coarse.h);
-                    let from = [up_row(up, t0 - c0, w), up_row(up, t1 - c0, w)];
-                    let span = r * w..(r + 1) * w;
-                    self.push_into_row(y0 + r, (from, ty), &mut px[span.clone()], &mut age[span]);
-                }
-            });
-    }
-
-    /// [`Full::push_from`] into row `y` (`px`, `age`) from the coarse rows above and
-    /// below it interpolated along x (four channels of `w` floats each), the second
-    /// of weight `ty`: every pixel computed, the covered ones kept.
+    /// The last push into row `y` (`px`, `age`) from the coarse rows above and below
+    /// it interpolated along x (four channels of `w` floats each), the second of
+    /// weight `ty`: a row that holds a pixel below coverage is computed whole, in
+    /// vector code, and its covered pixels kept as they were, each pixel with the same
+    /// operations as [`upsampled`] and [`push_row`] apply to a whole level (the same
+    /// bits). Live, about a third of the pixels are below coverage, scattered: a
+    /// branch per pixel mispredicted often, and the pixel-at-a-time push cost about
+    /// 2 ms of a 1280x720 image.
     fn push_into_row(
         &self,
         y: usize,
@@ -277,6 +273,87 @@ impl Full<'_> {
             px[x] = if keep { p } else { Vec3::new(v[0], v[1], v[2]) };
             age[x] = if keep { a } else { v[3] };
         }
+    }
+}
+
+/// The last push of the fill, from the first level into the full-resolution image,
+/// a row at a time: only pixels below full coverage change. It can be done as a pass
+/// of its own ([`LastPush::image`]) or row by row by the next pass to read the image
+/// ([`LastPush::row`]), so that a row is pushed while that pass has it in the cache.
+pub(super) struct LastPush<'a> {
+    full: Full<'a>,
+    coarse: &'a Level,
+    /// The column taps of the full resolution on the first level.
+    xt: Vec<(usize, usize, f32)>,
+}
+
+/// A task's coarse rows interpolated along x, by coarse row index (`usize::MAX`:
+/// none), for [`LastPush::row`]: consecutive rows read the same coarse rows, so each
+/// is interpolated once per run of rows rather than once per row.
+pub(super) struct PushRows {
+    rows: [(usize, Vec<f32>); 2],
+}
+
+impl Default for PushRows {
+    fn default() -> Self {
+        Self {
+            rows: [(usize::MAX, Vec::new()), (usize::MAX, Vec::new())],
+        }
+    }
+}
+
+impl LastPush<'_> {
+    /// The whole image (`px`, `age`), bands of rows in parallel.
+    fn image(&self, image: &mut [Vec3], ages: &mut [f32]) {
+        let w = self.full.w;
+        image
+            .par_chunks_mut(PUSH_ROWS * w)
+            .zip(ages.par_chunks_mut(PUSH_ROWS * w))
+            .enumerate()
+            .for_each_init(PushRows::default, |rows, (b, (px, age))| {
+                for (r, (px, age)) in px.chunks_mut(w).zip(age.chunks_mut(w)).enumerate() {
+                    self.row(rows, b * PUSH_ROWS + r, px, age);
+                }
+            });
+    }
+
+    /// Row `y` of the image (`px`, `age`); `rows` keeps the coarse rows read.
+    pub(super) fn row(&self, rows: &mut PushRows, y: usize, px: &mut [Vec3], age: &mut [f32]) {
+        if !any_below(self.full.weights(y), self.full.w0) {
+            return;
+        }
+        let (t0, t1, ty) = tap(y, self.coarse.h);
+        let (a, b) = self.coarse_rows(rows, t0, t1);
+        self.full.push_into_row(y, ([a, b], ty), px, age);
+    }
+
+    /// Coarse rows `t0` and `t1` interpolated along x, made where `rows` lacks them.
+    fn coarse_rows<'r>(
+        &self,
+        rows: &'r mut PushRows,
+        t0: usize,
+        t1: usize,
+    ) -> (&'r [f32], &'r [f32]) {
+        let w = self.full.w;
+        for want in [t0, t1] {
+            if rows.rows.iter().any(|(k, _)| *k == want) {
+                continue;
+            }
+            // Replace the one not wanted (rows only move down, so it is not needed again
+            // in this run).
+            let slot = rows
+                .rows
+                .iter()
+                .position(|(k, _)| *k != t0 && *k != t1)
+                .unwrap_or(0);
+            let (k, v) = &mut rows.rows[slot];
+            v.resize(4 * w, 0.0);
+            upsample_row(self.coarse, want, &self.xt, v);
+            *k = want;
+        }
+        let find = |want: usize| rows.rows.iter().position(|(k, _)| *k == want).unwrap_or(0);
+        let (i0, i1) = (find(t0), find(t1));
+        (&rows.rows[i0].1, &rows.rows[i1].1)
     }
 }
 

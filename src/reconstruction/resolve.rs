@@ -72,12 +72,14 @@ struct Frame<'a> {
 
 impl Reconstructor {
     /// The splats, then quotients, coverage, splat scale adaptation, hole filling and
-    /// mean age, timed as two passes from `since`; returns when it ended. Each band of
+    /// mean age, timed as two passes from `since`; returns when it ended
+    /// (`blend_follows`: the history's blend comes next, and does the fill's last
+    /// push as it reads the rows). Each band of
     /// rows is resolved as soon as it is splatted, while its sums and coverage
     /// differences are still in the cache: resolving them in a pass of its own read
     /// every pixel's sums back from memory (2 ms of a 40 ms image at 1280×720,
     /// performance.md, session 46).
-    pub(super) fn splat_and_resolve(&mut self, since: Instant) -> Instant {
+    pub(super) fn splat_and_resolve(&mut self, since: Instant, blend_follows: bool) -> Instant {
         let (w, h) = (self.width as usize, self.height as usize);
         let p = self.params;
         // With a fill weight the fill runs whenever a pixel is thin, the usual case:
@@ -141,14 +143,16 @@ impl Reconstructor {
             .collect();
         let since = self.split_band_time(since, &bands);
         let tally = bands.iter().fold(Tally::default(), |sum, b| sum + b.0);
-        self.fill_and_mean_age(tally, pulled);
+        self.fill_and_mean_age(tally, pulled, blend_follows);
         self.passes.lap(5, since)
     }
 
     /// After the bands' quotients (`tally`: their holes and thin pixels; `pulled`:
     /// whether they pulled the fill's first level), the fill of thin pixels or the
-    /// holes, and the mean age where no history blends the ages after.
-    fn fill_and_mean_age(&mut self, tally: Tally, pulled: bool) {
+    /// holes, and the mean age where no history blends the ages after. With
+    /// `defer_push` the fill's last push is left to the history's blend, which pushes
+    /// each row as it reads it ([`Reconstructor::pending_push`]).
+    fn fill_and_mean_age(&mut self, tally: Tally, pulled: bool, defer_push: bool) {
         let (w, h) = (self.width as usize, self.height as usize);
         let Tally { holes, thin } = tally;
         self.holes = holes;
@@ -157,7 +161,7 @@ impl Reconstructor {
         // every pixel, a millisecond at 1280×720).
         let sum_ages = self.history.is_none();
         let age_sum = if thin > 0 {
-            self.pull_push(self.params.fill_weight, pulled);
+            self.pull_push(self.params.fill_weight, pulled, defer_push);
             if sum_ages {
                 self.age.iter().map(|&a| a as f64).sum()
             } else {

@@ -75,15 +75,15 @@ fn row_range(v: &[f32], lo: &mut [f32], hi: &mut [f32]) {
 
 /// Clamp each pixel's history in `acc` to the box of the reconstruction `image` around
 /// it, then blend it over `image` at time `t`, bands of [`BLEND_ROWS`] rows in
-/// parallel; `edges` and `rolling` are scratch. Returns the pixels the clamp cut and
-/// the sum of the shown ages (row by row, each in pixel order).
-pub(super) fn blend_image(
+/// parallel; `edges` and `rolling` are scratch. Each row is first made final by
+/// `finish(scratch, y, pixels, ages)`, once. Returns the pixels the clamp cut and the
+/// sum of the shown ages (row by row, each in pixel order).
+pub(super) fn blend_image<S: Default + Send>(
     acc: &mut super::Accum,
-    edges: &mut Vec<f32>,
-    rolling: &mut Vec<f32>,
+    (edges, rolling): (&mut Vec<f32>, &mut Vec<f32>),
     (t, p): (f64, &HistoryParams),
-    image: &mut Image,
-    age: &mut [f32],
+    (image, age): (&mut Image, &mut [f32]),
+    finish: &(impl Fn(&mut S, usize, &mut [Vec3], &mut [f32]) + Sync),
 ) -> (u64, f64) {
     let (w, h) = (image.width as usize, image.height as usize);
     let bands = h.div_ceil(BLEND_ROWS);
@@ -92,18 +92,22 @@ pub(super) fn blend_image(
     // neighbours, then over the ranges of the rows above, at and below (the same
     // minima and maxima). A band computes its rows' ranges as it goes, before
     // blending them; the rows next to it are blended by other bands, so their
-    // ranges are taken first.
+    // ranges (and the rows, made final) are taken first.
     edges.resize(2 * bands * slot, 0.0);
-    let px = &image.pixels;
     edges
         .par_chunks_mut(2 * slot)
+        .zip(image.pixels.par_chunks_mut(BLEND_ROWS * w))
+        .zip(age.par_chunks_mut(BLEND_ROWS * w))
         .enumerate()
-        .for_each(|(b, e)| {
+        .for_each_init(S::default, |scratch, (b, ((e, px), age))| {
             let (first, last) = e.split_at_mut(slot);
-            let y0 = b * BLEND_ROWS;
-            let y1 = (y0 + BLEND_ROWS).min(h) - 1;
-            row_planes(&px[y0 * w..][..w], first);
-            row_planes(&px[y1 * w..][..w], last);
+            let (y0, last_row) = (b * BLEND_ROWS, px.len() / w - 1);
+            for r in [0, last_row].into_iter().take(1 + (last_row > 0) as usize) {
+                let row = r * w..(r + 1) * w;
+                finish(scratch, y0 + r, &mut px[row.clone()], &mut age[row]);
+            }
+            row_planes(&px[..w], first);
+            row_planes(&px[last_row * w..], last);
         });
     rolling.resize(3 * bands * slot, 0.0);
     let edges = &edges[..];
@@ -114,9 +118,9 @@ pub(super) fn blend_image(
         .zip(age.par_chunks_mut(BLEND_ROWS * w))
         .zip(rolling.par_chunks_mut(3 * slot))
         .enumerate()
-        .map(|(b, (((out, acc), age), rolling))| {
+        .map_init(S::default, |scratch, (b, (((out, acc), age), rolling))| {
             let band = BandRows { b, bands, w, edges };
-            band.blend(out, acc, age, rolling, t, p)
+            band.blend((out, acc, age), rolling, (t, p), (scratch, finish))
         })
         .collect();
     let rows = rows.iter().flatten();
@@ -135,15 +139,15 @@ struct BandRows<'a> {
 
 impl BandRows<'_> {
     /// Blend the band's rows `out` (its history `acc`, ages `age`), its row planes
-    /// made as it goes in `rolling`; each row's cuts and sum of shown ages.
-    fn blend(
+    /// made as it goes in `rolling`, each row but the first and the last (made final
+    /// with the edges) first made final by `finish`; each row's cuts and sum of shown
+    /// ages.
+    fn blend<S>(
         &self,
-        out: &mut [Vec3],
-        mut acc: AccumMut,
-        age: &mut [f32],
+        (out, mut acc, age): (&mut [Vec3], AccumMut, &mut [f32]),
         rolling: &mut [f32],
-        t: f64,
-        p: &HistoryParams,
+        (t, p): (f64, &HistoryParams),
+        (scratch, finish): (&mut S, &impl Fn(&mut S, usize, &mut [Vec3], &mut [f32])),
     ) -> Vec<(u64, f64)> {
         let (b, w) = (self.b, self.w);
         let slot = ROW_PLANES * w;
@@ -158,7 +162,12 @@ impl BandRows<'_> {
         for r in 0..rows {
             let next_own = r + 1 < rows;
             if next_own {
-                row_planes(&out[(r + 1) * w..][..w], slots[2]);
+                let next = (r + 1) * w..(r + 2) * w;
+                if r + 2 < rows {
+                    let y = b * BLEND_ROWS + r + 1;
+                    finish(scratch, y, &mut out[next.clone()], &mut age[next.clone()]);
+                }
+                row_planes(&out[next], slots[2]);
             }
             let above: &[f32] = match (r, b) {
                 (0, 0) => slots[1],
@@ -344,6 +353,7 @@ const MOVED_BLOCK: usize = 64;
 mod tests {
     use super::*;
     use crate::{reconstruction::history::Accum, sampling::Rng, trace::luminance};
+    use std::sync::atomic::{AtomicU32, Ordering};
 
     /// One pixel's history, as the blend's reference.
     struct PixelHistory {
@@ -481,16 +491,30 @@ mod tests {
                 let (mut acc, mut image, mut age) = case(w, h, seed as u64);
                 let (mut acc2, mut image2, mut age2) = (acc.clone(), image.clone(), age.clone());
                 let (mut edges, mut rolling) = (Vec::new(), Vec::new());
+                // Each row is made final once, before the blend reads it: here halved
+                // and aged by one (the reference does so to the whole image first).
+                let made = |px: &mut [Vec3], age: &mut [f32]| {
+                    px.iter_mut()
+                        .for_each(|p| *p = *p * 0.5 + Vec3::splat(0.125));
+                    age.iter_mut().for_each(|a| *a += 1.0);
+                };
+                let seen: Vec<AtomicU32> = (0..h).map(|_| AtomicU32::new(0)).collect();
+                let finish = |_: &mut (), y: usize, px: &mut [Vec3], age: &mut [f32]| {
+                    seen[y].fetch_add(1, Ordering::Relaxed);
+                    made(px, age);
+                };
                 let got = blend_image(
                     &mut acc,
-                    &mut edges,
-                    &mut rolling,
+                    (&mut edges, &mut rolling),
                     (2.0, p),
-                    &mut image,
-                    &mut age,
+                    (&mut image, &mut age),
+                    &finish,
                 );
+                made(&mut image2.pixels, &mut age2);
                 let want = reference(&mut acc2, (2.0, p), &mut image2, &mut age2);
                 let at = format!("{w}×{h}, params {k}");
+                let once = seen.iter().all(|n| n.load(Ordering::Relaxed) == 1);
+                assert!(once, "{at}: each row made final once");
                 clamped += want.0;
                 assert_eq!(got.0, want.0, "{at}");
                 assert_eq!(got.1.to_bits(), want.1.to_bits(), "{at}");
