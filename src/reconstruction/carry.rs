@@ -367,8 +367,11 @@ impl Reconstructor {
 
     /// Decay and move the previous refresh's accumulators, geometry and coverage into
     /// place for a refresh at `t` seen by `camera`, then cut them where the new
-    /// samples (from logical ring index `start`) disagree.
-    pub(super) fn carry_over(&mut self, t: f64, camera: &CameraFrame, start: usize) {
+    /// samples (from logical ring index `start`) disagree. With `late`, a refresh on
+    /// the CPU, the decay of a view that holds is left to the splat's band pass
+    /// ([`LateDecay`]).
+    pub(super) fn carry_over(&mut self, t: f64, camera: &CameraFrame, start: usize, late: bool) {
+        self.flush_late_decay();
         let Some(mut c) = self.carried.take() else {
             return;
         };
@@ -393,7 +396,7 @@ impl Reconstructor {
                     e.dt = dt;
                     e.decay.clone_from(&decay);
                 }
-                self.carry_in_place(&mut c, dt, &decay, camera);
+                self.carry_in_place(&mut c, (dt, &decay, late), camera);
             } else {
                 self.carry_moved(&mut c, dt, &decay, &cam0, camera);
             }
@@ -430,8 +433,7 @@ impl Reconstructor {
     fn carry_in_place(
         &mut self,
         c: &mut Carried,
-        dt: f32,
-        decay: &[[f32; 2]],
+        (dt, decay, late): (f32, &[[f32; 2]], bool),
         camera: &CameraFrame,
     ) {
         let (w, cs) = (self.width as usize, self.cs);
@@ -440,7 +442,11 @@ impl Reconstructor {
         // decides from them, and a weight of 1 decayed still holds, so the GPU's
         // replay is the only decay needed.
         let holds_only = c.edits.is_some() && self.holds_only_back();
-        if !holds_only {
+        if !holds_only && late && c.edits.is_none() {
+            self.ensure_lookup();
+            let pixels = self.cover.len();
+            self.late_decay = Some(LateDecay::new(decay, dt, pixels));
+        } else if !holds_only {
             self.ensure_lookup();
             // Rows are independent: in parallel, each row decayed as a whole.
             self.acc
@@ -460,19 +466,32 @@ impl Reconstructor {
     /// (exact motion), exactly there; otherwise along their velocity.
     fn move_listed(&mut self, c: &mut Carried, dt: f32, camera: &CameraFrame) {
         let (w, h, cs) = (self.width as usize, self.height as usize, self.cs);
+        // With the decay left to the splat, each pixel is decayed as it is read: the
+        // sums taken (no landing has reached one yet) and the pixels landed in.
+        let mut late = self.late_decay.take();
         let mut out = Vec::new();
         for &q in &c.moving {
             let q = q as usize;
             let (x, y) = (q % w, q / w);
             let g = c.geo[q];
-            if g.v == Vec3::ZERO || !holds(self.acc[(y * CHANNELS + 3) * cs + x]) {
+            let weight = self.acc[(y * CHANNELS + 3) * cs + x];
+            let weight = match &late {
+                Some(l) => DecayView::new(l, &self.lookup).weight(q, weight),
+                None => weight,
+            };
+            if g.v == Vec3::ZERO || !holds(weight) {
                 continue;
             }
-            let sums: [f32; CHANNELS] = std::array::from_fn(|ch| {
+            let mut sums: [f32; CHANNELS] = std::array::from_fn(|ch| {
                 std::mem::take(&mut self.acc[(y * CHANNELS + ch) * cs + x])
             });
+            let mut cover = std::mem::take(&mut self.cover[q]);
+            if let Some(l) = &late {
+                let [k, kc] = l.factor(&self.lookup, q);
+                (sums, cover) = (decayed_sums(sums, k, l.dt), cover * kc);
+            }
             let anchor = c.anchor.remove(&(q as u32));
-            out.push((x, y, g, anchor, sums, std::mem::take(&mut self.cover[q])));
+            out.push((x, y, g, anchor, sums, cover));
             if let Some(e) = &mut c.edits {
                 e.takes.push(q as u32);
             }
@@ -499,6 +518,9 @@ impl Reconstructor {
             let Some(m) = m else {
                 continue;
             };
+            if let Some(l) = &mut late {
+                l.decay_now(&self.lookup, &mut into, (m.to, m.tx, m.ty));
+            }
             let landed = into.land(&m, sums, cover, keep);
             if let (Some(e), Some(l)) = (&mut c.edits, landed) {
                 e.lands.push((i as u32, m.to as u32, l.merged));
@@ -510,6 +532,10 @@ impl Reconstructor {
                 }
             }
         }
+        if let Some(l) = &mut late {
+            l.early.sort_unstable();
+        }
+        self.late_decay = late;
     }
 
     /// The view changed: every pixel's decayed sums move from the previous refresh's
@@ -601,8 +627,10 @@ impl Reconstructor {
         let band_px = CUT_ROWS * w;
         let (mut in_order, mut starts) = (take(&mut c.in_order), take(&mut c.group_starts));
         sort_by_group(&ahead, (w * h).div_ceil(GROUP), &mut starts, &mut in_order);
+        let late = self.late_decay.as_ref();
         let ctx = CutContext {
             keep,
+            late: late.map(|l| DecayView::new(l, &self.lookup)),
             list_edits: c.edits.is_some(),
             w,
             cs,
@@ -770,8 +798,10 @@ fn sort_by_group(
 }
 
 /// What every band of the cut reads.
-struct CutContext {
+struct CutContext<'a> {
     keep: f32,
+    /// The decay left to the splat, which the weights read here are put through.
+    late: Option<DecayView<'a>>,
     /// List the pixels cut and settled ([`CarryEdits::cuts`], [`CarryEdits::settled`]).
     list_edits: bool,
     w: usize,
@@ -825,7 +855,12 @@ impl CutBand<'_> {
     /// front of its pixel's carried sums beyond the tolerance they are cut; where
     /// behind, it is left to the visibility pass; the nearest not behind is offered as
     /// the pixel's geometry.
-    fn cut_and_offer(&mut self, ctx: &CutContext, ks: &[(u32, Ahead)], ring: &super::ring::Ring) {
+    fn cut_and_offer(
+        &mut self,
+        ctx: &CutContext<'_>,
+        ks: &[(u32, Ahead)],
+        ring: &super::ring::Ring,
+    ) {
         let (w, cs, base) = (ctx.w, ctx.cs, self.base);
         // A pixel's row in the band, and its column.
         let row_col = |q: usize| ((q - base) / w, (q - base) % w);
@@ -846,7 +881,10 @@ impl CutBand<'_> {
             };
             let at = |ch: usize| (ry * CHANNELS + ch) * cs + px;
             let g = self.geo[q - base];
-            let held = g.is_some() && holds(self.acc[at(3)]);
+            let weight = ctx
+                .late
+                .map_or(self.acc[at(3)], |l| l.weight(q, self.acc[at(3)]));
+            let held = g.is_some() && holds(weight);
             // Carried sums of a moving surface were placed by extrapolation: a new
             // sample at another depth wins over them either way. Still ones are
             // exact: a new sample behind them was seen through them (traced from an
@@ -913,7 +951,7 @@ impl CutBand<'_> {
     /// merge. Where edits are listed, so does each such pixel with its front depth
     /// after the carry, as [`lower_fronts`] lowers none to it, while its geometry and
     /// weight are at hand.
-    fn settle(&mut self, ctx: &CutContext) {
+    fn settle(&mut self, ctx: &CutContext<'_>) {
         let (w, cs) = (ctx.w, ctx.cs);
         if ctx.list_edits {
             self.out.settled.reserve(self.touched.len());
@@ -944,6 +982,12 @@ impl CutBand<'_> {
 }
 
 impl Carried {
+    /// How many pixels hold sums of moving surfaces.
+    #[cfg(test)]
+    pub(super) fn moving_count(&self) -> usize {
+        self.moving.len()
+    }
+
     /// Every pixel's kept [`Geo::still_z`] is its geometry's.
     #[cfg(test)]
     fn check_still_z(&self) {
@@ -1174,6 +1218,132 @@ fn span<const N: usize>(p: &mut [f32], x: usize) -> &mut [f32; N] {
     (&mut p[x..x + N]).try_into().unwrap()
 }
 
+/// The carry's decay of a refresh on the CPU that keeps its view, left for the splat's
+/// band pass to apply as it brings each band of sums into the cache: decayed in a pass
+/// of its own, every pixel's sums and coverage went to memory and back (about 3 ms of
+/// a 1280×720 image live). Until then every step that reads the sums reads them
+/// decayed, with the same operations: the moves decay what they take and the pixels
+/// they land in (those are decayed at once and flagged, and the band pass leaves
+/// them), and the cut and the fronts read each weight times its pixel's factor.
+pub(super) struct LateDecay {
+    /// `[sums, coverage]` factor of each tile ([`Reconstructor::tile_decay`]).
+    factors: Vec<[f32; 2]>,
+    dt: f32,
+    /// The pixels decayed already, in pixel order once the moves are done.
+    early: Vec<u32>,
+    /// Whether each pixel is decayed already.
+    flags: Vec<bool>,
+}
+
+/// A [`LateDecay`] with the per-pixel tile lookup it reads its factors through.
+#[derive(Clone, Copy)]
+pub(super) struct DecayView<'a> {
+    late: &'a LateDecay,
+    lookup: &'a [Lookup],
+}
+
+impl LateDecay {
+    fn new(factors: &[[f32; 2]], dt: f32, pixels: usize) -> Self {
+        Self {
+            factors: factors.to_vec(),
+            dt,
+            early: Vec::new(),
+            flags: vec![false; pixels],
+        }
+    }
+
+    /// `[sums, coverage]` factor of pixel `q`.
+    fn factor(&self, lookup: &[Lookup], q: usize) -> [f32; 2] {
+        self.factors[lookup[q].tile as usize]
+    }
+
+    /// Decay pixel `q` at `(x, y)` of `into` now (a landing's pixel, before the sums
+    /// land), unless it is already.
+    fn decay_now(
+        &mut self,
+        lookup: &[Lookup],
+        into: &mut Target,
+        (q, x, y): (usize, usize, usize),
+    ) {
+        if std::mem::replace(&mut self.flags[q], true) {
+            return;
+        }
+        self.early.push(q as u32);
+        let [k, kc] = self.factor(lookup, q);
+        let at = |ch: usize| (y * CHANNELS + ch) * into.cs + x;
+        let sums: [f32; CHANNELS] = std::array::from_fn(|ch| into.acc[at(ch)]);
+        for (ch, v) in decayed_sums(sums, k, self.dt).into_iter().enumerate() {
+            into.acc[at(ch)] = v;
+        }
+        into.cover[q] *= kc;
+    }
+}
+
+impl<'a> DecayView<'a> {
+    pub(super) fn new(late: &'a LateDecay, lookup: &'a [Lookup]) -> Self {
+        Self { late, lookup }
+    }
+
+    /// Pixel `q`'s weight `raw` as decayed.
+    fn weight(self, q: usize, raw: f32) -> f32 {
+        if self.late.flags[q] {
+            raw
+        } else {
+            self.late.factor(self.lookup, q)[0] * raw
+        }
+    }
+
+    /// The rows from `y0` of a band (`acc`: rows of `CHANNELS` runs of `cs` floats;
+    /// `cover`: rows of `w`) decayed, but for the pixels decayed already.
+    pub(super) fn band(
+        self,
+        (acc, cover): (&mut [f32], &mut [f32]),
+        y0: usize,
+        (w, cs): (usize, usize),
+    ) {
+        let rows = cover.len() / w;
+        let early = &self.late.early;
+        let (q0, q1) = (y0 * w, (y0 + rows) * w);
+        let first = |p: usize| early.partition_point(|&q| (q as usize) < p);
+        let run = &early[first(q0)..first(q1)];
+        let at = |q: usize, ch: usize| ((q / w - y0) * CHANNELS + ch) * cs + q % w;
+        let kept: Vec<([f32; CHANNELS], f32)> = run
+            .iter()
+            .map(|&q| {
+                let q = q as usize;
+                (std::array::from_fn(|ch| acc[at(q, ch)]), cover[q - q0])
+            })
+            .collect();
+        for r in 0..rows {
+            let lookup = &self.lookup[(y0 + r) * w..][..w];
+            let row = &mut acc[r * CHANNELS * cs..][..CHANNELS * cs];
+            let dt = self.late.dt;
+            decay_row(
+                row,
+                &mut cover[r * w..][..w],
+                cs,
+                lookup,
+                &self.late.factors,
+                dt,
+            );
+        }
+        for (&q, (sums, c)) in run.iter().zip(kept) {
+            let q = q as usize;
+            for (ch, v) in sums.into_iter().enumerate() {
+                acc[at(q, ch)] = v;
+            }
+            cover[q - q0] = c;
+        }
+    }
+}
+
+/// Sums `s` decayed by `k` over `dt`, with the operations of [`decay_row`].
+fn decayed_sums(s: [f32; CHANNELS], k: f32, dt: f32) -> [f32; CHANNELS] {
+    let mut out = s.map(|v| v * k);
+    out[4] = k * dt.mul_add(s[3], s[4]);
+    out
+}
+
 /// The accumulators, geometry and coverage that carried sums land in.
 struct Target<'a> {
     acc: &'a mut [f32],
@@ -1257,14 +1427,18 @@ impl Reconstructor {
         let (binned, rows) = (&self.binned[..self.pieces], self.band_rows);
         let carried = self.carried.as_deref().filter(|_| self.carries_now());
         let sums = (&self.acc[..], w, self.cs);
+        let late = (self.late_decay.as_ref()).map(|l| DecayView::new(l, &self.lookup));
         self.front.resize(h * w, f32::INFINITY);
         self.front
             .par_chunks_mut(rows * w)
             .enumerate()
-            .for_each(|(b, front)| {
-                match carried {
-                    Some(c) => carried_fronts(c, sums, b * rows, front),
-                    None => front.fill(f32::INFINITY),
+            .for_each_init(Vec::new, |weights, (b, front)| {
+                match (carried, late) {
+                    (Some(c), Some(l)) => {
+                        late_carried_fronts(c, (sums, l, weights), b * rows, front)
+                    }
+                    (Some(c), None) => carried_fronts(c, sums, b * rows, front),
+                    (None, _) => front.fill(f32::INFINITY),
                 }
                 super::splat::front_band(binned, b, b * rows, w, front);
             });
@@ -1292,7 +1466,37 @@ pub(super) fn carried_fronts(
     }
 }
 
+/// [`carried_fronts`] with the decay left to the splat (`late`): each row's weights
+/// decayed first, into `weights`.
+fn late_carried_fronts(
+    c: &Carried,
+    ((acc, w, cs), late, weights): ((&[f32], usize, usize), DecayView<'_>, &mut Vec<f32>),
+    y0: usize,
+    out: &mut [f32],
+) {
+    weights.resize(w, 0.0);
+    for (r, row) in out.chunks_mut(w).enumerate() {
+        let (y, q) = (y0 + r, (y0 + r) * w);
+        row.fill(f32::INFINITY);
+        let raw = &acc[(y * CHANNELS + 3) * cs..][..w];
+        for (x, (d, &v)) in weights.iter_mut().zip(raw).enumerate() {
+            *d = late.weight(q + x, v);
+        }
+        lower_fronts(row, &c.still_z[q..q + w], weights);
+    }
+}
+
 impl Reconstructor {
+    /// The decay left to the splat ([`LateDecay`]) applied to every pixel now, if one
+    /// is pending (a refresh whose splat did not run).
+    pub(super) fn flush_late_decay(&mut self) {
+        if let Some(l) = self.late_decay.take() {
+            let (w, cs) = (self.width as usize, self.cs);
+            let view = DecayView::new(&l, &self.lookup);
+            view.band((&mut self.acc, &mut self.cover), 0, (w, cs));
+        }
+    }
+
     /// [`carried_fronts`] over no new splat, as the shaders store it
     /// ([`super::gpu::carried::front_bit`]), into `bits`: each row lowered a few pixels
     /// at a time on the stack, so that no image of f32 fronts is filled, lowered and

@@ -127,6 +127,7 @@ fn by_the_cut(
     let (mut starts, mut ks) = (Vec::new(), Vec::new());
     sort_by_group(&ahead, n.div_ceil(GROUP), &mut starts, &mut ks);
     let ctx = CutContext {
+        late: None,
         keep: 1.0 / 1.1,
         list_edits: true,
         w,

@@ -233,6 +233,11 @@ pub struct Reconstructor {
     /// The coverage weight of a fill whose last push into the image is still to come
     /// (the history's blend does it a row at a time, as it reads the rows).
     pending_push: Option<f32>,
+    /// The carry's decay, left for the splat's band pass to apply ([`carry::LateDecay`]).
+    late_decay: Option<carry::LateDecay>,
+    /// Whether a refresh on the CPU leaves the carry's decay to the splat: always,
+    /// but in the test that holds it to decaying at once.
+    decay_late: bool,
     image: Image,
     /// Weight-averaged sample age of each pixel at the last refresh.
     age: Vec<f32>,
@@ -346,6 +351,8 @@ impl Reconstructor {
             pyramid: Vec::new(),
             pull: pullpush::Pyramid::default(),
             pending_push: None,
+            late_decay: None,
+            decay_late: true,
             image: Image::new(width, height),
             age: vec![0.0; n],
             mean_age: 0.0,
@@ -707,7 +714,7 @@ impl Reconstructor {
         lap = self.passes.lap(1, lap);
         if self.carries_now() {
             let start = self.ring.len() - self.placed;
-            self.carry_over(plan.t, &plan.camera, start);
+            self.carry_over(plan.t, &plan.camera, start, self.decay_late);
         }
         self.located_from = None;
         lap = self.passes.lap(3, lap);
@@ -792,7 +799,7 @@ impl Reconstructor {
         // they go up with the new splats.
         let carrying = !self.resplat && self.carried.is_some();
         if carrying {
-            self.carry_over(t, &camera, start);
+            self.carry_over(t, &camera, start, false);
         }
         let lap = self.passes.lap(3, lap);
         let fronts = if carrying { self.pack_fronts() } else { None };

@@ -15,6 +15,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{
+    carry::DecayView,
     lanes::{small_int, LANES},
     pullpush::{any_below, premultiply, pull_row, runs_mut, CH},
     splat::{channel_row, BAND_ROWS, CHANNELS, MIN_WEIGHT},
@@ -99,6 +100,9 @@ impl Reconstructor {
             front: keep.map(|k| (&self.front[..], k)),
             carried: carrying,
         };
+        // The carry's decay, where it was left to this pass ([`carry::LateDecay`]):
+        // each band decayed as it is brought in to be splatted.
+        let late = (self.late_decay.as_ref()).map(|l| DecayView::new(l, &self.lookup));
         let bands: Vec<(Tally, Duration, Duration)> = self
             .acc
             .par_chunks_mut(rows * CHANNELS * cs)
@@ -118,6 +122,9 @@ impl Reconstructor {
                 },
                 |scratch, (b, (((((((acc, cov), px), coverage), scale), ages), cover), level))| {
                     let t0 = Instant::now();
+                    if let Some(l) = late {
+                        l.band((&mut *acc, &mut *cover), b * rows, (w, cs));
+                    }
                     splats.band(b, acc, cov);
                     let t1 = Instant::now();
                     let f = Frame {
@@ -141,6 +148,7 @@ impl Reconstructor {
                 },
             )
             .collect();
+        self.late_decay = None;
         let since = self.split_band_time(since, &bands);
         let tally = bands.iter().fold(Tally::default(), |sum, b| sum + b.0);
         self.fill_and_mean_age(tally, pulled, blend_follows);

@@ -76,8 +76,24 @@ fn reconstruct(
     params: ReconParams,
     n: usize,
 ) -> Vec<Vec3> {
+    reconstructed(
+        scene,
+        camera_at,
+        Reconstructor::new(W, H, n as f64, params),
+        n,
+    )
+    .image
+    .pixels
+}
+
+/// [`reconstruct`] with the reconstructor `r`, which it gives back.
+fn reconstructed(
+    scene: &Scene,
+    camera_at: impl Fn(f64) -> CameraFrame,
+    mut r: Reconstructor,
+    n: usize,
+) -> Reconstructor {
     let mut rng = crate::sampling::Rng::new(&[7, n as u64]);
-    let mut r = Reconstructor::new(W, H, n as f64, params);
     // Tiles as the sampler would measure them: a still wall, so long temporal filters.
     let mut tiling = TilingSnapshot::whole(W, H);
     tiling.tiles[0].gx = 0.1;
@@ -104,7 +120,37 @@ fn reconstruct(
             anchor: Default::default(),
         });
     }
-    r.reconstruct(1.0, &camera_at(1.0), &tiling).pixels.clone()
+    r.reconstruct(1.0, &camera_at(1.0), &tiling);
+    r
+}
+
+#[test]
+fn the_decay_left_to_the_splat_is_the_decay_done_at_once_bit_for_bit() {
+    // The moving square's carried sums are moved, landed and cut at every refresh,
+    // the wall's decay: every step that reads the sums between the carry and the
+    // splat.
+    let scene = Scene { speed: 0.6 };
+    let c = camera(0.0);
+    let n = (W * H * 3) as usize;
+    let run = |late: bool| {
+        let mut r = Reconstructor::new(W, H, n as f64, ReconParams::converging());
+        r.decay_late = late;
+        reconstructed(&scene, |_| c, r, n)
+    };
+    let (late, at_once) = (run(true), run(false));
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&late.acc), bits(&at_once.acc), "the sums");
+    assert_eq!(bits(&late.cover), bits(&at_once.cover), "the coverage");
+    let px = |r: &Reconstructor| {
+        r.image
+            .pixels
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&px(&late)), bits(&px(&at_once)), "the image");
+    let moving = late.carried.as_ref().map_or(0, |c| c.moving_count());
+    assert!(moving > 0, "nothing moved");
 }
 
 /// The reconstructor that splats the whole ring at every refresh, with the pass.
