@@ -1233,6 +1233,8 @@ pub(super) struct LateDecay {
     early: Vec<u32>,
     /// Whether each pixel is decayed already.
     flags: Vec<bool>,
+    /// The least and the largest sums factor of any tile.
+    k_range: (f32, f32),
 }
 
 /// A [`LateDecay`] with the per-pixel tile lookup it reads its factors through.
@@ -1244,11 +1246,17 @@ pub(super) struct DecayView<'a> {
 
 impl LateDecay {
     fn new(factors: &[[f32; 2]], dt: f32, pixels: usize) -> Self {
+        let k = factors.iter().map(|f| f[0]);
+        let k_range = (
+            k.clone().fold(f32::INFINITY, f32::min),
+            k.fold(0.0, f32::max),
+        );
         Self {
             factors: factors.to_vec(),
             dt,
             early: Vec::new(),
             flags: vec![false; pixels],
+            k_range,
         }
     }
 
@@ -1467,7 +1475,11 @@ pub(super) fn carried_fronts(
 }
 
 /// [`carried_fronts`] with the decay left to the splat (`late`): each row's weights
-/// decayed first, into `weights`.
+/// decayed first, into `weights`. Only whether a weight holds sums matters here, so a
+/// weight that holds even at the least factor of any tile is kept as it is, one that
+/// does not even at the largest becomes 0 (a product is monotonic in each factor),
+/// in vector code; only the few in between, and the pixels decayed already, look up
+/// their own factor.
 fn late_carried_fronts(
     c: &Carried,
     ((acc, w, cs), late, weights): ((&[f32], usize, usize), DecayView<'_>, &mut Vec<f32>),
@@ -1475,12 +1487,25 @@ fn late_carried_fronts(
     out: &mut [f32],
 ) {
     weights.resize(w, 0.0);
+    let (k_min, k_max) = late.late.k_range;
     for (r, row) in out.chunks_mut(w).enumerate() {
         let (y, q) = (y0 + r, (y0 + r) * w);
         row.fill(f32::INFINITY);
         let raw = &acc[(y * CHANNELS + 3) * cs..][..w];
-        for (x, (d, &v)) in weights.iter_mut().zip(raw).enumerate() {
-            *d = late.weight(q + x, v);
+        let flags = &late.late.flags[q..q + w];
+        let mut unsure = false;
+        for ((d, &v), &early) in weights.iter_mut().zip(raw).zip(flags) {
+            let (sure, never) = (holds(v * k_min), !holds(v * k_max));
+            *d = if sure { v } else { 0.0 };
+            unsure |= early | !(sure | never);
+        }
+        if unsure {
+            for (x, (d, &v)) in weights.iter_mut().zip(raw).enumerate() {
+                let (sure, never) = (holds(v * k_min), !holds(v * k_max));
+                if flags[x] || !(sure || never) {
+                    *d = late.weight(q + x, v);
+                }
+            }
         }
         lower_fronts(row, &c.still_z[q..q + w], weights);
     }
