@@ -471,11 +471,7 @@ impl History {
         }
     }
 
-    /// Carry out `step` (from [`History::plan`]): take in its samples and blend the
-    /// history over `image` (the reconstruction at the step's time and view, whose
-    /// per-pixel age is `age`, replaced by the age of what is shown); returns the sum
-    /// over pixels of the shown age. `front`: the reconstruction's front depths and
-    /// `1 / (1 + tolerance)`.
+    /// [`History::apply_finishing`] over an image that is final as it is.
     #[cfg(test)]
     pub(super) fn apply(
         &mut self,
@@ -488,10 +484,14 @@ impl History {
         self.apply_finishing(step, (image, age), front, &finished)
     }
 
-    /// [`History::apply`] over an image whose rows are made final as the blend first
-    /// reads them: `finish(scratch, y, pixels, ages)` on row `y`, once per row, each
-    /// task with a scratch of its own, so that a pass that completes the image (the
-    /// fill's last push) is done while the blend has the row in the cache.
+    /// Carry out `step` (from [`History::plan`]): take in its samples and blend the
+    /// history over `image` (the reconstruction at the step's time and view, whose
+    /// per-pixel age is `age`, replaced by the age of what is shown); returns the sum
+    /// over pixels of the shown age. `front`: the reconstruction's front depths and
+    /// `1 / (1 + tolerance)`. The image's rows are made final as the blend first reads
+    /// them: `finish(scratch, y, pixels, ages)` on row `y`, once per row, each task
+    /// with a scratch of its own, so that a pass that completes the image (the fill's
+    /// last push) is done while the blend has the row in the cache.
     pub(super) fn apply_finishing<S: Default + Send>(
         &mut self,
         mut step: Step,

@@ -152,7 +152,8 @@ impl Reconstructor {
     /// where the first pull and the last push need them. With `pulled` the resolve
     /// has pulled the first level already ([`Pyramid::first_rows`]). With
     /// `defer_last` the last push, into the image, is left to whoever reads the
-    /// image next, a row at a time ([`Reconstructor::last_push`]).
+    /// image next, a row at a time ([`Pyramid::last_push`], with the weight kept in
+    /// [`Reconstructor::pending_push`]).
     pub(super) fn pull_push(&mut self, w0: f32, pulled: bool, defer_last: bool) {
         let Pyramid { mut levels, mut up } = std::mem::take(&mut self.pull);
         let (w, h) = (self.width as usize, self.height as usize);
@@ -166,13 +167,10 @@ impl Reconstructor {
         pull_levels(&mut levels);
         push_levels(&mut levels, &mut up);
         self.pull = Pyramid { levels, up };
-        self.pending_push = Some(w0);
-        if !defer_last {
-            let (w0, size) = (self.pending_push.take(), (w, h));
-            if let Some(last) = w0.and_then(|w0| self.pull.last_push(&self.acc, self.cs, size, w0))
-            {
-                last.image(&mut self.image.pixels, &mut self.age);
-            }
+        if defer_last {
+            self.pending_push = Some(w0);
+        } else if let Some(last) = self.pull.last_push(&self.acc, self.cs, (w, h), w0) {
+            last.image(&mut self.image.pixels, &mut self.age);
         }
     }
 
@@ -358,7 +356,7 @@ impl LastPush<'_> {
 }
 
 /// Whether any of `weights` is below `w0`: a fold without early exit, so that a run of
-/// [`LANES`] compiles to one vector comparison.
+/// [`super::lanes::LANES`] compiles to one vector comparison.
 #[inline(always)]
 pub(super) fn any_below(weights: &[f32], w0: f32) -> bool {
     weights.iter().fold(false, |any, &cw| any | (cw < w0))

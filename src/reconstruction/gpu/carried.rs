@@ -38,7 +38,7 @@ pub(in crate::reconstruction) struct CarriedSums<'a> {
 /// [`CarriedSums`]).
 pub(in crate::reconstruction) struct CarriedIn<'a> {
     /// With the visibility pass: the initial front depths as the shaders store them
-    /// (see [`front_bits`]).
+    /// (see `front_bits`).
     pub(in crate::reconstruction) front: Option<FrontsIn<'a>>,
 }
 
@@ -71,7 +71,7 @@ pub(in crate::reconstruction) fn pack(acc: &[f32], cs: usize, w: usize, cover: &
     out
 }
 
-/// [`pack`] into `out`, resized to fit: blocks of rows on every thread. `out` is
+/// `pack` into `out`, resized to fit: blocks of rows on every thread. `out` is
 /// kept between refreshes, so that the 50 MB of a 1080p image are not allocated and
 /// faulted in again each time.
 pub(in crate::reconstruction) fn pack_into(c: &CarriedSums<'_>, out: &mut Vec<f32>) {
@@ -102,7 +102,7 @@ fn pack_rows(c: &CarriedSums<'_>, y0: usize, out: &mut [f32]) {
     }
 }
 
-/// The inverse of [`pack`]: the GPU's final sums into `acc`, its coverage into
+/// The inverse of `pack`: the GPU's final sums into `acc`, its coverage into
 /// `cover`.
 pub(in crate::reconstruction) fn unpack(
     sums: &[f32],
@@ -222,7 +222,7 @@ pub(in crate::reconstruction) fn front_bits(front: &[f32]) -> Vec<u32> {
     front.iter().map(|&z| front_bit(z)).collect()
 }
 
-/// One depth of [`front_bits`].
+/// One depth of `front_bits`.
 #[inline(always)]
 pub(in crate::reconstruction) fn front_bit(z: f32) -> u32 {
     if z.is_finite() {
