@@ -442,18 +442,21 @@ impl Reconstructor {
         // decides from them, and a weight of 1 decayed still holds, so the GPU's
         // replay is the only decay needed.
         let holds_only = c.edits.is_some() && self.holds_only_back();
-        if !holds_only && late && c.edits.is_none() {
+        if !holds_only {
             self.ensure_lookup();
-            let pixels = self.cover.len();
-            self.late_decay = Some(LateDecay::new(decay, dt, pixels));
-        } else if !holds_only {
-            self.ensure_lookup();
-            // Rows are independent: in parallel, each row decayed as a whole.
-            self.acc
-                .par_chunks_mut(CHANNELS * cs)
-                .zip(self.cover.par_chunks_mut(w))
-                .zip(self.lookup.par_chunks(w))
-                .for_each(|((row, cover), lookup)| decay_row(row, cover, cs, lookup, decay, dt));
+            if late && c.edits.is_none() {
+                let flags = std::mem::take(&mut self.late_flags);
+                self.late_decay = Some(LateDecay::new(decay, dt, flags, self.cover.len()));
+            } else {
+                // Rows are independent: in parallel, each row decayed as a whole.
+                self.acc
+                    .par_chunks_mut(CHANNELS * cs)
+                    .zip(self.cover.par_chunks_mut(w))
+                    .zip(self.lookup.par_chunks(w))
+                    .for_each(|((row, cover), lookup)| {
+                        decay_row(row, cover, cs, lookup, decay, dt)
+                    });
+            }
         }
         if self.params.reproject {
             self.move_listed(c, dt, camera);
@@ -1129,10 +1132,11 @@ fn borrow(geo: &[Geo], w: usize, h: usize, x: usize, y: usize, keep: f32) -> Opt
 /// Sums of pixel `(x, y)` of accumulators `src` (channel stride `cs`) decayed by `k`
 /// over `dt` (the weighted age grows by `dt` per unit weight first).
 fn decayed(src: &[f32], cs: usize, x: usize, y: usize, k: f32, dt: f32) -> [f32; CHANNELS] {
-    let at = |ch: usize| src[(y * CHANNELS + ch) * cs + x];
-    let mut s: [f32; CHANNELS] = std::array::from_fn(|ch| k * at(ch));
-    s[4] = k * dt.mul_add(at(3), at(4));
-    s
+    decayed_sums(
+        std::array::from_fn(|ch| src[(y * CHANNELS + ch) * cs + x]),
+        k,
+        dt,
+    )
 }
 
 /// One row of accumulators (`CHANNELS` runs of `cs` floats) and its coverage decayed
@@ -1245,7 +1249,9 @@ pub(super) struct DecayView<'a> {
 }
 
 impl LateDecay {
-    fn new(factors: &[[f32; 2]], dt: f32, pixels: usize) -> Self {
+    /// `flags`: those of the last one ([`LateDecay::into_flags`]), or none yet.
+    fn new(factors: &[[f32; 2]], dt: f32, mut flags: Vec<bool>, pixels: usize) -> Self {
+        flags.resize(pixels, false);
         let k = factors.iter().map(|f| f[0]);
         let k_range = (
             k.clone().fold(f32::INFINITY, f32::min),
@@ -1255,9 +1261,18 @@ impl LateDecay {
             factors: factors.to_vec(),
             dt,
             early: Vec::new(),
-            flags: vec![false; pixels],
+            flags,
             k_range,
         }
+    }
+
+    /// Its per-pixel flags, all cleared, for the next one: allocating and zeroing
+    /// them at every refresh cost more than clearing the few it set.
+    pub(super) fn into_flags(mut self) -> Vec<bool> {
+        for &q in &self.early {
+            self.flags[q as usize] = false;
+        }
+        self.flags
     }
 
     /// `[sums, coverage]` factor of pixel `q`.
@@ -1493,16 +1508,20 @@ fn late_carried_fronts(
         row.fill(f32::INFINITY);
         let raw = &acc[(y * CHANNELS + 3) * cs..][..w];
         let flags = &late.late.flags[q..q + w];
+        // Whether weight `v` holds at every factor, and whether it needs its own.
+        let decide = |v: f32, early: bool| {
+            let (sure, never) = (holds(v * k_min), !holds(v * k_max));
+            (sure, early | !(sure | never))
+        };
         let mut unsure = false;
         for ((d, &v), &early) in weights.iter_mut().zip(raw).zip(flags) {
-            let (sure, never) = (holds(v * k_min), !holds(v * k_max));
+            let (sure, own) = decide(v, early);
             *d = if sure { v } else { 0.0 };
-            unsure |= early | !(sure | never);
+            unsure |= own;
         }
         if unsure {
             for (x, (d, &v)) in weights.iter_mut().zip(raw).enumerate() {
-                let (sure, never) = (holds(v * k_min), !holds(v * k_max));
-                if flags[x] || !(sure || never) {
+                if decide(v, flags[x]).1 {
                     *d = late.weight(q + x, v);
                 }
             }
@@ -1519,6 +1538,7 @@ impl Reconstructor {
             let (w, cs) = (self.width as usize, self.cs);
             let view = DecayView::new(&l, &self.lookup);
             view.band((&mut self.acc, &mut self.cover), 0, (w, cs));
+            self.late_flags = l.into_flags();
         }
     }
 

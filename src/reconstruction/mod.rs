@@ -235,6 +235,8 @@ pub struct Reconstructor {
     pending_push: Option<f32>,
     /// The carry's decay, left for the splat's band pass to apply ([`carry::LateDecay`]).
     late_decay: Option<carry::LateDecay>,
+    /// A spent [`carry::LateDecay`]'s per-pixel flags, cleared, for the next.
+    late_flags: Vec<bool>,
     /// Whether a refresh on the CPU leaves the carry's decay to the splat: always,
     /// but in the test that holds it to decaying at once.
     decay_late: bool,
@@ -352,6 +354,7 @@ impl Reconstructor {
             pull: pullpush::Pyramid::default(),
             pending_push: None,
             late_decay: None,
+            late_flags: Vec::new(),
             decay_late: true,
             image: Image::new(width, height),
             age: vec![0.0; n],

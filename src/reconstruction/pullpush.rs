@@ -51,6 +51,22 @@ pub(super) struct Pyramid {
 }
 
 impl Pyramid {
+    /// The last push from the first level into a `w × h` image whose accumulators are
+    /// `acc` (rows of stride `cs`), at coverage weight `w0`; `None` for an image of
+    /// one pixel (no levels).
+    pub(super) fn last_push<'a>(
+        &'a self,
+        acc: &'a [f32],
+        cs: usize,
+        (w, h): (usize, usize),
+        w0: f32,
+    ) -> Option<LastPush<'a>> {
+        let coarse = self.levels.first()?;
+        let full = Full { acc, cs, w, h, w0 };
+        let xt = taps(w, coarse.w);
+        Some(LastPush { full, coarse, xt })
+    }
+
     /// The levels of a `w × h` display (the display's size fixes them; every value is
     /// rewritten at each fill).
     fn levels_for(w: usize, h: usize) -> Vec<Level> {
@@ -72,24 +88,6 @@ impl Pyramid {
         for l in &mut self.levels {
             super::lanes::touch(&mut l.v);
         }
-    }
-}
-
-impl Pyramid {
-    /// The last push from the first level into a `w × h` image whose accumulators are
-    /// `acc` (rows of stride `cs`), at coverage weight `w0`; `None` for an image of
-    /// one pixel (no levels).
-    pub(super) fn last_push<'a>(
-        &'a self,
-        acc: &'a [f32],
-        cs: usize,
-        (w, h): (usize, usize),
-        w0: f32,
-    ) -> Option<LastPush<'a>> {
-        let coarse = self.levels.first()?;
-        let full = Full { acc, cs, w, h, w0 };
-        let xt = taps(w, coarse.w);
-        Some(LastPush { full, coarse, xt })
     }
 }
 
@@ -123,12 +121,7 @@ impl Pyramid {
         impl IndexedParallelIterator<Item = Option<&mut [f32]>>,
     ) {
         if pull && self.levels.is_empty() {
-            // The display's size fixes the levels; every value is rewritten below.
-            let (mut lw, mut lh) = (w, h);
-            while lw > 1 || lh > 1 {
-                (lw, lh) = (lw.div_ceil(2), lh.div_ceil(2));
-                self.levels.push(Level::new(lw, lh));
-            }
+            self.levels = Self::levels_for(w, h);
         }
         match self.levels.first_mut().filter(|_| pull) {
             Some(first) => (
@@ -229,7 +222,8 @@ impl Full<'_> {
 
     /// The last push into row `y` (`px`, `age`) from the coarse rows above and below
     /// it interpolated along x (four channels of `w` floats each), the second of
-    /// weight `ty`: a row that holds a pixel below coverage is computed whole, in
+    /// weight `ty` (a row that holds a pixel below coverage: [`LastPush::row`] skips
+    /// the others): the row is computed whole, in
     /// vector code, and its covered pixels kept as they were, each pixel with the same
     /// operations as [`upsampled`] and [`push_row`] apply to a whole level (the same
     /// bits). Live, about a third of the pixels are below coverage, scattered: a
@@ -244,9 +238,6 @@ impl Full<'_> {
     ) {
         let w = self.w;
         let weight = self.weights(y);
-        if !any_below(weight, self.w0) {
-            return;
-        }
         // Every slice exactly `w` long: no bounds checks, so the loop is vector code.
         let plane = |k: usize, c: usize| &from[k][c * w..][..w];
         let (t, b) = (

@@ -148,7 +148,9 @@ impl Reconstructor {
                 },
             )
             .collect();
-        self.late_decay = None;
+        if let Some(l) = self.late_decay.take() {
+            self.late_flags = l.into_flags();
+        }
         let since = self.split_band_time(since, &bands);
         let tally = bands.iter().fold(Tally::default(), |sum, b| sum + b.0);
         self.fill_and_mean_age(tally, pulled, blend_follows);

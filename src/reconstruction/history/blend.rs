@@ -102,9 +102,13 @@ pub(super) fn blend_image<S: Default + Send>(
         .for_each_init(S::default, |scratch, (b, ((e, px), age))| {
             let (first, last) = e.split_at_mut(slot);
             let (y0, last_row) = (b * BLEND_ROWS, px.len() / w - 1);
-            for r in [0, last_row].into_iter().take(1 + (last_row > 0) as usize) {
+            let mut made = |r: usize| {
                 let row = r * w..(r + 1) * w;
                 finish(scratch, y0 + r, &mut px[row.clone()], &mut age[row]);
+            };
+            made(0);
+            if last_row > 0 {
+                made(last_row);
             }
             row_planes(&px[..w], first);
             row_planes(&px[last_row * w..], last);
