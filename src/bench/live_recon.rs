@@ -92,26 +92,31 @@ pub struct LiveFigure {
     pub recon: ReconUsed,
     /// Mean milliseconds of each step of a timed image, by name.
     pub pass_ms: Vec<(&'static str, f64)>,
-    /// FNV-1a hash of the last image's pixel bits, with its pixel ages, the splat
-    /// scales for the next refresh and the history's counts: two builds that make the same images (and the same
-    /// state behind them) print the same hash.
+    /// FNV-1a hash of the last image's pixel bits, with the splat scales for the next
+    /// refresh and the history's counts, then `/` and the hash of its pixel ages: two
+    /// builds that make the same images (and the same state behind them) print the
+    /// same first hash; the ages are figures beside the image, not part of it.
     pub image_hash: String,
 }
 
-/// FNV-1a over the bits of every pixel's channels, then of its age, splat scale and
-/// history count.
+/// FNV-1a over the bits of every pixel's channels, then of its splat scale and
+/// history count; and FNV-1a over the bits of the pixel ages.
 fn state_hash(r: &mut Reconstructor) -> String {
+    let fnv = |values: &mut dyn Iterator<Item = f32>| {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for c in values {
+            for b in c.to_bits().to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+        h
+    };
     let scale = r.splat_scale().to_vec();
     let pixels = r.image().pixels.iter().flat_map(|p| p.to_array());
     let counts = r.history_counts().unwrap_or(&[]);
-    let rest = r.pixel_ages().iter().chain(&scale).chain(counts).copied();
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for c in pixels.chain(rest) {
-        for b in c.to_bits().to_le_bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    }
-    format!("{h:016x}")
+    let image = fnv(&mut pixels.chain(scale).chain(counts.iter().copied()));
+    let ages = fnv(&mut r.pixel_ages().iter().copied());
+    format!("{image:016x}/{ages:08x}", ages = ages as u32)
 }
 
 /// Yaw per second of the bench camera, radians: about a quarter of a pixel per
