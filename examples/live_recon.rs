@@ -1,8 +1,9 @@
 //! One figure of `frameless bench --live-recon`, for profiling:
 //! `cargo run --release --example live_recon -- WIDTH HEIGHT RATE HZ RING_SPP [resplat|carried] [still] [gpu]`
 //! (`gpu`: the refreshes on the best GPU adapter there is, a software one included).
-//! The hash it prints (the last image, its ages, splat scales and history counts)
-//! tells whether two builds make the same images.
+//! The hash it prints, `IMAGE/AGES`, tells whether two builds make the same images: the
+//! first part covers the last image, its splat scales and history counts, the second
+//! its pixel ages (figures beside the image, which a change may alter alone).
 
 use frameless::{
     bench,
