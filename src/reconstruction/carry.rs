@@ -1293,10 +1293,9 @@ impl LateDecay {
         }
         self.early.push(q as u32);
         let [k, kc] = self.factor(lookup, q);
-        let at = |ch: usize| (y * CHANNELS + ch) * into.cs + x;
-        let sums: [f32; CHANNELS] = std::array::from_fn(|ch| into.acc[at(ch)]);
-        for (ch, v) in decayed_sums(sums, k, self.dt).into_iter().enumerate() {
-            into.acc[at(ch)] = v;
+        let sums = decayed(into.acc, into.cs, x, y, k, self.dt);
+        for (ch, v) in sums.into_iter().enumerate() {
+            into.acc[(y * CHANNELS + ch) * into.cs + x] = v;
         }
         into.cover[q] *= kc;
     }
@@ -1337,18 +1336,11 @@ impl<'a> DecayView<'a> {
                 (std::array::from_fn(|ch| acc[at(q, ch)]), cover[q - q0])
             })
             .collect();
+        let (factors, dt) = (&self.late.factors, self.late.dt);
         for r in 0..rows {
             let lookup = &self.lookup[(y0 + r) * w..][..w];
             let row = &mut acc[r * CHANNELS * cs..][..CHANNELS * cs];
-            let dt = self.late.dt;
-            decay_row(
-                row,
-                &mut cover[r * w..][..w],
-                cs,
-                lookup,
-                &self.late.factors,
-                dt,
-            );
+            decay_row(row, &mut cover[r * w..][..w], cs, lookup, factors, dt);
         }
         for (&q, (sums, c)) in run.iter().zip(kept) {
             let q = q as usize;

@@ -307,9 +307,8 @@ fn blend_planes(
         } else {
             (sr[x], sg[x], sb[x])
         };
-        // Only a cut history changes: stored back unconditionally, every pixel's sums
-        // were written back to memory (about 5% of the blend at 1280x720, where they
-        // do not fit in the cache); conditional, the stores are masked.
+        // Only a cut history changes, so only it is stored: the stores compile to
+        // masked ones, and the sums of the others are not written back to memory.
         if mv {
             (sr[x], sg[x], sb[x], count[x], time_sum[x]) = (s.0, s.1, s.2, n, ts);
         }
