@@ -350,11 +350,16 @@ struct Schedule {
 
 impl Schedule {
     /// Seconds into the run at which the next build is due: [`Lead::seconds`] before
-    /// its refresh, or at once where the recent builds' median is longer than a period
-    /// (waiting for a refresh instant would leave the thread idle for most of one).
+    /// its refresh. Where the recent builds' median is longer than a period, at once
+    /// (waiting for a refresh instant would leave the thread idle for most of one),
+    /// but not before the refresh of the build before it less a median build: builds
+    /// a little shorter than a period, run back to back, would each be done earlier
+    /// before its refresh than the last, until images waited more than a period to be
+    /// shown.
     fn due(&self, lead: &Lead) -> f64 {
-        if lead.median() + Lead::MARGIN_S > lead.period {
-            return f64::NEG_INFINITY;
+        let median = lead.median();
+        if median + Lead::MARGIN_S > lead.period {
+            return (self.next as f64 - 1.0) * lead.period - median;
         }
         self.next as f64 * lead.period - lead.seconds()
     }
@@ -662,6 +667,28 @@ mod tests {
     }
 
     #[test]
+    fn builds_a_little_shorter_than_a_period_do_not_run_ahead() {
+        // 31.3–33.0 ms at 30 Hz: the median and the margin outlast the period, so
+        // the builds run back to back, though each is shorter than it.
+        let p = 1.0 / 30.0;
+        let builds: Vec<f64> = (0..600)
+            .map(|i| 31.3e-3 + 1.7e-3 * ((i * 7 % 11) as f64 / 10.0))
+            .collect();
+        let (done, new_images) = schedule_builds(p, &builds);
+        for d in &done[Lead::window(p)..] {
+            let (k, _, end) = *d;
+            // Done no more than a period (and the spread of the builds) before the
+            // refresh it is for, not ever earlier as builds go on.
+            assert!(k as f64 * p - end <= 1.1 * p, "{d:?}");
+        }
+        let refreshes = done.last().unwrap().0 as usize;
+        assert!(
+            new_images * 100 >= refreshes * 97,
+            "{new_images} of {refreshes}"
+        );
+    }
+
+    #[test]
     fn a_held_image_is_shown_from_its_refresh_on() {
         use crate::realtime::shared::{Frame, Newest};
         use std::sync::Arc;
@@ -685,6 +712,16 @@ mod tests {
         assert_eq!(n.at(0.020).map(|f| f.seq), Some(1));
         assert_eq!(n.at(0.025).map(|f| f.seq), Some(2));
         assert_eq!(n.at(0.030).map(|f| f.seq), Some(2));
+        // Two done before the first of them is shown: each is shown at its refresh.
+        n.publish(frame(3, 0.045), 0.031);
+        n.publish(frame(4, 0.062), 0.040);
+        assert_eq!(n.at(0.044).map(|f| f.seq), Some(2));
+        assert_eq!(n.at(0.050).map(|f| f.seq), Some(3));
+        assert_eq!(n.at(0.062).map(|f| f.seq), Some(4));
+        // One shown at once replaces those still held.
+        n.publish(frame(5, 0.080), 0.070);
+        n.publish(frame(6, 0.071), 0.071);
+        assert_eq!(n.at(0.090).map(|f| f.seq), Some(6));
     }
 
     #[test]

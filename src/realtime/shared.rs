@@ -69,20 +69,23 @@ pub struct Frame {
     pub published_s: f64,
 }
 
-/// The image on screen, and one built for a later refresh, held until that refresh is
-/// near: an image that reprojects to the refresh it is meant for and is done early
-/// would otherwise be shown a period early and take the place of the one before it.
+/// The image on screen, and those built for later refreshes, each held until its
+/// refresh is near: an image that reprojects to the refresh it is meant for and is
+/// done early would otherwise be shown a period early and take the place of the one
+/// before it. Every held image is shown in turn, so that an image done before the one
+/// ahead of it was shown is not lost (that refresh would show the old image again).
 #[derive(Default)]
 pub struct Newest {
     shown: Option<Arc<Frame>>,
-    held: Option<Arc<Frame>>,
+    /// In the order they were published, which is the order of their refreshes.
+    held: std::collections::VecDeque<Arc<Frame>>,
 }
 
 impl Newest {
     /// The image to show `now_s` wall seconds into the run.
     pub fn at(&mut self, now_s: f64) -> Option<Arc<Frame>> {
-        if self.held.as_ref().is_some_and(|f| f.published_s <= now_s) {
-            self.shown = self.held.take();
+        while self.held.front().is_some_and(|f| f.published_s <= now_s) {
+            self.shown = self.held.pop_front();
         }
         self.shown.clone()
     }
@@ -91,9 +94,11 @@ impl Newest {
     pub fn publish(&mut self, frame: Arc<Frame>, now_s: f64) {
         self.at(now_s);
         if frame.published_s <= now_s {
+            // Newer than any held: they are replaced.
+            self.held.clear();
             self.shown = Some(frame);
         } else {
-            self.held = Some(frame);
+            self.held.push_back(frame);
         }
     }
 }

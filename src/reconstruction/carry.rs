@@ -31,7 +31,8 @@
 //! A refresh then costs the new samples' splats plus a few passes over the pixels,
 //! whatever the ring's length: the ring only holds samples until their first refresh.
 
-use std::{collections::HashMap, mem::take};
+use rustc_hash::FxHashMap as HashMap;
+use std::mem::take;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -164,7 +165,7 @@ impl Carried {
             last: None,
             pending: 0,
             moving: Vec::new(),
-            anchor: HashMap::new(),
+            anchor: HashMap::default(),
             ahead: Vec::new(),
             in_order: Vec::new(),
             group_starts: Vec::new(),
@@ -663,7 +664,7 @@ impl Reconstructor {
                         geo,
                         still_z,
                         touched: Vec::new(),
-                        next_anchor: HashMap::new(),
+                        next_anchor: HashMap::default(),
                         out: BandOut::default(),
                     };
                     band.cut_and_offer(&ctx, ks, ring);

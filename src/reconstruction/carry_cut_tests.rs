@@ -142,7 +142,7 @@ fn by_the_cut(
         geo: &mut geo,
         still_z: &mut still_z,
         touched: Vec::new(),
-        next_anchor: HashMap::new(),
+        next_anchor: HashMap::default(),
         out: BandOut::default(),
     };
     band.cut_and_offer(&ctx, &ks, &ring);
