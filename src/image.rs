@@ -21,13 +21,19 @@ pub struct Image {
     pub pixels: Vec<Vec3>,
 }
 
-/// Quantize one channel as displayed: clamp to [0, 1], round to 8 bits.
+/// Quantize one channel as displayed: clamp to [0, 1], round to 8 bits (NaN: 0).
 #[inline]
 pub fn quantize(v: f32) -> u8 {
-    if v.is_nan() {
-        return 0;
-    }
+    // A NaN stays NaN through the clamp, and `as` turns it into 0: no branch, so
+    // loops over pixels compile to vector code.
     (v.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// `px` quantized into `out`, three bytes a pixel.
+fn quantize_pixels(px: &[Vec3], out: &mut [u8]) {
+    for (o, p) in out.chunks_exact_mut(3).zip(px) {
+        o.copy_from_slice(&[quantize(p.x), quantize(p.y), quantize(p.z)]);
+    }
 }
 
 /// Linear light of a display value: the sRGB decoding (IEC 61966-2-1), continued past
@@ -76,12 +82,14 @@ impl Image {
         let mut out = vec![0u8; self.pixels.len() * 3];
         out.par_chunks_mut(3 * 4096)
             .zip(self.pixels.par_chunks(4096))
-            .for_each(|(o, px)| {
-                for (o, p) in o.chunks_exact_mut(3).zip(px) {
-                    o.copy_from_slice(&[quantize(p.x), quantize(p.y), quantize(p.z)]);
-                }
-            });
+            .for_each(|(o, px)| quantize_pixels(px, o));
         out
+    }
+
+    /// [`Image::to_rgb8`] into `out` (resized to fit), on the calling thread.
+    pub fn quantize_into(&self, out: &mut Vec<u8>) {
+        out.resize(self.pixels.len() * 3, 0);
+        quantize_pixels(&self.pixels, out);
     }
 
     /// Write the displayed image as PNG, atomically (see [`write_png_rgb8`]).
@@ -341,6 +349,19 @@ mod tests {
         assert_eq!(quantize(2.0), 255);
         assert_eq!(quantize(0.5), 128);
         assert_eq!(quantize(f32::NAN), 0);
+    }
+
+    #[test]
+    fn quantizing_on_one_thread_is_the_displayed_image() {
+        let mut im = Image::new(97, 61);
+        for (i, p) in im.pixels.iter_mut().enumerate() {
+            let v = (i as f32 * 0.37).sin() * 1.4 - 0.2;
+            *p = Vec3::new(v, -v, if i % 7 == 0 { f32::NAN } else { v * 0.5 });
+        }
+        // A reused buffer of another size is resized and overwritten.
+        let mut out = vec![9u8; 5];
+        im.quantize_into(&mut out);
+        assert_eq!(out, im.to_rgb8());
     }
 
     #[test]

@@ -116,6 +116,10 @@ pub fn record(
         load_average: load_average(),
         others_load: others_load(BEFORE_SAMPLES, BEFORE_GAP),
     };
+    let (w, h) = tracer.size();
+    // Every refresh of the window may show an image of its own; the two seen last
+    // may be waiting for theirs.
+    let mut buffers = Buffers::new(window.refreshes + 2, 3 * w as usize * h as usize);
     let pipeline = Pipeline::start(tracer, config.clone(), settings)?;
     let clock = pipeline.clock();
     let period = 1.0 / config.refresh_hz;
@@ -129,7 +133,7 @@ pub fn record(
     let mut mark: Option<Mark> = None;
     while next <= last {
         pacer.wait();
-        observe(&pipeline, &mut seen);
+        observe(&pipeline, &mut seen, &mut buffers);
         let due_now = ((clock.elapsed() / period).floor() as u64).min(last);
         if mark.is_none() && due_now >= first {
             mark = Some(mark_now(&pipeline, &pacer, &clock));
@@ -160,21 +164,63 @@ struct Before {
     others_load: Option<f64>,
 }
 
-/// Note the pipeline's newest image, quantized as a display does on arrival.
-fn observe(pipeline: &Pipeline, seen: &mut [Option<Seen>; 2]) {
+/// Note the pipeline's newest image, quantized as a display does on arrival (on this
+/// thread, into one of `buffers`); the image it replaces as the one seen before gives
+/// its buffer back if no refresh showed it.
+fn observe(pipeline: &Pipeline, seen: &mut [Option<Seen>; 2], buffers: &mut Buffers) {
     let Some(frame) = pipeline.latest() else {
         return;
     };
     if seen[0].as_ref().is_some_and(|s| s.frame.seq == frame.seq) {
         return;
     }
-    let rgb = Arc::new(frame.image.to_rgb8());
+    let mut rgb = buffers.take();
+    frame.image.quantize_into(&mut rgb);
     seen.swap(0, 1);
-    seen[0] = Some(Seen {
+    let gone = seen[0].replace(Seen {
         frame,
-        rgb,
+        rgb: Arc::new(rgb),
         index: None,
     });
+    if let Some(g) = gone.filter(|g| g.index.is_none()) {
+        buffers.give_back(g.rgb);
+    }
+}
+
+/// Buffers for the displayed images, allocated and backed with memory before the
+/// pipeline starts: quantizing an image at a refresh then takes no page faults. The
+/// recording is the evaluation's work, not the method's; a fresh buffer per image cost
+/// about 6 ms of CPU a 1280×720 image, most of it the system mapping in its pages, at
+/// the image thread's priority (docs/performance.md, session 49).
+struct Buffers {
+    free: Vec<Vec<u8>>,
+    len: usize,
+}
+
+impl Buffers {
+    /// `count` buffers of `len` bytes.
+    fn new(count: usize, len: usize) -> Self {
+        let free = (0..count)
+            .map(|_| {
+                let mut v = vec![0u8; len];
+                crate::reconstruction::touch(&mut v);
+                v
+            })
+            .collect();
+        Self { free, len }
+    }
+
+    /// A buffer (a fresh one if none is left).
+    fn take(&mut self) -> Vec<u8> {
+        self.free.pop().unwrap_or_else(|| vec![0; self.len])
+    }
+
+    /// `rgb` back, if nothing else holds it.
+    fn give_back(&mut self, rgb: Arc<Vec<u8>>) {
+        if let Ok(v) = Arc::try_unwrap(rgb) {
+            self.free.push(v);
+        }
+    }
 }
 
 /// The image on screen at wall second `due` of the pipeline: the newest one seen

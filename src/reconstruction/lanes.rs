@@ -121,7 +121,7 @@ pub(crate) fn prefetch_addr(addr: *const u8) {
 /// Write every memory page of `v` once (each page's first element, with the value it
 /// holds), so that a zeroed allocation, which the system maps in lazily, is backed now
 /// and not at its first use. `black_box` keeps the compiler from dropping the stores.
-pub(super) fn touch<T: Copy + Send>(v: &mut [T]) {
+pub(crate) fn touch<T: Copy + Send>(v: &mut [T]) {
     use rayon::prelude::*;
     const PAGE: usize = 4096;
     let step = (PAGE / std::mem::size_of::<T>().max(1)).max(1);

@@ -128,7 +128,7 @@ use filter_table::{Lookup, TileFilter};
 use history::History;
 pub use history::HistoryParams;
 pub use lanes::fast_exp_neg;
-pub(crate) use lanes::{prefetch, prefetch_addr};
+pub(crate) use lanes::{prefetch, prefetch_addr, touch};
 pub use params::{ReconParams, Visibility};
 use plan::RefreshPlan;
 pub use ring::Ring;
