@@ -189,12 +189,10 @@ fn observe(pipeline: &Pipeline, seen: &mut [Option<Seen>; 2], buffers: &mut Buff
 
 /// Buffers for the displayed images, allocated and backed with memory before the
 /// pipeline starts: quantizing an image at a refresh then takes no page faults. The
-/// recording is the evaluation's work, not the method's; a fresh buffer per image cost
-/// about 6 ms of CPU a 1280×720 image, most of it the system mapping in its pages, at
-/// the image thread's priority (docs/performance.md, session 49).
+/// recording is the evaluation's work, not the method's, and should take as little of
+/// the machine from the method it measures as it can.
 struct Buffers {
     free: Vec<Vec<u8>>,
-    len: usize,
 }
 
 impl Buffers {
@@ -207,12 +205,12 @@ impl Buffers {
                 v
             })
             .collect();
-        Self { free, len }
+        Self { free }
     }
 
-    /// A buffer (a fresh one if none is left).
+    /// A buffer (an empty one if none is left: quantizing sizes it).
     fn take(&mut self) -> Vec<u8> {
-        self.free.pop().unwrap_or_else(|| vec![0; self.len])
+        self.free.pop().unwrap_or_default()
     }
 
     /// `rgb` back, if nothing else holds it.

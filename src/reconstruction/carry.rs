@@ -31,11 +31,11 @@
 //! A refresh then costs the new samples' splats plus a few passes over the pixels,
 //! whatever the ring's length: the ring only holds samples until their first refresh.
 
-use rustc_hash::FxHashMap as HashMap;
 use std::mem::take;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use rustc_hash::FxHashMap as HashMap;
 
 use super::{
     carry_edits::CarryEdits,
