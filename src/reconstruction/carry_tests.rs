@@ -450,7 +450,6 @@ fn a_row_decays_bit_for_bit_as_pixel_by_pixel() {
         let lookup: Vec<Lookup> = (0..w)
             .map(|x| Lookup {
                 tile: (x * 7 % 3) as u32,
-                scale: 1.0,
             })
             .collect();
         let (mut r, mut c) = (row.clone(), cover.clone());

@@ -1,7 +1,6 @@
 //! The filter table of one refresh: one [`TileFilter`] per tile of the sampler's tiling
-//! (with the constants a splat needs) and one 8-byte [`Lookup`] per pixel, so that a
-//! sample finds its filter and splat scale in one load from a table that fits a core's
-//! L2 cache.
+//! (with the constants a splat needs) and one 4-byte [`Lookup`] per pixel, the pixel's
+//! tile, so that a sample finds its filter from a table that fits a core's L2 cache.
 
 use std::sync::OnceLock;
 
@@ -37,14 +36,14 @@ impl TileFilter {
     }
 }
 
-/// What a sample needs of the pixel it lands in. Eight bytes, so that the table of a
-/// 256×256 image stays in a core's L2 cache: samples land in scattered pixels.
+/// The tile of the pixel a sample lands in. Four bytes, so that the table of a 256×256
+/// image stays in a core's L2 cache: samples land in scattered pixels. The pixel's
+/// splat scale is read from the splat scales themselves: copying them in here made
+/// every refresh write the whole map, which the tiles alone fill in cache.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Lookup {
     /// Index of the pixel's tile in the filter table.
     pub(super) tile: u32,
-    /// The pixel's splat scale.
-    pub(super) scale: f32,
 }
 
 impl Reconstructor {
@@ -106,8 +105,8 @@ impl Reconstructor {
         }));
     }
 
-    /// The pixel → tile map with each pixel's splat scale, from this refresh's tile
-    /// rectangles and the splat scales, if not made since the filters were.
+    /// The pixel → tile map from this refresh's tile rectangles, if not made since the
+    /// filters were.
     pub(super) fn ensure_lookup(&mut self) {
         if !std::mem::take(&mut self.lookup_stale) {
             return;
@@ -125,16 +124,11 @@ impl Reconstructor {
             }
         }
         let rects = &self.tile_rects;
-        // Each band takes its splat scales too, while its part of the map is in cache.
         self.lookup
             .par_chunks_mut(MAP_ROWS * w)
-            .zip(self.scale.par_chunks(MAP_ROWS * w))
             .zip(&reach)
             .enumerate()
-            .for_each(|(b, ((band, scale), ks))| {
-                for (l, &sc) in band.iter_mut().zip(scale) {
-                    l.scale = sc;
-                }
+            .for_each(|(b, (band, ks))| {
                 let y0 = b * MAP_ROWS;
                 let rows = band.len() / w.max(1);
                 for &k in ks {

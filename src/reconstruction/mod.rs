@@ -50,8 +50,8 @@
 //!   blocks that are stale as a whole. With the camera moving (BART kitchen) this skips
 //!   about 70% of the ring.
 //! - **Filters per tile.** Each refresh computes one filter per tile (with the
-//!   constants a splat needs) and a per-pixel `(tile, scale)` lookup of 8 bytes, so a
-//!   sample finds both in one load from a table that fits a core's L2 cache (256×256).
+//!   constants a splat needs) and a per-pixel tile lookup of 4 bytes, so a sample finds
+//!   its filter from a table that fits a core's L2 cache (256×256).
 //!   [`Reconstructor::filter_map`] is built from the table on request.
 //! - **A struct-of-arrays ring, placed in blocks.** The ring ([`ring::Ring`]) keeps
 //!   one array per field. Samples go through each stage a block of 64 at a time:
@@ -186,8 +186,7 @@ pub struct Reconstructor {
     placed: usize,
     /// Filter per tile at the last refresh.
     tiles: Vec<TileFilter>,
-    /// Each pixel's tile and splat scale (the scale also in `scale`, the public map),
-    /// together so a sample finds both in one cache line.
+    /// Each pixel's tile.
     lookup: Vec<Lookup>,
     /// Where each of `tiles` lies on the image (clipped to it).
     tile_rects: Vec<crate::tiles::Rect>,
@@ -319,13 +318,7 @@ impl Reconstructor {
             live_limit: None,
             placed: 0,
             tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
-            lookup: vec![
-                Lookup {
-                    tile: 0,
-                    scale: scale0,
-                };
-                n
-            ],
+            lookup: vec![Lookup { tile: 0 }; n],
             tile_rects: vec![crate::tiles::Rect {
                 x0: 0,
                 y0: 0,

@@ -115,6 +115,8 @@ pub(super) struct Placer<'a> {
     width: i32,
     height: i32,
     lookup: &'a [Lookup],
+    /// Each pixel's splat scale.
+    scale: &'a [f32],
     tiles: &'a [TileFilter],
     temporal_cutoff: f32,
     /// Footprint radius bound.
@@ -202,18 +204,19 @@ impl Placer<'_> {
     #[cfg(test)]
     pub(super) fn place(&self, s: &RingSample) -> Option<Placed> {
         let l = self.locate(s);
-        self.finish(&l, self.lookup[l.pixel as usize])
+        let q = l.pixel as usize;
+        self.finish(&l, self.lookup[q], self.scale[q])
     }
 
     /// The filter, temporal cull and footprint of a located sample.
     #[cfg(test)]
-    fn finish(&self, l: &Located, look: Lookup) -> Option<Placed> {
+    fn finish(&self, l: &Located, look: Lookup, scale: f32) -> Option<Placed> {
         let f = self.tiles[look.tile as usize];
         let a = l.age * f.inv_et;
         if !(l.ok && a <= self.temporal_cutoff) {
             return None;
         }
-        let (rx, ry) = self.radii(&f, look.scale);
+        let (rx, ry) = self.radii(&f, scale);
         self.footprint(l.x, l.y, l.age, a, f, rx, ry)
             .map(|p| Placed { z: l.z, ..p })
     }
@@ -395,11 +398,12 @@ impl Block {
     #[inline(always)]
     fn look_up_filters(&mut self, placer: &Placer, n: usize) {
         for i in 0..n {
-            let l = placer.lookup[self.pixel[i] as usize];
+            let q = self.pixel[i] as usize;
+            let l = placer.lookup[q];
             let f = &placer.tiles[l.tile as usize];
             self.tile[i] = l.tile;
             self.inv_et[i] = f.inv_et;
-            (self.rx[i], self.ry[i]) = placer.radii(f, l.scale);
+            (self.rx[i], self.ry[i]) = placer.radii(f, placer.scale[q]);
         }
     }
 
@@ -531,6 +535,7 @@ impl Reconstructor {
             width: self.width as i32,
             height: self.height as i32,
             lookup: &self.lookup,
+            scale: &self.scale,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
