@@ -106,7 +106,9 @@ impl Reconstructor {
     }
 
     /// The pixel → tile map from this refresh's tile rectangles, if not made since the
-    /// filters were.
+    /// filters were: the pixels of each tile that is not where the map's tile of its
+    /// index was (tiles do not overlap and cover the image, so every pixel whose tile
+    /// changed lies in one of them).
     pub(super) fn ensure_lookup(&mut self) {
         if !std::mem::take(&mut self.lookup_stale) {
             return;
@@ -116,7 +118,8 @@ impl Reconstructor {
         // The tiles that reach each band of rows, so that bands fill their part of
         // the map in parallel (tiles do not overlap: the order does not matter).
         let mut reach: Vec<Vec<u32>> = vec![Vec::new(); bands];
-        for (k, r) in self.tile_rects.iter().enumerate() {
+        let moved = |(k, r): &(usize, &Rect)| self.map_rects.get(*k) != Some(*r);
+        for (k, r) in self.tile_rects.iter().enumerate().filter(moved) {
             if r.y0 < r.y1 {
                 for band in &mut reach[r.y0 as usize / MAP_ROWS..=(r.y1 as usize - 1) / MAP_ROWS] {
                     band.push(k as u32);
@@ -142,6 +145,7 @@ impl Reconstructor {
                     }
                 }
             });
+        self.map_rects.clone_from(&self.tile_rects);
     }
 
     /// Whether a GPU carries out the refreshes (it may fail over to the CPU).

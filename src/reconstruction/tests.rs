@@ -839,8 +839,8 @@ fn a_stale_pixel_tile_map_is_made_again_from_the_tile_rectangles_when_read() {
     let (w, h) = (61u32, 47u32);
     let (mut r, _, tiling) = random_setup(w, h, 500, 1.0, false, ReconParams::realtime(), GTS);
     r.update_filters(&tiling);
-    let check = |r: &Reconstructor| {
-        for (q, l) in r.lookup.iter().enumerate() {
+    let check_but = |r: &Reconstructor, tiling: &TilingSnapshot, skip: usize| {
+        for (q, l) in r.lookup.iter().enumerate().filter(|(q, _)| *q != skip) {
             let (x, y) = ((q % w as usize) as u32, (q / w as usize) as u32);
             let rect = tiling.tiles[l.tile as usize].rect;
             assert!(
@@ -850,11 +850,30 @@ fn a_stale_pixel_tile_map_is_made_again_from_the_tile_rectangles_when_read() {
             );
         }
     };
-    check(&r);
-    // As a GPU refresh leaves it: not made for this refresh (and here wrong).
-    r.lookup.iter_mut().for_each(|l| l.tile = 0);
+    let check = |r: &Reconstructor, tiling: &TilingSnapshot| check_but(r, tiling, usize::MAX);
+    check(&r, &tiling);
+    // As a GPU refresh leaves it: not made for this refresh, whose tiles moved.
+    // The top row's four tiles merged into one, the others in reverse order.
+    let mut moved = tiling.clone();
+    moved.tiles.drain(1..4);
+    moved.tiles[0].rect.x1 = w;
+    moved.tiles.reverse();
+    r.tile_rects = moved.tiles.iter().map(|t| t.rect).collect();
     r.lookup_stale = true;
     r.ensure_lookup();
-    check(&r);
+    check(&r, &moved);
     assert!(!r.lookup_stale);
+    // Two tiles swapped in the list, the rest where they were: only theirs change.
+    moved.tiles.swap(2, 7);
+    let far = moved.tiles[11].rect;
+    let q = (far.y0 * w + far.x0) as usize;
+    r.lookup[q].tile = u32::MAX;
+    r.update_filters(&moved);
+    check_but(&r, &moved, q);
+    assert_eq!(r.lookup[q].tile, u32::MAX, "an unmoved tile's pixel was made again");
+    // The same tiles again: the map is kept as it is.
+    r.lookup[q].tile = 11;
+    r.lookup[0].tile = u32::MAX;
+    r.update_filters(&moved);
+    assert_eq!(r.lookup[0].tile, u32::MAX, "the map was made again");
 }
