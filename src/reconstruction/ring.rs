@@ -104,6 +104,12 @@ impl Ring {
         }
     }
 
+    /// Back every field with memory now (see [`super::Reconstructor::prepare`]).
+    pub(crate) fn prepare(&mut self) {
+        self.f.iter_mut().for_each(|f| super::lanes::touch(f));
+        super::lanes::touch(&mut self.t);
+    }
+
     /// Most samples held.
     pub fn capacity(&self) -> usize {
         self.capacity

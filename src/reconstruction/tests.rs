@@ -870,7 +870,11 @@ fn a_stale_pixel_tile_map_is_made_again_from_the_tile_rectangles_when_read() {
     r.lookup[q].tile = u32::MAX;
     r.update_filters(&moved);
     check_but(&r, &moved, q);
-    assert_eq!(r.lookup[q].tile, u32::MAX, "an unmoved tile's pixel was made again");
+    assert_eq!(
+        r.lookup[q].tile,
+        u32::MAX,
+        "an unmoved tile's pixel was made again"
+    );
     // The same tiles again: the map is kept as it is.
     r.lookup[q].tile = 11;
     r.lookup[0].tile = u32::MAX;
