@@ -386,9 +386,14 @@ impl Reconstructor {
     /// its first images are not held up by the system mapping in pages (at 1920×1080
     /// about 400 MB, and first builds of 0.2–0.3 s). The ring fills over seconds, but
     /// mapping its pages in as samples arrived cost a 1920×1080 build about a tenth of
-    /// its time while it filled. Changes no result.
+    /// its time while it filled. With refreshes on a GPU only the ring, which the CPU
+    /// keeps there too. Changes no result.
     pub fn prepare(&mut self) {
         use lanes::touch;
+        self.ring.prepare();
+        if self.refreshes_on_gpu() {
+            return;
+        }
         let (w, h) = (self.width as usize, self.height as usize);
         touch(&mut self.acc);
         touch(&mut self.cov);
@@ -403,7 +408,6 @@ impl Reconstructor {
             hist.prepare();
         }
         self.pull.prepare(w, h);
-        self.ring.prepare();
     }
 
     /// Run refreshes on `ctx`'s GPU from now on. An error if the adapter is too small

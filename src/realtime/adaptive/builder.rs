@@ -35,10 +35,9 @@ pub(super) fn reconstructor(
             method: super::settings::NAME,
             why: e.to_string(),
         })?;
-    } else {
-        // Before the run's clock starts (the threads are not yet spawned).
-        r.prepare();
     }
+    // Before the run's clock starts (the threads are not yet spawned).
+    r.prepare();
     Ok(r)
 }
 
