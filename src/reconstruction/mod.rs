@@ -194,7 +194,7 @@ pub struct Reconstructor {
     lookup_stale: bool,
     /// The tile rectangles `lookup` was made from: a refresh whose tiles lie where
     /// they did keeps it. Live, the sampler's tiles mostly keep their places from one
-    /// image to the next, and making the map of a 1280×720 image took about 0.9 ms.
+    /// image to the next (docs/performance.md, session 50).
     map_rects: Vec<crate::tiles::Rect>,
     /// Per-pixel filter map, built on request from `tiles` and `tile_rects`.
     filters: OnceLock<Vec<[f32; 3]>>,
@@ -310,6 +310,13 @@ impl Reconstructor {
         let capacity = ((params.ring_factor * n as f64).round() as usize).max(1);
         let cs = splat::channel_stride(width as usize);
         let scale0 = initial_scale(&params);
+        // One tile, the whole image, which the map of zeros already shows.
+        let whole = crate::tiles::Rect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        };
         Self {
             motion: None,
             params,
@@ -323,19 +330,9 @@ impl Reconstructor {
             placed: 0,
             tiles: vec![TileFilter::new([1.0; 3], params.spatial_cutoff)],
             lookup: vec![Lookup { tile: 0 }; n],
-            tile_rects: vec![crate::tiles::Rect {
-                x0: 0,
-                y0: 0,
-                x1: width,
-                y1: height,
-            }],
+            tile_rects: vec![whole],
             lookup_stale: false,
-            map_rects: vec![crate::tiles::Rect {
-                x0: 0,
-                y0: 0,
-                x1: width,
-                y1: height,
-            }],
+            map_rects: vec![whole],
             filters: OnceLock::new(),
             scale: vec![scale0; n],
             coverage: vec![0; n],
@@ -385,8 +382,8 @@ impl Reconstructor {
     /// and the sample ring: a live pipeline calls it before its clock starts, so that
     /// its first images are not held up by the system mapping in pages (at 1920×1080
     /// about 400 MB, and first builds of 0.2–0.3 s). The ring fills over seconds, but
-    /// mapping its pages in as samples arrived cost a 1920×1080 build about a tenth of
-    /// its time while it filled. With refreshes on a GPU only the ring, which the CPU
+    /// mapping its pages in as samples arrived slowed every build while it filled
+    /// (docs/performance.md, session 50). With refreshes on a GPU only the ring, which the CPU
     /// keeps there too. Changes no result.
     pub fn prepare(&mut self) {
         use lanes::touch;
