@@ -8,7 +8,7 @@ use frameless::{
     evaluation::{self, EvalConfig, Silent},
     methods::{
         adaptive::{
-            sampler::{choose_tile, crosshair_with},
+            sampler::{choose_tile, crosshair_points, crosshair_with, stratified_arms},
             Adaptive, Sampler, SamplerParams,
         },
         Method, MethodContext, MethodKind,
@@ -630,7 +630,8 @@ fn crosshair_arms_span_half_their_tile() {
     // the arms.
     for arms in [(1.0, 1.0), (8.0, 3.0)] {
         let mut at = Vec::new();
-        let c = crosshair_with(64, 64, (20.5, 30.5), arms, 1.0, None, |x, y| {
+        let points = crosshair_points((20.5, 30.5), arms);
+        let c = crosshair_with(64, 64, points, arms, 1.0, None, |x, y| {
             at.push((x, y));
             Sample {
                 luminance: 0.01 * x + 0.03 * y,
@@ -653,6 +654,54 @@ fn crosshair_arms_span_half_their_tile() {
             "{c:?}"
         );
     }
+}
+
+#[test]
+fn crosshair_arm_ends_take_their_own_pixels_next_stratified_point() {
+    // Crosshairs at one place, again and again, with arms 8 and 3 pixels long on a
+    // 64×40 image: the +y arm ends at (4.5, 33.5) every time, and the -x arm at
+    // (-3.5, 30.5), off screen.
+    let (w, h) = (64u32, 40u32);
+    let cross = crosshair_points((4.5, 30.5), (8.0, 3.0));
+    let mut draws = vec![0u32; (w * h) as usize];
+    let mut seen = Vec::new();
+    for _ in 0..64 {
+        let got = stratified_arms(cross, (w, h), 7, |p| {
+            draws[p] += 1;
+            draws[p] - 1
+        });
+        assert_eq!(got[0], cross[0], "the centre stays");
+        assert_eq!(got[2], cross[2], "an arm off screen stays");
+        for k in [1, 3, 4] {
+            let pixel = |(x, y): (f32, f32)| (x.floor(), y.floor());
+            assert_eq!(pixel(got[k]), pixel(cross[k]), "arm {k} stays in its pixel");
+        }
+        seen.push(got[3]);
+    }
+    for (x, y) in [(12, 30), (4, 33), (4, 27)] {
+        assert_eq!(draws[(y * w + x) as usize], 64, "({x}, {y}) counted");
+    }
+    assert_eq!(
+        draws.iter().sum::<u32>(),
+        3 * 64,
+        "only arm pixels on screen counted"
+    );
+    // A pure function of seed, pixel and count: the same again from fresh counts.
+    let mut again = vec![0u32; (w * h) as usize];
+    let first = stratified_arms(cross, (w, h), 7, |p| {
+        again[p] += 1;
+        again[p] - 1
+    });
+    assert_eq!(first[3], seen[0]);
+    // The 64 points the pixel (4, 33) got cover it evenly: each of its 4×4 cells holds
+    // 2 to 6 (at the centre's offset, as before, one cell would hold all 64).
+    let mut cells = [0u32; 16];
+    for (x, y) in seen {
+        let (u, v) = (x - 4.0, y - 33.0);
+        assert!((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v));
+        cells[(v * 4.0) as usize * 4 + (u * 4.0) as usize] += 1;
+    }
+    assert!(cells.iter().all(|&n| (2..=6).contains(&n)), "{cells:?}");
 }
 
 #[test]

@@ -156,9 +156,20 @@ pub fn stratified_in(
     width: u32,
     next_draw: impl FnOnce(usize) -> u32,
 ) -> (f32, f32) {
-    const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
     let px = rect.x0 + rng.below(rect.width());
     let py = rect.y0 + rng.below(rect.height());
+    stratified_at((px, py), seed, width, next_draw)
+}
+
+/// The next point of pixel `(px, py)`'s own R2 sequence ([`stratified_in`]), in
+/// image coordinates; `next_draw(pixel index)` counts it.
+fn stratified_at(
+    (px, py): (u32, u32),
+    seed: u64,
+    width: u32,
+    next_draw: impl FnOnce(usize) -> u32,
+) -> (f32, f32) {
+    const A: (f64, f64) = (0.754_877_666_246_692_7, 0.569_840_290_998_053_2);
     let p = py as u64 * width as u64 + px as u64;
     let k = next_draw(p as usize);
     let mut start = Rng::new(&[seed, 0x57a7, p]);
@@ -169,6 +180,27 @@ pub fn stratified_in(
         (px as f32 + u).min(px as f32 + 0.999),
         (py as f32 + v).min(py as f32 + 0.999),
     )
+}
+
+/// The crosshair `points` with each arm's end that is on screen moved, within its
+/// pixel, to that pixel's next point of its own R2 sequence, as [`stratified_in`] places
+/// centres: a still pixel gathers most of its samples from the arms of crosshairs
+/// around it, and at the sub-pixel offsets of those crosshairs' centres they would not
+/// cover it evenly. An arm then spans its length give or take a pixel; the gradients
+/// still divide by its length.
+pub fn stratified_arms(
+    mut points: [(f32, f32); 5],
+    (width, height): (u32, u32),
+    seed: u64,
+    mut next_draw: impl FnMut(usize) -> u32,
+) -> [(f32, f32); 5] {
+    for pt in &mut points[1..] {
+        let (x, y) = *pt;
+        if x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32 {
+            *pt = stratified_at((x as u32, y as u32), seed, width, &mut next_draw);
+        }
+    }
+    points
 }
 
 /// The tile a visit goes to, of `n` ([`SamplerParams::tile_choices`]): of `choices`
@@ -207,18 +239,19 @@ pub fn crosshair_points((x, y): (f32, f32), (ax, ay): (f32, f32)) -> [(f32, f32)
 pub fn crosshair_with(
     width: u32,
     height: u32,
-    (x, y): (f32, f32),
+    points: [(f32, f32); 5],
     arms: (f32, f32),
     t: f64,
     old: Option<(f32, f64)>,
     mut trace: impl FnMut(f32, f32) -> Sample,
 ) -> Crosshair {
     let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
+    let (x, y) = points[0];
     let c = trace(x, y);
     let (ax, ay) = arms;
     let mut lum = [c.luminance; 5];
     let mut p = [c.hit_point; 5];
-    for (k, &(nx, ny)) in crosshair_points((x, y), arms)[1..].iter().enumerate() {
+    for (k, &(nx, ny)) in points[1..].iter().enumerate() {
         if on_screen(nx, ny) {
             let s = trace(nx, ny);
             lum[k + 1] = s.luminance;
@@ -586,14 +619,25 @@ impl Sampler {
         let arms = self.params.arms(rect);
         // The points `crosshair_with` traces, in its order, traced as one batch.
         let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
-        let points: Vec<[f32; 2]> = crosshair_points(at, arms)
+        let cross = crosshair_points(at, arms);
+        let cross = if self.pixel_draws.is_empty() {
+            cross
+        } else {
+            let draws = &mut self.pixel_draws;
+            stratified_arms(cross, (w, h), self.seed, |p| {
+                let k = draws[p];
+                draws[p] = k.wrapping_add(1);
+                k
+            })
+        };
+        let points: Vec<[f32; 2]> = cross
             .iter()
             .enumerate()
             .filter(|&(k, &(x, y))| k == 0 || on_screen(x, y))
             .map(|(_, &(x, y))| [x, y])
             .collect();
         let mut got = self.trace_points(state, &points).into_iter();
-        let c = crosshair_with(w, h, at, arms, t, old, |sx, sy| {
+        let c = crosshair_with(w, h, cross, arms, t, old, |sx, sy| {
             let s = got
                 .next()
                 .unwrap_or_else(|| self.tracer.sample(state, sx, sy));

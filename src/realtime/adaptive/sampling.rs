@@ -13,9 +13,11 @@ use super::published::{Published, TileSnapshot};
 use crate::{
     methods::adaptive::{
         deep_buffer::Crosshair,
-        sampler::{choose_tile, completion_point, crosshair_points, crosshair_with, stratified_in},
+        sampler::{
+            choose_tile, completion_point, crosshair_points, crosshair_with, stratified_arms,
+            stratified_in,
+        },
         tiling::{Pending, Rect},
-        SamplerParams,
     },
     realtime::shared::{lock, Shared, Turns, BATCH_S},
     sampling::Rng,
@@ -164,7 +166,7 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
         let batch = &mut out.batches[b];
         let t0 = Instant::now();
         if let Some(p) = snap.pending[i] {
-            if !complete(s, &published.settings.sampler, &state, p, rect, now, batch) {
+            if !complete(s, published, &state, p, rect, now, batch) {
                 continue; // another thread is at this crosshair: visit another tile
             }
         }
@@ -182,25 +184,27 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
 /// at `now`, into `batch`; `false` if another thread holds one of its pixels.
 pub(super) fn complete(
     s: &Shared,
-    sampler: &SamplerParams,
+    published: &Published,
     state: &SceneState,
     p: Pending,
     rect: Rect,
     now: f64,
     batch: &mut Batch,
 ) -> bool {
+    let sampler = &published.settings.sampler;
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     let at = p.follow(state, now);
     let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
     let arms = sampler.arms(rect);
-    let cross = crosshair_points((px, py), arms).map(|(x, y)| (x.floor() as i64, y.floor() as i64));
+    let points = crosshair_in(published, s.config.seed, (w, h), (px, py), arms);
+    let cross = points.map(|(x, y)| (x.floor() as i64, y.floor() as i64));
     let Some(guard) = s.locks.try_lock_many(&cross) else {
         return false;
     };
     let mut rays = 0;
     let stream = &mut batch.stream;
-    let c = crosshair_with(w, h, (px, py), arms, now, Some((p.lum, p.t)), |x, y| {
+    let c = crosshair_with(w, h, points, arms, now, Some((p.lum, p.t)), |x, y| {
         rays += 1;
         let sample = tracer.sample(state, x, y);
         stream.push(StreamSample {
@@ -218,6 +222,25 @@ pub(super) fn complete(
         pending: p,
     });
     true
+}
+
+/// The points of a crosshair at `at` with arms `arms`, each arm's end at its pixel's
+/// next stratified point where positions are stratified.
+fn crosshair_in(
+    published: &Published,
+    seed: u64,
+    size: (u32, u32),
+    at: (f32, f32),
+    arms: (f32, f32),
+) -> [(f32, f32); 5] {
+    let cross = crosshair_points(at, arms);
+    let draws = &published.pixel_draws;
+    if draws.is_empty() {
+        return cross;
+    }
+    stratified_arms(cross, size, seed, |p| {
+        draws[p].fetch_add(1, Ordering::Relaxed)
+    })
 }
 
 /// Initiate a crosshair at a random place in tile `rect` into `batch` (a few tries
@@ -262,7 +285,7 @@ enum Planned {
     Complete {
         band: usize,
         pending: Pending,
-        at: (f32, f32),
+        points: [(f32, f32); 5],
         arms: (f32, f32),
         first: usize,
     },
@@ -344,7 +367,8 @@ fn plan_visits(
             let c = completion_point(sampler, &state.camera, &at, rect, now, w, h);
             let arms = sampler.arms(rect);
             let first = points.len();
-            for (j, (x, y)) in crosshair_points(c, arms).into_iter().enumerate() {
+            let cross = crosshair_in(published, s.config.seed, (w, h), c, arms);
+            for (j, (x, y)) in cross.into_iter().enumerate() {
                 if j == 0 || on_screen(x, y) {
                     points.push([x, y]);
                 }
@@ -352,7 +376,7 @@ fn plan_visits(
             plans.push(Planned::Complete {
                 band: b,
                 pending: p,
-                at: c,
+                points: cross,
                 arms,
                 first,
             });
@@ -384,7 +408,7 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
         Planned::Complete {
             band,
             pending,
-            at,
+            points,
             arms,
             first,
         } => {
@@ -394,7 +418,7 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
             let c = crosshair_with(
                 w,
                 h,
-                at,
+                points,
                 arms,
                 now,
                 Some((pending.lum, pending.t)),
