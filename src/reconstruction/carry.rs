@@ -1458,6 +1458,9 @@ impl Reconstructor {
                 }
                 super::splat::front_band(binned, b, b * rows, w, front);
             });
+        if let Some(ratio) = self.front_spread() {
+            super::splat::spread_fronts(&mut self.front, w, ratio, &mut self.front_minima);
+        }
     }
 }
 

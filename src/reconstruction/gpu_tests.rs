@@ -416,6 +416,15 @@ fn gpu_carried_refreshes_match_the_cpu() {
             history: None,
             ..converging
         },
+        // Fronts spread while the view moves by less than the plane's depth over the
+        // square's (two), so that the spread hides samples.
+        ReconParams {
+            visibility: Some(crate::reconstruction::Visibility {
+                moving_view_spread: Some(1.5),
+                ..Default::default()
+            }),
+            ..converging
+        },
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {

@@ -10,9 +10,10 @@
 //!    there is no depth test: stale samples behind newly visible surfaces are
 //!    suppressed by the temporal filter only. With [`ReconParams::visibility`] (ours)
 //!    each pixel's front depth is the nearest of the samples landing in it (still ones
-//!    of any age, moving ones younger than `setter_age_sigmas` temporal sigmas), and a
-//!    sample landing behind its pixel's front (beyond the depth tolerance) is not
-//!    splatted;
+//!    of any age, moving ones younger than `setter_age_sigmas` temporal sigmas; while
+//!    the view moves, also `moving_view_spread` times the nearest of its eight
+//!    neighbours'), and a sample landing behind its pixel's front (beyond the depth
+//!    tolerance) is not splatted;
 //! 2. looks up the filter of the tile containing the reprojected pixel (extents from the
 //!    tile's local sample rate and gradients, [`filter::extents`]) and the splat scale
 //!    of that pixel (from the previous refresh's coverage map);
@@ -216,6 +217,9 @@ pub struct Reconstructor {
     resplat: bool,
     /// Front depths of the visibility pass, one per pixel (empty without it).
     front: Vec<f32>,
+    /// The rows' minima of the fronts while a moving view spreads them
+    /// ([`Visibility::moving_view_spread`]).
+    front_minima: Vec<f32>,
     /// Rows per band of the splat at the last refresh.
     band_rows: usize,
     /// Splats of the last refresh: per piece of the ring (in ring order), per band.
@@ -345,6 +349,7 @@ impl Reconstructor {
                 .then(|| Box::new(carry::Carried::new(n, height as usize * CHANNELS * cs))),
             resplat: false,
             front: Vec::new(),
+            front_minima: Vec::new(),
             band_rows: BAND_ROWS,
             binned: Vec::new(),
             pieces: 0,
@@ -677,6 +682,24 @@ impl Reconstructor {
     }
 
     /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
+    /// The ratio this refresh spreads the front depths by, if it does: the view moved
+    /// ([`Visibility::moving_view_spread`]).
+    fn front_spread(&self) -> Option<f32> {
+        let v = self.params.visibility_in_use()?;
+        v.moving_view_spread.filter(|_| self.resplat)
+    }
+
+    /// The parameters as this refresh applies them: the fronts spread only while the
+    /// view moves ([`Reconstructor::front_spread`]).
+    #[cfg(feature = "gpu")]
+    fn refresh_params(&self) -> ReconParams {
+        let mut p = self.params;
+        if let Some(v) = &mut p.visibility {
+            v.moving_view_spread = self.front_spread();
+        }
+        p
+    }
+
     fn visibility_keep(&self) -> Option<f32> {
         self.params
             .visibility_in_use()
@@ -820,6 +843,7 @@ impl Reconstructor {
         });
         let pack_s = lap.elapsed().as_secs_f64();
         let max_r = self.max_footprint_radius();
+        let params = self.refresh_params();
         let Some(g) = self.gpu.as_mut() else {
             return Ok(());
         };
@@ -857,7 +881,7 @@ impl Reconstructor {
             self.params.reproject.then_some(&camera),
             &self.tiles,
             &self.tile_rects,
-            &self.params,
+            &params,
             max_r,
             plan.history.as_ref(),
             carried.as_ref(),

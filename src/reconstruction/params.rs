@@ -103,15 +103,28 @@ pub struct Visibility {
     /// surface is, and must not hide what is really there. Still samples reproject
     /// exactly and set front depths at any age.
     pub setter_age_sigmas: f32,
+    /// While the view moves (a refresh that re-splats the ring), each pixel's front
+    /// depth is also the nearest of its eight neighbours' times this ratio (`None`:
+    /// its own only). A near surface the view has just brought in has few samples, and
+    /// they land on few of the pixels their footprints cover; in the others, samples
+    /// of a far surface seen before and reprojected from the old view would show
+    /// through it as dots. Only a surface this many times farther is hidden, so that
+    /// ordinary silhouettes keep their edges; while the view holds, samples are not
+    /// reprojected across views and the fronts stay as they are.
+    pub moving_view_spread: Option<f32>,
 }
 
 impl Default for Visibility {
     /// A tolerance of 10% of the depth; front depths from still samples and from
-    /// moving ones younger than one temporal sigma (weight above `e^(−½)`).
+    /// moving ones younger than one temporal sigma (weight above `e^(−½)`); while the
+    /// view moves, a surface three times farther than a neighbouring pixel's front is
+    /// hidden (of 1, 1.5, 2, 2.5 and 3 on a head turn that shows a near wall, three
+    /// kept the gain there and changed no other window measured; docs/methods.md).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
             setter_age_sigmas: 1.0,
+            moving_view_spread: Some(3.0),
         }
     }
 }

@@ -3,6 +3,8 @@
 //! corner differences. Bands write disjoint rows, so they run in parallel and give the
 //! same sums whatever the thread count.
 
+use rayon::prelude::*;
+
 use super::{
     lanes::{gauss_lanes, prefetch, Lanes, LANES, PREFETCH_AHEAD, PREFIX},
     Reconstructor,
@@ -244,6 +246,41 @@ pub(super) fn front_band(
             let d = &mut front[p - p0];
             *d = d.min(s.z_front);
         }
+    }
+}
+
+/// Lower each of the fronts (`w` pixels a row) to `ratio` times the nearest of its
+/// eight neighbours' (`ratio` ≥ 1, so a pixel's own front is never raised): a near
+/// surface's front reaches the pixels around where its samples landed. A separable
+/// minimum through `scratch` (the rows' three-pixel minima), rows in parallel; the
+/// result does not depend on the bands.
+pub(super) fn spread_fronts(front: &mut [f32], w: usize, ratio: f32, scratch: &mut Vec<f32>) {
+    if w == 0 || front.is_empty() {
+        return;
+    }
+    scratch.resize(front.len(), f32::INFINITY);
+    scratch
+        .par_chunks_mut(w)
+        .zip(front.par_chunks(w))
+        .for_each(|(m, row)| row_minima(row, m));
+    let rows = scratch.len() / w;
+    let minima = &scratch[..];
+    front.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        let near = |dy: usize| &minima[dy * w..(dy + 1) * w];
+        let (up, down) = (near(y.saturating_sub(1)), near((y + 1).min(rows - 1)));
+        for (x, f) in row.iter_mut().enumerate() {
+            let m = up[x].min(near(y)[x]).min(down[x]);
+            *f = f.min(ratio * m);
+        }
+    });
+}
+
+/// Each pixel's minimum over itself and its left and right neighbours.
+fn row_minima(row: &[f32], out: &mut [f32]) {
+    for (x, o) in out.iter_mut().enumerate() {
+        let l = row[x.saturating_sub(1)];
+        let r = row[(x + 1).min(row.len() - 1)];
+        *o = l.min(row[x]).min(r);
     }
 }
 

@@ -272,3 +272,73 @@ fn a_fast_camera_move_shows_no_wall_through_the_square() {
         );
     }
 }
+
+#[test]
+fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
+    // As above, with a sample per pixel a second: few of the square's new samples have
+    // landed in its pixels when the move ends, and the wall's, reprojected from the
+    // old view, land between them. While the view moves, a front spreads to the pixels
+    // around where it landed, and hides a surface more than three times farther (the
+    // wall is five times the square's depth).
+    let scene = Scene { speed: 0.0 };
+    let eye_at = |t: f64| camera(0.6 * ((t as f32 - 0.8) / 0.2).clamp(0.0, 1.0));
+    let (truth, cover) = scene.truth(&eye_at(1.0), 1.0);
+    let edge = near_edge(&cover, 1);
+    let inside = |i: usize| cover[i] == 1.0 && !edge[i];
+    let n = (W * H) as usize;
+    let errors = |spread: Option<f32>| {
+        let mut p = ReconParams::converging();
+        p.visibility = p.visibility.map(|v| Visibility {
+            moving_view_spread: spread,
+            ..v
+        });
+        let img = reconstruct(&scene, eye_at, p, n);
+        let e: Vec<f32> = (0..img.len())
+            .filter(|&i| inside(i))
+            .map(|i| (img[i] - truth[i]).abs().max_element())
+            .collect();
+        let mean = e.iter().sum::<f32>() / e.len() as f32;
+        (mean, e.iter().filter(|&&x| x > 0.2).count())
+    };
+    let ((m_own, n_own), (m_spread, n_spread)) = (errors(None), errors(Some(3.0)));
+    eprintln!(
+        "inside the square: mean error {m_own}, {n_own} pixels off by more than 0.2 \
+         with each pixel's own front; {m_spread}, {n_spread} with the fronts spread"
+    );
+    assert!(n_own >= 5, "the case should show the wall: {n_own} pixels");
+    assert!(
+        m_spread < 0.7 * m_own && n_spread * 2 <= n_own,
+        "spread: mean {m_spread}, {n_spread} pixels; own: {m_own}, {n_own}"
+    );
+}
+
+proptest::proptest! {
+    /// The spread fronts are each pixel's own or the ratio times the nearest of its
+    /// eight neighbours' (inside the image), whichever is nearer, stated pixel by pixel;
+    /// fronts drawn from a few depths and none, so that ties and empty pixels come up.
+    #[test]
+    fn spread_fronts_are_the_nearest_neighbours_times_the_ratio(
+        w in 1usize..9,
+        h in 1usize..9,
+        depths in proptest::collection::vec(0usize..4, 81),
+        ratio in 1.0f32..4.0,
+    ) {
+        let pick = [f32::INFINITY, 1.0, 2.5, 7.0];
+        let own: Vec<f32> = depths[..w * h].iter().map(|&d| pick[d]).collect();
+        let mut spread = own.clone();
+        super::splat::spread_fronts(&mut spread, w, ratio, &mut Vec::new());
+        for y in 0..h {
+            for x in 0..w {
+                let mut near = f32::INFINITY;
+                for (dx, dy) in (-1i32..=1).flat_map(|dy| (-1i32..=1).map(move |dx| (dx, dy))) {
+                    let (nx, ny) = (x as i32 + dx, y as i32 + dy);
+                    if (dx, dy) != (0, 0) && (0..w as i32).contains(&nx) && (0..h as i32).contains(&ny) {
+                        near = near.min(own[ny as usize * w + nx as usize]);
+                    }
+                }
+                let want = own[y * w + x].min(ratio * near);
+                proptest::prop_assert_eq!(spread[y * w + x].to_bits(), want.to_bits(), "pixel ({}, {})", x, y);
+            }
+        }
+    }
+}

@@ -115,7 +115,10 @@ struct Params {
     carry: u32,
     /// Tiles of this refresh's filter table.
     tiles: u32,
-    pad: [u32; 2],
+    /// [`crate::reconstruction::Visibility::moving_view_spread`] where this refresh
+    /// spreads the fronts, else 0.
+    spread: f32,
+    pad: u32,
 }
 
 #[repr(C)]
@@ -801,6 +804,7 @@ impl GpuRecon {
         if let Some(v) = rp.visibility_in_use() {
             p.keep = 1.0 / (1.0 + v.depth_tolerance);
             p.setter_age = v.setter_age_sigmas;
+            p.spread = v.moving_view_spread.unwrap_or(0.0);
         }
         if let Some(c) = camera {
             // The CPU placer's projector: the same constants, computed the same way.

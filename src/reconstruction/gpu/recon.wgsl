@@ -56,7 +56,9 @@ struct Params {
     carry: u32,
     // Tiles of this refresh's filter table.
     tiles: u32,
-    pad0: u32,
+    // While the view moves: each front-setting sample lowers its eight neighbours'
+    // fronts to this many times its depth; 0: it sets its own pixel's only.
+    spread: f32,
     pad1: u32,
 }
 
@@ -270,6 +272,25 @@ fn set_front(s: ptr<function, Splat>, p: u32, a: f32, z: f32) {
         let still = ring_at(VX, p) == 0.0 && ring_at(VX + 1u, p) == 0.0 && ring_at(VX + 2u, p) == 0.0;
         if still || a <= P.setter_age {
             atomicMax(&front[pix], ~bitcast<u32>(z));
+            if P.spread > 0.0 {
+                spread_front(u32(x), u32(y), ~bitcast<u32>(P.spread * z));
+            }
+        }
+    }
+}
+
+// Lower the fronts of the eight pixels around (`x`, `y`) to the front `bits`: the
+// CPU's minimum over each pixel's neighbours, gathered there, scattered here.
+fn spread_front(x: u32, y: u32, bits: u32) {
+    let x0 = max(x, 1u) - 1u;
+    let y0 = max(y, 1u) - 1u;
+    let x1 = min(x + 1u, P.width - 1u);
+    let y1 = min(y + 1u, P.height - 1u);
+    for (var j = y0; j <= y1; j++) {
+        for (var i = x0; i <= x1; i++) {
+            if i != x || j != y {
+                atomicMax(&front[j * P.width + i], bits);
+            }
         }
     }
 }
