@@ -268,19 +268,25 @@ pub(super) fn spread_fronts(front: &mut [f32], w: usize, ratio: f32, scratch: &m
     front.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         let near = |dy: usize| &minima[dy * w..(dy + 1) * w];
         let (up, down) = (near(y.saturating_sub(1)), near((y + 1).min(rows - 1)));
-        for (x, f) in row.iter_mut().enumerate() {
-            let m = up[x].min(near(y)[x]).min(down[x]);
-            *f = f.min(ratio * m);
+        for (((f, a), b), c) in row.iter_mut().zip(up).zip(near(y)).zip(down) {
+            *f = f.min(ratio * a.min(*b).min(*c));
         }
     });
 }
 
-/// Each pixel's minimum over itself and its left and right neighbours.
+/// Each pixel's minimum over itself and its left and right neighbours (the ends over
+/// the two they have), the inside as whole slices so that it runs in vector code.
 fn row_minima(row: &[f32], out: &mut [f32]) {
-    for (x, o) in out.iter_mut().enumerate() {
-        let l = row[x.saturating_sub(1)];
-        let r = row[(x + 1).min(row.len() - 1)];
-        *o = l.min(row[x]).min(r);
+    let n = row.len();
+    if n < 2 {
+        out.copy_from_slice(row);
+        return;
+    }
+    out[0] = row[0].min(row[1]);
+    out[n - 1] = row[n - 2].min(row[n - 1]);
+    let inside = row[..n - 2].iter().zip(&row[1..n - 1]).zip(&row[2..]);
+    for (o, ((l, c), r)) in out[1..n - 1].iter_mut().zip(inside) {
+        *o = l.min(*c).min(*r);
     }
 }
 
