@@ -123,6 +123,7 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         fill_weight,
         carry,
         tiles,
+        spread,
         pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());
