@@ -681,7 +681,6 @@ impl Reconstructor {
         self.motion = state;
     }
 
-    /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
     /// The ratio this refresh spreads the front depths by, if it does: the view moved
     /// ([`Visibility::moving_view_spread`]).
     fn front_spread(&self) -> Option<f32> {
@@ -700,6 +699,7 @@ impl Reconstructor {
         p
     }
 
+    /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
     fn visibility_keep(&self) -> Option<f32> {
         self.params
             .visibility_in_use()

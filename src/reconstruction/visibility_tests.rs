@@ -229,19 +229,33 @@ fn a_moving_square_keeps_its_silhouette() {
     }
 }
 
+/// The camera of the fast-move tests: the eye slides 0.6 units sideways in the last
+/// 0.2 s.
+fn slide_eye(t: f64) -> CameraFrame {
+    camera(0.6 * ((t as f32 - 0.8) / 0.2).clamp(0.0, 1.0))
+}
+
+/// The image `scene` shows at the slide's end, and which pixels are the square's
+/// inside, away from its outline.
+fn slide_truth(scene: &Scene) -> (Vec<Vec3>, Vec<bool>) {
+    let (truth, cover) = scene.truth(&slide_eye(1.0), 1.0);
+    let edge = near_edge(&cover, 1);
+    let inside = (0..cover.len())
+        .map(|i| cover[i] == 1.0 && !edge[i])
+        .collect();
+    (truth, inside)
+}
+
 #[test]
 fn a_fast_camera_move_shows_no_wall_through_the_square() {
     // A still scene; the eye slides 0.6 units sideways in the last 0.2 s, so the wall
     // seen beside the square from the old view now lies behind it.
     let scene = Scene { speed: 0.0 };
-    let eye_at = |t: f64| camera(0.6 * ((t as f32 - 0.8) / 0.2).clamp(0.0, 1.0));
-    let (truth, cover) = scene.truth(&eye_at(1.0), 1.0);
-    let edge = near_edge(&cover, 1);
-    // The square's inside, away from its outline.
-    let inside = |i: usize| cover[i] == 1.0 && !edge[i];
+    let (truth, inside) = slide_truth(&scene);
+    let inside = |i: usize| inside[i];
     let n = (W * H * 6) as usize;
     let worst = |p: ReconParams| {
-        let img = reconstruct(&scene, eye_at, p, n);
+        let img = reconstruct(&scene, slide_eye, p, n);
         (0..img.len())
             .filter(|&i| inside(i))
             .map(|i| (img[i] - truth[i]).abs().max_element())
@@ -281,10 +295,8 @@ fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
     // around where it landed, and hides a surface more than three times farther (the
     // wall is five times the square's depth).
     let scene = Scene { speed: 0.0 };
-    let eye_at = |t: f64| camera(0.6 * ((t as f32 - 0.8) / 0.2).clamp(0.0, 1.0));
-    let (truth, cover) = scene.truth(&eye_at(1.0), 1.0);
-    let edge = near_edge(&cover, 1);
-    let inside = |i: usize| cover[i] == 1.0 && !edge[i];
+    let (truth, inside) = slide_truth(&scene);
+    let inside = |i: usize| inside[i];
     let n = (W * H) as usize;
     let errors = |spread: Option<f32>| {
         let mut p = ReconParams::converging();
@@ -292,7 +304,7 @@ fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
             moving_view_spread: spread,
             ..v
         });
-        let img = reconstruct(&scene, eye_at, p, n);
+        let img = reconstruct(&scene, slide_eye, p, n);
         let e: Vec<f32> = (0..img.len())
             .filter(|&i| inside(i))
             .map(|i| (img[i] - truth[i]).abs().max_element())

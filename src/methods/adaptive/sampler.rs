@@ -203,6 +203,16 @@ pub fn stratified_arms(
     points
 }
 
+/// The `next_draw` of [`stratified_in`] and [`stratified_arms`] over per-pixel counts
+/// `draws`: a pixel's count, then that count plus one.
+fn counter(draws: &mut [u32]) -> impl FnMut(usize) -> u32 + '_ {
+    |p| {
+        let k = draws[p];
+        draws[p] = k.wrapping_add(1);
+        k
+    }
+}
+
 /// The tile a visit goes to, of `n` ([`SamplerParams::tile_choices`]): of `choices`
 /// uniform draws, the one whose last crosshair is the oldest (`last(k)`: when tile `k`
 /// initiated its pending crosshair, `None` if it has none, which counts as oldest; the
@@ -623,12 +633,7 @@ impl Sampler {
         let cross = if self.pixel_draws.is_empty() {
             cross
         } else {
-            let draws = &mut self.pixel_draws;
-            stratified_arms(cross, (w, h), self.seed, |p| {
-                let k = draws[p];
-                draws[p] = k.wrapping_add(1);
-                k
-            })
+            stratified_arms(cross, (w, h), self.seed, counter(&mut self.pixel_draws))
         };
         let points: Vec<[f32; 2]> = cross
             .iter()
@@ -821,12 +826,8 @@ impl Sampler {
         if self.pixel_draws.is_empty() {
             return rect.random_point(&mut self.rng);
         }
-        let draws = &mut self.pixel_draws;
-        stratified_in(rect, &mut self.rng, self.seed, self.width, |p| {
-            let k = draws[p];
-            draws[p] = k.wrapping_add(1);
-            k
-        })
+        let draws = counter(&mut self.pixel_draws);
+        stratified_in(rect, &mut self.rng, self.seed, self.width, draws)
     }
 
     /// The initial spatially gridded, co-temporal crosshairs (resumable: the budget may
