@@ -66,14 +66,18 @@ pub struct SamplerParams {
     /// our reconstructor that budget pays more as new samples (docs/performance.md,
     /// tuning records). Not in the paper. On in [`SamplerParams::ours`].
     pub reproject_only_moving: bool,
-    /// Complete a tile's pending crosshair where the initiating sample's surface point
+    /// Measure a tile's temporal gradient where the initiating sample's surface point
     /// has moved to (camera and object motion) instead of at the same pixel position
-    /// ([`super::sampler::completion_point`]): a still point wherever on screen it is
-    /// now, a moving one if it is still inside the tile. The temporal gradient then
-    /// measures change on the surface rather than camera motion, which the
-    /// reconstructor undoes by reprojecting samples, so filters stay longer and sharper
-    /// while the camera moves. Not in the paper (measured: docs/performance.md, tuning
-    /// records).
+    /// ([`super::sampler::completion_point`]): a point still inside the tile is
+    /// completed there; a still point the view carried out of the tile is probed where
+    /// it is now with one more ray, and the crosshair traced where it started, so that
+    /// the tile keeps its samples (completed where the point went, a visit's samples
+    /// drifted downstream of the view's motion, and the edge a turn brings in got its
+    /// initiating samples alone). The temporal gradient then measures change on the
+    /// surface rather than camera motion, which the reconstructor undoes by
+    /// reprojecting samples, so filters stay longer and sharper while the camera moves.
+    /// Not in the paper (measured: docs/performance.md, tuning records; the probe:
+    /// docs/methods.md).
     pub follow_surface: bool,
     /// Give a reprojected crosshair a new temporal gradient only from the newest
     /// crosshair at its destination that saw the same surface point (both moved to

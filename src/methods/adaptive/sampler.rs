@@ -272,10 +272,7 @@ pub fn crosshair_with(
     // Per pixel of arm length; an arm off screen counts as flat (the paper's rule).
     let gx = ((l0 - lum[1]).abs() + (l0 - lum[2]).abs()) * 0.5 / ax;
     let gy = ((l0 - lum[3]).abs() + (l0 - lum[4]).abs()) * 0.5 / ay;
-    let gt = match old {
-        Some((lo, to)) if t > to => ((l0 - lo).abs() as f64 / (t - to).max(MIN_GRADIENT_DT)) as f32,
-        _ => 0.0,
-    };
+    let gt = old.map_or(0.0, |old| temporal_gradient((l0, t), old));
     Crosshair {
         x,
         y,
@@ -289,17 +286,53 @@ pub fn crosshair_with(
     }
 }
 
+/// Where a pending crosshair is completed, and where its temporal gradient is measured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Completion {
+    /// Where the crosshair is traced.
+    pub at: (f32, f32),
+    /// Where its surface point is seen now, when that is not `at`: one more ray there
+    /// measures the temporal gradient against the initiating sample (`None`: the
+    /// crosshair's centre measures it).
+    pub probe: Option<(f32, f32)>,
+}
+
+impl Completion {
+    fn at(at: (f32, f32)) -> Self {
+        Self { at, probe: None }
+    }
+
+    /// What the crosshair's centre compares with for its temporal gradient: the
+    /// initiating sample `old`, unless a probe measures it instead.
+    pub fn centre_compares_with(&self, old: (f32, f64)) -> Option<(f32, f64)> {
+        self.probe.is_none().then_some(old)
+    }
+}
+
+/// The temporal gradient between luminance `lum` at time `t` and the earlier sample
+/// `(luminance, time)` at the same point (0 unless `t` is later).
+pub fn temporal_gradient((lum, t): (f32, f64), (old_lum, old_t): (f32, f64)) -> f32 {
+    if t > old_t {
+        ((lum - old_lum).abs() as f64 / (t - old_t).max(MIN_GRADIENT_DT)) as f32
+    } else {
+        0.0
+    }
+}
+
 /// Where the crosshair `p` initiated in the tile `rect` is completed at time `now`.
 ///
-/// With [`SamplerParams::follow_surface`], where the initiating sample's surface point
-/// is seen now, so that the temporal gradient compares the same point twice and
+/// With [`SamplerParams::follow_surface`], the temporal gradient compares the
+/// initiating sample's surface point with where that point is seen now, so that it
 /// measures change on the surface, not camera motion (which the reconstructor undoes
-/// by reprojecting samples): a still point wherever it is on screen (the crosshair
-/// joins the tile it lands in), a moving one only within `rect`. Where a moving object
-/// has left the tile, completing at the same position measures the change it left
-/// behind, and spends the visit where that change is. Otherwise (and without the
-/// option) where it was initiated. Shared by the sequential sampler and the real-time
-/// sampling threads.
+/// by reprojecting samples). A point still inside `rect` is completed there. A still
+/// point the view has carried out of the tile (but not off screen) is probed where it
+/// is now with one ray, and the crosshair is traced where it started: completing it
+/// where the point went would move the tile's samples downstream of the view's motion,
+/// and leave the tiles where the view brings in new surfaces with their initiating
+/// samples alone. A moving point that has left the tile completes where it started,
+/// unprobed: what its object left behind is the change to measure there, and the visit
+/// is spent where that change is. Otherwise (and without the option) where it was
+/// initiated. Shared by the sequential sampler and the real-time sampling threads.
 pub fn completion_point(
     params: &SamplerParams,
     camera: &CameraFrame,
@@ -308,24 +341,25 @@ pub fn completion_point(
     now: f64,
     width: u32,
     height: u32,
-) -> (f32, f32) {
+) -> Completion {
+    let start = Completion::at((p.x, p.y));
     if !params.follow_surface {
-        return (p.x, p.y);
+        return start;
     }
-    let within = if p.velocity == Vec3::ZERO {
-        Rect {
-            x0: 0,
-            y0: 0,
-            x1: width,
-            y1: height,
-        }
-    } else {
-        rect
+    let Some((x, y, _)) = camera.project(p.hit_point + p.velocity * (now - p.t) as f32) else {
+        return start;
     };
-    camera
-        .project(p.hit_point + p.velocity * (now - p.t) as f32)
-        .filter(|&(x, y, _)| within.contains_point(x, y))
-        .map_or((p.x, p.y), |(x, y, _)| (x, y))
+    if rect.contains_point(x, y) {
+        return Completion::at((x, y));
+    }
+    let on_screen = x >= 0.0 && y >= 0.0 && x < width as f32 && y < height as f32;
+    if p.velocity == Vec3::ZERO && on_screen {
+        return Completion {
+            at: start.at,
+            probe: Some((x, y)),
+        };
+    }
+    start
 }
 
 impl Sampler {
@@ -795,8 +829,14 @@ impl Sampler {
         self.counters.visits += 1;
         let rect = self.tiling.node(leaf).rect;
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
-            let (x, y) = completion_point(&self.params, &state.camera, &p.follow(&state, now), rect, now, self.width, self.height);
-            let c = self.trace_crosshair(&state, (x, y), rect, now, Some((p.lum, p.t)));
+            let at = p.follow(&state, now);
+            let done = completion_point(&self.params, &state.camera, &at, rect, now, self.width, self.height);
+            let probe = done.probe.map(|(x, y)| self.trace(&state, x, y, now));
+            let old = (p.lum, p.t);
+            let mut c = self.trace_crosshair(&state, done.at, rect, now, done.centre_compares_with(old));
+            if let Some(s) = probe {
+                c.gt = temporal_gradient((s.luminance, now), old);
+            }
             self.insert_front(c);
             self.since_adjust += 1;
         }

@@ -12,8 +12,8 @@
 //! ```
 //!
 //! A sampling thread visits a tile of the published snapshots (the bands' tiles taken
-//! together): it completes the crosshair the tile's pending sample initiated, where its
-//! surface point is now
+//! together): it completes the crosshair the tile's pending sample initiated, its
+//! temporal gradient measured where its surface point is now
 //! ([`completion_point`](crate::methods::adaptive::sampler::completion_point), as the
 //! sequential sampler; taking its five pixels) and initiates the next one at a random
 //! location in the tile (taking that pixel). A taken pixel means another thread is

@@ -15,7 +15,7 @@ use crate::{
         deep_buffer::Crosshair,
         sampler::{
             choose_tile, completion_point, crosshair_points, crosshair_with, stratified_arms,
-            stratified_in,
+            stratified_in, temporal_gradient,
         },
         tiling::{Pending, Rect},
     },
@@ -195,16 +195,16 @@ pub(super) fn complete(
     let tracer = &s.tracer;
     let (w, h) = tracer.size();
     let at = p.follow(state, now);
-    let (px, py) = completion_point(sampler, &state.camera, &at, rect, now, w, h);
+    let done = completion_point(sampler, &state.camera, &at, rect, now, w, h);
     let arms = sampler.arms(rect);
-    let points = crosshair_in(published, s.config.seed, (w, h), (px, py), arms);
+    let points = crosshair_in(published, s.config.seed, (w, h), done.at, arms);
     let cross = points.map(|(x, y)| (x.floor() as i64, y.floor() as i64));
     let Some(guard) = s.locks.try_lock_many(&cross) else {
         return false;
     };
     let mut rays = 0;
     let stream = &mut batch.stream;
-    let c = crosshair_with(w, h, points, arms, now, Some((p.lum, p.t)), |x, y| {
+    let mut trace = |x: f32, y: f32| {
         rays += 1;
         let sample = tracer.sample(state, x, y);
         stream.push(StreamSample {
@@ -214,7 +214,21 @@ pub(super) fn complete(
             sample,
         });
         sample
-    });
+    };
+    let probe = done.probe.map(|(x, y)| trace(x, y));
+    let old = (p.lum, p.t);
+    let mut c = crosshair_with(
+        w,
+        h,
+        points,
+        arms,
+        now,
+        done.centre_compares_with(old),
+        &mut trace,
+    );
+    if let Some(probe) = probe {
+        c.gt = temporal_gradient((probe.luminance, now), old);
+    }
     drop(guard);
     batch.visits.push(Visit::Completed {
         crosshair: c,
@@ -281,10 +295,12 @@ const GPU_VISITS: usize = 4096;
 /// A visit of a GPU batch, planned before its samples are traced: where they start in
 /// the batch's points.
 enum Planned {
-    /// Complete `pending` with a crosshair at `at`.
+    /// Complete `pending` with a crosshair of `points` (its samples from `first` on,
+    /// after the probe's where there is one).
     Complete {
         band: usize,
         pending: Pending,
+        probe: Option<(f32, f32)>,
         points: [(f32, f32); 5],
         arms: (f32, f32),
         first: usize,
@@ -364,10 +380,13 @@ fn plan_visits(
         let rect = view.snaps[b].rects[i];
         if let Some(p) = view.snaps[b].pending[i] {
             let at = p.follow(state, now);
-            let c = completion_point(sampler, &state.camera, &at, rect, now, w, h);
+            let done = completion_point(sampler, &state.camera, &at, rect, now, w, h);
             let arms = sampler.arms(rect);
             let first = points.len();
-            let cross = crosshair_in(published, s.config.seed, (w, h), c, arms);
+            if let Some((x, y)) = done.probe {
+                points.push([x, y]);
+            }
+            let cross = crosshair_in(published, s.config.seed, (w, h), done.at, arms);
             for (j, (x, y)) in cross.into_iter().enumerate() {
                 if j == 0 || on_screen(x, y) {
                     points.push([x, y]);
@@ -376,6 +395,7 @@ fn plan_visits(
             plans.push(Planned::Complete {
                 band: b,
                 pending: p,
+                probe: done.probe,
                 points: cross,
                 arms,
                 first,
@@ -408,32 +428,31 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
         Planned::Complete {
             band,
             pending,
+            probe,
             points,
             arms,
             first,
         } => {
             let batch = &mut out.batches[band];
-            let stream = &mut batch.stream;
             let mut next = first;
-            let c = crosshair_with(
-                w,
-                h,
-                points,
-                arms,
-                now,
-                Some((pending.lum, pending.t)),
-                |x, y| {
-                    let sample = got.get(next).copied().unwrap_or_default();
-                    next += 1;
-                    stream.push(StreamSample {
-                        x,
-                        y,
-                        t: now,
-                        sample,
-                    });
-                    sample
-                },
-            );
+            let mut take = |x: f32, y: f32| {
+                let sample = got.get(next).copied().unwrap_or_default();
+                next += 1;
+                batch.stream.push(StreamSample {
+                    x,
+                    y,
+                    t: now,
+                    sample,
+                });
+                sample
+            };
+            let probe = probe.map(|(x, y)| take(x, y));
+            let old = (pending.lum, pending.t);
+            let centre_old = if probe.is_none() { Some(old) } else { None };
+            let mut c = crosshair_with(w, h, points, arms, now, centre_old, &mut take);
+            if let Some(probe) = probe {
+                c.gt = temporal_gradient((probe.luminance, now), old);
+            }
             batch.visits.push(Visit::Completed {
                 crosshair: c,
                 rays: (next - first) as u32,
