@@ -519,3 +519,7 @@ impl Outbox {
         true
     }
 }
+
+#[cfg(test)]
+#[path = "sampling_tests.rs"]
+mod tests;
