@@ -83,7 +83,7 @@ impl Reconstructor {
         let tiles = tiling.tiles.len();
         let bounds = &self.params.bounds;
         let logs = bounds.logs();
-        let (rate, volume) = (self.rate, self.params.filter_volume);
+        let (rate, volume) = (self.rate, self.filter_volume());
         // Each tile's filter on its own (logarithms and exponentials, a tenth of a
         // microsecond a tile: 30,000 tiles at 1920×1080), in parallel.
         self.tiles
@@ -103,6 +103,14 @@ impl Reconstructor {
                 y1,
             }
         }));
+    }
+
+    /// The filters' volume on this refresh: the moving view's
+    /// ([`super::ReconParams::moving_view_volume`]) where the view moved, else
+    /// [`super::ReconParams::filter_volume`].
+    fn filter_volume(&self) -> f64 {
+        let moving = self.params.moving_view_volume.filter(|_| self.resplat);
+        moving.unwrap_or(self.params.filter_volume)
     }
 
     /// The pixel → tile map from this refresh's tile rectangles, if not made since the

@@ -54,6 +54,15 @@ pub struct ReconParams {
     /// carries still pixels, so the splats serve what moves or changes, where a
     /// sharper, younger kernel costs less than the blur of a wider one.
     pub filter_volume: f64,
+    /// The filter volume on a refresh whose view moved (one that re-splats the ring;
+    /// `None`: [`ReconParams::filter_volume`] on every refresh). While the view moves,
+    /// every sample shown has been reprojected from the view it was traced in and the
+    /// still-region history is cut where it no longer fits, so the image rests on the
+    /// splats alone, and a wide kernel spreads each sample's small misplacements and
+    /// the far surfaces' samples between a near surface's: a smaller volume trades
+    /// noise for a sharper, younger image there. While the view holds, samples land
+    /// where they were traced and the history converges, and the volume stays as it is.
+    pub moving_view_volume: Option<f64>,
     /// A depth test between reprojected samples (`None`: the paper's reconstructor,
     /// where every sample reaches every pixel of its footprint).
     pub visibility: Option<Visibility>,
@@ -154,6 +163,7 @@ impl ReconParams {
             fill_weight: 0.0,
             history: None,
             filter_volume: 1.0,
+            moving_view_volume: None,
             visibility: None,
             exact_motion: false,
             carry: false,
@@ -164,7 +174,8 @@ impl ReconParams {
 
     /// Ours: the paper's reconstructor with the still-region history
     /// ([`HistoryParams::default`]), the pull-push fill of sparsely covered pixels,
-    /// half the filter volume, the visibility pass, exact motion, and accumulators
+    /// half the filter volume (a quarter while the view moves,
+    /// [`ReconParams::moving_view_volume`]), the visibility pass, exact motion, and accumulators
     /// carried between refreshes while the view holds ([`ReconParams::carry`],
     /// [`ReconParams::resplat_moving_view`]), so that each sample is splatted once
     /// there.
@@ -173,6 +184,7 @@ impl ReconParams {
             history: Some(HistoryParams::default()),
             fill_weight: 1.0,
             filter_volume: 0.5,
+            moving_view_volume: Some(0.25),
             visibility: Some(Visibility::default()),
             exact_motion: true,
             carry: true,

@@ -35,8 +35,9 @@ impl Reconstructor {
         tiling: &TilingSnapshot,
     ) -> RefreshPlan {
         let t0 = std::time::Instant::now();
-        self.update_filters(tiling);
+        // Whether the view moved first: it sets the filters' volume.
         self.resplat = self.resplats_at(camera);
+        self.update_filters(tiling);
         let lap = self.passes.lap(0, t0);
         let start = self.live_range(t);
         let moved = self.follow_motion_if_asked(t, start);

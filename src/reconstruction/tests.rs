@@ -881,3 +881,46 @@ fn a_stale_pixel_tile_map_is_made_again_from_the_tile_rectangles_when_read() {
     r.update_filters(&moved);
     assert_eq!(r.lookup[0].tile, u32::MAX, "the map was made again");
 }
+
+#[test]
+fn a_refresh_whose_view_moved_filters_with_the_moving_views_volume() {
+    let (w, h) = (16, 16);
+    let moved = Camera {
+        eye: Vec3::new(0.05, 0.0, 1.0),
+        at: Vec3::new(0.05, 0.0, 0.0),
+        up: Vec3::Y,
+        fov_y_deg: 90.0,
+        hither: 1e-3,
+    }
+    .frame(w, h);
+    let mut tiling = TilingSnapshot::whole(w, h);
+    (tiling.tiles[0].gx, tiling.tiles[0].gy, tiling.tiles[0].gt) = (0.1, 0.1, 0.05);
+    // The product of a tile's extents is its volume over the local rate; `e_t` is
+    // within its bounds for these gradients, so no clamp moves it.
+    let volumes = |params: ReconParams| {
+        let mut r = Reconstructor::new(w, h, 10_000.0, params);
+        let mut volume = |t: f64, camera: &CameraFrame| {
+            r.reconstruct(t, camera, &tiling);
+            r.tiles[0].e.iter().map(|&e| e as f64).product::<f64>()
+        };
+        let held = [volume(0.1, &cam(w, h)), volume(0.2, &cam(w, h))];
+        (held, volume(0.3, &moved))
+    };
+    let ours = ReconParams::realtime();
+    let (held, moving) = volumes(ours);
+    let ratio = ours.moving_view_volume.unwrap() / ours.filter_volume;
+    assert!((held[1] / held[0] - 1.0).abs() < 1e-6, "{held:?}");
+    assert!(
+        (moving / held[1] / ratio - 1.0).abs() < 1e-4,
+        "{moving} against {held:?}"
+    );
+    let one_volume = ReconParams {
+        moving_view_volume: None,
+        ..ours
+    };
+    let (held, moving) = volumes(one_volume);
+    assert!(
+        (moving / held[1] - 1.0).abs() < 1e-6,
+        "{moving} against {held:?}"
+    );
+}
