@@ -448,7 +448,7 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
             };
             let probe = probe.map(|(x, y)| take(x, y));
             let old = (pending.lum, pending.t);
-            let centre_old = if probe.is_none() { Some(old) } else { None };
+            let centre_old = probe.is_none().then_some(old);
             let mut c = crosshair_with(w, h, points, arms, now, centre_old, &mut take);
             if let Some(probe) = probe {
                 c.gt = temporal_gradient((probe.luminance, now), old);
