@@ -309,6 +309,31 @@ impl Completion {
     }
 }
 
+/// The crosshair of the completion `done` at time `t`, its points `points` (those of
+/// `done.at`) traced by `trace` after the probe's, if there is one: its temporal
+/// gradient against the earlier sample `old` from the probe where there is one, else
+/// from its centre (none without `old`). Shared by the sequential sampler, the CPU
+/// sampling threads and the GPU batches, so that all take the probe's sample first.
+#[allow(clippy::too_many_arguments)]
+pub fn complete_crosshair(
+    width: u32,
+    height: u32,
+    done: Completion,
+    points: [(f32, f32); 5],
+    arms: (f32, f32),
+    t: f64,
+    old: Option<(f32, f64)>,
+    mut trace: impl FnMut(f32, f32) -> Sample,
+) -> Crosshair {
+    let probe = done.probe.map(|(x, y)| trace(x, y));
+    let centre_old = old.and_then(|o| done.centre_compares_with(o));
+    let mut c = crosshair_with(width, height, points, arms, t, centre_old, &mut trace);
+    if let (Some(s), Some(o)) = (probe, old) {
+        c.gt = temporal_gradient((s.luminance, t), o);
+    }
+    c
+}
+
 /// The temporal gradient between luminance `lum` at time `t` and the earlier sample
 /// `(luminance, time)` at the same point (0 unless `t` is later).
 pub fn temporal_gradient((lum, t): (f32, f64), (old_lum, old_t): (f32, f64)) -> f32 {
@@ -648,35 +673,39 @@ impl Sampler {
         self.record(x, y, t, s)
     }
 
-    /// Trace a full crosshair at `(x, y)` for the tile `rect` (which sets its arms);
-    /// `old` is the earlier sample at the same location `(luminance, time)` for the
-    /// temporal gradient.
+    /// Trace a full crosshair for the completion `done` in the tile `rect` (which sets
+    /// its arms), with its probe if it has one ([`complete_crosshair`]); `old` is the
+    /// earlier sample of the same point `(luminance, time)` for the temporal gradient.
     fn trace_crosshair(
         &mut self,
         state: &SceneState,
-        at: (f32, f32),
+        done: Completion,
         rect: Rect,
         t: f64,
         old: Option<(f32, f64)>,
     ) -> Crosshair {
         let (w, h) = (self.width, self.height);
         let arms = self.params.arms(rect);
-        // The points `crosshair_with` traces, in its order, traced as one batch.
+        // The points `complete_crosshair` traces, in its order, traced as one batch.
         let on_screen = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32;
-        let cross = crosshair_points(at, arms);
+        let cross = crosshair_points(done.at, arms);
         let cross = if self.pixel_draws.is_empty() {
             cross
         } else {
             stratified_arms(cross, (w, h), self.seed, counter(&mut self.pixel_draws))
         };
-        let points: Vec<[f32; 2]> = cross
-            .iter()
-            .enumerate()
-            .filter(|&(k, &(x, y))| k == 0 || on_screen(x, y))
-            .map(|(_, &(x, y))| [x, y])
+        let points: Vec<[f32; 2]> = (done.probe.iter().copied())
+            .chain(
+                cross
+                    .iter()
+                    .enumerate()
+                    .filter(|&(k, &(x, y))| k == 0 || on_screen(x, y))
+                    .map(|(_, &p)| p),
+            )
+            .map(|(x, y)| [x, y])
             .collect();
         let mut got = self.trace_points(state, &points).into_iter();
-        let c = crosshair_with(w, h, cross, arms, t, old, |sx, sy| {
+        let c = complete_crosshair(w, h, done, cross, arms, t, old, |sx, sy| {
             let s = got
                 .next()
                 .unwrap_or_else(|| self.tracer.sample(state, sx, sy));
@@ -732,7 +761,7 @@ impl Sampler {
             self.counters.occluded += 1;
             self.record_occlusion(px, py, now);
             let rect = self.tiling.node(self.tiling.leaf_at(px, py)).rect;
-            let fresh = self.trace_crosshair(state, (x, y), rect, now, Some((c.lum[0], c.t)));
+            let fresh = self.trace_crosshair(state, Completion::at((x, y)), rect, now, Some((c.lum[0], c.t)));
             self.insert_front(fresh);
             self.since_adjust += 1;
             return;
@@ -831,12 +860,7 @@ impl Sampler {
         if let Some(p) = self.tiling.node_mut(leaf).pending.take() {
             let at = p.follow(&state, now);
             let done = completion_point(&self.params, &state.camera, &at, rect, now, self.width, self.height);
-            let probe = done.probe.map(|(x, y)| self.trace(&state, x, y, now));
-            let old = (p.lum, p.t);
-            let mut c = self.trace_crosshair(&state, done.at, rect, now, done.centre_compares_with(old));
-            if let Some(s) = probe {
-                c.gt = temporal_gradient((s.luminance, now), old);
-            }
+            let c = self.trace_crosshair(&state, done, rect, now, Some((p.lum, p.t)));
             self.insert_front(c);
             self.since_adjust += 1;
         }
@@ -896,7 +920,8 @@ impl Sampler {
                 x1: x0 + sp,
                 y1: y0 + sp,
             };
-            let c = self.trace_crosshair(&state, (x as f32 + 0.5, y as f32 + 0.5), cell, t, None);
+            let at = Completion::at((x as f32 + 0.5, y as f32 + 0.5));
+            let c = self.trace_crosshair(&state, at, cell, t, None);
             self.insert_front(c);
             self.next_sample += self.counters.rays - before;
             self.init_cursor += 1;

@@ -14,8 +14,8 @@ use crate::{
     methods::adaptive::{
         deep_buffer::Crosshair,
         sampler::{
-            choose_tile, completion_point, crosshair_points, crosshair_with, stratified_arms,
-            stratified_in, temporal_gradient,
+            choose_tile, complete_crosshair, completion_point, crosshair_points, stratified_arms,
+            stratified_in, Completion,
         },
         tiling::{Pending, Rect},
     },
@@ -215,20 +215,8 @@ pub(super) fn complete(
         });
         sample
     };
-    let probe = done.probe.map(|(x, y)| trace(x, y));
-    let old = (p.lum, p.t);
-    let mut c = crosshair_with(
-        w,
-        h,
-        points,
-        arms,
-        now,
-        done.centre_compares_with(old),
-        &mut trace,
-    );
-    if let Some(probe) = probe {
-        c.gt = temporal_gradient((probe.luminance, now), old);
-    }
+    let old = Some((p.lum, p.t));
+    let c = complete_crosshair(w, h, done, points, arms, now, old, &mut trace);
     drop(guard);
     batch.visits.push(Visit::Completed {
         crosshair: c,
@@ -295,12 +283,12 @@ const GPU_VISITS: usize = 4096;
 /// A visit of a GPU batch, planned before its samples are traced: where they start in
 /// the batch's points.
 enum Planned {
-    /// Complete `pending` with a crosshair of `points` (its samples from `first` on,
-    /// after the probe's where there is one).
+    /// Complete `pending` as `done` says with a crosshair of `points` (its samples from
+    /// `first` on, the probe's first where there is one).
     Complete {
         band: usize,
         pending: Pending,
-        probe: Option<(f32, f32)>,
+        done: Completion,
         points: [(f32, f32); 5],
         arms: (f32, f32),
         first: usize,
@@ -395,7 +383,7 @@ fn plan_visits(
             plans.push(Planned::Complete {
                 band: b,
                 pending: p,
-                probe: done.probe,
+                done,
                 points: cross,
                 arms,
                 first,
@@ -428,14 +416,14 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
         Planned::Complete {
             band,
             pending,
-            probe,
+            done,
             points,
             arms,
             first,
         } => {
             let batch = &mut out.batches[band];
             let mut next = first;
-            let mut take = |x: f32, y: f32| {
+            let take = |x: f32, y: f32| {
                 let sample = got.get(next).copied().unwrap_or_default();
                 next += 1;
                 batch.stream.push(StreamSample {
@@ -446,13 +434,8 @@ fn fill(s: &Shared, plan: &Planned, got: &[Sample], now: f64, out: &mut Outbox) 
                 });
                 sample
             };
-            let probe = probe.map(|(x, y)| take(x, y));
-            let old = (pending.lum, pending.t);
-            let centre_old = probe.is_none().then_some(old);
-            let mut c = crosshair_with(w, h, points, arms, now, centre_old, &mut take);
-            if let Some(probe) = probe {
-                c.gt = temporal_gradient((probe.luminance, now), old);
-            }
+            let old = Some((pending.lum, pending.t));
+            let c = complete_crosshair(w, h, done, points, arms, now, old, take);
             batch.visits.push(Visit::Completed {
                 crosshair: c,
                 rays: (next - first) as u32,

@@ -9,7 +9,7 @@ use crossbeam_channel::bounded;
 use super::{complete, fill, Batch, Outbox, Planned, Visit};
 use crate::{
     methods::adaptive::{
-        sampler::{crosshair_points, temporal_gradient},
+        sampler::{crosshair_points, temporal_gradient, Completion},
         tiling::{Pending, Rect},
     },
     realtime::{
@@ -121,7 +121,10 @@ fn a_gpu_batch_takes_the_probe_first_and_the_crosshair_after() {
     let plan = Planned::Complete {
         band: 0,
         pending: p,
-        probe: Some((px, py)),
+        done: Completion {
+            at: (p.x, p.y),
+            probe: Some((px, py)),
+        },
         points: crosshair_points((p.x, p.y), arms),
         arms,
         first: 0,
