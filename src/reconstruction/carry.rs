@@ -1458,8 +1458,9 @@ impl Reconstructor {
                 }
                 super::splat::front_band(binned, b, b * rows, w, front);
             });
-        if let Some(ratio) = self.front_spread() {
-            super::splat::spread_fronts(&mut self.front, w, ratio, &mut self.front_minima);
+        match self.front_spread() {
+            Some(ratio) => self.spread.apply(&mut self.front, w, ratio),
+            None => self.spread.clear(),
         }
     }
 }

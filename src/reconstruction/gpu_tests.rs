@@ -391,6 +391,61 @@ fn refresh_both(
     assert_eq!(gpu.gpu_failure(), None);
 }
 
+/// The converging preset with the fronts spread by 1.5 while the view moves, and the
+/// spread's parallax test at `parallax` pixels.
+fn spread(parallax: f32) -> ReconParams {
+    ReconParams {
+        visibility: Some(crate::reconstruction::Visibility {
+            moving_view_spread: Some(1.5),
+            spread_parallax: parallax,
+            ..Default::default()
+        }),
+        ..ReconParams::converging()
+    }
+}
+
+#[test]
+fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
+    // On the CPU, the images of the carrying test's last refresh with the parallax
+    // test at 0 (every far sample behind a spread front hidden), at 2 and 0.5 pixels,
+    // and with no spread: each differs from the others, so the GPU's equivalence
+    // covers both of the test's outcomes.
+    let (w, h, per) = (48, 32, 1500);
+    let image = |p: ReconParams| {
+        let (mut r, _, tiling) = random_setup(w, h, 1000, 1.0, false, p, GTS);
+        let mut rng = crate::sampling::Rng::new(&[13, per as u64]);
+        for k in 0..8 {
+            let cam = carry_camera(k, (w, h));
+            let t = 1.0 + 0.05 * k as f64;
+            if k > 0 {
+                for (s, dynamic) in carry_batch(&mut rng, &cam, t, per) {
+                    r.push_marked(s, dynamic);
+                }
+            }
+            r.reconstruct(t, &cam, &tiling);
+        }
+        r.image().pixels.clone()
+    };
+    let not_spread = ReconParams {
+        visibility: Some(crate::reconstruction::Visibility {
+            moving_view_spread: None,
+            ..Default::default()
+        }),
+        ..ReconParams::converging()
+    };
+    let images = [
+        image(spread(0.0)),
+        image(spread(0.5)),
+        image(spread(2.0)),
+        image(not_spread),
+    ];
+    for i in 0..images.len() {
+        for j in i + 1..images.len() {
+            assert_ne!(images[i], images[j], "images {i} and {j}");
+        }
+    }
+}
+
 #[test]
 #[ignore = "needs a GPU adapter (Mesa's lavapipe will do)"]
 fn gpu_carried_refreshes_match_the_cpu() {
@@ -417,14 +472,11 @@ fn gpu_carried_refreshes_match_the_cpu() {
             ..converging
         },
         // Fronts spread while the view moves by less than the plane's depth over the
-        // square's (two), so that the spread hides samples.
-        ReconParams {
-            visibility: Some(crate::reconstruction::Visibility {
-                moving_view_spread: Some(1.5),
-                ..Default::default()
-            }),
-            ..converging
-        },
+        // square's (two), so that the spread hides samples: the eye's step of a
+        // refresh moves the plane about half a pixel across the square, so the
+        // parallax test keeps some of the plane's samples and hides others.
+        spread(2.0),
+        spread(0.5),
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {

@@ -109,6 +109,7 @@ mod plan;
 mod pullpush;
 mod resolve;
 mod splat;
+mod spread;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -217,9 +218,12 @@ pub struct Reconstructor {
     resplat: bool,
     /// Front depths of the visibility pass, one per pixel (empty without it).
     front: Vec<f32>,
-    /// The rows' minima of the fronts while a moving view spreads them
-    /// ([`Visibility::moving_view_spread`]).
-    front_minima: Vec<f32>,
+    /// The fronts' spread while the view moves ([`Visibility::moving_view_spread`]).
+    spread: spread::Spread,
+    /// Where the eye was at the recent refreshes, and as `(age, eye)` from the
+    /// newest ([`spread::EyeTrack::ages`]): the eye a sample was traced from.
+    eyes: spread::EyeTrack,
+    eye_ages: Vec<(f32, Vec3)>,
     /// Rows per band of the splat at the last refresh.
     band_rows: usize,
     /// Splats of the last refresh: per piece of the ring (in ring order), per band.
@@ -349,7 +353,9 @@ impl Reconstructor {
                 .then(|| Box::new(carry::Carried::new(n, height as usize * CHANNELS * cs))),
             resplat: false,
             front: Vec::new(),
-            front_minima: Vec::new(),
+            spread: spread::Spread::default(),
+            eyes: spread::EyeTrack::default(),
+            eye_ages: Vec::new(),
             band_rows: BAND_ROWS,
             binned: Vec::new(),
             pieces: 0,
@@ -700,6 +706,13 @@ impl Reconstructor {
     }
 
     /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
+    /// The spread's ratio and the parallax test's pixels
+    /// ([`Visibility::spread_parallax`]).
+    fn spread_test(&self) -> (f32, f32) {
+        let v = self.params.visibility.unwrap_or_default();
+        (v.moving_view_spread.unwrap_or(1.0), v.spread_parallax)
+    }
+
     fn visibility_keep(&self) -> Option<f32> {
         self.params
             .visibility_in_use()
@@ -732,6 +745,8 @@ impl Reconstructor {
     /// [`Reconstructor::reconstruct`]'s steps: the plan, then its passes on the GPU if
     /// there is one, else (or if it failed now) on the CPU.
     fn refresh(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {
+        self.eyes.push(t, camera.eye);
+        self.eye_ages = self.eyes.ages();
         let mut plan = self.plan(t, camera, tiling);
         if !self.refresh_on_gpu(&mut plan) {
             self.refresh_on_cpu(&mut plan);
@@ -754,7 +769,7 @@ impl Reconstructor {
         self.front_depths();
         lap = self.passes.lap(2, lap);
         let blend_follows = self.history.is_some() && plan.history.is_some();
-        lap = self.splat_and_resolve(lap, blend_follows);
+        lap = self.splat_and_resolve(lap, blend_follows, &plan.camera);
         if self.resplat {
             self.restart_carry();
         }
@@ -848,6 +863,7 @@ impl Reconstructor {
             return Ok(());
         };
         let before = g.times();
+        g.set_eye_track(&self.eye_ages);
         // The sums the GPU kept from its last refresh are the CPU's before its
         // carry: replaying the carry there spares uploading every pixel's.
         let edits = self.carried.as_ref().and_then(|c| c.edits.as_ref());

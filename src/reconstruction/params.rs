@@ -121,6 +121,13 @@ pub struct Visibility {
     /// ordinary silhouettes keep their edges; while the view holds, samples are not
     /// reprojected across views and the fronts stay as they are.
     pub moving_view_spread: Option<f32>,
+    /// A spread front hides a far sample only where the view's motion since the
+    /// sample was traced moved it across the near surface: the point at the near depth
+    /// on the ray it was traced along now lies at least this many pixels from it. A far
+    /// sample with less parallax was traced past the near surface's edge, where it
+    /// still is, and shows what is there (the sky above a horizon of grass), however
+    /// the view turned since.
+    pub spread_parallax: f32,
 }
 
 impl Default for Visibility {
@@ -128,12 +135,16 @@ impl Default for Visibility {
     /// moving ones younger than one temporal sigma (weight above `e^(−½)`); while the
     /// view moves, a surface three times farther than a neighbouring pixel's front is
     /// hidden (of 1, 1.5, 2, 2.5 and 3 on a head turn that shows a near wall, three
-    /// kept the gain there and changed no other window measured; docs/methods.md).
+    /// kept the gain there and changed no other window measured; docs/methods.md),
+    /// but only over far samples moved across the near surface by two pixels or more
+    /// (of half a pixel, one and two, two kept the head turn's gain and `terrain`'s
+    /// horizon sharp; docs/methods.md).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
             setter_age_sigmas: 1.0,
             moving_view_spread: Some(3.0),
+            spread_parallax: 2.0,
         }
     }
 }

@@ -14,11 +14,14 @@ use std::time::{Duration, Instant};
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::scene::CameraFrame;
+
 use super::{
     carry::DecayView,
     lanes::{small_int, LANES},
     pullpush::{any_below, premultiply, pull_row, runs_mut, CH},
     splat::{channel_row, BAND_ROWS, CHANNELS, MIN_WEIGHT},
+    spread::Viewpoint,
     ReconParams, Reconstructor,
 };
 
@@ -80,7 +83,12 @@ impl Reconstructor {
     /// differences are still in the cache: resolving them in a pass of its own read
     /// every pixel's sums back from memory (2 ms of a 40 ms image at 1280×720,
     /// performance.md, session 46).
-    pub(super) fn splat_and_resolve(&mut self, since: Instant, blend_follows: bool) -> Instant {
+    pub(super) fn splat_and_resolve(
+        &mut self,
+        since: Instant,
+        blend_follows: bool,
+        camera: &CameraFrame,
+    ) -> Instant {
         let (w, h) = (self.width as usize, self.height as usize);
         let p = self.params;
         // With a fill weight the fill runs whenever a pixel is thin, the usual case:
@@ -89,7 +97,16 @@ impl Reconstructor {
         // Carried sums and coverage (decayed) add to this refresh's.
         let carrying = self.carries_now();
         let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
-        let keep = self.visibility_keep();
+        let ((ratio, parallax), keep) = (self.spread_test(), self.visibility_keep());
+        // Moved out while the bands borrow the rest, put back after.
+        let spread = std::mem::take(&mut self.spread);
+        let track = std::mem::take(&mut self.eye_ages);
+        let at = Viewpoint {
+            camera,
+            track: &track,
+            ratio,
+            parallax,
+        };
         let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
         let splats = super::splat::BandSplats {
             binned: &self.binned[..self.pieces],
@@ -98,6 +115,7 @@ impl Reconstructor {
             cs,
             cstride,
             front: keep.map(|k| (&self.front[..], k)),
+            spread: spread.view(at),
             carried: carrying,
         };
         // The carry's decay, where it was left to this pass ([`carry::LateDecay`]):
@@ -148,6 +166,7 @@ impl Reconstructor {
                 },
             )
             .collect();
+        (self.spread, self.eye_ages) = (spread, track);
         if let Some(l) = self.late_decay.take() {
             self.late_flags = l.into_flags();
         }

@@ -3,10 +3,9 @@
 //! corner differences. Bands write disjoint rows, so they run in parallel and give the
 //! same sums whatever the thread count.
 
-use rayon::prelude::*;
-
 use super::{
     lanes::{gauss_lanes, prefetch, Lanes, LANES, PREFETCH_AHEAD, PREFIX},
+    spread::SpreadView,
     Reconstructor,
 };
 
@@ -215,10 +214,17 @@ impl Cols<'_> {
 
 /// Whether `s` is in front of, or within the tolerance of, the nearest recent sample
 /// that landed in its pixel (`front`: the image's front depths; `keep`: `1 / (1 +
-/// tolerance)`).
+/// tolerance)`); while the fronts are spread, as [`SpreadView::hides`] says.
 #[inline(always)]
-fn visible(s: &Splat, front: &[f32], keep: f32) -> bool {
-    s.pixel == OUTSIDE || !behind_front(front[s.pixel as usize], s.z, keep)
+fn visible(s: &Splat, (front, spread): (&[f32], Option<SpreadView>), keep: f32) -> bool {
+    if s.pixel == OUTSIDE {
+        return true;
+    }
+    let f = front[s.pixel as usize];
+    match spread {
+        Some(v) => !v.hides(s, f, keep),
+        None => !behind_front(f, s.z, keep),
+    }
 }
 
 /// The visibility pass's rule, for splats, the history and the tests: a point at
@@ -249,47 +255,6 @@ pub(super) fn front_band(
     }
 }
 
-/// Lower each of the fronts (`w` pixels a row) to `ratio` times the nearest of its
-/// eight neighbours' (`ratio` ≥ 1, so a pixel's own front is never raised): a near
-/// surface's front reaches the pixels around where its samples landed. A separable
-/// minimum through `scratch` (the rows' three-pixel minima), rows in parallel; the
-/// result does not depend on the bands.
-pub(super) fn spread_fronts(front: &mut [f32], w: usize, ratio: f32, scratch: &mut Vec<f32>) {
-    if w == 0 || front.is_empty() {
-        return;
-    }
-    scratch.resize(front.len(), f32::INFINITY);
-    scratch
-        .par_chunks_mut(w)
-        .zip(front.par_chunks(w))
-        .for_each(|(m, row)| row_minima(row, m));
-    let rows = scratch.len() / w;
-    let minima = &scratch[..];
-    front.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        let near = |dy: usize| &minima[dy * w..(dy + 1) * w];
-        let (up, down) = (near(y.saturating_sub(1)), near((y + 1).min(rows - 1)));
-        for (((f, a), b), c) in row.iter_mut().zip(up).zip(near(y)).zip(down) {
-            *f = f.min(ratio * a.min(*b).min(*c));
-        }
-    });
-}
-
-/// Each pixel's minimum over itself and its left and right neighbours (the ends over
-/// the two they have), the inside as whole slices so that it runs in vector code.
-fn row_minima(row: &[f32], out: &mut [f32]) {
-    let n = row.len();
-    if n < 2 {
-        out.copy_from_slice(row);
-        return;
-    }
-    out[0] = row[0].min(row[1]);
-    out[n - 1] = row[n - 2].min(row[n - 1]);
-    let inside = row[..n - 2].iter().zip(&row[1..n - 1]).zip(&row[2..]);
-    for (o, ((l, c), r)) in out[1..n - 1].iter_mut().zip(inside) {
-        *o = l.min(*c).min(*r);
-    }
-}
-
 /// What every band's splats read: the splats binned at this refresh by band of `rows`
 /// rows (of an image `h` rows high, accumulators of channel stride `cs`, coverage
 /// differences in rows of `cstride`), the front depths of
@@ -302,6 +267,8 @@ pub(super) struct BandSplats<'a> {
     pub(super) cs: usize,
     pub(super) cstride: usize,
     pub(super) front: Option<(&'a [f32], f32)>,
+    /// While the fronts are spread, what their test reads besides.
+    pub(super) spread: Option<SpreadView<'a>>,
     pub(super) carried: bool,
 }
 
@@ -327,7 +294,7 @@ impl BandSplats<'_> {
                         if let Some(a) = list.get(i + PREFETCH_AHEAD) {
                             prefetch(front, a.pixel as usize);
                         }
-                        if visible(s, front, keep) {
+                        if visible(s, (front, self.spread), keep) {
                             splat_one(s, by0, by1, cs, acc, cstride, cov);
                         }
                     }

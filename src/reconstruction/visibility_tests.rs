@@ -324,10 +324,51 @@ fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
     );
 }
 
+#[test]
+fn a_panning_view_keeps_the_wall_beside_the_square() {
+    // The eye pans all along, so the fronts spread at every refresh, but slowly: a wall
+    // sample traced beside the square's edge is still beside it, and hiding it (as
+    // the spread did before its parallax test) widens the square by a pixel.
+    let scene = Scene { speed: 0.0 };
+    let pan = |t: f64| camera(0.3 * t as f32);
+    let (truth, cover) = scene.truth(&pan(1.0), 1.0);
+    let edge = near_edge(&cover, 1);
+    let beside = |i: usize| edge[i] && cover[i] == 0.0;
+    let n = (W * H * 6) as usize;
+    let error = |v: Option<Visibility>| {
+        let p = ReconParams {
+            visibility: v,
+            ..ReconParams::converging()
+        };
+        mean_error(&reconstruct(&scene, pan, p, n), &truth, beside)
+    };
+    let rule = Visibility::default();
+    let (e_rule, e_any, e_own) = (
+        error(Some(rule)),
+        error(Some(Visibility {
+            spread_parallax: 0.0,
+            ..rule
+        })),
+        error(Some(Visibility {
+            moving_view_spread: None,
+            ..rule
+        })),
+    );
+    eprintln!(
+        "beside the edge: mean error {e_rule} with the parallax test, {e_any} hiding every \
+         far sample, {e_own} with each pixel's own front"
+    );
+    assert!(
+        e_rule < 0.6 * e_any && e_rule < 1.1 * e_own,
+        "beside the edge: {e_rule} with the test, {e_any} without, {e_own} not spread"
+    );
+}
+
 proptest::proptest! {
     /// The spread fronts are each pixel's own or the ratio times the nearest of its
-    /// eight neighbours' (inside the image), whichever is nearer, stated pixel by pixel;
-    /// fronts drawn from a few depths and none, so that ties and empty pixels come up.
+    /// eight neighbours' (inside the image), whichever is nearer, stated pixel by pixel,
+    /// and the own fronts are kept; fronts drawn from a few depths and none, so that
+    /// ties and empty pixels come up.
     #[test]
     fn spread_fronts_are_the_nearest_neighbours_times_the_ratio(
         w in 1usize..9,
@@ -338,7 +379,8 @@ proptest::proptest! {
         let pick = [f32::INFINITY, 1.0, 2.5, 7.0];
         let own: Vec<f32> = depths[..w * h].iter().map(|&d| pick[d]).collect();
         let mut spread = own.clone();
-        super::splat::spread_fronts(&mut spread, w, ratio, &mut Vec::new());
+        let mut state = super::spread::Spread::default();
+        state.apply(&mut spread, w, ratio);
         for y in 0..h {
             for x in 0..w {
                 let mut near = f32::INFINITY;
@@ -352,5 +394,6 @@ proptest::proptest! {
                 proptest::prop_assert_eq!(spread[y * w + x].to_bits(), want.to_bits(), "pixel ({}, {})", x, y);
             }
         }
+        proptest::prop_assert_eq!(state.own_fronts(), &own[..]);
     }
 }

@@ -124,6 +124,8 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         carry,
         tiles,
         spread,
+        track,
+        parallax,
         pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());

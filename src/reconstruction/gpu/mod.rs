@@ -52,13 +52,14 @@ use super::{
     history::Step,
     ring::{field, Ring},
     splat::MIN_WEIGHT,
+    spread::EyeTrack,
     HistoryParams, ReconParams,
 };
 use crate::{scene::CameraFrame, tiles::Rect};
 use carried::{CarriedIn, CarriedSums, FrontsIn, HoldsKept};
 
 /// Storage buffers the shaders bind at once.
-const STORAGE_BUFFERS: u32 = 12;
+const STORAGE_BUFFERS: u32 = 13;
 /// Side of a bin of pixels (the shaders' `BIN`).
 const BIN: u32 = 16;
 /// Floats per ring sample on the GPU: the CPU ring's fields and the time.
@@ -118,7 +119,11 @@ struct Params {
     /// [`crate::reconstruction::Visibility::moving_view_spread`] where this refresh
     /// spreads the fronts, else 0.
     spread: f32,
-    pad: u32,
+    /// Refreshes in the eye track ([`GpuRecon::set_eye_track`]).
+    track: u32,
+    /// [`crate::reconstruction::Visibility::spread_parallax`].
+    parallax: f32,
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -242,6 +247,8 @@ pub struct GpuRecon {
     /// The last refresh succeeded and left its coverage and splat scales here, not
     /// read back ([`GpuRecon::read_extras`]).
     extras_left: bool,
+    /// Refreshes in the eye track uploaded ([`GpuRecon::set_eye_track`]).
+    track: u32,
 }
 
 /// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
@@ -300,7 +307,10 @@ struct Buffers {
     out: wgpu::Buffer,
     pyramid: wgpu::Buffer,
     levels: wgpu::Buffer,
+    /// The front depths, then (while they spread) the pixels' own.
     front: wgpu::Buffer,
+    /// The eye's track, `(age, position)` newest first.
+    eyes: wgpu::Buffer,
     read_out: wgpu::Buffer,
     read_counts: wgpu::Buffer,
     /// Where the accumulators are read back to, when carrying.
@@ -485,6 +495,7 @@ impl GpuRecon {
             sums_back,
             holds_kept: HoldsKept::default(),
             fronts: None,
+            track: 0,
             extras_left: false,
         })
     }
@@ -805,6 +816,8 @@ impl GpuRecon {
             p.keep = 1.0 / (1.0 + v.depth_tolerance);
             p.setter_age = v.setter_age_sigmas;
             p.spread = v.moving_view_spread.unwrap_or(0.0);
+            p.parallax = v.spread_parallax;
+            p.track = self.track;
         }
         if let Some(c) = camera {
             // The CPU placer's projector: the same constants, computed the same way.
@@ -884,6 +897,18 @@ impl GpuRecon {
             wgpu::BufferUsages::empty(),
         );
         self.rebind();
+    }
+
+    /// The eye's track for the next refresh's parallax test, `(age, eye)` newest first
+    /// ([`EyeTrack::ages`]; at most [`EyeTrack::KEPT`] of them are used).
+    pub(super) fn set_eye_track(&mut self, track: &[(f32, Vec3)]) {
+        let track = &track[..track.len().min(EyeTrack::KEPT)];
+        let data: Vec<[f32; 4]> = track.iter().map(|&(a, e)| [a, e.x, e.y, e.z]).collect();
+        if !data.is_empty() {
+            let bytes = bytemuck::cast_slice(&data);
+            self.ctx.queue.write_buffer(&self.buffers.eyes, 0, bytes);
+        }
+        self.track = track.len() as u32;
     }
 
     fn write_params(&self, p: &Params) {
@@ -1186,7 +1211,8 @@ impl Buffers {
             out: storage(d, "image", image, src),
             pyramid: storage(d, "pyramid", z.blocks * PER_BLOCK as u64 * 4, none),
             levels: uniform("levels", level_stride * z.levels.len().max(1) as u64),
-            front: storage(d, "front depths", n * 4, src),
+            front: storage(d, "front depths", 2 * n * 4, src),
+            eyes: storage(d, "eye track", EyeTrack::KEPT as u64 * 16, none),
             read_out: readback(d, "image readback", image),
             read_counts: readback(d, "count readback", 8),
             read_acc: z
@@ -1232,6 +1258,7 @@ impl Buffers {
             &self.out,
             &self.pyramid,
             &self.front,
+            &self.eyes,
         ];
         bind_buffers(device, layout, "reconstructor", &buffers)
     }
@@ -1324,7 +1351,7 @@ impl Pipelines {
             source: wgpu::ShaderSource::Wgsl(recon_source().into()),
         });
         // The ring and the tile filters are only read.
-        let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2]);
+        let layout0 = uniform_and_storage(device, "reconstructor", STORAGE_BUFFERS, &[1, 2, 13]);
         let layout1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("level"),
             entries: &[buffer_entry(0, wgpu::BufferBindingType::Uniform, true)],

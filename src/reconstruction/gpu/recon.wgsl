@@ -59,7 +59,14 @@ struct Params {
     // While the view moves: each front-setting sample lowers its eight neighbours'
     // fronts to this many times its depth; 0: it sets its own pixel's only.
     spread: f32,
+    // Refreshes in `eyes`.
+    track: u32,
+    // While the fronts spread, a far sample behind a spread front is hidden only if the
+    // view's motion moved it this many pixels across the near surface.
+    parallax: f32,
     pad1: u32,
+    pad2: u32,
+    pad3: u32,
 }
 
 struct TileFilter {
@@ -142,7 +149,10 @@ const T: u32 = 11u;
 // its bits (depths are positive, so the largest complement is the nearest depth, and
 // a cleared buffer, 0, means none). When carrying it starts from the depths of the
 // still carried sums, so that new samples behind them are hidden as on the CPU.
+// While the fronts spread, the pixels' own fronts follow, from `width · height` on.
 @group(0) @binding(12) var<storage, read_write> front: array<atomic<u32>>;
+// The eye at the recent refreshes, `P.track` of them newest first: (age, position).
+@group(0) @binding(13) var<storage, read> eyes: array<vec4<f32>>;
 @group(1) @binding(0) var<uniform> L: Level;
 
 fn finite(x: f32) -> bool {
@@ -169,8 +179,85 @@ fn empty_splat() -> Splat {
 
 // Whether depth `z` lies behind the front depth of pixel `p` (beyond the tolerance).
 fn hidden(p: u32, z: f32) -> bool {
-    let f = atomicLoad(&front[p]);
+    return behind(atomicLoad(&front[p]), z);
+}
+
+// Whether depth `z` lies behind the front `f` (complemented bits; 0: none).
+fn behind(f: u32, z: f32) -> bool {
     return f != 0u && bitcast<f32>(~f) < z * P.keep;
+}
+
+// Whether splat `s` of live sample `i` is hidden: behind its pixel's front; while the
+// fronts spread, behind its own front, or behind the spread one with the parallax that
+// moved it there (the CPU's `SpreadView::hides`).
+fn splat_hidden(i: u32, s: Splat) -> bool {
+    if P.spread <= 0.0 {
+        return hidden(s.pixel, s.z);
+    }
+    if behind(atomicLoad(&front[P.width * P.height + s.pixel]), s.z) {
+        return true;
+    }
+    let f = atomicLoad(&front[s.pixel]);
+    if !behind(f, s.z) {
+        return false;
+    }
+    return parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax;
+}
+
+// The eye `age` seconds before this refresh, linear between the refreshes around it.
+fn eye_at(age: f32) -> vec3<f32> {
+    let n = P.track;
+    if n == 0u {
+        return vec3<f32>(0.0);
+    }
+    var lo = 0u;
+    var hi = n;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        if eyes[mid].x <= age {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    if lo == 0u {
+        return eyes[0].yzw;
+    }
+    if lo == n {
+        return eyes[n - 1u].yzw;
+    }
+    let e0 = eyes[lo - 1u];
+    let e1 = eyes[lo];
+    return e0.yzw + (e1.yzw - e0.yzw) * ((age - e0.x) / (e1.x - e0.x));
+}
+
+// How far the view's motion since live sample `i` was traced moved it (splat `s`) from
+// the point at depth `near` on the ray it was traced along, in pixels (the CPU's
+// `Viewpoint::parallax_of`).
+fn parallax_of(i: u32, s: Splat, near: f32) -> f32 {
+    let inf = bitcast<f32>(0x7f800000u);
+    var p = P.first + i;
+    if p >= P.cap {
+        p -= P.cap;
+    }
+    let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
+    let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
+    let world = hit + vel * (P.t - ring_at(T, p));
+    let origin = eye_at(s.age / s.c.w);
+    let along = dot(world - origin, P.forward);
+    let reach = (near - dot(origin - P.eye, P.forward)) / along;
+    if !(along > 0.0) || !(reach > 0.0) {
+        return inf;
+    }
+    let d = origin + (world - origin) * reach - P.eye;
+    let z = dot(d, P.forward);
+    if !(z > 1e-6) {
+        return inf;
+    }
+    let iz = 1.0 / z;
+    let x = dot(d, P.u) * iz - P.ou;
+    let y = dot(d, P.v) * iz - P.ov;
+    return length(vec2<f32>(x - s.x, y - s.y));
 }
 
 // The pixel → tile map, a workgroup a tile writing its index over its rectangle
@@ -273,6 +360,7 @@ fn set_front(s: ptr<function, Splat>, p: u32, a: f32, z: f32) {
         if still || a <= P.setter_age {
             atomicMax(&front[pix], ~bitcast<u32>(z));
             if P.spread > 0.0 {
+                atomicMax(&front[P.width * P.height + pix], ~bitcast<u32>(z));
                 spread_front(u32(x), u32(y), ~bitcast<u32>(P.spread * z));
             }
         }
@@ -307,7 +395,7 @@ fn count(@builtin(global_invocation_id) gid: vec3<u32>) {
     if s.x0 > s.x1 {
         return;
     }
-    if P.keep > 0.0 && s.pixel != OUTSIDE && hidden(s.pixel, s.z) {
+    if P.keep > 0.0 && s.pixel != OUTSIDE && splat_hidden(i, s) {
         splats[i] = empty_splat();
         return;
     }

@@ -1,0 +1,279 @@
+//! The visibility pass's fronts spread while the view moves
+//! ([`super::Visibility::moving_view_spread`]): a near surface the view has just
+//! brought in has few samples yet, and a far surface seen before shows through it
+//! where they have not landed. Each pixel's front also becomes the ratio times the
+//! nearest of its eight neighbours', and a far sample behind that is hidden, but only
+//! where the view's motion since the sample was traced moved it across the near
+//! surface: the point at the near depth on the ray it was traced along now lies at
+//! least [`super::Visibility::spread_parallax`] pixels from it. A far sample with less
+//! parallax was traced past the near surface's edge, where it still is, and shows what
+//! is beside it (the sky above a horizon of grass, the floor beside a table), however
+//! the view turned since.
+
+use std::collections::VecDeque;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::splat::{behind_front, Splat, OUTSIDE};
+use crate::scene::CameraFrame;
+
+/// The spread fronts' state, kept across refreshes so its allocations are reused.
+#[derive(Default)]
+pub(super) struct Spread {
+    /// Each pixel's own front, before the spread.
+    own: Vec<f32>,
+    /// The rows' nearest fronts over each pixel and its two row neighbours.
+    minima: Vec<f32>,
+    /// The fronts were spread at the last refresh (else `own` is stale).
+    active: bool,
+}
+
+impl Spread {
+    /// Lower each of the fronts (`w` pixels a row) to `ratio` times the nearest of
+    /// its eight neighbours' (`ratio` ≥ 1, so a pixel's own front is never raised),
+    /// keeping the own fronts: a near surface's front reaches the pixels around where
+    /// its samples landed. A separable minimum through the rows' three-pixel minima,
+    /// rows in parallel; the result does not depend on the bands.
+    pub(super) fn apply(&mut self, front: &mut [f32], w: usize, ratio: f32) {
+        self.active = true;
+        self.own.clear();
+        self.own.extend_from_slice(front);
+        if w == 0 || front.is_empty() {
+            return;
+        }
+        self.minima.resize(front.len(), f32::INFINITY);
+        self.minima
+            .par_chunks_mut(w)
+            .zip(front.par_chunks(w))
+            .for_each(|(m, row)| row_minima(row, m));
+        let (minima, rows) = (&self.minima[..], front.len() / w);
+        front.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+            let near = |dy: usize| &minima[dy * w..(dy + 1) * w];
+            let (up, down) = (near(y.saturating_sub(1)), near((y + 1).min(rows - 1)));
+            for (((f, a), b), c) in row.iter_mut().zip(up).zip(near(y)).zip(down) {
+                *f = f.min(ratio * a.min(*b).min(*c));
+            }
+        });
+    }
+
+    /// The own fronts of the last spread.
+    #[cfg(test)]
+    pub(super) fn own_fronts(&self) -> &[f32] {
+        &self.own
+    }
+
+    /// No spread at this refresh.
+    pub(super) fn clear(&mut self) {
+        self.active = false;
+    }
+
+    /// The view a splat's test reads, if the fronts were spread at this refresh.
+    pub(super) fn view<'a>(&'a self, at: Viewpoint<'a>) -> Option<SpreadView<'a>> {
+        self.active.then_some(SpreadView { own: &self.own, at })
+    }
+}
+
+/// Each pixel's minimum over itself and its left and right neighbours (the ends over
+/// the two they have), the inside as whole slices so that it runs in vector code.
+fn row_minima(row: &[f32], out: &mut [f32]) {
+    let n = row.len();
+    if n < 2 {
+        out.copy_from_slice(row);
+        return;
+    }
+    out[0] = row[0].min(row[1]);
+    out[n - 1] = row[n - 2].min(row[n - 1]);
+    let inside = row[..n - 2].iter().zip(&row[1..n - 1]).zip(&row[2..]);
+    for (o, ((l, c), r)) in out[1..n - 1].iter_mut().zip(inside) {
+        *o = l.min(*c).min(*r);
+    }
+}
+
+/// Where the eye was at each recent refresh, as offsets in seconds from the newest
+/// (the samples' ages) and positions, oldest first: where the eye was when a sample
+/// was traced, interpolated between refreshes.
+#[derive(Clone, Debug, Default)]
+pub struct EyeTrack {
+    /// `(time, eye)` of the refreshes, oldest first, at most [`EyeTrack::KEPT`].
+    refreshes: VecDeque<(f64, Vec3)>,
+}
+
+impl EyeTrack {
+    /// Refreshes kept: at 60 Hz, about 17 seconds, beyond which a sample's eye is taken
+    /// as the oldest kept.
+    pub const KEPT: usize = 1024;
+
+    /// Record the eye of the refresh at `t` (a refresh at an earlier time than the last
+    /// starts the track afresh).
+    pub(super) fn push(&mut self, t: f64, eye: Vec3) {
+        if self.refreshes.back().is_some_and(|&(last, _)| t < last) {
+            self.refreshes.clear();
+        }
+        if self.refreshes.len() == Self::KEPT {
+            self.refreshes.pop_front();
+        }
+        self.refreshes.push_back((t, eye));
+    }
+
+    /// The track as `(age, eye)` relative to the newest refresh (ages ≥ 0, newest
+    /// first), the form both devices interpolate.
+    pub fn ages(&self) -> Vec<(f32, Vec3)> {
+        let Some(&(now, _)) = self.refreshes.back() else {
+            return Vec::new();
+        };
+        let ages = self.refreshes.iter().rev();
+        ages.map(|&(t, e)| ((now - t) as f32, e)).collect()
+    }
+}
+
+/// The eye at a sample's age `age` (seconds before the newest refresh) on a track of
+/// `(age, eye)` newest first ([`EyeTrack::ages`]): linear between the two refreshes
+/// around it, the newest's or the oldest's beyond them.
+pub(super) fn eye_at(track: &[(f32, Vec3)], age: f32) -> Vec3 {
+    let newer = track.partition_point(|&(a, _)| a <= age);
+    match (newer.checked_sub(1).map(|i| track[i]), track.get(newer)) {
+        (Some((a0, e0)), Some(&(a1, e1))) => e0 + (e1 - e0) * ((age - a0) / (a1 - a0)),
+        (Some((_, e)), None) | (None, Some(&(_, e))) => e,
+        (None, None) => Vec3::ZERO,
+    }
+}
+
+/// What the parallax test needs of this refresh: its camera, the eye's track, and the
+/// spread's ratio and parallax (pixels).
+#[derive(Clone, Copy)]
+pub(super) struct Viewpoint<'a> {
+    pub(super) camera: &'a CameraFrame,
+    pub(super) track: &'a [(f32, Vec3)],
+    pub(super) ratio: f32,
+    pub(super) parallax: f32,
+}
+
+impl Viewpoint<'_> {
+    /// How far, in pixels, the view's motion since a point was traced has moved it
+    /// from the point at depth `near` on the ray it was traced along, the point now
+    /// at `(x, y)` and depth `z`, traced `age` seconds ago. Infinite where that ray
+    /// never reaches the near depth in front of the eye.
+    pub(super) fn parallax_of(&self, (x, y, z): (f32, f32, f32), age: f32, near: f32) -> f32 {
+        let c = self.camera;
+        let p = c.eye + (c.corner + c.du * x + c.dv * y) * z;
+        let from = eye_at(self.track, age);
+        let along = (p - from).dot(c.forward);
+        let reach = (near - (from - c.eye).dot(c.forward)) / along;
+        if along <= 0.0 || reach.is_nan() || reach <= 0.0 {
+            return f32::INFINITY;
+        }
+        match c.project(from + (p - from) * reach) {
+            Some((nx, ny, _)) => (nx - x).hypot(ny - y),
+            None => f32::INFINITY,
+        }
+    }
+}
+
+/// What a splat's visibility test reads while the fronts are spread.
+#[derive(Clone, Copy)]
+pub(super) struct SpreadView<'a> {
+    own: &'a [f32],
+    at: Viewpoint<'a>,
+}
+
+impl SpreadView<'_> {
+    /// Whether splat `s`, landing in a pixel whose spread front is `front`, is hidden:
+    /// behind its pixel's own front, or behind the spread one with the parallax
+    /// that moved it there (`keep`: `1 / (1 + tolerance)`).
+    #[inline(always)]
+    pub(super) fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool {
+        if s.pixel == OUTSIDE {
+            return false;
+        }
+        let p = s.pixel as usize;
+        if behind_front(self.own[p], s.z, keep) {
+            return true;
+        }
+        behind_front(front, s.z, keep) && {
+            let age = s.c[4] / s.c[3];
+            let near = front / self.at.ratio;
+            self.at.parallax_of((s.x, s.y, s.z), age, near) >= self.at.parallax
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Camera;
+
+    fn looking(eye: Vec3, at: Vec3) -> CameraFrame {
+        Camera {
+            eye,
+            at,
+            up: Vec3::Y,
+            fov_y_deg: 60.0,
+            hither: 1e-3,
+        }
+        .frame(64, 64)
+    }
+
+    #[test]
+    fn the_eye_of_a_sample_is_interpolated_between_refreshes() {
+        let mut track = EyeTrack::default();
+        for k in 0..4 {
+            track.push(k as f64 * 0.1, Vec3::new(k as f32, 0.0, 0.0));
+        }
+        let ages = track.ages();
+        assert_eq!(ages.len(), 4);
+        let x = |age: f32| eye_at(&ages, age).x;
+        assert!((x(0.05) - 2.5).abs() < 1e-4, "{}", x(0.05));
+        assert!((x(0.25) - 0.5).abs() < 1e-4, "{}", x(0.25));
+        assert_eq!((x(0.0), x(-1.0), x(9.0)), (3.0, 3.0, 0.0));
+        // A refresh earlier than the last starts the track afresh; it keeps a bounded
+        // number of refreshes.
+        track.push(0.05, Vec3::ONE);
+        assert_eq!(track.ages(), vec![(0.0, Vec3::ONE)]);
+        for k in 0..2 * EyeTrack::KEPT {
+            track.push(1.0 + k as f64, Vec3::ZERO);
+        }
+        assert_eq!(track.ages().len(), EyeTrack::KEPT);
+        assert_eq!(eye_at(&[], 1.0), Vec3::ZERO);
+    }
+
+    #[test]
+    fn a_turn_moves_nothing_across_a_near_surface_and_a_step_aside_does() {
+        // A point 10 units ahead of the eye, traced 0.1 s ago; a near surface at depth 2.
+        let (eye, far, near) = (Vec3::ZERO, 10.0, 2.0);
+        let camera = looking(eye, Vec3::new(0.3, 0.0, -1.0));
+        let p = Vec3::new(0.5, 0.2, -far);
+        let (x, y, z) = camera.project(p).unwrap();
+        let parallax = |from: Vec3| {
+            let track = [(0.0, eye), (0.2, from)];
+            let at = Viewpoint {
+                camera: &camera,
+                track: &track,
+                ratio: 3.0,
+                parallax: 2.0,
+            };
+            at.parallax_of((x, y, z), 0.1, near * z / far)
+        };
+        // The view turned since (the camera looks elsewhere), the eye stayed.
+        assert!(parallax(eye) < 1e-3, "{}", parallax(eye));
+        // Looking straight down −z at a point 10 ahead, the eye 0.4 units to the left
+        // 0.2 s ago, so 0.2 at the sample's trace: the ray from there meets depth 2 at
+        // x = −0.2 + 0.2 · 2 / 10 = −0.16, which the eye now sees 0.08 units per unit
+        // depth to the left of the point, 32 / tan 30° pixels per unit.
+        let camera = looking(eye, -Vec3::Z);
+        let p = Vec3::new(0.0, 0.0, -far);
+        let (x, y, z) = camera.project(p).unwrap();
+        let track = [(0.0, eye), (0.2, Vec3::new(-0.4, 0.0, 0.0))];
+        let at = Viewpoint {
+            camera: &camera,
+            track: &track,
+            ratio: 3.0,
+            parallax: 2.0,
+        };
+        let got = at.parallax_of((x, y, z), 0.1, near);
+        let want = 0.08 * 32.0 / 30f32.to_radians().tan();
+        assert!((got - want).abs() < 1e-3 * want, "{got} against {want}");
+        // A near depth behind the eye at the trace is never reached.
+        assert_eq!(at.parallax_of((x, y, z), 0.1, -1.0), f32::INFINITY);
+    }
+}
