@@ -1459,7 +1459,10 @@ impl Reconstructor {
                 super::splat::front_band(binned, b, b * rows, w, front);
             });
         match self.front_spread() {
-            Some(ratio) => self.spread.apply(&mut self.front, w, ratio),
+            Some(ratio) => {
+                let footprint = self.spread_test().2.is_some();
+                self.spread.apply(&mut self.front, w, ratio, footprint)
+            }
             None => self.spread.clear(),
         }
     }

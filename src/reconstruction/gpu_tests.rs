@@ -391,13 +391,20 @@ fn refresh_both(
     assert_eq!(gpu.gpu_failure(), None);
 }
 
-/// The converging preset with the fronts spread by 1.5 while the view moves, and the
-/// spread's parallax test at `parallax` pixels.
+/// The converging preset with the fronts spread by 1.5 while the view moves, the
+/// spread's parallax test at `parallax` pixels, and no footprint's spread.
 fn spread(parallax: f32) -> ReconParams {
+    footprint_spread(parallax, None)
+}
+
+/// [`spread`] with the footprint's spread `footprint` (ratio, parallax).
+fn footprint_spread(parallax: f32, footprint: Option<(f32, f32)>) -> ReconParams {
     ReconParams {
         visibility: Some(crate::reconstruction::Visibility {
             moving_view_spread: Some(1.5),
             spread_parallax: parallax,
+            footprint_spread: footprint.map(|f| f.0),
+            footprint_parallax: footprint.map_or(0.0, |f| f.1),
             ..Default::default()
         }),
         ..ReconParams::converging()
@@ -408,8 +415,8 @@ fn spread(parallax: f32) -> ReconParams {
 fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
     // On the CPU, the images of the carrying test's last refresh with the parallax
     // test at 0 (every far sample behind a spread front hidden), at 2 and 0.5 pixels,
-    // and with no spread: each differs from the others, so the GPU's equivalence
-    // covers both of the test's outcomes.
+    // with no spread, and with a footprint's spread at two parallaxes: each differs
+    // from the others, so the GPU's equivalence covers both of each test's outcomes.
     let (w, h, per) = (48, 32, 1500);
     let image = |p: ReconParams| {
         let (mut r, _, tiling) = random_setup(w, h, 1000, 1.0, false, p, GTS);
@@ -438,10 +445,13 @@ fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
         image(spread(0.5)),
         image(spread(2.0)),
         image(not_spread),
+        // Where a footprint's box reaches a front 1.5 times nearer, at two parallaxes.
+        image(footprint_spread(2.0, Some((1.5, 0.5)))),
+        image(footprint_spread(2.0, Some((1.5, 1.0)))),
     ];
     for i in 0..images.len() {
         for j in i + 1..images.len() {
-            assert_ne!(images[i], images[j], "images {i} and {j}");
+            assert!(images[i] != images[j], "images {i} and {j} are the same");
         }
     }
 }
@@ -477,6 +487,8 @@ fn gpu_carried_refreshes_match_the_cpu() {
         // parallax test keeps some of the plane's samples and hides others.
         spread(2.0),
         spread(0.5),
+        footprint_spread(2.0, Some((1.5, 0.5))),
+        footprint_spread(2.0, Some((1.5, 1.0))),
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {

@@ -706,11 +706,17 @@ impl Reconstructor {
     }
 
     /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
-    /// The spread's ratio and the parallax test's pixels
-    /// ([`Visibility::spread_parallax`]).
-    fn spread_test(&self) -> (f32, f32) {
+    /// The spread's ratio, the parallax test's pixels
+    /// ([`Visibility::spread_parallax`]) and the footprint's spread with its parallax
+    /// ([`Visibility::footprint_spread`]).
+    fn spread_test(&self) -> (f32, f32, Option<(f32, f32)>) {
         let v = self.params.visibility.unwrap_or_default();
-        (v.moving_view_spread.unwrap_or(1.0), v.spread_parallax)
+        let footprint = v.footprint_spread.map(|r| (r, v.footprint_parallax));
+        (
+            v.moving_view_spread.unwrap_or(1.0),
+            v.spread_parallax,
+            footprint,
+        )
     }
 
     fn visibility_keep(&self) -> Option<f32> {

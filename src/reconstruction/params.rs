@@ -128,6 +128,16 @@ pub struct Visibility {
     /// still is, and shows what is there (the sky above a horizon of grass), however
     /// the view turned since.
     pub spread_parallax: f32,
+    /// While the view moves, a far sample is also hidden where a front this many times
+    /// nearer lies anywhere in its footprint's box (`None`: only in the pixels around
+    /// it) and the view's motion carried it across that front by
+    /// [`Visibility::footprint_parallax`] pixels or more. At low rates the samples of a
+    /// near surface the view brings in land farther apart than a pixel's neighbours,
+    /// and the far surface's samples, reprojected with footprints as wide as those
+    /// gaps, show through it.
+    pub footprint_spread: Option<f32>,
+    /// The parallax, pixels, of [`Visibility::footprint_spread`].
+    pub footprint_parallax: f32,
 }
 
 impl Default for Visibility {
@@ -138,13 +148,18 @@ impl Default for Visibility {
     /// kept the gain there and changed no other window measured; docs/methods.md),
     /// but only over far samples moved across the near surface by two pixels or more
     /// (of half a pixel, one and two, two kept the head turn's gain and `terrain`'s
-    /// horizon sharp; docs/methods.md).
+    /// horizon sharp); and within a footprint's box, a surface five times farther moved
+    /// four pixels or more across a front there (of ratios 3 and 5 and parallaxes 2, 4
+    /// and 8, the pair that kept the head turn's gain and changed no other window
+    /// measured by more than 0.2%; docs/methods.md).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
             setter_age_sigmas: 1.0,
             moving_view_spread: Some(3.0),
             spread_parallax: 2.0,
+            footprint_spread: Some(5.0),
+            footprint_parallax: 4.0,
         }
     }
 }

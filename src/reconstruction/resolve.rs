@@ -97,7 +97,7 @@ impl Reconstructor {
         // Carried sums and coverage (decayed) add to this refresh's.
         let carrying = self.carries_now();
         let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
-        let ((ratio, parallax), keep) = (self.spread_test(), self.visibility_keep());
+        let ((ratio, parallax, footprint), keep) = (self.spread_test(), self.visibility_keep());
         // Moved out while the bands borrow the rest, put back after.
         let spread = std::mem::take(&mut self.spread);
         let track = std::mem::take(&mut self.eye_ages);
@@ -106,6 +106,7 @@ impl Reconstructor {
             track: &track,
             ratio,
             parallax,
+            footprint,
         };
         let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
         let splats = super::splat::BandSplats {

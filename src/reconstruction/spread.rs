@@ -27,6 +27,18 @@ pub(super) struct Spread {
     minima: Vec<f32>,
     /// The fronts were spread at the last refresh (else `own` is stale).
     active: bool,
+    /// With a footprint's spread ([`super::Visibility::footprint_spread`]): the own
+    /// fronts' nearest over blocks of 2×2, 4×4, … pixels, level by level.
+    levels: Vec<FrontLevel>,
+    /// Pixels a row.
+    width: usize,
+}
+
+/// A level of the own fronts' pyramid: each block's nearest front.
+#[derive(Default)]
+struct FrontLevel {
+    w: usize,
+    near: Vec<f32>,
 }
 
 impl Spread {
@@ -35,12 +47,17 @@ impl Spread {
     /// keeping the own fronts: a near surface's front reaches the pixels around where
     /// its samples landed. A separable minimum through the rows' three-pixel minima,
     /// rows in parallel; the result does not depend on the bands.
-    pub(super) fn apply(&mut self, front: &mut [f32], w: usize, ratio: f32) {
+    pub(super) fn apply(&mut self, front: &mut [f32], w: usize, ratio: f32, footprint: bool) {
         self.active = true;
         self.own.clear();
         self.own.extend_from_slice(front);
+        self.width = w;
+        self.levels.clear();
         if w == 0 || front.is_empty() {
             return;
+        }
+        if footprint {
+            self.pyramid(front.len() / w);
         }
         self.minima.resize(front.len(), f32::INFINITY);
         self.minima
@@ -63,6 +80,30 @@ impl Spread {
         &self.own
     }
 
+    /// The own fronts' pyramid over an image `h` rows high: level after level, each
+    /// block the nearest of the four below it (those inside the level), until one
+    /// block is left (the GPU's pull pyramid's levels).
+    fn pyramid(&mut self, h: usize) {
+        let (mut w, mut h) = (self.width, h);
+        while w > 1 || h > 1 {
+            let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+            let below = self.levels.last().map_or(&self.own[..], |l| &l.near[..]);
+            let mut near = vec![f32::INFINITY; nw * nh];
+            near.par_chunks_mut(nw).enumerate().for_each(|(y, row)| {
+                for dy in (2 * y..(2 * y + 2).min(h)).map(|r| &below[r * w..(r + 1) * w]) {
+                    for (x, n) in row.iter_mut().enumerate() {
+                        *n = n.min(dy[2 * x]);
+                        if 2 * x + 1 < w {
+                            *n = n.min(dy[2 * x + 1]);
+                        }
+                    }
+                }
+            });
+            self.levels.push(FrontLevel { w: nw, near });
+            (w, h) = (nw, nh);
+        }
+    }
+
     /// No spread at this refresh.
     pub(super) fn clear(&mut self) {
         self.active = false;
@@ -70,7 +111,12 @@ impl Spread {
 
     /// The view a splat's test reads, if the fronts were spread at this refresh.
     pub(super) fn view<'a>(&'a self, at: Viewpoint<'a>) -> Option<SpreadView<'a>> {
-        self.active.then_some(SpreadView { own: &self.own, at })
+        self.active.then_some(SpreadView {
+            own: &self.own,
+            width: self.width,
+            levels: &self.levels,
+            at,
+        })
     }
 }
 
@@ -147,6 +193,8 @@ pub(super) struct Viewpoint<'a> {
     pub(super) track: &'a [(f32, Vec3)],
     pub(super) ratio: f32,
     pub(super) parallax: f32,
+    /// [`super::Visibility::footprint_spread`] and its parallax.
+    pub(super) footprint: Option<(f32, f32)>,
 }
 
 impl Viewpoint<'_> {
@@ -174,6 +222,8 @@ impl Viewpoint<'_> {
 #[derive(Clone, Copy)]
 pub(super) struct SpreadView<'a> {
     own: &'a [f32],
+    width: usize,
+    levels: &'a [FrontLevel],
     at: Viewpoint<'a>,
 }
 
@@ -190,11 +240,37 @@ impl SpreadView<'_> {
         if behind_front(self.own[p], s.z, keep) {
             return true;
         }
-        behind_front(front, s.z, keep) && {
-            let age = s.c[4] / s.c[3];
-            let near = front / self.at.ratio;
-            self.at.parallax_of((s.x, s.y, s.z), age, near) >= self.at.parallax
+        let age = s.c[4] / s.c[3];
+        let at = (s.x, s.y, s.z);
+        if behind_front(front, s.z, keep)
+            && self.at.parallax_of(at, age, front / self.at.ratio) >= self.at.parallax
+        {
+            return true;
         }
+        self.at.footprint.is_some_and(|(ratio, parallax)| {
+            let near = self.nearest_in([s.x0, s.x1, s.y0, s.y1].map(usize::from));
+            behind_front(ratio * near, s.z, keep) && self.at.parallax_of(at, age, near) >= parallax
+        })
+    }
+
+    /// The nearest own front over the box `[x0, x1, y0, y1]` (inclusive) and the
+    /// pixels around it: over the at most 2×2 blocks of the lowest level (the own
+    /// fronts first) in which the box spans two blocks or fewer each way.
+    fn nearest_in(&self, [mut x0, mut x1, mut y0, mut y1]: [usize; 4]) -> f32 {
+        let (mut near, mut w) = (self.own, self.width);
+        let mut up = self.levels.iter();
+        while x1 - x0 > 1 || y1 - y0 > 1 {
+            let Some(l) = up.next() else {
+                break;
+            };
+            (near, w) = (&l.near[..], l.w);
+            [x0, x1, y0, y1] = [x0, x1, y0, y1].map(|v| v >> 1);
+        }
+        let mut m = f32::INFINITY;
+        for row in near.chunks(w).skip(y0).take(y1 - y0 + 1) {
+            m = row[x0..=x1].iter().fold(m, |m, &z| m.min(z));
+        }
+        m
     }
 }
 
@@ -251,6 +327,7 @@ mod tests {
                 track: &track,
                 ratio: 3.0,
                 parallax: 2.0,
+                footprint: None,
             };
             at.parallax_of((x, y, z), 0.1, near * z / far)
         };
@@ -269,11 +346,59 @@ mod tests {
             track: &track,
             ratio: 3.0,
             parallax: 2.0,
+            footprint: None,
         };
         let got = at.parallax_of((x, y, z), 0.1, near);
         let want = 0.08 * 32.0 / 30f32.to_radians().tan();
         assert!((got - want).abs() < 1e-3 * want, "{got} against {want}");
         // A near depth behind the eye at the trace is never reached.
         assert_eq!(at.parallax_of((x, y, z), 0.1, -1.0), f32::INFINITY);
+    }
+}
+
+#[cfg(test)]
+mod pyramid_tests {
+    use super::*;
+
+    proptest::proptest! {
+        /// The nearest front over a box is the nearest over the pixels of the blocks
+        /// of the lowest level in which the box spans two blocks or fewer each way
+        /// (level 0: the pixels themselves), stated pixel by pixel; fronts drawn from a
+        /// few depths and none.
+        #[test]
+        fn the_nearest_front_over_a_box_is_over_its_covering_blocks(
+            w in 1usize..23,
+            h in 1usize..23,
+            depths in proptest::collection::vec(0usize..4, 22 * 22),
+            corners in (0usize..22, 0usize..22, 0usize..22, 0usize..22),
+        ) {
+            let pick = [f32::INFINITY, 1.0, 2.5, 7.0];
+            let own: Vec<f32> = depths[..w * h].iter().map(|&d| pick[d]).collect();
+            let mut spread = Spread::default();
+            let mut front = own.clone();
+            spread.apply(&mut front, w, 3.0, true);
+            let (x0, x1) = (corners.0.min(corners.1) % w, corners.0.max(corners.1) % w);
+            let (y0, y1) = (corners.2.min(corners.3) % h, corners.2.max(corners.3) % h);
+            let (x0, x1, y0, y1) = (x0.min(x1), x0.max(x1), y0.min(y1), y0.max(y1));
+            let view = SpreadView { own: &spread.own, width: w, levels: &spread.levels, at: Viewpoint {
+                camera: &crate::scene::Camera::default().frame(w as u32, h as u32),
+                track: &[],
+                ratio: 3.0,
+                parallax: 2.0,
+                footprint: None,
+            }};
+            let mut l = 0;
+            while (x1 >> l) - (x0 >> l) > 1 || (y1 >> l) - (y0 >> l) > 1 {
+                l += 1;
+            }
+            let span = |a: usize, b: usize, n: usize| (a >> l << l)..(((b >> l) + 1) << l).min(n);
+            let mut want = f32::INFINITY;
+            for y in span(y0, y1, h) {
+                for x in span(x0, x1, w) {
+                    want = want.min(own[y * w + x]);
+                }
+            }
+            proptest::prop_assert_eq!(view.nearest_in([x0, x1, y0, y1]), want);
+        }
     }
 }

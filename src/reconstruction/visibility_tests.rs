@@ -380,7 +380,7 @@ proptest::proptest! {
         let own: Vec<f32> = depths[..w * h].iter().map(|&d| pick[d]).collect();
         let mut spread = own.clone();
         let mut state = super::spread::Spread::default();
-        state.apply(&mut spread, w, ratio);
+        state.apply(&mut spread, w, ratio, false);
         for y in 0..h {
             for x in 0..w {
                 let mut near = f32::INFINITY;

@@ -126,6 +126,8 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         spread,
         track,
         parallax,
+        footprint,
+        footprint_parallax,
         pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());

@@ -123,7 +123,11 @@ struct Params {
     track: u32,
     /// [`crate::reconstruction::Visibility::spread_parallax`].
     parallax: f32,
-    pad: [u32; 3],
+    /// [`crate::reconstruction::Visibility::footprint_spread`] (0: none) and its
+    /// parallax.
+    footprint: f32,
+    footprint_parallax: f32,
+    pad: u32,
 }
 
 #[repr(C)]
@@ -249,6 +253,8 @@ pub struct GpuRecon {
     extras_left: bool,
     /// Refreshes in the eye track uploaded ([`GpuRecon::set_eye_track`]).
     track: u32,
+    /// This refresh pulls the own fronts' pyramid (a footprint's spread).
+    front_levels: bool,
 }
 
 /// What a carrying GPU side gives back of its sums after each refresh, for the CPU's
@@ -284,6 +290,7 @@ struct Pipelines {
     gather: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     pull: wgpu::ComputePipeline,
+    front_pull: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
     pp_pull: wgpu::ComputePipeline,
     pp_top: wgpu::ComputePipeline,
@@ -496,6 +503,7 @@ impl GpuRecon {
             holds_kept: HoldsKept::default(),
             fronts: None,
             track: 0,
+            front_levels: false,
             extras_left: false,
         })
     }
@@ -619,6 +627,7 @@ impl GpuRecon {
         }
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
+        self.front_levels = p.footprint > 0.0;
         p.first = if count > 0 {
             ring.phys(start) as u32
         } else {
@@ -817,6 +826,9 @@ impl GpuRecon {
             p.setter_age = v.setter_age_sigmas;
             p.spread = v.moving_view_spread.unwrap_or(0.0);
             p.parallax = v.spread_parallax;
+            if let (Some(r), true) = (v.footprint_spread, p.spread > 0.0) {
+                (p.footprint, p.footprint_parallax) = (r, v.footprint_parallax);
+            }
             p.track = self.track;
         }
         if let Some(c) = camera {
@@ -946,6 +958,12 @@ impl GpuRecon {
         let groups = (count as u32).div_ceil(GROUP);
         let pl = &self.pipelines;
         self.dispatch(enc, &pl.place, (groups, 1), None);
+        if self.front_levels {
+            for (k, l) in self.levels.iter().enumerate() {
+                let cells = (l.dst_w * l.dst_h).div_ceil(GROUP);
+                self.dispatch(enc, &pl.front_pull, (cells, 1), Some(k));
+            }
+        }
         self.dispatch(enc, &pl.count, (groups, 1), None);
         self.dispatch(enc, &pl.scan, (1, 1), None);
         self.dispatch(enc, &pl.fill, (groups, 1), None);
@@ -1211,7 +1229,7 @@ impl Buffers {
             out: storage(d, "image", image, src),
             pyramid: storage(d, "pyramid", z.blocks * PER_BLOCK as u64 * 4, none),
             levels: uniform("levels", level_stride * z.levels.len().max(1) as u64),
-            front: storage(d, "front depths", 2 * n * 4, src),
+            front: storage(d, "front depths", (2 * n + z.blocks) * 4, src),
             eyes: storage(d, "eye track", EyeTrack::KEPT as u64 * 16, none),
             read_out: readback(d, "image readback", image),
             read_counts: readback(d, "count readback", 8),
@@ -1372,6 +1390,7 @@ impl Pipelines {
             gather: make("gather"),
             resolve: make("resolve"),
             pull: make("pull"),
+            front_pull: make("front_pull"),
             holes: make("holes"),
             pp_pull: make("pp_pull"),
             pp_top: make("pp_top"),

@@ -64,9 +64,12 @@ struct Params {
     // While the fronts spread, a far sample behind a spread front is hidden only if the
     // view's motion moved it this many pixels across the near surface.
     parallax: f32,
+    // While the fronts spread, a far sample is also hidden where a front this many times
+    // nearer lies in its footprint's box (0: not) and the view's motion moved it
+    // `footprint_parallax` pixels across it.
+    footprint: f32,
+    footprint_parallax: f32,
     pad1: u32,
-    pad2: u32,
-    pad3: u32,
 }
 
 struct TileFilter {
@@ -149,7 +152,9 @@ const T: u32 = 11u;
 // its bits (depths are positive, so the largest complement is the nearest depth, and
 // a cleared buffer, 0, means none). When carrying it starts from the depths of the
 // still carried sums, so that new samples behind them are hidden as on the CPU.
-// While the fronts spread, the pixels' own fronts follow, from `width · height` on.
+// While the fronts spread, the pixels' own fronts follow, from `width · height` on, and
+// with a footprint's spread their pyramid's levels 1 and up, from `2 · width · height`
+// on (the pull pyramid's levels; each block the nearest of the four below it).
 @group(0) @binding(12) var<storage, read_write> front: array<atomic<u32>>;
 // The eye at the recent refreshes, `P.track` of them newest first: (age, position).
 @group(0) @binding(13) var<storage, read> eyes: array<vec4<f32>>;
@@ -198,10 +203,73 @@ fn splat_hidden(i: u32, s: Splat) -> bool {
         return true;
     }
     let f = atomicLoad(&front[s.pixel]);
-    if !behind(f, s.z) {
-        return false;
+    if behind(f, s.z) && parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax {
+        return true;
     }
-    return parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax;
+    if P.footprint > 0.0 {
+        let m = nearest_in(s);
+        if m != 0u {
+            let near = bitcast<f32>(~m);
+            return P.footprint * near < s.z * P.keep && parallax_of(i, s, near) >= P.footprint_parallax;
+        }
+    }
+    return false;
+}
+
+// The nearest own front over splat `s`'s box and the pixels around it (complemented
+// bits, 0: none): over the at most 2×2 blocks of the lowest level (the own fronts
+// first) in which the box spans two blocks or fewer each way (the CPU's
+// `SpreadView::nearest_in`).
+fn nearest_in(s: Splat) -> u32 {
+    let n = P.width * P.height;
+    var x0 = u32(s.x0);
+    var x1 = u32(s.x1);
+    var y0 = u32(s.y0);
+    var y1 = u32(s.y1);
+    var w = P.width;
+    var h = P.height;
+    var base = n;
+    var next = 2u * n;
+    while (x1 - x0 > 1u || y1 - y0 > 1u) && (w > 1u || h > 1u) {
+        w = (w + 1u) / 2u;
+        h = (h + 1u) / 2u;
+        base = next;
+        next += w * h;
+        x0 >>= 1u;
+        x1 >>= 1u;
+        y0 >>= 1u;
+        y1 >>= 1u;
+    }
+    var m = 0u;
+    for (var y = y0; y <= y1; y++) {
+        for (var x = x0; x <= x1; x++) {
+            m = max(m, atomicLoad(&front[base + y * w + x]));
+        }
+    }
+    return m;
+}
+
+// A level of the own fronts' pyramid from the one below (level 0: the own fronts).
+@compute @workgroup_size(256)
+fn front_pull(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= L.dst_w * L.dst_h {
+        return;
+    }
+    let n = P.width * P.height;
+    var below = 2u * n + L.src;
+    if L.from_acc != 0u {
+        below = n;
+    }
+    let cx = i % L.dst_w;
+    let cy = i / L.dst_w;
+    var m = 0u;
+    for (var y = 2u * cy; y < min(2u * cy + 2u, L.src_h); y++) {
+        for (var x = 2u * cx; x < min(2u * cx + 2u, L.src_w); x++) {
+            m = max(m, atomicLoad(&front[below + y * L.src_w + x]));
+        }
+    }
+    atomicStore(&front[2u * n + L.dst + i], m);
 }
 
 // The eye `age` seconds before this refresh, linear between the refreshes around it.
