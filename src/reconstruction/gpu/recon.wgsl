@@ -206,7 +206,11 @@ fn splat_hidden(i: u32, s: Splat) -> bool {
     if behind(f, s.z) && parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax {
         return true;
     }
-    if P.footprint > 0.0 {
+    // A footprint within the landing pixel's eight neighbours is the spread's.
+    let px = u32(s.x);
+    let py = u32(s.y);
+    let within = u32(s.x0) + 1u >= px && u32(s.x1) <= px + 1u && u32(s.y0) + 1u >= py && u32(s.y1) <= py + 1u;
+    if P.footprint > 0.0 && !within {
         let m = nearest_in(s);
         if m != 0u {
             let near = bitcast<f32>(~m);
