@@ -5,7 +5,6 @@
 
 use super::{
     lanes::{gauss_lanes, prefetch, Lanes, LANES, PREFETCH_AHEAD, PREFIX},
-    spread::SpreadView,
     Reconstructor,
 };
 
@@ -214,9 +213,9 @@ impl Cols<'_> {
 
 /// Whether `s` is in front of, or within the tolerance of, the nearest recent sample
 /// that landed in its pixel (`front`: the image's front depths; `keep`: `1 / (1 +
-/// tolerance)`); while the fronts are spread, as [`SpreadView::hides`] says.
+/// tolerance)`); while the fronts are spread, as their test says ([`HidesSplat`]).
 #[inline(always)]
-fn visible(s: &Splat, (front, spread): (&[f32], Option<SpreadView>), keep: f32) -> bool {
+fn visible<V: HidesSplat>(s: &Splat, (front, spread): (&[f32], Option<V>), keep: f32) -> bool {
     if s.pixel == OUTSIDE {
         return true;
     }
@@ -260,7 +259,14 @@ pub(super) fn front_band(
 /// differences in rows of `cstride`), the front depths of
 /// [`Reconstructor::front_depths`] and `1 / (1 + tolerance)` with the visibility pass,
 /// and whether the accumulators hold carried sums.
-pub(super) struct BandSplats<'a> {
+/// A visibility test of splats beside their pixels' fronts (the moving view's spread
+/// fronts, `spread.rs`): whether it hides splat `s`, landing in a pixel whose front
+/// is `front` (`keep`: `1 / (1 + tolerance)`).
+pub(super) trait HidesSplat: Copy {
+    fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool;
+}
+
+pub(super) struct BandSplats<'a, V: HidesSplat> {
     pub(super) binned: &'a [Vec<Vec<Splat>>],
     pub(super) rows: usize,
     pub(super) h: usize,
@@ -268,11 +274,11 @@ pub(super) struct BandSplats<'a> {
     pub(super) cstride: usize,
     pub(super) front: Option<(&'a [f32], f32)>,
     /// While the fronts are spread, what their test reads besides.
-    pub(super) spread: Option<SpreadView<'a>>,
+    pub(super) spread: Option<V>,
     pub(super) carried: bool,
 }
 
-impl BandSplats<'_> {
+impl<V: HidesSplat> BandSplats<'_, V> {
     /// Accumulate band `b` into its rows `acc` and coverage differences `cov` from the
     /// splats binned to it, in ring order, over what `acc` holds when carried (else
     /// from zero); with the front depths, only the splats [`visible`] there.

@@ -15,7 +15,7 @@ use std::collections::VecDeque;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::splat::{behind_front, Splat, OUTSIDE};
+use super::splat::{behind_front, HidesSplat, Splat, OUTSIDE};
 use crate::scene::CameraFrame;
 
 /// The spread fronts' state, kept across refreshes so its allocations are reused.
@@ -231,12 +231,12 @@ pub(super) struct SpreadView<'a> {
     at: Viewpoint<'a>,
 }
 
-impl SpreadView<'_> {
+impl HidesSplat for SpreadView<'_> {
     /// Whether splat `s`, landing in a pixel whose spread front is `front`, is hidden:
     /// behind its pixel's own front, or behind the spread one with the parallax
     /// that moved it there (`keep`: `1 / (1 + tolerance)`).
     #[inline(always)]
-    pub(super) fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool {
+    fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool {
         if s.pixel == OUTSIDE {
             return false;
         }
@@ -268,7 +268,9 @@ impl SpreadView<'_> {
                 && self.at.parallax_of(at, age(), near) >= parallax
         })
     }
+}
 
+impl SpreadView<'_> {
     /// The nearest own front over the blocks of level [`COARSE`] that the box `[x0, x1,
     /// y0, y1]` touches where it spans two of them or fewer each way (so that
     /// [`SpreadView::nearest_in`] reads blocks inside them), else −∞: never farther than
