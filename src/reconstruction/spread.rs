@@ -322,6 +322,17 @@ mod tests {
         .frame(64, 64)
     }
 
+    /// The parallax test's viewpoint of `camera` with the eye's `track`.
+    fn viewpoint<'a>(camera: &'a CameraFrame, track: &'a [(f32, Vec3)]) -> Viewpoint<'a> {
+        Viewpoint {
+            camera,
+            track,
+            ratio: 3.0,
+            parallax: 2.0,
+            footprint: None,
+        }
+    }
+
     #[test]
     fn the_eye_of_a_sample_is_interpolated_between_refreshes() {
         let mut track = EyeTrack::default();
@@ -354,14 +365,7 @@ mod tests {
         let (x, y, z) = camera.project(p).unwrap();
         let parallax = |from: Vec3| {
             let track = [(0.0, eye), (0.2, from)];
-            let at = Viewpoint {
-                camera: &camera,
-                track: &track,
-                ratio: 3.0,
-                parallax: 2.0,
-                footprint: None,
-            };
-            at.parallax_of((x, y, z), 0.1, near * z / far)
+            viewpoint(&camera, &track).parallax_of((x, y, z), 0.1, near * z / far)
         };
         // The view turned since (the camera looks elsewhere), the eye stayed.
         assert!(parallax(eye) < 1e-3, "{}", parallax(eye));
@@ -373,13 +377,7 @@ mod tests {
         let p = Vec3::new(0.0, 0.0, -far);
         let (x, y, z) = camera.project(p).unwrap();
         let track = [(0.0, eye), (0.2, Vec3::new(-0.4, 0.0, 0.0))];
-        let at = Viewpoint {
-            camera: &camera,
-            track: &track,
-            ratio: 3.0,
-            parallax: 2.0,
-            footprint: None,
-        };
+        let at = viewpoint(&camera, &track);
         let got = at.parallax_of((x, y, z), 0.1, near);
         let want = 0.08 * 32.0 / 30f32.to_radians().tan();
         assert!((got - want).abs() < 1e-3 * want, "{got} against {want}");
