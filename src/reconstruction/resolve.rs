@@ -97,17 +97,7 @@ impl Reconstructor {
         // Carried sums and coverage (decayed) add to this refresh's.
         let carrying = self.carries_now();
         let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
-        let ((ratio, parallax, footprint), keep) = (self.spread_test(), self.visibility_keep());
-        // Moved out while the bands borrow the rest, put back after.
-        let spread = std::mem::take(&mut self.spread);
-        let track = std::mem::take(&mut self.eye_ages);
-        let at = Viewpoint {
-            camera,
-            track: &track,
-            ratio,
-            parallax,
-            footprint,
-        };
+        let (test, keep) = (self.spread_test(), self.visibility_keep());
         let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
         let splats = super::splat::BandSplats {
             binned: &self.binned[..self.pieces],
@@ -116,7 +106,7 @@ impl Reconstructor {
             cs,
             cstride,
             front: keep.map(|k| (&self.front[..], k)),
-            spread: spread.view(at),
+            spread: (self.spread).view(Viewpoint::new(camera, &self.eye_ages, test)),
             carried: carrying,
         };
         // The carry's decay, where it was left to this pass ([`carry::LateDecay`]):
@@ -167,7 +157,6 @@ impl Reconstructor {
                 },
             )
             .collect();
-        (self.spread, self.eye_ages) = (spread, track);
         if let Some(l) = self.late_decay.take() {
             self.late_flags = l.into_flags();
         }

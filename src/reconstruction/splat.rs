@@ -260,8 +260,8 @@ pub(super) fn front_band(
 /// [`Reconstructor::front_depths`] and `1 / (1 + tolerance)` with the visibility pass,
 /// and whether the accumulators hold carried sums.
 /// A visibility test of splats beside their pixels' fronts (the moving view's spread
-/// fronts, `spread.rs`): whether it hides splat `s`, landing in a pixel whose front
-/// is `front` (`keep`: `1 / (1 + tolerance)`).
+/// fronts, `spread.rs`): whether it hides splat `s`, landing in the image in a pixel
+/// whose front is `front` (`keep`: `1 / (1 + tolerance)`).
 pub(super) trait HidesSplat: Copy {
     fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool;
 }

@@ -15,7 +15,7 @@ use std::collections::VecDeque;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::splat::{behind_front, HidesSplat, Splat, OUTSIDE};
+use super::splat::{behind_front, HidesSplat, Splat};
 use crate::scene::CameraFrame;
 
 /// The spread fronts' state, kept across refreshes so its allocations are reused.
@@ -197,7 +197,23 @@ pub(super) struct Viewpoint<'a> {
     pub(super) footprint: Option<(f32, f32)>,
 }
 
-impl Viewpoint<'_> {
+impl<'a> Viewpoint<'a> {
+    /// The viewpoint of `camera` with the eye's `track` and the tests
+    /// `(ratio, parallax, footprint)` ([`super::Reconstructor::spread_test`]).
+    pub(super) fn new(
+        camera: &'a CameraFrame,
+        track: &'a [(f32, Vec3)],
+        (ratio, parallax, footprint): (f32, f32, Option<(f32, f32)>),
+    ) -> Self {
+        Self {
+            camera,
+            track,
+            ratio,
+            parallax,
+            footprint,
+        }
+    }
+
     /// How far, in pixels, the view's motion since a point was traced has moved it
     /// from the point at depth `near` on the ray it was traced along, the point now
     /// at `(x, y)` and depth `z`, traced `age` seconds ago. Infinite where that ray
@@ -237,9 +253,6 @@ impl HidesSplat for SpreadView<'_> {
     /// that moved it there (`keep`: `1 / (1 + tolerance)`).
     #[inline(always)]
     fn hides(&self, s: &Splat, front: f32, keep: f32) -> bool {
-        if s.pixel == OUTSIDE {
-            return false;
-        }
         let p = s.pixel as usize;
         if behind_front(self.own[p], s.z, keep) {
             return true;
@@ -324,13 +337,7 @@ mod tests {
 
     /// The parallax test's viewpoint of `camera` with the eye's `track`.
     fn viewpoint<'a>(camera: &'a CameraFrame, track: &'a [(f32, Vec3)]) -> Viewpoint<'a> {
-        Viewpoint {
-            camera,
-            track,
-            ratio: 3.0,
-            parallax: 2.0,
-            footprint: None,
-        }
+        Viewpoint::new(camera, track, (3.0, 2.0, None))
     }
 
     #[test]
@@ -410,13 +417,9 @@ mod pyramid_tests {
             let (x0, x1) = (corners.0.min(corners.1) % w, corners.0.max(corners.1) % w);
             let (y0, y1) = (corners.2.min(corners.3) % h, corners.2.max(corners.3) % h);
             let (x0, x1, y0, y1) = (x0.min(x1), x0.max(x1), y0.min(y1), y0.max(y1));
-            let view = SpreadView { own: &spread.own, width: w, levels: &spread.levels, at: Viewpoint {
-                camera: &crate::scene::Camera::default().frame(w as u32, h as u32),
-                track: &[],
-                ratio: 3.0,
-                parallax: 2.0,
-                footprint: None,
-            }};
+            let camera = crate::scene::Camera::default().frame(w as u32, h as u32);
+            let at = Viewpoint::new(&camera, &[], (3.0, 2.0, None));
+            let view = SpreadView { own: &spread.own, width: w, levels: &spread.levels, at };
             let mut l = 0;
             while (x1 >> l) - (x0 >> l) > 1 || (y1 >> l) - (y0 >> l) > 1 {
                 l += 1;

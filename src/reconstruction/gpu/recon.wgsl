@@ -206,11 +206,7 @@ fn splat_hidden(i: u32, s: Splat) -> bool {
     if behind(f, s.z) && parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax {
         return true;
     }
-    // A footprint within the landing pixel's eight neighbours is the spread's.
-    let px = u32(s.x);
-    let py = u32(s.y);
-    let within = u32(s.x0) + 1u >= px && u32(s.x1) <= px + 1u && u32(s.y0) + 1u >= py && u32(s.y1) <= py + 1u;
-    if P.footprint > 0.0 && !within {
+    if P.footprint > 0.0 && !within_neighbours(s) {
         let m = nearest_in(s);
         if m != 0u {
             let near = bitcast<f32>(~m);
@@ -218,6 +214,14 @@ fn splat_hidden(i: u32, s: Splat) -> bool {
         }
     }
     return false;
+}
+
+// Whether splat `s`'s box lies within its landing pixel and the eight around it, where
+// the spread, not the footprint's, decides.
+fn within_neighbours(s: Splat) -> bool {
+    let px = u32(s.x);
+    let py = u32(s.y);
+    return u32(s.x0) + 1u >= px && u32(s.x1) <= px + 1u && u32(s.y0) + 1u >= py && u32(s.y1) <= py + 1u;
 }
 
 // The nearest own front over splat `s`'s box and the pixels around it (complemented
@@ -308,28 +312,43 @@ fn eye_at(age: f32) -> vec3<f32> {
 // `Viewpoint::parallax_of`).
 fn parallax_of(i: u32, s: Splat, near: f32) -> f32 {
     let inf = bitcast<f32>(0x7f800000u);
-    var p = P.first + i;
-    if p >= P.cap {
-        p -= P.cap;
-    }
-    let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
-    let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
-    let world = hit + vel * (P.t - ring_at(T, p));
+    let p = live_slot(i);
+    let world = world_at(p, P.t - ring_at(T, p));
     let origin = eye_at(s.age / s.c.w);
     let along = dot(world - origin, P.forward);
     let reach = (near - dot(origin - P.eye, P.forward)) / along;
     if !(along > 0.0) || !(reach > 0.0) {
         return inf;
     }
-    let d = origin + (world - origin) * reach - P.eye;
-    let z = dot(d, P.forward);
-    if !(z > 1e-6) {
+    let v = view_of(origin + (world - origin) * reach - P.eye);
+    if !(v.z > 1e-6) {
         return inf;
     }
+    return length(v.xy - vec2<f32>(s.x, s.y));
+}
+
+// The ring slot of live sample `i`.
+fn live_slot(i: u32) -> u32 {
+    var p = P.first + i;
+    if p >= P.cap {
+        p -= P.cap;
+    }
+    return p;
+}
+
+// Where the sample in ring slot `p` is `dt` seconds after it was traced.
+fn world_at(p: u32, dt: f32) -> vec3<f32> {
+    let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
+    let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
+    return hit + vel * dt;
+}
+
+// The pixel position and depth in this refresh's view of the offset `d` from the eye
+// (the CPU placer's projector).
+fn view_of(d: vec3<f32>) -> vec3<f32> {
+    let z = dot(d, P.forward);
     let iz = 1.0 / z;
-    let x = dot(d, P.u) * iz - P.ou;
-    let y = dot(d, P.v) * iz - P.ov;
-    return length(vec2<f32>(x - s.x, y - s.y));
+    return vec3<f32>(dot(d, P.u) * iz - P.ou, dot(d, P.v) * iz - P.ov, z);
 }
 
 // The pixel → tile map, a workgroup a tile writing its index over its rectangle
@@ -358,23 +377,17 @@ fn place(@builtin(global_invocation_id) gid: vec3<u32>) {
     if i >= P.count {
         return;
     }
-    var p = P.first + i;
-    if p >= P.cap {
-        p -= P.cap;
-    }
+    let p = live_slot(i);
     let dt = P.t - ring_at(T, p);
     var x: f32;
     var y: f32;
     var z = 0.0;
     var in_front = true;
     if P.reproject != 0u {
-        let hit = vec3<f32>(ring_at(HX, p), ring_at(HX + 1u, p), ring_at(HX + 2u, p));
-        let vel = vec3<f32>(ring_at(VX, p), ring_at(VX + 1u, p), ring_at(VX + 2u, p));
-        let d = hit + vel * dt - P.eye;
-        z = dot(d, P.forward);
-        let iz = 1.0 / z;
-        x = dot(d, P.u) * iz - P.ou;
-        y = dot(d, P.v) * iz - P.ov;
+        let v = view_of(world_at(p, dt) - P.eye);
+        x = v.x;
+        y = v.y;
+        z = v.z;
         in_front = z > 1e-6;
     } else {
         x = ring_at(X, p);
