@@ -397,14 +397,15 @@ fn spread(parallax: f32) -> ReconParams {
     footprint_spread(parallax, None)
 }
 
-/// [`spread`] with the footprint's spread `footprint` (ratio, parallax).
-fn footprint_spread(parallax: f32, footprint: Option<(f32, f32)>) -> ReconParams {
+/// [`spread`] with the footprint's spread `footprint` (ratio, parallax, reach).
+fn footprint_spread(parallax: f32, footprint: Option<(f32, f32, f32)>) -> ReconParams {
     ReconParams {
         visibility: Some(crate::reconstruction::Visibility {
             moving_view_spread: Some(1.5),
             spread_parallax: parallax,
             footprint_spread: footprint.map(|f| f.0),
             footprint_parallax: footprint.map_or(0.0, |f| f.1),
+            footprint_reach: footprint.map_or(0.0, |f| f.2),
             ..Default::default()
         }),
         ..ReconParams::converging()
@@ -445,9 +446,12 @@ fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
         image(spread(0.5)),
         image(spread(2.0)),
         image(not_spread),
-        // Where a footprint's box reaches a front 1.5 times nearer, at two parallaxes.
-        image(footprint_spread(2.0, Some((1.5, 0.5)))),
-        image(footprint_spread(2.0, Some((1.5, 1.0)))),
+        // Where a footprint's box reaches a front 1.5 times nearer, at two parallaxes,
+        // and widened by the parallax up to one and up to sixteen pixels.
+        image(footprint_spread(2.0, Some((1.5, 0.5, 0.0)))),
+        image(footprint_spread(2.0, Some((1.5, 1.0, 0.0)))),
+        image(footprint_spread(2.0, Some((1.5, 0.5, 1.0)))),
+        image(footprint_spread(2.0, Some((1.5, 0.5, 16.0)))),
     ];
     for i in 0..images.len() {
         for j in i + 1..images.len() {
@@ -487,8 +491,10 @@ fn gpu_carried_refreshes_match_the_cpu() {
         // parallax test keeps some of the plane's samples and hides others.
         spread(2.0),
         spread(0.5),
-        footprint_spread(2.0, Some((1.5, 0.5))),
-        footprint_spread(2.0, Some((1.5, 1.0))),
+        footprint_spread(2.0, Some((1.5, 0.5, 0.0))),
+        footprint_spread(2.0, Some((1.5, 1.0, 0.0))),
+        footprint_spread(2.0, Some((1.5, 0.5, 1.0))),
+        footprint_spread(2.0, Some((1.5, 0.5, 16.0))),
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {

@@ -135,6 +135,7 @@ pub use params::{ReconParams, Visibility};
 use plan::RefreshPlan;
 pub use ring::Ring;
 use splat::{Splat, BAND_ROWS, CHANNELS};
+use spread::FootprintTest;
 
 /// One sample of the reconstructor's deep buffer.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -709,9 +710,13 @@ impl Reconstructor {
     /// The spread's ratio, the parallax test's pixels
     /// ([`Visibility::spread_parallax`]) and the footprint's spread with its parallax
     /// ([`Visibility::footprint_spread`]).
-    fn spread_test(&self) -> (f32, f32, Option<(f32, f32)>) {
+    fn spread_test(&self) -> (f32, f32, Option<FootprintTest>) {
         let v = self.params.visibility.unwrap_or_default();
-        let footprint = v.footprint_spread.map(|r| (r, v.footprint_parallax));
+        let footprint = v.footprint_spread.map(|ratio| FootprintTest {
+            ratio,
+            parallax: v.footprint_parallax,
+            reach: v.footprint_reach,
+        });
         (
             v.moving_view_spread.unwrap_or(1.0),
             v.spread_parallax,

@@ -138,6 +138,14 @@ pub struct Visibility {
     pub footprint_spread: Option<f32>,
     /// The parallax, pixels, of [`Visibility::footprint_spread`].
     pub footprint_parallax: f32,
+    /// How far beyond a far sample's footprint, pixels, [`Visibility::footprint_spread`]
+    /// looks for a near front: as far as the view's motion carried the sample across
+    /// that front, up to this many pixels (0: the footprint's box alone). At low rates
+    /// a near surface the view brings in has samples several pixels apart, and where
+    /// the parallax has slid it that far over a far surface, the far surface's
+    /// reprojected samples show between them. Off in the presets: it costs a moving
+    /// view's refresh more than live gains from it.
+    pub footprint_reach: f32,
 }
 
 impl Default for Visibility {
@@ -151,7 +159,9 @@ impl Default for Visibility {
     /// horizon sharp); and within a footprint's box, a surface five times farther moved
     /// four pixels or more across a front there (of ratios 3 and 5 and parallaxes 2, 4
     /// and 8, the pair that kept the head turn's gain and changed no other window
-    /// measured by more than 0.2%; docs/methods.md).
+    /// measured by more than 0.2%; docs/methods.md), within the box itself (a reach of
+    /// 16 pixels won the head turn at 100K but made a moving view's refresh 10–25%
+    /// dearer, which live cost the moving cases 3–6% of their RMS; docs/methods.md).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
@@ -160,6 +170,7 @@ impl Default for Visibility {
             spread_parallax: 2.0,
             footprint_spread: Some(5.0),
             footprint_parallax: 4.0,
+            footprint_reach: 0.0,
         }
     }
 }

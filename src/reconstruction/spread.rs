@@ -185,6 +185,15 @@ pub(super) fn eye_at(track: &[(f32, Vec3)], age: f32) -> Vec3 {
     }
 }
 
+/// The footprint's spread ([`super::Visibility::footprint_spread`]): its ratio, its
+/// parallax and its reach (pixels).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct FootprintTest {
+    pub(super) ratio: f32,
+    pub(super) parallax: f32,
+    pub(super) reach: f32,
+}
+
 /// What the parallax test needs of this refresh: its camera, the eye's track, and the
 /// spread's ratio and parallax (pixels).
 #[derive(Clone, Copy)]
@@ -193,8 +202,8 @@ pub(super) struct Viewpoint<'a> {
     pub(super) track: &'a [(f32, Vec3)],
     pub(super) ratio: f32,
     pub(super) parallax: f32,
-    /// [`super::Visibility::footprint_spread`] and its parallax.
-    pub(super) footprint: Option<(f32, f32)>,
+    /// [`super::Visibility::footprint_spread`], its parallax and its reach.
+    pub(super) footprint: Option<FootprintTest>,
 }
 
 impl<'a> Viewpoint<'a> {
@@ -203,7 +212,7 @@ impl<'a> Viewpoint<'a> {
     pub(super) fn new(
         camera: &'a CameraFrame,
         track: &'a [(f32, Vec3)],
-        (ratio, parallax, footprint): (f32, f32, Option<(f32, f32)>),
+        (ratio, parallax, footprint): (f32, f32, Option<FootprintTest>),
     ) -> Self {
         Self {
             camera,
@@ -264,26 +273,65 @@ impl HidesSplat for SpreadView<'_> {
         {
             return true;
         }
-        self.at.footprint.is_some_and(|(ratio, parallax)| {
-            // A footprint within the landing pixel's eight neighbours is the spread's.
-            let (px, py) = (s.x as usize, s.y as usize);
-            let [x0, x1, y0, y1] = [s.x0, s.x1, s.y0, s.y1].map(usize::from);
-            if x0 + 1 >= px && x1 <= px + 1 && y0 + 1 >= py && y1 <= py + 1 {
-                return false;
-            }
-            // The nearest front over 16-pixel blocks around the box is at most the
-            // box's: a splat nearer than the ratio times it is kept at once.
-            if !behind_front(ratio * self.nearest_around([x0, x1, y0, y1]), s.z, keep) {
-                return false;
-            }
-            let near = self.nearest_in([x0, x1, y0, y1]);
-            behind_front(ratio * near, s.z, keep)
-                && self.at.parallax_of(at, age(), near) >= parallax
-        })
+        self.at
+            .footprint
+            .is_some_and(|f| self.footprint_hides(s, f, keep, age))
     }
 }
 
 impl SpreadView<'_> {
+    /// Whether a front `f.ratio` times nearer than splat `s` lies in its footprint's
+    /// box widened by the pixels the view's motion carried it across that front (at
+    /// most `f.reach`), with that motion `f.parallax` pixels or more: a near surface
+    /// whose few samples landed that far away may have slid over it since.
+    fn footprint_hides(
+        &self,
+        s: &Splat,
+        f: FootprintTest,
+        keep: f32,
+        age: impl Fn() -> f32,
+    ) -> bool {
+        let reach = f.reach as usize;
+        let wide = self.widened(s, reach);
+        // A box within the landing pixel's eight neighbours is the spread's.
+        let [x0, x1, y0, y1] = wide;
+        let (px, py) = (s.x as usize, s.y as usize);
+        if x0 + 1 >= px && x1 <= px + 1 && y0 + 1 >= py && y1 <= py + 1 {
+            return false;
+        }
+        // The nearest front over 16-pixel blocks around the box is at most the
+        // box's: a splat nearer than the ratio times it is kept at once.
+        if !behind_front(f.ratio * self.nearest_around(wide), s.z, keep) {
+            return false;
+        }
+        let near = self.nearest_in(wide);
+        if !behind_front(f.ratio * near, s.z, keep) {
+            return false;
+        }
+        let moved = self.at.parallax_of((s.x, s.y, s.z), age(), near);
+        if moved < f.parallax {
+            return false;
+        }
+        // Carried less far than the reach: only fronts that near count.
+        moved >= f.reach
+            || behind_front(
+                f.ratio * self.nearest_in(self.widened(s, moved as usize)),
+                s.z,
+                keep,
+            )
+    }
+
+    /// Splat `s`'s footprint box widened by `by` pixels each way, within the image.
+    fn widened(&self, s: &Splat, by: usize) -> [usize; 4] {
+        let h = self.own.len() / self.width;
+        [
+            usize::from(s.x0).saturating_sub(by),
+            (usize::from(s.x1) + by).min(self.width - 1),
+            usize::from(s.y0).saturating_sub(by),
+            (usize::from(s.y1) + by).min(h - 1),
+        ]
+    }
+
     /// The nearest own front over the blocks of level [`COARSE`] that the box `[x0, x1,
     /// y0, y1]` touches where it spans two of them or fewer each way (so that
     /// [`SpreadView::nearest_in`] reads blocks inside them), else −∞: never farther than

@@ -325,6 +325,34 @@ fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
 }
 
 #[test]
+fn a_footprints_reach_hides_the_wall_where_the_squares_samples_are_pixels_apart() {
+    // The slide at a quarter of a sample per pixel a second: when the move ends, the
+    // square's new samples lie several pixels apart, farther than the wall's
+    // footprints reach, and the wall's samples, carried across the square by the move,
+    // show between them. Looking for the square's fronts as far around a wall sample
+    // as the move carried it (up to the reach) hides them.
+    let scene = Scene { speed: 0.0 };
+    let (truth, inside) = slide_truth(&scene);
+    let n = (W * H / 4) as usize;
+    let error = |reach: f32| {
+        let mut p = ReconParams::converging();
+        p.visibility = p.visibility.map(|v| Visibility {
+            // The wall is five times the square's depth: a ratio below that.
+            footprint_spread: Some(3.0),
+            footprint_reach: reach,
+            ..v
+        });
+        mean_error(&reconstruct(&scene, slide_eye, p, n), &truth, |i| inside[i])
+    };
+    let (e_box, e_reach) = (error(0.0), error(16.0));
+    eprintln!("inside the square: mean error {e_box} within the footprint's box, {e_reach} with the reach");
+    assert!(
+        e_reach < 0.8 * e_box,
+        "the reach should hide more of the wall: {e_reach} against {e_box} without"
+    );
+}
+
+#[test]
 fn a_panning_view_keeps_the_wall_beside_the_square() {
     // The eye pans all along, so the fronts spread at every refresh, but slowly: a wall
     // sample traced beside the square's edge is still beside it, and hiding it (as

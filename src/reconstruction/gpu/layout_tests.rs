@@ -128,7 +128,7 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         parallax,
         footprint,
         footprint_parallax,
-        pad,
+        footprint_reach,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());
     let tile = rust_fields!(GpuTile {

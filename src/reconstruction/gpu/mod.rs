@@ -123,11 +123,11 @@ struct Params {
     track: u32,
     /// [`crate::reconstruction::Visibility::spread_parallax`].
     parallax: f32,
-    /// [`crate::reconstruction::Visibility::footprint_spread`] (0: none) and its
-    /// parallax.
+    /// [`crate::reconstruction::Visibility::footprint_spread`] (0: none), its
+    /// parallax and its reach.
     footprint: f32,
     footprint_parallax: f32,
-    pad: u32,
+    footprint_reach: f32,
 }
 
 #[repr(C)]
@@ -828,6 +828,7 @@ impl GpuRecon {
             p.parallax = v.spread_parallax;
             if let (Some(r), true) = (v.footprint_spread, p.spread > 0.0) {
                 (p.footprint, p.footprint_parallax) = (r, v.footprint_parallax);
+                p.footprint_reach = v.footprint_reach;
             }
             p.track = self.track;
         }

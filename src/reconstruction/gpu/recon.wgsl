@@ -66,10 +66,11 @@ struct Params {
     parallax: f32,
     // While the fronts spread, a far sample is also hidden where a front this many times
     // nearer lies in its footprint's box (0: not) and the view's motion moved it
-    // `footprint_parallax` pixels across it.
+    // `footprint_parallax` pixels across it; the box widened by as many pixels as that
+    // motion, up to `footprint_reach`.
     footprint: f32,
     footprint_parallax: f32,
-    pad1: u32,
+    footprint_reach: f32,
 }
 
 struct TileFilter {
@@ -206,34 +207,69 @@ fn splat_hidden(i: u32, s: Splat) -> bool {
     if behind(f, s.z) && parallax_of(i, s, bitcast<f32>(~f) / P.spread) >= P.parallax {
         return true;
     }
-    if P.footprint > 0.0 && !within_neighbours(s) {
-        let m = nearest_in(s);
-        if m != 0u {
-            let near = bitcast<f32>(~m);
-            return P.footprint * near < s.z * P.keep && parallax_of(i, s, near) >= P.footprint_parallax;
-        }
+    if P.footprint > 0.0 {
+        return footprint_hides(i, s);
     }
     return false;
 }
 
-// Whether splat `s`'s box lies within its landing pixel and the eight around it, where
-// the spread, not the footprint's, decides.
-fn within_neighbours(s: Splat) -> bool {
-    let px = u32(s.x);
-    let py = u32(s.y);
-    return u32(s.x0) + 1u >= px && u32(s.x1) <= px + 1u && u32(s.y0) + 1u >= py && u32(s.y1) <= py + 1u;
+// Whether a front `P.footprint` times nearer than splat `s` of live sample `i` lies in
+// its footprint's box widened by the pixels the view's motion carried it across that
+// front (at most `P.footprint_reach`), with that motion `P.footprint_parallax` pixels
+// or more (the CPU's `SpreadView::footprint_hides`).
+fn footprint_hides(i: u32, s: Splat) -> bool {
+    let wide = widened(s, u32(P.footprint_reach));
+    if within_neighbours(s, wide) {
+        return false;
+    }
+    let m = nearest_in(wide);
+    if m == 0u {
+        return false;
+    }
+    let near = bitcast<f32>(~m);
+    if !(P.footprint * near < s.z * P.keep) {
+        return false;
+    }
+    let moved = parallax_of(i, s, near);
+    if moved < P.footprint_parallax {
+        return false;
+    }
+    if moved >= P.footprint_reach {
+        return true;
+    }
+    let m2 = nearest_in(widened(s, u32(moved)));
+    return m2 != 0u && P.footprint * bitcast<f32>(~m2) < s.z * P.keep;
 }
 
-// The nearest own front over splat `s`'s box and the pixels around it (complemented
-// bits, 0: none): over the at most 2×2 blocks of the lowest level (the own fronts
-// first) in which the box spans two blocks or fewer each way (the CPU's
+// Splat `s`'s footprint box `[x0, x1, y0, y1]` widened by `by` pixels each way, within
+// the image.
+fn widened(s: Splat, by: u32) -> vec4<u32> {
+    return vec4<u32>(
+        u32(max(s.x0 - i32(by), 0)),
+        min(u32(s.x1) + by, P.width - 1u),
+        u32(max(s.y0 - i32(by), 0)),
+        min(u32(s.y1) + by, P.height - 1u),
+    );
+}
+
+// Whether the box `b` lies within splat `s`'s landing pixel and the eight around it,
+// where the spread, not the footprint's, decides.
+fn within_neighbours(s: Splat, b: vec4<u32>) -> bool {
+    let px = u32(s.x);
+    let py = u32(s.y);
+    return b.x + 1u >= px && b.y <= px + 1u && b.z + 1u >= py && b.w <= py + 1u;
+}
+
+// The nearest own front over the box `b` (`[x0, x1, y0, y1]`) and the pixels around it
+// (complemented bits, 0: none): over the at most 2×2 blocks of the lowest level (the
+// own fronts first) in which the box spans two blocks or fewer each way (the CPU's
 // `SpreadView::nearest_in`).
-fn nearest_in(s: Splat) -> u32 {
+fn nearest_in(b: vec4<u32>) -> u32 {
     let n = P.width * P.height;
-    var x0 = u32(s.x0);
-    var x1 = u32(s.x1);
-    var y0 = u32(s.y0);
-    var y1 = u32(s.y1);
+    var x0 = b.x;
+    var x1 = b.y;
+    var y0 = b.z;
+    var y1 = b.w;
     var w = P.width;
     var h = P.height;
     var base = n;
