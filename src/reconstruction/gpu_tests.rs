@@ -412,6 +412,15 @@ fn footprint_spread(parallax: f32, footprint: Option<(f32, f32, f32)>) -> ReconP
     }
 }
 
+/// `p` with the footprint's reach at most `spacings` times a refresh's new samples'
+/// spacing.
+fn reach_spacings(mut p: ReconParams, spacings: f32) -> ReconParams {
+    if let Some(v) = &mut p.visibility {
+        v.footprint_reach_spacings = spacings;
+    }
+    p
+}
+
 #[test]
 fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
     // On the CPU, the images of the carrying test's last refresh with the parallax
@@ -452,6 +461,10 @@ fn the_carrying_tests_spread_keeps_some_far_samples_and_hides_others() {
         image(footprint_spread(2.0, Some((1.5, 1.0, 0.0)))),
         image(footprint_spread(2.0, Some((1.5, 0.5, 1.0)))),
         image(footprint_spread(2.0, Some((1.5, 0.5, 16.0)))),
+        image(reach_spacings(
+            footprint_spread(2.0, Some((1.5, 0.5, 16.0))),
+            0.6,
+        )),
     ];
     for i in 0..images.len() {
         for j in i + 1..images.len() {
@@ -495,6 +508,9 @@ fn gpu_carried_refreshes_match_the_cpu() {
         footprint_spread(2.0, Some((1.5, 1.0, 0.0))),
         footprint_spread(2.0, Some((1.5, 0.5, 1.0))),
         footprint_spread(2.0, Some((1.5, 0.5, 16.0))),
+        // The reach bounded by the spacing of a refresh's new samples (here about 3.3
+        // pixels), which the CPU works out and the GPU is given.
+        reach_spacings(footprint_spread(2.0, Some((1.5, 0.5, 16.0))), 0.6),
     ] {
         assert!(params.carry);
         for (w, h, per) in [(48, 32, 1500), (67, 41, 300)] {

@@ -702,8 +702,23 @@ impl Reconstructor {
         let mut p = self.params;
         if let Some(v) = &mut p.visibility {
             v.moving_view_spread = self.front_spread();
+            v.footprint_reach = self.footprint_reach(v);
         }
         p
+    }
+
+    /// The footprint's reach at this refresh: [`Visibility::footprint_reach`], at most
+    /// [`Visibility::footprint_reach_spacings`] times the spacing of the samples the
+    /// sampler's rate brings in between this refresh and the previous one.
+    fn footprint_reach(&self, v: &Visibility) -> f32 {
+        let pixels = (self.width * self.height) as f64;
+        match self.eye_ages.get(1) {
+            Some(&(dt, _)) if dt > 0.0 && self.rate > 0.0 => {
+                let spacing = (pixels / (self.rate * dt as f64)).sqrt() as f32;
+                v.footprint_reach.min(v.footprint_reach_spacings * spacing)
+            }
+            _ => v.footprint_reach,
+        }
     }
 
     /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
@@ -715,7 +730,7 @@ impl Reconstructor {
         let footprint = v.footprint_spread.map(|ratio| FootprintTest {
             ratio,
             parallax: v.footprint_parallax,
-            reach: v.footprint_reach,
+            reach: self.footprint_reach(&v),
         });
         (
             v.moving_view_spread.unwrap_or(1.0),

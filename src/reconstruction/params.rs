@@ -143,9 +143,13 @@ pub struct Visibility {
     /// that front, up to this many pixels (0: the footprint's box alone). At low rates
     /// a near surface the view brings in has samples several pixels apart, and where
     /// the parallax has slid it that far over a far surface, the far surface's
-    /// reprojected samples show between them. Off in the presets: it costs a moving
-    /// view's refresh more than live gains from it.
+    /// reprojected samples show between them.
     pub footprint_reach: f32,
+    /// The reach is at most this many times the spacing of one refresh's new samples,
+    /// `sqrt(pixels / (rate · Δt))` (`Δt`: the time since the previous refresh). At
+    /// higher rates a near surface's samples lie closer together, and a wide reach
+    /// would make every far sample look far around it for nothing.
+    pub footprint_reach_spacings: f32,
 }
 
 impl Default for Visibility {
@@ -159,9 +163,11 @@ impl Default for Visibility {
     /// horizon sharp); and within a footprint's box, a surface five times farther moved
     /// four pixels or more across a front there (of ratios 3 and 5 and parallaxes 2, 4
     /// and 8, the pair that kept the head turn's gain and changed no other window
-    /// measured by more than 0.2%; docs/methods.md), within the box itself (a reach of
-    /// 16 pixels won the head turn at 100K but made a moving view's refresh 10–25%
-    /// dearer, which live cost the moving cases 3–6% of their RMS; docs/methods.md).
+    /// measured by more than 0.2%; docs/methods.md), the box widened by as far as the
+    /// move carried the far sample, up to 16 pixels and two and a half times the
+    /// spacing of a refresh's new samples (16 pixels alone won the head turn at 100K
+    /// but made a moving view's refresh 10–25% dearer at live rates, where the spacing
+    /// bounds it to about 6; docs/methods.md).
     fn default() -> Self {
         Self {
             depth_tolerance: 0.1,
@@ -170,7 +176,8 @@ impl Default for Visibility {
             spread_parallax: 2.0,
             footprint_spread: Some(5.0),
             footprint_parallax: 4.0,
-            footprint_reach: 0.0,
+            footprint_reach: 16.0,
+            footprint_reach_spacings: 2.5,
         }
     }
 }
