@@ -721,10 +721,9 @@ impl Reconstructor {
         }
     }
 
-    /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
     /// The spread's ratio, the parallax test's pixels
     /// ([`Visibility::spread_parallax`]) and the footprint's spread with its parallax
-    /// ([`Visibility::footprint_spread`]).
+    /// and this refresh's reach ([`Visibility::footprint_spread`]).
     fn spread_test(&self) -> (f32, f32, Option<FootprintTest>) {
         let v = self.params.visibility.unwrap_or_default();
         let footprint = v.footprint_spread.map(|ratio| FootprintTest {
@@ -739,6 +738,7 @@ impl Reconstructor {
         )
     }
 
+    /// `1 / (1 + depth tolerance)` when the visibility pass is in use.
     fn visibility_keep(&self) -> Option<f32> {
         self.params
             .visibility_in_use()

@@ -291,8 +291,9 @@ impl SpreadView<'_> {
         keep: f32,
         age: impl Fn() -> f32,
     ) -> bool {
-        let reach = f.reach as usize;
-        let wide = self.widened(s, reach);
+        // Behind a front the ratio times nearer than `near`.
+        let far_behind = |near: f32| behind_front(f.ratio * near, s.z, keep);
+        let wide = self.widened(s, f.reach as usize);
         // A box within the landing pixel's eight neighbours is the spread's.
         let [x0, x1, y0, y1] = wide;
         let (px, py) = (s.x as usize, s.y as usize);
@@ -301,11 +302,11 @@ impl SpreadView<'_> {
         }
         // The nearest front over 16-pixel blocks around the box is at most the
         // box's: a splat nearer than the ratio times it is kept at once.
-        if !behind_front(f.ratio * self.nearest_around(wide), s.z, keep) {
+        if !far_behind(self.nearest_around(wide)) {
             return false;
         }
         let near = self.nearest_in(wide);
-        if !behind_front(f.ratio * near, s.z, keep) {
+        if !far_behind(near) {
             return false;
         }
         let moved = self.at.parallax_of((s.x, s.y, s.z), age(), near);
@@ -313,12 +314,7 @@ impl SpreadView<'_> {
             return false;
         }
         // Carried less far than the reach: only fronts that near count.
-        moved >= f.reach
-            || behind_front(
-                f.ratio * self.nearest_in(self.widened(s, moved as usize)),
-                s.z,
-                keep,
-            )
+        moved >= f.reach || far_behind(self.nearest_in(self.widened(s, moved as usize)))
     }
 
     /// Splat `s`'s footprint box widened by `by` pixels each way, within the image.

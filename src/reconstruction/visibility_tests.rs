@@ -161,6 +161,13 @@ fn resplat() -> ReconParams {
     }
 }
 
+/// The converging preset with its visibility pass changed by `f`.
+fn with_visibility(f: impl FnOnce(Visibility) -> Visibility) -> ReconParams {
+    let mut p = ReconParams::converging();
+    p.visibility = p.visibility.map(f);
+    p
+}
+
 /// The same without the pass: every sample reaches every pixel of its footprint.
 fn without_visibility() -> ReconParams {
     ReconParams {
@@ -299,8 +306,7 @@ fn a_turn_hides_the_far_wall_where_the_square_has_few_samples_yet() {
     let inside = |i: usize| inside[i];
     let n = (W * H) as usize;
     let errors = |spread: Option<f32>| {
-        let mut p = ReconParams::converging();
-        p.visibility = p.visibility.map(|v| Visibility {
+        let p = with_visibility(|v| Visibility {
             moving_view_spread: spread,
             ..v
         });
@@ -335,8 +341,7 @@ fn a_footprints_reach_hides_the_wall_where_the_squares_samples_are_pixels_apart(
     let (truth, inside) = slide_truth(&scene);
     let n = (W * H / 4) as usize;
     let error = |reach: f32| {
-        let mut p = ReconParams::converging();
-        p.visibility = p.visibility.map(|v| Visibility {
+        let p = with_visibility(|v| Visibility {
             // The wall is five times the square's depth: a ratio below that.
             footprint_spread: Some(3.0),
             footprint_reach: reach,

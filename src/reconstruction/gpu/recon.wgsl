@@ -223,22 +223,20 @@ fn footprint_hides(i: u32, s: Splat) -> bool {
         return false;
     }
     let m = nearest_in(wide);
-    if m == 0u {
+    if !far_behind(m, s.z) {
         return false;
     }
-    let near = bitcast<f32>(~m);
-    if !(P.footprint * near < s.z * P.keep) {
-        return false;
-    }
-    let moved = parallax_of(i, s, near);
+    let moved = parallax_of(i, s, bitcast<f32>(~m));
     if moved < P.footprint_parallax {
         return false;
     }
-    if moved >= P.footprint_reach {
-        return true;
-    }
-    let m2 = nearest_in(widened(s, u32(moved)));
-    return m2 != 0u && P.footprint * bitcast<f32>(~m2) < s.z * P.keep;
+    return moved >= P.footprint_reach || far_behind(nearest_in(widened(s, u32(moved))), s.z);
+}
+
+// Whether depth `z` lies behind `P.footprint` times the front `m` (complemented bits;
+// 0: none).
+fn far_behind(m: u32, z: f32) -> bool {
+    return m != 0u && P.footprint * bitcast<f32>(~m) < z * P.keep;
 }
 
 // Splat `s`'s footprint box `[x0, x1, y0, y1]` widened by `by` pixels each way, within
