@@ -31,10 +31,12 @@
 //! the reconstruction unchanged and one with many shows the converged mean.
 
 mod blend;
+pub(super) mod refs;
 
 use blend::BLEND_ROWS;
 use glam::Vec3;
 use rayon::prelude::*;
+use refs::{BandRefs, Refs};
 
 use super::lanes::{prefetch, Lanes, LANES, PREFETCH_AHEAD};
 use crate::{image::Image, scene::CameraFrame, trace::luminance};
@@ -162,13 +164,17 @@ impl Cell {
 }
 
 /// Each pixel's accumulated history: its count (what most passes test first, and what
-/// the sampler reads), the sums the blend reads in planes (red, green, blue; the sum
-/// of the samples' times, for the age of what is shown), so that it loads 8 pixels at
-/// a time, and the rest in one [`Cell`].
+/// the sampler reads), what the blend reads in planes (the mean colour: red, green,
+/// blue; the sum of the samples' times, for the age of what is shown), so that it
+/// loads 8 pixels at a time, and the rest in one [`Cell`].
+///
+/// The colour is a running mean, not a sum: moved by `(c − mean) / n`, a mean stays
+/// exactly `c` while every sample is `c`, where a sum divided by its count is off by
+/// a rounding or two (see [`Refs`] for why a rounding matters).
 #[derive(Clone)]
 struct Accum {
     count: Vec<f32>,
-    sum: [Vec<f32>; 3],
+    mean: [Vec<f32>; 3],
     time_sum: Vec<f64>,
     cell: Vec<Cell>,
 }
@@ -177,7 +183,7 @@ impl Accum {
     fn new(n: usize) -> Self {
         Self {
             count: vec![0.0; n],
-            sum: std::array::from_fn(|_| vec![0.0; n]),
+            mean: std::array::from_fn(|_| vec![0.0; n]),
             time_sum: vec![0.0; n],
             cell: vec![Cell::EMPTY; n],
         }
@@ -186,7 +192,7 @@ impl Accum {
     /// Every pixel empty.
     fn reset(&mut self) {
         self.count.fill(0.0);
-        self.sum.iter_mut().for_each(|s| s.fill(0.0));
+        self.mean.iter_mut().for_each(|s| s.fill(0.0));
         self.time_sum.fill(0.0);
         self.cell.fill(Cell::EMPTY);
     }
@@ -199,8 +205,8 @@ impl Accum {
     /// Pixel `d` takes pixel `q` of `from`, keeping at most `cap` samples' worth.
     fn take(&mut self, d: usize, from: &Accum, q: usize, cap: f32) {
         let k = from.count[q].min(cap) / from.count[q];
-        for (s, f) in self.sum.iter_mut().zip(&from.sum) {
-            s[d] = f[q] * k;
+        for (s, f) in self.mean.iter_mut().zip(&from.mean) {
+            s[d] = f[q];
         }
         self.time_sum[d] = from.time_sum[q] * k as f64;
         self.cell[d] = from.cell[q];
@@ -215,10 +221,10 @@ impl Accum {
 
     /// All pixels, borrowed.
     fn all(&mut self) -> AccumMut<'_> {
-        let [r, g, b] = &mut self.sum;
+        let [r, g, b] = &mut self.mean;
         AccumMut {
             count: &mut self.count,
-            sum: [r, g, b],
+            mean: [r, g, b],
             time_sum: &mut self.time_sum,
             cell: &mut self.cell,
         }
@@ -226,7 +232,7 @@ impl Accum {
 
     /// The pixels in runs of `len` (the last may be shorter), borrowed.
     fn runs_mut(&mut self, len: usize) -> Vec<AccumMut<'_>> {
-        let [r, g, b] = &mut self.sum;
+        let [r, g, b] = &mut self.mean;
         self.count
             .chunks_mut(len)
             .zip(r.chunks_mut(len))
@@ -236,7 +242,7 @@ impl Accum {
             .zip(self.cell.chunks_mut(len))
             .map(|(((((count, r), g), b), time_sum), cell)| AccumMut {
                 count,
-                sum: [r, g, b],
+                mean: [r, g, b],
                 time_sum,
                 cell,
             })
@@ -247,7 +253,7 @@ impl Accum {
 /// A run of consecutive pixels of an [`Accum`], borrowed.
 struct AccumMut<'a> {
     count: &'a mut [f32],
-    sum: [&'a mut [f32]; 3],
+    mean: [&'a mut [f32]; 3],
     time_sum: &'a mut [f64],
     cell: &'a mut [Cell],
 }
@@ -255,10 +261,10 @@ struct AccumMut<'a> {
 impl AccumMut<'_> {
     /// Pixels `r` of the run.
     fn sub(&mut self, r: std::ops::Range<usize>) -> AccumMut<'_> {
-        let [red, green, blue] = &mut self.sum;
+        let [red, green, blue] = &mut self.mean;
         AccumMut {
             count: &mut self.count[r.clone()],
-            sum: [
+            mean: [
                 &mut red[r.clone()],
                 &mut green[r.clone()],
                 &mut blue[r.clone()],
@@ -268,17 +274,17 @@ impl AccumMut<'_> {
         }
     }
 
-    fn sum(&self, q: usize) -> Vec3 {
-        Vec3::new(self.sum[0][q], self.sum[1][q], self.sum[2][q])
+    fn mean(&self, q: usize) -> Vec3 {
+        Vec3::new(self.mean[0][q], self.mean[1][q], self.mean[2][q])
     }
 
-    fn set_sum(&mut self, q: usize, s: Vec3) {
-        (self.sum[0][q], self.sum[1][q], self.sum[2][q]) = (s.x, s.y, s.z);
+    fn set_mean(&mut self, q: usize, s: Vec3) {
+        (self.mean[0][q], self.mean[1][q], self.mean[2][q]) = (s.x, s.y, s.z);
     }
 
     /// Empty pixel `q` (its point stays: it is read only where the count is not 0).
     fn clear(&mut self, q: usize) {
-        self.set_sum(q, Vec3::ZERO);
+        self.set_mean(q, Vec3::ZERO);
         self.time_sum[q] = 0.0;
         self.cell[q].range = EMPTY_RANGE;
         self.count[q] = 0.0;
@@ -452,15 +458,16 @@ impl History {
         let px = self.cpu_pixels();
         for a in [&mut px.acc, &mut px.scratch] {
             super::lanes::touch(&mut a.count);
-            a.sum.iter_mut().for_each(|s| super::lanes::touch(s));
+            a.mean.iter_mut().for_each(|s| super::lanes::touch(s));
             super::lanes::touch(&mut a.time_sum);
         }
     }
 
     /// The per-pixel arrays of the CPU's history, allocated at the first call.
     fn cpu_pixels(&mut self) -> &mut Pixels {
-        let n = (self.width * self.height) as usize;
-        self.pixels.get_or_insert_with(|| Box::new(Pixels::new(n)))
+        let (w, h) = (self.width as usize, self.height as usize);
+        self.pixels
+            .get_or_insert_with(|| Box::new(Pixels::new(w, h)))
     }
 
     /// Samples in each pixel's history.
@@ -795,11 +802,15 @@ struct Pixels {
     lands: Vec<(u32, u32, f32)>,
     /// Pixels cut during the step under way.
     cuts: u64,
+    /// The reference colours the blend shows flat surfaces at.
+    refs: Refs,
 }
 
 impl Pixels {
-    fn new(n: usize) -> Self {
+    fn new(width: usize, height: usize) -> Self {
+        let n = width * height;
         Self {
+            refs: Refs::new(width, height),
             acc: Accum::new(n),
             scratch: Accum::new(n),
             depth: vec![f32::INFINITY; n],
@@ -905,15 +916,18 @@ impl Pixels {
             .runs_mut(band)
             .into_par_iter()
             .zip(self.held.par_chunks_mut(band))
+            .zip(self.refs.bands_mut(BLEND_ROWS))
             .enumerate()
-            .map(|(b, (acc, held))| {
+            .map(|(b, ((acc, held), refs))| {
                 let base = b * band;
                 let lo = order.partition_point(|&(q, _)| (q as usize) < base);
                 let hi = order.partition_point(|&(q, _)| (q as usize) < base + held.len());
                 let mut band = Band {
                     base,
+                    width: width.max(1),
                     acc,
                     held,
+                    refs,
                     cuts: 0,
                     held_at: Vec::new(),
                 };
@@ -969,7 +983,7 @@ impl Pixels {
     ) -> (u64, f64) {
         let (edges, rolling) = (&mut self.edges, &mut self.rolling);
         blend::blend_image(
-            &mut self.acc,
+            (&mut self.acc, &self.refs),
             (edges, rolling),
             (t, p),
             (image, age),
@@ -982,8 +996,12 @@ impl Pixels {
 /// fresh samples; what it cut and the pixels it held a sample back in are merged after.
 struct Band<'a> {
     base: usize,
+    width: usize,
     acc: AccumMut<'a>,
     held: &'a mut [Option<(Vec3, f64, Vec3)>],
+    /// The band's blocks' reference colours: the last sample each took, in pixel
+    /// order, still or not.
+    refs: BandRefs<'a>,
     cuts: u64,
     held_at: Vec<u32>,
 }
@@ -1012,6 +1030,7 @@ impl Band<'_> {
     /// A still sample joins pixel `q` (of the band) if it agrees with what the pixel
     /// showed; two in a row that do not start the pixel over; a moving one cuts it.
     fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
+        self.refs.set(q % self.width, q / self.width, f.color);
         if !f.still {
             // Something moving covers (part of) the pixel now.
             self.cut(q);
@@ -1051,19 +1070,24 @@ impl Band<'_> {
 
     fn add(&mut self, q: usize, c: Vec3, t: f64, hit: Vec3, max: f32) {
         let a = &mut self.acc;
-        let (mut sum, mut time_sum) = (a.sum(q) + c, a.time_sum[q] + t);
+        let mut time_sum = a.time_sum[q] + t;
         let mut count = a.count[q] + 1.0;
+        // Past `max` samples, the mean of about the last `max` of them.
+        let mean = if a.count[q] > 0.0 {
+            let m = a.mean(q);
+            m + (c - m) / count
+        } else {
+            c
+        };
         let l = luminance(c);
         let cell = &mut a.cell[q];
         cell.point = hit;
         cell.range = (cell.range.0.min(l), cell.range.1.max(l));
         if count > max {
-            let k = max / count;
-            sum *= k;
-            time_sum *= k as f64;
+            time_sum *= (max / count) as f64;
             count = max;
         }
-        a.set_sum(q, sum);
+        a.set_mean(q, mean);
         a.time_sum[q] = time_sum;
         a.count[q] = count;
     }

@@ -924,3 +924,70 @@ fn a_refresh_whose_view_moved_filters_with_the_moving_views_volume() {
         "{moving} against {held:?}"
     );
 }
+
+/// Samples of one flat colour at random positions over `w × h`, at times from `t0` to
+/// `t1`, every `k`-th marked dynamic (a moving thing took part: no history).
+pub(super) fn flat_field(
+    rng: &mut crate::sampling::Rng,
+    c: &CameraFrame,
+    (w, h): (u32, u32),
+    (t0, t1): (f64, f64),
+    (colour, n, dynamic_every): (Vec3, usize, usize),
+) -> Vec<(RingSample, bool)> {
+    (0..n)
+        .map(|i| {
+            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+            let s = RingSample {
+                x,
+                y,
+                t: t0 + (t1 - t0) * i as f64 / n as f64,
+                color: colour,
+                hit_point: c.eye + c.direction(x, y) * 2.0,
+                velocity: Vec3::ZERO,
+                anchor: Default::default(),
+            };
+            (s, dynamic_every > 0 && i % dynamic_every == 0)
+        })
+        .collect()
+}
+
+/// Pixels of `img` whose colour is not exactly `c`.
+pub(super) fn not_exactly(img: &crate::image::Image, c: Vec3) -> usize {
+    img.pixels.iter().filter(|p| **p != c).count()
+}
+
+/// A flat surface whose value lies half-way between two display codes (0.3 · 255 =
+/// 76.5, scene files' decimals) is shown at exactly its value, with the history and
+/// without it (every sample dynamic): a rounding of the weighted means below it would
+/// show the code below. Without the blocks' reference colours, hundreds of the pixels
+/// are a rounding off.
+#[test]
+fn a_flat_surface_at_a_half_code_is_shown_at_exactly_its_value() {
+    let (w, h) = (48, 32);
+    let c = cam(w, h);
+    let tiling = TilingSnapshot::whole(w, h);
+    let colour = Vec3::new(0.3, 0.5, 0.7);
+    for dynamic_every in [0, 1, 3] {
+        let mut r = Reconstructor::new(w, h, 20000.0, ReconParams::realtime());
+        let mut rng = crate::sampling::Rng::new(&[5, dynamic_every as u64]);
+        let mut off = Vec::new();
+        for k in 0..20 {
+            let t = 0.05 * k as f64;
+            let batch = flat_field(
+                &mut rng,
+                &c,
+                (w, h),
+                (t - 0.05, t),
+                (colour, 400, dynamic_every),
+            );
+            for (s, dynamic) in batch {
+                r.push_marked(s, dynamic);
+            }
+            off.push(not_exactly(r.reconstruct(t, &c, &tiling), colour));
+        }
+        assert!(
+            off[5..].iter().all(|&n| n == 0),
+            "every {dynamic_every}th dynamic: pixels off per refresh {off:?}"
+        );
+    }
+}

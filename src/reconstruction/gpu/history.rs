@@ -11,7 +11,7 @@ use super::{
     compute_pipeline, readback, storage, uniform_and_storage, GpuContext, BIN, GROUP, PER_PIXEL,
 };
 use crate::reconstruction::{
-    history::{Step, ViewChange},
+    history::{refs, Step, ViewChange},
     HistoryParams,
 };
 
@@ -54,6 +54,7 @@ struct Pipelines {
     reset: wgpu::ComputePipeline,
     depth: wgpu::ComputePipeline,
     pick: wgpu::ComputePipeline,
+    refs: wgpu::ComputePipeline,
     take: wgpu::ComputePipeline,
     count: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
@@ -121,8 +122,13 @@ impl GpuHistory {
         let cut_list = storage(d, "cut pixels", 1024 * 4, none);
         let acc = storage(d, "history", n * ACC * 4, wgpu::BufferUsages::COPY_DST);
         let scratch = storage(d, "history scratch", n * ACC * 4, src);
-        let held = storage(d, "held samples", n * HELD * 4, none);
-        let pick = storage(d, "history picks", (2 * n + 1) * 4, src);
+        let blocks = ref_blocks(width, height);
+        let held = storage(d, "held samples", (n * HELD + 3 * blocks) * 4, none);
+        // No block has a reference colour yet.
+        let nan = vec![f32::NAN; 3 * blocks as usize];
+        ctx.queue
+            .write_buffer(&held, n * HELD * 4, bytemuck::cast_slice(&nan));
+        let pick = storage(d, "history picks", (2 * n + 1 + blocks) * 4, src);
         let shown = storage(d, "shown image", n * PER_PIXEL as u64 * 4, src);
         let counts = storage(d, "history counts", n * 4, src);
         let mut h = Self {
@@ -199,6 +205,8 @@ impl GpuHistory {
             self.dispatch(enc, &pl.fill, samples);
             self.dispatch_2d(enc, &pl.sort, bins);
             self.dispatch(enc, &pl.fresh, samples);
+            let blocks = ref_blocks(self.width, self.height) as u32;
+            self.dispatch(enc, &pl.refs, blocks.div_ceil(GROUP));
         }
         self.dispatch(enc, &pl.cut, (hp.n_cuts).div_ceil(GROUP));
         self.dispatch(enc, &pl.blend, pixels);
@@ -361,11 +369,22 @@ fn order_bytes(width: u32, height: u32, cap: usize) -> u64 {
     (3 * x as u64 * y as u64 + 1 + cap as u64) * 4
 }
 
-/// `history.wgsl` after the constants it shares with the reconstruction's side.
+/// Blocks of pixels that share a reference colour ([`refs::BLOCK`]) over a
+/// `width × height` image.
+fn ref_blocks(width: u32, height: u32) -> u64 {
+    let side = refs::BLOCK as u32;
+    width.div_ceil(side) as u64 * height.div_ceil(side) as u64
+}
+
+/// `history.wgsl` after the constants it shares with the reconstruction's side and
+/// the CPU's history.
 fn source() -> String {
     format!(
-        "const IMAGE: u32 = {}u;\nconst BIN: u32 = {BIN}u;\n{}",
+        "const IMAGE: u32 = {}u;\nconst BIN: u32 = {BIN}u;\nconst REF_BLOCK: u32 = {}u;\n\
+         const REF_TOLERANCE: f32 = {:e};\n{}",
         super::PER_PIXEL,
+        refs::BLOCK,
+        refs::TOLERANCE,
         include_str!("history.wgsl")
     )
 }
@@ -394,6 +413,7 @@ impl Pipelines {
             fill: make("fill_fresh"),
             sort: make("sort_fresh"),
             fresh: make("take_fresh"),
+            refs: make("refs"),
             cut: make("cut_moving"),
             blend: make("blend"),
             layout,

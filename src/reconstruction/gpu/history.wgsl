@@ -17,9 +17,13 @@
 // sort    one workgroup per bin: the bin's sample indices by pixel and, within a
 //         pixel, in the order they came, whatever order the atomic counters handed
 //         out the slots in (one thread for a bin of few, a bitonic network for more).
-// fresh   one thread per run of fresh samples of a pixel: the samples in order.
+// fresh   one thread per run of fresh samples of a pixel: the samples in order; the
+//         run's end offered as its block's newest (atomic max).
+// refs    one thread per block of pixels: the colour of its newest fresh sample kept as
+//         its reference.
 // cut     one thread per pixel a moving surface covers now.
-// blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend.
+// blend   one thread per pixel: the clamp to the reconstruction's 3×3 box, the blend,
+//         the colour shown at its block's reference where within roundings of it.
 
 struct H {
     eye: vec3<f32>,
@@ -48,17 +52,23 @@ struct H {
     bins_x: u32,
 }
 
-// Floats per pixel of the history: sum (3), mean time, count, luminance range (2),
-// newest hit point (3), padding (2).
+// Floats per pixel of the history: mean colour (3), mean time, count, luminance range
+// (2), newest hit point (3), padding (2).
 const ACC: u32 = 12u;
-const SUM: u32 = 0u;
+const MEAN: u32 = 0u;
 const TMEAN: u32 = 3u;
 const COUNT: u32 = 4u;
 const LO: u32 = 5u;
 const HI: u32 = 6u;
 const POINT: u32 = 7u;
-// Floats per held sample: flag, colour (3), time, hit point (3).
+// Floats per held sample: flag, colour (3), time, hit point (3). After the pixels'
+// held samples, `held` keeps the reference colours of the blocks of `REF_BLOCK`² pixels
+// (3 floats each, a row of blocks after another), and after the cut count `pick` has
+// each block's newest fresh sample this refresh (its place in the order, plus one).
 const HELD: u32 = 8u;
+// `REF_BLOCK`, the side of a block, and `REF_TOLERANCE`, how far from its block's
+// reference (relative to it) a colour is shown as the reference, are prepended by the
+// Rust side.
 // Floats per fresh sample: pixel (bits), still flag, colour (3), time, hit point (3),
 // padding.
 const FRESH: u32 = 10u;
@@ -131,7 +141,7 @@ fn set_vec(a: u32, v: vec3<f32>) {
 
 fn clear_acc(q: u32) {
     let a = q * ACC;
-    set_vec(a + SUM, vec3<f32>(0.0));
+    set_vec(a + MEAN, vec3<f32>(0.0));
     acc[a + TMEAN] = 0.0;
     acc[a + COUNT] = 0.0;
     acc[a + LO] = infinity();
@@ -149,18 +159,18 @@ fn cut(q: u32) {
 fn add(q: u32, c: vec3<f32>, t: f32, hit: vec3<f32>) {
     let a = q * ACC;
     set_vec(a + POINT, hit);
-    var sum = vec_at(a + SUM) + c;
-    var n = acc[a + COUNT] + 1.0;
+    let n0 = acc[a + COUNT];
+    var n = n0 + 1.0;
+    // A running mean: exactly `c` while every sample is `c`.
+    let m = vec_at(a + MEAN);
+    let mean = select(c, m + (c - m) / n, n0 > 0.0);
     // The mean time, not the sum: f32 keeps it to rounding over any count.
     acc[a + TMEAN] += (t - acc[a + TMEAN]) / n;
     let l = luminance(c);
     acc[a + LO] = min(acc[a + LO], l);
     acc[a + HI] = max(acc[a + HI], l);
-    if n > P.max_count {
-        sum *= P.max_count / n;
-        n = P.max_count;
-    }
-    set_vec(a + SUM, sum);
+    n = min(n, P.max_count);
+    set_vec(a + MEAN, mean);
     acc[a + COUNT] = n;
 }
 
@@ -231,7 +241,7 @@ fn take(@builtin(global_invocation_id) gid: vec3<u32>) {
     let n = acc[a + COUNT];
     let k = min(n, P.reprojected_count) / n;
     for (var i = 0u; i < 3u; i++) {
-        scratch[b + SUM + i] = acc[a + SUM + i] * k;
+        scratch[b + MEAN + i] = acc[a + MEAN + i];
     }
     scratch[b + TMEAN] = acc[a + TMEAN];
     scratch[b + COUNT] = n * k;
@@ -442,9 +452,52 @@ fn take_fresh(@builtin(global_invocation_id) gid: vec3<u32>) {
     if k > 0u && fresh_pixel(sorted_at(k - 1u)) == q {
         return;
     }
-    for (var j = k; j < P.n_fresh && fresh_pixel(sorted_at(j)) == q; j++) {
+    var j = k;
+    for (; j < P.n_fresh && fresh_pixel(sorted_at(j)) == q; j++) {
         take_in(q, sorted_at(j));
     }
+    // A block lies in one bin, sorted by pixel: its last item is the sample the CPU
+    // takes in last of the block.
+    atomicMax(&pick[2u * pixels() + 1u + block_of(q)], j);
+}
+
+fn blocks_across() -> u32 {
+    return (P.width + REF_BLOCK - 1u) / REF_BLOCK;
+}
+
+fn block_count() -> u32 {
+    return blocks_across() * ((P.height + REF_BLOCK - 1u) / REF_BLOCK);
+}
+
+fn block_of(q: u32) -> u32 {
+    return (q / P.width) / REF_BLOCK * blocks_across() + (q % P.width) / REF_BLOCK;
+}
+
+// Where block `b`'s reference colour is in `held`.
+fn ref_at(b: u32) -> u32 {
+    return pixels() * HELD + 3u * b;
+}
+
+fn block_ref(x: u32, y: u32) -> vec3<f32> {
+    let h = ref_at(block_of(y * P.width + x));
+    return vec3<f32>(held[h], held[h + 1u], held[h + 2u]);
+}
+
+@compute @workgroup_size(256)
+fn refs(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let b = gid.x;
+    if b >= block_count() {
+        return;
+    }
+    let last = atomicLoad(&pick[2u * pixels() + 1u + b]);
+    if last == 0u {
+        return;
+    }
+    let f = sorted_at(last - 1u) * FRESH;
+    let h = ref_at(b);
+    held[h] = fresh[f + 2u];
+    held[h + 1u] = fresh[f + 3u];
+    held[h + 2u] = fresh[f + 4u];
 }
 
 @compute @workgroup_size(256)
@@ -484,23 +537,27 @@ fn blend(@builtin(global_invocation_id) gid: vec3<u32>) {
     if n > 0.0 {
         let mid = (lo + hi) * 0.5;
         let slack = (hi - lo) * (0.5 * P.box_scale) + vec3<f32>(P.tolerance);
-        let mean = vec_at(a + SUM) / n;
+        let mean = vec_at(a + MEAN);
         let clamped = min(max(mean, mid - slack), mid + slack);
         if any(clamped != mean) {
             // The reconstruction disagrees: new samples take over.
             n = min(n, P.clamped_count);
             atomicAdd(&pick[2u * pixels()], 1u);
             acc[a + COUNT] = n;
-            set_vec(a + SUM, clamped * n);
+            set_vec(a + MEAN, clamped);
             let l = luminance(clamped);
             acc[a + LO] = select(infinity(), l, n > 0.0);
             acc[a + HI] = select(-infinity(), l, n > 0.0);
         }
         let k = P.recon_weight;
-        rgb = (rgb * k + vec_at(a + SUM)) / (k + n);
+        // The mean moved towards the reconstruction: a converged mean is shown as it
+        // is where the reconstruction differs from it by roundings.
+        rgb = clamped + (rgb - clamped) * (k / (k + n));
         let hist_age = select(0.0, P.t - acc[a + TMEAN], n > 0.0);
         age = (age * k + hist_age * n) / (k + n);
     }
+    let r = block_ref(x, y);
+    rgb = select(rgb, r, abs(rgb - r) <= abs(r) * REF_TOLERANCE);
     shown[o] = rgb.x;
     shown[o + 1u] = rgb.y;
     shown[o + 2u] = rgb.z;

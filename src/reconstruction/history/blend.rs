@@ -7,7 +7,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::{AccumMut, HistoryParams, EMPTY_RANGE};
+use super::{refs, AccumMut, HistoryParams, Refs, EMPTY_RANGE};
 use crate::image::Image;
 use crate::reconstruction::lanes::lane_sum;
 
@@ -75,11 +75,12 @@ fn row_range(v: &[f32], lo: &mut [f32], hi: &mut [f32]) {
 
 /// Clamp each pixel's history in `acc` to the box of the reconstruction `image` around
 /// it, then blend it over `image` at time `t`, bands of [`BLEND_ROWS`] rows in
-/// parallel; `edges` and `rolling` are scratch. Each row is first made final by
+/// parallel, each colour shown at its block's reference in `refs` where it is within
+/// roundings of it ([`refs`]); `edges` and `rolling` are scratch. Each row is first made final by
 /// `finish(scratch, y, pixels, ages)`, once. Returns the pixels the clamp cut and the
 /// sum of the shown ages (row by row, each in pixel order).
 pub(super) fn blend_image<S: Default + Send>(
-    acc: &mut super::Accum,
+    (acc, refs): (&mut super::Accum, &Refs),
     (edges, rolling): (&mut Vec<f32>, &mut Vec<f32>),
     (t, p): (f64, &HistoryParams),
     (image, age): (&mut Image, &mut [f32]),
@@ -123,7 +124,13 @@ pub(super) fn blend_image<S: Default + Send>(
         .zip(rolling.par_chunks_mut(3 * slot))
         .enumerate()
         .map_init(S::default, |scratch, (b, (((out, acc), age), rolling))| {
-            let band = BandRows { b, bands, w, edges };
+            let band = BandRows {
+                b,
+                bands,
+                w,
+                edges,
+                refs,
+            };
             band.blend((out, acc, age), rolling, (t, p), (scratch, finish))
         })
         .collect();
@@ -139,6 +146,7 @@ struct BandRows<'a> {
     bands: usize,
     w: usize,
     edges: &'a [f32],
+    refs: &'a Refs,
 }
 
 impl BandRows<'_> {
@@ -185,7 +193,7 @@ impl BandRows<'_> {
             };
             let row = r * w..(r + 1) * w;
             per_row.push(blend_row(
-                [above, slots[1], below],
+                ([above, slots[1], below], self.refs.row(b * BLEND_ROWS + r)),
                 &mut out[row.clone()],
                 acc.sub(row.clone()),
                 &mut age[row],
@@ -221,7 +229,7 @@ fn plane(slot: &[f32], k: usize, w: usize) -> &[f32] {
 /// planes of the rows around it; returns the pixels cut and the sum of the shown ages
 /// (in pixel order).
 fn blend_row(
-    around: Around,
+    (around, refs): (Around, [&[f32]; 3]),
     out: &mut [Vec3],
     mut acc: AccumMut,
     age: &mut [f32],
@@ -237,6 +245,7 @@ fn blend_row(
         clamp_plane(around, c, &mut acc, o, p);
     }
     blend_planes(around, &mut acc, age, o, (t, p));
+    shown_exact(&mut o.colour, refs);
     let c = &o.colour;
     for (x, px) in out.iter_mut().enumerate() {
         *px = Vec3::new(c[0][x], c[1][x], c[2][x]);
@@ -255,7 +264,7 @@ fn clamp_plane(around: Around, c: usize, acc: &mut AccumMut, o: &mut RowOut, p: 
     let [a, m, b] = around;
     let lows = (plane(a, 3 + c), plane(m, 3 + c), plane(b, 3 + c));
     let highs = (plane(a, 6 + c), plane(m, 6 + c), plane(b, 6 + c));
-    let (sum, count) = (&acc.sum[c][..w], &acc.count[..w]);
+    let means = &acc.mean[c][..w];
     let (clamped, moved) = (&mut o.colour[c][..w], &mut o.moved[..w]);
     let (scale, tolerance) = (0.5 * p.box_scale, p.tolerance);
     for x in 0..w {
@@ -263,7 +272,7 @@ fn clamp_plane(around: Around, c: usize, acc: &mut AccumMut, o: &mut RowOut, p: 
         let hi = max(max(highs.0[x], highs.1[x]), highs.2[x]);
         let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * scale);
         let slack = half + tolerance;
-        let mean = sum[x] / count[x];
+        let mean = means[x];
         clamped[x] = min(max(mean, mid - slack), mid + slack);
         let differs = clamped[x] != mean;
         moved[x] = if c == 0 { differs } else { moved[x] | differs };
@@ -282,7 +291,7 @@ fn blend_planes(
 ) {
     let w = acc.count.len();
     let (k, kd) = (p.recon_weight, p.recon_weight as f64);
-    let [sr, sg, sb] = &mut acc.sum;
+    let [sr, sg, sb] = &mut acc.mean;
     let (sr, sg, sb) = (&mut sr[..w], &mut sg[..w], &mut sb[..w]);
     let (count, time_sum, age) = (&mut acc.count[..w], &mut acc.time_sum[..w], &age[..w]);
     let [cr, cg, cb] = &mut o.colour;
@@ -302,29 +311,41 @@ fn blend_planes(
         } else {
             time_sum[x]
         };
-        let s = if mv {
-            (r * nc, g * nc, b * nc)
-        } else {
-            (sr[x], sg[x], sb[x])
-        };
-        // Only a cut history changes, so only it is stored: the stores compile to
-        // masked ones, and the sums of the others are not written back to memory.
+        // Only a cut history changes (its mean to the clamped one, which is the mean
+        // where the clamp kept it), so only it is stored: the stores compile to masked
+        // ones, and the others are not written back to memory.
         if mv {
-            (sr[x], sg[x], sb[x], count[x], time_sum[x]) = (s.0, s.1, s.2, n, ts);
+            (sr[x], sg[x], sb[x], count[x], time_sum[x]) = (r, g, b, n, ts);
         }
-        let show = |col: f32, s: f32| {
-            let blended = (col * k + s) / (k + n);
+        // `(col · k + mean · n) / (k + n)`, written as the mean moved towards the
+        // reconstruction: where that differs from a converged mean by a rounding, the
+        // move is under half a rounding and the mean is shown as it is.
+        let f = k / (k + n);
+        let show = |col: f32, m: f32| {
+            let blended = m + (col - m) * f;
             if n0 > 0.0 {
                 blended
             } else {
                 col
             }
         };
-        (cr[x], cg[x], cb[x]) = (show(mr[x], s.0), show(mg[x], s.1), show(mb[x], s.2));
+        (cr[x], cg[x], cb[x]) = (show(mr[x], r), show(mg[x], g), show(mb[x], b));
         let a = age[x] as f64;
         let hist_age = if n > 0.0 { t - ts / n as f64 } else { 0.0 };
         let blended = (a * kd + hist_age * n as f64) / (k + n) as f64;
         shown[x] = if n0 > 0.0 { blended } else { a };
+    }
+}
+
+/// Each colour of a row shown at its block's reference colour where it is within
+/// roundings of it (`refs`: one per [`refs::BLOCK`] pixels).
+fn shown_exact(colour: &mut [Vec<f32>; 3], refs: [&[f32]; 3]) {
+    for (c, r) in colour.iter_mut().zip(refs) {
+        for (c, &r) in c.chunks_mut(refs::BLOCK).zip(r) {
+            for v in c {
+                *v = refs::exact(*v, r);
+            }
+        }
     }
 }
 
@@ -365,7 +386,7 @@ mod tests {
 
     /// One pixel's history, as the blend's reference.
     struct PixelHistory {
-        sum: Vec3,
+        mean: Vec3,
         time_sum: f64,
         count: f32,
         range: (f32, f32),
@@ -375,15 +396,14 @@ mod tests {
         fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> bool {
             let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
             let slack = half + Vec3::splat(p.tolerance);
-            let mean = self.sum / self.count;
-            let clamped = mean.clamp(mid - slack, mid + slack);
-            if clamped == mean {
+            let clamped = self.mean.clamp(mid - slack, mid + slack);
+            if clamped == self.mean {
                 return false;
             }
             let n = self.count.min(p.clamped_count);
             let mean_t = self.time_sum / self.count as f64;
             self.count = n;
-            self.sum = clamped * n;
+            self.mean = clamped;
             self.time_sum = mean_t * n as f64;
             let l = luminance(clamped);
             self.range = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
@@ -392,7 +412,7 @@ mod tests {
 
         fn blend_over(&self, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
             let n = self.count;
-            *out = (*out * k + self.sum) / (k + n);
+            *out = self.mean + (*out - self.mean) * (k / (k + n));
             let hist_age = if n > 0.0 {
                 t - self.time_sum / n as f64
             } else {
@@ -428,14 +448,14 @@ mod tests {
                     let [ra, rm, rb] = ys.map(row);
                     let (lo, hi) = (ra.0.min(rm.0).min(rb.0), ra.1.max(rm.1).max(rb.1));
                     let mut px = PixelHistory {
-                        sum: Vec3::new(acc.sum[0][q], acc.sum[1][q], acc.sum[2][q]),
+                        mean: Vec3::new(acc.mean[0][q], acc.mean[1][q], acc.mean[2][q]),
                         time_sum: acc.time_sum[q],
                         count: acc.count[q],
                         range: acc.cell[q].range,
                     };
                     cuts += px.clamp_to(lo, hi, p) as u64;
                     let shown = px.blend_over(&mut image.pixels[q], age[q], t, p.recon_weight);
-                    (acc.sum[0][q], acc.sum[1][q], acc.sum[2][q]) = px.sum.into();
+                    (acc.mean[0][q], acc.mean[1][q], acc.mean[2][q]) = px.mean.into();
                     (acc.time_sum[q], acc.count[q]) = (px.time_sum, px.count);
                     acc.cell[q].range = px.range;
                     shown
@@ -472,7 +492,7 @@ mod tests {
             };
             if count > 0.0 {
                 for c in 0..3 {
-                    acc.sum[c][q] = mean[c] * count;
+                    acc.mean[c][q] = mean[c];
                 }
                 acc.time_sum[q] = (1.0 + rng.uniform() as f64) * count as f64;
                 acc.count[q] = count;
@@ -511,8 +531,10 @@ mod tests {
                     seen[y].fetch_add(1, Ordering::Relaxed);
                     made(px, age);
                 };
+                // No block has a reference: each colour is the blend's own.
+                let refs = Refs::new(w as usize, h as usize);
                 let got = blend_image(
-                    &mut acc,
+                    (&mut acc, &refs),
                     (&mut edges, &mut rolling),
                     (2.0, p),
                     (&mut image, &mut age),
@@ -530,7 +552,7 @@ mod tests {
                 assert_eq!(bits(&age), bits(&age2), "{at}");
                 assert_eq!(bits(&acc.count), bits(&acc2.count), "{at}");
                 for c in 0..3 {
-                    assert_eq!(bits(&acc.sum[c]), bits(&acc2.sum[c]), "{at}");
+                    assert_eq!(bits(&acc.mean[c]), bits(&acc2.mean[c]), "{at}");
                     let ch = |im: &Image| im.pixels.iter().map(|v| v[c]).collect::<Vec<_>>();
                     assert_eq!(bits(&ch(&image)), bits(&ch(&image2)), "{at}");
                 }
