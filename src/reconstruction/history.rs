@@ -1526,6 +1526,26 @@ mod tests {
     }
 
     #[test]
+    fn a_history_of_equal_samples_keeps_exactly_their_value() {
+        // The premise: their sum divided by their count is a rounding off.
+        let (c, n) = (0.3f32, 40);
+        let summed = (0..n).fold(0f32, |s, _| s + c) / n as f32;
+        assert_ne!(summed, c);
+        let mut h = History::new(4, 4, cutting());
+        let cam = camera(0.0);
+        refresh(&mut h, 0.0, &cam, c);
+        for k in 0..n {
+            h.push(&sample(1.5, 1.5, 0.001 * k as f64, c), false);
+        }
+        // The reconstruction a rounding below: the history's mean is what is shown.
+        let img = refresh(&mut h, 0.1, &cam, f32::from_bits(c.to_bits() - 1));
+        assert_eq!(h.counts()[5], n as f32);
+        let acc = &h.pixels.as_ref().unwrap().acc;
+        assert_eq!([0, 1, 2].map(|k| acc.mean[k][5]), [c; 3]);
+        assert_eq!(img.get(1, 1), Vec3::splat(c));
+    }
+
+    #[test]
     fn samples_from_before_the_view_settled_are_left_out() {
         let mut h = History::new(4, 4, cutting());
         let cam = camera(0.0);
