@@ -924,7 +924,6 @@ impl Pixels {
                 let hi = order.partition_point(|&(q, _)| (q as usize) < base + held.len());
                 let mut band = Band {
                     base,
-                    width: width.max(1),
                     acc,
                     held,
                     refs,
@@ -996,7 +995,6 @@ impl Pixels {
 /// fresh samples; what it cut and the pixels it held a sample back in are merged after.
 struct Band<'a> {
     base: usize,
-    width: usize,
     acc: AccumMut<'a>,
     held: &'a mut [Option<(Vec3, f64, Vec3)>],
     /// The band's blocks' reference colours: the last sample each took, in pixel
@@ -1030,7 +1028,7 @@ impl Band<'_> {
     /// A still sample joins pixel `q` (of the band) if it agrees with what the pixel
     /// showed; two in a row that do not start the pixel over; a moving one cuts it.
     fn take_in(&mut self, q: usize, f: &Fresh, slack: f32, p: &HistoryParams) {
-        self.refs.set(q % self.width, q / self.width, f.color);
+        self.refs.set(q, f.color);
         if !f.still {
             // Something moving covers (part of) the pixel now.
             self.cut(q);
@@ -1075,7 +1073,7 @@ impl Band<'_> {
         // Past `max` samples, the mean of about the last `max` of them.
         let mean = if a.count[q] > 0.0 {
             let m = a.mean(q);
-            m + (c - m) / count
+            m + (c - m) * (1.0 / count)
         } else {
             c
         };

@@ -341,8 +341,14 @@ fn blend_planes(
 /// roundings of it (`refs`: one per [`refs::BLOCK`] pixels).
 fn shown_exact(colour: &mut [Vec<f32>; 3], refs: [&[f32]; 3]) {
     for (c, r) in colour.iter_mut().zip(refs) {
-        for (c, &r) in c.chunks_mut(refs::BLOCK).zip(r) {
-            for v in c {
+        // Whole blocks as fixed-length runs (vector code), then the row's last pixels.
+        let mut blocks = c.chunks_exact_mut(refs::BLOCK);
+        for (c, &r) in (&mut blocks).zip(r) {
+            let c: &mut [f32; refs::BLOCK] = c.try_into().unwrap();
+            *c = c.map(|v| refs::exact(v, r));
+        }
+        if let Some(&r) = r.last() {
+            for v in blocks.into_remainder() {
                 *v = refs::exact(*v, r);
             }
         }

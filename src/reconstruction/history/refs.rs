@@ -29,6 +29,8 @@ pub(in crate::reconstruction) const TOLERANCE: f32 = 1e-6;
 /// The reference colour of every block, in planes (red, green, blue), a row of
 /// blocks after another; NaN where no sample has landed yet.
 pub(super) struct Refs {
+    /// Pixels per row.
+    width: u32,
     /// Blocks per row.
     across: usize,
     colour: [Vec<f32>; 3],
@@ -40,6 +42,7 @@ impl Refs {
         let across = width.div_ceil(BLOCK);
         let n = across * height.div_ceil(BLOCK);
         Self {
+            width: width as u32,
             across,
             colour: std::array::from_fn(|_| vec![f32::NAN; n]),
         }
@@ -54,6 +57,7 @@ impl Refs {
             .zip(b.chunks_mut(len))
             .map(|((r, g), b)| BandRefs {
                 across: self.across,
+                width: self.width,
                 colour: [r, g, b],
             })
             .collect()
@@ -69,14 +73,19 @@ impl Refs {
 /// The blocks of one band of rows, borrowed.
 pub(super) struct BandRefs<'a> {
     across: usize,
+    width: u32,
     colour: [&'a mut [f32]; 3],
 }
 
 impl BandRefs<'_> {
-    /// A sample of colour `c` landed in the band's pixel `(x, y)` (`y` from the
-    /// band's first row).
+    /// A sample of colour `c` landed in the band's pixel `q` (from the band's first).
     #[inline]
-    pub(super) fn set(&mut self, x: usize, y: usize, c: glam::Vec3) {
+    pub(super) fn set(&mut self, q: usize, c: glam::Vec3) {
+        // A 32-bit division: a band's pixels are far fewer than 2³².
+        let (y, x) = (
+            (q as u32 / self.width) as usize,
+            (q as u32 % self.width) as usize,
+        );
         let b = y / BLOCK * self.across + x / BLOCK;
         for (plane, v) in self.colour.iter_mut().zip(c.to_array()) {
             plane[b] = v;
@@ -121,7 +130,7 @@ mod tests {
             .into_iter()
             .enumerate()
         {
-            band.set(9, 0, Vec3::splat(k as f32));
+            band.set(9, Vec3::splat(k as f32));
         }
         for (k, y) in [0, super::super::BLEND_ROWS, 2 * super::super::BLEND_ROWS]
             .iter()
