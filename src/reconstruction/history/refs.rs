@@ -5,9 +5,9 @@
 //! the time that is nothing; but scene files give colours as decimals, and a
 //! decimal such as 0.3 or 0.5 is exactly half-way between two display codes (0.3 ·
 //! 255 = 76.5). The ideal image, a plain mean of equal values, stays on `c` and shows
-//! 77; a rounding below shows 76. On a flat wall under a moving object's shadow
-//! (museum4 after its camera stops, where the history holds nothing) half of the
-//! wall's pixels were a code off, and FLIP was 20 times what showing the newest sample
+//! 77; a rounding below shows 76. On a flat wall that the adaptive sampler left
+//! sparse (museum4 after its camera stops: most of its pixels without a sample, so
+//! without history, of their own) a quarter of the wall's pixels were a code off, and FLIP was 20 times what showing the newest sample
 //! gives.
 //!
 //! So each block of [`BLOCK`]×[`BLOCK`] pixels keeps the colour of a sample that
