@@ -557,7 +557,9 @@ fn blend(@builtin(global_invocation_id) gid: vec3<u32>) {
         age = (age * k + hist_age * n) / (k + n);
     }
     let r = block_ref(x, y);
-    rgb = select(rgb, r, abs(rgb - r) <= abs(r) * REF_TOLERANCE);
+    // Not to an infinite reference: every value is within an infinite tolerance.
+    let within = abs(r) * REF_TOLERANCE;
+    rgb = select(rgb, r, abs(rgb - r) <= within & within <= vec3<f32>(3.4e38));
     shown[o] = rgb.x;
     shown[o + 1u] = rgb.y;
     shown[o + 2u] = rgb.z;

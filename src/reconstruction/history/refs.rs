@@ -94,10 +94,12 @@ impl BandRefs<'_> {
 }
 
 /// `v`, or the reference `r` where `v` is within [`TOLERANCE`] of it (never where `r`
-/// is NaN). Branch-free, for the blend's vector loops.
+/// is NaN or infinite: every value is within an infinite tolerance). Branch-free, for
+/// the blend's vector loops.
 #[inline(always)]
 pub(super) fn exact(v: f32, r: f32) -> f32 {
-    if (v - r).abs() <= r.abs() * TOLERANCE {
+    let within = r.abs() * TOLERANCE;
+    if (v - r).abs() <= within && within < f32::INFINITY {
         r
     } else {
         v
@@ -118,6 +120,9 @@ mod tests {
         // A display code away is not a rounding.
         assert_eq!(exact(c - 1.0 / 255.0, c), c - 1.0 / 255.0);
         assert_eq!(exact(below, f32::NAN), below);
+        assert_eq!(exact(below, f32::INFINITY), below);
+        assert_eq!(exact(below, f32::NEG_INFINITY), below);
+        assert_eq!(exact(f32::INFINITY, f32::INFINITY), f32::INFINITY);
         assert_eq!(exact(0.0, 0.0), 0.0);
     }
 
