@@ -244,11 +244,18 @@ impl ReconParams {
     /// samples until their first refresh, and an image thread that falls behind may
     /// take in that many at once). Splats are at most 8 px in radius (paper: 24):
     /// sparse early samples otherwise grow huge footprints through the coverage-driven
-    /// splat size.
+    /// splat size. A tile's gradients widen its filter to at most 2 px (the paper's
+    /// bound is 8): past that, a flat tile's wide Gaussians bled across the edges
+    /// beside it; where samples are sparse, the coverage-driven splat size still widens
+    /// the footprints (docs/methods.md, "The spatial extent's bound").
     pub fn realtime() -> Self {
         Self {
             ring_factor: 2.0,
             max_radius: 8.0,
+            bounds: FilterBounds {
+                extent_xy: (0.4, 2.0),
+                ..FilterBounds::default()
+            },
             ..Self::converging()
         }
     }
