@@ -659,36 +659,15 @@ fn gpu_kept_fronts_match_a_full_recompute() {
 fn gpu_shows_a_flat_surface_at_a_half_code_at_exactly_its_value() {
     // As the CPU does (`a_flat_surface_at_a_half_code_is_shown_at_exactly_its_value`):
     // the GPU's history keeps means and shows each block's reference colour.
-    use super::tests::{flat_field, not_exactly};
     let ctx = context();
-    let (w, h) = (48, 32);
-    let colour = Vec3::new(0.3, 0.5, 0.7);
-    for dynamic_every in [0, 1, 3] {
-        let (_, c, tiling) = random_setup(w, h, 10, 1.0, false, ReconParams::realtime(), GTS);
+    let (_, _, tiling) = random_setup(48, 32, 10, 1.0, false, ReconParams::realtime(), GTS);
+    let on_gpu = |w, h| {
         let mut gpu = Reconstructor::new(w, h, 20000.0, ReconParams::realtime());
         gpu.use_gpu(ctx.clone())
             .expect("the history runs on the GPU");
-        let mut rng = crate::sampling::Rng::new(&[5, dynamic_every as u64]);
-        let mut off = Vec::new();
-        for k in 0..20 {
-            let t = 0.05 * k as f64;
-            let batch = flat_field(
-                &mut rng,
-                &c,
-                (w, h),
-                (t - 0.05, t),
-                (colour, 400, dynamic_every),
-            );
-            for (s, dynamic) in batch {
-                gpu.push_marked(s, dynamic);
-            }
-            gpu.reconstruct(t, &c, &tiling);
-            assert_eq!(gpu.gpu_failure(), None);
-            off.push(not_exactly(gpu.image(), colour));
-        }
-        assert!(
-            off[5..].iter().all(|&n| n == 0),
-            "every {dynamic_every}th dynamic: pixels off per refresh {off:?}"
-        );
-    }
+        gpu
+    };
+    super::tests::assert_flat_surface_exact(on_gpu, &tiling, |gpu| {
+        assert_eq!(gpu.gpu_failure(), None)
+    });
 }

@@ -369,11 +369,9 @@ fn order_bytes(width: u32, height: u32, cap: usize) -> u64 {
     (3 * x as u64 * y as u64 + 1 + cap as u64) * 4
 }
 
-/// Blocks of pixels that share a reference colour ([`refs::BLOCK`]) over a
-/// `width × height` image.
+/// Blocks of pixels that share a reference colour over a `width × height` image.
 fn ref_blocks(width: u32, height: u32) -> u64 {
-    let side = refs::BLOCK as u32;
-    width.div_ceil(side) as u64 * height.div_ceil(side) as u64
+    refs::block_count(width as usize, height as usize) as u64
 }
 
 /// `history.wgsl` after the constants it shares with the reconstruction's side and

@@ -479,7 +479,7 @@ fn ref_at(b: u32) -> u32 {
 }
 
 fn block_ref(x: u32, y: u32) -> vec3<f32> {
-    let h = ref_at(block_of(y * P.width + x));
+    let h = ref_at(y / REF_BLOCK * blocks_across() + x / REF_BLOCK);
     return vec3<f32>(held[h], held[h + 1u], held[h + 2u]);
 }
 

@@ -36,14 +36,19 @@ pub(super) struct Refs {
     colour: [Vec<f32>; 3],
 }
 
+/// How many blocks a `width × height` image has: whole rows of them, the last
+/// column and row of blocks partly outside the image.
+pub(in crate::reconstruction) fn block_count(width: usize, height: usize) -> usize {
+    width.div_ceil(BLOCK) * height.div_ceil(BLOCK)
+}
+
 impl Refs {
     /// The blocks of a `width × height` image, none with a reference yet.
     pub(super) fn new(width: usize, height: usize) -> Self {
-        let across = width.div_ceil(BLOCK);
-        let n = across * height.div_ceil(BLOCK);
+        let n = block_count(width, height);
         Self {
             width: width as u32,
-            across,
+            across: width.div_ceil(BLOCK),
             colour: std::array::from_fn(|_| vec![f32::NAN; n]),
         }
     }
