@@ -447,6 +447,27 @@ fn cameras_by_order_and_name() {
     assert!(e.to_string().contains("perspective"), "{e}");
 }
 
+/// The committed `docs/examples/fence.gltf` (written by `docs/examples/make_fence.py`)
+/// loads with the camera its file animates: a strafe, a stop, then a pan.
+#[test]
+fn the_fence_example_follows_its_animated_camera() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/fence.gltf");
+    let s = scene::load(path).unwrap();
+    assert!(s.camera.track.is_some());
+    // Eye x from the file's keys; the view straight ahead once the strafe has stopped.
+    for (t, x) in [(0.0, -4.0), (1.0, -1.0), (2.5, 2.5), (3.5, 2.5), (5.0, 2.5)] {
+        let c = s.camera_at(t);
+        assert!(close(c.eye, Vec3::new(x, 1.2, 3.2)), "t = {t}: {}", c.eye);
+    }
+    let yaw = |t: f32| {
+        let c = s.camera_at(t);
+        let d = c.at - c.eye;
+        (-d.x).atan2(-d.z)
+    };
+    assert!(yaw(3.0).abs() < 1e-4, "still ahead at 3 s: {}", yaw(3.0));
+    assert!((yaw(5.0) - 0.7).abs() < 1e-3, "panned at 5 s: {}", yaw(5.0));
+}
+
 #[test]
 fn punctual_lights() {
     let dir = tmpdir("lights");

@@ -1,0 +1,176 @@
+#!/usr/bin/env python3
+"""Writes docs/examples/fence.gltf (+ fence.bin), a scene written to test the methods on
+what nobody tuned them on: a picket fence of thin white boards before a wall of narrow
+red and blue stripes (edges in front of edges, at another depth), a windmill whose four
+blades turn one and a half times a second, a steel cube sliding to and fro, and a camera
+animated in the file itself: it strafes right past the fence (0-2 s), slows and stops
+(2-2.5 s), holds (2.5-3.5 s), pans 40 degrees (3.5-4.5 s) and holds again.
+
+    python3 docs/examples/make_fence.py [OUTPUT_DIR]
+
+Nothing but the standard library; boxes only, so every node is a scaled unit cube.
+"""
+import json
+import math
+import os
+import struct
+import sys
+
+out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
+data = bytearray()
+views, accessors = [], []
+
+
+def view(b):
+    while len(data) % 4:
+        data.append(0)
+    views.append({"buffer": 0, "byteOffset": len(data), "byteLength": len(b)})
+    data.extend(b)
+    return len(views) - 1
+
+
+def floats(vals, ty):
+    comps = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[ty]
+    a = {"bufferView": view(struct.pack("<%df" % len(vals), *vals)),
+         "componentType": 5126, "count": len(vals) // comps, "type": ty}
+    if ty in ("VEC3", "SCALAR"):  # the specification asks bounds of positions and key times
+        a["min"] = [min(vals[k::comps]) for k in range(comps)]
+        a["max"] = [max(vals[k::comps]) for k in range(comps)]
+    accessors.append(a)
+    return len(accessors) - 1
+
+
+def indices(vals):
+    accessors.append({"bufferView": view(struct.pack("<%dH" % len(vals), *vals)),
+                      "componentType": 5123, "count": len(vals), "type": "SCALAR"})
+    return len(accessors) - 1
+
+
+def unit_cube(material):
+    pos, nor, idx = [], [], []
+    for axis in range(3):
+        for side in (-1, 1):
+            n = [0, 0, 0]
+            n[axis] = side
+            u, w, base = (axis + 1) % 3, (axis + 2) % 3, len(pos) // 3
+            for a, c in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+                p = [0.0, 0.0, 0.0]
+                p[axis], p[u], p[w] = side * 0.5, a * 0.5, c * 0.5
+                pos += p
+                nor += n
+            # Counter-clockwise seen from outside.
+            idx += [base, base + 1, base + 2, base, base + 2, base + 3] if side > 0 \
+                else [base, base + 2, base + 1, base, base + 3, base + 2]
+    return {"attributes": {"POSITION": floats(pos, "VEC3"), "NORMAL": floats(nor, "VEC3")},
+            "indices": indices(idx), "material": material}
+
+
+def about(axis, angle):
+    s = math.sin(angle / 2)
+    return [axis[0] * s, axis[1] * s, axis[2] * s, math.cos(angle / 2)]
+
+
+def times(a, b):
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return [aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz]
+
+
+def material(name, rgb, metallic, roughness):
+    return {"name": name, "pbrMetallicRoughness": {
+        "baseColorFactor": rgb + [1.0], "metallicFactor": metallic, "roughnessFactor": roughness}}
+
+
+materials = [
+    material("grass", [0.35, 0.5, 0.25], 0.0, 0.9),
+    material("white", [0.92, 0.9, 0.85], 0.0, 0.6),
+    material("red", [0.75, 0.2, 0.15], 0.0, 0.7),
+    material("blue", [0.15, 0.3, 0.7], 0.0, 0.7),
+    material("steel", [0.8, 0.8, 0.85], 1.0, 0.2),
+    material("wood", [0.55, 0.4, 0.25], 0.0, 0.8),
+]
+GRASS, WHITE, RED, BLUE, STEEL, WOOD = range(len(materials))
+meshes = [{"name": m["name"], "primitives": [unit_cube(i)]} for i, m in enumerate(materials)]
+nodes, roots = [], []
+
+
+def node(d, root=True):
+    nodes.append(d)
+    if root:
+        roots.append(len(nodes) - 1)
+    return len(nodes) - 1
+
+
+node({"name": "ground", "mesh": GRASS, "translation": [0, -0.05, 0], "scale": [30, 0.1, 30]})
+for i in range(31):
+    node({"name": "picket %d" % i, "mesh": WHITE, "translation": [-7.5 + i * 0.5, 0.6, -1.0],
+          "scale": [0.09, 1.2, 0.05]})
+for y in (0.3, 0.95):
+    node({"name": "rail", "mesh": WHITE, "translation": [0, y, -1.04], "scale": [15.5, 0.08, 0.03]})
+for i in range(40):
+    node({"name": "stripe %d" % i, "mesh": RED + i % 2, "translation": [-9.75 + i * 0.5, 1.5, -4.0],
+          "scale": [0.5, 3.0, 0.2]})
+node({"name": "tower", "mesh": WOOD, "translation": [1.6, 1.3, -2.6], "scale": [0.25, 2.6, 0.25]})
+blades = []
+for k in range(4):
+    shape = node({"name": "blade %d shape" % k, "mesh": WHITE, "translation": [0.7, 0, 0],
+                  "scale": [1.3, 0.18, 0.04]}, root=False)
+    blades.append(node({"name": "blade %d" % k, "rotation": about([0, 0, 1], k * math.pi / 2),
+                        "children": [shape]}, root=False))
+hub = node({"name": "hub", "translation": [1.6, 2.6, -2.4], "children": blades})
+slider = node({"name": "slider", "mesh": STEEL, "translation": [-2.5, 0.35, 0.2],
+               "scale": [0.7, 0.7, 0.7]})
+
+# The camera's keys: time, x, yaw (height 1.2, 3.2 in front of the fence, pitched down a little).
+keys = [(0, -4, 0.15), (0.5, -2.5, 0.12), (1, -1, 0.09), (1.5, 0.5, 0.06), (2, 2, 0.03),
+        (2.25, 2.4, 0.01), (2.5, 2.5, 0), (3.5, 2.5, 0), (4.5, 2.5, 0.7), (6, 2.5, 0.7)]
+look = lambda yaw: times(about([0, 1, 0], yaw), about([1, 0, 0], -0.04))
+camera = node({"name": "camera", "camera": 0, "translation": [keys[0][1], 1.2, 3.2],
+               "rotation": look(keys[0][2])})
+lamp = node({"name": "lamp", "translation": [-2, 4, 3], "extensions": {"KHR_lights_punctual": {"light": 0}}})
+sun = node({"name": "sun", "rotation": times(about([0, 1, 0], 0.5), about([1, 0, 0], -0.9)),
+            "extensions": {"KHR_lights_punctual": {"light": 1}}})
+
+# Keys a quarter turn apart (slerp takes the short way), six a second: 1.5 turns a second.
+spin_t = [i / 6.0 for i in range(37)]
+spin_q = sum((about([0, 0, 1], -i * math.pi / 2) for i in range(37)), [])
+slide_t = list(range(7))
+slide = sum(([-2.5 + 5.0 * (i % 2), 0.35, 0.2] for i in range(7)), [])
+cam_t = [k[0] for k in keys]
+cam_at = sum(([k[1], 1.2, 3.2] for k in keys), [])
+cam_q = sum((look(k[2]) for k in keys), [])
+cam_keys = floats(cam_t, "SCALAR")
+samplers = [
+    (floats(spin_t, "SCALAR"), floats(spin_q, "VEC4"), hub, "rotation"),
+    (floats(slide_t, "SCALAR"), floats(slide, "VEC3"), slider, "translation"),
+    (cam_keys, floats(cam_at, "VEC3"), camera, "translation"),
+    (cam_keys, floats(cam_q, "VEC4"), camera, "rotation"),
+]
+while len(data) % 4:
+    data.append(0)
+doc = {
+    "asset": {"version": "2.0", "generator": "frameless docs/examples/make_fence.py"},
+    "extensionsUsed": ["KHR_lights_punctual"],
+    "extensions": {"KHR_lights_punctual": {"lights": [
+        {"name": "lamp", "type": "point", "color": [1, 0.95, 0.85], "intensity": 60},
+        {"name": "sun", "type": "directional", "color": [0.8, 0.85, 1], "intensity": 0.5}]}},
+    "scene": 0,
+    "scenes": [{"name": "fence", "nodes": roots}],
+    "nodes": nodes,
+    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05, "aspectRatio": 1.0}}],
+    "meshes": meshes,
+    "materials": materials,
+    "animations": [{"name": "fence", "channels": [
+        {"sampler": i, "target": {"node": n, "path": p}} for i, (_, _, n, p) in enumerate(samplers)],
+        "samplers": [{"input": a, "output": b, "interpolation": "LINEAR"} for a, b, _, _ in samplers]}],
+    "bufferViews": views,
+    "accessors": accessors,
+    "buffers": [{"byteLength": len(data), "uri": "fence.bin"}],
+}
+with open(os.path.join(out, "fence.gltf"), "w") as f:
+    json.dump(doc, f, indent=1)
+    f.write("\n")
+with open(os.path.join(out, "fence.bin"), "wb") as f:
+    f.write(data)
+print("wrote %s and fence.bin (%d bytes)" % (os.path.join(out, "fence.gltf"), len(data)))
