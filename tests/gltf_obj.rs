@@ -465,6 +465,16 @@ fn the_fence_example_follows_its_animated_camera() {
         (-d.x).atan2(-d.z)
     };
     assert!(yaw(3.0).abs() < 1e-4, "still ahead at 3 s: {}", yaw(3.0));
+    // Held between equal keys (2.5-3.5 s): the same view at every moment, to the bit,
+    // away from the ends, where the baked spline still eases in and out.
+    let held = s.camera_at(2.6).frame(256, 256);
+    for k in 0..=48 {
+        let t = 2.6 + k as f32 / 60.0;
+        assert!(
+            s.camera_at(t).frame(256, 256).same_view(&held),
+            "moved at {t}"
+        );
+    }
     assert!((yaw(5.0) - 0.7).abs() < 1e-3, "panned at 5 s: {}", yaw(5.0));
 }
 

@@ -144,6 +144,11 @@ fn qexp(v: Vec3) -> Quat {
 /// Spherical linear interpolation without the shortest-path flip (squad needs the raw
 /// great arc between its control quaternions).
 fn slerp_raw(a: Quat, b: Quat, u: f32) -> Quat {
+    if a == b {
+        // Exactly `a`, so that a rotation held between equal keys does not change in
+        // its last bits from one moment to the next.
+        return a;
+    }
     let d = Vec4::from(a).dot(Vec4::from(b)).clamp(-1.0, 1.0);
     let theta = d.acos();
     if theta.abs() < 1e-5 {
@@ -351,6 +356,26 @@ mod tests {
 
     fn rkey(time: f32, deg: f32) -> TcbKey<(Vec3, f32)> {
         TcbKey::catmull_rom(time, (Vec3::Y, deg))
+    }
+
+    /// Where four keys agree the splines give exactly their value at every moment,
+    /// not one that differs from it in the last bit from one moment to the next (a
+    /// camera that did would be a new view at every refresh).
+    #[test]
+    fn held_keys_give_exactly_their_value() {
+        let r = RotationSpline::new((0..4).map(|i| rkey(i as f32, 37.0)).collect()).unwrap();
+        let v = VectorSpline::new(
+            (0..4)
+                .map(|i| key(i as f32, Vec3::new(2.5, 1.2, 3.2)))
+                .collect(),
+        )
+        .unwrap();
+        let (q, p) = (r.eval(1.0), v.eval(1.0));
+        for k in 0..200 {
+            let t = 1.0 + k as f32 / 199.0;
+            assert_eq!(r.eval(t), q, "rotation at {t}");
+            assert_eq!(v.eval(t), p, "translation at {t}");
+        }
     }
 
     #[test]

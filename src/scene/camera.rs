@@ -112,10 +112,14 @@ impl Camera {
 
     /// Linear interpolation of two views (used by camera paths).
     pub fn lerp(&self, other: &Camera, s: f32) -> Camera {
+        // `a + (b − a)·s`, not glam's `a·(1 − s) + b·s`: where two keys agree it gives
+        // the key exactly, so a camera held between equal keys is the same view at
+        // every moment (a view that changes in its last bit re-splats every sample).
+        let mix = |a: Vec3, b: Vec3| a + (b - a) * s;
         Camera {
-            eye: self.eye.lerp(other.eye, s),
-            at: self.at.lerp(other.at, s),
-            up: self.up.lerp(other.up, s),
+            eye: mix(self.eye, other.eye),
+            at: mix(self.at, other.at),
+            up: mix(self.up, other.up),
             fov_y_deg: self.fov_y_deg + (other.fov_y_deg - self.fov_y_deg) * s,
             hither: self.hither + (other.hither - self.hither) * s,
         }

@@ -334,6 +334,22 @@ mod tests {
         assert_eq!(p.to_csv(), GOOD);
     }
 
+    /// A camera held between two equal keys is the same view at every moment: with
+    /// a blend that changed in the last bit, the reconstructor took each refresh for a
+    /// moved view and re-splatted every sample (the fence example, live).
+    #[test]
+    fn a_held_camera_is_the_same_view_throughout() {
+        let held = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                    0,2.5,1.2,3.2,2.5,1.160011,2.2008,0,1,0,45.8366\n\
+                    10,2.5,1.2,3.2,2.5,1.160011,2.2008,0,1,0,45.8366\n";
+        let p = CameraPath::parse("p.csv", held).unwrap();
+        let first = p.at(0.0).frame(256, 256);
+        for k in 0..600 {
+            let t = k as f32 / 60.0 + 1e-3 * (k % 7) as f32;
+            assert!(p.at(t).frame(256, 256).same_view(&first), "moved at {t}");
+        }
+    }
+
     #[test]
     fn errors_name_line_and_column() {
         let bad = GOOD.replace("2,2,0,0", "2,2,zz,0");

@@ -139,6 +139,11 @@ impl Sampler {
             // first < t < last, so the first key after t exists and is not key 0.
             let k1 = times.partition_point(|&x| x <= t);
             let k0 = k1 - 1;
+            if self.holds(k0, k1) {
+                // Exactly the key, not a blend that differs from it in the last bit:
+                // a camera held between two equal keys is then the same view throughout.
+                return self.finish(key(k0));
+            }
             let dt = times[k1] - times[k0];
             let u = ((t - times[k0]) / dt).clamp(0.0, 1.0);
             match self.interpolation {
@@ -158,6 +163,27 @@ impl Sampler {
                 }
             }
         };
+        self.finish(v)
+    }
+
+    /// Whether the value rests from key `k0` to key `k1`: the same value, and for a
+    /// cubic spline no tangent between them.
+    fn holds(&self, k0: usize, k1: usize) -> bool {
+        match self.interpolation {
+            Interpolation::Step => true,
+            Interpolation::Linear => self.values[k0] == self.values[k1],
+            Interpolation::CubicSpline => {
+                let v = &self.values;
+                v[3 * k0 + 1] == v[3 * k1 + 1]
+                    && v[3 * k0 + 2] == Vec4::ZERO
+                    && v[3 * k1] == Vec4::ZERO
+            }
+        }
+    }
+
+    /// A value as the target takes it: rotations normalised (a degenerate one becomes
+    /// the identity).
+    fn finish(&self, v: Vec4) -> Vec4 {
         if self.target == SamplerTarget::Rotation {
             v.try_normalize().unwrap_or(Vec4::W)
         } else {
