@@ -166,11 +166,11 @@ impl Sampler {
         self.finish(v)
     }
 
-    /// Whether the value rests from key `k0` to key `k1`: the same value, and for a
-    /// cubic spline no tangent between them.
+    /// Whether a blend from key `k0` to key `k1` rests on one value: the same value,
+    /// and for a cubic spline no tangent between them (a step is its key anyway).
     fn holds(&self, k0: usize, k1: usize) -> bool {
         match self.interpolation {
-            Interpolation::Step => true,
+            Interpolation::Step => false,
             Interpolation::Linear => self.values[k0] == self.values[k1],
             Interpolation::CubicSpline => {
                 let v = &self.values;
@@ -272,7 +272,7 @@ pub(super) fn collect_channels(
     doc: &Doc,
     warn: &mut dyn FnMut(String),
 ) -> Result<HashMap<usize, Channels>, SceneError> {
-    use json::animation::{Interpolation as I, Property};
+    use json::animation::Property;
     let mut out: HashMap<usize, Channels> = HashMap::new();
     for (ai, anim) in doc.root.animations.iter().enumerate() {
         for (ci, ch) in anim.channels.iter().enumerate() {
@@ -303,42 +303,7 @@ pub(super) fn collect_channels(
                     anim.samplers.len()
                 ))
             })?;
-            let interpolation = match s.interpolation {
-                Checked::Valid(I::Step) => Interpolation::Step,
-                Checked::Valid(I::Linear) => Interpolation::Linear,
-                Checked::Valid(I::CubicSpline) => Interpolation::CubicSpline,
-                Checked::Invalid => {
-                    return Err(doc.invalid(format!("{ctx}: invalid interpolation")));
-                }
-            };
-            let (times, _) = doc.floats(
-                s.input.value(),
-                &format!("{ctx} input"),
-                &[json::accessor::Type::Scalar],
-            )?;
-            let ty = if target == SamplerTarget::Rotation {
-                json::accessor::Type::Vec4
-            } else {
-                json::accessor::Type::Vec3
-            };
-            let (vals, comps) = doc.floats(s.output.value(), &format!("{ctx} output"), &[ty])?;
-            let values = vals
-                .chunks_exact(comps)
-                .map(|c| {
-                    if comps == 4 {
-                        Vec4::from_slice(c)
-                    } else {
-                        Vec3::from_slice(c).extend(0.0)
-                    }
-                })
-                .collect();
-            let sampler = Sampler::new(target, interpolation, times, values).map_err(|source| {
-                SceneError::Sampler {
-                    file: doc.file.clone(),
-                    context: ctx,
-                    source,
-                }
-            })?;
+            let sampler = read_sampler(doc, s, target, ctx)?;
             let slot = out.entry(node).or_default();
             match target {
                 SamplerTarget::Translation => slot.translation = Some(sampler),
@@ -348,6 +313,51 @@ pub(super) fn collect_channels(
         }
     }
     Ok(out)
+}
+
+/// The sampler `s` of a channel driving `target` (`ctx` names the channel in errors):
+/// its interpolation, key times and values read and checked.
+fn read_sampler(
+    doc: &Doc,
+    s: &json::animation::Sampler,
+    target: SamplerTarget,
+    ctx: String,
+) -> Result<Sampler, SceneError> {
+    use json::animation::Interpolation as I;
+    let interpolation = match s.interpolation {
+        Checked::Valid(I::Step) => Interpolation::Step,
+        Checked::Valid(I::Linear) => Interpolation::Linear,
+        Checked::Valid(I::CubicSpline) => Interpolation::CubicSpline,
+        Checked::Invalid => {
+            return Err(doc.invalid(format!("{ctx}: invalid interpolation")));
+        }
+    };
+    let (times, _) = doc.floats(
+        s.input.value(),
+        &format!("{ctx} input"),
+        &[json::accessor::Type::Scalar],
+    )?;
+    let ty = if target == SamplerTarget::Rotation {
+        json::accessor::Type::Vec4
+    } else {
+        json::accessor::Type::Vec3
+    };
+    let (vals, comps) = doc.floats(s.output.value(), &format!("{ctx} output"), &[ty])?;
+    let values = vals
+        .chunks_exact(comps)
+        .map(|c| {
+            if comps == 4 {
+                Vec4::from_slice(c)
+            } else {
+                Vec3::from_slice(c).extend(0.0)
+            }
+        })
+        .collect();
+    Sampler::new(target, interpolation, times, values).map_err(|source| SceneError::Sampler {
+        file: doc.file.clone(),
+        context: ctx,
+        source,
+    })
 }
 
 /// Sample a node's world transform over the animation range into a keyframe track
