@@ -93,14 +93,17 @@ fn each_sample_is_splatted_once_then_decays_exponentially() {
         r.reconstruct(t, &c, &tiling);
         assert_eq!(r.placed(), b.len(), "only the new samples are placed");
     }
-    // Direct: a sample's weight is its Gaussian at its first refresh, times
-    // e^(−Δ/τ) for the time since; its age grows with the clock.
+    // Direct: a sample's weight is its Gaussian at its first refresh (its age counted
+    // from the newest sample then in hand), times e^(−Δ/τ) for the time since; its
+    // shown age grows with the clock.
     let t_end = *times.last().unwrap();
     let (ex, ey, tc) = (1.2f64, 0.9f64, 2.5f64);
     let mut sums = vec![[0f64; 5]; (w * h) as usize];
+    let mut newest = f64::NEG_INFINITY;
     for (b, &t1) in bs.iter().zip(&times) {
+        newest = b.iter().fold(newest, |m, s| m.max(s.t));
         for s in b {
-            let a = (t1 - s.t) / et;
+            let a = (newest.min(t1) - s.t) / et;
             if a > tc {
                 continue;
             }

@@ -119,6 +119,9 @@ pub(super) struct Placer<'a> {
     scale: &'a [f32],
     tiles: &'a [TileFilter],
     temporal_cutoff: f32,
+    /// How long before the refresh the newest sample in hand was traced
+    /// ([`Reconstructor::sample_lag`]): the temporal filter measures ages from it.
+    lag: f32,
     /// Footprint radius bound.
     max_r: f32,
     /// With the visibility pass: the largest `age / e_t` of a sample that sets front
@@ -212,7 +215,7 @@ impl Placer<'_> {
     #[cfg(test)]
     fn finish(&self, l: &Located, look: Lookup, scale: f32) -> Option<Placed> {
         let f = self.tiles[look.tile as usize];
-        let a = l.age * f.inv_et;
+        let a = lagged(l.age, self.lag) * f.inv_et;
         if !(l.ok && a <= self.temporal_cutoff) {
             return None;
         }
@@ -413,9 +416,9 @@ impl Block {
     /// survivors' later waits on each one's cache miss.
     #[inline(always)]
     fn weigh(&mut self, placer: &Placer, n: usize, [r, g, bl]: [&[f32]; 3]) {
-        let tc = placer.temporal_cutoff;
+        let (tc, lag) = (placer.temporal_cutoff, placer.lag);
         for i in 0..n {
-            let a = self.age[i] * self.inv_et[i];
+            let a = lagged(self.age[i], lag) * self.inv_et[i];
             let [x0, x1, y0, y1] = placer.bounds(self.x[i], self.y[i], self.rx[i], self.ry[i]);
             self.x0[i] = small_int(x0);
             self.x1[i] = small_int(x1);
@@ -469,7 +472,7 @@ impl Block {
         };
         if let Some(max_a) = placer.setter_age {
             s.z = self.z[i];
-            let a = self.age[i] * self.inv_et[i];
+            let a = lagged(self.age[i], placer.lag) * self.inv_et[i];
             let still = [field::VX, field::VY, field::VZ]
                 .iter()
                 .all(|&k| ring.f[k][p0 + i] == 0.0);
@@ -538,10 +541,22 @@ impl Reconstructor {
             scale: &self.scale,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
+            lag: self.sample_lag(t) as f32,
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: self.max_footprint_radius(),
         }
+    }
+
+    /// How long before a refresh at `t` the newest sample in hand was traced (0 if
+    /// none was, or one has a time after `t`). The temporal filter measures each
+    /// sample's age from that sample, not from `t`: live, an image is built for the
+    /// moment it is shown, a refresh or so after the newest sample it has, and a
+    /// filter centred on that moment weighs every sample down (even the newest), which
+    /// starved short filters and widened their splats. Where samples reach the display
+    /// at once (the evaluation), the lag is nil and nothing changes.
+    pub(super) fn sample_lag(&self, t: f64) -> f64 {
+        sample_lag(t, &self.ring)
     }
 
     /// Index in the ring from which samples may be within the temporal cutoff of some
@@ -553,7 +568,8 @@ impl Reconstructor {
             return 0;
         }
         let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
-        let tc = t - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
+        let newest = t - self.sample_lag(t);
+        let tc = newest - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
         self.ring.live_start(tc)
     }
 
@@ -646,5 +662,28 @@ impl Reconstructor {
         self.binned = binned;
         self.located = located;
         self.located_from = record.then_some(start);
+    }
+}
+
+/// A sample's age as the temporal filter counts it: from the newest sample in hand,
+/// `lag` after it was traced (never below 0; a NaN age stays NaN, so that the cull
+/// still drops it).
+#[inline(always)]
+fn lagged(age: f32, lag: f32) -> f32 {
+    let a = age - lag;
+    if a < 0.0 {
+        0.0
+    } else {
+        a
+    }
+}
+
+/// [`Reconstructor::sample_lag`] of `ring` at `t`.
+pub(super) fn sample_lag(t: f64, ring: &Ring) -> f64 {
+    let lag = t - ring.newest_time();
+    if lag.is_finite() && lag > 0.0 {
+        lag
+    } else {
+        0.0
     }
 }

@@ -120,6 +120,12 @@ impl Ring {
         self.len
     }
 
+    /// The time of the newest sample ever pushed (`−∞` before any, `+∞` after a NaN
+    /// time).
+    pub(crate) fn newest_time(&self) -> f64 {
+        self.max_t
+    }
+
     /// No sample held.
     pub fn is_empty(&self) -> bool {
         self.len == 0

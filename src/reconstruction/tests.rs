@@ -15,6 +15,60 @@ fn cam(w: u32, h: u32) -> CameraFrame {
     .frame(w, h)
 }
 
+/// Ages count from the newest sample in hand, not from the refresh: a refresh made
+/// long after its newest sample (as live images are, for the moment they are shown)
+/// weighs the samples as a refresh made at that sample does. Counted from the refresh,
+/// every sample here would be past the temporal cutoff.
+#[test]
+fn a_refresh_after_its_newest_sample_weighs_the_samples_as_one_at_it() {
+    use crate::tiles::{Rect, TileGradients};
+    let (w, h) = (24, 16);
+    let c = cam(w, h);
+    let tiling = TilingSnapshot {
+        tiles: vec![TileGradients {
+            rect: Rect {
+                x0: 0,
+                y0: 0,
+                x1: w,
+                y1: h,
+            },
+            gx: 0.05,
+            gy: 0.05,
+            gt: 30.0,
+        }],
+    };
+    let mut rng = crate::sampling::Rng::new(&[5]);
+    let n = 400;
+    let samples: Vec<RingSample> = (0..n)
+        .map(|i| {
+            let (x, y) = (rng.uniform() * w as f32, rng.uniform() * h as f32);
+            RingSample {
+                x,
+                y,
+                t: 0.95 + 0.05 * i as f64 / (n - 1) as f64,
+                color: Vec3::new(rng.uniform(), rng.uniform(), rng.uniform()),
+                hit_point: c.eye + c.direction(x, y) * 2.0,
+                velocity: Vec3::ZERO,
+                anchor: Default::default(),
+            }
+        })
+        .collect();
+    let image_at = |t: f64| {
+        let mut r = Reconstructor::new(w, h, n as f64 / 0.05, ReconParams::paper());
+        samples.iter().for_each(|s| r.push(*s));
+        let img = r.reconstruct(t, &c, &tiling).clone();
+        (img, r.holes(), r.filter_map()[0][2] as f64)
+    };
+    let (at_newest, holes, et) = image_at(1.0);
+    assert!(holes < (w * h) as usize / 2, "{holes} holes");
+    // Ten temporal sigmas later: four beyond the cutoff.
+    let (after, late_holes, _) = image_at(1.0 + 10.0 * et);
+    assert_eq!(holes, late_holes);
+    for (a, b) in at_newest.pixels.iter().zip(&after.pixels) {
+        assert!((*a - *b).abs().max_element() < 1e-4, "{a} vs {b}");
+    }
+}
+
 #[test]
 fn single_sample_fills_the_image_with_its_color() {
     let (w, h) = (16, 16);

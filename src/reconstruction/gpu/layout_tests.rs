@@ -129,6 +129,8 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         footprint,
         footprint_parallax,
         footprint_reach,
+        lag,
+        pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());
     let tile = rust_fields!(GpuTile {

@@ -128,6 +128,11 @@ struct Params {
     footprint: f32,
     footprint_parallax: f32,
     footprint_reach: f32,
+    /// How long before `t` the newest sample was traced: the temporal filter measures
+    /// ages from it ([`crate::reconstruction::Reconstructor`]'s `sample_lag`).
+    lag: f32,
+    /// To the uniform's 16-byte size.
+    pad: [u32; 3],
 }
 
 #[repr(C)]
@@ -627,6 +632,7 @@ impl GpuRecon {
         }
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
+        p.lag = super::place::sample_lag(t, ring) as f32;
         self.front_levels = p.footprint > 0.0;
         p.first = if count > 0 {
             ring.phys(start) as u32
