@@ -34,6 +34,7 @@ mod blend;
 pub(super) mod refs;
 
 use blend::BLEND_ROWS;
+pub(crate) use blend::CLAMP_ROUNDING;
 use glam::Vec3;
 use rayon::prelude::*;
 use refs::{BandRefs, Refs};

@@ -95,6 +95,9 @@ struct Located {
     x: f32,
     y: f32,
     age: f32,
+    /// The age the temporal filter weighs: from the newest sample in hand (see
+    /// [`Reconstructor::sample_lag`]).
+    filter_age: f32,
     /// Depth along the current view direction (0 without reprojection).
     z: f32,
     /// The pixel it lands in, clamped to the image.
@@ -119,9 +122,9 @@ pub(super) struct Placer<'a> {
     scale: &'a [f32],
     tiles: &'a [TileFilter],
     temporal_cutoff: f32,
-    /// How long before the refresh the newest sample in hand was traced
-    /// ([`Reconstructor::sample_lag`]): the temporal filter measures ages from it.
-    lag: f32,
+    /// When the newest sample in hand was traced ([`Reconstructor::sample_lag`]
+    /// before `t`): the temporal filter measures ages from it.
+    t_newest: f64,
     /// Footprint radius bound.
     max_r: f32,
     /// With the visibility pass: the largest `age / e_t` of a sample that sets front
@@ -134,7 +137,7 @@ impl Placer<'_> {
     /// traced `dt` seconds ago, lands (without branches on the data, see
     /// [`LOCATE_BLOCK`]).
     #[inline(always)]
-    fn located(&self, x: f32, y: f32, z: f32, front: bool, dt: f64) -> Located {
+    fn located(&self, x: f32, y: f32, z: f32, front: bool, t_s: f64) -> Located {
         // The filter and scale are those of the pixel the sample lands in, clamped to
         // the image, so a sample just outside still lights the border within its
         // footprint (a NaN coordinate clamps too; `ok` discards it).
@@ -146,7 +149,8 @@ impl Placer<'_> {
         Located {
             x,
             y,
-            age: dt.max(0.0) as f32,
+            age: (self.t - t_s).max(0.0) as f32,
+            filter_age: (self.t_newest - t_s).max(0.0) as f32,
             z,
             pixel: py * w as u32 + px,
             ok: front & x.is_finite() & y.is_finite(),
@@ -164,13 +168,13 @@ impl Placer<'_> {
             }
             None => (s.x, s.y, 0.0, true),
         };
-        self.located(x, y, z, front, dt)
+        self.located(x, y, z, front, s.t)
     }
 
     /// [`Placer::located`] for the samples at physical indices `p0..p0 + n` of
     /// `ring` (the same arithmetic in the same order as `Placer::locate`), one array
     /// per field so that it compiles to vector code. A sample that is not `ok` gets a
-    /// NaN age, which fails the temporal cull just as `ok == false` does.
+    /// NaN filter age, which fails the temporal cull just as `ok == false` does.
     #[inline(always)]
     fn locate_block(&self, ring: &Ring, p0: usize, n: usize, b: &mut Block) {
         use field::*;
@@ -179,7 +183,8 @@ impl Placer<'_> {
         let mut put = |i: usize, l: Located| {
             b.x[i] = l.x;
             b.y[i] = l.y;
-            b.age[i] = if l.ok { l.age } else { f32::NAN };
+            b.age[i] = l.age;
+            b.filter_age[i] = if l.ok { l.filter_age } else { f32::NAN };
             b.z[i] = l.z;
             b.pixel[i] = l.pixel;
         };
@@ -191,13 +196,13 @@ impl Placer<'_> {
                     let hit = Vec3::new(hx[i], hy[i], hz[i]);
                     let vel = Vec3::new(vx[i], vy[i], vz[i]);
                     let (x, y, z) = p.project(hit + vel * dt as f32);
-                    put(i, self.located(x, y, z, z > 1e-6, dt));
+                    put(i, self.located(x, y, z, z > 1e-6, ts[i]));
                 }
             }
             None => {
                 let (sx, sy) = (f(X), f(Y));
                 for i in 0..n {
-                    put(i, self.located(sx[i], sy[i], 0.0, true, self.t - ts[i]));
+                    put(i, self.located(sx[i], sy[i], 0.0, true, ts[i]));
                 }
             }
         }
@@ -215,7 +220,7 @@ impl Placer<'_> {
     #[cfg(test)]
     fn finish(&self, l: &Located, look: Lookup, scale: f32) -> Option<Placed> {
         let f = self.tiles[look.tile as usize];
-        let a = lagged(l.age, self.lag) * f.inv_et;
+        let a = l.filter_age * f.inv_et;
         if !(l.ok && a <= self.temporal_cutoff) {
             return None;
         }
@@ -296,8 +301,9 @@ impl Placer<'_> {
 struct Block {
     x: [f32; LOCATE_BLOCK],
     y: [f32; LOCATE_BLOCK],
-    /// NaN where the sample is not `ok` (see [`Located`]).
     age: [f32; LOCATE_BLOCK],
+    /// NaN where the sample is not `ok` (see [`Located`]).
+    filter_age: [f32; LOCATE_BLOCK],
     z: [f32; LOCATE_BLOCK],
     pixel: [u32; LOCATE_BLOCK],
     /// The landing pixel's [`Lookup`], one array per field.
@@ -326,6 +332,7 @@ impl Block {
             x: [0.0; LOCATE_BLOCK],
             y: [0.0; LOCATE_BLOCK],
             age: [0.0; LOCATE_BLOCK],
+            filter_age: [0.0; LOCATE_BLOCK],
             z: [0.0; LOCATE_BLOCK],
             pixel: [0; LOCATE_BLOCK],
             tile: [0; LOCATE_BLOCK],
@@ -416,9 +423,9 @@ impl Block {
     /// survivors' later waits on each one's cache miss.
     #[inline(always)]
     fn weigh(&mut self, placer: &Placer, n: usize, [r, g, bl]: [&[f32]; 3]) {
-        let (tc, lag) = (placer.temporal_cutoff, placer.lag);
+        let tc = placer.temporal_cutoff;
         for i in 0..n {
-            let a = lagged(self.age[i], lag) * self.inv_et[i];
+            let a = self.filter_age[i] * self.inv_et[i];
             let [x0, x1, y0, y1] = placer.bounds(self.x[i], self.y[i], self.rx[i], self.ry[i]);
             self.x0[i] = small_int(x0);
             self.x1[i] = small_int(x1);
@@ -429,7 +436,7 @@ impl Block {
             self.wc[0][i] = wt * r[i];
             self.wc[1][i] = wt * g[i];
             self.wc[2][i] = wt * bl[i];
-            // A NaN age (not `ok`) fails the first test.
+            // A NaN filter age (not `ok`) fails the first test.
             self.keep[i] = ((a <= tc) & (x0 <= x1) & (y0 <= y1)) as u32;
         }
     }
@@ -472,7 +479,7 @@ impl Block {
         };
         if let Some(max_a) = placer.setter_age {
             s.z = self.z[i];
-            let a = lagged(self.age[i], placer.lag) * self.inv_et[i];
+            let a = self.filter_age[i] * self.inv_et[i];
             let still = [field::VX, field::VY, field::VZ]
                 .iter()
                 .all(|&k| ring.f[k][p0 + i] == 0.0);
@@ -541,7 +548,7 @@ impl Reconstructor {
             scale: &self.scale,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            lag: self.sample_lag(t) as f32,
+            t_newest: t - self.sample_lag(t),
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: self.max_footprint_radius(),
@@ -662,19 +669,6 @@ impl Reconstructor {
         self.binned = binned;
         self.located = located;
         self.located_from = record.then_some(start);
-    }
-}
-
-/// A sample's age as the temporal filter counts it: from the newest sample in hand,
-/// `lag` after it was traced (never below 0; a NaN age stays NaN, so that the cull
-/// still drops it).
-#[inline(always)]
-fn lagged(age: f32, lag: f32) -> f32 {
-    let a = age - lag;
-    if a < 0.0 {
-        0.0
-    } else {
-        a
     }
 }
 

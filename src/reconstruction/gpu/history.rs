@@ -11,7 +11,7 @@ use super::{
     compute_pipeline, readback, storage, uniform_and_storage, GpuContext, BIN, GROUP, PER_PIXEL,
 };
 use crate::reconstruction::{
-    history::{refs, Step, ViewChange},
+    history::{self, refs, Step, ViewChange},
     HistoryParams,
 };
 
@@ -379,10 +379,11 @@ fn ref_blocks(width: u32, height: u32) -> u64 {
 fn source() -> String {
     format!(
         "const IMAGE: u32 = {}u;\nconst BIN: u32 = {BIN}u;\nconst REF_BLOCK: u32 = {}u;\n\
-         const REF_TOLERANCE: f32 = {:e};\n{}",
+         const REF_TOLERANCE: f32 = {:e};\nconst CLAMP_ROUNDING: f32 = {:e};\n{}",
         super::PER_PIXEL,
         refs::BLOCK,
         refs::TOLERANCE,
+        history::CLAMP_ROUNDING,
         include_str!("history.wgsl")
     )
 }

@@ -66,9 +66,10 @@ const POINT: u32 = 7u;
 // (3 floats each, a row of blocks after another), and after the cut count `pick` has
 // each block's newest fresh sample this refresh (its place in the order, plus one).
 const HELD: u32 = 8u;
-// `REF_BLOCK`, the side of a block, and `REF_TOLERANCE`, how far from its block's
-// reference (relative to it) a colour is shown as the reference, are prepended by the
-// Rust side.
+// `REF_BLOCK`, the side of a block, `REF_TOLERANCE`, how far from its block's
+// reference (relative to it) a colour is shown as the reference, and `CLAMP_ROUNDING`,
+// how far outside its box (in parts of the box's reach) a history's mean still counts
+// as kept, are prepended by the Rust side.
 // Floats per fresh sample: pixel (bits), still flag, colour (3), time, hit point (3),
 // padding.
 const FRESH: u32 = 10u;
@@ -539,7 +540,8 @@ fn blend(@builtin(global_invocation_id) gid: vec3<u32>) {
         let slack = (hi - lo) * (0.5 * P.box_scale) + vec3<f32>(P.tolerance);
         let mean = vec_at(a + MEAN);
         let clamped = min(max(mean, mid - slack), mid + slack);
-        if any(clamped != mean) {
+        // Kept within roundings of its box (`CLAMP_ROUNDING` of its reach).
+        if !all(abs(clamped - mean) <= slack * CLAMP_ROUNDING) {
             // The reconstruction disagrees: new samples take over.
             n = min(n, P.clamped_count);
             atomicAdd(&pick[2u * pixels()], 1u);

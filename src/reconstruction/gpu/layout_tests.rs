@@ -129,7 +129,7 @@ fn recon_wgsl_lays_out_the_structs_as_the_rust_side() {
         footprint,
         footprint_parallax,
         footprint_reach,
-        lag,
+        t_newest,
         pad,
     });
     check_struct(&m, "Params", params, std::mem::size_of::<Params>());

@@ -128,9 +128,10 @@ struct Params {
     footprint: f32,
     footprint_parallax: f32,
     footprint_reach: f32,
-    /// How long before `t` the newest sample was traced: the temporal filter measures
-    /// ages from it ([`crate::reconstruction::Reconstructor`]'s `sample_lag`).
-    lag: f32,
+    /// When the newest sample in hand was traced (relative to the epoch, as `t`): the
+    /// temporal filter measures ages from it
+    /// ([`crate::reconstruction::Reconstructor`]'s `sample_lag`).
+    t_newest: f32,
     /// To the uniform's 16-byte size.
     pad: [u32; 3],
 }
@@ -632,7 +633,8 @@ impl GpuRecon {
         }
         let count = ring.len().saturating_sub(start);
         let mut p = self.params(t, camera, params, max_r);
-        p.lag = super::place::sample_lag(t, ring) as f32;
+        let epoch = self.epoch.unwrap_or(t);
+        p.t_newest = (t - super::place::sample_lag(t, ring) - epoch) as f32;
         self.front_levels = p.footprint > 0.0;
         p.first = if count > 0 {
             ring.phys(start) as u32

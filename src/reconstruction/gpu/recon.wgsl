@@ -71,9 +71,9 @@ struct Params {
     footprint: f32,
     footprint_parallax: f32,
     footprint_reach: f32,
-    // How long before `t` the newest sample was traced: the temporal filter measures
-    // ages from it.
-    lag: f32,
+    // When the newest sample in hand was traced (relative to the epoch, as `t`): the
+    // temporal filter measures ages from it.
+    t_newest: f32,
 }
 
 struct TileFilter {
@@ -439,7 +439,7 @@ fn place(@builtin(global_invocation_id) gid: vec3<u32>) {
         let pix = py * P.width + px;
         let f = tiles[pix_tile[pix]];
         let age = max(dt, 0.0);
-        let a = max(age - P.lag, 0.0) * f.inv_et;
+        let a = max(P.t_newest - ring_at(T, p), 0.0) * f.inv_et;
         if a <= P.temporal_cutoff {
             let sc = scale[pix];
             let rx = min(f.cx * sc, P.max_r);

@@ -11,6 +11,13 @@ use super::{refs, AccumMut, HistoryParams, Refs, EMPTY_RANGE};
 use crate::image::Image;
 use crate::reconstruction::lanes::lane_sum;
 
+/// How far outside its box, in parts of the box's reach (its slack), a history's mean
+/// may lie and still count as kept by the clamp (it is shown clamped all the same): a
+/// mean the clamp moved lies on its box's edge, and a box that moved by a rounding
+/// since would otherwise cut it again, and the CPU and the GPU, whose boxes differ by
+/// roundings, would disagree about it.
+pub(crate) const CLAMP_ROUNDING: f32 = 1e-4;
+
 /// Rows of a band of the history's blend.
 pub(super) const BLEND_ROWS: usize = 16;
 
@@ -274,7 +281,9 @@ fn clamp_plane(around: Around, c: usize, acc: &mut AccumMut, o: &mut RowOut, p: 
         let slack = half + tolerance;
         let mean = means[x];
         clamped[x] = min(max(mean, mid - slack), mid + slack);
-        let differs = clamped[x] != mean;
+        // Written so that a NaN mean is moved.
+        let kept = (clamped[x] - mean).abs() <= slack * CLAMP_ROUNDING;
+        let differs = !kept;
         moved[x] = if c == 0 { differs } else { moved[x] | differs };
     }
 }
@@ -399,12 +408,17 @@ mod tests {
     }
 
     impl PixelHistory {
-        fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> bool {
+        /// The mean clamped into the box (as shown); whether that cut the history.
+        fn clamp_to(&mut self, lo: Vec3, hi: Vec3, p: &HistoryParams) -> (Vec3, bool) {
             let (mid, half) = ((lo + hi) * 0.5, (hi - lo) * (0.5 * p.box_scale));
             let slack = half + Vec3::splat(p.tolerance);
             let clamped = self.mean.clamp(mid - slack, mid + slack);
-            if clamped == self.mean {
-                return false;
+            let kept = (clamped - self.mean)
+                .abs()
+                .cmple(slack * CLAMP_ROUNDING)
+                .all();
+            if kept {
+                return (clamped, false);
             }
             let n = self.count.min(p.clamped_count);
             let mean_t = self.time_sum / self.count as f64;
@@ -413,12 +427,12 @@ mod tests {
             self.time_sum = mean_t * n as f64;
             let l = luminance(clamped);
             self.range = if n > 0.0 { (l, l) } else { EMPTY_RANGE };
-            true
+            (clamped, true)
         }
 
-        fn blend_over(&self, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
+        fn blend_over(&self, mean: Vec3, out: &mut Vec3, age: f32, t: f64, k: f32) -> f64 {
             let n = self.count;
-            *out = self.mean + (*out - self.mean) * (k / (k + n));
+            *out = mean + (*out - mean) * (k / (k + n));
             let hist_age = if n > 0.0 {
                 t - self.time_sum / n as f64
             } else {
@@ -459,8 +473,10 @@ mod tests {
                         count: acc.count[q],
                         range: acc.cell[q].range,
                     };
-                    cuts += px.clamp_to(lo, hi, p) as u64;
-                    let shown = px.blend_over(&mut image.pixels[q], age[q], t, p.recon_weight);
+                    let (mean, cut) = px.clamp_to(lo, hi, p);
+                    cuts += cut as u64;
+                    let shown =
+                        px.blend_over(mean, &mut image.pixels[q], age[q], t, p.recon_weight);
                     (acc.mean[0][q], acc.mean[1][q], acc.mean[2][q]) = px.mean.into();
                     (acc.time_sum[q], acc.count[q]) = (px.time_sum, px.count);
                     acc.cell[q].range = px.range;
@@ -574,5 +590,58 @@ mod tests {
             }
         }
         assert!(clamped > 100, "{clamped} clamped");
+    }
+
+    /// A history the clamp left on its box's edge, whose box then moved by a rounding,
+    /// is kept (shown clamped); one a display code outside is cut.
+    #[test]
+    fn a_history_a_rounding_outside_its_box_is_kept() {
+        let p = HistoryParams::default();
+        let grey = 0.5f32;
+        // The box of a flat image is its colour widened by the tolerance.
+        let edge = grey + p.tolerance;
+        let cases = [
+            (edge, 0),
+            (f32::from_bits(edge.to_bits() + 1), 0),
+            (edge + 1e-6, 0),
+            (edge + 1.0 / 255.0, 1),
+        ];
+        for (mean, want) in cases {
+            let (w, h) = (3, 2);
+            let n = (w * h) as usize;
+            let mut acc = Accum::new(n);
+            let mut image = Image::new(w, h);
+            image.pixels.fill(Vec3::splat(grey));
+            let q = 4;
+            for c in 0..3 {
+                acc.mean[c][q] = mean;
+            }
+            (acc.count[q], acc.time_sum[q]) = (4.0, 4.0);
+            let mut age = vec![0f32; n];
+            let (mut edges, mut rolling) = (Vec::new(), Vec::new());
+            let refs = Refs::new(w as usize, h as usize);
+            let (cuts, _) = blend_image(
+                (&mut acc, &refs),
+                (&mut edges, &mut rolling),
+                (2.0, &p),
+                (&mut image, &mut age),
+                &|_: &mut (), _, _: &mut [Vec3], _: &mut [f32]| {},
+            );
+            assert_eq!(cuts, want, "mean {mean}");
+            let (k, count) = (
+                p.recon_weight,
+                if want == 0 {
+                    4.0
+                } else {
+                    p.clamped_count.min(4.0)
+                },
+            );
+            assert_eq!(acc.count[q], count, "mean {mean}");
+            let shown = (edge * count + grey * k) / (count + k);
+            assert!(
+                (image.pixels[q].x - shown).abs() < 1e-6,
+                "mean {mean}: shown clamped"
+            );
+        }
     }
 }
