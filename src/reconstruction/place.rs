@@ -562,7 +562,7 @@ impl Reconstructor {
     /// filter centred on that moment weighs every sample down (even the newest), which
     /// starved short filters and widened their splats. Where samples reach the display
     /// at once (the evaluation), the lag is nil and nothing changes.
-    pub(super) fn sample_lag(&self, t: f64) -> f64 {
+    pub fn sample_lag(&self, t: f64) -> f64 {
         sample_lag(t, &self.ring)
     }
 

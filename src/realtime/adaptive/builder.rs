@@ -92,6 +92,10 @@ pub(super) struct ImageFigures {
     images: u64,
     limited_images: u64,
     placed_sum: f64,
+    /// Summed over the images, seconds: how long before its refresh each build began
+    /// (its lead), and how long before that refresh its newest sample was traced.
+    lead_sum: f64,
+    lag_sum: f64,
 }
 
 /// Push the newest samples of `batches` (oldest first) into `r`: as many as its ring
@@ -301,6 +305,8 @@ impl ImageBuilder for Builder {
             ("recon_rate", f.recon_rate.into()),
             ("ring_capacity", f.ring_capacity.into()),
             ("placed_mean", per_image(f.placed_sum).into()),
+            ("lead_ms_mean", (per_image(f.lead_sum) * 1e3).into()),
+            ("sample_lag_ms_mean", (per_image(f.lag_sum) * 1e3).into()),
             ("limited_share", per_image(f.limited_images as f64).into()),
             ("pass_ms", pass_ms(self.recon.pass_times())),
         ];
@@ -327,6 +333,7 @@ impl ImageBuilder for Builder {
         // Samples are reprojected to the scene of the refresh the image is meant for.
         let t = at.shown;
         let s = &*self.s;
+        let began = s.clock.now();
         let (w, h) = s.tracer.size();
         let tiling = Arc::new(self.published.whole_tiling()?);
         let batches: Vec<Vec<StreamSample>> = take_queued(&self.rx).collect();
@@ -377,6 +384,8 @@ impl ImageBuilder for Builder {
         fig.images += 1;
         fig.limited_images += limited as u64;
         fig.placed_sum += r.placed() as f64;
+        fig.lead_sum += t - began;
+        fig.lag_sum += r.sample_lag(t);
         Some(Built {
             image,
             mean_age: r.mean_age(),
