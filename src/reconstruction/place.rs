@@ -94,6 +94,8 @@ pub(super) struct Placed {
 struct Located {
     x: f32,
     y: f32,
+    /// From the display time (the vector path takes it for the survivors alone).
+    #[cfg(test)]
     age: f32,
     /// The age the temporal filter weighs: from the newest sample in hand (see
     /// [`Reconstructor::sample_lag`]).
@@ -149,6 +151,7 @@ impl Placer<'_> {
         Located {
             x,
             y,
+            #[cfg(test)]
             age: (self.t - t_s).max(0.0) as f32,
             filter_age: (self.t_newest - t_s).max(0.0) as f32,
             z,
@@ -183,7 +186,6 @@ impl Placer<'_> {
         let mut put = |i: usize, l: Located| {
             b.x[i] = l.x;
             b.y[i] = l.y;
-            b.age[i] = l.age;
             b.filter_age[i] = if l.ok { l.filter_age } else { f32::NAN };
             b.z[i] = l.z;
             b.pixel[i] = l.pixel;
@@ -301,8 +303,8 @@ impl Placer<'_> {
 struct Block {
     x: [f32; LOCATE_BLOCK],
     y: [f32; LOCATE_BLOCK],
-    age: [f32; LOCATE_BLOCK],
-    /// NaN where the sample is not `ok` (see [`Located`]).
+    /// NaN where the sample is not `ok` (see [`Located`]). (The age a pixel shows,
+    /// from the display time, is taken for the survivors alone, in `splat`.)
     filter_age: [f32; LOCATE_BLOCK],
     z: [f32; LOCATE_BLOCK],
     pixel: [u32; LOCATE_BLOCK],
@@ -331,7 +333,6 @@ impl Block {
         Box::new(Self {
             x: [0.0; LOCATE_BLOCK],
             y: [0.0; LOCATE_BLOCK],
-            age: [0.0; LOCATE_BLOCK],
             filter_age: [0.0; LOCATE_BLOCK],
             z: [0.0; LOCATE_BLOCK],
             pixel: [0; LOCATE_BLOCK],
@@ -467,7 +468,7 @@ impl Block {
                 self.wc[1][i],
                 self.wc[2][i],
                 wt,
-                wt * self.age[i],
+                wt * (placer.t - ring.t[p0 + i]).max(0.0) as f32,
             ],
             x0: self.x0[i] as u16,
             x1: self.x1[i] as u16,
