@@ -28,6 +28,10 @@ pub(super) struct Build {
     /// The steps of a build that took time, by name, mean milliseconds, the largest
     /// first (only a method that reports them: adaptive's `pass_ms`).
     pub steps: Vec<(String, f64)>,
+    /// How old the newest sample a build had was at its refresh, and how long before
+    /// that refresh the build began, mean milliseconds (only a method that reports
+    /// them: adaptive's `sample_lag_ms_mean` and `lead_ms_mean`).
+    pub lag: Option<(f64, f64)>,
 }
 
 impl Build {
@@ -53,6 +57,7 @@ impl Build {
             p95_ms: number("reconstruct_ms_p95")?,
             threads: p.get("recon_threads").and_then(Value::as_u64).unwrap_or(1),
             steps,
+            lag: number("sample_lag_ms_mean").zip(number("lead_ms_mean")),
         })
     }
 
@@ -91,8 +96,15 @@ impl Build {
                  else holds its images back (its samples, or other work on the machine)"
             )
         };
-        match self.largest_steps().filter(|_| !keeps_up) {
+        let verdict = match self.largest_steps().filter(|_| !keeps_up) {
             Some(steps) => format!("{verdict}; its largest steps: {steps}"),
+            None => verdict,
+        };
+        match self.lag {
+            Some((lag, lead)) => format!(
+                "{verdict}; the newest sample it had was {lag:.1} ms old at its refresh \
+                 (the build began {lead:.1} ms before it)"
+            ),
             None => verdict,
         }
     }
@@ -125,6 +137,7 @@ mod tests {
                 ("carry".into(), 10.7),
                 ("splat".into(), 10.0),
             ],
+            lag: None,
         }
     }
 
@@ -181,6 +194,19 @@ mod tests {
         let names: Vec<&str> = b.steps.iter().map(|(n, _)| n.as_str()).collect();
         assert_eq!(names, ["history", "carry", "filters"]);
         assert!(b.sentence(30.0).contains("on 2 threads"));
+        assert!(!b.sentence(30.0).contains("newest sample"));
+        run.pipeline["sample_lag_ms_mean"] = 14.04.into();
+        run.pipeline["lead_ms_mean"] = 12.76.into();
+        let b = Build::of(&run).expect("figures");
+        assert_eq!(b.lag, Some((14.04, 12.76)));
+        assert!(
+            b.sentence(30.0).ends_with(
+                "the newest sample it had was 14.0 ms old at its refresh (the build began \
+                 12.8 ms before it)"
+            ),
+            "{}",
+            b.sentence(30.0)
+        );
         run.pipeline = serde_json::json!({"reconstruct_ms_p95": 78.2});
         assert_eq!(Build::of(&run), None);
     }
