@@ -549,7 +549,7 @@ impl Reconstructor {
             scale: &self.scale,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            t_newest: t - self.sample_lag(t),
+            t_newest: filter_origin(t, &self.ring),
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: self.max_footprint_radius(),
@@ -564,7 +564,7 @@ impl Reconstructor {
     /// starved short filters and widened their splats. Where samples reach the display
     /// at once (the evaluation), the lag is nil and nothing changes.
     pub fn sample_lag(&self, t: f64) -> f64 {
-        sample_lag(t, &self.ring)
+        t - filter_origin(t, &self.ring)
     }
 
     /// Index in the ring from which samples may be within the temporal cutoff of some
@@ -576,8 +576,8 @@ impl Reconstructor {
             return 0;
         }
         let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
-        let newest = t - self.sample_lag(t);
-        let tc = newest - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
+        let tc = filter_origin(t, &self.ring)
+            - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
         self.ring.live_start(tc)
     }
 
@@ -673,12 +673,14 @@ impl Reconstructor {
     }
 }
 
-/// [`Reconstructor::sample_lag`] of `ring` at `t`.
-pub(super) fn sample_lag(t: f64, ring: &Ring) -> f64 {
-    let lag = t - ring.newest_time();
-    if lag.is_finite() && lag > 0.0 {
-        lag
+/// The time the temporal filter counts ages from at a refresh at `t`: the newest
+/// sample in `ring` ([`Reconstructor::sample_lag`] before `t`), or `t` itself if there
+/// is none, or one has a time after `t` (or a NaN time).
+pub(super) fn filter_origin(t: f64, ring: &Ring) -> f64 {
+    let newest = ring.newest_time();
+    if newest.is_finite() && newest < t {
+        newest
     } else {
-        0.0
+        t
     }
 }

@@ -632,9 +632,8 @@ impl GpuRecon {
             self.upload_motion(ring, start);
         }
         let count = ring.len().saturating_sub(start);
-        let mut p = self.params(t, camera, params, max_r);
-        let epoch = self.epoch.unwrap_or(t);
-        p.t_newest = (t - super::place::sample_lag(t, ring) - epoch) as f32;
+        let t_newest = super::place::filter_origin(t, ring);
+        let mut p = self.params((t, t_newest), camera, params, max_r);
         self.front_levels = p.footprint > 0.0;
         p.first = if count > 0 {
             ring.phys(start) as u32
@@ -808,10 +807,19 @@ impl GpuRecon {
             .write_buffer(&self.buffers.ring, off, bytemuck::cast_slice(values));
     }
 
-    fn params(&self, t: f64, camera: Option<&CameraFrame>, rp: &ReconParams, max_r: f32) -> Params {
+    /// The uniform of a refresh at `t` whose temporal filter counts ages from
+    /// `t_newest`.
+    fn params(
+        &self,
+        (t, t_newest): (f64, f64),
+        camera: Option<&CameraFrame>,
+        rp: &ReconParams,
+        max_r: f32,
+    ) -> Params {
         let epoch = self.epoch.unwrap_or(t);
         let mut p = Params {
             t: (t - epoch) as f32,
+            t_newest: (t_newest - epoch) as f32,
             width: self.width,
             height: self.height,
             cap: self.cap as u32,

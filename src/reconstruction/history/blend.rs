@@ -628,14 +628,12 @@ mod tests {
                 &|_: &mut (), _, _: &mut [Vec3], _: &mut [f32]| {},
             );
             assert_eq!(cuts, want, "mean {mean}");
-            let (k, count) = (
-                p.recon_weight,
-                if want == 0 {
-                    4.0
-                } else {
-                    p.clamped_count.min(4.0)
-                },
-            );
+            let k = p.recon_weight;
+            let count = if want == 0 {
+                4.0
+            } else {
+                p.clamped_count.min(4.0)
+            };
             assert_eq!(acc.count[q], count, "mean {mean}");
             let shown = (edge * count + grey * k) / (count + k);
             assert!(
