@@ -997,12 +997,14 @@ fn view_headless(
     if let Some(c) = &st.camera_step {
         let ms = |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
         println!(
-            "camera step of {}° at {:.2} s: first image after it {}, first from the turned camera {}, half the pixels new {}",
+            "camera step of {}° at {:.2} s: first image after it {}, first from the turned camera {}, half the pixels new {}{}",
             c.yaw_deg,
             c.at_s,
             ms(c.first_image_ms),
             ms(c.view_ms),
-            ms(c.half_new_ms)
+            ms(c.half_new_ms),
+            c.half_new_samples
+                .map_or(String::new(), |n| format!(" ({n} samples after the step)"))
         );
     }
     if let (Some(share), Some(load)) = (st.machine_share, st.load_average_before) {

@@ -52,6 +52,10 @@ pub struct CameraStep {
     /// information traced after the step, ms: when the change is what the viewer sees
     /// (`null`: not within the run).
     pub half_new_ms: Option<f64>,
+    /// Samples delivered between the step and that image (`null` with
+    /// `half_new_ms`): the same latency in the run's own progress, which a machine
+    /// busy with other work slows in wall time but not in samples.
+    pub half_new_samples: Option<u64>,
 }
 
 /// The camera `cam` turned by `deg` about its up vector.
@@ -187,6 +191,8 @@ struct StepWatch {
     wall: f64,
     /// Scene time of the step.
     scene_t: f64,
+    /// Samples delivered before the step.
+    samples: u64,
     /// The figures so far.
     figures: CameraStep,
 }
@@ -200,19 +206,21 @@ impl StepWatch {
         StepWatch {
             wall,
             scene_t: now,
+            samples: pipeline.samples(),
             figures: CameraStep {
                 at_s: wall,
                 yaw_deg: STEP_YAW_DEG,
                 first_image_ms: None,
                 view_ms: None,
                 half_new_ms: None,
+                half_new_samples: None,
             },
         }
     }
 
-    /// Record what the image displayed `elapsed` wall seconds into the run shows of
-    /// the step.
-    fn observe(&mut self, f: &Frame, elapsed: f64) {
+    /// Record what the image displayed `elapsed` wall seconds into the run, after
+    /// `samples` samples in all, shows of the step.
+    fn observe(&mut self, f: &Frame, elapsed: f64, samples: u64) {
         let (scene_t, figures) = (self.scene_t, &mut self.figures);
         let shown_ms = (elapsed - self.wall) * 1e3;
         // Built after the step: an image meant for a later refresh but begun before
@@ -235,6 +243,7 @@ impl StepWatch {
                 });
             if new * 2 >= informed.max(1) {
                 figures.half_new_ms = Some(shown_ms);
+                figures.half_new_samples = Some(samples.saturating_sub(self.samples));
             }
         }
     }
@@ -273,7 +282,7 @@ fn display_loop(pipeline: &Pipeline, config: &RtConfig, opts: &HeadlessOptions) 
         }
         pacer.present(seq);
         if let (Some(watch), Some(f)) = (&mut step, &frame) {
-            watch.observe(f, clock.elapsed());
+            watch.observe(f, clock.elapsed(), pipeline.samples());
         }
     }
     DisplayRun {

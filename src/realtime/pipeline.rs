@@ -131,6 +131,12 @@ impl Pipeline {
         lock(&self.shared.latest).at(self.shared.clock.elapsed())
     }
 
+    /// Shaded samples delivered to the image thread so far: the run's own progress,
+    /// which other processes on the machine slow but do not change the meaning of.
+    pub fn samples(&self) -> u64 {
+        self.shared.samples.load(Ordering::Relaxed)
+    }
+
     /// The pipeline's clock.
     pub fn clock(&self) -> WallClock {
         self.shared.clock.wall()
