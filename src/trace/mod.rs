@@ -119,7 +119,7 @@ pub struct StreamSample {
 /// same instant many times in a row: the tracer's shared cache takes a lock, this does
 /// not. Rebuilt when the 1 ms quantum or the live camera changes.
 pub struct StateCache {
-    key: (i64, u64),
+    key: (i64, u64, i64),
     state: Option<Arc<SceneState>>,
 }
 
@@ -133,18 +133,28 @@ impl StateCache {
     /// Empty.
     pub fn new() -> Self {
         Self {
-            key: (i64::MIN, u64::MAX),
+            key: (i64::MIN, u64::MAX, i64::MIN),
             state: None,
         }
     }
 
     /// The state at `t`, and whether it replaced the one held before.
     pub fn at(&mut self, tracer: &Tracer, t: f64) -> (Arc<SceneState>, Held) {
-        let key = (Tracer::quantize(t), tracer.camera_generation());
+        self.at_ahead(tracer, t, 0.0)
+    }
+
+    /// [`StateCache::at`] with the camera extrapolated `ahead` seconds
+    /// ([`Tracer::state_at_ahead`]).
+    pub fn at_ahead(&mut self, tracer: &Tracer, t: f64, ahead: f64) -> (Arc<SceneState>, Held) {
+        let key = (
+            Tracer::quantize(t),
+            tracer.camera_generation(),
+            Tracer::quantize(ahead),
+        );
         match &self.state {
             Some(s) if key == self.key => (s.clone(), Held::Same),
             _ => {
-                let s = tracer.state_at(t);
+                let s = tracer.state_at_ahead(t, ahead);
                 self.key = key;
                 let previous = self.state.replace(s.clone());
                 (s, Held::New { previous })
@@ -326,8 +336,9 @@ pub struct Tracer {
     instance_groups: Vec<(u32, GroupAccel)>,
     anim_base: Option<Bvh2>,
     scene_scale: f32,
-    /// Cached states keyed by (time quantum, camera generation).
-    cache: Mutex<Vec<(i64, u64, Arc<SceneState>)>>,
+    /// Cached states keyed by (time quantum, camera generation, quanta the camera is
+    /// extrapolated ahead).
+    cache: Mutex<Vec<(i64, u64, i64, Arc<SceneState>)>>,
     /// A live camera that overrides path and scene (the interactive viewer), with the
     /// generation it was set in. A state built under one generation is never served
     /// under another, so a state built concurrently with a camera change cannot leak
@@ -337,6 +348,16 @@ pub struct Tracer {
 }
 
 const CACHE_STATES: usize = 8;
+
+/// The camera as far past `now` as `now` is past `before`, on the line through both.
+fn extrapolated(before: Camera, now: Camera) -> Camera {
+    Camera {
+        eye: 2.0 * now.eye - before.eye,
+        at: 2.0 * now.at - before.at,
+        up: (2.0 * now.up - before.up).normalize_or(now.up),
+        ..now
+    }
+}
 
 /// `triangles` moved to world space by the static transform `m`.
 fn baked_triangles(m: Mat4, triangles: &[Triangle]) -> impl Iterator<Item = Triangle> + '_ {
@@ -510,30 +531,51 @@ impl Tracer {
 
     /// The scene state at time `t` (quantized to [`TIME_QUANTUM`]), cached.
     pub fn state_at(&self, t: f64) -> Arc<SceneState> {
+        self.state_at_ahead(t, 0.0)
+    }
+
+    /// The scene state at time `t` (quantized to [`TIME_QUANTUM`]), its camera
+    /// extrapolated `ahead` seconds (quantized too) along the line through its poses at
+    /// `t - ahead` and `t`: only poses already past at `t`, as a display predicts
+    /// where its viewer will look. The live camera is never extrapolated (it has no
+    /// path); `ahead <= 0` is [`Tracer::state_at`]. Cached.
+    pub fn state_at_ahead(&self, t: f64, ahead: f64) -> Arc<SceneState> {
         let key = Self::quantize(t);
+        let akey = Self::quantize(ahead.max(0.0));
         let (generation, live) = *self.live_camera.read().unwrap_or_else(|e| e.into_inner());
         {
             let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some((_, _, s)) = cache.iter().find(|(k, g, _)| *k == key && *g == generation) {
+            if let Some((_, _, _, s)) = cache
+                .iter()
+                .find(|(k, g, a, _)| *k == key && *g == generation && *a == akey)
+            {
                 return s.clone();
             }
         }
-        let state = Arc::new(self.build_state(key as f64 * TIME_QUANTUM, live));
+        let state = Arc::new(self.build_state(
+            key as f64 * TIME_QUANTUM,
+            live,
+            akey as f64 * TIME_QUANTUM,
+        ));
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         if cache.len() >= CACHE_STATES {
             cache.remove(0);
         }
-        cache.push((key, generation, state.clone()));
+        cache.push((key, generation, akey, state.clone()));
         state
     }
 
-    fn build_state(&self, time: f64, live: Option<Camera>) -> SceneState {
+    fn build_state(&self, time: f64, live: Option<Camera>, ahead: f64) -> SceneState {
         let scene = &self.scene;
         let t = time as f32;
-        let cam = match (live, &self.camera_path) {
-            (Some(c), _) => c,
-            (None, Some(p)) => p.at(t),
-            (None, None) => scene.camera_at(t),
+        let at = |t: f32| match &self.camera_path {
+            Some(p) => p.at(t),
+            None => scene.camera_at(t),
+        };
+        let cam = match live {
+            Some(c) => c,
+            None if ahead > 0.0 => extrapolated(at(t - ahead as f32), at(t)),
+            None => at(t),
         };
         let camera = cam.frame(self.width, self.height);
         let lights = scene.lights_at(t);
