@@ -287,6 +287,61 @@ fn step_run(method: RtMethod, seconds: f64, step_s: f64) -> (HeadlessStats, Path
 }
 
 #[test]
+fn adaptive_traces_a_moving_view_ahead_by_its_lead_and_half_a_period() {
+    // A camera panning along x: adaptive's sampling threads trace the view where the
+    // camera's past poses say it will be when their samples are shown, the build's
+    // lead plus half a refresh period ahead; asked not to, they trace it where it is.
+    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                0,-1,0.3,2,-1,0.3,0,0,1,0,50\n\
+                10,1,0.3,2,1,0.3,0,0,1,0,50\n";
+    let path = CameraPath::parse("pan.csv", text).unwrap();
+    let run = |view_ahead: bool| {
+        let mut cfg = RtConfig::new(RtMethod::Adaptive);
+        cfg.sampling_threads = 1;
+        let settings = AdaptiveSettings {
+            view_ahead,
+            ..AdaptiveSettings::default()
+        };
+        let opts = HeadlessOptions {
+            seconds: 1.0,
+            out: tmp_dir(&format!("ahead-{view_ahead}")),
+            images: 1,
+            scene: "toycar".into(),
+            camera_step_s: None,
+        };
+        let tracer = Arc::new(
+            Tracer::new(
+                Arc::new(builtin::load("toycar").unwrap()),
+                48,
+                32,
+                TraceOptions::default(),
+            )
+            .with_camera_path(Some(path.clone())),
+        );
+        let cfg_hz = cfg.refresh_hz;
+        let p = run_headless(tracer, cfg, RtSettings::Adaptive(settings), &opts)
+            .unwrap()
+            .pipeline;
+        let figure = |k: &str| p.method_stats[k].as_f64().unwrap();
+        (
+            figure("view_ahead_ms_mean"),
+            figure("lead_ms_mean"),
+            1e3 / cfg_hz,
+        )
+    };
+    let (ahead, lead, period) = run(true);
+    assert!(
+        ahead >= 0.5 * period,
+        "{ahead} ms ahead, period {period} ms"
+    );
+    assert!(
+        ahead <= lead + 1.5 * period,
+        "{ahead} ms ahead with a lead of {lead} ms, period {period} ms"
+    );
+    assert_eq!(run(false).0, 0.0);
+}
+
+#[test]
 fn headless_runs_report_latency_and_show_a_camera_step_within_a_second_of_tracing() {
     const PIXELS: u64 = 48 * 32;
     for method in RtMethod::ALL {

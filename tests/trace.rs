@@ -308,6 +308,35 @@ fn camera_path_overrides_scene_camera() {
 }
 
 #[test]
+fn a_camera_extrapolated_ahead_continues_its_past_motion_only() {
+    // Moving along x at 10 units a second until t = 1, then held: ahead of a time on
+    // the line, the extrapolated camera is where the path goes; ahead of the stop it
+    // overshoots (it knows only the past), and a held camera stays held.
+    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                0,0,0,5,0,0,0,0,1,0,45\n\
+                1,10,0,5,10,0,0,0,1,0,45\n\
+                3,10,0,5,10,0,0,0,1,0,45\n";
+    let path = CameraPath::parse("p.csv", text).unwrap();
+    let tr = Tracer::new(Arc::new(base_scene()), 32, 32, TraceOptions::default())
+        .with_camera_path(Some(path));
+    let eye = |t: f64, ahead: f64| tr.state_at_ahead(t, ahead).camera.eye;
+    assert_eq!(eye(0.5, 0.0), tr.state_at(0.5).camera.eye);
+    assert!((eye(0.5, 0.02).x - 5.2).abs() < 1e-4, "{}", eye(0.5, 0.02));
+    assert!((eye(1.0, 0.02).x - 10.2).abs() < 1e-4, "{}", eye(1.0, 0.02));
+    assert!((eye(2.0, 0.02).x - 10.0).abs() < 1e-5, "{}", eye(2.0, 0.02));
+    // The point looked at moves with the eye: the view still faces -z.
+    let forward = tr.state_at_ahead(0.5, 0.02).camera.forward;
+    assert!((forward - Vec3::NEG_Z).length() < 1e-5, "{forward}");
+    // A live camera (the viewer's) has no past poses here: never extrapolated.
+    let held = Camera {
+        eye: Vec3::new(1.0, 2.0, 5.0),
+        ..base_scene().camera.base
+    };
+    tr.set_live_camera(Some(held));
+    assert_eq!(eye(0.5, 0.02), held.eye);
+}
+
+#[test]
 fn still_is_independent_of_thread_count() {
     let scene = Arc::new(frameless::scene::builtin::load("toycar").unwrap());
     let tr = Tracer::new(scene, 48, 32, TraceOptions::default());

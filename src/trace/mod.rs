@@ -119,7 +119,7 @@ pub struct StreamSample {
 /// same instant many times in a row: the tracer's shared cache takes a lock, this does
 /// not. Rebuilt when the 1 ms quantum or the live camera changes.
 pub struct StateCache {
-    key: (i64, u64, i64),
+    key: StateKey,
     state: Option<Arc<SceneState>>,
 }
 
@@ -338,7 +338,7 @@ pub struct Tracer {
     scene_scale: f32,
     /// Cached states keyed by (time quantum, camera generation, quanta the camera is
     /// extrapolated ahead).
-    cache: Mutex<Vec<(i64, u64, i64, Arc<SceneState>)>>,
+    cache: Mutex<Vec<(StateKey, Arc<SceneState>)>>,
     /// A live camera that overrides path and scene (the interactive viewer), with the
     /// generation it was set in. A state built under one generation is never served
     /// under another, so a state built concurrently with a camera change cannot leak
@@ -348,6 +348,10 @@ pub struct Tracer {
 }
 
 const CACHE_STATES: usize = 8;
+
+/// What a cached state is for: its time quantum, the camera generation, and the quanta
+/// its camera is extrapolated ahead.
+type StateKey = (i64, u64, i64);
 
 /// The camera as far past `now` as `now` is past `before`, on the line through both.
 fn extrapolated(before: Camera, now: Camera) -> Camera {
@@ -545,23 +549,17 @@ impl Tracer {
         let (generation, live) = *self.live_camera.read().unwrap_or_else(|e| e.into_inner());
         {
             let cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
-            if let Some((_, _, _, s)) = cache
-                .iter()
-                .find(|(k, g, a, _)| *k == key && *g == generation && *a == akey)
-            {
+            if let Some((_, s)) = cache.iter().find(|(k, _)| *k == (key, generation, akey)) {
                 return s.clone();
             }
         }
-        let state = Arc::new(self.build_state(
-            key as f64 * TIME_QUANTUM,
-            live,
-            akey as f64 * TIME_QUANTUM,
-        ));
+        let state =
+            Arc::new(self.build_state(key as f64 * TIME_QUANTUM, live, akey as f64 * TIME_QUANTUM));
         let mut cache = self.cache.lock().unwrap_or_else(|e| e.into_inner());
         if cache.len() >= CACHE_STATES {
             cache.remove(0);
         }
-        cache.push((key, generation, akey, state.clone()));
+        cache.push(((key, generation, akey), state.clone()));
         state
     }
 

@@ -407,9 +407,9 @@ impl ImageBuilder for Builder {
         fig.lead_sum += t - began;
         fig.lag_sum += r.sample_lag(t);
         if settings.view_ahead {
-            let lead = self.lead.map_or(t - began, |l| {
-                l + VIEW_AHEAD_SMOOTHING * ((t - began) - l)
-            });
+            let lead = self
+                .lead
+                .map_or(t - began, |l| l + VIEW_AHEAD_SMOOTHING * ((t - began) - l));
             self.lead = Some(lead);
             let ahead = view_ahead(lead, 1.0 / s.config.refresh_hz);
             fig.ahead_sum += ahead;
