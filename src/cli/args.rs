@@ -204,6 +204,10 @@ pub struct ViewArgs {
     /// Threads of the reconstructor [default: half the cores, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
+    /// Trace a moving view where it is now, not where the camera's past poses say it
+    /// will be when the samples are shown (every method).
+    #[arg(long)]
+    pub no_view_ahead: bool,
     #[command(flatten)]
     pub adaptive: frameless::realtime::AdaptiveArgs,
     /// Scene time at start, seconds.
@@ -362,6 +366,10 @@ pub struct LiveArgs {
     /// Threads of the image build [default: half the cores `--threads` names, at least 1].
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256), allow_negative_numbers = true)]
     pub recon_threads: Option<u16>,
+    /// Trace a moving view where it is now, not where the camera's past poses say it
+    /// will be when the samples are shown (every method).
+    #[arg(long)]
+    pub no_view_ahead: bool,
     #[command(flatten)]
     pub adaptive: frameless::realtime::AdaptiveArgs,
     /// Output folder.

@@ -932,6 +932,7 @@ fn view_config(a: &args::ViewArgs, threads: Option<u16>) -> Result<frameless::re
     if let Some(n) = a.recon_threads {
         cfg.recon_threads = n as usize;
     }
+    cfg.view_ahead = !a.no_view_ahead;
     cfg.set_groups(&a.display, &a.quality);
     cfg.start = a.start;
     cfg.validate()?;
@@ -1035,6 +1036,7 @@ fn live(a: args::LiveArgs, threads: Option<u16>) -> Result<()> {
         cfg.cores = n as usize;
     }
     cfg.recon_threads = a.recon_threads.map(usize::from);
+    cfg.view_ahead = !a.no_view_ahead;
     cfg.adaptive = a.adaptive.clone();
     cfg.validate()?;
     cfg.devices = realtime_devices(&a.devices, &cfg.methods)?;

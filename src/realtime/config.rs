@@ -24,6 +24,11 @@ pub struct RtConfig {
     /// it, the methods that can trace on it do so from one sampling thread, in batches
     /// (the GPU runs one batch at a time; more threads would only queue).
     pub rays: Option<std::sync::Arc<crate::trace::batch::GpuRays>>,
+    /// Whether the sampling threads trace a moving view where the camera's past poses
+    /// say it will be when what they trace is shown ([`crate::trace::Tracer::state_at_ahead`]):
+    /// each method measures how long after their trace its images show its samples
+    /// (`--no-view-ahead`: where the view is now).
+    pub view_ahead: bool,
 }
 
 impl RtConfig {

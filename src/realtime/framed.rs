@@ -81,11 +81,13 @@ struct FrameJob {
 }
 
 impl FrameJob {
-    fn new(id: u64, time: f64, tracer: &Tracer) -> Self {
+    /// Frame `id`, traced at `time` with the view `ahead` seconds ahead
+    /// ([`Tracer::state_at_ahead`]).
+    fn new(id: u64, time: f64, ahead: f64, tracer: &Tracer) -> Self {
         Self {
             id,
             time,
-            state: tracer.state_at(time),
+            state: tracer.state_at_ahead(time, ahead),
             next_row: AtomicU32::new(0),
         }
     }
@@ -111,6 +113,7 @@ fn start_with(sp: &mut Spawner<'_>, shown: Shown) -> Result<Box<dyn ImageBuilder
     let job = Arc::new(Mutex::new(Arc::new(FrameJob::new(
         0,
         s.config.start,
+        0.0,
         &s.tracer,
     ))));
     // Bounded, so that a slow image thread slows the sampling threads instead of
@@ -155,7 +158,8 @@ fn sample(s: &Shared, job: &Mutex<Arc<FrameJob>>, tx: Sender<Row>, shown: Shown)
         if y >= h {
             let mut j = lock(job);
             if j.id == cur.id {
-                *j = Arc::new(FrameJob::new(cur.id + 1, s.clock.now(), tracer));
+                let (now, ahead) = (s.clock.now(), s.view_ahead.seconds());
+                *j = Arc::new(FrameJob::new(cur.id + 1, now, ahead, tracer));
             }
             continue;
         }
@@ -200,7 +204,7 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, tx: Sender<Row>, shown: Shown) {
     let mut id = 0u64;
     while !s.stopped() {
         let time = s.clock.now();
-        let state = tracer.state_at(time);
+        let state = tracer.state_at_ahead(time, s.view_ahead.seconds());
         let t0 = Instant::now();
         let got = batch::trace_points(tracer, Some(rays), &state, &points);
         s.traced(got.len() as u64, t0.elapsed());
@@ -305,6 +309,9 @@ impl ImageBuilder for Builder {
             _ => (self.front.clone(), self.front_time.1, at.now),
         };
         let age = (t - self.front_time.1) as f32;
+        // The sampling threads trace the view as far ahead as the frame is old when
+        // it is shown.
+        self.s.view_ahead.shown_after(at.shown - self.front_time.1);
         Some(Built {
             image,
             mean_age: t - self.front_time.1,

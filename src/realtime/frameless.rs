@@ -4,7 +4,7 @@
 //! [`Traditional`](crate::methods::frameless::Traditional) does). It runs no thread of
 //! its own besides: the image thread only copies.
 
-use std::time::Instant;
+use std::{sync::Arc, time::Instant};
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 use glam::Vec3;
@@ -56,6 +56,7 @@ fn start(sp: &mut Spawner<'_>) -> Result<Box<dyn ImageBuilder>, RealtimeError> {
     sp.sampling_threads(tx, move |i, tx| sample(&s1, i, tx))?;
     let (w, h) = s.tracer.size();
     Ok(Box::new(Builder {
+        s: s.clone(),
         rx,
         newest: NewestSamples::new(w, h, f64::NAN),
         on_every_core: s.config.rays.is_some(),
@@ -84,7 +85,7 @@ fn sample(s: &Shared, thread: u64, tx: Sender<Batch>) {
     while !s.stopped() {
         turns.between(s);
         let now = s.clock.now();
-        let state = states.at(tracer, now).0;
+        let state = states.at_ahead(tracer, now, s.view_ahead.seconds()).0;
         let t0 = Instant::now();
         for _ in 0..16 {
             let p = rng.below(n);
@@ -128,7 +129,7 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, thread: u64, tx: Sender<Batch>) {
     let mut states = StateCache::new();
     while !s.stopped() {
         let now = s.clock.now();
-        let state = states.at(tracer, now).0;
+        let state = states.at_ahead(tracer, now, s.view_ahead.seconds()).0;
         let pixels: Vec<u32> = (0..per_batch).map(|_| rng.below(n)).collect();
         let points: Vec<[f32; 2]> = pixels
             .iter()
@@ -147,6 +148,7 @@ fn sample_on_gpu(s: &Shared, rays: &GpuRays, thread: u64, tx: Sender<Batch>) {
 /// The image thread's side: the newest sample per pixel. Pixels not sampled yet have
 /// no information time and do not count in the mean age.
 struct Builder {
+    s: Arc<Shared>,
     rx: Receiver<Batch>,
     newest: NewestSamples,
     /// Build on every core: with a GPU tracer, whose few feeding threads mostly wait
@@ -174,6 +176,9 @@ impl ImageBuilder for Builder {
             (self.newest.image.clone(), self.newest.mean_age(t))
         };
         let n = self.newest.image.pixels.len();
+        // The sampling threads trace the view as far ahead as the pixels are old, on
+        // average, when the image is shown.
+        self.s.view_ahead.shown_after(mean_age + (at.shown - t));
         Some(Built {
             image,
             mean_age,

@@ -72,6 +72,10 @@ pub struct PipelineStats {
     pub age_p99_s: f64,
     /// Attempts to take a pixel that another thread held.
     pub pixel_conflicts: u64,
+    /// How far ahead the sampling threads traced a moving view at the end, ms: the
+    /// method's smoothed delay from trace to display (0 with `--no-view-ahead`;
+    /// [`super::RtConfig::view_ahead`]).
+    pub view_ahead_ms: f64,
     /// Where the method reconstructs its images: `{"device": "cpu", "adapter": null}`,
     /// or the GPU and its adapter.
     pub recon: ReconUsed,
@@ -205,6 +209,7 @@ impl Pipeline {
             age_p95_s: img.age_hist.quantile(0.95),
             age_p99_s: img.age_hist.quantile(0.99),
             pixel_conflicts: s.locks.conflicts(),
+            view_ahead_ms: s.view_ahead.seconds() * 1e3,
             recon: img.recon.unwrap_or_else(ReconUsed::cpu),
             trace: crate::trace::batch::used(cfg.rays.as_ref()),
             trace_failure: cfg.rays.as_ref().and_then(|r| r.failure()),

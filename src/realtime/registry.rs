@@ -370,6 +370,7 @@ impl RtConfig {
             start: 0.0,
             seed: crate::settings::SEED,
             rays: None,
+            view_ahead: true,
         }
     }
 }

@@ -197,6 +197,51 @@ pub(crate) struct Shared {
     pub image_stats: Mutex<ImageThreadStats>,
     /// Times sampling threads gave up their core ([`Turns`]).
     pub yields: AtomicU64,
+    /// How far ahead the sampling threads trace a moving view.
+    pub view_ahead: ViewAhead,
+}
+
+/// How far ahead of now the sampling threads trace a moving view
+/// ([`RtConfig::view_ahead`]): the smoothed delay, over about the last eight images,
+/// from the trace of what an image shows to its refresh, as the method's image thread
+/// measures it. One writer (the image thread), any number of readers.
+pub(crate) struct ViewAhead {
+    on: bool,
+    /// Seconds as `f64` bits; 0 until the first image.
+    bits: AtomicU64,
+}
+
+/// The weight of an image's delay in [`ViewAhead`]'s smoothed one: about the last
+/// eight images, so that one late build does not swing the view traced.
+const VIEW_AHEAD_SMOOTHING: f64 = 0.125;
+
+impl ViewAhead {
+    pub fn new(on: bool) -> Self {
+        Self {
+            on,
+            bits: AtomicU64::new(0f64.to_bits()),
+        }
+    }
+
+    /// Seconds ahead to trace the view now (0 when off, and before the first image).
+    pub fn seconds(&self) -> f64 {
+        f64::from_bits(self.bits.load(Ordering::Relaxed))
+    }
+
+    /// An image was shown `delay` seconds after what it shows was traced (a NaN or
+    /// negative delay is left out).
+    pub fn shown_after(&self, delay: f64) {
+        if !self.on || !(delay >= 0.0) {
+            return;
+        }
+        let now = self.seconds();
+        let next = if now > 0.0 {
+            now + VIEW_AHEAD_SMOOTHING * (delay - now)
+        } else {
+            delay
+        };
+        self.bits.store(next.to_bits(), Ordering::Relaxed);
+    }
 }
 
 impl Shared {
@@ -213,6 +258,7 @@ impl Shared {
     /// starts.
     pub fn new(tracer: Arc<Tracer>, config: RtConfig) -> Self {
         let (w, h) = tracer.size();
+        let view_ahead = ViewAhead::new(config.view_ahead);
         Self {
             clock: PipelineClock::new(config.start),
             locks: PixelLocks::new(w, h),
@@ -225,6 +271,7 @@ impl Shared {
             latest: Mutex::new(Newest::default()),
             image_stats: Mutex::new(ImageThreadStats::default()),
             yields: AtomicU64::new(0),
+            view_ahead,
         }
     }
 

@@ -135,7 +135,7 @@ impl Frames {
         Arc::new(FrameJob {
             id,
             time,
-            state: tracer.state_at(time),
+            state: tracer.state_at_ahead(time, s.view_ahead.seconds()),
             grid,
             jitter: frame_jitter(id, jitter_period(params, size, grid)),
             started: Instant::now(),
@@ -373,6 +373,9 @@ impl ImageBuilder for Builder {
             }
             _ => (self.history.output().clone(), newest, at.now),
         };
+        // The sampling threads trace the view as far ahead as the newest frame is old
+        // when it is shown.
+        self.s.view_ahead.shown_after(at.shown - newest);
         let times = self.history.output_times();
         let ages = sampled_ages(times.len(), |i| (t - times[i]) as f32);
         let mean_age = self.history.mean_age(t).unwrap_or(f64::NAN);

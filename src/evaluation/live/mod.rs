@@ -64,6 +64,9 @@ pub struct LiveConfig {
     pub cores: usize,
     /// The image build's threads, where not the cores' default (half of them).
     pub recon_threads: Option<usize>,
+    /// Whether the sampling threads trace a moving view ahead
+    /// ([`RtConfig::view_ahead`]); on by default.
+    pub view_ahead: bool,
     /// The adaptive method's options, as `view` takes them (image budget, ring, largest
     /// splat radius); nothing asked for by default.
     pub adaptive: AdaptiveArgs,
@@ -96,6 +99,7 @@ impl LiveConfig {
             repeat: 1,
             cores: machine::cores(),
             recon_threads: None,
+            view_ahead: true,
             adaptive: AdaptiveArgs::default(),
             display: settings::DisplayGroup::default(),
             quality: settings::QualityGroup::default(),
@@ -150,6 +154,7 @@ impl LiveConfig {
         }
         c.refresh_hz = self.display.refresh_hz;
         c.seed = self.quality.seed;
+        c.view_ahead = self.view_ahead;
         c.start = self.start - self.warmup_refreshes() as f64 / self.display.refresh_hz;
         c
     }
@@ -476,6 +481,10 @@ pub struct LiveSummary {
     /// were recorded ran its defaults of then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub adaptive: Option<AdaptiveTuning>,
+    /// Whether the sampling threads traced a moving view ahead (summaries written
+    /// before it existed: they did not).
+    #[serde(default)]
+    pub view_ahead: bool,
     /// Runs of each method.
     pub repeat: usize,
     /// Cores of the machine.
@@ -818,6 +827,7 @@ fn assemble(
             recon: cfg.devices.recon_used(),
             trace: cfg.devices.trace_used(),
             adaptive: cfg.adaptive_tuning(),
+            view_ahead: cfg.view_ahead,
             repeat: cfg.repeat,
             machine_cores: machine::cores(),
             cores: cfg.cores,
@@ -871,7 +881,10 @@ mod tests {
         assert!(v.get("recon").is_none(), "written before `recon`");
         let s = read_summary(&p).expect("reads");
         assert_eq!(s.recon, ReconUsed::cpu());
-        assert!(markdown(&s).contains("tracer: cpu; reconstructor: cpu)"));
+        assert!(!s.view_ahead, "written before the view was traced ahead");
+        assert!(
+            markdown(&s).contains("tracer: cpu; reconstructor: cpu; the view traced where it is)")
+        );
     }
 
     /// The heading names the tracer as well as the reconstructor.
@@ -886,7 +899,7 @@ mod tests {
         };
         let md = markdown(&s);
         assert!(
-            md.contains("tracer: gpu (a test adapter); reconstructor: cpu)"),
+            md.contains("tracer: gpu (a test adapter); reconstructor: cpu; the view"),
             "{md}"
         );
     }

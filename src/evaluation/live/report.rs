@@ -108,7 +108,7 @@ fn heading(s: &LiveSummary) -> String {
     format!(
         "{} at {}x{}, {} Hz, t = {} s + {} s live (warm-up {} s; {} run{} of each method, \
          alternated; threads for {} of the machine's {} cores; seed {}, ideal {} spp{}; \
-         tracer: {}; reconstructor: {}{})",
+         tracer: {}; reconstructor: {}; the view traced {}{})",
         s.scene,
         s.width,
         s.height,
@@ -125,6 +125,11 @@ fn heading(s: &LiveSummary) -> String {
         if s.camera_path { ", camera path" } else { "" },
         s.trace,
         s.recon,
+        if s.view_ahead {
+            "ahead, where the display will look"
+        } else {
+            "where it is"
+        },
         adaptive_note(s),
     )
 }

@@ -54,8 +54,6 @@ pub(super) struct Builder {
     live_limit: Option<usize>,
     cost: BuildCost,
     figures: ImageFigures,
-    /// The builds' lead over their refreshes, seconds, smoothed ([`VIEW_AHEAD_SMOOTHING`]).
-    lead: Option<f64>,
     /// An image shown before that nothing holds any more, to hand the next image over
     /// in ([`ImageBuilder::recycle`]): a refresh's image then costs no copy.
     spare: Option<Image>,
@@ -78,7 +76,6 @@ impl Builder {
             live_limit: None,
             cost: BuildCost::default(),
             figures: ImageFigures::default(),
-            lead: None,
             spare: None,
         }
     }
@@ -100,21 +97,8 @@ pub(super) struct ImageFigures {
     lead_sum: f64,
     lag_sum: f64,
     /// Summed over the images, seconds: how far ahead the sampling threads traced the
-    /// view after each ([`AdaptiveSettings::view_ahead`]).
+    /// view after each ([`crate::realtime::RtConfig::view_ahead`]).
     ahead_sum: f64,
-}
-
-/// The weight of a build's lead in the smoothed lead that sets how far ahead the
-/// sampling threads trace the view: about the last eight builds, so that one late build
-/// does not swing the view they trace.
-const VIEW_AHEAD_SMOOTHING: f64 = 0.125;
-
-/// How far ahead of its trace a sample is expected to be shown, seconds: a sample is
-/// first shown by the next build that starts after it was traced, which shows it `lead`
-/// after it starts, and was traced on average half a refresh `period` before that build
-/// began.
-pub(super) fn view_ahead(lead: f64, period: f64) -> f64 {
-    lead.max(0.0) + 0.5 * period
 }
 
 /// Push the newest samples of `batches` (oldest first) into `r`: as many as its ring
@@ -406,17 +390,11 @@ impl ImageBuilder for Builder {
         fig.placed_sum += r.placed() as f64;
         fig.lead_sum += t - began;
         fig.lag_sum += r.sample_lag(t);
-        if settings.view_ahead {
-            let lead = self
-                .lead
-                .map_or(t - began, |l| l + VIEW_AHEAD_SMOOTHING * ((t - began) - l));
-            self.lead = Some(lead);
-            let ahead = view_ahead(lead, 1.0 / s.config.refresh_hz);
-            fig.ahead_sum += ahead;
-            self.published
-                .view_ahead
-                .store(ahead.to_bits(), Ordering::Relaxed);
-        }
+        // A sample is first shown by the next build that starts after its trace, which
+        // shows it its lead later; it was traced on average half a refresh before.
+        s.view_ahead
+            .shown_after((t - began) + 0.5 / s.config.refresh_hz);
+        fig.ahead_sum += s.view_ahead.seconds();
         Some(Built {
             image,
             mean_age: r.mean_age(),

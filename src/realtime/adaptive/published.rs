@@ -104,9 +104,6 @@ pub(super) struct Published {
     pub(super) skipped_reprojections: AtomicU64,
     /// History count maps the controllers passed to their samplers.
     pub(super) history_maps: AtomicU64,
-    /// How far ahead the sampling threads extrapolate the view, seconds as `f64` bits
-    /// ([`AdaptiveSettings::view_ahead`]; 0 until the first build, and when off).
-    pub(super) view_ahead: AtomicU64,
 }
 
 impl Published {
@@ -130,7 +127,6 @@ impl Published {
             reprojected_visits: AtomicU64::new(0),
             skipped_reprojections: AtomicU64::new(0),
             history_maps: AtomicU64::new(0),
-            view_ahead: AtomicU64::new(0),
             pixel_draws: if settings.sampler.stratified_positions {
                 (0..w as usize * h as usize)
                     .map(|_| AtomicU32::new(0))
@@ -140,11 +136,6 @@ impl Published {
             },
             settings,
         }
-    }
-
-    /// How far ahead the sampling threads extrapolate the view now, seconds.
-    pub(super) fn view_ahead(&self) -> f64 {
-        f64::from_bits(self.view_ahead.load(Ordering::Relaxed))
     }
 
     /// Publish band `b`'s tiles, held by `sampler`, for the sampling threads.

@@ -154,7 +154,7 @@ pub(super) fn sample(s: &Shared, published: &Published, thread: u64, tx: Vec<Sen
         turns.between(s);
         view.refresh(published);
         let now = s.clock.now();
-        let state = states.at_ahead(tracer, now, published.view_ahead()).0;
+        let state = states.at_ahead(tracer, now, s.view_ahead.seconds()).0;
         let choices = published.settings.sampler.tile_choices;
         let k = choose_tile(view.len() as u32, choices, &mut rng, |k| {
             let (b, i) = view.locate(k);
@@ -323,7 +323,7 @@ fn sample_on_gpu(
     while !s.stopped() {
         view.refresh(published);
         let now = s.clock.now();
-        let state = states.at_ahead(tracer, now, published.view_ahead()).0;
+        let state = states.at_ahead(tracer, now, s.view_ahead.seconds()).0;
         let (plans, points) = plan_visits(s, published, &mut view, &state, now, &mut rng);
         let t0 = Instant::now();
         let got = batch::trace_points(tracer, Some(rays), &state, &points);

@@ -39,12 +39,6 @@ pub struct AdaptiveSettings {
     /// fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the whole
     /// ring always.
     pub image_budget: f64,
-    /// Whether the sampling threads trace the view extrapolated to when their samples
-    /// are expected to be shown: the image thread's lead over its refresh plus half a
-    /// refresh period, from the camera's past poses
-    /// ([`crate::trace::Tracer::state_at_ahead`]). A moving view's samples then land
-    /// where the display will look, newly revealed surfaces included.
-    pub view_ahead: bool,
     /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
     pub gpu: Option<Arc<GpuContext>>,
 }
@@ -57,7 +51,6 @@ impl Default for AdaptiveSettings {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: IMAGE_BUDGET,
-            view_ahead: true,
             gpu: None,
         }
     }
@@ -71,7 +64,6 @@ impl AdaptiveSettings {
             ring_factor: self.recon.ring_factor,
             max_radius: self.recon.max_radius as f64,
             sampler_reprojection: self.sampler.reprojection,
-            view_ahead: self.view_ahead,
         }
     }
 }
@@ -88,9 +80,6 @@ pub struct AdaptiveTuning {
     pub max_radius: f64,
     /// Whether the sampler's controllers reproject.
     pub sampler_reprojection: bool,
-    /// [`AdaptiveSettings::view_ahead`] (runs recorded before it existed: off).
-    #[serde(default)]
-    pub view_ahead: bool,
 }
 
 impl MethodSettings for AdaptiveSettings {
@@ -145,10 +134,6 @@ pub struct AdaptiveArgs {
     /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
-    /// Adaptive: trace the view where it is now, not where the camera's past poses say
-    /// it will be when the samples are shown.
-    #[arg(long)]
-    pub no_view_ahead: bool,
 }
 
 impl Default for AdaptiveArgs {
@@ -159,7 +144,6 @@ impl Default for AdaptiveArgs {
             ring_factor: None,
             max_radius: None,
             no_reprojection: false,
-            no_view_ahead: false,
         }
     }
 }
@@ -168,9 +152,6 @@ impl AdaptiveArgs {
     /// Set what was asked for in `settings`.
     pub fn apply(&self, settings: &mut AdaptiveSettings) {
         settings.image_budget = self.image_budget;
-        if self.no_view_ahead {
-            settings.view_ahead = false;
-        }
         if self.no_reprojection {
             settings.sampler.reprojection = false;
         }
