@@ -231,7 +231,7 @@ impl ViewAhead {
     /// An image was shown `delay` seconds after what it shows was traced (a NaN or
     /// negative delay is left out).
     pub fn shown_after(&self, delay: f64) {
-        if !self.on || !(delay >= 0.0) {
+        if !self.on || delay.is_nan() || delay < 0.0 {
             return;
         }
         let now = self.seconds();
