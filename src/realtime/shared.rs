@@ -728,6 +728,30 @@ fn request_slice(ns: u64) -> std::io::Result<()> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn the_view_ahead_follows_the_delays_smoothed_and_stays_0_when_off() {
+        let v = super::ViewAhead::new(true);
+        assert_eq!(v.seconds(), 0.0, "nothing shown yet");
+        v.shown_after(0.020);
+        assert_eq!(v.seconds(), 0.020, "the first delay as it is");
+        v.shown_after(f64::NAN);
+        v.shown_after(-1.0);
+        assert_eq!(v.seconds(), 0.020, "no delay from a NaN or a negative one");
+        v.shown_after(0.100);
+        let once = v.seconds();
+        assert!(
+            once > 0.020 && once < 0.040,
+            "one late image moves it a little: {once}"
+        );
+        for _ in 0..100 {
+            v.shown_after(0.100);
+        }
+        assert!((v.seconds() - 0.100).abs() < 1e-4, "{}", v.seconds());
+        let off = super::ViewAhead::new(false);
+        off.shown_after(0.020);
+        assert_eq!(off.seconds(), 0.0);
+    }
+
     /// The calling thread's niceness, from `/proc` (field 19 of its `stat`).
     #[cfg(target_os = "linux")]
     fn nice() -> i32 {
