@@ -373,6 +373,7 @@ def live(
     image_budget: Optional[float] = None,
     ring_factor: Optional[float] = None,
     max_radius: Optional[float] = None,
+    view_ahead: bool = True,
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
@@ -381,7 +382,9 @@ def live(
     is ``duration``'s old name (a FutureWarning says so). ``recon`` and ``trace`` are
     ``--recon`` and ``--trace`` (see ``evaluate``). ``image_budget``, ``ring_factor``
     and ``max_radius`` are the adaptive method's ``--image-budget``, ``--ring-factor``
-    and ``--max-radius`` (None: its defaults)."""
+    and ``--max-radius`` (None: its defaults). ``view_ahead=False`` is
+    ``--no-view-ahead``: every method traces a moving view where it is, not where it will
+    be when shown."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)
@@ -393,7 +396,7 @@ def live(
             native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
             texture_filter, _cache_dir(cache_dir, no_cache), recon, cb, trace,
-            image_budget, ring_factor, max_radius,
+            image_budget, ring_factor, max_radius, bool(view_ahead),
         )
     return Evaluation._from_json(summary, frames)
 

@@ -109,6 +109,7 @@ def live(
     image_budget: Optional[float] = None,
     ring_factor: Optional[float] = None,
     max_radius: Optional[float] = None,
+    view_ahead: bool = True,
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 

@@ -78,7 +78,7 @@ fn evaluate(
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
 ///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
-///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None)
+///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None, view_ahead=True)
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
@@ -86,7 +86,7 @@ fn evaluate(
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
                     progress=None, trace="cpu", image_budget=None, ring_factor=None,
-                    max_radius=None))]
+                    max_radius=None, view_ahead=true))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -110,6 +110,7 @@ fn live(
     image_budget: Option<f64>,
     ring_factor: Option<f64>,
     max_radius: Option<f64>,
+    view_ahead: bool,
 ) -> PyResult<(String, String)> {
     args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
@@ -140,6 +141,7 @@ fn live(
     }
     cfg.adaptive.ring_factor = ring_factor.map(|f| args::finite("ring_factor", f)).transpose()?;
     cfg.adaptive.max_radius = max_radius.map(|r| args::finite("max_radius", r)).transpose()?;
+    cfg.view_ahead = view_ahead;
     cfg.validate().map_err(errors::eval)?;
     cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();

@@ -439,6 +439,14 @@ def test_trace_is_the_commands(toycar):
     assert auto.summary["trace"] == {"device": "cpu", "adapter": None}
 
 
+def test_live_traces_the_view_ahead_unless_asked_not_to(toycar):
+    # `view_ahead=False` is `--no-view-ahead`: the summary records which it was.
+    kw = dict(methods="traditional-frameless", duration=0.05, warmup=0.05, size=(16, 16),
+              ideal_spp=1, no_cache=True, progress=False)
+    assert frameless.live(toycar, **kw).summary["view_ahead"] is True
+    assert frameless.live(toycar, view_ahead=False, **kw).summary["view_ahead"] is False
+
+
 def test_metrics_are_the_evaluations(tmp_path, binary, toycar):
     # Two of the command's own files, compared by the module as `eval` compares images:
     # the numbers follow the definitions (RMS of the bytes, PSNR of the RMS), and the
