@@ -995,6 +995,12 @@ fn view_headless(
         st.pipeline.sampling_threads,
         if st.pipeline.sampling_threads == 1 { "" } else { "s" }
     );
+    if st.pipeline.view_ahead_ms > 0.0 {
+        println!(
+            "a moving view traced {:.0} ms ahead, where the camera's past poses put it when shown (--no-view-ahead: where it is)",
+            st.pipeline.view_ahead_ms
+        );
+    }
     if let Some(c) = &st.camera_step {
         let ms = |v: Option<f64>| v.map_or("not within the run".into(), |v| format!("{v:.0} ms"));
         println!(
