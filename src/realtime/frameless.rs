@@ -176,16 +176,12 @@ impl ImageBuilder for Builder {
             (self.newest.image.clone(), self.newest.mean_age(t))
         };
         let n = self.newest.image.pixels.len();
-        // A sample is first shown by the next build after its trace, at that build's
-        // refresh, and was traced on average half a refresh before the build: the
-        // sampling threads trace the view that far ahead. (Not as far as the pixels'
-        // mean age: the pixels are shown as traced, so a view extrapolated further,
-        // where a pixel lingers for many refreshes on a slow scene, only misplaces
-        // them: the kitchen's Interactive at 166–194 ms ahead, RMS 51.04–53.69 against
-        // 46.99–50.76 traced where it is.)
-        self.s
-            .view_ahead
-            .shown_after((at.shown - t) + 0.5 / self.s.config.refresh_hz);
+        // As far ahead as a sample's first refresh, not the pixels' mean age: the
+        // pixels are shown as traced, so a view extrapolated further, where a pixel
+        // lingers for many refreshes on a slow scene, only misplaces them (the
+        // kitchen's Interactive at 166–194 ms ahead, RMS 51.04–53.69 against
+        // 46.99–50.76 traced where it is).
+        self.s.view_ahead.build_led_by(at.shown - t);
         Some(Built {
             image,
             mean_age,

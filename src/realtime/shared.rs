@@ -207,6 +207,8 @@ pub(crate) struct Shared {
 /// measures it. One writer (the image thread), any number of readers.
 pub(crate) struct ViewAhead {
     on: bool,
+    /// The refresh period, seconds.
+    period: f64,
     /// Seconds as `f64` bits; 0 until the first image.
     bits: AtomicU64,
 }
@@ -216,9 +218,10 @@ pub(crate) struct ViewAhead {
 const VIEW_AHEAD_SMOOTHING: f64 = 0.125;
 
 impl ViewAhead {
-    pub fn new(on: bool) -> Self {
+    pub fn new(on: bool, refresh_hz: f64) -> Self {
         Self {
             on,
+            period: 1.0 / refresh_hz,
             bits: AtomicU64::new(0f64.to_bits()),
         }
     }
@@ -242,6 +245,13 @@ impl ViewAhead {
         };
         self.bits.store(next.to_bits(), Ordering::Relaxed);
     }
+
+    /// An image built from the samples in hand when its build began, `lead` seconds
+    /// before its refresh, was shown: each sample is first shown by the first build
+    /// that begins after its trace, and was traced on average half a refresh before it.
+    pub fn build_led_by(&self, lead: f64) {
+        self.shown_after(lead + 0.5 * self.period);
+    }
 }
 
 impl Shared {
@@ -258,7 +268,7 @@ impl Shared {
     /// starts.
     pub fn new(tracer: Arc<Tracer>, config: RtConfig) -> Self {
         let (w, h) = tracer.size();
-        let view_ahead = ViewAhead::new(config.view_ahead);
+        let view_ahead = ViewAhead::new(config.view_ahead, config.refresh_hz);
         Self {
             clock: PipelineClock::new(config.start),
             locks: PixelLocks::new(w, h),
@@ -730,7 +740,7 @@ fn request_slice(ns: u64) -> std::io::Result<()> {
 mod tests {
     #[test]
     fn the_view_ahead_follows_the_delays_smoothed_and_stays_0_when_off() {
-        let v = super::ViewAhead::new(true);
+        let v = super::ViewAhead::new(true, 60.0);
         assert_eq!(v.seconds(), 0.0, "nothing shown yet");
         v.shown_after(0.020);
         assert_eq!(v.seconds(), 0.020, "the first delay as it is");
@@ -747,7 +757,7 @@ mod tests {
             v.shown_after(0.100);
         }
         assert!((v.seconds() - 0.100).abs() < 1e-4, "{}", v.seconds());
-        let off = super::ViewAhead::new(false);
+        let off = super::ViewAhead::new(false, 60.0);
         off.shown_after(0.020);
         assert_eq!(off.seconds(), 0.0);
     }

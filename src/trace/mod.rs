@@ -486,12 +486,28 @@ impl Tracer {
     /// The view (camera path, else the scene's camera; the live camera overrides both)
     /// at time `t`, unquantized.
     pub fn camera_at(&self, t: f64) -> Camera {
-        if let Some(c) = self.live_camera() {
-            return c;
-        }
+        self.live_camera()
+            .unwrap_or_else(|| self.scripted_camera(t as f32))
+    }
+
+    /// The camera path's view at `t`, else the scene's own camera's.
+    fn scripted_camera(&self, t: f32) -> Camera {
         match &self.camera_path {
-            Some(p) => p.at(t as f32),
-            None => self.scene.camera_at(t as f32),
+            Some(p) => p.at(t),
+            None => self.scene.camera_at(t),
+        }
+    }
+
+    /// The view a state at `t` is traced from: the live camera, else the scripted one,
+    /// extrapolated `ahead` seconds ([`Tracer::state_at_ahead`]).
+    fn state_camera(&self, t: f32, live: Option<Camera>, ahead: f64) -> Camera {
+        match live {
+            Some(c) => c,
+            None if ahead > 0.0 => extrapolated(
+                self.scripted_camera(t - ahead as f32),
+                self.scripted_camera(t),
+            ),
+            None => self.scripted_camera(t),
         }
     }
 
@@ -566,16 +582,9 @@ impl Tracer {
     fn build_state(&self, time: f64, live: Option<Camera>, ahead: f64) -> SceneState {
         let scene = &self.scene;
         let t = time as f32;
-        let at = |t: f32| match &self.camera_path {
-            Some(p) => p.at(t),
-            None => scene.camera_at(t),
-        };
-        let cam = match live {
-            Some(c) => c,
-            None if ahead > 0.0 => extrapolated(at(t - ahead as f32), at(t)),
-            None => at(t),
-        };
-        let camera = cam.frame(self.width, self.height);
+        let camera = self
+            .state_camera(t, live, ahead)
+            .frame(self.width, self.height);
         let lights = scene.lights_at(t);
         let mut instances = Vec::with_capacity(self.instance_groups.len());
         for (i, (node, g)) in self.instance_groups.iter().enumerate() {

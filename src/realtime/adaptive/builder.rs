@@ -390,10 +390,7 @@ impl ImageBuilder for Builder {
         fig.placed_sum += r.placed() as f64;
         fig.lead_sum += t - began;
         fig.lag_sum += r.sample_lag(t);
-        // A sample is first shown by the next build that starts after its trace, which
-        // shows it its lead later; it was traced on average half a refresh before.
-        s.view_ahead
-            .shown_after((t - began) + 0.5 / s.config.refresh_hz);
+        s.view_ahead.build_led_by(t - began);
         fig.ahead_sum += s.view_ahead.seconds();
         Some(Built {
             image,
