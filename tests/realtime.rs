@@ -339,6 +339,40 @@ fn every_method_traces_a_moving_view_ahead_by_how_late_it_shows_it() {
 }
 
 #[test]
+fn adaptive_takes_in_the_samples_traced_while_a_moving_view_is_built_unless_asked_not_to() {
+    // A panning camera: every refresh re-splats the ring, and the sampling thread
+    // keeps tracing while the image thread places and splats it.
+    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                0,-1,0.3,2,-1,0.3,0,0,1,0,50\n\
+                10,1,0.3,2,1,0.3,0,0,1,0,50\n";
+    let path = CameraPath::parse("pan.csv", text).unwrap();
+    let run = |late_samples: bool| {
+        let mut cfg = RtConfig::new(RtMethod::Adaptive);
+        cfg.sampling_threads = 1;
+        let opts = HeadlessOptions {
+            seconds: 0.8,
+            out: tmp_dir(&format!("late-{late_samples}")),
+            images: 1,
+            scene: "toycar".into(),
+            camera_step_s: None,
+        };
+        let scene = Arc::new(builtin::load("toycar").unwrap());
+        let tracer = Tracer::new(scene, 48, 32, TraceOptions::default())
+            .with_camera_path(Some(path.clone()));
+        let settings = AdaptiveSettings {
+            late_samples,
+            ..AdaptiveSettings::default()
+        };
+        let p = run_headless(Arc::new(tracer), cfg, RtSettings::Adaptive(settings), &opts)
+            .unwrap()
+            .pipeline;
+        p.method_stats["late_samples_mean"].as_f64().unwrap()
+    };
+    assert!(run(true) > 0.0, "no samples taken in during the builds");
+    assert_eq!(run(false), 0.0);
+}
+
+#[test]
 fn headless_runs_report_latency_and_show_a_camera_step_within_a_second_of_tracing() {
     const PIXELS: u64 = 48 * 32;
     for method in RtMethod::ALL {

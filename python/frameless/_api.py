@@ -374,6 +374,7 @@ def live(
     ring_factor: Optional[float] = None,
     max_radius: Optional[float] = None,
     view_ahead: bool = True,
+    late_samples: bool = True,
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
@@ -384,7 +385,8 @@ def live(
     and ``max_radius`` are the adaptive method's ``--image-budget``, ``--ring-factor``
     and ``--max-radius`` (None: its defaults). ``view_ahead=False`` is
     ``--no-view-ahead``: every method traces a moving view where it is, not where it will
-    be when shown."""
+    be when shown. ``late_samples=False`` is adaptive's ``--no-late-samples``: a moving
+    view's image is built from the samples in hand when its build starts only."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)
@@ -396,7 +398,7 @@ def live(
             native, names, float(start), float(duration), float(warmup), _size(size),
             float(refresh_hz), repeat, threads, seed, ideal_spp, max_depth,
             texture_filter, _cache_dir(cache_dir, no_cache), recon, cb, trace,
-            image_budget, ring_factor, max_radius, bool(view_ahead),
+            image_budget, ring_factor, max_radius, bool(view_ahead), bool(late_samples),
         )
     return Evaluation._from_json(summary, frames)
 

@@ -78,7 +78,8 @@ fn evaluate(
 
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
 ///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
-///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None, view_ahead=True)
+///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None, view_ahead=True,
+///      late_samples=True)
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
@@ -86,7 +87,7 @@ fn evaluate(
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
                     progress=None, trace="cpu", image_budget=None, ring_factor=None,
-                    max_radius=None, view_ahead=true))]
+                    max_radius=None, view_ahead=true, late_samples=true))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -111,6 +112,7 @@ fn live(
     ring_factor: Option<f64>,
     max_radius: Option<f64>,
     view_ahead: bool,
+    late_samples: bool,
 ) -> PyResult<(String, String)> {
     args::in_range("repeat", repeat, 1, 100)?;
     let (display, quality, reference) = args::groups(
@@ -142,6 +144,7 @@ fn live(
     cfg.adaptive.ring_factor = ring_factor.map(|f| args::finite("ring_factor", f)).transpose()?;
     cfg.adaptive.max_radius = max_radius.map(|r| args::finite("max_radius", r)).transpose()?;
     cfg.view_ahead = view_ahead;
+    cfg.adaptive.no_late_samples = !late_samples;
     cfg.validate().map_err(errors::eval)?;
     cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();

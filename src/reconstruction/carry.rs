@@ -1042,6 +1042,15 @@ impl Reconstructor {
         p.resplat_moving_view && p.reproject && moved
     }
 
+    /// Whether a refresh seen by `camera` will re-splat the ring
+    /// ([`Reconstructor::resplats_at`], which notes the view; this does not).
+    pub(super) fn will_resplat(&self, camera: &CameraFrame) -> bool {
+        let p = self.params;
+        let moved =
+            (self.carried.as_ref()).is_some_and(|c| c.view.is_some_and(|v| !v.same_view(camera)));
+        p.resplat_moving_view && p.reproject && moved
+    }
+
     /// Whether a refresh seen by `camera` restarts the carried sums: the view holds
     /// after refreshes that re-splatted the ring, so it places, splats and cuts the
     /// whole live ring, the costliest refresh there is.

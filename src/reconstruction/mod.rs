@@ -102,6 +102,7 @@ mod gpu_tests;
 mod history;
 mod holes;
 mod lanes;
+mod late;
 mod params;
 mod passes;
 mod place;
@@ -281,6 +282,12 @@ pub struct Reconstructor {
     gpu_failure: Option<String>,
     /// Wall time of each step of the CPU refreshes.
     passes: PassTimes,
+    /// While a refresh is built in two parts ([`Reconstructor::reconstruct_taking_late`]):
+    /// the newest sample time its temporal filter counts ages from.
+    origin_ahead: Option<f64>,
+    /// How much newer the samples a second part took in were than the first part's
+    /// newest, smoothed over refreshes: where the first part expects the ages' origin.
+    late_gap: f64,
 }
 
 /// Where more than one pixel in this many may have a changed carried front beyond
@@ -385,6 +392,8 @@ impl Reconstructor {
             kept_fronts_checked: 0,
             gpu_failure: None,
             passes: PassTimes::default(),
+            origin_ahead: None,
+            late_gap: 0.0,
         }
     }
 
@@ -794,8 +803,19 @@ impl Reconstructor {
         // After the carry: the fronts start from the still geometry it carried.
         self.front_depths();
         lap = self.passes.lap(2, lap);
+        self.splat_to_end(plan, lap, None);
+    }
+
+    /// `plan`'s splat, resolve, fill and history on the CPU, from `lap`; with `added`,
+    /// the splats of the pieces from it on go over the sums those before made.
+    fn splat_to_end(
+        &mut self,
+        plan: &mut RefreshPlan,
+        lap: std::time::Instant,
+        added: Option<usize>,
+    ) {
         let blend_follows = self.history.is_some() && plan.history.is_some();
-        lap = self.splat_and_resolve(lap, blend_follows, &plan.camera);
+        let lap = self.splat_and_resolve(lap, blend_follows, &plan.camera, added);
         if self.resplat {
             self.restart_carry();
         }

@@ -549,11 +549,19 @@ impl Reconstructor {
             scale: &self.scale,
             tiles: &self.tiles,
             temporal_cutoff: p.temporal_cutoff,
-            t_newest: filter_origin(t, &self.ring),
+            t_newest: self.filter_origin_at(t),
             setter_age: p.visibility_in_use().map(|v| v.setter_age_sigmas),
             // Within the widest span a splat handles.
             max_r: self.max_footprint_radius(),
         }
+    }
+
+    /// The time the temporal filter counts ages from at `t`: [`filter_origin`], or
+    /// where a refresh is built in two parts, the newest sample it expects to have
+    /// once the second part takes in what arrived meanwhile.
+    fn filter_origin_at(&self, t: f64) -> f64 {
+        self.origin_ahead
+            .map_or_else(|| filter_origin(t, &self.ring), |o| o.min(t))
     }
 
     /// How long before a refresh at `t` the newest sample in hand was traced (0 if
@@ -576,7 +584,7 @@ impl Reconstructor {
             return 0;
         }
         let max_et = self.tiles.iter().fold(0f32, |m, f| m.max(f.e[2])) as f64;
-        let tc = filter_origin(t, &self.ring)
+        let tc = self.filter_origin_at(t)
             - self.params.temporal_cutoff as f64 * max_et * (1.0 + STALE_MARGIN);
         self.ring.live_start(tc)
     }
@@ -603,8 +611,21 @@ impl Reconstructor {
     /// in parallel. With a [`Reconstructor::set_live_limit`], only the newest samples
     /// of it.
     pub(super) fn prepare_splats(&mut self, plan: &RefreshPlan) {
+        self.place_pieces(plan.t, &plan.camera, plan.start, false);
+    }
+
+    /// Place the ring from logical index `start` on for a refresh at `t` seen by
+    /// `camera`, binned into pieces after those already binned if `append` (samples
+    /// taken in while the refresh was built), else from the first.
+    pub(super) fn place_pieces(
+        &mut self,
+        t: f64,
+        camera: &CameraFrame,
+        start: usize,
+        append: bool,
+    ) {
         self.ensure_lookup();
-        let start = plan.start;
+        let first = if append { self.pieces } else { 0 };
         let threads = rayon::current_num_threads();
         // Bands only split the work (every pixel sums its splats in ring order whatever
         // the bands): on one thread tall bands duplicate fewer splats.
@@ -634,14 +655,14 @@ impl Reconstructor {
             .collect();
         // Taken out while the placer borrows the rest of `self`.
         let mut binned = std::mem::take(&mut self.binned);
-        if binned.len() < pieces.len() {
-            binned.resize_with(pieces.len(), Vec::new);
+        if binned.len() < first + pieces.len() {
+            binned.resize_with(first + pieces.len(), Vec::new);
         }
-        self.pieces = pieces.len();
+        self.pieces = first + pieces.len();
         // Carrying, the cut reads where each sample landed (pieces are in ring order:
         // each one's part of `located` follows the one before); it cuts only where the
         // samples are reprojected, as they are placed then.
-        let record = self.carries_now() && self.params.reproject;
+        let record = self.carries_now() && self.params.reproject && !append;
         let mut located = std::mem::take(&mut self.located);
         located.resize(if record { live } else { 0 }, [0.0; 3]);
         let mut parts: Vec<&mut [[f32; 3]]> = Vec::with_capacity(pieces.len());
@@ -652,10 +673,10 @@ impl Reconstructor {
             parts.push(part);
             rest = tail;
         }
-        let placer = self.placer(plan.t, &plan.camera);
+        let placer = self.placer(t, camera);
         pieces
             .par_iter()
-            .zip(binned.par_iter_mut())
+            .zip(binned[first..].par_iter_mut())
             .zip(parts.into_par_iter())
             .for_each(|((piece, out), at)| {
                 bin_piece(
@@ -668,8 +689,10 @@ impl Reconstructor {
                 )
             });
         self.binned = binned;
-        self.located = located;
-        self.located_from = record.then_some(start);
+        if !append {
+            self.located = located;
+            self.located_from = record.then_some(start);
+        }
     }
 }
 

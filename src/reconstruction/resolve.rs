@@ -60,6 +60,8 @@ struct Scratch {
     counts: Vec<i32>,
     quotients: Vec<f32>,
     pre: Vec<f32>,
+    /// A band's coverage differences of splats added over sums already made.
+    added_cov: Vec<i32>,
 }
 
 /// What one band of the resolve reads: besides the image's width, the accumulators'
@@ -88,6 +90,7 @@ impl Reconstructor {
         since: Instant,
         blend_follows: bool,
         camera: &CameraFrame,
+        added: Option<usize>,
     ) -> Instant {
         let (w, h) = (self.width as usize, self.height as usize);
         let p = self.params;
@@ -99,15 +102,17 @@ impl Reconstructor {
         let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
         let (test, keep) = (self.spread_test(), self.visibility_keep());
         let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
+        // With `added`, the pieces from it on are splatted over the sums and coverage
+        // of those before, which a first part of the refresh made.
         let splats = super::splat::BandSplats {
-            binned: &self.binned[..self.pieces],
+            binned: &self.binned[added.unwrap_or(0)..self.pieces],
             rows,
             h,
             cs,
             cstride,
             front: keep.map(|k| (&self.front[..], k)),
             spread: (self.spread).view(Viewpoint::new(camera, &self.eye_ages, test)),
-            carried: carrying,
+            carried: carrying || added.is_some(),
         };
         // The carry's decay, where it was left to this pass ([`carry::LateDecay`]):
         // each band decayed as it is brought in to be splatted.
@@ -128,13 +133,21 @@ impl Reconstructor {
                     counts: vec![0; w],
                     quotients: vec![0.0; 4 * w],
                     pre: vec![0.0; if pulled { 2 * CH * w } else { 0 }],
+                    added_cov: Vec::new(),
                 },
                 |scratch, (b, (((((((acc, cov), px), coverage), scale), ages), cover), level))| {
                     let t0 = Instant::now();
                     if let Some(l) = late {
                         l.band((&mut *acc, &mut *cover), b * rows, (w, cs));
                     }
-                    splats.band(b, acc, cov);
+                    if added.is_some() {
+                        let more = &mut scratch.added_cov;
+                        more.resize(cov.len(), 0);
+                        splats.band(b, acc, more);
+                        cov.iter_mut().zip(more.iter()).for_each(|(c, m)| *c += m);
+                    } else {
+                        splats.band(b, acc, cov);
+                    }
                     let t1 = Instant::now();
                     let f = Frame {
                         w,

@@ -139,7 +139,7 @@ fn adaptive_note(s: &LiveSummary) -> String {
     let defaults = crate::realtime::AdaptiveSettings::default().tuning();
     match s.adaptive {
         Some(t) if t != defaults => format!(
-            "; adaptive: image budget {}, ring {}× the pixels, splat radius at most {} px{}",
+            "; adaptive: image budget {}, ring {}× the pixels, splat radius at most {} px{}{}",
             t.image_budget,
             t.ring_factor,
             t.max_radius,
@@ -147,6 +147,11 @@ fn adaptive_note(s: &LiveSummary) -> String {
                 ", the sampler reprojecting"
             } else {
                 ""
+            },
+            if t.late_samples {
+                ""
+            } else {
+                ", no samples taken in during a moving view's build"
             }
         ),
         _ => String::new(),

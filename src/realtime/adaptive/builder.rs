@@ -96,6 +96,9 @@ pub(super) struct ImageFigures {
     /// (its lead), and how long before that refresh its newest sample was traced.
     lead_sum: f64,
     lag_sum: f64,
+    /// Samples that moving views' refreshes took in while they were built, summed
+    /// ([`Reconstructor::reconstruct_taking_late`]).
+    late_sum: f64,
     /// Summed over the images, seconds: how far ahead the sampling threads traced the
     /// view after each ([`crate::realtime::RtConfig::view_ahead`]).
     ahead_sum: f64,
@@ -311,6 +314,7 @@ impl ImageBuilder for Builder {
             ("lead_ms_mean", (per_image(f.lead_sum) * 1e3).into()),
             ("sample_lag_ms_mean", (per_image(f.lag_sum) * 1e3).into()),
             ("view_ahead_ms_mean", (per_image(f.ahead_sum) * 1e3).into()),
+            ("late_samples_mean", per_image(f.late_sum).into()),
             ("limited_share", per_image(f.limited_images as f64).into()),
             ("pass_ms", pass_ms(self.recon.pass_times())),
         ];
@@ -354,7 +358,13 @@ impl ImageBuilder for Builder {
         push_newest(r, &batches, self.live_limit);
         r.set_motion(Some(state));
         r.set_live_limit(limit);
-        r.reconstruct(t, &camera, &tiling);
+        if self.published.settings.late_samples {
+            let rx = &self.rx;
+            let late = r.reconstruct_taking_late(t, &camera, &tiling, || take_queued(rx).collect());
+            self.figures.late_sum += late as f64;
+        } else {
+            r.reconstruct(t, &camera, &tiling);
+        }
         let image = r.take_image(self.spare.take());
         let settings = &self.published.settings;
         if settings.sampler.discount_converged {

@@ -39,6 +39,11 @@ pub struct AdaptiveSettings {
     /// fit ([`crate::reconstruction::Reconstructor::set_live_limit`]); 0: the whole
     /// ring always.
     pub image_budget: f64,
+    /// Whether a moving view's refresh takes in the samples traced while it is built,
+    /// between placing the ring and resolving it
+    /// ([`crate::reconstruction::Reconstructor::reconstruct_taking_late`]); else
+    /// every refresh is built from the samples in hand when it starts.
+    pub late_samples: bool,
     /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
     pub gpu: Option<Arc<GpuContext>>,
 }
@@ -51,6 +56,7 @@ impl Default for AdaptiveSettings {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: IMAGE_BUDGET,
+            late_samples: true,
             gpu: None,
         }
     }
@@ -64,6 +70,7 @@ impl AdaptiveSettings {
             ring_factor: self.recon.ring_factor,
             max_radius: self.recon.max_radius as f64,
             sampler_reprojection: self.sampler.reprojection,
+            late_samples: self.late_samples,
         }
     }
 }
@@ -80,6 +87,9 @@ pub struct AdaptiveTuning {
     pub max_radius: f64,
     /// Whether the sampler's controllers reproject.
     pub sampler_reprojection: bool,
+    /// [`AdaptiveSettings::late_samples`] (summaries from before it read as false).
+    #[serde(default)]
+    pub late_samples: bool,
 }
 
 impl MethodSettings for AdaptiveSettings {
@@ -134,6 +144,10 @@ pub struct AdaptiveArgs {
     /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
+    /// Adaptive: build a moving view's image from the samples in hand when its build
+    /// starts only, not also those traced while it places and splats them.
+    #[arg(long)]
+    pub no_late_samples: bool,
 }
 
 impl Default for AdaptiveArgs {
@@ -144,6 +158,7 @@ impl Default for AdaptiveArgs {
             ring_factor: None,
             max_radius: None,
             no_reprojection: false,
+            no_late_samples: false,
         }
     }
 }
@@ -152,6 +167,7 @@ impl AdaptiveArgs {
     /// Set what was asked for in `settings`.
     pub fn apply(&self, settings: &mut AdaptiveSettings) {
         settings.image_budget = self.image_budget;
+        settings.late_samples = !self.no_late_samples;
         if self.no_reprojection {
             settings.sampler.reprojection = false;
         }
