@@ -149,9 +149,9 @@ fn adaptive_note(s: &LiveSummary) -> String {
                 ""
             },
             if t.late_samples {
-                ""
+                ", a moving view's samples taken in during its build"
             } else {
-                ", no samples taken in during a moving view's build"
+                ""
             }
         ),
         _ => String::new(),

@@ -57,7 +57,13 @@ pub(super) struct Builder {
     /// An image shown before that nothing holds any more, to hand the next image over
     /// in ([`ImageBuilder::recycle`]): a refresh's image then costs no copy.
     spare: Option<Image>,
+    /// How long the last parts of recent split refreshes took, seconds
+    /// ([`Reconstructor::reconstruct_taking_late`]).
+    last_parts: VecDeque<f64>,
 }
+
+/// Split refreshes whose last parts say how long the next may take.
+const LAST_PARTS: usize = 16;
 
 impl Builder {
     /// Nothing built yet: `recon` fed from `rx`, with the tilings of `published`.
@@ -77,6 +83,7 @@ impl Builder {
             cost: BuildCost::default(),
             figures: ImageFigures::default(),
             spare: None,
+            last_parts: VecDeque::new(),
         }
     }
 }
@@ -359,8 +366,26 @@ impl ImageBuilder for Builder {
         r.set_motion(Some(state));
         r.set_live_limit(limit);
         if self.published.settings.late_samples {
-            let rx = &self.rx;
-            let late = r.reconstruct_taking_late(t, &camera, &tiling, || take_queued(rx).collect());
+            let (rx, clock) = (&self.rx, &s.clock);
+            // Only where the last part, as long as the longest of late, still ends
+            // before the refresh: a late image costs more than a lag.
+            let margin = crate::realtime::shared::SCHEDULING_MARGIN.as_secs_f64();
+            let needs = self.last_parts.iter().fold(0.0f64, |m, &p| m.max(p)) + margin;
+            let mut called = None;
+            let late = r.reconstruct_taking_late(t, &camera, &tiling, || {
+                called = Some(Instant::now());
+                if t - clock.now() > needs {
+                    take_queued(rx).collect()
+                } else {
+                    Vec::new()
+                }
+            });
+            if let Some(c) = called {
+                if self.last_parts.len() == LAST_PARTS {
+                    self.last_parts.pop_front();
+                }
+                self.last_parts.push_back(c.elapsed().as_secs_f64());
+            }
             self.figures.late_sum += late as f64;
         } else {
             r.reconstruct(t, &camera, &tiling);

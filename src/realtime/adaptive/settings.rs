@@ -41,8 +41,11 @@ pub struct AdaptiveSettings {
     pub image_budget: f64,
     /// Whether a moving view's refresh takes in the samples traced while it is built,
     /// between placing the ring and resolving it
-    /// ([`crate::reconstruction::Reconstructor::reconstruct_taking_late`]); else
-    /// every refresh is built from the samples in hand when it starts.
+    /// ([`crate::reconstruction::Reconstructor::reconstruct_taking_late`]), where its
+    /// last part still ends before the refresh; else (the default) every refresh is
+    /// built from the samples in hand when it starts. Off by default: on 2 cores it
+    /// made the newest sample shown 4–7 ms younger, but the images only within the
+    /// spread and about half an image a second fewer (docs/performance.md, session 60).
     pub late_samples: bool,
     /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
     pub gpu: Option<Arc<GpuContext>>,
@@ -56,7 +59,7 @@ impl Default for AdaptiveSettings {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: IMAGE_BUDGET,
-            late_samples: true,
+            late_samples: false,
             gpu: None,
         }
     }
@@ -87,7 +90,8 @@ pub struct AdaptiveTuning {
     pub max_radius: f64,
     /// Whether the sampler's controllers reproject.
     pub sampler_reprojection: bool,
-    /// [`AdaptiveSettings::late_samples`] (summaries from before it read as false).
+    /// [`AdaptiveSettings::late_samples`] (summaries from before it read as false, as
+    /// they were made).
     #[serde(default)]
     pub late_samples: bool,
 }
@@ -144,10 +148,11 @@ pub struct AdaptiveArgs {
     /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
-    /// Adaptive: build a moving view's image from the samples in hand when its build
-    /// starts only, not also those traced while it places and splats them.
+    /// Adaptive: build a moving view's image in two parts, taking in the samples
+    /// traced while it places and splats the ring (default: from the samples in hand
+    /// when its build starts).
     #[arg(long)]
-    pub no_late_samples: bool,
+    pub late_samples: bool,
 }
 
 impl Default for AdaptiveArgs {
@@ -158,7 +163,7 @@ impl Default for AdaptiveArgs {
             ring_factor: None,
             max_radius: None,
             no_reprojection: false,
-            no_late_samples: false,
+            late_samples: false,
         }
     }
 }
@@ -167,7 +172,7 @@ impl AdaptiveArgs {
     /// Set what was asked for in `settings`.
     pub fn apply(&self, settings: &mut AdaptiveSettings) {
         settings.image_budget = self.image_budget;
-        settings.late_samples = !self.no_late_samples;
+        settings.late_samples = self.late_samples;
         if self.no_reprojection {
             settings.sampler.reprojection = false;
         }
