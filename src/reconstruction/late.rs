@@ -54,41 +54,66 @@ impl Reconstructor {
         self.eyes.push(t, camera.eye);
         self.eye_ages = self.eyes.ages();
         self.origin_ahead = Some(newest + self.late_gap);
-        let mut plan = self.plan(t, camera, tiling);
-        let lap = Instant::now();
-        self.prepare_splats(&plan);
-        let lap = self.passes.lap(1, lap);
-        self.front_depths();
-        let first_fronts = self.front.clone();
-        let lap = self.passes.lap(2, lap);
-        self.splat_only(camera);
-        let first_pieces = self.pieces;
-        let mut lap = self.passes.lap(4, lap);
-        let batches = late();
-        let before = self.ring.len();
-        let taken: usize = batches.iter().map(Vec::len).sum();
-        for b in &batches {
-            self.push_stream(b);
-        }
-        let m = taken.min(self.ring.len()).min(self.ring.capacity());
-        if m > 0 {
-            let gap = (self.ring.newest_time() - newest).max(0.0);
-            self.late_gap += GAP_WEIGHT * (gap - self.late_gap);
-            let from = self.ring.len() - m;
-            self.follow_motion_if_asked(t, from);
-            self.placed += m;
-            self.place_pieces(t, camera, from, true);
-            lap = self.passes.lap(1, lap);
-            self.front_depths();
-            self.drop_sums_behind_new_fronts(&first_fronts);
-            lap = self.passes.lap(2, lap);
-        }
-        let _ = before;
+        let (mut plan, first_fronts, first_pieces) = self.first_part(t, camera, tiling);
+        let (m, lap) = self.take_late_in(t, camera, &late(), newest, &first_fronts);
         self.origin_ahead = None;
         self.splat_to_end(&mut plan, lap, Some(first_pieces));
         self.passes.count_refresh();
         self.motion = None;
         m
+    }
+
+    /// The plan of a split refresh, then its ring placed and splatted; the plan, the
+    /// fronts the splat was tested against and the pieces it placed.
+    fn first_part(
+        &mut self,
+        t: f64,
+        camera: &CameraFrame,
+        tiling: &TilingSnapshot,
+    ) -> (super::plan::RefreshPlan, Vec<f32>, usize) {
+        let plan = self.plan(t, camera, tiling);
+        let lap = Instant::now();
+        self.prepare_splats(&plan);
+        let lap = self.passes.lap(1, lap);
+        self.front_depths();
+        let fronts = self.front.clone();
+        let lap = self.passes.lap(2, lap);
+        self.splat_only(camera);
+        self.passes.lap(4, lap);
+        (plan, fronts, self.pieces)
+    }
+
+    /// Take `batches` in (traced after the first part's newest sample, `newest`),
+    /// place them after its pieces and make the fronts again over both, dropping the
+    /// first part's sums behind a nearer front than `first_fronts`; how many the ring
+    /// holds of them, and when this ended (each step timed as the pass it is).
+    fn take_late_in(
+        &mut self,
+        t: f64,
+        camera: &CameraFrame,
+        batches: &[Vec<StreamSample>],
+        newest: f64,
+        first_fronts: &[f32],
+    ) -> (usize, Instant) {
+        let taken: usize = batches.iter().map(Vec::len).sum();
+        for b in batches {
+            self.push_stream(b);
+        }
+        let m = taken.min(self.ring.len()).min(self.ring.capacity());
+        if m == 0 {
+            return (0, Instant::now());
+        }
+        let gap = (self.ring.newest_time() - newest).max(0.0);
+        self.late_gap += GAP_WEIGHT * (gap - self.late_gap);
+        let from = self.ring.len() - m;
+        self.follow_motion_if_asked(t, from);
+        self.placed += m;
+        let lap = Instant::now();
+        self.place_pieces(t, camera, from, true);
+        let lap = self.passes.lap(1, lap);
+        self.front_depths();
+        self.drop_sums_behind_new_fronts(first_fronts);
+        (m, self.passes.lap(2, lap))
     }
 
     /// The splats of every binned piece into the sums and coverage differences, from
