@@ -286,31 +286,39 @@ fn step_run(method: RtMethod, seconds: f64, step_s: f64) -> (HeadlessStats, Path
     (st, dir)
 }
 
+/// A 48×32 toycar whose camera pans along x for ten seconds: every refresh's view moves.
+fn panning_toycar() -> Arc<Tracer> {
+    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
+                0,-1,0.3,2,-1,0.3,0,0,1,0,50\n\
+                10,1,0.3,2,1,0.3,0,0,1,0,50\n";
+    let path = CameraPath::parse("pan.csv", text).unwrap();
+    let scene = Arc::new(builtin::load("toycar").unwrap());
+    Arc::new(Tracer::new(scene, 48, 32, TraceOptions::default()).with_camera_path(Some(path)))
+}
+
+/// Options of a 0.8 s headless run writing to the temporary folder `name`.
+fn short_run(name: &str) -> HeadlessOptions {
+    HeadlessOptions {
+        seconds: 0.8,
+        out: tmp_dir(name),
+        images: 1,
+        scene: "toycar".into(),
+        camera_step_s: None,
+    }
+}
+
 #[test]
 fn every_method_traces_a_moving_view_ahead_by_how_late_it_shows_it() {
     // A camera panning along x: each method's sampling threads trace the view where
     // the camera's past poses say it will be when what they trace is shown; asked not
     // to, where it is.
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                0,-1,0.3,2,-1,0.3,0,0,1,0,50\n\
-                10,1,0.3,2,1,0.3,0,0,1,0,50\n";
-    let path = CameraPath::parse("pan.csv", text).unwrap();
     let run = |method: RtMethod, view_ahead: bool| {
         let mut cfg = RtConfig::new(method);
         cfg.sampling_threads = 1;
         cfg.view_ahead = view_ahead;
         let period_ms = 1e3 / cfg.refresh_hz;
-        let opts = HeadlessOptions {
-            seconds: 0.8,
-            out: tmp_dir(&format!("ahead-{}-{view_ahead}", method.name())),
-            images: 1,
-            scene: "toycar".into(),
-            camera_step_s: None,
-        };
-        let scene = Arc::new(builtin::load("toycar").unwrap());
-        let tracer = Tracer::new(scene, 48, 32, TraceOptions::default())
-            .with_camera_path(Some(path.clone()));
-        let p = run_headless(Arc::new(tracer), cfg, method.settings(), &opts)
+        let opts = short_run(&format!("ahead-{}-{view_ahead}", method.name()));
+        let p = run_headless(panning_toycar(), cfg, method.settings(), &opts)
             .unwrap()
             .pipeline;
         (p, period_ms)
@@ -339,31 +347,18 @@ fn every_method_traces_a_moving_view_ahead_by_how_late_it_shows_it() {
 }
 
 #[test]
-fn adaptive_takes_in_the_samples_traced_while_a_moving_view_is_built_unless_asked_not_to() {
+fn adaptive_takes_in_the_samples_traced_while_a_moving_view_is_built_when_asked() {
     // A panning camera: every refresh re-splats the ring, and the sampling thread
     // keeps tracing while the image thread places and splats it.
-    let text = "t,eye_x,eye_y,eye_z,at_x,at_y,at_z,up_x,up_y,up_z,fov_y_deg\n\
-                0,-1,0.3,2,-1,0.3,0,0,1,0,50\n\
-                10,1,0.3,2,1,0.3,0,0,1,0,50\n";
-    let path = CameraPath::parse("pan.csv", text).unwrap();
     let run = |late_samples: bool| {
         let mut cfg = RtConfig::new(RtMethod::Adaptive);
         cfg.sampling_threads = 1;
-        let opts = HeadlessOptions {
-            seconds: 0.8,
-            out: tmp_dir(&format!("late-{late_samples}")),
-            images: 1,
-            scene: "toycar".into(),
-            camera_step_s: None,
-        };
-        let scene = Arc::new(builtin::load("toycar").unwrap());
-        let tracer = Tracer::new(scene, 48, 32, TraceOptions::default())
-            .with_camera_path(Some(path.clone()));
+        let opts = short_run(&format!("late-{late_samples}"));
         let settings = AdaptiveSettings {
             late_samples,
             ..AdaptiveSettings::default()
         };
-        let p = run_headless(Arc::new(tracer), cfg, RtSettings::Adaptive(settings), &opts)
+        let p = run_headless(panning_toycar(), cfg, RtSettings::Adaptive(settings), &opts)
             .unwrap()
             .pipeline;
         p.method_stats["late_samples_mean"].as_f64().unwrap()
