@@ -1033,13 +1033,11 @@ impl Reconstructor {
     /// [`super::ReconParams::resplat_moving_view`], when the view is not the previous
     /// refresh's. Notes the view for the next refresh.
     pub(super) fn resplats_at(&mut self, camera: &CameraFrame) -> bool {
-        let p = self.params;
-        let Some(c) = &mut self.carried else {
-            return false;
-        };
-        let moved = c.view.is_some_and(|v| !v.same_view(camera));
-        c.view = Some(*camera);
-        p.resplat_moving_view && p.reproject && moved
+        let resplats = self.will_resplat(camera);
+        if let Some(c) = &mut self.carried {
+            c.view = Some(*camera);
+        }
+        resplats
     }
 
     /// Whether a refresh seen by `camera` will re-splat the ring

@@ -99,7 +99,7 @@ impl Reconstructor {
         for b in batches {
             self.push_stream(b);
         }
-        let m = taken.min(self.ring.len()).min(self.ring.capacity());
+        let m = taken.min(self.ring.len());
         if m == 0 {
             return (0, Instant::now());
         }

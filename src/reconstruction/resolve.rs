@@ -64,6 +64,18 @@ struct Scratch {
     added_cov: Vec<i32>,
 }
 
+impl Scratch {
+    /// Rows of scratch for an image `w` pixels wide; the fill's rows if `pulled`.
+    fn new(w: usize, pulled: bool) -> Self {
+        Self {
+            counts: vec![0; w],
+            quotients: vec![0.0; 4 * w],
+            pre: vec![0.0; if pulled { 2 * CH * w } else { 0 }],
+            added_cov: Vec::new(),
+        }
+    }
+}
+
 /// What one band of the resolve reads: besides the image's width, the accumulators'
 /// channel stride, the parameters and whether the sums are carried, the band's own
 /// sums and coverage differences (from its first row).
@@ -84,7 +96,9 @@ impl Reconstructor {
     /// rows is resolved as soon as it is splatted, while its sums and coverage
     /// differences are still in the cache: resolving them in a pass of its own read
     /// every pixel's sums back from memory (2 ms of a 40 ms image at 1280×720,
-    /// performance.md, session 46).
+    /// performance.md, session 46). With `added`, only the pieces from it on are
+    /// splatted, over the sums and coverage a first part of the refresh made of those
+    /// before.
     pub(super) fn splat_and_resolve(
         &mut self,
         since: Instant,
@@ -102,8 +116,6 @@ impl Reconstructor {
         let (cs, rows, cstride) = (self.cs, self.band_rows, w + 1);
         let (test, keep) = (self.spread_test(), self.visibility_keep());
         let (nw, level) = self.pull.first_rows(w, h, rows / 2, pulled);
-        // With `added`, the pieces from it on are splatted over the sums and coverage
-        // of those before, which a first part of the refresh made.
         let splats = super::splat::BandSplats {
             binned: &self.binned[added.unwrap_or(0)..self.pieces],
             rows,
@@ -129,25 +141,14 @@ impl Reconstructor {
             .zip(level)
             .enumerate()
             .map_init(
-                || Scratch {
-                    counts: vec![0; w],
-                    quotients: vec![0.0; 4 * w],
-                    pre: vec![0.0; if pulled { 2 * CH * w } else { 0 }],
-                    added_cov: Vec::new(),
-                },
+                || Scratch::new(w, pulled),
                 |scratch, (b, (((((((acc, cov), px), coverage), scale), ages), cover), level))| {
                     let t0 = Instant::now();
                     if let Some(l) = late {
                         l.band((&mut *acc, &mut *cover), b * rows, (w, cs));
                     }
-                    if added.is_some() {
-                        let more = &mut scratch.added_cov;
-                        more.resize(cov.len(), 0);
-                        splats.band(b, acc, more);
-                        cov.iter_mut().zip(more.iter()).for_each(|(c, m)| *c += m);
-                    } else {
-                        splats.band(b, acc, cov);
-                    }
+                    let more = added.map(|_| &mut scratch.added_cov);
+                    splat_band(&splats, b, (&mut *acc, &mut *cov), more);
                     let t1 = Instant::now();
                     let f = Frame {
                         w,
@@ -258,6 +259,24 @@ impl Reconstructor {
                 sum
             })
             .collect()
+    }
+}
+
+/// Splat band `b` into its sums `acc` and coverage differences `cov`; with `more`
+/// (scratch), over the coverage already there instead of in place of it.
+fn splat_band<V: super::splat::HidesSplat>(
+    splats: &super::splat::BandSplats<V>,
+    b: usize,
+    (acc, cov): (&mut [f32], &mut [i32]),
+    more: Option<&mut Vec<i32>>,
+) {
+    match more {
+        Some(more) => {
+            more.resize(cov.len(), 0);
+            splats.band(b, acc, more);
+            cov.iter_mut().zip(more.iter()).for_each(|(c, m)| *c += m);
+        }
+        None => splats.band(b, acc, cov),
     }
 }
 

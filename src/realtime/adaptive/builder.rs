@@ -18,6 +18,8 @@ use crate::{
         shared::{lock, take_queued, BuildAt, Built, ImageBuilder, Shared},
     },
     reconstruction::{device::ReconUsed, Reconstructor},
+    scene::CameraFrame,
+    tiles::TilingSnapshot,
     trace::StreamSample,
 };
 
@@ -279,6 +281,38 @@ impl Builder {
     }
 }
 
+impl Builder {
+    /// The image at `t` seen by `camera`; with [`AdaptiveSettings::late_samples`], a
+    /// moving view's taking in what arrives while its ring is placed and splatted,
+    /// where its last part, as long as the longest of late, still ends before the
+    /// refresh: a late image costs more than a lag.
+    fn reconstruct(&mut self, t: f64, camera: &CameraFrame, tiling: &TilingSnapshot) {
+        if !self.published.settings.late_samples {
+            self.recon.reconstruct(t, camera, tiling);
+            return;
+        }
+        let (rx, clock) = (&self.rx, &self.s.clock);
+        let margin = crate::realtime::shared::SCHEDULING_MARGIN.as_secs_f64();
+        let needs = self.last_parts.iter().fold(0.0f64, |m, &p| m.max(p)) + margin;
+        let mut called = None;
+        let late = self.recon.reconstruct_taking_late(t, camera, tiling, || {
+            called = Some(Instant::now());
+            if t - clock.now() > needs {
+                take_queued(rx).collect()
+            } else {
+                Vec::new()
+            }
+        });
+        if let Some(c) = called {
+            if self.last_parts.len() == LAST_PARTS {
+                self.last_parts.pop_front();
+            }
+            self.last_parts.push_back(c.elapsed().as_secs_f64());
+        }
+        self.figures.late_sum += late as f64;
+    }
+}
+
 impl ImageBuilder for Builder {
     fn recycle(&mut self, image: Image) {
         self.spare = Some(image);
@@ -347,7 +381,7 @@ impl ImageBuilder for Builder {
         let t0 = Instant::now();
         // Samples are reprojected to the scene of the refresh the image is meant for.
         let t = at.shown;
-        let s = &*self.s;
+        let s = self.s.clone();
         let began = s.clock.now();
         let (w, h) = s.tracer.size();
         let tiling = Arc::new(self.published.whole_tiling()?);
@@ -365,31 +399,8 @@ impl ImageBuilder for Builder {
         push_newest(r, &batches, self.live_limit);
         r.set_motion(Some(state));
         r.set_live_limit(limit);
-        if self.published.settings.late_samples {
-            let (rx, clock) = (&self.rx, &s.clock);
-            // Only where the last part, as long as the longest of late, still ends
-            // before the refresh: a late image costs more than a lag.
-            let margin = crate::realtime::shared::SCHEDULING_MARGIN.as_secs_f64();
-            let needs = self.last_parts.iter().fold(0.0f64, |m, &p| m.max(p)) + margin;
-            let mut called = None;
-            let late = r.reconstruct_taking_late(t, &camera, &tiling, || {
-                called = Some(Instant::now());
-                if t - clock.now() > needs {
-                    take_queued(rx).collect()
-                } else {
-                    Vec::new()
-                }
-            });
-            if let Some(c) = called {
-                if self.last_parts.len() == LAST_PARTS {
-                    self.last_parts.pop_front();
-                }
-                self.last_parts.push_back(c.elapsed().as_secs_f64());
-            }
-            self.figures.late_sum += late as f64;
-        } else {
-            r.reconstruct(t, &camera, &tiling);
-        }
+        self.reconstruct(t, &camera, &tiling);
+        let r = &mut self.recon;
         let image = r.take_image(self.spare.take());
         let settings = &self.published.settings;
         if settings.sampler.discount_converged {
