@@ -1311,6 +1311,14 @@ impl Sampler {
         }
     }
 
+    /// Real-time mode: look at the view at `now`, as a visit does before it traces. The
+    /// controller's sampler traces nothing itself, so without this it would never see
+    /// the camera move, and the prior a change of view sets
+    /// ([`SamplerParams::new_view_prior_s`]) would never hold live.
+    pub fn observe_view(&mut self, now: f64) {
+        let _ = self.state(now);
+    }
+
     /// Real-time mode: an initiating sample traced elsewhere becomes the pending
     /// crosshair of the tile it lies in (replacing what was pending there).
     pub fn ingest_pending(&mut self, p: Pending) {

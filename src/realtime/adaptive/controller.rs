@@ -98,9 +98,10 @@ pub(super) struct Ingested {
     pub(super) skipped: u64,
 }
 
-/// Take one sampling thread's batch into the sampler: completed crosshairs into the
-/// deep buffer and the tiles' statistics (and their reprojection step when
-/// `reproject`, at `now`), initiated ones as their tiles' pending crosshairs.
+/// Take one sampling thread's batch into the sampler: the view at `now` first (the
+/// sampler sees the camera only here: [`Sampler::observe_view`]), then completed
+/// crosshairs into the deep buffer and the tiles' statistics (and their reprojection
+/// step when `reproject`, at `now`), initiated ones as their tiles' pending crosshairs.
 ///
 /// Positions arrive in image coordinates and move to the sampler's region's. An image
 /// position minus the region's integer corner (no greater than it) is exact in `f32`,
@@ -108,6 +109,7 @@ pub(super) struct Ingested {
 /// went out in a snapshot and came back with a completed one still matches exactly.
 pub(super) fn ingest(sampler: &mut Sampler, batch: Batch, reproject: bool, now: f64) -> Ingested {
     let (mut own_rays, mut reprojected, mut skipped) = (0, 0, 0);
+    sampler.observe_view(now);
     let (ox, oy) = sampler.origin();
     let (dx, dy) = (-(ox as f32), -(oy as f32));
     // Where each visit lands (a completed crosshair's centre, an initiated sample),

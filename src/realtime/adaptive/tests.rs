@@ -6,10 +6,10 @@ use super::{
     bands,
     bench::record,
     builder::{next_live_limit, push_newest, restart_limit, BuildCost},
-    controller::{band_samplers, snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
+    controller::{band_samplers, ingest, snapshot_interval, SNAPSHOT_COST_RATIO, SNAPSHOT_EVERY},
     controllers,
     published::{Published, MIN_BAND_ROWS},
-    sampling::Visit,
+    sampling::{Batch, Visit},
     settings::AdaptiveSettings,
     THREADS_PER_CONTROLLER,
 };
@@ -89,6 +89,30 @@ fn bands_are_whole_rows_that_cover_the_image_once() {
     // Crosshairs that reproject could leave any band.
     assert_eq!(bands(640, 480, 4, &SamplerParams::paper()).len(), 1);
     assert_eq!((controllers(1), controllers(4), controllers(15)), (1, 1, 4));
+}
+
+/// The controller's sampler traces nothing itself, so it sees the camera only when a
+/// batch comes in: it must, or the prior a change of view sets for the tiles' errors
+/// (`SamplerParams::new_view_prior_s`) never holds live, and a moving view's tiling
+/// concentrates on what varies most as a still view's does (on a wall of equal
+/// luminance, tiles of 1,024 pixels and splats four times as wide as the evaluation's).
+#[test]
+fn a_controller_sees_the_view_move_though_it_traces_nothing() {
+    let (w, h) = (32, 32);
+    let scene = Arc::new(builtin::room());
+    let tracer = Arc::new(Tracer::new(scene, w, h, TraceOptions::default()));
+    let s = Arc::new(Shared::new(tracer, RtConfig::new(RtMethod::Adaptive)));
+    let published = Arc::new(Published::new(&s, AdaptiveSettings::default()));
+    let mut sampler = band_samplers(&s, &published).unwrap().remove(0);
+    assert_eq!(sampler.camera_since(), f64::NEG_INFINITY);
+    for t in [0.5, 1.0] {
+        ingest(&mut sampler, Batch::default(), false, t);
+        assert_eq!(
+            sampler.camera_since(),
+            t,
+            "the room's camera moves at {t} s"
+        );
+    }
 }
 
 #[test]
