@@ -347,7 +347,8 @@ fn every_method_traces_a_moving_view_ahead_by_how_late_it_shows_it() {
 }
 
 #[test]
-fn adaptive_takes_in_the_samples_traced_while_a_moving_view_is_built_when_asked() {
+fn adaptive_takes_in_the_samples_traced_while_a_moving_view_is_built_unless_told_not_to() {
+    assert!(AdaptiveSettings::default().late_samples);
     // A panning camera: every refresh re-splats the ring, and the sampling thread
     // keeps tracing while the image thread places and splats it.
     let run = |late_samples: bool| {

@@ -374,7 +374,7 @@ def live(
     ring_factor: Optional[float] = None,
     max_radius: Optional[float] = None,
     view_ahead: bool = True,
-    late_samples: bool = False,
+    late_samples: bool = True,
 ) -> Evaluation:
     """``frameless live``: the real-time methods (default: all) one after another on
     this machine for ``duration`` seconds of wall time each, every displayed refresh
@@ -385,8 +385,9 @@ def live(
     and ``max_radius`` are the adaptive method's ``--image-budget``, ``--ring-factor``
     and ``--max-radius`` (None: its defaults). ``view_ahead=False`` is
     ``--no-view-ahead``: every method traces a moving view where it is, not where it will
-    be when shown. ``late_samples=True`` is adaptive's ``--late-samples``: a moving
-    view's image also takes in the samples traced while its ring is placed and splatted."""
+    be when shown. ``late_samples=False`` is adaptive's ``--no-late-samples``: a moving
+    view's image is built from the samples in hand when its build starts only, without
+    the samples traced while its ring is placed and splatted."""
     if seconds is not None:
         warnings.warn("live(seconds=...) is live(duration=...) now; the old name still works",
                       FutureWarning, stacklevel=2)

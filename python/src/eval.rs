@@ -79,7 +79,7 @@ fn evaluate(
 /// live(scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads, seed,
 ///      ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu", progress=None,
 ///      trace="cpu", image_budget=None, ring_factor=None, max_radius=None, view_ahead=True,
-///      late_samples=False)
+///      late_samples=True)
 /// --
 ///
 /// `frameless live` with these settings: `(summary_json, frames_json)`.
@@ -87,7 +87,7 @@ fn evaluate(
 #[pyo3(signature = (scene, methods, start, seconds, warmup, size, refresh_hz, repeat, threads,
                     seed, ideal_spp, max_depth, texture_filter, cache_dir, recon="cpu",
                     progress=None, trace="cpu", image_budget=None, ring_factor=None,
-                    max_radius=None, view_ahead=true, late_samples=false))]
+                    max_radius=None, view_ahead=true, late_samples=true))]
 #[allow(clippy::too_many_arguments)]
 fn live(
     py: Python<'_>,
@@ -144,7 +144,7 @@ fn live(
     cfg.adaptive.ring_factor = ring_factor.map(|f| args::finite("ring_factor", f)).transpose()?;
     cfg.adaptive.max_radius = max_radius.map(|r| args::finite("max_radius", r)).transpose()?;
     cfg.view_ahead = view_ahead;
-    cfg.adaptive.late_samples = late_samples;
+    cfg.adaptive.no_late_samples = !late_samples;
     cfg.validate().map_err(errors::eval)?;
     cfg.devices = args::devices(recon, trace)?;
     let scene = scene.scene.clone();

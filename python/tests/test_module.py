@@ -447,13 +447,13 @@ def test_live_traces_the_view_ahead_unless_asked_not_to(toycar):
     assert frameless.live(toycar, view_ahead=False, **kw).summary["view_ahead"] is False
 
 
-def test_live_takes_late_samples_only_when_asked(toycar):
-    # `late_samples=True` is `--late-samples`: the summary's adaptive settings say so.
+def test_live_takes_late_samples_unless_told_not_to(toycar):
+    # `late_samples=False` is `--no-late-samples`: the summary's adaptive settings say so.
     kw = dict(methods="adaptive", duration=0.05, warmup=0.05, size=(16, 16),
               ideal_spp=1, no_cache=True, progress=False)
-    assert frameless.live(toycar, **kw).summary["adaptive"]["late_samples"] is False
-    on = frameless.live(toycar, late_samples=True, **kw)
-    assert on.summary["adaptive"]["late_samples"] is True
+    assert frameless.live(toycar, **kw).summary["adaptive"]["late_samples"] is True
+    off = frameless.live(toycar, late_samples=False, **kw)
+    assert off.summary["adaptive"]["late_samples"] is False
 
 
 def test_metrics_are_the_evaluations(tmp_path, binary, toycar):

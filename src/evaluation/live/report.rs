@@ -149,9 +149,9 @@ fn adaptive_note(s: &LiveSummary) -> String {
                 ""
             },
             if t.late_samples {
-                ", a moving view's samples taken in during its build"
-            } else {
                 ""
+            } else {
+                ", a moving view built from the samples in hand when its build began"
             }
         ),
         _ => String::new(),

@@ -42,10 +42,11 @@ pub struct AdaptiveSettings {
     /// Whether a moving view's refresh takes in the samples traced while it is built,
     /// between placing the ring and resolving it
     /// ([`crate::reconstruction::Reconstructor::reconstruct_taking_late`]), where its
-    /// last part still ends before the refresh; else (the default) every refresh is
-    /// built from the samples in hand when it starts. Off by default: on 2 cores it
-    /// made the newest sample shown 4–7 ms younger, but the images only within the
-    /// spread and about half an image a second fewer (docs/performance.md, session 60).
+    /// last part still ends before the refresh (the default); else every refresh is
+    /// built from the samples in hand when it starts. On 2 cores the newest sample
+    /// shown is 4–7 ms younger, and since the controllers see the view move (session
+    /// 61) the images are better in alternated pairs on three of four moving cases
+    /// (FLIP 3–5%) and the same on the fourth (docs/performance.md, sessions 60, 61).
     pub late_samples: bool,
     /// The GPU the reconstructor runs on (`None`: the CPU, the reference).
     pub gpu: Option<Arc<GpuContext>>,
@@ -59,7 +60,7 @@ impl Default for AdaptiveSettings {
             sampler: SamplerParams::ours(),
             recon: ReconParams::realtime(),
             image_budget: IMAGE_BUDGET,
-            late_samples: false,
+            late_samples: true,
             gpu: None,
         }
     }
@@ -148,11 +149,11 @@ pub struct AdaptiveArgs {
     /// real-time adaptive method uses).
     #[arg(long)]
     pub no_reprojection: bool,
-    /// Adaptive: build a moving view's image in two parts, taking in the samples
-    /// traced while it places and splats the ring (default: from the samples in hand
-    /// when its build starts).
+    /// Adaptive: build a moving view's image from the samples in hand when its build
+    /// starts only (default: in two parts, taking in the samples traced while it
+    /// places and splats the ring).
     #[arg(long)]
-    pub late_samples: bool,
+    pub no_late_samples: bool,
 }
 
 impl Default for AdaptiveArgs {
@@ -163,7 +164,7 @@ impl Default for AdaptiveArgs {
             ring_factor: None,
             max_radius: None,
             no_reprojection: false,
-            late_samples: false,
+            no_late_samples: false,
         }
     }
 }
@@ -172,7 +173,7 @@ impl AdaptiveArgs {
     /// Set what was asked for in `settings`.
     pub fn apply(&self, settings: &mut AdaptiveSettings) {
         settings.image_budget = self.image_budget;
-        settings.late_samples = self.late_samples;
+        settings.late_samples = !self.no_late_samples;
         if self.no_reprojection {
             settings.sampler.reprojection = false;
         }
