@@ -478,6 +478,48 @@ fn the_fence_example_follows_its_animated_camera() {
     assert!((yaw(5.0) - 0.7).abs() < 1e-3, "panned at 5 s: {}", yaw(5.0));
 }
 
+/// The committed `docs/examples/arcade.gltf` (written by `docs/examples/make_arcade.py`)
+/// loads with the camera its file animates: a dolly in, a hold, a fast turn, a rise.
+#[test]
+fn the_arcade_example_follows_its_animated_camera() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/examples/arcade.gltf");
+    let s = scene::load(path).unwrap();
+    assert!(s.camera.track.is_some());
+    let eyes = [
+        (0.0, Vec3::new(0.0, 1.6, 6.0)),
+        (1.5, Vec3::new(0.6, 1.6, 2.0)),
+        (3.5, Vec3::new(0.6, 1.6, 2.0)),
+        (5.5, Vec3::new(0.6, 2.6, 2.0)),
+    ];
+    for (t, eye) in eyes {
+        let c = s.camera_at(t);
+        assert!(close(c.eye, eye), "t = {t}: {}", c.eye);
+    }
+    let yaw = |t: f32| {
+        let d = s.camera_at(t).at - s.camera_at(t).eye;
+        (-d.x).atan2(-d.z)
+    };
+    assert!(
+        (yaw(2.0) - 0.3).abs() < 1e-3,
+        "turned left at 2 s: {}",
+        yaw(2.0)
+    );
+    assert!(
+        (yaw(3.5) + 0.5).abs() < 1e-3,
+        "turned right at 3.5 s: {}",
+        yaw(3.5)
+    );
+    // Held between equal keys (1.5-2.5 s): the same view at every moment, to the bit.
+    let held = s.camera_at(1.6).frame(256, 256);
+    for k in 0..=48 {
+        let t = 1.6 + k as f32 / 60.0;
+        assert!(
+            s.camera_at(t).frame(256, 256).same_view(&held),
+            "moved at {t}"
+        );
+    }
+}
+
 #[test]
 fn punctual_lights() {
     let dir = tmpdir("lights");

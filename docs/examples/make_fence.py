@@ -10,78 +10,15 @@ animated in the file itself: it strafes right past the fence (0-2 s), slows and 
 
 Nothing but the standard library; boxes only, so every node is a scaled unit cube.
 """
-import json
 import math
 import os
-import struct
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from boxes import (about, accessors, floats, material, node, nodes, roots, times,  # noqa: E402
+                   unit_cube, views, write)
+
 out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
-data = bytearray()
-views, accessors = [], []
-
-
-def view(b):
-    while len(data) % 4:
-        data.append(0)
-    views.append({"buffer": 0, "byteOffset": len(data), "byteLength": len(b)})
-    data.extend(b)
-    return len(views) - 1
-
-
-def floats(vals, ty):
-    comps = {"SCALAR": 1, "VEC3": 3, "VEC4": 4}[ty]
-    a = {"bufferView": view(struct.pack("<%df" % len(vals), *vals)),
-         "componentType": 5126, "count": len(vals) // comps, "type": ty}
-    if ty in ("VEC3", "SCALAR"):  # the specification asks bounds of positions and key times
-        a["min"] = [min(vals[k::comps]) for k in range(comps)]
-        a["max"] = [max(vals[k::comps]) for k in range(comps)]
-    accessors.append(a)
-    return len(accessors) - 1
-
-
-def indices(vals):
-    accessors.append({"bufferView": view(struct.pack("<%dH" % len(vals), *vals)),
-                      "componentType": 5123, "count": len(vals), "type": "SCALAR"})
-    return len(accessors) - 1
-
-
-def unit_cube(material):
-    pos, nor, idx = [], [], []
-    for axis in range(3):
-        for side in (-1, 1):
-            n = [0, 0, 0]
-            n[axis] = side
-            u, w, base = (axis + 1) % 3, (axis + 2) % 3, len(pos) // 3
-            for a, c in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
-                p = [0.0, 0.0, 0.0]
-                p[axis], p[u], p[w] = side * 0.5, a * 0.5, c * 0.5
-                pos += p
-                nor += n
-            # Counter-clockwise seen from outside.
-            idx += [base, base + 1, base + 2, base, base + 2, base + 3] if side > 0 \
-                else [base, base + 2, base + 1, base, base + 3, base + 2]
-    return {"attributes": {"POSITION": floats(pos, "VEC3"), "NORMAL": floats(nor, "VEC3")},
-            "indices": indices(idx), "material": material}
-
-
-def about(axis, angle):
-    s = math.sin(angle / 2)
-    return [axis[0] * s, axis[1] * s, axis[2] * s, math.cos(angle / 2)]
-
-
-def times(a, b):
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    return [aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz]
-
-
-def material(name, rgb, metallic, roughness):
-    return {"name": name, "pbrMetallicRoughness": {
-        "baseColorFactor": rgb + [1.0], "metallicFactor": metallic, "roughnessFactor": roughness}}
-
-
 materials = [
     material("grass", [0.35, 0.5, 0.25], 0.0, 0.9),
     material("white", [0.92, 0.9, 0.85], 0.0, 0.6),
@@ -92,16 +29,6 @@ materials = [
 ]
 GRASS, WHITE, RED, BLUE, STEEL, WOOD = range(len(materials))
 meshes = [{"name": m["name"], "primitives": [unit_cube(i)]} for i, m in enumerate(materials)]
-nodes, roots = [], []
-
-
-def node(d, root=True):
-    nodes.append(d)
-    if root:
-        roots.append(len(nodes) - 1)
-    return len(nodes) - 1
-
-
 node({"name": "ground", "mesh": GRASS, "translation": [0, -0.05, 0], "scale": [30, 0.1, 30]})
 for i in range(31):
     node({"name": "picket %d" % i, "mesh": WHITE, "translation": [-7.5 + i * 0.5, 0.6, -1.0],
@@ -147,8 +74,6 @@ samplers = [
     (cam_keys, floats(cam_at, "VEC3"), camera, "translation"),
     (cam_keys, floats(cam_q, "VEC4"), camera, "rotation"),
 ]
-while len(data) % 4:
-    data.append(0)
 doc = {
     "asset": {"version": "2.0", "generator": "frameless docs/examples/make_fence.py"},
     "extensionsUsed": ["KHR_lights_punctual"],
@@ -166,11 +91,6 @@ doc = {
         "samplers": [{"input": a, "output": b, "interpolation": "LINEAR"} for a, b, _, _ in samplers]}],
     "bufferViews": views,
     "accessors": accessors,
-    "buffers": [{"byteLength": len(data), "uri": "fence.bin"}],
+    "buffers": [],
 }
-with open(os.path.join(out, "fence.gltf"), "w") as f:
-    json.dump(doc, f, indent=1)
-    f.write("\n")
-with open(os.path.join(out, "fence.bin"), "wb") as f:
-    f.write(data)
-print("wrote %s and fence.bin (%d bytes)" % (os.path.join(out, "fence.gltf"), len(data)))
+write(out, "fence", doc)

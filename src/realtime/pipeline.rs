@@ -273,6 +273,9 @@ impl Lead {
     /// late, for the repeated image is a visible stutter (measured against 2 and 8:
     /// docs/performance.md, session 30).
     const MISS: f64 = 4.0;
+    /// The newest builds whose median the lead never starts below
+    /// ([`Lead::newest_median`]).
+    const NEWEST: usize = 3;
     /// The fewest and most builds it looks back over.
     const FEWEST_BUILDS: usize = 16;
     const MOST_BUILDS: usize = 64;
@@ -301,7 +304,7 @@ impl Lead {
     /// Seconds before the refresh it is for that a build starts.
     fn seconds(&self) -> f64 {
         let n = self.recent.len() as f64;
-        let floor = self.median() + Self::MARGIN_S;
+        let floor = self.median().max(self.newest_median()) + Self::MARGIN_S;
         let most = (Self::MOST * self.period).max(floor);
         let delay = |lead: f64| {
             let late = self
@@ -331,6 +334,23 @@ impl Lead {
     /// show the scene as it will be then.
     fn done_by(&self, elapsed: f64) -> u64 {
         ((elapsed + self.median()) / self.period).ceil() as u64
+    }
+
+    /// The median of the last [`Lead::NEWEST`] builds' wall times, seconds. Where builds
+    /// have just become longer for good (a view that starts to move after holding:
+    /// adaptive re-splats its ring instead of carrying its sums), the window's
+    /// statistics would take several builds to see it, each of them missing its
+    /// refresh and shown a refresh late, a period's motion away from where the view
+    /// is (on a fast turn about eight images of FLIP 0.5: docs/performance.md, session
+    /// 61); two long builds in a row are enough. A single long build, which the lead
+    /// may let miss, does not move it.
+    fn newest_median(&self) -> f64 {
+        let len = self.recent.len();
+        let mut newest: Vec<f64> = (1..=Self::NEWEST.min(len))
+            .map(|k| self.recent[(self.next + len - k) % len])
+            .collect();
+        newest.sort_by(f64::total_cmp);
+        newest[newest.len() / 2]
     }
 
     /// The median of the recent builds' wall times, seconds.
@@ -496,6 +516,20 @@ mod tests {
             l.record(b);
         }
         l.seconds()
+    }
+
+    #[test]
+    fn builds_that_became_longer_are_covered_from_the_second_on() {
+        let p = 1.0 / 60.0;
+        let n = Lead::window(p);
+        let mut builds = vec![4e-3; n];
+        // One long build: a spike the lead lets miss.
+        builds.push(10e-3);
+        assert!((lead_after(p, &builds) - (4e-3 + Lead::MARGIN_S)).abs() < 1e-12);
+        // A second in a row: builds are longer now (a view that starts to move), and
+        // the next starts early enough for one of them, not a second late.
+        builds.push(10e-3);
+        assert!((lead_after(p, &builds) - (10e-3 + Lead::MARGIN_S)).abs() < 1e-12);
     }
 
     #[test]
