@@ -519,7 +519,7 @@ mod tests {
     }
 
     #[test]
-    fn builds_that_became_longer_are_covered_from_the_second_on() {
+    fn builds_that_became_longer_are_covered_after_two_of_them() {
         let p = 1.0 / 60.0;
         let n = Lead::window(p);
         let mut builds = vec![4e-3; n];
