@@ -467,14 +467,7 @@ fn the_fence_example_follows_its_animated_camera() {
     assert!(yaw(3.0).abs() < 1e-4, "still ahead at 3 s: {}", yaw(3.0));
     // Held between equal keys (2.5-3.5 s): the same view at every moment, to the bit,
     // away from the ends, where the baked spline still eases in and out.
-    let held = s.camera_at(2.6).frame(256, 256);
-    for k in 0..=48 {
-        let t = 2.6 + k as f32 / 60.0;
-        assert!(
-            s.camera_at(t).frame(256, 256).same_view(&held),
-            "moved at {t}"
-        );
-    }
+    assert_held_from(&s, 2.6);
     assert!((yaw(5.0) - 0.7).abs() < 1e-3, "panned at 5 s: {}", yaw(5.0));
 }
 
@@ -510,9 +503,15 @@ fn the_arcade_example_follows_its_animated_camera() {
         yaw(3.5)
     );
     // Held between equal keys (1.5-2.5 s): the same view at every moment, to the bit.
-    let held = s.camera_at(1.6).frame(256, 256);
+    assert_held_from(&s, 1.6);
+}
+
+/// `s`'s camera shows the same view, to the bit, at every refresh of 60 Hz for 0.8 s
+/// from `t0`.
+fn assert_held_from(s: &scene::Scene, t0: f32) {
+    let held = s.camera_at(t0).frame(256, 256);
     for k in 0..=48 {
-        let t = 1.6 + k as f32 / 60.0;
+        let t = t0 + k as f32 / 60.0;
         assert!(
             s.camera_at(t).frame(256, 256).same_view(&held),
             "moved at {t}"

@@ -82,12 +82,33 @@ def node(d, root=True):
 
 
 
-def write(out, name, doc):
-    """Write `doc` as OUT/NAME.gltf with the buffer as OUT/NAME.bin."""
+def write(out, name, lights, yfov, meshes, materials, samplers):
+    """Write the scene as OUT/NAME.gltf with its buffer as OUT/NAME.bin: the nodes made
+    so far, `lights` (KHR_lights_punctual), one perspective camera of vertical field of
+    view `yfov`, and one animation of `samplers`, each `(input accessor, output
+    accessor, node, path)`, linearly interpolated."""
     while len(data) % 4:
         data.append(0)
-    doc.update({"nodes": nodes, "bufferViews": views, "accessors": accessors,
-                "buffers": [{"byteLength": len(data), "uri": name + ".bin"}]})
+    doc = {
+        "asset": {"version": "2.0", "generator": "frameless docs/examples/make_%s.py" % name},
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": lights}},
+        "scene": 0,
+        "scenes": [{"name": name, "nodes": roots}],
+        "nodes": nodes,
+        "cameras": [{"type": "perspective",
+                     "perspective": {"yfov": yfov, "znear": 0.05, "aspectRatio": 1.0}}],
+        "meshes": meshes,
+        "materials": materials,
+        "animations": [{"name": name, "channels": [
+            {"sampler": i, "target": {"node": n, "path": p}}
+            for i, (_, _, n, p) in enumerate(samplers)],
+            "samplers": [{"input": a, "output": o, "interpolation": "LINEAR"}
+                         for a, o, _, _ in samplers]}],
+        "bufferViews": views,
+        "accessors": accessors,
+        "buffers": [{"byteLength": len(data), "uri": name + ".bin"}],
+    }
     with open(os.path.join(out, name + ".gltf"), "w") as f:
         json.dump(doc, f, indent=1)
         f.write("\n")

@@ -16,8 +16,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from boxes import (about, accessors, floats, material, node, nodes, roots, times,  # noqa: E402
-                   unit_cube, views, write)
+from boxes import about, floats, material, node, times, unit_cube, write  # noqa: E402
 
 out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
 
@@ -84,23 +83,7 @@ samplers = [
     (cam_keys, floats(cam_at, "VEC3"), camera, "translation"),
     (cam_keys, floats(cam_q, "VEC4"), camera, "rotation"),
 ]
-doc = {
-    "asset": {"version": "2.0", "generator": "frameless docs/examples/make_arcade.py"},
-    "extensionsUsed": ["KHR_lights_punctual"],
-    "extensions": {"KHR_lights_punctual": {"lights": [
-        {"name": "lamp", "type": "point", "color": [1, 0.95, 0.85], "intensity": 14},
-        {"name": "sun", "type": "directional", "color": [0.85, 0.9, 1], "intensity": 1.2}]}},
-    "scene": 0,
-    "scenes": [{"name": "arcade", "nodes": roots}],
-    "nodes": nodes,
-    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.05, "aspectRatio": 1.0}}],
-    "meshes": meshes,
-    "materials": materials,
-    "animations": [{"name": "arcade", "channels": [
-        {"sampler": i, "target": {"node": n, "path": p}} for i, (_, _, n, p) in enumerate(samplers)],
-        "samplers": [{"input": a, "output": b, "interpolation": "LINEAR"} for a, b, _, _ in samplers]}],
-    "bufferViews": views,
-    "accessors": accessors,
-    "buffers": [],
-}
-write(out, "arcade", doc)
+lights = [
+    {"name": "lamp", "type": "point", "color": [1, 0.95, 0.85], "intensity": 14},
+    {"name": "sun", "type": "directional", "color": [0.85, 0.9, 1], "intensity": 1.2}]
+write(out, "arcade", lights, 0.9, meshes, materials, samplers)

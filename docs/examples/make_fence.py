@@ -15,8 +15,7 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from boxes import (about, accessors, floats, material, node, nodes, roots, times,  # noqa: E402
-                   unit_cube, views, write)
+from boxes import about, floats, material, node, times, unit_cube, write  # noqa: E402
 
 out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
 materials = [
@@ -74,23 +73,7 @@ samplers = [
     (cam_keys, floats(cam_at, "VEC3"), camera, "translation"),
     (cam_keys, floats(cam_q, "VEC4"), camera, "rotation"),
 ]
-doc = {
-    "asset": {"version": "2.0", "generator": "frameless docs/examples/make_fence.py"},
-    "extensionsUsed": ["KHR_lights_punctual"],
-    "extensions": {"KHR_lights_punctual": {"lights": [
-        {"name": "lamp", "type": "point", "color": [1, 0.95, 0.85], "intensity": 60},
-        {"name": "sun", "type": "directional", "color": [0.8, 0.85, 1], "intensity": 0.5}]}},
-    "scene": 0,
-    "scenes": [{"name": "fence", "nodes": roots}],
-    "nodes": nodes,
-    "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.05, "aspectRatio": 1.0}}],
-    "meshes": meshes,
-    "materials": materials,
-    "animations": [{"name": "fence", "channels": [
-        {"sampler": i, "target": {"node": n, "path": p}} for i, (_, _, n, p) in enumerate(samplers)],
-        "samplers": [{"input": a, "output": b, "interpolation": "LINEAR"} for a, b, _, _ in samplers]}],
-    "bufferViews": views,
-    "accessors": accessors,
-    "buffers": [],
-}
-write(out, "fence", doc)
+lights = [
+    {"name": "lamp", "type": "point", "color": [1, 0.95, 0.85], "intensity": 60},
+    {"name": "sun", "type": "directional", "color": [0.8, 0.85, 1], "intensity": 0.5}]
+write(out, "fence", lights, 0.8, meshes, materials, samplers)
