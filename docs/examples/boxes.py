@@ -5,6 +5,7 @@ import json
 import math
 import os
 import struct
+import sys
 
 data = bytearray()
 views, accessors = [], []
@@ -80,6 +81,16 @@ def node(d, root=True):
         roots.append(len(nodes) - 1)
     return len(nodes) - 1
 
+
+
+def out_dir():
+    """The folder a writer writes to: its first argument, else the scripts' own."""
+    return sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
+
+
+def cube_meshes(materials):
+    """One unit-cube mesh per material, named as it, in the materials' order."""
+    return [{"name": m["name"], "primitives": [unit_cube(i)]} for i, m in enumerate(materials)]
 
 
 def write(out, name, lights, yfov, meshes, materials, samplers):

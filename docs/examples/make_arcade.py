@@ -16,9 +16,9 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from boxes import about, floats, material, node, times, unit_cube, write  # noqa: E402
+from boxes import about, cube_meshes, floats, material, node, out_dir, times, write  # noqa: E402
 
-out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
+out = out_dir()
 
 materials = [
     material("dark tile", [0.25, 0.25, 0.27], 0.0, 0.8),
@@ -32,7 +32,7 @@ materials = [
     material("red", [0.8, 0.15, 0.12], 0.0, 0.5),
 ]
 DARK, LIGHT, GREEN, MAGENTA, YELLOW, CYAN, WHITE, STEEL, RED = range(len(materials))
-meshes = [{"name": m["name"], "primitives": [unit_cube(i)]} for i, m in enumerate(materials)]
+meshes = cube_meshes(materials)
 
 for i in range(12):
     for k in range(12):

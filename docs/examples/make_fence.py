@@ -15,9 +15,9 @@ import os
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from boxes import about, floats, material, node, times, unit_cube, write  # noqa: E402
+from boxes import about, cube_meshes, floats, material, node, out_dir, times, write  # noqa: E402
 
-out = sys.argv[1] if len(sys.argv) > 1 else os.path.dirname(os.path.abspath(__file__))
+out = out_dir()
 materials = [
     material("grass", [0.35, 0.5, 0.25], 0.0, 0.9),
     material("white", [0.92, 0.9, 0.85], 0.0, 0.6),
@@ -27,7 +27,7 @@ materials = [
     material("wood", [0.55, 0.4, 0.25], 0.0, 0.8),
 ]
 GRASS, WHITE, RED, BLUE, STEEL, WOOD = range(len(materials))
-meshes = [{"name": m["name"], "primitives": [unit_cube(i)]} for i, m in enumerate(materials)]
+meshes = cube_meshes(materials)
 node({"name": "ground", "mesh": GRASS, "translation": [0, -0.05, 0], "scale": [30, 0.1, 30]})
 for i in range(31):
     node({"name": "picket %d" % i, "mesh": WHITE, "translation": [-7.5 + i * 0.5, 0.6, -1.0],

@@ -110,7 +110,7 @@ def live(
     ring_factor: Optional[float] = None,
     max_radius: Optional[float] = None,
     view_ahead: bool = True,
-    late_samples: bool = False,
+    late_samples: bool = True,
 ) -> Tuple[str, str]:
     """`frameless live`: (summary JSON, per-refresh rows JSON)."""
 

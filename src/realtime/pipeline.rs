@@ -346,24 +346,25 @@ impl Lead {
     /// may let miss, does not move it.
     fn newest_median(&self) -> f64 {
         let len = self.recent.len();
-        let mut newest: Vec<f64> = (1..=Self::NEWEST.min(len))
-            .map(|k| self.recent[(self.next + len - k) % len])
-            .collect();
-        newest.sort_by(f64::total_cmp);
-        newest[newest.len() / 2]
+        median_of((1..=Self::NEWEST.min(len)).map(|k| self.recent[(self.next + len - k) % len]))
     }
 
     /// The median of the recent builds' wall times, seconds.
     fn median(&self) -> f64 {
-        let mut recent = self.recent.clone();
-        recent.sort_by(f64::total_cmp);
-        recent[recent.len() / 2]
+        median_of(self.recent.iter().copied())
     }
 
     fn record(&mut self, build_s: f64) {
         self.recent[self.next] = build_s;
         self.next = (self.next + 1) % self.recent.len();
     }
+}
+
+/// The median of `times` (the upper one of an even count), seconds; never empty here.
+fn median_of(times: impl Iterator<Item = f64>) -> f64 {
+    let mut sorted: Vec<f64> = times.collect();
+    sorted.sort_by(f64::total_cmp);
+    sorted[sorted.len() / 2]
 }
 
 /// When builds start and the refresh each is for: each is due [`Lead`] seconds before
